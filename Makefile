@@ -1,0 +1,72 @@
+# The one entry point. A newcomer types `make demo` and `make test`; everything else is below.
+#   make deps            install Debian packages + project venv (idempotent)
+#   make build           host C++ build (build/), sanitizer build of protocol/ (build-asan/), firmware image
+#   make test            deps + build, then every test suite (ctest, ASan ctest, fuzz smoke, pytest)
+#   make demo            deps + build, then the end-to-end demo of what exists
+#   make bench           accuracy/speed benchmarks on DATA (default ../shared/data), prints tables
+#   make study           the frame-rate / spatial-velocity study on DATA
+#   make fuzz            longer libFuzzer runs (FUZZ_SECONDS per target, default 300)
+#   make hil             all hardware-in-loop scenarios
+#   make firmware        build the ATmega328P image, print flash/RAM use
+#   make flash PORT=/dev/ttyACM0   upload the firmware with avrdude
+#   make install-onboard install rgbd-streamer + config + systemd unit on this (onboard) machine
+#   make run-offboard    start the ground station for real hardware
+#   make clean           remove build outputs (keeps .venv)
+SHELL := /bin/bash
+JOBS ?= $(shell nproc)
+DATA ?= ../shared/data
+PORT ?= /dev/ttyACM0
+FUZZ_SECONDS ?= 300
+export DATA JOBS PORT FUZZ_SECONDS
+
+# $(call component,script,args): run a component's entry script, or say it is not implemented yet.
+define component
+	@if [ -x "$(1)" ]; then "$(1)" $(2); else echo "make $@: not implemented yet ($(1) does not exist)"; exit 1; fi
+endef
+
+.PHONY: all deps build build-cpp build-asan firmware test demo bench study fuzz hil flash \
+        install-onboard run-offboard clean help
+
+all: build
+
+help:
+	@sed -n '1,/^SHELL/p' Makefile | grep '^#' | sed 's/^# \{0,1\}//'
+
+deps:
+	@scripts/deps.sh
+
+build: deps
+	@scripts/build.sh
+
+firmware: deps
+	$(call component,firmware/build.sh,)
+
+test: build
+	@scripts/test.sh
+
+demo: build
+	@scripts/demo.sh
+
+bench: build
+	@scripts/bench.sh
+
+study: build
+	$(call component,offboard/study.sh,)
+
+fuzz: build
+	@FUZZ_SECONDS=$(FUZZ_SECONDS) scripts/fuzz.sh
+
+hil: build
+	$(call component,hil/run.sh,)
+
+flash: firmware
+	$(call component,firmware/flash.sh,$(PORT))
+
+install-onboard: build
+	$(call component,onboard/install.sh,)
+
+run-offboard: build
+	$(call component,offboard/run-offboard.sh,)
+
+clean:
+	rm -rf build build-asan build-fuzz firmware/.pio test-artifacts

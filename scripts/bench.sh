@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Runs every component benchmark that exists (offboard/bench.sh, onboard/bench.sh, firmware/bench.sh)
+# on DATA (default ../shared/data) and prints their tables.
+set -uo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+export DATA=${DATA:-../shared/data}
+if [ ! -d "$DATA" ]; then echo "bench: data directory '$DATA' not found (set DATA=...)"; exit 1; fi
+ran=0; status=0
+for b in offboard/bench.sh onboard/bench.sh firmware/bench.sh; do
+  if [ -x "$b" ]; then ran=1; echo "=== $b"; "$b" || status=1; fi
+done
+[ "$ran" -eq 1 ] || { echo "bench: no benchmarks implemented yet"; exit 1; }
+exit $status

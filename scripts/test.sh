@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Every test suite, in order; runs them all and fails if any failed.
+#   1. ctest on build/ (GoogleTest: protocol, firmware core, onboard, offboard, HIL harness tests)
+#   2. ctest on build-asan/ (protocol library and firmware core under ASan+UBSan)
+#   3. fuzz smoke: every libFuzzer target, ~60 s in total
+#   4. pytest (Python codecs, cross-language round trips, firmware image in simavr, tools)
+set -uo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+jobs=${JOBS:-$(nproc)}
+failed=()
+run() { local name=$1; shift; echo "=== $name: $*"; if ! "$@"; then failed+=("$name"); fi; }
+
+run ctest ctest --test-dir build --output-on-failure -j "$jobs"
+run ctest-asan ctest --test-dir build-asan --output-on-failure -j "$jobs"
+run fuzz-smoke env FUZZ_TOTAL_SECONDS="${FUZZ_SMOKE_SECONDS:-60}" scripts/fuzz.sh
+run pytest .venv/bin/python -m pytest -q
+
+if [ "${#failed[@]}" -gt 0 ]; then
+  echo "make test: FAILED suites: ${failed[*]}"
+  exit 1
+fi
+echo "make test: all suites passed"
