@@ -1,0 +1,39 @@
+// Value types that cross the capture -> validation -> registration -> streaming stages.
+// Images are row-major and own their pixels. Timestamps are capture times in microseconds on the
+// source's clock (sensor/host monotonic clock for live devices, the dataset's clock for replays),
+// so RGB can be paired with depth, and frames with IMU readings that arrive by another route.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <variant>
+#include <vector>
+
+namespace rgbdquad::capture {
+
+// Kinect v1 native resolution, the size every source in this project delivers.
+constexpr int kKinectWidthPx = 640;
+constexpr int kKinectHeightPx = 480;
+// Depth units: Kinect drivers deliver millimetres; the TUM dataset stores 5000 units per metre.
+constexpr double kMillimetreUnitsPerM = 1000.0;
+constexpr double kTumDepthUnitsPerM = 5000.0;
+
+struct RgbFrame {
+  std::int64_t capture_timestamp_us = 0;
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint8_t> rgb;  // width*height*3 bytes, R,G,B
+};
+
+struct DepthFrame {
+  std::int64_t capture_timestamp_us = 0;
+  int width = 0;
+  int height = 0;
+  double units_per_m = kMillimetreUnitsPerM;  // value of depth[i] for a point 1 m away
+  bool registered_to_rgb = false;             // true when pixel (u,v) looks at RGB pixel (u,v)
+  std::vector<std::uint16_t> depth;           // width*height values, 0 = no reading
+};
+
+using SourceFrame = std::variant<RgbFrame, DepthFrame>;
+
+}  // namespace rgbdquad::capture

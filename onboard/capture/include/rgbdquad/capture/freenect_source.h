@@ -1,0 +1,77 @@
+// Kinect v1 through libfreenect 0.5: 640x480 RGB and depth, stamped with the injected clock when
+// libfreenect hands each frame over. The same binary replays a recorded dump when started under
+// `fakenect <dumpdir>` (LD_LIBRARY_PATH swaps in libfreenect's fakenect build).
+//
+// Depth modes:
+//  - registered: FREENECT_DEPTH_REGISTERED, millimetres already registered onto RGB by the driver
+//    (live Kinect; the default).
+//  - passthrough: FREENECT_DEPTH_11BIT buffers forwarded unchanged, declared as registered
+//    millimetres. Debian's fakenect 0.5.3 replays only this mode (it asserts 11-bit), so dumps made
+//    for replay store registered millimetres in it (see onboard/tools/make_fakenect_dump.py).
+//
+// Thread safety: libfreenect's event loop runs on an internal thread owned by this object; frames
+// cross to the consumer through a small queue (the newest kept when the consumer falls behind).
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "rgbdquad/capture/clock.h"
+#include "rgbdquad/capture/frame_source.h"
+
+struct _freenect_context;
+struct _freenect_device;
+
+namespace rgbdquad::capture {
+
+struct FreenectOptions {
+  int device_index = 0;
+  bool passthrough_depth = false;  // true: FREENECT_DEPTH_11BIT passthrough (fakenect dumps)
+  // Frames held for a slow consumer before the oldest is dropped: 4 = ~2 RGB+depth pairs.
+  std::size_t queue_capacity = 4;
+
+  bool is_valid(std::string* error) const;
+};
+
+class FreenectSource final : public FrameSource {
+ public:
+  // Opens and starts the device; throws std::runtime_error with the reason if there is no
+  // Kinect or a mode is refused (start-up boundary). `clock` must outlive the source.
+  FreenectSource(const FreenectOptions& options, Clock* clock);
+  ~FreenectSource() override;
+  FreenectSource(const FreenectSource&) = delete;
+  FreenectSource& operator=(const FreenectSource&) = delete;
+
+  std::optional<SourceFrame> next() override;
+  void stop() override;
+  std::string error() const override;
+  std::string describe() const override;
+  std::uint64_t queue_overflows() const { return overflows_; }
+
+  // libfreenect C callbacks (public so the C trampolines can reach them).
+  void on_depth(const void* data);
+  void on_video(const void* data);
+
+ private:
+  void push(SourceFrame frame);
+  void event_loop();
+
+  FreenectOptions options_;
+  Clock* clock_;
+  _freenect_context* context_ = nullptr;
+  _freenect_device* device_ = nullptr;
+  mutable std::mutex mutex_;
+  std::condition_variable ready_;
+  std::deque<SourceFrame> queue_;
+  bool ended_ = false;
+  std::string error_;
+  std::atomic<bool> stopped_{false};
+  std::atomic<std::uint64_t> overflows_{0};
+  std::thread events_;
+};
+
+}  // namespace rgbdquad::capture
