@@ -1,0 +1,69 @@
+"""The frame-rate guide: cell lookup, 'not enough data', the lowest rate meeting a target."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from slam_study import cli, guide, report
+from slam_study.tests.test_tables import make_pairs
+
+
+def _dense_pairs():
+    # 6 pairs in each of: 8-10 mm x 0.4-0.6 deg (RPE 3 mm), 16-18 mm x 0.8-1.0 deg (RPE 9 mm);
+    # 2 pairs in 4-6 mm x 0.2-0.4 deg (thin).
+    trans = [9.0] * 6 + [17.0] * 6 + [5.0] * 2
+    rot = [0.5] * 6 + [0.9] * 6 + [0.3] * 2
+    rpe = [3.0] * 6 + [9.0] * 6 + [1.0] * 2
+    return make_pairs(trans, rot, rpe_mm=rpe)
+
+
+def test_prediction_uses_the_cell_of_the_per_frame_motion():
+    # 0.27 m/s, 15 deg/s: 9 mm + 0.5 deg per frame at 30 fps, 18 mm + 1 deg at 15 fps
+    preds = guide.predict(_dense_pairs(), 0.27, 15.0, fps_list=(30.0, 15.0, 16.0, 54.0))
+    at30, at15, at16, at54 = preds
+    assert at30.enough and at30.cell.trans_mean_mm == pytest.approx(3.0)
+    assert at15.cell is None                               # 18 mm is beyond the grid
+    assert at16.enough and at16.cell.trans_mean_mm == pytest.approx(9.0)
+    assert at54.cell.n == 2 and not at54.enough             # thin cell: not enough data
+
+
+def test_lowest_rate_meeting_target():
+    preds = guide.predict(_dense_pairs(), 0.27, 15.0, fps_list=(30.0, 16.0))
+    assert guide.lowest_fps_meeting(preds, 10.0).fps == 16.0
+    assert guide.lowest_fps_meeting(preds, 5.0).fps == 30.0
+    assert guide.lowest_fps_meeting(preds, 1.0) is None
+    text = guide.guide_text(preds, 0.27, 15.0, 1.0, "test")
+    assert "No candidate rate is known to meet 1 mm" in text
+
+
+@pytest.mark.parametrize("v, w", [(-0.1, 1.0), (float("nan"), 1.0), (0.1, float("inf"))])
+def test_bad_velocities_are_rejected(v, w):
+    with pytest.raises(ValueError):
+        guide.predict(_dense_pairs(), v, w)
+
+
+def test_guide_cli_reads_pairs_csv(tmp_path, capsys):
+    p = _dense_pairs()
+    report.write_pairs_csv(tmp_path / "pairs.csv",
+                           [report.Source("s", p, [("d", "orb", "vo", 1, p)])])
+    back, names = report.read_pairs_csv(tmp_path / "pairs.csv")
+    assert names == ["s"] and len(back) == len(p)
+    np.testing.assert_allclose(back.gt_trans_mm, p.gt_trans_mm)
+    assert cli.main(["guide", "--trans-vel", "0.27", "--rot-vel", "15", "--target-rpe-mm", "5",
+                     "--report", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "Lowest frame rate meeting 5 mm per frame: 30.00 fps" in out
+    assert "not enough data" in out                    # lower candidate rates are beyond the grid
+    assert cli.main(["guide", "--trans-vel", "0.27", "--rot-vel", "15",
+                     "--report", str(tmp_path / "none")]) == 2
+    with pytest.raises(SystemExit):
+        cli.main(["guide", "--trans-vel", "-1", "--rot-vel", "15"])
+
+
+def test_platform_table_reports_envelope_or_not_enough_data():
+    table = guide.platform_table(_dense_pairs())
+    assert table.rows[0][0] == "30"
+    assert table.rows[0][3] == "not enough data"      # no pure-rotation pairs at all
+    empty = guide.platform_table(make_pairs([], []))
+    assert empty.rows[0][1] == "not enough data"
