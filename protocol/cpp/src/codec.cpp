@@ -1,0 +1,729 @@
+// Codecs of every message in protocol/spec/messages.json: structural encode/decode of each field in
+// spec order (explicit little-endian), one validate() per message holding every value rule (the
+// encoder and the decoder both run it), and the envelope with its incremental StreamDecoder.
+#include "rgbdquad/protocol/codec.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <type_traits>
+
+#include "wire.hpp"
+
+namespace rgbdquad::protocol {
+namespace {
+
+using wire::Reader;
+using wire::Writer;
+
+// |q|^2 may differ from 1 by this much: doubles normalised by any sane code are within 1e-15;
+// 2e-6 on |q|^2 is 1e-6 on |q| (spec Pose3 check unit_quaternion).
+constexpr double kUnitQuaternionTolerance = 2e-6;
+
+constexpr std::array<std::uint32_t, 256> make_crc_table() {
+  std::array<std::uint32_t, 256> table{};
+  for (std::uint32_t i = 0; i < 256; ++i) {
+    std::uint32_t c = i;
+    for (int k = 0; k < 8; ++k) c = (c & 1u) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+    table[i] = c;
+  }
+  return table;
+}
+constexpr std::array<std::uint32_t, 256> kCrcTable = make_crc_table();
+
+std::size_t bytes_per_pixel(PixelFormat format) {
+  return format == PixelFormat::kRgb8 ? 3 : 2;
+}
+
+// ---------------------------------------------------------------- value checks (validate)
+// Each returns "" when fine, else "<field>: <reason>"; the first failure wins.
+
+std::string check_range(double v, double lo, double hi, const char* field) {
+  if (v >= lo && v <= hi) return {};  // false for NaN
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%s: %g outside [%g, %g] or not finite", field, v, lo, hi);
+  return buf;
+}
+
+std::string check_int_range(std::uint64_t v, std::uint64_t lo, std::uint64_t hi,
+                            const char* field) {
+  if (v >= lo && v <= hi) return {};
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%s: %llu outside [%llu, %llu]", field,
+                static_cast<unsigned long long>(v), static_cast<unsigned long long>(lo),
+                static_cast<unsigned long long>(hi));
+  return buf;
+}
+
+std::string check_string(const std::string& s, const char* field) {
+  if (s.size() > kMaxStringBytes) return std::string(field) + ": longer than kMaxStringBytes";
+  for (char c : s) {
+    if (c < 0x20 || c > 0x7e) return std::string(field) + ": not printable ASCII";
+  }
+  return {};
+}
+
+#define RGBD_CHECK(expr)          \
+  do {                            \
+    std::string rgbd_err = expr;  \
+    if (!rgbd_err.empty()) return rgbd_err; \
+  } while (false)
+
+std::string check_intrinsics(const CameraIntrinsics& k) {
+  RGBD_CHECK(check_range(k.fx_px, 1.0, 100000.0, "intrinsics.fx_px"));
+  RGBD_CHECK(check_range(k.fy_px, 1.0, 100000.0, "intrinsics.fy_px"));
+  RGBD_CHECK(check_range(k.cx_px, -100000.0, 100000.0, "intrinsics.cx_px"));
+  RGBD_CHECK(check_range(k.cy_px, -100000.0, 100000.0, "intrinsics.cy_px"));
+  for (double d : k.distortion) RGBD_CHECK(check_range(d, -1000.0, 1000.0, "intrinsics.distortion"));
+  return {};
+}
+
+std::string check_image(const ImageFrame& f, const char* field) {
+  const std::string prefix = std::string(field) + ".";
+  const FrameHeader& h = f.header;
+  RGBD_CHECK(check_int_range(h.width, 1, kMaxImageDimensionPx, (prefix + "width").c_str()));
+  RGBD_CHECK(check_int_range(h.height, 1, kMaxImageDimensionPx, (prefix + "height").c_str()));
+  if (!is_valid_pixel_format(static_cast<std::uint8_t>(h.pixel_format)))
+    return prefix + "pixel_format: unknown value";
+  if (!is_valid_encoding(static_cast<std::uint8_t>(h.encoding)))
+    return prefix + "encoding: unknown value";
+  if (!encoding_allows_pixel_format(h.encoding, h.pixel_format))
+    return prefix + "encoding: does not carry this pixel_format";
+  if (f.payload.size() > kMaxFramePayloadBytes) return prefix + "payload: too large";
+  if (h.payload_length != f.payload.size())
+    return prefix + "payload_length: differs from payload size";
+  if (h.encoding == Encoding::kRaw) {
+    const std::size_t expected =
+        std::size_t{h.width} * std::size_t{h.height} * bytes_per_pixel(h.pixel_format);
+    if (f.payload.size() != expected) return prefix + "payload: RAW size != width*height*bpp";
+  }
+  return {};
+}
+
+std::string check_pose(const Pose3& p, const char* field) {
+  const std::string prefix = std::string(field) + ".";
+  for (double t : p.t_m) RGBD_CHECK(check_range(t, -100000.0, 100000.0, (prefix + "t_m").c_str()));
+  for (double q : p.q_xyzw) RGBD_CHECK(check_range(q, -1.0, 1.0, (prefix + "q_xyzw").c_str()));
+  const auto& q = p.q_xyzw;
+  const double norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+  if (!(std::fabs(norm2 - 1.0) <= kUnitQuaternionTolerance))
+    return prefix + "q_xyzw: not a unit quaternion";
+  return {};
+}
+
+std::string check_stream_kind(StreamKind kind, PixelFormat format) {
+  const bool match = (kind == StreamKind::kRgb && format == PixelFormat::kRgb8) ||
+                     (kind == StreamKind::kDepth && format == PixelFormat::kDepth16);
+  return match ? std::string{} : std::string("pixel_format: does not match stream_kind");
+}
+
+std::string validate_one(const Handshake& m) {
+  if (!is_valid_stream_kind(static_cast<std::uint8_t>(m.stream_kind)))
+    return "stream_kind: unknown value";
+  RGBD_CHECK(check_int_range(m.width, 1, kMaxImageDimensionPx, "width"));
+  RGBD_CHECK(check_int_range(m.height, 1, kMaxImageDimensionPx, "height"));
+  if (!is_valid_pixel_format(static_cast<std::uint8_t>(m.pixel_format)))
+    return "pixel_format: unknown value";
+  if (!is_valid_encoding(static_cast<std::uint8_t>(m.encoding))) return "encoding: unknown value";
+  if (!encoding_allows_pixel_format(m.encoding, m.pixel_format))
+    return "encoding: does not carry this pixel_format";
+  RGBD_CHECK(check_stream_kind(m.stream_kind, m.pixel_format));
+  RGBD_CHECK(check_intrinsics(m.intrinsics));
+  RGBD_CHECK(check_range(m.depth_scale_units_per_m, 0.0, 1000000.0, "depth_scale_units_per_m"));
+  return check_string(m.device_id, "device_id");
+}
+
+std::string validate_one(const HandshakeAck& m) { return check_string(m.reason, "reason"); }
+
+std::string validate_one(const Frame& m) { return check_image(m.image, "image"); }
+
+std::string validate_one(const FrameRequest& m) {
+  return check_int_range(m.credits, 1, kMaxCreditsPerRequest, "credits");
+}
+
+std::string validate_one(const SlamHello& m) { return check_string(m.peer_name, "peer_name"); }
+
+std::string validate_one(const RgbdFrame& m) {
+  RGBD_CHECK(check_intrinsics(m.intrinsics));
+  RGBD_CHECK(check_range(m.depth_scale_units_per_m, 1.0, 1000000.0, "depth_scale_units_per_m"));
+  RGBD_CHECK(check_image(m.rgb, "rgb"));
+  RGBD_CHECK(check_image(m.depth, "depth"));
+  if (m.rgb.header.pixel_format != PixelFormat::kRgb8) return "rgb.pixel_format: must be RGB8";
+  if (m.depth.header.pixel_format != PixelFormat::kDepth16)
+    return "depth.pixel_format: must be DEPTH16";
+  return {};
+}
+
+std::string validate_one(const PoseUpdate& m) {
+  if (!is_valid_tracking_state(static_cast<std::uint8_t>(m.tracking_state)))
+    return "tracking_state: unknown value";
+  RGBD_CHECK(check_pose(m.T_world_cam, "T_world_cam"));
+  return check_pose(m.T_prev_cur, "T_prev_cur");
+}
+
+std::string validate_one(const PoseGraph& m) {
+  if (!is_valid_graph_stage(static_cast<std::uint8_t>(m.stage))) return "stage: unknown value";
+  if (m.nodes.size() > kMaxGraphNodes) return "nodes: more than kMaxGraphNodes";
+  if (m.edges.size() > kMaxGraphEdges) return "edges: more than kMaxGraphEdges";
+  for (const auto& n : m.nodes) RGBD_CHECK(check_pose(n.T_world_node, "nodes.T_world_node"));
+  for (const auto& e : m.edges) {
+    if (!is_valid_edge_kind(static_cast<std::uint8_t>(e.kind))) return "edges.kind: unknown value";
+    RGBD_CHECK(check_pose(e.T_from_to, "edges.T_from_to"));
+  }
+  return {};
+}
+
+std::string validate_one(const FloorMap& m) {
+  RGBD_CHECK(check_range(m.resolution_m, 0.001, 100.0, "resolution_m"));
+  RGBD_CHECK(check_range(m.origin_x_m, -100000.0, 100000.0, "origin_x_m"));
+  RGBD_CHECK(check_range(m.origin_y_m, -100000.0, 100000.0, "origin_y_m"));
+  RGBD_CHECK(check_int_range(m.width_cells, 1, kMaxMapDimensionCells, "width_cells"));
+  RGBD_CHECK(check_int_range(m.height_cells, 1, kMaxMapDimensionCells, "height_cells"));
+  if (!is_valid_cell_format(static_cast<std::uint8_t>(m.cell_format)))
+    return "cell_format: unknown value";
+  if (m.cells.size() != std::size_t{m.width_cells} * std::size_t{m.height_cells})
+    return "cells: size != width_cells*height_cells";
+  return {};
+}
+
+// ---------------------------------------------------------------- structural encode
+
+void put_string(Writer& w, const std::string& s) {
+  w.u16(static_cast<std::uint16_t>(s.size()));
+  w.raw(reinterpret_cast<const std::uint8_t*>(s.data()), s.size());
+}
+
+void put_intrinsics(Writer& w, const CameraIntrinsics& k) {
+  w.f64(k.fx_px);
+  w.f64(k.fy_px);
+  w.f64(k.cx_px);
+  w.f64(k.cy_px);
+  for (double d : k.distortion) w.f64(d);
+}
+
+void put_frame_header(Writer& w, const FrameHeader& h) {
+  w.u32(h.sequence);
+  w.u64(h.capture_timestamp_us);
+  w.u64(h.send_timestamp_us);
+  w.u16(h.width);
+  w.u16(h.height);
+  w.u8(static_cast<std::uint8_t>(h.pixel_format));
+  w.u8(static_cast<std::uint8_t>(h.encoding));
+  w.u32(h.payload_length);
+}
+
+void put_image(Writer& w, const ImageFrame& f) {
+  put_frame_header(w, f.header);
+  w.raw(f.payload.data(), f.payload.size());
+}
+
+void put_pose(Writer& w, const Pose3& p) {
+  for (double t : p.t_m) w.f64(t);
+  for (double q : p.q_xyzw) w.f64(q);
+}
+
+void put_body(Writer& w, const Handshake& m) {
+  w.u16(m.protocol_version);
+  w.u64(m.schema_hash);
+  w.u8(static_cast<std::uint8_t>(m.stream_kind));
+  w.u16(m.width);
+  w.u16(m.height);
+  w.u8(static_cast<std::uint8_t>(m.pixel_format));
+  w.u8(static_cast<std::uint8_t>(m.encoding));
+  put_intrinsics(w, m.intrinsics);
+  w.f64(m.depth_scale_units_per_m);
+  put_string(w, m.device_id);
+}
+void put_body(Writer& w, const HandshakeAck& m) {
+  w.u8(m.accepted ? 1 : 0);
+  put_string(w, m.reason);
+}
+void put_body(Writer& w, const Frame& m) { put_image(w, m.image); }
+void put_body(Writer& w, const FrameRequest& m) {
+  w.u16(m.credits);
+  w.u32(m.last_received_sequence);
+}
+void put_body(Writer& w, const SlamHello& m) {
+  w.u16(m.protocol_version);
+  w.u64(m.schema_hash);
+  put_string(w, m.peer_name);
+}
+void put_body(Writer& w, const RgbdFrame& m) {
+  w.u32(m.pair_sequence);
+  put_intrinsics(w, m.intrinsics);
+  w.f64(m.depth_scale_units_per_m);
+  put_image(w, m.rgb);
+  put_image(w, m.depth);
+}
+void put_body(Writer& w, const PoseUpdate& m) {
+  w.u32(m.pair_sequence);
+  w.u64(m.timestamp_us);
+  w.u8(static_cast<std::uint8_t>(m.tracking_state));
+  put_pose(w, m.T_world_cam);
+  put_pose(w, m.T_prev_cur);
+  w.u8(m.is_keyframe ? 1 : 0);
+  w.u32(m.inlier_count);
+}
+void put_body(Writer& w, const PoseGraph& m) {
+  w.u32(m.revision);
+  w.u64(m.timestamp_us);
+  w.u8(static_cast<std::uint8_t>(m.stage));
+  w.u32(static_cast<std::uint32_t>(m.nodes.size()));
+  for (const auto& n : m.nodes) {
+    w.u32(n.node_id);
+    w.u64(n.timestamp_us);
+    put_pose(w, n.T_world_node);
+  }
+  w.u32(static_cast<std::uint32_t>(m.edges.size()));
+  for (const auto& e : m.edges) {
+    w.u32(e.from_id);
+    w.u32(e.to_id);
+    w.u8(static_cast<std::uint8_t>(e.kind));
+    put_pose(w, e.T_from_to);
+  }
+}
+void put_body(Writer& w, const FloorMap& m) {
+  w.u32(m.revision);
+  w.u64(m.timestamp_us);
+  w.f64(m.resolution_m);
+  w.f64(m.origin_x_m);
+  w.f64(m.origin_y_m);
+  w.u16(m.width_cells);
+  w.u16(m.height_cells);
+  w.u8(static_cast<std::uint8_t>(m.cell_format));
+  w.u32(static_cast<std::uint32_t>(m.cells.size()));
+  w.raw(m.cells.data(), m.cells.size());
+}
+
+// ---------------------------------------------------------------- structural decode
+// Parsing context: the reader plus the first value error found while parsing (only booleans need
+// it: a bool cannot hold the wire value 2). Value errors are reported only when the body is
+// structurally sound, the same order as the Python codec.
+struct Parse {
+  Reader r;
+  std::string invalid;
+};
+
+bool get_bool(Parse& p, const char* field) {
+  const std::uint8_t v = p.r.u8();
+  if (v > 1 && p.invalid.empty()) p.invalid = std::string(field) + ": bool not 0 or 1";
+  return v == 1;
+}
+
+std::string get_string(Parse& p, const char* field) {
+  const std::uint16_t len = p.r.u16();
+  if (p.r.failed()) return {};
+  if (len > kMaxStringBytes) {
+    p.r.length_error(std::string(field) + ": length above kMaxStringBytes");
+    return {};
+  }
+  const std::uint8_t* s = p.r.take(len);
+  return s == nullptr ? std::string{} : std::string(reinterpret_cast<const char*>(s), len);
+}
+
+// Length-prefixed bytes: limit checked before the remaining-size check and before allocating.
+std::vector<std::uint8_t> get_bytes(Parse& p, std::size_t max_len, const char* field,
+                                    std::uint32_t* length_out) {
+  const std::uint32_t len = p.r.u32();
+  if (length_out != nullptr) *length_out = len;
+  if (p.r.failed()) return {};
+  if (len > max_len) {
+    p.r.length_error(std::string(field) + ": length above its limit");
+    return {};
+  }
+  const std::uint8_t* b = p.r.take(len);
+  return b == nullptr ? std::vector<std::uint8_t>{} : std::vector<std::uint8_t>(b, b + len);
+}
+
+void get_intrinsics(Parse& p, CameraIntrinsics& k) {
+  k.fx_px = p.r.f64();
+  k.fy_px = p.r.f64();
+  k.cx_px = p.r.f64();
+  k.cy_px = p.r.f64();
+  for (double& d : k.distortion) d = p.r.f64();
+}
+
+void get_image(Parse& p, ImageFrame& f, const char* field) {
+  FrameHeader& h = f.header;
+  h.sequence = p.r.u32();
+  h.capture_timestamp_us = p.r.u64();
+  h.send_timestamp_us = p.r.u64();
+  h.width = p.r.u16();
+  h.height = p.r.u16();
+  h.pixel_format = static_cast<PixelFormat>(p.r.u8());
+  h.encoding = static_cast<Encoding>(p.r.u8());
+  f.payload = get_bytes(p, kMaxFramePayloadBytes, field, &h.payload_length);
+}
+
+void get_pose(Parse& p, Pose3& pose) {
+  for (double& t : pose.t_m) t = p.r.f64();
+  for (double& q : pose.q_xyzw) q = p.r.f64();
+}
+
+void get_body(Parse& p, Handshake& m) {
+  m.protocol_version = p.r.u16();
+  m.schema_hash = p.r.u64();
+  m.stream_kind = static_cast<StreamKind>(p.r.u8());
+  m.width = p.r.u16();
+  m.height = p.r.u16();
+  m.pixel_format = static_cast<PixelFormat>(p.r.u8());
+  m.encoding = static_cast<Encoding>(p.r.u8());
+  get_intrinsics(p, m.intrinsics);
+  m.depth_scale_units_per_m = p.r.f64();
+  m.device_id = get_string(p, "device_id");
+}
+void get_body(Parse& p, HandshakeAck& m) {
+  m.accepted = get_bool(p, "accepted");
+  m.reason = get_string(p, "reason");
+}
+void get_body(Parse& p, Frame& m) { get_image(p, m.image, "image.payload"); }
+void get_body(Parse& p, FrameRequest& m) {
+  m.credits = p.r.u16();
+  m.last_received_sequence = p.r.u32();
+}
+void get_body(Parse& p, SlamHello& m) {
+  m.protocol_version = p.r.u16();
+  m.schema_hash = p.r.u64();
+  m.peer_name = get_string(p, "peer_name");
+}
+void get_body(Parse& p, RgbdFrame& m) {
+  m.pair_sequence = p.r.u32();
+  get_intrinsics(p, m.intrinsics);
+  m.depth_scale_units_per_m = p.r.f64();
+  get_image(p, m.rgb, "rgb.payload");
+  get_image(p, m.depth, "depth.payload");
+}
+void get_body(Parse& p, PoseUpdate& m) {
+  m.pair_sequence = p.r.u32();
+  m.timestamp_us = p.r.u64();
+  m.tracking_state = static_cast<TrackingState>(p.r.u8());
+  get_pose(p, m.T_world_cam);
+  get_pose(p, m.T_prev_cur);
+  m.is_keyframe = get_bool(p, "is_keyframe");
+  m.inlier_count = p.r.u32();
+}
+
+// Node/edge wire sizes: the remaining-bytes check before reserve() bounds the allocation.
+constexpr std::size_t kPoseBytes = 7 * 8;
+constexpr std::size_t kNodeBytes = 4 + 8 + kPoseBytes;
+constexpr std::size_t kEdgeBytes = 4 + 4 + 1 + kPoseBytes;
+
+template <typename Item, typename ReadItem>
+void get_array(Parse& p, std::vector<Item>& out, std::size_t max_count, std::size_t item_bytes,
+               const char* field, ReadItem read_item) {
+  const std::uint32_t count = p.r.u32();
+  if (p.r.failed()) return;
+  if (count > max_count) {
+    p.r.length_error(std::string(field) + ": count above its limit");
+    return;
+  }
+  if (std::size_t{count} * item_bytes > p.r.remaining()) {
+    p.r.take(p.r.remaining() + 1);  // marks truncated
+    return;
+  }
+  out.resize(count);
+  for (auto& item : out) read_item(item);
+}
+
+void get_body(Parse& p, PoseGraph& m) {
+  m.revision = p.r.u32();
+  m.timestamp_us = p.r.u64();
+  m.stage = static_cast<GraphStage>(p.r.u8());
+  get_array(p, m.nodes, kMaxGraphNodes, kNodeBytes, "nodes", [&p](PoseGraphNode& n) {
+    n.node_id = p.r.u32();
+    n.timestamp_us = p.r.u64();
+    get_pose(p, n.T_world_node);
+  });
+  get_array(p, m.edges, kMaxGraphEdges, kEdgeBytes, "edges", [&p](PoseGraphEdge& e) {
+    e.from_id = p.r.u32();
+    e.to_id = p.r.u32();
+    e.kind = static_cast<EdgeKind>(p.r.u8());
+    get_pose(p, e.T_from_to);
+  });
+}
+void get_body(Parse& p, FloorMap& m) {
+  m.revision = p.r.u32();
+  m.timestamp_us = p.r.u64();
+  m.resolution_m = p.r.f64();
+  m.origin_x_m = p.r.f64();
+  m.origin_y_m = p.r.f64();
+  m.width_cells = p.r.u16();
+  m.height_cells = p.r.u16();
+  m.cell_format = static_cast<CellFormat>(p.r.u8());
+  m.cells = get_bytes(p, kMaxMapCellsBytes, "cells", nullptr);
+}
+
+template <typename T>
+BodyResult decode_as(const std::uint8_t* data, std::size_t size) {
+  Parse p{Reader(data, size), {}};
+  T message{};
+  get_body(p, message);
+  BodyResult result;
+  if (!p.r.length_error_detail().empty()) {
+    result.error = DecodeError::kLengthTooLarge;
+    result.detail = p.r.length_error_detail();
+  } else if (p.r.truncated()) {
+    result.error = DecodeError::kTruncatedBody;
+    result.detail = "body ends inside its fields";
+  } else if (p.r.remaining() != 0) {
+    result.error = DecodeError::kTrailingBytes;
+    result.detail = std::to_string(p.r.remaining()) + " bytes after the last field";
+  } else if (!p.invalid.empty()) {
+    result.error = DecodeError::kInvalidValue;
+    result.detail = p.invalid;
+  } else if (std::string err = validate_one(message); !err.empty()) {
+    result.error = DecodeError::kInvalidValue;
+    result.detail = err;
+  } else {
+    result.message = std::move(message);
+  }
+  return result;
+}
+
+std::uint32_t get_le32(const std::uint8_t* in) {
+  return std::uint32_t{in[0]} | std::uint32_t{in[1]} << 8 | std::uint32_t{in[2]} << 16 |
+         std::uint32_t{in[3]} << 24;
+}
+
+// Wraps an already-encoded body: header (with header CRC), body, body CRC.
+std::vector<std::uint8_t> wrap(MessageType type, const std::vector<std::uint8_t>& body) {
+  std::vector<std::uint8_t> out;
+  out.reserve(kEnvelopeHeaderBytes + body.size() + kEnvelopeTrailerBytes);
+  Writer w(out);
+  w.raw(kMagic, sizeof kMagic);
+  w.u8(kProtocolVersion);
+  w.u8(static_cast<std::uint8_t>(type));
+  w.u16(0);
+  w.u32(static_cast<std::uint32_t>(body.size()));
+  w.u32(crc32(out.data(), 12));
+  w.raw(body.data(), body.size());
+  w.u32(crc32(body.data(), body.size()));
+  return out;
+}
+
+template <typename T>
+constexpr MessageType type_of() {
+  if constexpr (std::is_same_v<T, Handshake>) return MessageType::kHandshake;
+  if constexpr (std::is_same_v<T, HandshakeAck>) return MessageType::kHandshakeAck;
+  if constexpr (std::is_same_v<T, Frame>) return MessageType::kFrame;
+  if constexpr (std::is_same_v<T, FrameRequest>) return MessageType::kFrameRequest;
+  if constexpr (std::is_same_v<T, SlamHello>) return MessageType::kSlamHello;
+  if constexpr (std::is_same_v<T, RgbdFrame>) return MessageType::kRgbdFrame;
+  if constexpr (std::is_same_v<T, PoseUpdate>) return MessageType::kPoseUpdate;
+  if constexpr (std::is_same_v<T, PoseGraph>) return MessageType::kPoseGraph;
+  if constexpr (std::is_same_v<T, FloorMap>) return MessageType::kFloorMap;
+}
+
+template <typename T>
+EncodeResult encode_typed(const T& message, bool with_envelope) {
+  EncodeResult result;
+  result.error = validate_one(message);
+  if (!result.error.empty()) return result;
+  std::vector<std::uint8_t> body;
+  Writer w(body);
+  put_body(w, message);
+  result.bytes = with_envelope ? wrap(type_of<T>(), body) : std::move(body);
+  return result;
+}
+
+}  // namespace
+
+const char* to_string(DecodeError error) {
+  switch (error) {
+    case DecodeError::kNone: return "none";
+    case DecodeError::kGarbageSkipped: return "garbage_skipped";
+    case DecodeError::kBadHeaderCrc: return "bad_header_crc";
+    case DecodeError::kUnsupportedVersion: return "unsupported_version";
+    case DecodeError::kUnknownMessageType: return "unknown_message_type";
+    case DecodeError::kReservedNonzero: return "reserved_nonzero";
+    case DecodeError::kBodyTooLarge: return "body_too_large";
+    case DecodeError::kBadBodyCrc: return "bad_body_crc";
+    case DecodeError::kTruncatedBody: return "truncated_body";
+    case DecodeError::kLengthTooLarge: return "length_too_large";
+    case DecodeError::kTrailingBytes: return "trailing_bytes";
+    case DecodeError::kInvalidValue: return "invalid_value";
+  }
+  return "?";
+}
+
+MessageType message_type(const Message& message) {
+  return std::visit([](const auto& m) { return type_of<std::decay_t<decltype(m)>>(); }, message);
+}
+
+std::uint32_t crc32(const std::uint8_t* data, std::size_t size, std::uint32_t crc) {
+  crc = ~crc;
+  for (std::size_t i = 0; i < size; ++i) crc = kCrcTable[(crc ^ data[i]) & 0xFFu] ^ (crc >> 8);
+  return ~crc;
+}
+
+std::string validate(const Message& message) {
+  return std::visit([](const auto& m) { return validate_one(m); }, message);
+}
+
+EncodeResult encode(const Message& message) {
+  return std::visit([](const auto& m) { return encode_typed(m, true); }, message);
+}
+EncodeResult encode_body(const Message& message) {
+  return std::visit([](const auto& m) { return encode_typed(m, false); }, message);
+}
+EncodeResult encode_handshake(const Handshake& m) { return encode_typed(m, true); }
+EncodeResult encode_handshake_ack(const HandshakeAck& m) { return encode_typed(m, true); }
+EncodeResult encode_frame(const Frame& m) { return encode_typed(m, true); }
+EncodeResult encode_frame_request(const FrameRequest& m) { return encode_typed(m, true); }
+
+EncodeResult encode_frame(const FrameHeader& header, const std::uint8_t* payload,
+                          std::size_t payload_size) {
+  Frame frame;
+  frame.image.header = header;
+  if (payload_size > 0) frame.image.payload.assign(payload, payload + payload_size);
+  return encode_typed(frame, true);
+}
+
+BodyResult decode_body(std::uint8_t type, const std::uint8_t* data, std::size_t size) {
+  switch (static_cast<MessageType>(type)) {
+    case MessageType::kHandshake: return decode_as<Handshake>(data, size);
+    case MessageType::kHandshakeAck: return decode_as<HandshakeAck>(data, size);
+    case MessageType::kFrame: return decode_as<Frame>(data, size);
+    case MessageType::kFrameRequest: return decode_as<FrameRequest>(data, size);
+    case MessageType::kSlamHello: return decode_as<SlamHello>(data, size);
+    case MessageType::kRgbdFrame: return decode_as<RgbdFrame>(data, size);
+    case MessageType::kPoseUpdate: return decode_as<PoseUpdate>(data, size);
+    case MessageType::kPoseGraph: return decode_as<PoseGraph>(data, size);
+    case MessageType::kFloorMap: return decode_as<FloorMap>(data, size);
+  }
+  BodyResult result;
+  result.error = DecodeError::kUnknownMessageType;
+  result.detail = "message type " + std::to_string(type) + " is not in the spec";
+  return result;
+}
+
+namespace {
+std::string incompatibility(std::uint16_t version, std::uint64_t hash) {
+  char buf[200];
+  if (version != kProtocolVersion) {
+    std::snprintf(buf, sizeof buf, "protocol version mismatch: peer %u, ours %u", version,
+                  static_cast<unsigned>(kProtocolVersion));
+    return buf;
+  }
+  if (hash != kSchemaHash) {
+    std::snprintf(buf, sizeof buf, "schema hash mismatch: peer 0x%016llx, ours 0x%016llx",
+                  static_cast<unsigned long long>(hash),
+                  static_cast<unsigned long long>(kSchemaHash));
+    return buf;
+  }
+  return {};
+}
+}  // namespace
+
+std::string handshake_incompatibility(const Handshake& peer) {
+  return incompatibility(peer.protocol_version, peer.schema_hash);
+}
+std::string hello_incompatibility(const SlamHello& peer) {
+  return incompatibility(peer.protocol_version, peer.schema_hash);
+}
+
+// ---------------------------------------------------------------- StreamDecoder
+
+void StreamDecoder::feed(const std::uint8_t* data, std::size_t size) {
+  if (size == 0) return;
+  // Compact before growing so a long-lived connection does not keep consumed bytes.
+  if (read_offset_ > 0 && read_offset_ >= buffer_.size() / 2) {
+    buffer_.erase(buffer_.begin(), buffer_.begin() + static_cast<std::ptrdiff_t>(read_offset_));
+    read_offset_ = 0;
+  }
+  buffer_.insert(buffer_.end(), data, data + size);
+}
+
+void StreamDecoder::consume(std::size_t count) {
+  read_offset_ += count;
+  if (read_offset_ == buffer_.size()) {
+    buffer_.clear();
+    read_offset_ = 0;
+  }
+}
+
+// Drops bytes from read_offset_+from up to the next position that starts with the magic or with a
+// prefix of it at the end of the buffer. Returns the total bytes dropped (including `from`).
+std::size_t StreamDecoder::discard_to_next_magic(std::size_t from) {
+  const std::size_t available = buffered_bytes();
+  const std::uint8_t* base = buffer_.data() + read_offset_;
+  std::size_t i = from;
+  for (; i < available; ++i) {
+    const std::size_t n = std::min(sizeof kMagic, available - i);
+    if (std::equal(base + i, base + i + n, kMagic)) break;
+  }
+  consume(i);
+  return i;
+}
+
+DecodeResult StreamDecoder::next() {
+  DecodeResult result;
+  if (buffered_bytes() == 0) return result;
+  if (const std::size_t skipped = discard_to_next_magic(0); skipped > 0) {
+    result.status = DecodeStatus::kError;
+    result.error = DecodeError::kGarbageSkipped;
+    result.detail = std::to_string(skipped) + " bytes before a magic";
+    result.bytes_discarded = skipped;
+    return result;
+  }
+  if (buffered_bytes() < kEnvelopeHeaderBytes) return result;
+
+  const std::uint8_t* h = buffer_.data() + read_offset_;
+  const std::uint8_t version = h[4];
+  const std::uint8_t type = h[5];
+  const std::uint16_t reserved = static_cast<std::uint16_t>(h[6] | (h[7] << 8));
+  const std::uint32_t body_length = get_le32(h + 8);
+  const std::uint32_t header_crc = get_le32(h + 12);
+
+  auto header_error = [&](DecodeError error, std::string detail) {
+    result.status = DecodeStatus::kError;
+    result.error = error;
+    result.detail = std::move(detail);
+    result.bytes_discarded = discard_to_next_magic(1);
+    return result;
+  };
+  if (crc32(h, 12) != header_crc) return header_error(DecodeError::kBadHeaderCrc, "header CRC");
+  if (version != kProtocolVersion) {
+    return header_error(DecodeError::kUnsupportedVersion,
+                        "version " + std::to_string(version) + ", ours " +
+                            std::to_string(kProtocolVersion));
+  }
+  const std::size_t type_max = max_body_bytes(type);
+  if (type_max == 0) {
+    return header_error(DecodeError::kUnknownMessageType, "type " + std::to_string(type));
+  }
+  if (reserved != 0) return header_error(DecodeError::kReservedNonzero, "reserved bits set");
+  const std::size_t cap =
+      options_.max_body_bytes > 0 ? std::min(type_max, options_.max_body_bytes) : type_max;
+  if (body_length > cap) {
+    return header_error(DecodeError::kBodyTooLarge,
+                        "body_length " + std::to_string(body_length) + " > " + std::to_string(cap));
+  }
+  const std::size_t frame_bytes = kEnvelopeHeaderBytes + body_length + kEnvelopeTrailerBytes;
+  if (buffered_bytes() < frame_bytes) return result;
+
+  const std::uint8_t* body = h + kEnvelopeHeaderBytes;
+  if (crc32(body, body_length) != get_le32(body + body_length)) {
+    consume(frame_bytes);
+    result.status = DecodeStatus::kError;
+    result.error = DecodeError::kBadBodyCrc;
+    result.detail = "body CRC";
+    result.bytes_discarded = frame_bytes;
+    return result;
+  }
+  BodyResult decoded = decode_body(type, body, body_length);
+  consume(frame_bytes);
+  if (!decoded.ok()) {
+    result.status = DecodeStatus::kError;
+    result.error = decoded.error;
+    result.detail = std::move(decoded.detail);
+    result.bytes_discarded = frame_bytes;
+    return result;
+  }
+  result.status = DecodeStatus::kMessage;
+  result.message = std::move(decoded.message);
+  return result;
+}
+
+}  // namespace rgbdquad::protocol

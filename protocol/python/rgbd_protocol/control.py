@@ -1,0 +1,202 @@
+"""Ground-station codec of the control link (ground station -> WiFi bridge -> ATmega328P firmware).
+
+The link is defined once in protocol/control/control_spec.json; this module reads its ranges, field
+order and status codes from there (nothing is redefined here) and is proven against the golden
+vectors in protocol/control/vectors/control_vectors.json, which the firmware core and the C++
+ground-station codec replay too. See docs/protocol-control.md.
+
+    key = bytes.fromhex(config["control_key_hex"])      # the craft's 16-byte secret
+    seqs = SequenceCounter()
+    line = build_control_request(key, seqs.next(), arm=True, roll_us=1500, pitch_us=1500,
+                                 thr_us=1000, yaw_us=1500)
+    reply = parse_reply(reply_line)                       # Reply(status=200, state="armed", ...)
+
+Pure functions plus one small counter class; thread-safe except SequenceCounter (one per sender).
+"""
+from __future__ import annotations
+
+import json
+import pathlib
+import re
+import struct
+from dataclasses import dataclass
+from typing import Optional
+
+SPEC_PATH = pathlib.Path(__file__).resolve().parents[2] / "control" / "control_spec.json"
+
+
+def load_spec(path: pathlib.Path = SPEC_PATH) -> dict:
+    """Returns the parsed control_spec.json."""
+    with open(path, encoding="utf-8") as f:
+        return json.load(f)
+
+
+SPEC = load_spec()
+FIELDS = [f["name"] for f in SPEC["control_fields"]]
+RANGES = {f["name"]: tuple(f["range"]) for f in SPEC["control_fields"]}
+STATUS_REASONS = {int(code): v["reason"] for code, v in SPEC["status_codes"].items()}
+KEY_BYTES = SPEC["mac"]["key_bytes"]
+MAX_REQUEST_BYTES = SPEC["serial_link"]["max_request_bytes"]
+CONTROL_PATH = SPEC["routes"]["control"]["path"]
+STATUS_PATH = SPEC["routes"]["status"]["path"]
+REPLY_FIELDS = [f["name"] for f in SPEC["reply"]["fields"]]
+STATES = next(f["values"] for f in SPEC["reply"]["fields"] if f["name"] == "state")
+
+_MASK64 = (1 << 64) - 1
+
+
+def _rotl(x: int, b: int) -> int:
+    return ((x << b) | (x >> (64 - b))) & _MASK64
+
+
+def _sipround(v0: int, v1: int, v2: int, v3: int) -> tuple[int, int, int, int]:
+    v0 = (v0 + v1) & _MASK64; v1 = _rotl(v1, 13); v1 ^= v0; v0 = _rotl(v0, 32)  # noqa: E702
+    v2 = (v2 + v3) & _MASK64; v3 = _rotl(v3, 16); v3 ^= v2  # noqa: E702
+    v0 = (v0 + v3) & _MASK64; v3 = _rotl(v3, 21); v3 ^= v0  # noqa: E702
+    v2 = (v2 + v1) & _MASK64; v1 = _rotl(v1, 17); v1 ^= v2; v2 = _rotl(v2, 32)  # noqa: E702
+    return v0, v1, v2, v3
+
+
+def siphash24(key: bytes, msg: bytes) -> bytes:
+    """SipHash-2-4 of msg under a 16-byte key; returns the 8 tag bytes in wire order."""
+    if len(key) != 16:
+        raise ValueError(f"SipHash key must be 16 bytes, got {len(key)}")
+    k0, k1 = struct.unpack("<QQ", key)
+    v0 = 0x736F6D6570736575 ^ k0
+    v1 = 0x646F72616E646F6D ^ k1
+    v2 = 0x6C7967656E657261 ^ k0
+    v3 = 0x7465646279746573 ^ k1
+    full = len(msg) // 8 * 8
+    for i in range(0, full, 8):
+        (m,) = struct.unpack_from("<Q", msg, i)
+        v3 ^= m
+        v0, v1, v2, v3 = _sipround(v0, v1, v2, v3)
+        v0, v1, v2, v3 = _sipround(v0, v1, v2, v3)
+        v0 ^= m
+    b = (len(msg) & 0xFF) << 56
+    for i, byte in enumerate(msg[full:]):
+        b |= byte << (8 * i)
+    v3 ^= b
+    v0, v1, v2, v3 = _sipround(v0, v1, v2, v3)
+    v0, v1, v2, v3 = _sipround(v0, v1, v2, v3)
+    v0 ^= b
+    v2 ^= 0xFF
+    for _ in range(4):
+        v0, v1, v2, v3 = _sipround(v0, v1, v2, v3)
+    return struct.pack("<Q", v0 ^ v1 ^ v2 ^ v3)
+
+
+def _check_range(name: str, value: int) -> None:
+    lo, hi = RANGES[name]
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise ValueError(f"{name}={value!r} outside its range [{lo}, {hi}]")
+
+
+def build_control_request(key: bytes, seq: int, arm: bool, roll_us: int, pitch_us: int,
+                          thr_us: int, yaw_us: int) -> str:
+    """Returns the request line (without newline) for PUT /control, authenticated under key.
+
+    Raises ValueError when a value is outside its protocol range or the key has the wrong length.
+    """
+    if len(key) != KEY_BYTES:
+        raise ValueError(f"control key must be {KEY_BYTES} bytes, got {len(key)}")
+    values = {"seq": seq, "arm": 1 if arm else 0, "roll": roll_us, "pitch": pitch_us,
+              "thr": thr_us, "yaw": yaw_us}
+    for name in FIELDS:
+        _check_range(name, values[name])
+    query = "&".join(f"{name}={values[name]}" for name in FIELDS)
+    signed = f"PUT {CONTROL_PATH}?{query}"
+    return f"{signed}&mac={siphash24(key, signed.encode('ascii')).hex()}"
+
+
+def build_status_request() -> str:
+    """Returns the request line (without newline) for GET /status."""
+    return f"GET {STATUS_PATH}"
+
+
+class SequenceCounter:
+    """Strictly increasing sequence numbers for one craft's commands (not thread-safe).
+
+    Start above the last sequence number the craft accepted (its replies carry it), e.g. after a
+    ground-station restart: SequenceCounter(start_after=reply.seq).
+    """
+
+    def __init__(self, start_after: int = 0):
+        if not 0 <= start_after < RANGES["seq"][1]:
+            raise ValueError(f"start_after={start_after} outside [0, {RANGES['seq'][1]})")
+        self._last = start_after
+
+    def next(self) -> int:
+        if self._last >= RANGES["seq"][1]:
+            raise OverflowError("sequence numbers exhausted: provision a new key")
+        self._last += 1
+        return self._last
+
+
+@dataclass(frozen=True)
+class Reply:
+    status: int
+    err: str
+    fw: str
+    state: str
+    seq: int
+    out_us: tuple[int, int, int, int]
+    clamped: int
+    att_mrad: tuple[int, int, int]
+    att_age_ms: Optional[int]
+    imu_raw: tuple[int, int, int, int, int, int]
+    imu_age_ms: Optional[int]
+
+
+_REPLY_RE = re.compile(r"^([1-5][0-9]{2}) (\{.*\})\r?\n?$", re.DOTALL)
+
+
+def _int_list(obj: dict, name: str, n: int, lo: int, hi: int) -> tuple:
+    v = obj[name]
+    if (not isinstance(v, list) or len(v) != n
+            or not all(isinstance(x, int) and not isinstance(x, bool) and lo <= x <= hi for x in v)):
+        raise ValueError(f"reply field {name} must be {n} integers in [{lo}, {hi}], got {v!r}")
+    return tuple(v)
+
+
+def _opt_age(obj: dict, name: str) -> Optional[int]:
+    v = obj[name]
+    if v is None:
+        return None
+    if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v <= 0xFFFFFFFF:
+        raise ValueError(f"reply field {name} must be null or a u32, got {v!r}")
+    return v
+
+
+def parse_reply(line: str) -> Reply:
+    """Parses one reply line '<status> <json>'. Raises ValueError on anything malformed."""
+    m = _REPLY_RE.match(line)
+    if not m:
+        raise ValueError(f"not a reply line: {line[:80]!r}")
+    status = int(m.group(1))
+    if status not in STATUS_REASONS:
+        raise ValueError(f"unknown status {status}")
+    try:
+        obj = json.loads(m.group(2))
+    except json.JSONDecodeError as e:
+        raise ValueError(f"reply JSON invalid: {e}") from e
+    if not isinstance(obj, dict) or list(obj.keys()) != REPLY_FIELDS:
+        raise ValueError(f"reply keys {list(obj) if isinstance(obj, dict) else obj!r} != {REPLY_FIELDS}")
+    if obj["err"] != STATUS_REASONS[status]:
+        raise ValueError(f"reason {obj['err']!r} does not match status {status}")
+    if obj["state"] not in STATES:
+        raise ValueError(f"unknown state {obj['state']!r}")
+    if not isinstance(obj["fw"], str):
+        raise ValueError("fw must be a string")
+    seq = obj["seq"]
+    if not isinstance(seq, int) or isinstance(seq, bool) or not 0 <= seq <= 0xFFFFFFFF:
+        raise ValueError(f"seq must be a u32, got {seq!r}")
+    clamped = obj["clamped"]
+    if not isinstance(clamped, int) or isinstance(clamped, bool) or not 0 <= clamped <= 15:
+        raise ValueError(f"clamped must be a 4-bit mask, got {clamped!r}")
+    return Reply(status=status, err=obj["err"], fw=obj["fw"], state=obj["state"], seq=seq,
+                 out_us=_int_list(obj, "out_us", 4, 0, 65535), clamped=clamped,
+                 att_mrad=_int_list(obj, "att_mrad", 3, -32768, 32767),
+                 att_age_ms=_opt_age(obj, "att_age_ms"),
+                 imu_raw=_int_list(obj, "imu_raw", 6, -32768, 32767),
+                 imu_age_ms=_opt_age(obj, "imu_age_ms"))
