@@ -1,0 +1,432 @@
+// Table-driven unit tests of firmware/core: failsafe throttle timeline, hard-limit clamping, the
+// line assembler, the EEPROM key record, the IMU cache and MAVLink reader, reply bounds and the PWM
+// schedule. GIVEN/WHEN/THEN in each table row's name; time is always passed in.
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "controller.h"
+#include "failsafe.h"
+#include "imu_cache.h"
+#include "key_store.h"
+#include "line_assembler.h"
+#include "mavlink_imu_reader.h"
+#include "pwm_schedule.h"
+#include "request_parser.h"
+#include "rgbd_control/siphash24.h"
+
+namespace {
+
+const uint8_t kKey[16] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15};
+
+std::string sign(const std::string& unsigned_line, const uint8_t* key = kKey) {
+  uint8_t tag[8];
+  rgbd_control::siphash24_tag_bytes(
+      rgbd_control::siphash24(key, reinterpret_cast<const uint8_t*>(unsigned_line.data()),
+                              unsigned_line.size()),
+      tag);
+  static const char* d = "0123456789abcdef";
+  std::string s = unsigned_line + "&mac=";
+  for (uint8_t b : tag) {
+    s += d[b >> 4];
+    s += d[b & 15];
+  }
+  return s;
+}
+
+std::string cmd(uint32_t seq, int arm, int roll, int pitch, int thr, int yaw) {
+  return sign("PUT /control?seq=" + std::to_string(seq) + "&arm=" + std::to_string(arm) +
+              "&roll=" + std::to_string(roll) + "&pitch=" + std::to_string(pitch) +
+              "&thr=" + std::to_string(thr) + "&yaw=" + std::to_string(yaw));
+}
+
+int send(fw::Controller& c, const std::string& line, uint32_t now_ms) {
+  fw::ImuCache imu;
+  char reply[fw::kReplyBufferBytes];
+  c.handle_line(line.data(), line.size(), now_ms, imu, reply, sizeof(reply));
+  return std::atoi(reply);
+}
+
+// ---- failsafe timeline ------------------------------------------------------------------------------
+struct FailsafeRow {
+  const char* name;
+  uint16_t start_us;
+  uint32_t elapsed_ms;
+  uint16_t want_us;
+};
+
+TEST(FailsafeThrottle, TimelineTable) {
+  const FailsafeRow rows[] = {
+      {"hover, at engage: no step", 1500, 0, 1500},
+      {"hover, 1 ms: rate 0.2 us/ms floors to 0", 1500, 1, 1500},
+      {"hover, 5 ms: 1 us down", 1500, 5, 1499},
+      {"hover, 500 ms: 100 us down", 1500, 500, 1400},
+      {"hover, 999 ms", 1500, 999, 1301},
+      {"hover, 1000 ms: descent level reached", 1500, 1000, 1300},
+      {"hover, hold until 2999 ms", 1500, 2999, 1300},
+      {"hover, 3000 ms: hold ends", 1500, 3000, 1300},
+      {"hover, 3005 ms: second ramp", 1500, 3005, 1299},
+      {"hover, 4749 ms", 1500, 4749, 951},
+      {"hover, 4750 ms: final level", 1500, 4750, 950},
+      {"hover, one hour later", 1500, 3600000, 950},
+      {"max throttle 1750: 2250 ms ramp", 1750, 2250, 1300},
+      {"max throttle 1750: hold ends at 4250", 1750, 4250, 1300},
+      {"max throttle 1750: final at 6000", 1750, 6000, 950},
+      {"at descent level: no hold, ramps at once", 1300, 1750, 950},
+      {"below descent (1100): ramps straight down", 1100, 500, 1000},
+      {"below descent (1100): final at 750 ms", 1100, 750, 950},
+      {"on the ground (1000): final at 250 ms", 1000, 250, 950},
+      {"already below final", 900, 0, 950},
+  };
+  for (const auto& r : rows) {
+    EXPECT_EQ(fw::failsafe_throttle_us(r.start_us, r.elapsed_ms), r.want_us) << r.name;
+  }
+}
+
+TEST(FailsafeThrottle, NeverStepsMoreThanRatePerMillisecondAndNeverRises) {
+  for (uint16_t start = 1000; start <= 1750; start += 50) {
+    uint16_t prev = fw::failsafe_throttle_us(start, 0);
+    EXPECT_EQ(prev, start);
+    for (uint32_t t = 1; t < 10000; ++t) {
+      const uint16_t now = fw::failsafe_throttle_us(start, t);
+      ASSERT_LE(now, prev) << "start " << start << " t " << t;
+      ASSERT_LE(prev - now, 1) << "start " << start << " t " << t;  // 200 us/s = 0.2 us/ms
+      prev = now;
+    }
+    EXPECT_EQ(prev, fw::kFailsafeFinalUs);
+  }
+}
+
+TEST(Failsafe, EngagesExactlyAtTimeoutAfterLastValidCommand) {
+  // GIVEN an armed controller whose last valid command was at 1000 ms
+  fw::Controller c(kKey);
+  ASSERT_EQ(send(c, cmd(1, 1, 1500, 1500, 1000, 1500), 990), 200);
+  ASSERT_EQ(send(c, cmd(2, 1, 1500, 1500, 1500, 1500), 1000), 200);
+  // WHEN time passes THEN it stays armed until 1249 ms and is in failsafe at 1250 ms
+  c.update(1249);
+  EXPECT_EQ(c.state(), fw::ArmState::kArmed);
+  c.update(1250);
+  EXPECT_EQ(c.state(), fw::ArmState::kFailsafe);
+  EXPECT_EQ(c.failsafe_start_ms(), 1250u);
+}
+
+TEST(Failsafe, EngageTimeIsTheDeadlineEvenWhenUpdateRunsLate) {
+  fw::Controller c(kKey);
+  ASSERT_EQ(send(c, cmd(1, 1, 1500, 1500, 1000, 1500), 0), 200);
+  ASSERT_EQ(send(c, cmd(2, 1, 1500, 1500, 1500, 1500), 10), 200);
+  c.update(300);  // main loop was busy
+  ASSERT_EQ(c.state(), fw::ArmState::kFailsafe);
+  uint16_t out[4];
+  c.outputs_us(300, out);
+  EXPECT_EQ(out[fw::kChThrottle], 1492);  // 40 ms into the ramp (engaged at 260): 8 us down
+}
+
+TEST(Failsafe, SurvivesClockWrap) {
+  fw::Controller c(kKey);
+  const uint32_t t0 = 0xFFFFFF00u;
+  ASSERT_EQ(send(c, cmd(1, 1, 1500, 1500, 1000, 1500), t0), 200);
+  c.update(t0 + 249);
+  EXPECT_EQ(c.state(), fw::ArmState::kArmed);
+  c.update(t0 + 250);  // wrapped past zero
+  EXPECT_EQ(c.state(), fw::ArmState::kFailsafe);
+}
+
+// ---- arming and clamping ----------------------------------------------------------------------------
+struct ClampRow {
+  const char* name;
+  int roll, pitch, thr, yaw;
+  uint16_t want[4];
+  uint8_t want_mask;
+};
+
+TEST(Limits, ClampTable) {
+  const ClampRow rows[] = {
+      {"centre passes", 1500, 1500, 1500, 1500, {1500, 1500, 1500, 1500}, 0},
+      {"roll high clamps", 2000, 1500, 1500, 1500, {1750, 1500, 1500, 1500}, 1},
+      {"roll low clamps", 1000, 1500, 1500, 1500, {1250, 1500, 1500, 1500}, 1},
+      {"pitch edges pass", 1500, 1250, 1500, 1500, {1500, 1250, 1500, 1500}, 0},
+      {"pitch high clamps", 1500, 1751, 1500, 1500, {1500, 1750, 1500, 1500}, 2},
+      {"throttle ceiling", 1500, 1500, 2000, 1500, {1500, 1500, 1750, 1500}, 4},
+      {"throttle floor passes", 1500, 1500, 1000, 1500, {1500, 1500, 1000, 1500}, 0},
+      {"yaw clamps when flying", 1500, 1500, 1101, 2000, {1500, 1500, 1101, 1750}, 8},
+      {"yaw full range on ground (gesture)", 1500, 1500, 1100, 2000, {1500, 1500, 1100, 2000}, 0},
+      {"yaw full left on ground", 1500, 1500, 1000, 1000, {1500, 1500, 1000, 1000}, 0},
+      {"yaw limit uses clamped throttle", 1500, 1500, 2000, 1000, {1500, 1500, 1750, 1250}, 12},
+      {"all clamp", 1000, 2000, 2000, 2000, {1250, 1750, 1750, 1750}, 15},
+  };
+  for (const auto& r : rows) {
+    fw::Controller c(kKey);
+    ASSERT_EQ(send(c, cmd(1, 1, 1500, 1500, 1000, 1500), 0), 200) << r.name;
+    ASSERT_EQ(send(c, cmd(2, 1, r.roll, r.pitch, r.thr, r.yaw), 1), 200) << r.name;
+    uint16_t out[4];
+    c.outputs_us(1, out);
+    for (int ch = 0; ch < 4; ++ch) EXPECT_EQ(out[ch], r.want[ch]) << r.name << " ch" << ch + 1;
+    EXPECT_EQ(c.clamped_mask(), r.want_mask) << r.name;
+  }
+}
+
+struct ArmRow {
+  const char* name;
+  fw::ArmState from;
+  int arm;
+  int thr;
+  int want_status;
+  fw::ArmState to;
+};
+
+void drive_to(fw::Controller& c, fw::ArmState s, uint32_t* seq, uint32_t* t) {
+  if (s == fw::ArmState::kDisarmed) return;
+  ASSERT_EQ(send(c, cmd((*seq)++, 1, 1500, 1500, 1000, 1500), (*t)++), 200);
+  if (s == fw::ArmState::kFailsafe) {
+    *t += 1000;
+    c.update(*t);
+    ASSERT_EQ(c.state(), fw::ArmState::kFailsafe);
+  }
+}
+
+TEST(Arming, TransitionTable) {
+  using S = fw::ArmState;
+  const ArmRow rows[] = {
+      {"disarmed + arm, throttle low -> armed", S::kDisarmed, 1, 1000, 200, S::kArmed},
+      {"disarmed + arm, throttle at limit -> armed", S::kDisarmed, 1, 1100, 200, S::kArmed},
+      {"disarmed + arm, throttle high -> refused", S::kDisarmed, 1, 1101, 403, S::kDisarmed},
+      {"disarmed + disarm -> disarmed", S::kDisarmed, 0, 1800, 200, S::kDisarmed},
+      {"armed + arm -> armed", S::kArmed, 1, 1600, 200, S::kArmed},
+      {"armed + disarm -> disarmed", S::kArmed, 0, 1600, 200, S::kDisarmed},
+      {"failsafe + arm -> refused, stays", S::kFailsafe, 1, 1000, 403, S::kFailsafe},
+      {"failsafe + disarm -> disarmed", S::kFailsafe, 0, 1000, 200, S::kDisarmed},
+  };
+  for (const auto& r : rows) {
+    fw::Controller c(kKey);
+    uint32_t seq = 1;
+    uint32_t t = 0;
+    drive_to(c, r.from, &seq, &t);
+    EXPECT_EQ(send(c, cmd(seq, r.arm, 1500, 1500, r.thr, 1500), t), r.want_status) << r.name;
+    EXPECT_EQ(c.state(), r.to) << r.name;
+    uint16_t out[4];
+    c.outputs_us(t, out);
+    if (r.to == S::kDisarmed) {
+      EXPECT_EQ(out[fw::kChThrottle], fw::kThrottleLowUs) << r.name;
+      EXPECT_EQ(out[fw::kChRoll], fw::kNeutralUs) << r.name;
+    }
+  }
+}
+
+// ---- authentication -----------------------------------------------------------------------------------
+TEST(Auth, ReplayOldSeqForgedAndWrongKeyAreRejectedAndChangeNothing) {
+  fw::Controller c(kKey);
+  ASSERT_EQ(send(c, cmd(10, 1, 1500, 1500, 1000, 1500), 0), 200);
+  ASSERT_EQ(send(c, cmd(11, 1, 1600, 1500, 1400, 1500), 5), 200);
+  const uint8_t other[16] = {16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31};
+  std::string forged = cmd(12, 1, 1500, 1500, 1400, 1500);
+  forged.replace(forged.find("thr=1400"), 8, "thr=1700");
+  std::string flipped = cmd(12, 1, 1500, 1500, 1400, 1500);
+  flipped.back() = flipped.back() == '0' ? '1' : '0';
+  const struct {
+    const char* name;
+    std::string line;
+    int want;
+  } rows[] = {
+      {"exact replay", cmd(11, 1, 1600, 1500, 1400, 1500), 409},
+      {"older seq", cmd(3, 1, 1700, 1500, 1700, 1500), 409},
+      {"forged field", forged, 401},
+      {"one MAC bit flipped", flipped, 401},
+      {"other craft's key", sign("PUT /control?seq=12&arm=1&roll=1500&pitch=1500&thr=1700&yaw=1500", other), 401},
+  };
+  for (const auto& r : rows) {
+    EXPECT_EQ(send(c, r.line, 100), r.want) << r.name;
+    EXPECT_EQ(c.last_seq(), 11u) << r.name;
+    uint16_t out[4];
+    c.outputs_us(100, out);
+    EXPECT_EQ(out[fw::kChRoll], 1600) << r.name;
+    EXPECT_EQ(out[fw::kChThrottle], 1400) << r.name;
+  }
+  // Rejected commands did not feed the timer: failsafe 250 ms after the last valid one (5 ms).
+  c.update(254);
+  EXPECT_EQ(c.state(), fw::ArmState::kArmed);
+  c.update(255);
+  EXPECT_EQ(c.state(), fw::ArmState::kFailsafe);
+}
+
+TEST(Auth, NoKeyRefusesEverything) {
+  fw::Controller c(nullptr);
+  EXPECT_EQ(send(c, cmd(1, 1, 1500, 1500, 1000, 1500), 0), 503);
+  EXPECT_EQ(c.state(), fw::ArmState::kDisarmed);
+}
+
+// ---- parser details -----------------------------------------------------------------------------------
+TEST(Parser, ReadsNoByteBeyondLength) {
+  // GIVEN a valid line followed by garbage in the same buffer, WHEN parsed with the exact length,
+  // THEN it is valid; with any shorter length it is rejected (never reads past len).
+  const std::string line = cmd(1, 1, 1500, 1500, 1000, 1500);
+  const std::string buf = line + "GARBAGE";
+  EXPECT_EQ(fw::parse_request(buf.data(), line.size()).status, fw::Status::kOk);
+  for (size_t n = 0; n < line.size(); ++n) {
+    EXPECT_NE(fw::parse_request(line.data(), n).status, fw::Status::kOk) << n;
+  }
+}
+
+TEST(Parser, SaturatesOverflowingValues) {
+  const std::string line = "PUT /control?seq=4294967296&arm=1&roll=9999999999&pitch=1500&thr=1000&yaw=1500&mac=0000000000000000";
+  const fw::ParsedRequest r = fw::parse_request(line.data(), line.size());
+  EXPECT_EQ(r.status, fw::Status::kOk);
+  EXPECT_TRUE(r.value_overflow);
+  EXPECT_EQ(r.seq, 0xFFFFFFFFu);
+}
+
+// ---- line assembler -------------------------------------------------------------------------------------
+TEST(LineAssembler, LinesOverlongAndStall) {
+  fw::LineAssembler a;
+  const std::string l = "GET /status\r\n";
+  fw::LineEvent ev = fw::LineEvent::kNone;
+  for (char ch : l) ev = a.feed(static_cast<uint8_t>(ch), 0);
+  ASSERT_EQ(ev, fw::LineEvent::kLine);
+  EXPECT_EQ(std::string(a.line(), a.length()), "GET /status");
+  // Exactly kMaxRequestBytes is accepted; one more is too long.
+  for (size_t n : {size_t{fw::kMaxRequestBytes}, size_t{fw::kMaxRequestBytes} + 1, size_t{1000}}) {
+    for (size_t i = 0; i < n; ++i) EXPECT_EQ(a.feed('A', 1), fw::LineEvent::kNone);
+    ev = a.feed('\n', 1);
+    EXPECT_EQ(ev, n <= fw::kMaxRequestBytes ? fw::LineEvent::kLine : fw::LineEvent::kTooLong) << n;
+  }
+  // A partial line stalls after kLineStallTimeoutMs from its first byte.
+  a.feed('P', 100);
+  a.feed('U', 150);
+  EXPECT_EQ(a.poll(199), fw::LineEvent::kNone);
+  EXPECT_EQ(a.poll(200), fw::LineEvent::kStalled);
+  EXPECT_EQ(a.poll(300), fw::LineEvent::kNone);  // reported once
+  for (char ch : l) ev = a.feed(static_cast<uint8_t>(ch), 301);
+  ASSERT_EQ(ev, fw::LineEvent::kLine);
+  EXPECT_EQ(std::string(a.line(), a.length()), "GET /status");
+}
+
+// ---- key store -------------------------------------------------------------------------------------------
+TEST(KeyStore, RecordRoundTripAndCorruption) {
+  const uint8_t check[] = {'1', '2', '3', '4', '5', '6', '7', '8', '9'};
+  EXPECT_EQ(fw::crc16_ccitt(check, sizeof(check)), 0x29B1);
+  uint8_t rec[fw::kKeyRecordBytes];
+  fw::make_key_record(kKey, rec);
+  uint8_t key[16] = {};
+  ASSERT_TRUE(fw::load_key_record(rec, key));
+  EXPECT_EQ(0, memcmp(key, kKey, 16));
+  for (size_t i = 0; i < sizeof(rec); ++i) {
+    uint8_t bad[fw::kKeyRecordBytes];
+    memcpy(bad, rec, sizeof(rec));
+    bad[i] ^= 0x01;
+    EXPECT_FALSE(fw::load_key_record(bad, key)) << "corrupt byte " << i;
+  }
+  uint8_t erased[fw::kKeyRecordBytes];
+  memset(erased, 0xFF, sizeof(erased));
+  EXPECT_FALSE(fw::load_key_record(erased, key));
+  const uint8_t zero[16] = {};
+  fw::make_key_record(zero, rec);
+  EXPECT_FALSE(fw::load_key_record(rec, key)) << "all-zero key";
+}
+
+// ---- IMU cache, MAVLink reader, replies ------------------------------------------------------------------
+TEST(ImuCache, RejectsNonFiniteAndReportsAge) {
+  fw::ImuCache c;
+  EXPECT_FALSE(c.has_attitude());
+  EXPECT_FALSE(c.set_attitude_rad(NAN, 0, 0, 10));
+  EXPECT_FALSE(c.set_attitude_rad(0, INFINITY, 0, 10));
+  EXPECT_FALSE(c.set_attitude_rad(0, 0, 5.0f, 10));
+  EXPECT_FALSE(c.has_attitude());
+  EXPECT_TRUE(c.set_attitude_rad(0.1234f, -0.5f, 3.1415926f, 10));
+  EXPECT_EQ(c.attitude().roll_mrad, 123);
+  EXPECT_EQ(c.attitude().pitch_mrad, -500);
+  EXPECT_EQ(c.attitude().yaw_mrad, 3142);
+  EXPECT_EQ(c.attitude_age_ms(35), 25u);
+}
+
+std::vector<uint8_t> frame_bytes(const mavlink_message_t& m) {
+  uint8_t buf[MAVLINK_MAX_PACKET_LEN];
+  const uint16_t n = mavlink_msg_to_send_buffer(buf, &m);
+  return std::vector<uint8_t>(buf, buf + n);
+}
+
+TEST(MavlinkImuReader, DecodesAttitudeAndRawImuAndRejectsCorruptFrames) {
+  fw::MavlinkImuReader reader;
+  fw::ImuCache cache;
+  mavlink_message_t m;
+  mavlink_msg_attitude_pack(1, 1, &m, 1234, 0.25f, -0.125f, 1.5f, 0.0f, 0.0f, 0.0f);
+  std::vector<uint8_t> att = frame_bytes(m);
+  mavlink_msg_raw_imu_pack(1, 1, &m, 5678, 10, -20, -1000, 1, 2, -3, 0, 0, 0, 0, 25);
+  std::vector<uint8_t> imu = frame_bytes(m);
+  mavlink_msg_scaled_pressure_pack(1, 1, &m, 1, 1013.0f, 0.0f, 2000, 0);  // not in the subset
+  std::vector<uint8_t> other = frame_bytes(m);
+  // A corrupted ATTITUDE (one payload bit flipped) must not reach the cache.
+  std::vector<uint8_t> bad = att;
+  bad[12] ^= 0x40;
+  for (uint8_t b : bad) reader.feed(b, 5, cache);
+  for (uint8_t b : other) reader.feed(b, 6, cache);
+  EXPECT_FALSE(cache.has_attitude());
+  for (uint8_t b : att) reader.feed(b, 7, cache);
+  for (uint8_t b : imu) reader.feed(b, 8, cache);
+  ASSERT_TRUE(cache.has_attitude());
+  ASSERT_TRUE(cache.has_raw_imu());
+  EXPECT_EQ(cache.attitude().roll_mrad, 250);
+  EXPECT_EQ(cache.attitude().pitch_mrad, -125);
+  EXPECT_EQ(cache.attitude().yaw_mrad, 1500);
+  EXPECT_EQ(cache.raw_imu().acc_raw[2], -1000);
+  EXPECT_EQ(cache.raw_imu().gyro_raw[2], -3);
+  EXPECT_EQ(reader.frames_ok(), 2u);
+  EXPECT_GE(reader.frames_bad(), 1u);
+}
+
+TEST(Reply, WorstCaseFitsBufferAndCarriesImu) {
+  fw::Controller c(kKey);
+  ASSERT_EQ(send(c, cmd(0xFFFFFFFE, 1, 1500, 1500, 1000, 1500), 0), 200);
+  fw::ImuCache imu;
+  imu.set_attitude_rad(-3.1415f, -3.1415f, -3.1415f, 0);
+  fw::RawImuSample s;
+  for (int i = 0; i < 3; ++i) {
+    s.acc_raw[i] = -32768;
+    s.gyro_raw[i] = -32768;
+  }
+  imu.set_raw_imu(s, 0);
+  char reply[fw::kReplyBufferBytes];
+  const size_t n = c.reply_error(fw::Status::kOutOfRange, 0xFFFFFFFFu, imu, reply, sizeof(reply));
+  ASSERT_GT(n, 0u);
+  EXPECT_LT(n, sizeof(reply) - 1);
+  EXPECT_EQ(reply[n - 1], '\n');
+  const std::string r(reply, n);
+  EXPECT_NE(r.find("\"att_mrad\":[-3142,-3142,-3142]"), std::string::npos) << r;
+  EXPECT_NE(r.find("\"imu_raw\":[-32768,-32768,-32768,-32768,-32768,-32768]"), std::string::npos) << r;
+  EXPECT_NE(r.find("\"att_age_ms\":4294967295"), std::string::npos) << r;
+  std::printf("worst-case reply: %zu bytes\n", n);
+}
+
+TEST(Reply, TruncatesSafelyInASmallBuffer) {
+  fw::Controller c(kKey);
+  fw::ImuCache imu;
+  char small[16];
+  memset(small, 'Z', sizeof(small));
+  const size_t n = c.reply_error(fw::Status::kMalformed, 0, imu, small, 10);
+  EXPECT_EQ(n, 9u);
+  EXPECT_EQ(small[9], '\0');
+  EXPECT_EQ(small[10], 'Z');
+}
+
+// ---- PWM schedule -----------------------------------------------------------------------------------------
+TEST(PwmSchedule, FrameIs20msAndPulsesAreBounded) {
+  const struct {
+    uint16_t in[4];
+    uint16_t want_ticks[5];
+  } rows[] = {
+      {{1500, 1500, 1000, 1500}, {3000, 3000, 2000, 3000, 29000}},
+      {{1000, 2000, 950, 1750}, {2000, 4000, 1900, 3500, 28600}},
+      {{0, 65535, 899, 2101}, {1800, 4200, 1800, 4200, 28000}},
+  };
+  for (const auto& r : rows) {
+    uint16_t ticks[5];
+    fw::make_pwm_schedule(r.in, ticks);
+    uint32_t total = 0;
+    for (int i = 0; i < 5; ++i) {
+      EXPECT_EQ(ticks[i], r.want_ticks[i]) << i;
+      total += ticks[i];
+    }
+    EXPECT_EQ(total, 40000u);
+  }
+}
+
+}  // namespace
