@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import shutil
 import sys
 import time
@@ -103,6 +104,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--slam-eval", default=_default_slam_eval(), metavar="PATH",
                      help="slam-eval binary (default $RGBD_BUILD_DIR/bin/slam-eval, "
                           "RGBD_BUILD_DIR defaulting to <repo>/build)")
+    run.add_argument("--slam-eval-args", default="", metavar="ARGS",
+                     help="extra options appended to every slam-eval run, one string "
+                          "(e.g. \"--no-map --quiet\")")
     run.add_argument("--timeout-s", type=_positive, default=sweep.kDefaultRunTimeoutS,
                      help="per-run time limit in seconds (default %(default)g)")
     run.add_argument("--retry-failed", action="store_true",
@@ -168,7 +172,8 @@ def _run(args, warn) -> int:
         return 2
     for d in datasets:
         tum.Dataset.load(d)  # fail early, with the file and line, on a malformed dataset
-    jobs = sweep.make_jobs(datasets, args.features, args.backends, args.k, args.mode)
+    jobs = sweep.make_jobs(datasets, args.features, args.backends, args.k, args.mode,
+                           tuple(shlex.split(args.slam_eval_args)))
     todo = [j for j in jobs if not sweep.is_finished(j, args.out, args.retry_failed)]
     warn(f"{len(jobs)} runs in the sweep, {len(jobs) - len(todo)} already finished, "
          f"{len(todo)} to do on {'Ray at ' + args.ray if args.ray else f'{args.jobs} local workers'}")
@@ -184,6 +189,7 @@ def _run(args, warn) -> int:
     sweep.write_sweep_record(args.out, {
         "datasets": [str(d) for d in datasets], "features": args.features,
         "backends": args.backends, "k": args.k, "mode": args.mode,
+        "slam_eval": slam_eval, "slam_eval_args": args.slam_eval_args,
         "executor": f"ray {args.ray}" if args.ray else f"local, {args.jobs} workers",
         "runs_total": len(jobs), "runs_this_invocation": len(todo),
         "failed_this_invocation": failed, "wall_s_this_invocation": round(wall, 1)})

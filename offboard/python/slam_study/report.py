@@ -117,8 +117,10 @@ def run_tables(runs: list[Run]) -> list[tables.Table]:
         kf = metrics.count(run.metrics, "keyframe")
         loops = metrics.count(run.metrics, "loop")
         frames = len(run.trajectory) if run.trajectory is not None else 0
+        lost = metrics.count(run.metrics, "lost")
         return (f"{'-' if kf is None else kf} / {frames}"
-                + ("" if loops is None else f" ({loops} loops)"))
+                + ("" if loops is None else f" ({loops} loops)")
+                + ("" if not lost else f", {lost} lost"))
 
     out = [
         _config_table("table_4_5_rpe", "Tables 4.5 / 4.8 / 4.9 - RPE RMSE per frame pair, "
@@ -127,7 +129,7 @@ def run_tables(runs: list[Run]) -> list[tables.Table]:
                            "recomputed from trajectory.tum against groundtruth.txt."),
         _config_table("table_4_10_ate", "Table 4.10 - ATE RMSE (mm), rigid alignment", runs, ate),
         _config_table("table_4_7_keyframes", "Table 4.7 - keyframes / poses in trajectory "
-                      "(loop closures)", runs, keyframes,
+                      "(loop closures, frames with tracking lost)", runs, keyframes,
                       note="Keyframes and loop closures as reported in metrics.json."),
     ]
     stage_names = sorted({s for r in runs for s in metrics.stages(r.metrics)})

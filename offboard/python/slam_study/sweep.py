@@ -34,6 +34,7 @@ class Job:
     backend: str
     k: int
     mode: str = "wait"
+    extra_args: tuple[str, ...] = ()   # passed to slam-eval after the standard options
 
     @property
     def name(self) -> str:
@@ -44,11 +45,11 @@ class Job:
 
 
 def make_jobs(datasets: list[Path], features: list[str], backends: list[str], ks: list[int],
-              mode: str = "wait") -> list[Job]:
+              mode: str = "wait", extra_args: tuple[str, ...] = ()) -> list[Job]:
     names = [d.name for d in datasets]
     if len(set(names)) != len(names):
         raise ValueError(f"dataset folder names must be unique (they name the run folders): {names}")
-    return [Job(str(d.resolve()), f, b, k, mode)
+    return [Job(str(d.resolve()), f, b, k, mode, tuple(extra_args))
             for d in datasets for f in features for b in backends for k in ks]
 
 

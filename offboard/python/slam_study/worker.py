@@ -19,7 +19,7 @@ kStderrTailLines = 30
 def job_command(slam_eval: str, job: dict, out_dir: str) -> list[str]:
     return [slam_eval, "run", "--dataset", job["dataset"], "--features", job["features"],
             "--backend", job["backend"], "--rate", str(job["k"]), "--mode", job["mode"],
-            "--out", out_dir]
+            "--out", out_dir, *job.get("extra_args", [])]
 
 
 def execute_job(job: dict, slam_eval: str, timeout_s: float) -> dict:

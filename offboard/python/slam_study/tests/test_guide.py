@@ -20,10 +20,11 @@ def _dense_pairs():
 
 def test_prediction_uses_the_cell_of_the_per_frame_motion():
     # 0.27 m/s, 15 deg/s: 9 mm + 0.5 deg per frame at 30 fps, 18 mm + 1 deg at 15 fps
-    preds = guide.predict(_dense_pairs(), 0.27, 15.0, fps_list=(30.0, 15.0, 16.0, 54.0))
-    at30, at15, at16, at54 = preds
+    preds = guide.predict(_dense_pairs(), 0.27, 15.0, fps_list=(30.0, 15.0, 16.0, 54.0, 2.0))
+    at30, at15, at16, at54, at2 = preds
     assert at30.enough and at30.cell.trans_mean_mm == pytest.approx(3.0)
-    assert at15.cell is None                               # 18 mm is beyond the grid
+    assert at15.cell.n == 0 and not at15.enough            # 18 mm: a cell with no pairs
+    assert at2.cell is None                                # 135 mm is beyond the grid
     assert at16.enough and at16.cell.trans_mean_mm == pytest.approx(9.0)
     assert at54.cell.n == 2 and not at54.enough             # thin cell: not enough data
 
