@@ -1,0 +1,46 @@
+// Value types shared by every SLAM stage: camera intrinsics, one RGB-D frame, and pose helpers.
+// Frames and poses cross stage boundaries by value; nothing here owns a thread or a device.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <array>
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <string>
+
+namespace slam {
+
+/// Pinhole intrinsics of the colour camera (depth is registered to colour in TUM data).
+struct Intrinsics {
+  double fx_px = 517.3;  ///< TUM Freiburg 1 colour camera (shared/data/README.md)
+  double fy_px = 516.5;
+  double cx_px = 318.6;
+  double cy_px = 255.3;
+  /// OpenCV radial-tangential coefficients k1 k2 p1 p2 k3; used only when undistortion is on.
+  std::array<double, 5> distortion = {0.2624, -0.9531, -0.0054, 0.0026, 1.1633};
+  /// Raw depth units per metre: TUM/Kinect PNGs store 5000 units = 1 m.
+  double depth_units_per_m = 5000.0;
+
+  bool is_valid(std::string* error) const;
+  /// Named TUM cameras: "fr1", "fr2", "fr3" (values from the TUM benchmark page).
+  static bool from_name(const std::string& name, Intrinsics* out, std::string* error);
+};
+
+/// One synchronised RGB-D frame. `rgb` is CV_8UC3 (BGR as loaded by OpenCV), `depth` CV_16UC1
+/// in `Intrinsics::depth_units_per_m` units, 0 = no reading.
+struct RgbdFrame {
+  std::int64_t index = 0;  ///< position in the replayed/received stream
+  double stamp_s = 0.0;    ///< capture time of the colour image
+  cv::Mat rgb;
+  cv::Mat depth;
+};
+
+/// Rotation angle of a rigid transform in radians.
+inline double rotation_angle_rad(const Eigen::Isometry3d& T) {
+  return Eigen::AngleAxisd(T.rotation()).angle();
+}
+
+/// True when every element of the transform is finite.
+inline bool is_finite(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
+
+}  // namespace slam

@@ -1,0 +1,131 @@
+// TUM folder reader and rgb/depth association.
+#include "slam/dataset/tum_dataset.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+
+namespace slam {
+
+namespace fs = std::filesystem;
+
+bool TumDatasetOptions::is_valid(std::string* error) const {
+  if (!(max_dt_s > 0) || rate_divisor < 1 || max_frames < 0) {
+    if (error) *error = "dataset: need max_dt_s > 0, rate_divisor >= 1, max_frames >= 0";
+    return false;
+  }
+  return true;
+}
+
+bool read_tum_list(const std::string& path, std::vector<std::pair<double, std::string>>* out,
+                   std::string* error) {
+  std::ifstream in(path);
+  if (!in) {
+    if (error) *error = "cannot open '" + path + "'";
+    return false;
+  }
+  out->clear();
+  std::string line;
+  int line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.empty() || line[0] == '#') continue;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    std::istringstream ls(line);
+    double t = 0;
+    std::string name;
+    if (!(ls >> t >> name) || !std::isfinite(t)) {
+      if (error) *error = path + ":" + std::to_string(line_no) + ": expected 'timestamp filename'";
+      return false;
+    }
+    out->emplace_back(t, name);
+  }
+  std::sort(out->begin(), out->end());
+  return true;
+}
+
+std::optional<TumDataset> TumDataset::open(const std::string& folder, const TumDatasetOptions& o,
+                                           std::string* error) {
+  if (!o.is_valid(error)) return std::nullopt;
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) {
+    if (error) *error = "dataset folder '" + folder + "' does not exist or is not a directory";
+    return std::nullopt;
+  }
+  std::vector<std::pair<double, std::string>> rgb, depth;
+  std::string err;
+  if (!read_tum_list((fs::path(folder) / "rgb.txt").string(), &rgb, &err) ||
+      !read_tum_list((fs::path(folder) / "depth.txt").string(), &depth, &err)) {
+    if (error) *error = "dataset: " + err + " (a TUM folder needs rgb.txt and depth.txt)";
+    return std::nullopt;
+  }
+  if (rgb.empty() || depth.empty()) {
+    if (error) *error = "dataset: rgb.txt or depth.txt in '" + folder + "' lists no frames";
+    return std::nullopt;
+  }
+  TumDataset ds;
+  ds.folder_ = folder;
+  const fs::path gt = fs::path(folder) / "groundtruth.txt";
+  if (fs::is_regular_file(gt, ec)) ds.groundtruth_path_ = gt.string();
+  std::vector<TumEntry> all;
+  for (const auto& [t, name] : rgb) {
+    auto it = std::lower_bound(depth.begin(), depth.end(), std::make_pair(t, std::string()));
+    const std::pair<double, std::string>* best = nullptr;
+    if (it != depth.end()) best = &*it;
+    if (it != depth.begin()) {
+      auto prev = std::prev(it);
+      if (!best || std::abs(prev->first - t) < std::abs(best->first - t)) best = &*prev;
+    }
+    if (!best || std::abs(best->first - t) > o.max_dt_s) continue;
+    all.push_back({t, (fs::path(folder) / name).string(), best->first,
+                   (fs::path(folder) / best->second).string()});
+  }
+  if (all.empty()) {
+    if (error) *error = "dataset: no colour frame has a depth frame within " +
+                        std::to_string(o.max_dt_s * 1000) + " ms";
+    return std::nullopt;
+  }
+  for (std::size_t i = 0; i < all.size(); i += static_cast<std::size_t>(o.rate_divisor)) {
+    ds.entries_.push_back(all[i]);
+    if (o.max_frames > 0 && ds.entries_.size() >= static_cast<std::size_t>(o.max_frames)) break;
+  }
+  if (ds.entries_.size() >= 2) {
+    std::vector<double> dts;
+    for (std::size_t i = 1; i < ds.entries_.size(); ++i)
+      dts.push_back(ds.entries_[i].rgb_stamp_s - ds.entries_[i - 1].rgb_stamp_s);
+    std::nth_element(dts.begin(), dts.begin() + dts.size() / 2, dts.end());
+    ds.frame_period_s_ = dts[dts.size() / 2];
+  }
+  return ds;
+}
+
+std::optional<RgbdFrame> TumDataset::load(std::size_t i, std::string* error) const {
+  if (i >= entries_.size()) {
+    if (error) *error = "dataset: frame index out of range";
+    return std::nullopt;
+  }
+  const TumEntry& e = entries_[i];
+  RgbdFrame f;
+  f.index = static_cast<std::int64_t>(i);
+  f.stamp_s = e.rgb_stamp_s;
+  f.rgb = cv::imread(e.rgb_path, cv::IMREAD_COLOR);
+  if (f.rgb.empty()) {
+    if (error) *error = "cannot read colour image '" + e.rgb_path + "'";
+    return std::nullopt;
+  }
+  f.depth = cv::imread(e.depth_path, cv::IMREAD_ANYDEPTH);
+  if (f.depth.empty() || f.depth.type() != CV_16UC1) {
+    if (error) *error = "cannot read 16-bit depth image '" + e.depth_path + "'";
+    return std::nullopt;
+  }
+  if (f.depth.size() != f.rgb.size()) {
+    if (error) *error = "colour and depth sizes differ for '" + e.rgb_path + "'";
+    return std::nullopt;
+  }
+  return f;
+}
+
+}  // namespace slam

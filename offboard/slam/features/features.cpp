@@ -1,0 +1,148 @@
+// Feature factory and 3D lifting. SURF comes from the slam_surf library (offboard/surf) when it is
+// part of the build (SLAM_HAVE_SURF); otherwise asking for it fails with a clear message.
+#include "slam/features/features.hpp"
+
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#ifdef SLAM_HAVE_SURF
+#include "slam/surf.hpp"
+#endif
+
+namespace slam {
+
+bool parse_detector_kind(const std::string& name, DetectorKind* out, std::string* error) {
+  if (name == "sift") { *out = DetectorKind::kSift; return true; }
+  if (name == "surf") { *out = DetectorKind::kSurf; return true; }
+  if (name == "orb") { *out = DetectorKind::kOrb; return true; }
+  if (error) *error = "unknown feature detector '" + name + "' (expected sift, surf or orb)";
+  return false;
+}
+
+const char* to_string(DetectorKind kind) {
+  switch (kind) {
+    case DetectorKind::kSift: return "sift";
+    case DetectorKind::kSurf: return "surf";
+    case DetectorKind::kOrb: return "orb";
+  }
+  return "?";
+}
+
+bool FeatureOptions::is_valid(std::string* error) const {
+  auto fail = [&](const char* msg) { if (error) *error = msg; return false; };
+  if (sift_scales_per_octave < 1 || !(sift_contrast_threshold > 0) || !(sift_edge_threshold > 0) ||
+      !(sift_sigma > 0) || sift_max_features < 0)
+    return fail("features: SIFT parameters must be positive");
+  if (surf_octaves < 1 || surf_scales_per_octave < 1 || !(surf_hessian_threshold > 0))
+    return fail("features: SURF parameters must be positive");
+  if (orb_features < 1 || !(orb_scale_factor > 1.0) || orb_levels < 1 || orb_edge_threshold < 1 ||
+      orb_patch_size < 2)
+    return fail("features: ORB parameters out of range");
+  if (!(min_depth_m >= 0) || !(max_depth_m > min_depth_m) || !std::isfinite(max_depth_m))
+    return fail("features: need 0 <= min_depth_m < max_depth_m < inf");
+  return true;
+}
+
+FeatureExtractor::FeatureExtractor(FeatureOptions options, Intrinsics intrinsics,
+                                   cv::Ptr<cv::Feature2D> detector)
+    : options_(options), intrinsics_(intrinsics), detector_(std::move(detector)) {}
+
+std::optional<FeatureExtractor> FeatureExtractor::create(const FeatureOptions& o,
+                                                         const Intrinsics& k, std::string* error) {
+  if (!o.is_valid(error) || !k.is_valid(error)) return std::nullopt;
+  cv::Ptr<cv::Feature2D> det;
+  switch (o.kind) {
+    case DetectorKind::kSift:
+      det = cv::SIFT::create(o.sift_max_features, o.sift_scales_per_octave,
+                             o.sift_contrast_threshold, o.sift_edge_threshold, o.sift_sigma);
+      break;
+    case DetectorKind::kOrb:
+      det = cv::ORB::create(o.orb_features, static_cast<float>(o.orb_scale_factor), o.orb_levels,
+                            o.orb_edge_threshold, 0, 2, cv::ORB::HARRIS_SCORE, o.orb_patch_size);
+      break;
+    case DetectorKind::kSurf: {
+#ifdef SLAM_HAVE_SURF
+      SurfOptions so;
+      so.octaves = o.surf_octaves;
+      so.scales_per_octave = o.surf_scales_per_octave;
+      so.extended = o.surf_extended;
+      so.hessian_threshold = o.surf_hessian_threshold;
+      det = create_surf(so);
+#else
+      if (error)
+        *error = "features: SURF is not available in this build (the slam_surf library in "
+                 "offboard/surf is missing); use sift or orb";
+      return std::nullopt;
+#endif
+      break;
+    }
+  }
+  if (det.empty()) {
+    if (error) *error = "features: could not create the detector";
+    return std::nullopt;
+  }
+  return FeatureExtractor(o, k, det);
+}
+
+std::optional<FrameFeatures> FeatureExtractor::extract(const RgbdFrame& frame,
+                                                       std::string* error) const {
+  if (frame.rgb.empty() || frame.depth.empty()) {
+    if (error) *error = "features: empty colour or depth image";
+    return std::nullopt;
+  }
+  if (frame.depth.type() != CV_16UC1 || (frame.rgb.type() != CV_8UC3 && frame.rgb.type() != CV_8UC1)) {
+    if (error) *error = "features: expected 8-bit colour and 16-bit depth images";
+    return std::nullopt;
+  }
+  if (frame.rgb.size() != frame.depth.size()) {
+    if (error) *error = "features: colour and depth images differ in size";
+    return std::nullopt;
+  }
+  cv::Mat grey;
+  if (frame.rgb.channels() == 3) cv::cvtColor(frame.rgb, grey, cv::COLOR_BGR2GRAY);
+  else grey = frame.rgb;
+
+  std::vector<cv::KeyPoint> kps;
+  cv::Mat desc;
+  try {
+    detector_->detectAndCompute(grey, cv::noArray(), kps, desc);
+  } catch (const cv::Exception& e) {
+    if (error) *error = std::string("features: detector failed: ") + e.what();
+    return std::nullopt;
+  }
+  FrameFeatures out;
+  out.detected = kps.size();
+  if (kps.empty()) return out;
+
+  std::vector<cv::Point2f> pix(kps.size());
+  for (std::size_t i = 0; i < kps.size(); ++i) pix[i] = kps[i].pt;
+  std::vector<cv::Point2f> undist = pix;
+  if (options_.undistort) {
+    const cv::Matx33d K(intrinsics_.fx_px, 0, intrinsics_.cx_px, 0, intrinsics_.fy_px,
+                        intrinsics_.cy_px, 0, 0, 1);
+    cv::undistortPoints(pix, undist, K, cv::Mat(intrinsics_.distortion, false), cv::noArray(), K);
+  }
+  const int w = frame.depth.cols, h = frame.depth.rows;
+  std::vector<int> keep;
+  keep.reserve(kps.size());
+  for (std::size_t i = 0; i < kps.size(); ++i) {
+    const int u = static_cast<int>(std::lround(pix[i].x));
+    const int v = static_cast<int>(std::lround(pix[i].y));
+    if (u < 0 || v < 0 || u >= w || v >= h) continue;
+    const std::uint16_t raw = frame.depth.at<std::uint16_t>(v, u);
+    if (raw == 0) continue;
+    const double z = raw / intrinsics_.depth_units_per_m;
+    if (z < options_.min_depth_m || z > options_.max_depth_m) continue;
+    keep.push_back(static_cast<int>(i));
+    out.keypoints.push_back(kps[i]);
+    out.points_cam_m.push_back(back_project(intrinsics_, undist[i].x, undist[i].y, z));
+    out.colours_bgr.push_back(frame.rgb.channels() == 3 ? frame.rgb.at<cv::Vec3b>(v, u)
+                                                        : cv::Vec3b::all(grey.at<std::uint8_t>(v, u)));
+  }
+  out.descriptors.create(static_cast<int>(keep.size()), desc.cols, desc.type());
+  for (std::size_t r = 0; r < keep.size(); ++r) desc.row(keep[r]).copyTo(out.descriptors.row(static_cast<int>(r)));
+  return out;
+}
+
+}  // namespace slam

@@ -1,0 +1,43 @@
+// Loop-closure decisions as pure functions (thesis Sec. 3.4):
+//  - Local loop closure (LLC): a non-keyframe's pose is pulled towards the pose measured against its
+//    best recent keyframe, but the correction is limited to `llc_max_fraction` (25 %) of the
+//    frame's own edge (its frame-to-frame motion), in translation and in rotation angle.
+//  - Global loop closure (GLC) candidates: the older keyframes (the latest 3 excluded) are split
+//    into 7 blocks spread evenly in time; each back-end iteration tests one keyframe per block,
+//    rotating through each block from one iteration to the next.
+// Thread-safe (stateless).
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <string>
+#include <vector>
+
+namespace slam {
+
+struct LoopOptions {
+  double llc_max_fraction = 0.25;        ///< thesis: correction <= 25 % of the frame's edge
+  int glc_blocks = 7;                    ///< thesis: 7 keyframes spread over the older sequence
+  int glc_exclude_latest = 3;            ///< thesis: the latest 3 keyframes are excluded
+  double glc_min_match_fraction = 0.20;  ///< thesis: candidate when >= 20 % of features match
+  double glc_min_inlier_fraction = 0.60; ///< thesis: accepted when RANSAC inliers >= 60 %
+  bool glc_test_neighbours = true;       ///< thesis: also test the two neighbouring keyframes
+  bool is_valid(std::string* error) const;
+};
+
+/// LLC: returns the pose between `T_world_cam_predicted` and `T_world_cam_measured`, moved from the
+/// prediction towards the measurement by at most `max_fraction` of the edge's translation length
+/// and rotation angle (`T_prev_cur_edge`, the frame's own motion). Non-finite input returns the
+/// prediction unchanged.
+Eigen::Isometry3d clamp_llc_correction(const Eigen::Isometry3d& T_world_cam_predicted,
+                                       const Eigen::Isometry3d& T_world_cam_measured,
+                                       const Eigen::Isometry3d& T_prev_cur_edge,
+                                       double max_fraction);
+
+/// GLC: indices (0-based, into the `older_count` older keyframes ordered by recency position) to
+/// test at back-end iteration `iteration`. With fewer older keyframes than blocks, every one is
+/// tested. Block b covers [b*n/B, (b+1)*n/B); its member (iteration mod block size) is chosen.
+std::vector<std::size_t> select_glc_candidates(std::size_t older_count, std::size_t iteration,
+                                               int blocks);
+
+}  // namespace slam

@@ -1,0 +1,211 @@
+// Umeyama/Kabsch and RANSAC; see motion.hpp for the conventions.
+#include "slam/motion/motion.hpp"
+
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+namespace slam {
+
+std::optional<Eigen::Isometry3d> umeyama_rigid(const std::vector<Eigen::Vector3d>& src,
+                                               const std::vector<Eigen::Vector3d>& dst,
+                                               const std::vector<double>& weights) {
+  const std::size_t n = src.size();
+  if (n < 3 || dst.size() != n || (!weights.empty() && weights.size() != n)) return std::nullopt;
+  double wsum = 0;
+  Eigen::Vector3d ms = Eigen::Vector3d::Zero(), md = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    const double w = weights.empty() ? 1.0 : weights[i];
+    if (!(w > 0) || !src[i].allFinite() || !dst[i].allFinite()) return std::nullopt;
+    wsum += w;
+    ms += w * src[i];
+    md += w * dst[i];
+  }
+  ms /= wsum;
+  md /= wsum;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  double var_src = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double w = weights.empty() ? 1.0 : weights[i];
+    const Eigen::Vector3d a = src[i] - ms, b = dst[i] - md;
+    cov += w * b * a.transpose();
+    var_src += w * a.squaredNorm();
+  }
+  if (!(var_src / wsum > 1e-12)) return std::nullopt;  // all source points coincide
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Vector3d sv = svd.singularValues();
+  // Rank < 2 (collinear points): the rotation about the line is undetermined.
+  if (!(sv(1) > 1e-12 * std::max(1.0, sv(0)))) return std::nullopt;
+  Eigen::Matrix3d S = Eigen::Matrix3d::Identity();
+  if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0) S(2, 2) = -1;
+  const Eigen::Matrix3d R = svd.matrixU() * S * svd.matrixV().transpose();
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = md - R * ms;
+  if (!T.matrix().allFinite()) return std::nullopt;
+  return T;
+}
+
+bool RansacOptions::is_valid(std::string* error) const {
+  if (!(inlier_threshold_m > 0) || !(accept_inlier_ratio > 0 && accept_inlier_ratio <= 1) ||
+      thesis_sample_size < 3 || thesis_max_attempts < 1 || max_iterations < 1 ||
+      min_iterations < 0 || !(confidence > 0 && confidence < 1) || refit_rounds < 0 ||
+      min_pairs < 3) {
+    if (error) *error = "ransac: options out of range";
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+struct Scored {
+  std::vector<int> inliers;
+  double sq_error_sum = 0;
+};
+
+Scored score(const Eigen::Isometry3d& T, const std::vector<Eigen::Vector3d>& src,
+             const std::vector<Eigen::Vector3d>& dst, double threshold_m) {
+  Scored s;
+  const double t2 = threshold_m * threshold_m;
+  for (std::size_t i = 0; i < src.size(); ++i) {
+    const double e2 = (T * src[i] - dst[i]).squaredNorm();
+    if (e2 <= t2) {
+      s.inliers.push_back(static_cast<int>(i));
+      s.sq_error_sum += e2;
+    }
+  }
+  return s;
+}
+
+bool better(const Scored& a, const Scored& b) {
+  if (a.inliers.size() != b.inliers.size()) return a.inliers.size() > b.inliers.size();
+  return a.sq_error_sum < b.sq_error_sum;
+}
+
+std::optional<Eigen::Isometry3d> fit_subset(const std::vector<int>& idx,
+                                            const std::vector<Eigen::Vector3d>& src,
+                                            const std::vector<Eigen::Vector3d>& dst,
+                                            const std::vector<double>* weights = nullptr) {
+  std::vector<Eigen::Vector3d> a, b;
+  std::vector<double> w;
+  a.reserve(idx.size());
+  b.reserve(idx.size());
+  for (int i : idx) {
+    a.push_back(src[i]);
+    b.push_back(dst[i]);
+    if (weights) w.push_back((*weights)[i]);
+  }
+  return umeyama_rigid(a, b, w);
+}
+
+}  // namespace
+
+std::optional<MotionEstimate> estimate_motion_ransac(const std::vector<Eigen::Vector3d>& src,
+                                                     const std::vector<Eigen::Vector3d>& dst,
+                                                     const std::vector<int>& order,
+                                                     const RansacOptions& o, std::uint64_t seed,
+                                                     std::string* why) {
+  if (!o.is_valid(why)) return std::nullopt;
+  const std::size_t n = src.size();
+  if (dst.size() != n) {
+    if (why) *why = "ransac: src and dst differ in size";
+    return std::nullopt;
+  }
+  if (n < o.min_pairs) {
+    if (why) *why = "ransac: too few pairs (" + std::to_string(n) + ")";
+    return std::nullopt;
+  }
+  Eigen::Isometry3d best_T = Eigen::Isometry3d::Identity();
+  Scored best;
+  bool have = false;
+  int iterations = 0;
+  auto consider = [&](const std::vector<int>& sample) {
+    ++iterations;
+    auto T = fit_subset(sample, src, dst);
+    if (!T) return;
+    Scored s = score(*T, src, dst, o.inlier_threshold_m);
+    if (!have || better(s, best)) {
+      best = std::move(s);
+      best_T = *T;
+      have = true;
+    }
+  };
+
+  if (o.sampling == RansacSampling::kThesis) {
+    std::vector<int> ord = order;
+    if (ord.size() != n) {
+      ord.resize(n);
+      std::iota(ord.begin(), ord.end(), 0);
+    }
+    const std::size_t k = static_cast<std::size_t>(o.thesis_sample_size);
+    for (int attempt = 0; attempt < o.thesis_max_attempts; ++attempt) {
+      const std::size_t start = static_cast<std::size_t>(attempt) * k;
+      if (start + k > n) break;
+      consider(std::vector<int>(ord.begin() + start, ord.begin() + start + k));
+      if (have && best.inliers.size() >= o.accept_inlier_ratio * n) break;
+    }
+  } else {
+    std::mt19937_64 rng(seed);
+    std::uniform_int_distribution<int> pick(0, static_cast<int>(n) - 1);
+    int needed = o.max_iterations;
+    for (int it = 0; it < needed && it < o.max_iterations; ++it) {
+      int a = pick(rng), b = pick(rng), c = pick(rng);
+      if (a == b || b == c || a == c) continue;
+      consider({a, b, c});
+      if (have && !best.inliers.empty()) {
+        const double w = static_cast<double>(best.inliers.size()) / n;
+        const double p_good = std::pow(w, 3);
+        if (p_good >= 1.0 - 1e-12) {
+          needed = o.min_iterations;
+        } else {
+          const double est = std::log(1.0 - o.confidence) / std::log(1.0 - p_good);
+          needed = std::max(o.min_iterations,
+                            static_cast<int>(std::min<double>(o.max_iterations, std::ceil(est))));
+        }
+      }
+    }
+  }
+  if (!have || best.inliers.size() < 3) {
+    if (why) *why = "ransac: no non-degenerate sample with >= 3 inliers";
+    return std::nullopt;
+  }
+  // Least-squares refit on all inliers, re-classifying until the inlier set stops changing.
+  for (int r = 0; r < o.refit_rounds; ++r) {
+    auto T = fit_subset(best.inliers, src, dst);
+    if (!T) break;
+    Scored s = score(*T, src, dst, o.inlier_threshold_m);
+    if (s.inliers.size() < 3) break;
+    const bool same = s.inliers == best.inliers;
+    best = std::move(s);
+    best_T = *T;
+    if (same) break;
+  }
+  if (o.depth_weighted_refine) {
+    // Kinect depth sigma ~ z^2 (Khoshelham & Elberink 2012): weight each pair by 1/(z_src^2 z_dst^2).
+    std::vector<double> w(n, 1.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double zs = std::max(0.3, std::abs(src[i].z())), zd = std::max(0.3, std::abs(dst[i].z()));
+      w[i] = 1.0 / (zs * zs * zd * zd);
+    }
+    if (auto T = fit_subset(best.inliers, src, dst, &w)) {
+      Scored s = score(*T, src, dst, o.inlier_threshold_m);
+      if (s.inliers.size() >= best.inliers.size()) {
+        best = std::move(s);
+        best_T = *T;
+      }
+    }
+  }
+  MotionEstimate m;
+  m.T_dst_src = best_T;
+  m.inliers = best.inliers;
+  m.inlier_ratio = static_cast<double>(best.inliers.size()) / n;
+  m.rms_error_m = std::sqrt(best.sq_error_sum / best.inliers.size());
+  m.accepted = m.inlier_ratio >= o.accept_inlier_ratio;
+  m.iterations = iterations;
+  return m;
+}
+
+}  // namespace slam

@@ -1,0 +1,225 @@
+// Pipeline threads and hand-over slots; see pipeline.hpp.
+#include "slam/pipeline/pipeline.hpp"
+
+#include <algorithm>
+
+namespace slam {
+
+bool parse_pipeline_mode(const std::string& name, PipelineMode* out, std::string* error) {
+  if (name == "sequential") { *out = PipelineMode::kSequential; return true; }
+  if (name == "wait") { *out = PipelineMode::kWait; return true; }
+  if (name == "realtime") { *out = PipelineMode::kRealtime; return true; }
+  if (error) *error = "unknown mode '" + name + "' (expected wait, realtime or sequential)";
+  return false;
+}
+
+const char* to_string(PipelineMode m) {
+  switch (m) {
+    case PipelineMode::kSequential: return "sequential";
+    case PipelineMode::kWait: return "wait";
+    case PipelineMode::kRealtime: return "realtime";
+  }
+  return "?";
+}
+
+bool PipelineOptions::is_valid(std::string* error) const {
+  return frontend.is_valid(error) && backend.is_valid(error);
+}
+
+std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intrinsics& k,
+                                           std::string* error) {
+  if (!o.is_valid(error)) return nullptr;
+  auto fe = FrontEnd::create(o.frontend, k, error);
+  if (!fe) return nullptr;
+  auto be = BackEnd::create(o.backend, error);
+  if (!be) return nullptr;
+  std::unique_ptr<Pipeline> p(new Pipeline(o, std::move(*fe), std::move(*be)));
+  if (o.mode != PipelineMode::kSequential) {
+    p->frontend_thread_ = std::thread([q = p.get()] { q->frontend_loop(); });
+    p->backend_thread_ = std::thread([q = p.get()] { q->backend_loop(); });
+  }
+  return p;
+}
+
+Pipeline::Pipeline(PipelineOptions options, FrontEnd frontend, BackEnd backend)
+    : options_(std::move(options)), frontend_(std::move(frontend)), backend_(std::move(backend)) {}
+
+Pipeline::~Pipeline() { finish(); }
+
+bool Pipeline::submit(RgbdFrame frame) {
+  if (finished_) return false;
+  if (options_.mode == PipelineMode::kSequential) {
+    ++summary_.frames_submitted;
+    run_frontend(frame);
+    return true;
+  }
+  std::unique_lock<std::mutex> lock(mutex_);
+  ++summary_.frames_submitted;
+  if (options_.mode == PipelineMode::kRealtime) {
+    if (!input_.empty()) {
+      ++summary_.frontend_dropped;
+      input_.clear();
+    }
+  } else {
+    cv_.wait(lock, [&] { return input_.empty(); });
+  }
+  input_.push_back(std::move(frame));
+  cv_.notify_all();
+  return true;
+}
+
+void Pipeline::finish() {
+  if (finished_.exchange(true)) return;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    input_closed_ = true;
+  }
+  cv_.notify_all();
+  if (frontend_thread_.joinable()) frontend_thread_.join();
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    handover_closed_ = true;
+  }
+  cv_.notify_all();
+  if (backend_thread_.joinable()) backend_thread_.join();
+  std::sort(records_.begin(), records_.end(),
+            [](const FrameRecord& a, const FrameRecord& b) { return a.index < b.index; });
+  summary_.keyframes = backend_->keyframes().size();
+  summary_.loop_closures = backend_->loop_closures();
+  summary_.optimisations = backend_->optimisations();
+  for (const auto& r : records_) if (!r.ok) ++summary_.frames_failed;
+}
+
+void Pipeline::frontend_loop() {
+  for (;;) {
+    RgbdFrame frame;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait(lock, [&] { return !input_.empty() || input_closed_; });
+      if (input_.empty()) return;
+      frame = std::move(input_.front());
+      input_.pop_front();
+    }
+    cv_.notify_all();
+    run_frontend(frame);
+  }
+}
+
+void Pipeline::backend_loop() {
+  for (;;) {
+    FrontendOutput out;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait(lock, [&] { return !handover_.empty() || handover_closed_; });
+      if (handover_.empty()) return;
+      out = std::move(handover_.front());
+      handover_.pop_front();
+    }
+    cv_.notify_all();
+    run_backend(out);
+  }
+}
+
+void Pipeline::run_frontend(const RgbdFrame& frame) {
+  std::string error;
+  std::optional<FrontendOutput> out;
+  try {
+    out = frontend_->process(frame, &error);
+  } catch (const std::exception& e) {  // nothing escapes a thread
+    error = std::string("front-end exception: ") + e.what();
+  }
+  FrameRecord rec;
+  rec.index = frame.index;
+  rec.stamp_s = frame.stamp_s;
+  if (!out) {
+    rec.ok = false;
+    rec.error = error;
+    std::lock_guard<std::mutex> lock(mutex_);
+    records_.push_back(rec);
+    return;
+  }
+  rec.ok = true;
+  rec.state = out->state;
+  rec.T_prev_cur = out->T_prev_cur;
+  rec.features = out->features->points_cam_m.size();
+  rec.matches = out->matches;
+  rec.inliers = out->inliers;
+  rec.features_ms = out->features_ms;
+  rec.matching_ms = out->matching_ms;
+  rec.ransac_ms = out->ransac_ms;
+  rec.frontend_ms = out->total_ms;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    rec.T_world_cam = correction_ * out->T_odom_cam;  // replaced when the back-end processes it
+    records_.push_back(rec);
+  }
+  if (options_.mode == PipelineMode::kSequential) {
+    run_backend(*out);
+    return;
+  }
+  std::unique_lock<std::mutex> lock(mutex_);
+  if (options_.mode == PipelineMode::kRealtime) {
+    if (!handover_.empty()) {
+      ++summary_.backend_skipped;
+      handover_.clear();
+    }
+  } else {
+    cv_.wait(lock, [&] { return handover_.empty(); });
+  }
+  handover_.push_back(std::move(*out));
+  cv_.notify_all();
+}
+
+void Pipeline::run_backend(const FrontendOutput& in) {
+  BackendOutput out;
+  try {
+    out = backend_->process(in);
+  } catch (const std::exception&) {  // nothing escapes a thread; the frame keeps its VO pose
+    return;
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  correction_ = out.T_world_cam * in.T_odom_cam.inverse();
+  for (auto it = records_.rbegin(); it != records_.rend(); ++it) {
+    if (it->index != in.index) continue;
+    it->backend_processed = true;
+    it->keyframe = out.keyframe;
+    it->llc_applied = out.llc_applied;
+    it->loop_closed = out.loop_closed;
+    it->reference_keyframe = out.reference_keyframe;
+    it->T_world_cam = out.T_world_cam;
+    it->T_kf_cam = out.T_kf_cam;
+    it->keyframe_ms = out.keyframe_ms;
+    it->llc_ms = out.llc_ms;
+    it->glc_ms = out.glc_ms;
+    it->posegraph_ms = out.posegraph_ms;
+    it->backend_ms = out.total_ms;
+    break;
+  }
+}
+
+std::vector<FrameRecord> Pipeline::records() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return records_;
+}
+
+PipelineSummary Pipeline::summary() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return summary_;
+}
+
+std::vector<std::pair<double, Eigen::Isometry3d>> Pipeline::final_trajectory() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<std::pair<double, Eigen::Isometry3d>> out;
+  for (const auto& r : records_) {
+    if (!r.ok) continue;
+    if (r.backend_processed && r.reference_keyframe >= 0 &&
+        backend_->graph().has_node(r.reference_keyframe)) {
+      out.emplace_back(r.stamp_s, backend_->keyframe_pose(r.reference_keyframe) * r.T_kf_cam);
+    } else {
+      out.emplace_back(r.stamp_s, r.T_world_cam);
+    }
+  }
+  return out;
+}
+
+}  // namespace slam

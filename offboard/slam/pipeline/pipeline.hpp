@@ -1,0 +1,119 @@
+// The SLAM pipeline: front-end and back-end joined by bounded hand-over slots. This is the only
+// place with threads (house style: stages are plain classes; threading lives in pipeline/).
+//
+// Modes:
+//  - kSequential: submit() runs front-end and back-end on the caller's thread (tests);
+//  - kWait: front-end thread + back-end thread, every frame goes through both, in order; the
+//    back-end result of frame i is what the output holds, so results equal kSequential's
+//    (deterministic; used for evaluation). The two threads overlap across consecutive frames.
+//  - kRealtime: submit() never blocks: a frame arriving while the front-end still holds an
+//    unprocessed one replaces it (counted as a dropped front-end frame); the back-end always takes
+//    the latest front-end output and skips the rest (counted). Poses of skipped frames are the
+//    front-end's odometry mapped through the latest back-end correction.
+//
+// Thread safety: submit()/finish() from one producer thread; results after finish().
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "slam/pipeline/backend.hpp"
+#include "slam/pipeline/frontend.hpp"
+
+namespace slam {
+
+enum class PipelineMode { kSequential, kWait, kRealtime };
+bool parse_pipeline_mode(const std::string& name, PipelineMode* out, std::string* error);
+const char* to_string(PipelineMode m);
+
+struct PipelineOptions {
+  FrontendOptions frontend;
+  BackendOptions backend;
+  PipelineMode mode = PipelineMode::kWait;
+  bool is_valid(std::string* error) const;
+};
+
+/// Everything known about one frame once the pipeline is finished.
+struct FrameRecord {
+  std::int64_t index = 0;
+  double stamp_s = 0;
+  bool ok = false;                  ///< false: the front-end rejected the frame (see error)
+  std::string error;
+  TrackingState state = TrackingState::kInitialising;
+  bool backend_processed = false;
+  bool keyframe = false;
+  bool llc_applied = false;
+  bool loop_closed = false;
+  std::int64_t reference_keyframe = -1;
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< as estimated online
+  Eigen::Isometry3d T_prev_cur = Eigen::Isometry3d::Identity();   ///< front-end egomotion
+  Eigen::Isometry3d T_kf_cam = Eigen::Isometry3d::Identity();
+  std::size_t features = 0, matches = 0, inliers = 0;
+  double features_ms = 0, matching_ms = 0, ransac_ms = 0, frontend_ms = 0;
+  double keyframe_ms = 0, llc_ms = 0, glc_ms = 0, posegraph_ms = 0, backend_ms = 0;
+};
+
+struct PipelineSummary {
+  std::size_t frames_submitted = 0;
+  std::size_t frontend_dropped = 0;  ///< real-time mode: frames replaced before the front-end took them
+  std::size_t backend_skipped = 0;   ///< real-time mode: front-end outputs the back-end never saw
+  std::size_t frames_failed = 0;
+  std::size_t keyframes = 0;
+  std::size_t loop_closures = 0;
+  std::size_t optimisations = 0;
+};
+
+class Pipeline {
+ public:
+  static std::unique_ptr<Pipeline> create(const PipelineOptions& options,
+                                          const Intrinsics& intrinsics, std::string* error);
+  ~Pipeline();
+  Pipeline(const Pipeline&) = delete;
+  Pipeline& operator=(const Pipeline&) = delete;
+
+  /// Hands over the next frame (see the modes above). Returns false after finish().
+  bool submit(RgbdFrame frame);
+  /// Drains both stages and joins the threads. Idempotent.
+  void finish();
+
+  /// Valid after finish(): records in index order, and the final trajectory where each frame is
+  /// re-anchored to the optimised pose of its reference keyframe.
+  std::vector<FrameRecord> records() const;
+  std::vector<std::pair<double, Eigen::Isometry3d>> final_trajectory() const;
+  PipelineSummary summary() const;
+  const BackEnd& backend() const { return *backend_; }
+
+ private:
+  Pipeline(PipelineOptions options, FrontEnd frontend, BackEnd backend);
+  void frontend_loop();
+  void backend_loop();
+  void run_frontend(const RgbdFrame& frame);
+  void run_backend(const FrontendOutput& out);
+
+  PipelineOptions options_;
+  std::optional<FrontEnd> frontend_;
+  std::optional<BackEnd> backend_;
+
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<RgbdFrame> input_;                   // capacity 1
+  std::deque<FrontendOutput> handover_;           // capacity 1
+  bool input_closed_ = false;
+  bool handover_closed_ = false;
+  std::atomic<bool> finished_{false};
+  std::vector<FrameRecord> records_;
+  // Latest back-end correction C = T_world_cam * T_odom_cam^-1 (used for skipped frames).
+  Eigen::Isometry3d correction_ = Eigen::Isometry3d::Identity();
+  PipelineSummary summary_;
+  std::thread frontend_thread_;
+  std::thread backend_thread_;
+};
+
+}  // namespace slam

@@ -1,0 +1,84 @@
+// Keyframe policy decisions, LLC clamp and GLC candidate rotation (table-driven).
+#include <gtest/gtest.h>
+
+#include "slam/keyframes/keyframes.hpp"
+#include "slam/loop/loop.hpp"
+
+namespace slam {
+namespace {
+
+struct KfCase {
+  const char* name;
+  KeyframePolicy policy;
+  std::optional<double> since_s;
+  std::optional<KeyframeEvidence> evidence;
+  bool expected;
+};
+
+TEST(KeyframePolicy, TableOfDecisions) {
+  const KfCase cases[] = {
+      {"first frame", KeyframePolicy::kRansac, std::nullopt, std::nullopt, true},
+      {"no evidence", KeyframePolicy::kRansac, 0.1, std::nullopt, true},
+      {"good overlap", KeyframePolicy::kRansac, 0.1, KeyframeEvidence{1000, 400, 300}, false},
+      {"matches just under 15 %", KeyframePolicy::kRansac, 0.1, KeyframeEvidence{1000, 149, 149}, true},
+      {"matches at 15 %", KeyframePolicy::kRansac, 0.1, KeyframeEvidence{1000, 150, 150}, false},
+      {"inliers under 45 %", KeyframePolicy::kRansac, 0.1, KeyframeEvidence{1000, 400, 179}, true},
+      {"inliers at 45 %", KeyframePolicy::kRansac, 0.1, KeyframeEvidence{1000, 400, 180}, false},
+      {"fixed: 0.2 s after", KeyframePolicy::kFixedRate, 0.2, KeyframeEvidence{1000, 0, 0}, false},
+      {"fixed: 1/3 s after (30 Hz, 10 frames)", KeyframePolicy::kFixedRate, 10 * 0.0333, std::nullopt, true},
+      {"fixed: first frame", KeyframePolicy::kFixedRate, std::nullopt, std::nullopt, true},
+  };
+  for (const auto& c : cases) {
+    KeyframeOptions o;
+    o.policy = c.policy;
+    EXPECT_EQ(decide_new_keyframe(o, c.since_s, c.evidence), c.expected) << c.name;
+  }
+}
+
+Eigen::Isometry3d pose(double x, double yaw_rad) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(x, 0, 0);
+  T.linear() = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return T;
+}
+
+TEST(LocalLoopClosure, GivenLargeCorrectionThenClampedTo25PercentOfEdge) {
+  // Edge: 4 cm and 0.04 rad. Measurement disagrees by 10 cm and 0.1 rad -> 1 cm / 0.01 rad applied.
+  const auto out = clamp_llc_correction(pose(1.0, 0.0), pose(1.1, 0.1), pose(0.04, 0.04), 0.25);
+  EXPECT_NEAR(out.translation().x(), 1.01, 1e-12);
+  EXPECT_NEAR(Eigen::AngleAxisd(out.rotation()).angle(), 0.01, 1e-9);
+}
+
+TEST(LocalLoopClosure, GivenSmallCorrectionThenAppliedFully) {
+  const auto out = clamp_llc_correction(pose(1.0, 0.0), pose(1.005, 0.002), pose(0.04, 0.04), 0.25);
+  EXPECT_NEAR(out.translation().x(), 1.005, 1e-12);
+  EXPECT_NEAR(Eigen::AngleAxisd(out.rotation()).angle(), 0.002, 1e-9);
+}
+
+TEST(LocalLoopClosure, GivenStillCameraOrNonFiniteThenPredictionKept) {
+  const auto still = clamp_llc_correction(pose(1.0, 0.0), pose(1.1, 0.1), Eigen::Isometry3d::Identity(), 0.25);
+  EXPECT_TRUE(still.isApprox(pose(1.0, 0.0)));
+  Eigen::Isometry3d nan = pose(1.0, 0.0);
+  nan.translation().x() = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_TRUE(clamp_llc_correction(pose(1.0, 0.0), nan, pose(0.04, 0), 0.25).isApprox(pose(1.0, 0.0)));
+}
+
+TEST(GlobalLoopClosure, GivenFewOlderKeyframesThenAllTested) {
+  EXPECT_EQ(select_glc_candidates(0, 5, 7), std::vector<std::size_t>{});
+  EXPECT_EQ(select_glc_candidates(3, 5, 7), (std::vector<std::size_t>{0, 1, 2}));
+}
+
+TEST(GlobalLoopClosure, GivenManyKeyframesThenOnePerBlockRotating) {
+  // 14 older keyframes, 7 blocks of 2: iteration 0 takes the first of each, 1 the second, 2 wraps.
+  EXPECT_EQ(select_glc_candidates(14, 0, 7), (std::vector<std::size_t>{0, 2, 4, 6, 8, 10, 12}));
+  EXPECT_EQ(select_glc_candidates(14, 1, 7), (std::vector<std::size_t>{1, 3, 5, 7, 9, 11, 13}));
+  EXPECT_EQ(select_glc_candidates(14, 2, 7), select_glc_candidates(14, 0, 7));
+  // Over a block's length of iterations every keyframe is visited exactly once.
+  std::vector<int> seen(30, 0);
+  for (std::size_t it = 0; it < 5; ++it)
+    for (auto i : select_glc_candidates(30, it, 7)) ++seen[i];
+  for (int s : seen) EXPECT_GE(s, 1);
+}
+
+}  // namespace
+}  // namespace slam
