@@ -1,0 +1,92 @@
+// ControlConfig validation and JSON loading (see control_config.hpp).
+#include "core/control_config.hpp"
+
+#include <cmath>
+#include <map>
+#include <nlohmann/json.hpp>
+
+namespace rgbdquad::quadcontrol {
+
+namespace {
+
+std::map<std::string, double*> scalar_fields(ControlConfig& c) {
+  return {
+      {"hold_height_m", &c.hold_height_m},
+      {"hover_throttle_pct", &c.hover_throttle_pct},
+      {"takeoff_climb_rate_m_per_s", &c.takeoff_climb_rate_m_per_s},
+      {"takeoff_reached_tolerance_m", &c.takeoff_reached_tolerance_m},
+      {"face_waypoint_tolerance_deg", &c.face_waypoint_tolerance_deg},
+      {"waypoint_reached_m", &c.waypoint_reached_m},
+      {"turn_skip_distance_m", &c.turn_skip_distance_m},
+      {"pose_timeout_ms", &c.pose_timeout_ms},
+      {"lost_hold_ms", &c.lost_hold_ms},
+      {"land_throttle_ramp_pct_per_s", &c.land_throttle_ramp_pct_per_s},
+      {"land_min_throttle_pct", &c.land_min_throttle_pct},
+      {"motor_stop_height_m", &c.motor_stop_height_m},
+      {"land_floor_hold_ms", &c.land_floor_hold_ms},
+      {"manual_step_m", &c.manual_step_m},
+      {"manual_yaw_step_deg", &c.manual_yaw_step_deg},
+      {"max_waypoint_distance_m", &c.max_waypoint_distance_m},
+  };
+}
+
+std::map<std::string, PidGains*> pid_fields(ControlConfig& c) {
+  return {{"roll", &c.roll}, {"pitch", &c.pitch}, {"yaw", &c.yaw}, {"throttle", &c.throttle}};
+}
+
+}  // namespace
+
+std::string ControlConfig::validate() const {
+  ControlConfig copy = *this;
+  for (auto& [name, pid] : pid_fields(copy)) {
+    const std::string e = pid->validate();
+    if (!e.empty()) return "controller." + name + ": " + e;
+  }
+  for (auto& [name, value] : scalar_fields(copy)) {
+    if (!std::isfinite(*value) || *value <= 0.0) return "controller." + name + " must be finite and > 0";
+  }
+  if (hover_throttle_pct >= 100.0) return "controller.hover_throttle_pct must be < 100";
+  if (land_min_throttle_pct >= hover_throttle_pct) {
+    return "controller.land_min_throttle_pct must be below hover_throttle_pct (else it never descends)";
+  }
+  if (motor_stop_height_m >= hold_height_m) return "controller.motor_stop_height_m must be below hold_height_m";
+  return {};
+}
+
+std::string load_control_config(const nlohmann::json& j, ControlConfig& config) {
+  if (!j.is_object()) return "controller: expected an object";
+  auto scalars = scalar_fields(config);
+  auto pids = pid_fields(config);
+  for (const auto& [key, value] : j.items()) {
+    if (auto it = scalars.find(key); it != scalars.end()) {
+      if (!value.is_number()) return "controller." + key + ": expected a number";
+      *it->second = value.get<double>();
+    } else if (auto pit = pids.find(key); pit != pids.end()) {
+      if (!value.is_object()) return "controller." + key + ": expected an object {kp, ki, kd, output_limit_pct}";
+      for (const auto& [gk, gv] : value.items()) {
+        if (!gv.is_number()) return "controller." + key + "." + gk + ": expected a number";
+        PidGains& g = *pit->second;
+        if (gk == "kp") g.kp = gv.get<double>();
+        else if (gk == "ki") g.ki = gv.get<double>();
+        else if (gk == "kd") g.kd = gv.get<double>();
+        else if (gk == "output_limit_pct") g.output_limit_pct = gv.get<double>();
+        else return "controller." + key + "." + gk + ": unknown key";
+      }
+    } else {
+      return "controller." + key + ": unknown key";
+    }
+  }
+  return {};
+}
+
+nlohmann::json to_json(const ControlConfig& config) {
+  ControlConfig copy = config;
+  nlohmann::json j = nlohmann::json::object();
+  for (auto& [name, value] : scalar_fields(copy)) j[name] = *value;
+  for (auto& [name, pid] : pid_fields(copy)) {
+    j[name] = {{"kp", pid->kp}, {"ki", pid->ki}, {"kd", pid->kd}, {"output_limit_pct", pid->output_limit_pct}};
+  }
+  return j;
+}
+
+}  // namespace rgbdquad::quadcontrol

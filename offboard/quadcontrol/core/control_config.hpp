@@ -1,0 +1,49 @@
+// Options of the position controller and flight state machine, with the thesis defaults
+// (Table 3.1 gains, 1.7 m hold height) and the reason for every other value. Loaded from the
+// "controller" object of the quad-control JSON config (offboard/quadcontrol/config/quad-control.json);
+// absent keys keep these defaults. validate() names the first bad field.
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "core/pid.hpp"
+
+namespace rgbdquad::quadcontrol {
+
+struct ControlConfig {
+  // Table 3.1 (error in mm for roll/pitch/throttle, in degrees for yaw; output in percent of stick).
+  // Output limits: +-20 % roll/pitch stick (~9 deg of tilt with ArduCopter's 45 deg ANGLE_MAX)
+  // keeps an indoor craft slow; +-30 % yaw rate stick; +-30 % throttle around hover.
+  PidGains roll{0.015, 0.0, 0.01, 20.0};
+  PidGains pitch{0.015, 0.0, 0.01, 20.0};
+  PidGains yaw{0.06, 0.0, 0.02, 30.0};
+  PidGains throttle{0.025, 0.013, 0.02, 30.0};
+
+  double hold_height_m = 1.7;             ///< thesis: hold at 1.7 m with no instruction
+  double hover_throttle_pct = 50.0;       ///< feed-forward; the throttle integrator absorbs the rest
+  double takeoff_climb_rate_m_per_s = 0.5;  ///< setpoint ramp: slow enough for a 30 Hz pose loop
+  double takeoff_reached_tolerance_m = 0.1;  ///< within 10 cm of hold height -> hold
+  double face_waypoint_tolerance_deg = 10.0;  ///< heading error below which the craft starts moving
+  double waypoint_reached_m = 0.15;       ///< ~ the SLAM drift over a short flight; then hold there
+  double turn_skip_distance_m = 0.3;      ///< closer goals are reached without turning
+  double pose_timeout_ms = 300.0;         ///< 9 frames at 30 Hz without a tracked pose = lost
+  double lost_hold_ms = 2000.0;           ///< neutral hover this long waiting for tracking, then land
+  double land_throttle_ramp_pct_per_s = 5.0;  ///< steady reduction (thesis: never an instant cut)
+  double land_min_throttle_pct = 20.0;    ///< ramp floor: below hover, craft descends slowly
+  double motor_stop_height_m = 0.15;      ///< camera height at which the motors are stopped
+  double land_floor_hold_ms = 3000.0;     ///< blind landing: stop after this long at the floor
+  double manual_step_m = 0.1;             ///< one manual key press moves the setpoint 10 cm
+  double manual_yaw_step_deg = 10.0;      ///< one manual key press turns the setpoint 10 deg
+  double max_waypoint_distance_m = 10.0;  ///< a click further than this is a mistake, rejected
+
+  std::string validate() const;
+};
+
+/// Reads the fields present in `j` over `config`; returns an error text (empty on success) for a
+/// wrong type or an unknown key, so typos are caught at start-up.
+std::string load_control_config(const nlohmann::json& j, ControlConfig& config);
+nlohmann::json to_json(const ControlConfig& config);
+
+}  // namespace rgbdquad::quadcontrol

@@ -1,0 +1,281 @@
+// Flight state machine and position controller: see flight_controller.hpp.
+#include "core/flight_controller.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "core/geometry.hpp"
+
+namespace rgbdquad::quadcontrol {
+
+namespace {
+constexpr double kMmPerM = 1000.0;
+constexpr double kUsPerMs = 1000.0;
+constexpr double kUsPerS = 1e6;
+
+bool finite_pose(const CraftPose& p) {
+  return std::isfinite(p.x_m) && std::isfinite(p.y_m) && std::isfinite(p.z_m) && std::isfinite(p.yaw_deg);
+}
+
+bool flying(FlightState s) {
+  return s == FlightState::kTakeOff || s == FlightState::kHold || s == FlightState::kGoToWaypoint ||
+         s == FlightState::kLostHold || s == FlightState::kLand;
+}
+}  // namespace
+
+const char* to_string(FlightState state) {
+  switch (state) {
+    case FlightState::kDisarmed: return "disarmed";
+    case FlightState::kArmed: return "armed";
+    case FlightState::kTakeOff: return "take-off";
+    case FlightState::kHold: return "hold";
+    case FlightState::kGoToWaypoint: return "go-to-waypoint";
+    case FlightState::kLostHold: return "lost-hold";
+    case FlightState::kLand: return "land";
+  }
+  return "?";
+}
+
+const char* to_string(OperatorCommand command) {
+  switch (command) {
+    case OperatorCommand::kArm: return "arm";
+    case OperatorCommand::kDisarm: return "disarm";
+    case OperatorCommand::kTakeOff: return "takeoff";
+    case OperatorCommand::kLand: return "land";
+  }
+  return "?";
+}
+
+FlightController::FlightController(ControlConfig config)
+    : config_(config), roll_(config.roll), pitch_(config.pitch), yaw_(config.yaw), throttle_(config.throttle) {
+  const std::string error = config_.validate();
+  if (!error.empty()) throw std::invalid_argument(error);
+  status_.last_event = "start-up";
+}
+
+bool FlightController::has_fresh_pose(std::int64_t now_us) const {
+  if (!pose_ || !pose_->tracking) return false;
+  return static_cast<double>(now_us - pose_->received_us) <= config_.pose_timeout_ms * kUsPerMs;
+}
+
+void FlightController::reset_pids() {
+  roll_.reset();
+  pitch_.reset();
+  yaw_.reset();
+  throttle_.reset();
+}
+
+void FlightController::enter(FlightState state, std::int64_t now_us, const std::string& why) {
+  status_.state = state;
+  status_.last_event = std::string(to_string(state)) + ": " + why;
+  state_entered_us_ = now_us;
+  if (state != FlightState::kGoToWaypoint) {
+    status_.waypoint.reset();
+    status_.facing_waypoint = false;
+  }
+  if (state == FlightState::kLand) {
+    land_start_throttle_pct_ = std::max(last_throttle_pct_, config_.land_min_throttle_pct);
+    land_floor_reached_us_.reset();
+  }
+  if (state == FlightState::kDisarmed || state == FlightState::kArmed) reset_pids();
+}
+
+std::string FlightController::command(std::int64_t now_us, OperatorCommand cmd) {
+  const FlightState s = status_.state;
+  switch (cmd) {
+    case OperatorCommand::kArm:
+      if (s != FlightState::kDisarmed) return "arm: only when disarmed";
+      enter(FlightState::kArmed, now_us, "operator armed");
+      return {};
+    case OperatorCommand::kDisarm:
+      if (flying(s)) return "disarm: refused in flight (land first)";
+      if (s == FlightState::kDisarmed) return "disarm: already disarmed";
+      enter(FlightState::kDisarmed, now_us, "operator disarmed");
+      return {};
+    case OperatorCommand::kTakeOff: {
+      if (s != FlightState::kArmed) return "takeoff: only when armed";
+      if (!has_fresh_pose(now_us)) return "takeoff: no tracked pose";
+      reset_pids();
+      const CraftPose& p = pose_->pose;
+      status_.setpoint = CraftPose{p.x_m, p.y_m, p.z_m, p.yaw_deg};
+      takeoff_start_height_m_ = p.z_m;
+      enter(FlightState::kTakeOff, now_us, "operator take-off");
+      return {};
+    }
+    case OperatorCommand::kLand:
+      if (!flying(s)) return "land: not flying";
+      if (s == FlightState::kLand) return "land: already landing";
+      enter(FlightState::kLand, now_us, "operator land");
+      return {};
+  }
+  return "unknown command";
+}
+
+std::string FlightController::set_waypoint(std::int64_t now_us, double x_m, double y_m) {
+  if (!std::isfinite(x_m) || !std::isfinite(y_m)) return "waypoint: non-finite coordinates";
+  if (status_.state != FlightState::kHold && status_.state != FlightState::kGoToWaypoint) {
+    return std::string("waypoint: only in hold or go-to (now ") + to_string(status_.state) + ")";
+  }
+  if (!has_fresh_pose(now_us)) return "waypoint: no tracked pose";
+  const CraftPose& p = pose_->pose;
+  const double distance_m = std::hypot(x_m - p.x_m, y_m - p.y_m);
+  if (distance_m > config_.max_waypoint_distance_m) return "waypoint: further than max_waypoint_distance_m";
+  status_.waypoint = Waypoint{x_m, y_m};
+  if (distance_m < config_.turn_skip_distance_m) {
+    // Close goal: keep the heading (position never drives yaw), move at once.
+    status_.facing_waypoint = true;
+    status_.setpoint.x_m = x_m;
+    status_.setpoint.y_m = y_m;
+  } else {
+    status_.facing_waypoint = false;
+    status_.setpoint.x_m = p.x_m;
+    status_.setpoint.y_m = p.y_m;
+    status_.setpoint.yaw_deg = bearing_deg(p.x_m, p.y_m, x_m, y_m);
+  }
+  status_.state = FlightState::kGoToWaypoint;
+  status_.last_event = "go-to-waypoint: operator clicked the map";
+  state_entered_us_ = now_us;
+  return {};
+}
+
+std::string FlightController::nudge(std::int64_t, double forward_m, double left_m, double up_m,
+                                    double yaw_ccw_deg) {
+  for (double v : {forward_m, left_m, up_m, yaw_ccw_deg}) {
+    if (!std::isfinite(v)) return "manual: non-finite step";
+  }
+  const FlightState s = status_.state;
+  if (s != FlightState::kHold && s != FlightState::kGoToWaypoint) return "manual: only in hold or go-to";
+  const double c = std::cos(status_.setpoint.yaw_deg / kDegPerRad);
+  const double sn = std::sin(status_.setpoint.yaw_deg / kDegPerRad);
+  status_.setpoint.x_m += c * forward_m - sn * left_m;
+  status_.setpoint.y_m += sn * forward_m + c * left_m;
+  status_.setpoint.z_m = std::max(config_.motor_stop_height_m * 2.0, status_.setpoint.z_m + up_m);
+  status_.setpoint.yaw_deg = wrap_deg(status_.setpoint.yaw_deg + yaw_ccw_deg);
+  status_.state = FlightState::kHold;
+  status_.waypoint.reset();
+  status_.facing_waypoint = false;
+  status_.last_event = "hold: manual step";
+  return {};
+}
+
+void FlightController::on_pose(const PoseSample& sample) {
+  PoseSample s = sample;
+  if (!finite_pose(s.pose)) s.tracking = false;
+  pose_ = s;
+}
+
+double FlightController::unwrap_yaw(double yaw_deg) {
+  if (!unwrapped_yaw_deg_) {
+    unwrapped_yaw_deg_ = yaw_deg;
+  } else {
+    *unwrapped_yaw_deg_ += wrap_deg(yaw_deg - last_raw_yaw_deg_);
+  }
+  last_raw_yaw_deg_ = yaw_deg;
+  return *unwrapped_yaw_deg_;
+}
+
+StickCommand FlightController::position_control(std::int64_t now_us, const CraftPose& pose,
+                                                double height_setpoint_m) {
+  StickCommand cmd;
+  cmd.armed = true;
+  const BodyError e = world_to_body(status_.setpoint.x_m - pose.x_m, status_.setpoint.y_m - pose.y_m, pose.yaw_deg);
+  // Body-frame PIDs: measurement = craft position relative to the setpoint, in mm.
+  if (auto out = pitch_.update(now_us, 0.0, -e.forward_m * kMmPerM)) cmd.pitch_pct = *out;
+  if (auto out = roll_.update(now_us, 0.0, -e.left_m * kMmPerM)) cmd.roll_pct = -*out;  // left error -> roll left
+  // Yaw on a continuous (unwrapped) angle so the derivative never sees a 360 deg jump.
+  const double yaw_cont = unwrap_yaw(pose.yaw_deg);
+  const double yaw_target = yaw_cont + wrap_deg(status_.setpoint.yaw_deg - pose.yaw_deg);
+  if (auto out = yaw_.update(now_us, yaw_target, yaw_cont)) cmd.yaw_pct = -*out;  // ccw error -> stick left
+  double throttle_out = 0.0;
+  if (auto out = throttle_.update(now_us, height_setpoint_m * kMmPerM, pose.z_m * kMmPerM)) throttle_out = *out;
+  cmd.throttle_pct = std::clamp(config_.hover_throttle_pct + throttle_out, 0.0, 100.0);
+  return cmd;
+}
+
+StickCommand FlightController::update(std::int64_t now_us) {
+  const bool fresh = has_fresh_pose(now_us);
+  status_.tracking = fresh;
+  FlightState s = status_.state;
+
+  if ((s == FlightState::kTakeOff || s == FlightState::kHold || s == FlightState::kGoToWaypoint) && !fresh) {
+    enter(FlightState::kLostHold, now_us, "tracking lost, holding neutral");
+    s = status_.state;
+  }
+  if (s == FlightState::kLostHold) {
+    if (fresh) {
+      reset_pids();
+      enter(FlightState::kHold, now_us, "tracking back");
+      s = status_.state;
+    } else if (static_cast<double>(now_us - state_entered_us_) >= config_.lost_hold_ms * kUsPerMs) {
+      enter(FlightState::kLand, now_us, "tracking not back in time, landing blind");
+      s = status_.state;
+    }
+  }
+
+  StickCommand cmd;
+  switch (s) {
+    case FlightState::kDisarmed:
+      break;
+    case FlightState::kArmed:
+      cmd.armed = true;
+      break;
+    case FlightState::kLostHold:
+      cmd.armed = true;
+      cmd.throttle_pct = config_.hover_throttle_pct;
+      break;
+    case FlightState::kTakeOff: {
+      const double elapsed_s = static_cast<double>(now_us - state_entered_us_) / kUsPerS;
+      const double ramp_m = takeoff_start_height_m_ + config_.takeoff_climb_rate_m_per_s * elapsed_s;
+      status_.setpoint.z_m = std::min(ramp_m, config_.hold_height_m);
+      cmd = position_control(now_us, pose_->pose, status_.setpoint.z_m);
+      if (status_.setpoint.z_m >= config_.hold_height_m &&
+          std::abs(pose_->pose.z_m - config_.hold_height_m) <= config_.takeoff_reached_tolerance_m) {
+        enter(FlightState::kHold, now_us, "reached hold height");
+      }
+      break;
+    }
+    case FlightState::kHold:
+      cmd = position_control(now_us, pose_->pose, status_.setpoint.z_m);
+      break;
+    case FlightState::kGoToWaypoint: {
+      const CraftPose& p = pose_->pose;
+      const Waypoint w = *status_.waypoint;
+      if (!status_.facing_waypoint &&
+          std::abs(wrap_deg(status_.setpoint.yaw_deg - p.yaw_deg)) <= config_.face_waypoint_tolerance_deg) {
+        status_.facing_waypoint = true;  // turned: now move, heading stays fixed
+        status_.setpoint.x_m = w.x_m;
+        status_.setpoint.y_m = w.y_m;
+      }
+      cmd = position_control(now_us, p, status_.setpoint.z_m);
+      if (status_.facing_waypoint && std::hypot(w.x_m - p.x_m, w.y_m - p.y_m) <= config_.waypoint_reached_m) {
+        enter(FlightState::kHold, now_us, "waypoint reached");
+      }
+      break;
+    }
+    case FlightState::kLand: {
+      const double elapsed_s = static_cast<double>(now_us - state_entered_us_) / kUsPerS;
+      const double throttle = std::max(config_.land_min_throttle_pct,
+                                       land_start_throttle_pct_ - config_.land_throttle_ramp_pct_per_s * elapsed_s);
+      if (fresh) {
+        cmd = position_control(now_us, pose_->pose, status_.setpoint.z_m);
+      }
+      cmd.armed = true;
+      cmd.throttle_pct = throttle;
+      if (throttle <= config_.land_min_throttle_pct && !land_floor_reached_us_) land_floor_reached_us_ = now_us;
+      const bool near_ground = fresh && pose_->pose.z_m <= config_.motor_stop_height_m;
+      const bool floor_long_enough =
+          land_floor_reached_us_ &&
+          static_cast<double>(now_us - *land_floor_reached_us_) >= config_.land_floor_hold_ms * kUsPerMs;
+      if (near_ground || floor_long_enough) {
+        enter(FlightState::kDisarmed, now_us, near_ground ? "landed, motors stopped" : "landed blind, motors stopped");
+        cmd = StickCommand{};
+      }
+      break;
+    }
+  }
+  last_throttle_pct_ = cmd.throttle_pct;
+  return cmd;
+}
+
+}  // namespace rgbdquad::quadcontrol

@@ -1,0 +1,121 @@
+// The flight state machine and position controller of quad-control (thesis Section 3.3.3).
+//
+//   disarmed -arm-> armed -takeoff-> take-off -(at hold height)-> hold <-waypoint/arrived-> go-to
+//   take-off / hold / go-to -land-> land -(near the ground)-> disarmed;  armed -disarm-> disarmed
+//   take-off / hold / go-to -(tracking lost)-> lost-hold -(tracking back)-> hold
+//                                                       -(lost_hold_ms)-> land (blind)
+//
+// Position control: one PID per axis (roll: lateral error, pitch: forward error, throttle: height
+// error, all in mm; yaw: heading error in degrees). Only yaw orients the craft and position never
+// drives yaw: in hold the heading stays where take-off left it and a goal behind is reached by
+// pitching backwards. A waypoint far enough away is approached by first turning to face it (roll
+// and pitch hold the position meanwhile), then moving with the heading fixed.
+// Landing is a steady throttle reduction; motors stop once the craft is close to the ground.
+//
+// Stick convention of StickCommand (percent of full deflection from neutral): roll_pct > 0 rolls
+// right, pitch_pct > 0 pitches forward (nose down), yaw_pct > 0 turns clockwise seen from above
+// (right stick); throttle_pct is absolute, 0..100. Conversion to the firmware's PWM units is
+// stick_mapping.hpp's job.
+//
+// Time is passed in (monotonic microseconds, same clock for poses and update()). Not thread-safe:
+// the app owns one instance behind a mutex.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "core/control_config.hpp"
+#include "core/pid.hpp"
+
+namespace rgbdquad::quadcontrol {
+
+enum class FlightState { kDisarmed, kArmed, kTakeOff, kHold, kGoToWaypoint, kLostHold, kLand };
+const char* to_string(FlightState state);
+
+enum class OperatorCommand { kArm, kDisarm, kTakeOff, kLand };
+const char* to_string(OperatorCommand command);
+
+/// Pose of the craft in the floor-aligned world frame (z = height above the floor).
+struct CraftPose {
+  double x_m = 0.0;
+  double y_m = 0.0;
+  double z_m = 0.0;
+  double yaw_deg = 0.0;  ///< counter-clockwise from world +x, seen from above
+};
+
+/// One pose estimate as it reached the controller.
+struct PoseSample {
+  std::int64_t received_us = 0;  ///< controller clock when the estimate arrived
+  bool tracking = false;         ///< false: SLAM lost track, `pose` is meaningless
+  CraftPose pose;
+};
+
+struct StickCommand {
+  double roll_pct = 0.0;
+  double pitch_pct = 0.0;
+  double yaw_pct = 0.0;
+  double throttle_pct = 0.0;
+  bool armed = false;  ///< false: the firmware keeps its outputs at safe values
+};
+
+struct Waypoint {
+  double x_m = 0.0;
+  double y_m = 0.0;
+};
+
+/// What the controller is doing, for the dashboard and the tests.
+struct ControllerStatus {
+  FlightState state = FlightState::kDisarmed;
+  bool facing_waypoint = false;  ///< go-to: false while turning, true while moving
+  std::optional<Waypoint> waypoint;
+  CraftPose setpoint;            ///< target x, y, z (z = height setpoint) and yaw
+  bool tracking = false;
+  std::string last_event;        ///< human-readable reason of the last transition
+};
+
+class FlightController {
+ public:
+  /// `config` must be valid (ControlConfig::validate() empty); throws std::invalid_argument else.
+  explicit FlightController(ControlConfig config);
+
+  /// Operator buttons. Returns empty when accepted, else why not (state unchanged).
+  std::string command(std::int64_t now_us, OperatorCommand command);
+  /// Click on the map. Accepted in hold / go-to with tracking; replaces any previous waypoint.
+  std::string set_waypoint(std::int64_t now_us, double x_m, double y_m);
+  /// Manual keys: move the setpoint by the given steps (forward/left in the body frame).
+  std::string nudge(std::int64_t now_us, double forward_m, double left_m, double up_m, double yaw_ccw_deg);
+
+  /// Newest pose estimate. Non-finite poses count as tracking lost.
+  void on_pose(const PoseSample& sample);
+
+  /// One control step; call at the command rate (~50 Hz).
+  StickCommand update(std::int64_t now_us);
+
+  const ControllerStatus& status() const { return status_; }
+  const ControlConfig& config() const { return config_; }
+
+ private:
+  bool has_fresh_pose(std::int64_t now_us) const;
+  void enter(FlightState state, std::int64_t now_us, const std::string& why);
+  void reset_pids();
+  StickCommand position_control(std::int64_t now_us, const CraftPose& pose, double height_setpoint_m);
+  double unwrap_yaw(double yaw_deg);
+
+  ControlConfig config_;
+  Pid roll_;
+  Pid pitch_;
+  Pid yaw_;
+  Pid throttle_;
+  ControllerStatus status_;
+  std::optional<PoseSample> pose_;
+  std::int64_t state_entered_us_ = 0;
+  double takeoff_start_height_m_ = 0.0;
+  double land_start_throttle_pct_ = 0.0;
+  std::optional<std::int64_t> land_floor_reached_us_;
+  double last_throttle_pct_ = 0.0;
+  std::optional<double> unwrapped_yaw_deg_;
+  double last_raw_yaw_deg_ = 0.0;
+};
+
+}  // namespace rgbdquad::quadcontrol

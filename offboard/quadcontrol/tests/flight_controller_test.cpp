@@ -1,0 +1,326 @@
+// Flight state machine and position control: table-driven GIVEN/WHEN/THEN tests, time passed in.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "core/flight_controller.hpp"
+
+namespace rgbdquad::quadcontrol {
+namespace {
+
+constexpr std::int64_t kStepUs = 20000;  // 50 Hz
+constexpr std::int64_t kMsUs = 1000;
+
+class Flight : public ::testing::Test {
+ protected:
+  FlightController fc{ControlConfig{}};
+  std::int64_t now_us = 1'000'000;
+  CraftPose pose{0.0, 0.0, 0.3, 0.0};
+
+  StickCommand step(bool tracking = true) {
+    now_us += kStepUs;
+    fc.on_pose(PoseSample{now_us, tracking, pose});
+    return fc.update(now_us);
+  }
+  void to_hold() {
+    step();
+    ASSERT_EQ(fc.command(now_us, OperatorCommand::kArm), "");
+    ASSERT_EQ(fc.command(now_us, OperatorCommand::kTakeOff), "");
+    // The ideal craft follows the height setpoint.
+    for (int i = 0; i < 500 && fc.status().state == FlightState::kTakeOff; ++i) {
+      step();
+      pose.z_m = fc.status().setpoint.z_m;
+    }
+    ASSERT_EQ(fc.status().state, FlightState::kHold);
+  }
+};
+
+TEST_F(Flight, CommandTransitionTable) {
+  struct Row {
+    const char* name;
+    FlightState from;
+    OperatorCommand cmd;
+    bool accepted;
+    FlightState to;
+  };
+  const Row table[] = {
+      {"arm from disarmed", FlightState::kDisarmed, OperatorCommand::kArm, true, FlightState::kArmed},
+      {"takeoff needs armed", FlightState::kDisarmed, OperatorCommand::kTakeOff, false, FlightState::kDisarmed},
+      {"land when not flying", FlightState::kDisarmed, OperatorCommand::kLand, false, FlightState::kDisarmed},
+      {"disarm when disarmed", FlightState::kDisarmed, OperatorCommand::kDisarm, false, FlightState::kDisarmed},
+      {"disarm from armed", FlightState::kArmed, OperatorCommand::kDisarm, true, FlightState::kDisarmed},
+      {"arm twice", FlightState::kArmed, OperatorCommand::kArm, false, FlightState::kArmed},
+      {"takeoff from armed", FlightState::kArmed, OperatorCommand::kTakeOff, true, FlightState::kTakeOff},
+      {"disarm refused in flight", FlightState::kHold, OperatorCommand::kDisarm, false, FlightState::kHold},
+      {"takeoff in flight", FlightState::kHold, OperatorCommand::kTakeOff, false, FlightState::kHold},
+      {"land from hold", FlightState::kHold, OperatorCommand::kLand, true, FlightState::kLand},
+      {"land from take-off", FlightState::kTakeOff, OperatorCommand::kLand, true, FlightState::kLand},
+  };
+  for (const auto& row : table) {
+    SCOPED_TRACE(row.name);
+    FlightController c{ControlConfig{}};
+    std::int64_t t = 1'000'000;
+    CraftPose p{0, 0, 0.3, 0};
+    c.on_pose({t, true, p});
+    c.update(t);
+    if (row.from != FlightState::kDisarmed) {
+      ASSERT_EQ(c.command(t, OperatorCommand::kArm), "");
+    }
+    if (row.from == FlightState::kTakeOff || row.from == FlightState::kHold) {
+      ASSERT_EQ(c.command(t, OperatorCommand::kTakeOff), "");
+    }
+    if (row.from == FlightState::kHold) {
+      for (int i = 0; i < 500 && c.status().state == FlightState::kTakeOff; ++i) {
+        t += kStepUs;
+        c.on_pose({t, true, p});
+        c.update(t);
+        p.z_m = c.status().setpoint.z_m;
+      }
+    }
+    ASSERT_EQ(c.status().state, row.from);
+    EXPECT_EQ(c.command(t, row.cmd).empty(), row.accepted);
+    EXPECT_EQ(c.status().state, row.to);
+  }
+}
+
+TEST_F(Flight, DisarmedAndArmedOutputsAreSafe) {
+  StickCommand s = step();
+  EXPECT_FALSE(s.armed);
+  EXPECT_EQ(s.throttle_pct, 0.0);
+  ASSERT_EQ(fc.command(now_us, OperatorCommand::kArm), "");
+  s = step();
+  EXPECT_TRUE(s.armed);
+  EXPECT_EQ(s.throttle_pct, 0.0);
+  EXPECT_EQ(s.roll_pct, 0.0);
+}
+
+TEST_F(Flight, TakeoffNeedsTracking) {
+  step(false);
+  ASSERT_EQ(fc.command(now_us, OperatorCommand::kArm), "");
+  EXPECT_NE(fc.command(now_us, OperatorCommand::kTakeOff), "");
+  EXPECT_EQ(fc.status().state, FlightState::kArmed);
+}
+
+TEST_F(Flight, TakeoffRampsToHoldHeight) {
+  step();
+  ASSERT_EQ(fc.command(now_us, OperatorCommand::kArm), "");
+  ASSERT_EQ(fc.command(now_us, OperatorCommand::kTakeOff), "");
+  // GIVEN the craft does not climb yet WHEN 1 s passes THEN the setpoint rose 0.5 m and throttle > hover
+  StickCommand s;
+  for (int i = 0; i < 50; ++i) s = step();
+  EXPECT_NEAR(fc.status().setpoint.z_m, 0.3 + 0.5 * (51 * kStepUs) / 1e6, 0.02);
+  EXPECT_GT(s.throttle_pct, fc.config().hover_throttle_pct);
+  // WHEN the craft follows the setpoint THEN hold once at 1.7 m
+  for (int i = 0; i < 500 && fc.status().state == FlightState::kTakeOff; ++i) {
+    pose.z_m = fc.status().setpoint.z_m;
+    step();
+  }
+  EXPECT_EQ(fc.status().state, FlightState::kHold);
+  EXPECT_NEAR(pose.z_m, 1.7, 0.1);
+}
+
+TEST_F(Flight, HoldKeepsTakeoffPositionAndHeading) {
+  pose = {1.0, 2.0, 0.3, 45.0};
+  to_hold();
+  EXPECT_DOUBLE_EQ(fc.status().setpoint.x_m, 1.0);
+  EXPECT_DOUBLE_EQ(fc.status().setpoint.y_m, 2.0);
+  EXPECT_DOUBLE_EQ(fc.status().setpoint.z_m, 1.7);
+  EXPECT_DOUBLE_EQ(fc.status().setpoint.yaw_deg, 45.0);
+}
+
+TEST_F(Flight, PositionNeverDrivesYaw) {
+  // GIVEN hold, heading 0 (facing +x) WHEN the craft drifts past the setpoint in each direction
+  // THEN roll/pitch push it back and the yaw stick stays neutral (no turn towards the goal).
+  struct Row {
+    const char* name;
+    double dx, dy;
+    int pitch_sign, roll_sign;
+  };
+  const Row table[] = {
+      {"goal behind", 0.5, 0.0, -1, 0},
+      {"goal ahead", -0.5, 0.0, +1, 0},
+      {"goal to the left", 0.0, -0.5, 0, -1},
+      {"goal to the right", 0.0, 0.5, 0, +1},
+  };
+  for (const auto& row : table) {
+    SCOPED_TRACE(row.name);
+    FlightController c{ControlConfig{}};
+    pose = {0.0, 0.0, 0.3, 0.0};
+    std::swap(c, fc);
+    to_hold();
+    pose.x_m += row.dx;
+    pose.y_m += row.dy;
+    StickCommand s = step();
+    s = step();
+    EXPECT_DOUBLE_EQ(s.yaw_pct, 0.0);
+    if (row.pitch_sign != 0) {
+      EXPECT_EQ(std::signbit(s.pitch_pct), row.pitch_sign < 0);
+    } else {
+      EXPECT_NEAR(s.pitch_pct, 0.0, 1e-9);
+    }
+    if (row.roll_sign != 0) {
+      EXPECT_EQ(std::signbit(s.roll_pct), row.roll_sign < 0);
+    } else {
+      EXPECT_NEAR(s.roll_pct, 0.0, 1e-9);
+    }
+  }
+}
+
+TEST_F(Flight, HeadingErrorWrapsTheShortWay) {
+  // GIVEN heading 170 deg and setpoint -170 deg THEN it turns 20 deg counter-clockwise (stick left)
+  pose = {0.0, 0.0, 0.3, 170.0};
+  to_hold();
+  ASSERT_EQ(fc.nudge(now_us, 0.0, 0.0, 0.0, 20.0), "");
+  EXPECT_NEAR(fc.status().setpoint.yaw_deg, -170.0, 1e-9);
+  const StickCommand s = step();
+  EXPECT_LT(s.yaw_pct, 0.0);
+  EXPECT_NEAR(s.yaw_pct, -0.06 * 20.0, 1e-6);
+}
+
+TEST_F(Flight, WaypointTurnsToFaceThenMoves) {
+  to_hold();
+  // GIVEN a waypoint 2 m behind (-x) WHEN set THEN first turn (yaw stick), position held
+  ASSERT_EQ(fc.set_waypoint(now_us, -2.0, 0.0), "");
+  EXPECT_EQ(fc.status().state, FlightState::kGoToWaypoint);
+  EXPECT_FALSE(fc.status().facing_waypoint);
+  StickCommand s = step();
+  EXPECT_NE(s.yaw_pct, 0.0);
+  EXPECT_NEAR(s.pitch_pct, 0.0, 1e-9);
+  EXPECT_DOUBLE_EQ(fc.status().setpoint.x_m, 0.0);
+  // WHEN the craft has turned to within tolerance THEN it moves forward towards the goal
+  pose.yaw_deg = 175.0;
+  s = step();
+  EXPECT_TRUE(fc.status().facing_waypoint);
+  s = step();
+  EXPECT_GT(s.pitch_pct, 0.0);
+  // WHEN it arrives THEN hold at the waypoint, heading kept
+  pose.x_m = -1.9;
+  step();
+  EXPECT_EQ(fc.status().state, FlightState::kHold);
+  EXPECT_DOUBLE_EQ(fc.status().setpoint.x_m, -2.0);
+  EXPECT_NEAR(std::abs(fc.status().setpoint.yaw_deg), 180.0, 1e-9);
+}
+
+TEST_F(Flight, CloseWaypointMovesWithoutTurning) {
+  to_hold();
+  ASSERT_EQ(fc.set_waypoint(now_us, -0.2, 0.0), "");
+  EXPECT_TRUE(fc.status().facing_waypoint);
+  step();
+  const StickCommand s = step();
+  EXPECT_DOUBLE_EQ(s.yaw_pct, 0.0);
+  EXPECT_LT(s.pitch_pct, 0.0);  // backwards
+}
+
+TEST_F(Flight, WaypointRejections) {
+  EXPECT_NE(fc.set_waypoint(now_us, 1.0, 1.0), "");  // disarmed
+  to_hold();
+  EXPECT_NE(fc.set_waypoint(now_us, std::nan(""), 1.0), "");
+  EXPECT_NE(fc.set_waypoint(now_us, 100.0, 0.0), "");
+  EXPECT_EQ(fc.status().state, FlightState::kHold);
+}
+
+TEST_F(Flight, TrackingLostHoldsNeutralThenLands) {
+  to_hold();
+  const double hover = fc.config().hover_throttle_pct;
+  // WHEN SLAM reports lost for longer than pose_timeout_ms THEN lost-hold with neutral sticks
+  StickCommand s;
+  std::int64_t lost_at = now_us;
+  for (int i = 0; i < 20; ++i) s = step(false);
+  EXPECT_EQ(fc.status().state, FlightState::kLostHold);
+  EXPECT_EQ(s.roll_pct, 0.0);
+  EXPECT_EQ(s.pitch_pct, 0.0);
+  EXPECT_EQ(s.yaw_pct, 0.0);
+  EXPECT_EQ(s.throttle_pct, hover);
+  // AND after lost_hold_ms without tracking THEN land
+  while (fc.status().state == FlightState::kLostHold) s = step(false);
+  EXPECT_EQ(fc.status().state, FlightState::kLand);
+  EXPECT_NEAR(static_cast<double>(now_us - lost_at) / kMsUs, 2000.0 + kStepUs / kMsUs, 2.0 * kStepUs / kMsUs);
+}
+
+TEST_F(Flight, TrackingBackResumesHold) {
+  to_hold();
+  for (int i = 0; i < 5; ++i) step(false);
+  EXPECT_EQ(fc.status().state, FlightState::kLostHold);
+  step(true);
+  EXPECT_EQ(fc.status().state, FlightState::kHold);
+}
+
+TEST_F(Flight, StalePoseCountsAsLost) {
+  to_hold();
+  // No pose arrives for more than pose_timeout_ms.
+  now_us += 301 * kMsUs;
+  fc.update(now_us);
+  EXPECT_EQ(fc.status().state, FlightState::kLostHold);
+}
+
+TEST_F(Flight, NonFinitePoseCountsAsLost) {
+  to_hold();
+  pose.x_m = std::numeric_limits<double>::quiet_NaN();
+  const StickCommand s = step(true);
+  EXPECT_EQ(fc.status().state, FlightState::kLostHold);
+  EXPECT_TRUE(std::isfinite(s.roll_pct));
+}
+
+TEST_F(Flight, LandingIsASteadyRampThenMotorsStop) {
+  to_hold();
+  StickCommand s = step();
+  ASSERT_EQ(fc.command(now_us, OperatorCommand::kLand), "");
+  double previous = s.throttle_pct;
+  const double max_drop_per_step = fc.config().land_throttle_ramp_pct_per_s * kStepUs / 1e6 + 1e-9;
+  // GIVEN the craft descends 2 cm per step WHEN landing THEN throttle never drops faster than the ramp
+  int steps = 0;
+  while (fc.status().state == FlightState::kLand && steps < 2000) {
+    s = step();
+    if (fc.status().state != FlightState::kLand) break;
+    EXPECT_LE(previous - s.throttle_pct, max_drop_per_step);
+    EXPECT_GE(s.throttle_pct, fc.config().land_min_throttle_pct);
+    EXPECT_TRUE(s.armed);
+    previous = s.throttle_pct;
+    pose.z_m = std::max(0.0, pose.z_m - 0.02);
+    ++steps;
+  }
+  // THEN the motors stop once the craft is near the ground
+  EXPECT_EQ(fc.status().state, FlightState::kDisarmed);
+  EXPECT_FALSE(s.armed);
+  EXPECT_EQ(s.throttle_pct, 0.0);
+  EXPECT_LE(pose.z_m, fc.config().motor_stop_height_m + 0.02);
+}
+
+TEST_F(Flight, BlindLandingStopsAfterFloorHold) {
+  to_hold();
+  ASSERT_EQ(fc.command(now_us, OperatorCommand::kLand), "");
+  const std::int64_t start = now_us;
+  StickCommand s = step(false);
+  const double start_throttle = s.throttle_pct + fc.config().land_throttle_ramp_pct_per_s * kStepUs / 1e6;
+  while (fc.status().state == FlightState::kLand) s = step(false);
+  // ramp from the hold throttle to the floor at 5 %/s, then land_floor_hold_ms at the floor
+  const double expected_s = (start_throttle - fc.config().land_min_throttle_pct) /
+                                fc.config().land_throttle_ramp_pct_per_s +
+                            fc.config().land_floor_hold_ms / 1000.0;
+  const double elapsed_s = static_cast<double>(now_us - start) / 1e6;
+  EXPECT_NEAR(elapsed_s, expected_s, 2.0 * kStepUs / 1e6);
+  EXPECT_EQ(fc.status().state, FlightState::kDisarmed);
+  EXPECT_FALSE(s.armed);
+}
+
+TEST_F(Flight, ManualNudgeMovesSetpointInBodyFrame) {
+  pose = {0.0, 0.0, 0.3, 90.0};  // facing +y
+  to_hold();
+  ASSERT_EQ(fc.nudge(now_us, 0.1, 0.0, 0.0, 0.0), "");
+  EXPECT_NEAR(fc.status().setpoint.x_m, 0.0, 1e-9);
+  EXPECT_NEAR(fc.status().setpoint.y_m, 0.1, 1e-9);
+  ASSERT_EQ(fc.nudge(now_us, 0.0, 0.1, 0.1, 0.0), "");  // left of +y is -x
+  EXPECT_NEAR(fc.status().setpoint.x_m, -0.1, 1e-9);
+  EXPECT_NEAR(fc.status().setpoint.z_m, 1.8, 1e-9);
+  EXPECT_NE(fc.nudge(now_us, std::nan(""), 0.0, 0.0, 0.0), "");
+}
+
+TEST(FlightControllerConfig, InvalidConfigThrowsAtStartUp) {
+  ControlConfig c;
+  c.hover_throttle_pct = -1.0;
+  EXPECT_THROW(FlightController{c}, std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace rgbdquad::quadcontrol
