@@ -101,6 +101,22 @@ def generate() -> str:
     out.append("  return false;")
     out.append("}")
     out.append("")
+    out.append("/// Value range [lo, hi] of a spec field (inclusive; floats must also be finite).")
+    out.append("struct FieldRange {")
+    out.append("  double lo;")
+    out.append("  double hi;")
+    out.append("};")
+    out.append("namespace field_range {")
+    owners = [(n, s["fields"]) for n, s in spec.raw["structs"].items()]
+    owners += [(m["name"], m["fields"]) for m in spec.messages]
+    for owner, fields in owners:
+        for f in fields:
+            if "range" in f:
+                lo, hi = f["range"]
+                out.append(f"inline constexpr FieldRange k{owner}{camel(f['name'])}{{{float(lo)!r}, "
+                           f"{float(hi)!r}}};")
+    out.append("}  // namespace field_range")
+    out.append("")
     out.append("/// Message ids (envelope byte 5).")
     out.append("enum class MessageType : std::uint8_t {")
     for m in spec.messages:

@@ -39,15 +39,18 @@ std::size_t bytes_per_pixel(PixelFormat format) {
 // ---------------------------------------------------------------- value checks (validate)
 // Each returns "" when fine, else "<field>: <reason>"; the first failure wins.
 
-std::string check_range(double v, double lo, double hi, const char* field) {
+std::string check_range(double v, FieldRange range, const char* field) {
+  const double lo = range.lo;
+  const double hi = range.hi;
   if (v >= lo && v <= hi) return {};  // false for NaN
   char buf[160];
   std::snprintf(buf, sizeof buf, "%s: %g outside [%g, %g] or not finite", field, v, lo, hi);
   return buf;
 }
 
-std::string check_int_range(std::uint64_t v, std::uint64_t lo, std::uint64_t hi,
-                            const char* field) {
+std::string check_int_range(std::uint64_t v, FieldRange range, const char* field) {
+  const auto lo = static_cast<std::uint64_t>(range.lo);
+  const auto hi = static_cast<std::uint64_t>(range.hi);
   if (v >= lo && v <= hi) return {};
   char buf[160];
   std::snprintf(buf, sizeof buf, "%s: %llu outside [%llu, %llu]", field,
@@ -71,19 +74,19 @@ std::string check_string(const std::string& s, const char* field) {
   } while (false)
 
 std::string check_intrinsics(const CameraIntrinsics& k) {
-  RGBD_CHECK(check_range(k.fx_px, 1.0, 100000.0, "intrinsics.fx_px"));
-  RGBD_CHECK(check_range(k.fy_px, 1.0, 100000.0, "intrinsics.fy_px"));
-  RGBD_CHECK(check_range(k.cx_px, -100000.0, 100000.0, "intrinsics.cx_px"));
-  RGBD_CHECK(check_range(k.cy_px, -100000.0, 100000.0, "intrinsics.cy_px"));
-  for (double d : k.distortion) RGBD_CHECK(check_range(d, -1000.0, 1000.0, "intrinsics.distortion"));
+  RGBD_CHECK(check_range(k.fx_px, field_range::kCameraIntrinsicsFxPx, "intrinsics.fx_px"));
+  RGBD_CHECK(check_range(k.fy_px, field_range::kCameraIntrinsicsFyPx, "intrinsics.fy_px"));
+  RGBD_CHECK(check_range(k.cx_px, field_range::kCameraIntrinsicsCxPx, "intrinsics.cx_px"));
+  RGBD_CHECK(check_range(k.cy_px, field_range::kCameraIntrinsicsCyPx, "intrinsics.cy_px"));
+  for (double d : k.distortion) RGBD_CHECK(check_range(d, field_range::kCameraIntrinsicsDistortion, "intrinsics.distortion"));
   return {};
 }
 
 std::string check_image(const ImageFrame& f, const char* field) {
   const std::string prefix = std::string(field) + ".";
   const FrameHeader& h = f.header;
-  RGBD_CHECK(check_int_range(h.width, 1, kMaxImageDimensionPx, (prefix + "width").c_str()));
-  RGBD_CHECK(check_int_range(h.height, 1, kMaxImageDimensionPx, (prefix + "height").c_str()));
+  RGBD_CHECK(check_int_range(h.width, field_range::kImageFrameWidth, (prefix + "width").c_str()));
+  RGBD_CHECK(check_int_range(h.height, field_range::kImageFrameHeight, (prefix + "height").c_str()));
   if (!is_valid_pixel_format(static_cast<std::uint8_t>(h.pixel_format)))
     return prefix + "pixel_format: unknown value";
   if (!is_valid_encoding(static_cast<std::uint8_t>(h.encoding)))
@@ -103,8 +106,8 @@ std::string check_image(const ImageFrame& f, const char* field) {
 
 std::string check_pose(const Pose3& p, const char* field) {
   const std::string prefix = std::string(field) + ".";
-  for (double t : p.t_m) RGBD_CHECK(check_range(t, -100000.0, 100000.0, (prefix + "t_m").c_str()));
-  for (double q : p.q_xyzw) RGBD_CHECK(check_range(q, -1.0, 1.0, (prefix + "q_xyzw").c_str()));
+  for (double t : p.t_m) RGBD_CHECK(check_range(t, field_range::kPose3TM, (prefix + "t_m").c_str()));
+  for (double q : p.q_xyzw) RGBD_CHECK(check_range(q, field_range::kPose3QXyzw, (prefix + "q_xyzw").c_str()));
   const auto& q = p.q_xyzw;
   const double norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
   if (!(std::fabs(norm2 - 1.0) <= kUnitQuaternionTolerance))
@@ -121,8 +124,8 @@ std::string check_stream_kind(StreamKind kind, PixelFormat format) {
 std::string validate_one(const Handshake& m) {
   if (!is_valid_stream_kind(static_cast<std::uint8_t>(m.stream_kind)))
     return "stream_kind: unknown value";
-  RGBD_CHECK(check_int_range(m.width, 1, kMaxImageDimensionPx, "width"));
-  RGBD_CHECK(check_int_range(m.height, 1, kMaxImageDimensionPx, "height"));
+  RGBD_CHECK(check_int_range(m.width, field_range::kHandshakeWidth, "width"));
+  RGBD_CHECK(check_int_range(m.height, field_range::kHandshakeHeight, "height"));
   if (!is_valid_pixel_format(static_cast<std::uint8_t>(m.pixel_format)))
     return "pixel_format: unknown value";
   if (!is_valid_encoding(static_cast<std::uint8_t>(m.encoding))) return "encoding: unknown value";
@@ -130,7 +133,7 @@ std::string validate_one(const Handshake& m) {
     return "encoding: does not carry this pixel_format";
   RGBD_CHECK(check_stream_kind(m.stream_kind, m.pixel_format));
   RGBD_CHECK(check_intrinsics(m.intrinsics));
-  RGBD_CHECK(check_range(m.depth_scale_units_per_m, 0.0, 1000000.0, "depth_scale_units_per_m"));
+  RGBD_CHECK(check_range(m.depth_scale_units_per_m, field_range::kHandshakeDepthScaleUnitsPerM, "depth_scale_units_per_m"));
   return check_string(m.device_id, "device_id");
 }
 
@@ -139,14 +142,14 @@ std::string validate_one(const HandshakeAck& m) { return check_string(m.reason, 
 std::string validate_one(const Frame& m) { return check_image(m.image, "image"); }
 
 std::string validate_one(const FrameRequest& m) {
-  return check_int_range(m.credits, 1, kMaxCreditsPerRequest, "credits");
+  return check_int_range(m.credits, field_range::kFrameRequestCredits, "credits");
 }
 
 std::string validate_one(const SlamHello& m) { return check_string(m.peer_name, "peer_name"); }
 
 std::string validate_one(const RgbdFrame& m) {
   RGBD_CHECK(check_intrinsics(m.intrinsics));
-  RGBD_CHECK(check_range(m.depth_scale_units_per_m, 1.0, 1000000.0, "depth_scale_units_per_m"));
+  RGBD_CHECK(check_range(m.depth_scale_units_per_m, field_range::kRgbdFrameDepthScaleUnitsPerM, "depth_scale_units_per_m"));
   RGBD_CHECK(check_image(m.rgb, "rgb"));
   RGBD_CHECK(check_image(m.depth, "depth"));
   if (m.rgb.header.pixel_format != PixelFormat::kRgb8) return "rgb.pixel_format: must be RGB8";
@@ -175,11 +178,11 @@ std::string validate_one(const PoseGraph& m) {
 }
 
 std::string validate_one(const FloorMap& m) {
-  RGBD_CHECK(check_range(m.resolution_m, 0.001, 100.0, "resolution_m"));
-  RGBD_CHECK(check_range(m.origin_x_m, -100000.0, 100000.0, "origin_x_m"));
-  RGBD_CHECK(check_range(m.origin_y_m, -100000.0, 100000.0, "origin_y_m"));
-  RGBD_CHECK(check_int_range(m.width_cells, 1, kMaxMapDimensionCells, "width_cells"));
-  RGBD_CHECK(check_int_range(m.height_cells, 1, kMaxMapDimensionCells, "height_cells"));
+  RGBD_CHECK(check_range(m.resolution_m, field_range::kFloorMapResolutionM, "resolution_m"));
+  RGBD_CHECK(check_range(m.origin_x_m, field_range::kFloorMapOriginXM, "origin_x_m"));
+  RGBD_CHECK(check_range(m.origin_y_m, field_range::kFloorMapOriginYM, "origin_y_m"));
+  RGBD_CHECK(check_int_range(m.width_cells, field_range::kFloorMapWidthCells, "width_cells"));
+  RGBD_CHECK(check_int_range(m.height_cells, field_range::kFloorMapHeightCells, "height_cells"));
   if (!is_valid_cell_format(static_cast<std::uint8_t>(m.cell_format)))
     return "cell_format: unknown value";
   if (m.cells.size() != std::size_t{m.width_cells} * std::size_t{m.height_cells})

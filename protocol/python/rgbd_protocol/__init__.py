@@ -6,8 +6,10 @@
     dec = StreamDecoder(codec); dec.feed(data); event = dec.next()  # event.kind == "message"
 """
 
-from .codec import Codec, DecodeFailure, EncodeError, Event, StreamDecoder, event_view
+from .codec import (Codec, DecodeFailure, EncodeError, Event, StreamDecoder, event_view,
+                    normalize_events)
 from .spec import Spec, load_spec
 
 __all__ = ["Codec", "DecodeFailure", "EncodeError", "Event", "StreamDecoder", "event_view",
+           "normalize_events",
            "Spec", "load_spec"]

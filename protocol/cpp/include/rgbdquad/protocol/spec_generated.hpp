@@ -11,7 +11,7 @@ namespace rgbdquad::protocol {
 /// Protocol major version carried in every envelope; peers with another version refuse.
 inline constexpr std::uint8_t kProtocolVersion = 1;
 /// First 8 bytes (little-endian) of SHA-256 of the canonical spec (see docs/protocol.md).
-inline constexpr std::uint64_t kSchemaHash = 0xa7b75d2da6a7f5c7ULL;
+inline constexpr std::uint64_t kSchemaHash = 0xd7970a05e05ff67aULL;
 /// Envelope magic, resynchronisation marker.
 inline constexpr std::uint8_t kMagic[4] = {0x52, 0x47, 0x42, 0x51};
 inline constexpr std::size_t kEnvelopeHeaderBytes = 16;
@@ -246,6 +246,33 @@ constexpr bool encoding_allows_pixel_format(Encoding encoding, PixelFormat forma
   }
   return false;
 }
+
+/// Value range [lo, hi] of a spec field (inclusive; floats must also be finite).
+struct FieldRange {
+  double lo;
+  double hi;
+};
+namespace field_range {
+inline constexpr FieldRange kCameraIntrinsicsFxPx{1.0, 100000.0};
+inline constexpr FieldRange kCameraIntrinsicsFyPx{1.0, 100000.0};
+inline constexpr FieldRange kCameraIntrinsicsCxPx{-100000.0, 100000.0};
+inline constexpr FieldRange kCameraIntrinsicsCyPx{-100000.0, 100000.0};
+inline constexpr FieldRange kCameraIntrinsicsDistortion{-1000.0, 1000.0};
+inline constexpr FieldRange kImageFrameWidth{1.0, 4096.0};
+inline constexpr FieldRange kImageFrameHeight{1.0, 4096.0};
+inline constexpr FieldRange kPose3TM{-100000.0, 100000.0};
+inline constexpr FieldRange kPose3QXyzw{-1.0, 1.0};
+inline constexpr FieldRange kHandshakeWidth{1.0, 4096.0};
+inline constexpr FieldRange kHandshakeHeight{1.0, 4096.0};
+inline constexpr FieldRange kHandshakeDepthScaleUnitsPerM{0.0, 1000000.0};
+inline constexpr FieldRange kFrameRequestCredits{1.0, 8.0};
+inline constexpr FieldRange kRgbdFrameDepthScaleUnitsPerM{1.0, 1000000.0};
+inline constexpr FieldRange kFloorMapResolutionM{0.001, 100.0};
+inline constexpr FieldRange kFloorMapOriginXM{-100000.0, 100000.0};
+inline constexpr FieldRange kFloorMapOriginYM{-100000.0, 100000.0};
+inline constexpr FieldRange kFloorMapWidthCells{1.0, 4096.0};
+inline constexpr FieldRange kFloorMapHeightCells{1.0, 4096.0};
+}  // namespace field_range
 
 /// Message ids (envelope byte 5).
 enum class MessageType : std::uint8_t {
