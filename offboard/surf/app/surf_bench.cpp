@@ -1,0 +1,110 @@
+// surf-bench: speed and invariance of slam_surf (thesis parameters) next to OpenCV's SIFT on
+// real TUM frames; prints a table (no assertions - the tests hold the bounds).
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "../tests/invariance.hpp"
+#include "slam/surf.hpp"
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: surf-bench [--repeats N] IMAGE...\n"
+    "\n"
+    "For each IMAGE (8-bit, e.g. a 640x480 TUM rgb/*.png): milliseconds per detectAndCompute\n"
+    "(median of N runs, default 5) and keypoint count for SURF (thesis parameters: 4 octaves,\n"
+    "3 scales, 128-d, Hessian threshold 550) and OpenCV SIFT (default parameters); then, on the\n"
+    "first IMAGE, match precision (ratio 0.8, within 3 px) and repeatability (3 px) under\n"
+    "rotations of 30/90 deg and scalings of 0.7x/1.5x.\n";
+
+/// Matching tolerance of the invariance table in pixels of the warped image.
+constexpr double kTolPx = 3.0;
+/// Lowe's ratio test threshold used throughout the project's matcher.
+constexpr double kRatio = 0.8;
+
+double median_ms(cv::Feature2D& f, const cv::Mat& gray, int repeats, std::size_t* count) {
+  std::vector<double> ms;
+  for (int i = 0; i < repeats; ++i) {
+    std::vector<cv::KeyPoint> kp;
+    cv::Mat desc;
+    const auto t0 = std::chrono::steady_clock::now();
+    f.detectAndCompute(gray, cv::noArray(), kp, desc);
+    const auto t1 = std::chrono::steady_clock::now();
+    ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+    *count = kp.size();
+  }
+  std::sort(ms.begin(), ms.end());
+  return ms[ms.size() / 2];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int repeats = 5;
+  std::vector<std::string> images;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "-h" || arg == "--help") {
+      std::cout << kUsage;
+      return 0;
+    }
+    if (arg == "--repeats") {
+      if (i + 1 >= argc || (repeats = std::atoi(argv[++i])) < 1) {
+        std::cerr << "surf-bench: --repeats needs a positive integer\n\n" << kUsage;
+        return 2;
+      }
+      continue;
+    }
+    images.push_back(arg);
+  }
+  if (images.empty()) {
+    std::cerr << "surf-bench: no IMAGE given\n\n" << kUsage;
+    return 2;
+  }
+  const slam::SurfOptions options;
+  std::cout << "SURF " << options << ", cv threads " << cv::getNumThreads() << "\n";
+  auto surf = slam::create_surf(options);
+  auto sift = cv::SIFT::create();
+  std::vector<cv::Mat> grays;
+  std::cout << std::fixed << std::setprecision(1);
+  std::cout << "image | size | SURF ms | SURF kp | SIFT ms | SIFT kp\n";
+  for (const auto& path : images) {
+    const cv::Mat gray = cv::imread(path, cv::IMREAD_GRAYSCALE);
+    if (gray.empty()) {
+      std::cerr << "surf-bench: cannot read image '" << path << "'\n";
+      return 1;
+    }
+    grays.push_back(gray);
+    std::size_t n_surf = 0, n_sift = 0;
+    const double t_surf = median_ms(*surf, gray, repeats, &n_surf);
+    const double t_sift = median_ms(*sift, gray, repeats, &n_sift);
+    std::cout << std::filesystem::path(path).filename().string() << " | " << gray.cols << "x"
+              << gray.rows << " | " << t_surf << " | " << n_surf << " | " << t_sift << " | "
+              << n_sift << "\n";
+  }
+  std::cout << "\ntransform | SURF precision | SURF matches | SURF repeat | SIFT precision | "
+               "SIFT matches | SIFT repeat\n";
+  std::cout << std::setprecision(3);
+  const struct {
+    const char* name;
+    double angle_deg, scale;
+  } transforms[] = {{"rot 30", 30, 1.0}, {"rot 90", 90, 1.0}, {"scale 0.7", 0, 0.7},
+                    {"scale 1.5", 0, 1.5}, {"rot 30 + scale 1.5", 30, 1.5}};
+  for (const auto& t : transforms) {
+    const auto a = slam::surf_test::evaluate_invariance(*surf, grays[0], t.angle_deg, t.scale,
+                                                        kRatio, kTolPx);
+    const auto b = slam::surf_test::evaluate_invariance(*sift, grays[0], t.angle_deg, t.scale,
+                                                        kRatio, kTolPx);
+    std::cout << t.name << " | " << a.match_precision << " | " << a.matches << " | "
+              << a.repeatability << " | " << b.match_precision << " | " << b.matches << " | "
+              << b.repeatability << "\n";
+  }
+  return 0;
+}

@@ -1,0 +1,13 @@
+// Integral image construction (see integral_image.hpp).
+#include "integral_image.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+namespace slam::surf_detail {
+
+IntegralImage::IntegralImage(const cv::Mat& gray) : width_(gray.cols), height_(gray.rows) {
+  CV_Assert(gray.type() == CV_8UC1);
+  cv::integral(gray, table_, CV_64F);
+}
+
+}  // namespace slam::surf_detail
