@@ -1,0 +1,31 @@
+// Pin and peripheral assignment of the Arduino Uno WiFi (ATmega328P @ 16 MHz) in this design.
+// See docs/firmware.md for the wiring to the APM 2.6 and the WiFi bridge.
+//   D0/D1  (PD0/PD1, USART0)  WiFi bridge link, 250000 baud 8N1, one text line per request/reply
+//   D2     (PD2, INT0)        MAVLink telemetry RX from the APM's telemetry port TX (software UART)
+//   D9     (PB1)              RC channel 1 roll     -> APM RC input 1
+//   D10    (PB2)              RC channel 2 pitch    -> APM RC input 2
+//   D11    (PB3)              RC channel 3 throttle -> APM RC input 3
+//   D12    (PB4)              RC channel 4 yaw      -> APM RC input 4
+// Timers: Timer0 = 1 kHz millisecond clock, Timer1 = RC pulse sequencer, Timer2 = software-UART bit clock.
+#ifndef FIRMWARE_AVR_BOARD_H_
+#define FIRMWARE_AVR_BOARD_H_
+
+#include <avr/io.h>
+#include <stdint.h>
+
+namespace board {
+
+/// PORTB bit of RC channel 1..4 (index 0..3, ArduPilot order).
+constexpr uint8_t kPwmPortBBits[4] = {_BV(PB1), _BV(PB2), _BV(PB3), _BV(PB4)};
+constexpr uint8_t kPwmPortBMask = _BV(PB1) | _BV(PB2) | _BV(PB3) | _BV(PB4);
+
+/// Bridge link: 250000 baud is exact at 16 MHz (U2X0=1, UBRR0 = 16e6 / (8 * 250000) - 1 = 7).
+constexpr uint32_t kBridgeBaud = 250000;
+constexpr uint16_t kBridgeUbrr = 7;
+
+/// MAVLink telemetry baud: ArduCopter's default SERIAL1_BAUD (57 = 57600) on the APM 2.6 telemetry port.
+constexpr uint32_t kMavlinkBaud = 57600;
+
+}  // namespace board
+
+#endif  // FIRMWARE_AVR_BOARD_H_

@@ -1,0 +1,94 @@
+// ATmega328P firmware entry point: wires the AVR drivers to the core logic. All decisions (parsing,
+// authentication, arming, failsafe, limits, PWM schedule) are in firmware/core; this file only moves
+// bytes and time between the peripherals and the core.
+#include <avr/eeprom.h>
+#include <avr/interrupt.h>
+#include <avr/wdt.h>
+
+#include "../core/controller.h"
+#include "../core/imu_cache.h"
+#include "../core/key_store.h"
+#include "../core/line_assembler.h"
+#include "../core/mavlink_imu_reader.h"
+#include "../core/pwm_schedule.h"
+#include "drivers.h"
+
+namespace {
+
+/// The application: owns every piece of state the main loop uses (no globals).
+class App {
+ public:
+  explicit App(const uint8_t* key) : controller_(key) {}
+
+  void init() {
+    uint16_t out[fw::kChannelCount];
+    uint16_t ticks[fw::kScheduleSlots];
+    controller_.outputs_us(0, out);
+    fw::make_pwm_schedule(out, ticks);
+    drivers::pwm_init(ticks);
+  }
+
+  void loop_once() {
+    const uint32_t now_ms = drivers::millis();
+    uint8_t b;
+    while (drivers::telemetry_read(&b)) mavlink_.feed(b, now_ms, imu_);
+    if (!drivers::bridge_tx_busy()) {
+      size_t n = 0;
+      while (n == 0 && drivers::bridge_read(&b)) {
+        switch (assembler_.feed(b, now_ms)) {
+          case fw::LineEvent::kLine:
+            n = controller_.handle_line(assembler_.line(), assembler_.length(), now_ms, imu_, reply_,
+                                        sizeof(reply_));
+            break;
+          case fw::LineEvent::kTooLong:
+            n = controller_.reply_error(fw::Status::kTooLong, now_ms, imu_, reply_, sizeof(reply_));
+            break;
+          default:
+            break;
+        }
+      }
+      if (n == 0 && assembler_.poll(now_ms) == fw::LineEvent::kStalled) {
+        n = controller_.reply_error(fw::Status::kStalled, now_ms, imu_, reply_, sizeof(reply_));
+      }
+      if (n > 0) drivers::bridge_send(reply_, n);
+    }
+    controller_.update(now_ms);
+    uint16_t out[fw::kChannelCount];
+    uint16_t ticks[fw::kScheduleSlots];
+    controller_.outputs_us(now_ms, out);
+    fw::make_pwm_schedule(out, ticks);
+    drivers::pwm_set(ticks);
+  }
+
+ private:
+  fw::Controller controller_;
+  fw::LineAssembler assembler_;
+  fw::ImuCache imu_;
+  fw::MavlinkImuReader mavlink_;
+  char reply_[fw::kReplyBufferBytes];
+};
+
+}  // namespace
+
+int main() {
+  // A hung main loop must not freeze the last outputs: the watchdog resets the chip, the pulses stop
+  // during the reset and the APM's own radio failsafe takes over. 120 ms > the longest loop pass
+  // (one SipHash of a 93-byte request, a few ms).
+  wdt_enable(WDTO_120MS);
+  uint8_t record[fw::kKeyRecordBytes];
+  eeprom_read_block(record, reinterpret_cast<const void*>(fw::kKeyRecordEepromAddress), sizeof(record));
+  uint8_t key[fw::kKeyBytes];
+  const bool has_key = fw::load_key_record(record, key);
+  static App app(has_key ? key : nullptr);
+  for (uint8_t i = 0; i < sizeof(key); ++i) key[i] = 0;
+  for (uint8_t i = 0; i < sizeof(record); ++i) record[i] = 0;
+  drivers::clock_init();
+  app.init();
+  drivers::bridge_init();
+  drivers::telemetry_init();
+  sei();
+  for (;;) {
+    wdt_reset();
+    app.loop_once();
+  }
+}
