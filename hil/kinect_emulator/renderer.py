@@ -1,0 +1,261 @@
+"""Kinect v1 renderer: RGB + registered depth (mm) from a camera pose in a textured box room.
+
+Geometry is exact ray casting, vectorised over all 640x480 pixels: inside an axis-aligned room each
+ray leaves through exactly one of the two planes of each axis, so the hit is min over three divisions;
+obstacle boxes use the slab test. Depth is the camera-z distance (what a Kinect reports), registered
+to RGB (one camera for both, as FREENECT_DEPTH_REGISTERED / TUM depth are).
+
+Depth error model (Khoshelham & Elberink 2012, "Accuracy and resolution of Kinect depth data"):
+  * random error sigma_z = 1.425e-3 * z^2 (m), z in metres;
+  * quantisation in disparity: the Kinect reports 1/8-pixel disparity steps, with f = 580 px and
+    baseline b = 7.5 cm, so the depth step is z^2 / (8 f b) (about 1.5 mm at 0.7 m, 12 mm at 2 m);
+  * range: no reading below 0.5 m or beyond 4.5 m (the v1's usable range);
+  * projector shadows: a point the IR projector (b to the side) cannot see has no reading (holes beside
+    every occluding edge), computed per scan line from the projector's disparity ordering;
+  * random dropouts (specular / low-return pixels) at `dropout_fraction`.
+Blank-frame injection returns an all-zero frame (what a USB hiccup delivers) for the chosen indices.
+
+Time: the caller passes the capture time; the frame carries capture and availability time
+(capture + latency_ms). Randomness: one numpy Generator per emulator, seeded by the options.
+Not thread-safe.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+
+from kinect_emulator.room import Room
+
+# Kinect v1 geometry for the noise model (Khoshelham & Elberink 2012; libfreenect's registration):
+IR_FOCAL_PX = 580.0        # IR camera focal length in pixels
+BASELINE_M = 0.075         # IR camera - IR projector baseline
+DISPARITY_SUBPIXELS = 8    # the v1 reports disparity in 1/8 pixel
+NOISE_COEFF_PER_M = 1.425e-3  # sigma_z = NOISE_COEFF_PER_M * z^2
+# Each texture tile shows a 60 % window of its photograph (see _shade).
+TILE_WINDOW_FRACTION = 0.6
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Pinhole intrinsics (pixels). Default: TUM Freiburg 1 colour camera (the real frames' camera)."""
+
+    width: int = 640
+    height: int = 480
+    fx: float = 517.3
+    fy: float = 516.5
+    cx: float = 318.6
+    cy: float = 255.3
+
+
+@dataclass(frozen=True)
+class KinectOptions:
+    intrinsics: Intrinsics = field(default_factory=Intrinsics)
+    fps: float = 30.0                 # Kinect v1 streams at 30 Hz
+    latency_ms: float = 0.0           # capture -> available to the capture source
+    min_range_m: float = 0.5          # v1 near limit
+    max_range_m: float = 4.5          # v1 usable far limit
+    depth_noise: bool = True
+    quantise: bool = True
+    shadows: bool = True
+    dropout_fraction: float = 0.005   # ~0.5 % isolated holes on matte indoor surfaces
+    rgb_noise_std: float = 2.0        # 8-bit levels of sensor noise
+    blank_frames: frozenset[int] = frozenset()  # frame indices delivered all-zero
+    seed: int = 1
+
+    def validate(self) -> None:
+        i = self.intrinsics
+        if i.width <= 0 or i.height <= 0 or not (i.fx > 0 and i.fy > 0):
+            raise ValueError("KinectOptions.intrinsics: width/height/fx/fy must be > 0")
+        if not (math.isfinite(self.fps) and 0 < self.fps <= 120):
+            raise ValueError(f"KinectOptions.fps must be in (0, 120], got {self.fps}")
+        if not (math.isfinite(self.latency_ms) and self.latency_ms >= 0):
+            raise ValueError(f"KinectOptions.latency_ms must be >= 0, got {self.latency_ms}")
+        if not 0 < self.min_range_m < self.max_range_m:
+            raise ValueError("KinectOptions: need 0 < min_range_m < max_range_m")
+        if not 0 <= self.dropout_fraction < 1:
+            raise ValueError("KinectOptions.dropout_fraction must be in [0, 1)")
+        if not self.rgb_noise_std >= 0:
+            raise ValueError("KinectOptions.rgb_noise_std must be >= 0")
+
+    @property
+    def frame_period_us(self) -> int:
+        return int(round(1e6 / self.fps))
+
+
+@dataclass(frozen=True)
+class KinectFrame:
+    index: int
+    capture_us: int         # exposure time (simulated)
+    available_us: int       # when the capture source can read it (capture + latency)
+    rgb: np.ndarray         # (H, W, 3) uint8
+    depth_mm: np.ndarray    # (H, W) uint16, 0 = no reading
+    T_room_cam: np.ndarray  # ground truth pose (4x4)
+    blank: bool
+
+
+class KinectEmulator:
+    def __init__(self, room: Room, options: KinectOptions | None = None) -> None:
+        self.options = options or KinectOptions()
+        self.options.validate()
+        self.room = room
+        self._rng = np.random.default_rng(self.options.seed)
+        i = self.options.intrinsics
+        u, v = np.meshgrid(np.arange(i.width, dtype=np.float64), np.arange(i.height, dtype=np.float64))
+        # Ray directions in the camera frame with z = 1, so the ray parameter t is the depth itself.
+        self._ray_x = ((u - i.cx) / i.fx).astype(np.float32).ravel()
+        self._ray_y = ((v - i.cy) / i.fy).astype(np.float32).ravel()
+        self._u = u
+        self._index = 0
+        self._rgb_noise_bank: np.ndarray | None = None
+        tex = room.textures
+        self._tex_flat = tex.reshape(-1, 3)
+        self._tex_n, self._tex_h, self._tex_w = tex.shape[0], tex.shape[1], tex.shape[2]
+
+    # ---- geometry -----------------------------------------------------------------------------------
+    def raycast(self, T_room_cam: np.ndarray) -> tuple[np.ndarray, tuple, np.ndarray]:
+        """Exact depth (m, camera z) per pixel, the hit point (x, y, z arrays) and the face id per pixel.
+
+        Face id: axis*2 + (1 on the max side) for the room's faces 0..5; 6 + 6*k + the same for obstacle
+        k. Per-axis float32 arrays (not (N, 3)) keep every operation a contiguous vector op.
+        """
+        T = np.asarray(T_room_cam, dtype=np.float64)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise ValueError("T_room_cam must be a finite 4x4 matrix")
+        R, o = T[:3, :3], T[:3, 3]
+        if not self.room.contains(o):
+            raise ValueError(f"camera position {o.tolist()} is outside the room's free space")
+        cx, cy = self._ray_x, self._ray_y  # camera-frame direction (cx, cy, 1)
+        d = [np.float32(R[a, 0]) * cx + np.float32(R[a, 1]) * cy + np.float32(R[a, 2]) for a in range(3)]
+        lo, hi = self.room.bounds.lo_m, self.room.bounds.hi_m
+        inf = np.float32(np.inf)
+        t = None
+        face = None
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = [np.float32(1.0) / d[a] for a in range(3)]
+            for a in range(3):
+                pos = d[a] > 0
+                ta = np.where(pos, np.float32(hi[a] - o[a]), np.float32(lo[a] - o[a])) * inv[a]
+                ta = np.where(np.isfinite(ta) & (ta > 0), ta, inf)
+                fa = (2 * a + pos).astype(np.int16)
+                if t is None:
+                    t, face = ta, fa
+                else:
+                    closer = ta < t
+                    t = np.where(closer, ta, t)
+                    face = np.where(closer, fa, face)
+            for k, box in enumerate(self.room.obstacles):
+                tmin = np.full_like(t, -inf)
+                tmax = np.full_like(t, inf)
+                entry = np.zeros(t.shape, np.int16)
+                for a in range(3):
+                    t1 = np.float32(box.lo_m[a] - o[a]) * inv[a]
+                    t2 = np.float32(box.hi_m[a] - o[a]) * inv[a]
+                    near = np.minimum(t1, t2)
+                    far = np.maximum(t1, t2)
+                    # Entering through the min side when moving +, the max side when moving -.
+                    later = near > tmin
+                    entry = np.where(later, (2 * a + (d[a] < 0)).astype(np.int16), entry)
+                    tmin = np.where(later, near, tmin)
+                    tmax = np.minimum(tmax, far)
+                hit = (tmax >= tmin) & (tmin > 0) & (tmin < t)
+                t = np.where(hit, tmin, t)
+                face = np.where(hit, (6 + 6 * k + entry).astype(np.int16), face)
+        pts = tuple(np.float32(o[a]) + d[a] * t for a in range(3))
+        return t, pts, face
+
+    def _shade(self, pts: tuple, face: np.ndarray) -> np.ndarray:
+        """Texture lookup (nearest neighbour) for every hit point."""
+        axis = (face % 6) // 2
+        # In-plane coordinates (u horizontal-ish, v vertical-ish) for each face orientation.
+        x, y, z = pts
+        u = np.where(axis == 0, y, x)
+        v = np.where(axis == 2, y, z)
+        tw, th = self.room.tile_w_m, self.room.tile_h_m
+        ti = np.floor(u / tw).astype(np.int64)
+        tj = np.floor(v / th).astype(np.int64)
+        # Hash of (face, tile) -> which photograph, which 60 % window of it and whether mirrored:
+        # neighbours differ, the same place always looks the same, and the few dozen shipped frames
+        # (many nearly alike) give far more distinct texture than whole-image tiling.
+        h = (face.astype(np.int64) * 73856093) ^ (ti * 19349663) ^ (tj * 83492791)
+        h = np.abs(h)
+        idx = h % self._tex_n
+        win_w = int(self._tex_w * TILE_WINDOW_FRACTION)
+        win_h = int(self._tex_h * TILE_WINDOW_FRACTION)
+        off_x = (h >> 7) % (self._tex_w - win_w)
+        off_y = (h >> 17) % (self._tex_h - win_h)
+        fu = (u / tw - ti).astype(np.float32)
+        fv = (v / th - tj).astype(np.float32)
+        fu = np.where((h >> 27) & 1 == 1, 1.0 - fu, fu)
+        col = off_x + (fu * (win_w - 1)).astype(np.int64)
+        row = off_y + ((1.0 - fv) * (win_h - 1)).astype(np.int64)  # image rows go down
+        flat = (idx * self._tex_h + row) * self._tex_w + col
+        return self._tex_flat[flat]
+
+    # ---- sensor -------------------------------------------------------------------------------------
+    def render(self, T_room_cam: np.ndarray, capture_us: int) -> KinectFrame:
+        """Next frame seen from T_room_cam at simulated time capture_us."""
+        opt = self.options
+        i = opt.intrinsics
+        index = self._index
+        self._index += 1
+        available = capture_us + int(round(opt.latency_ms * 1000))
+        if index in opt.blank_frames:
+            return KinectFrame(index, capture_us, available, np.zeros((i.height, i.width, 3), np.uint8),
+                               np.zeros((i.height, i.width), np.uint16), np.array(T_room_cam, float), True)
+        z, pts, face = self.raycast(T_room_cam)
+        rgb = self._shade(pts, face).reshape(i.height, i.width, 3)
+        if opt.rgb_noise_std > 0:
+            # A seeded bank of noise frames, read at a random offset: per-frame Gaussian draws of 0.9 M
+            # values cost more than the whole ray cast.
+            if self._rgb_noise_bank is None:
+                n = i.height * i.width * 3 * 4
+                self._rgb_noise_bank = np.round(self._rng.standard_normal(n, dtype=np.float32)
+                                                * opt.rgb_noise_std).astype(np.int16)
+            off = int(self._rng.integers(0, self._rgb_noise_bank.size - rgb.size))
+            noisy = rgb.astype(np.int16) + self._rgb_noise_bank[off:off + rgb.size].reshape(rgb.shape)
+            rgb = np.clip(noisy, 0, 255).astype(np.uint8)
+        z = z.reshape(i.height, i.width)
+        depth_m = self.sensor_depth(z)
+        depth_mm = np.where(np.isfinite(depth_m), np.round(depth_m * 1000.0), 0).astype(np.uint16)
+        return KinectFrame(index, capture_us, available, rgb, depth_mm, np.array(T_room_cam, float), False)
+
+    def sensor_depth(self, z_true_m: np.ndarray) -> np.ndarray:
+        """Applies the Kinect error model to exact depth (m). Missing readings are NaN."""
+        opt = self.options
+        z = z_true_m.astype(np.float32, copy=True)
+        missing = ~np.isfinite(z) | (z < opt.min_range_m) | (z > opt.max_range_m)
+        if opt.shadows:
+            missing |= self._projector_shadow(z)
+        if opt.depth_noise:
+            z = z + self._rng.standard_normal(z.shape, dtype=np.float32) * NOISE_COEFF_PER_M * z * z
+        if opt.quantise:
+            k = IR_FOCAL_PX * BASELINE_M * DISPARITY_SUBPIXELS  # disparity (1/8 px) = k / z
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z = k / np.round(k / z)
+        if opt.dropout_fraction > 0:
+            missing |= self._rng.random(z.shape) < opt.dropout_fraction
+        z[missing] = np.nan
+        return z
+
+    def _projector_shadow(self, z: np.ndarray) -> np.ndarray:
+        """Pixels the projector cannot illuminate. The projector sits BASELINE_M to the camera's right
+        (+x); a pixel at column u projects to projector column u - f b / z. Scanning from the right, a
+        pixel is shadowed when a pixel to its right already projects at or left of it."""
+        f = self.options.intrinsics.fx
+        with np.errstate(divide="ignore"):
+            up = self._u - f * BASELINE_M / z
+        rev = up[:, ::-1]  # scan right -> left
+        prev_min = np.minimum.accumulate(rev, axis=1)
+        prev_min = np.concatenate([np.full((z.shape[0], 1), np.inf), prev_min[:, :-1]], axis=1)
+        # Tolerance of a tenth of a pixel so a smooth surface never shadows itself by rounding.
+        shadow_rev = rev > prev_min + 0.1
+        return shadow_rev[:, ::-1]
+
+    def frames_due(self, t_from_us: int, t_to_us: int) -> list[int]:
+        """Capture times in (t_from_us, t_to_us] on the fps grid (the sensor's free-running clock)."""
+        p = self.options.frame_period_us
+        first = (t_from_us // p + 1) * p
+        return list(range(first, t_to_us + 1, p))
