@@ -1,0 +1,115 @@
+// One stream connection of rgbd-streamer (RGB or depth) to the ground-station receiver.
+//
+// Contract (docs/protocol.md): connect to host:port, send Handshake (stream kind, size, encoding,
+// intrinsics, depth scale), wait for HandshakeAck; then send one Frame per credit granted by the
+// receiver's FrameRequests, always the NEWEST frame published since the last one sent (a slow
+// receiver never gets a backlog: frames it had no credit for are overwritten, counted as
+// "superseded"). On any failure (refused, closed, stalled, no credit for credit_idle_timeout_ms
+// while frames wait) it reconnects forever with exponential backoff capped at backoff_max_ms.
+//
+// Thread safety: publish(), counters(), connected() may be called from any thread. The
+// connection runs on a thread owned by the sender, started in the constructor and joined in the
+// destructor.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include "rgbdquad/capture/clock.h"
+#include "rgbdquad/capture/frame.h"
+#include "rgbdquad/net/socket.h"
+#include "rgbdquad/protocol/codec.hpp"
+#include "rgbdquad/protocol/messages.hpp"
+
+namespace spdlog {
+class logger;
+}
+
+namespace rgbdquad::stream {
+
+class PayloadEncoder;
+
+struct StreamSenderOptions {
+  std::string host = "127.0.0.1";
+  std::uint16_t port = 0;
+  protocol::StreamKind kind = protocol::StreamKind::kRgb;
+  protocol::Encoding encoding = protocol::Encoding::kRaw;
+  int width_px = capture::kKinectWidthPx;
+  int height_px = capture::kKinectHeightPx;
+  protocol::CameraIntrinsics intrinsics;
+  double depth_units_per_m = capture::kMillimetreUnitsPerM;  // handshake; ignored on RGB
+  std::string device_id = "kinect";
+  int jpeg_quality = 90;  // 90: ~10:1 on TUM frames at > 35 dB PSNR (make bench)
+  int zstd_level = 1;     // 1: zstd's fastest level; higher buys little on delta-coded depth
+  int connect_timeout_ms = 1000;
+  // Reconnect backoff: 50 ms first retry (a restarting server is back within tens of ms), doubled
+  // per failure, capped at 1000 ms (issue: "retry forever with capped backoff (<= 1 s)").
+  int backoff_first_ms = 50;
+  int backoff_max_ms = 1000;
+  int handshake_timeout_ms = 2000;
+  // A send making no progress for 2 s: the WiFi link is gone (TCP would wait minutes).
+  int stall_timeout_ms = 2000;
+  // No FrameRequest for 3 s while frames wait: the receiver library grants a credit as soon as it
+  // has taken a frame (milliseconds), so 3 s of silence means a dead peer.
+  int credit_idle_timeout_ms = 3000;
+
+  bool is_valid(std::string* error) const;
+};
+
+struct SenderCounters {
+  std::uint64_t published = 0;
+  std::uint64_t sent = 0;
+  std::uint64_t superseded = 0;  // published but overwritten by a newer frame before a credit came
+  std::uint64_t encode_errors = 0;
+  std::uint64_t connects = 0;
+  std::uint64_t disconnects = 0;
+  std::uint64_t refused = 0;  // handshakes the receiver refused
+  std::uint64_t bytes_sent = 0;
+  std::int64_t encode_us_total = 0;
+};
+
+class StreamSender {
+ public:
+  // Throws std::invalid_argument for invalid options (start-up boundary). `clock` stamps
+  // send_timestamp_us and times encoding; it must outlive the sender. `logger` may be null.
+  StreamSender(const StreamSenderOptions& options, capture::Clock* clock,
+               std::shared_ptr<spdlog::logger> logger);
+  ~StreamSender();
+  StreamSender(const StreamSender&) = delete;
+  StreamSender& operator=(const StreamSender&) = delete;
+
+  // Offers a validated frame of this stream's kind; it gets the next sequence number.
+  void publish(capture::SourceFrame frame);
+  SenderCounters counters() const;
+  bool connected() const { return connected_; }
+  const StreamSenderOptions& options() const { return options_; }
+
+ private:
+  void run();
+  // One connection's lifetime; returns when it ends (error or stop).
+  void session(net::UniqueFd fd, protocol::StreamDecoder* decoder);
+  bool handshake(int fd, protocol::StreamDecoder* decoder, std::string* why);
+  bool send_newest(int fd, std::optional<std::uint32_t>* last_sent);
+
+  StreamSenderOptions options_;
+  capture::Clock* clock_;
+  std::shared_ptr<spdlog::logger> log_;
+  std::unique_ptr<PayloadEncoder> encoder_;  // used by the connection thread only
+  net::Waker stop_waker_;
+  net::Waker frame_waker_;
+  mutable std::mutex mutex_;  // guards mailbox_, next_sequence_, counters_
+  std::optional<capture::SourceFrame> mailbox_;
+  std::uint32_t mailbox_sequence_ = 0;
+  std::uint32_t next_sequence_ = 0;
+  SenderCounters counters_;
+  std::atomic<bool> stopping_{false};
+  std::atomic<bool> connected_{false};
+  std::thread thread_;
+};
+
+}  // namespace rgbdquad::stream

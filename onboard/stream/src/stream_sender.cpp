@@ -1,0 +1,256 @@
+// Stream sender: connect/handshake/credit loop with reconnect.
+#include "rgbdquad/stream/stream_sender.h"
+
+#include <poll.h>
+#include <spdlog/sinks/null_sink.h>
+#include <spdlog/spdlog.h>
+
+#include <stdexcept>
+
+#include "rgbdquad/protocol/codec.hpp"
+#include "rgbdquad/stream/payload_encoder.h"
+
+namespace rgbdquad::stream {
+namespace {
+// Read buffer for FrameRequests/HandshakeAck (a few dozen bytes each).
+constexpr std::size_t kReadChunkBytes = 4096;
+// Credits banked at most: the protocol's per-request maximum (kMaxCreditsPerRequest = 8).
+constexpr std::uint32_t kMaxBankedCredits = protocol::kMaxCreditsPerRequest;
+}  // namespace
+
+bool StreamSenderOptions::is_valid(std::string* error) const {
+  const auto format = kind == protocol::StreamKind::kRgb ? protocol::PixelFormat::kRgb8
+                                                          : protocol::PixelFormat::kDepth16;
+  if (host.empty()) *error = "host is empty";
+  else if (port == 0) *error = "port must be 1..65535";
+  else if (!protocol::encoding_allows_pixel_format(encoding, format)) *error = "encoding does not fit the stream";
+  else if (width_px <= 0 || height_px <= 0 || width_px > 4096 || height_px > 4096) *error = "size must be 1..4096 px";
+  else if (jpeg_quality < 1 || jpeg_quality > 100) *error = "jpeg_quality must be 1..100";
+  else if (zstd_level < 1 || zstd_level > 19) *error = "zstd_level must be 1..19";
+  else if (backoff_first_ms < 1 || backoff_max_ms < backoff_first_ms || backoff_max_ms > 1000) *error = "backoff must satisfy 1 <= first <= max <= 1000 ms";
+  else if (connect_timeout_ms < 1 || handshake_timeout_ms < 1 || stall_timeout_ms < 1 || credit_idle_timeout_ms < 1) *error = "timeouts must be >= 1 ms";
+  else if (kind == protocol::StreamKind::kDepth && !(depth_units_per_m > 0 && depth_units_per_m < 1e6)) *error = "depth_units_per_m must be in (0, 1e6)";
+  else return true;
+  return false;
+}
+
+StreamSender::StreamSender(const StreamSenderOptions& options, capture::Clock* clock,
+                           std::shared_ptr<spdlog::logger> logger)
+    : options_(options), clock_(clock), log_(std::move(logger)) {
+  std::string why;
+  if (!options_.is_valid(&why)) throw std::invalid_argument("stream sender: " + why);
+  if (!log_) log_ = std::make_shared<spdlog::logger>("null", std::make_shared<spdlog::sinks::null_sink_mt>());
+  encoder_ = std::make_unique<PayloadEncoder>(options_.kind, options_.encoding,
+                                              options_.jpeg_quality, options_.zstd_level);
+  thread_ = std::thread([this] { run(); });
+}
+
+StreamSender::~StreamSender() {
+  stopping_ = true;
+  stop_waker_.wake();
+  thread_.join();
+}
+
+void StreamSender::publish(capture::SourceFrame frame) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++counters_.published;
+    if (mailbox_) ++counters_.superseded;
+    mailbox_ = std::move(frame);
+    mailbox_sequence_ = next_sequence_++;
+  }
+  frame_waker_.wake();
+}
+
+SenderCounters StreamSender::counters() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return counters_;
+}
+
+void StreamSender::run() {
+  const char* kind = protocol::to_string(options_.kind).data();
+  net::Backoff backoff(options_.backoff_first_ms, options_.backoff_max_ms);
+  std::string last_error;
+  while (!stopping_) {
+    std::string error;
+    auto fd = net::connect_tcp(options_.host, options_.port, options_.connect_timeout_ms,
+                               stop_waker_, &error);
+    protocol::StreamDecoder decoder;
+    if (fd && handshake(fd->get(), &decoder, &error)) {
+      backoff.reset();
+      last_error.clear();
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        ++counters_.connects;
+      }
+      log_->info("{} stream: connected to {}:{} ({})", kind, options_.host, options_.port,
+                 encoding_name(options_.encoding));
+      connected_ = true;
+      session(std::move(*fd), &decoder);
+      connected_ = false;
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++counters_.disconnects;
+      continue;  // reconnect at once: the server may already be back
+    }
+    if (stopping_) break;
+    if (error != last_error) {  // log each new reason once, not every retry
+      log_->warn("{} stream: {}:{}: {}; retrying (backoff <= {} ms)", kind, options_.host,
+                 options_.port, error, options_.backoff_max_ms);
+      last_error = error;
+    }
+    pollfd stop{stop_waker_.fd(), POLLIN, 0};
+    poll(&stop, 1, backoff.next_delay_ms());
+  }
+}
+
+bool StreamSender::handshake(int fd, protocol::StreamDecoder* decoder, std::string* why) {
+  protocol::Handshake hello;
+  hello.stream_kind = options_.kind;
+  hello.width = static_cast<std::uint16_t>(options_.width_px);
+  hello.height = static_cast<std::uint16_t>(options_.height_px);
+  hello.pixel_format = options_.kind == protocol::StreamKind::kRgb ? protocol::PixelFormat::kRgb8
+                                                                    : protocol::PixelFormat::kDepth16;
+  hello.encoding = options_.encoding;
+  hello.intrinsics = options_.intrinsics;
+  hello.depth_scale_units_per_m =
+      options_.kind == protocol::StreamKind::kDepth ? options_.depth_units_per_m : 0.0;
+  hello.device_id = options_.device_id;
+  const auto bytes = protocol::encode_handshake(hello);
+  if (!bytes.ok()) {
+    *why = "handshake invalid: " + bytes.error;
+    return false;
+  }
+  net::IoStatus s = net::send_all(fd, bytes.bytes.data(), bytes.bytes.size(), stop_waker_,
+                                  options_.stall_timeout_ms);
+  if (s != net::IoStatus::kOk) {
+    *why = std::string("sending handshake: ") + net::to_string(s);
+    return false;
+  }
+  std::uint8_t buffer[kReadChunkBytes];
+  while (true) {
+    std::size_t got = 0;
+    s = net::read_some(fd, buffer, sizeof buffer, &got, stop_waker_, options_.handshake_timeout_ms);
+    if (s != net::IoStatus::kOk) {
+      *why = std::string("waiting for handshake ack: ") + net::to_string(s);
+      return false;
+    }
+    decoder->feed(buffer, got);
+    // Stops right after the ack: FrameRequests behind it stay in the decoder for session().
+    for (auto r = decoder->next(); r.status != protocol::DecodeStatus::kNeedMoreBytes; r = decoder->next()) {
+      if (r.status != protocol::DecodeStatus::kMessage) continue;
+      if (const auto* ack = std::get_if<protocol::HandshakeAck>(&*r.message)) {
+        if (ack->accepted) return true;
+        *why = "receiver refused the handshake: " + ack->reason;
+        std::lock_guard<std::mutex> lock(mutex_);
+        ++counters_.refused;
+        return false;
+      }
+    }
+  }
+}
+
+void StreamSender::session(net::UniqueFd fd, protocol::StreamDecoder* decoder) {
+  std::uint32_t credits = 0;
+  std::optional<std::uint32_t> last_sent;
+  std::int64_t last_request_us = clock_->now_us();
+  std::uint8_t buffer[kReadChunkBytes];
+  while (!stopping_) {
+    // 1. Credits from every FrameRequest received so far.
+    for (auto r = decoder->next(); r.status != protocol::DecodeStatus::kNeedMoreBytes; r = decoder->next()) {
+      if (r.status != protocol::DecodeStatus::kMessage) continue;
+      if (const auto* request = std::get_if<protocol::FrameRequest>(&*r.message)) {
+        credits = std::min<std::uint32_t>(kMaxBankedCredits, credits + request->credits);
+        last_request_us = clock_->now_us();
+      }
+    }
+    // 2. One newest frame per credit.
+    while (credits > 0) {
+      const auto sent_before = last_sent;
+      if (!send_newest(fd.get(), &last_sent)) return;
+      if (last_sent == sent_before) break;  // nothing new to send
+      --credits;
+      last_request_us = clock_->now_us();
+    }
+    bool waiting;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      waiting = mailbox_.has_value();
+    }
+    if (credits == 0 && waiting &&
+        clock_->now_us() - last_request_us > std::int64_t{options_.credit_idle_timeout_ms} * 1000) {
+      log_->warn("{} stream: no frame request for {} ms, reconnecting",
+                 protocol::to_string(options_.kind).data(), options_.credit_idle_timeout_ms);
+      return;
+    }
+    // 3. Wait for a request, a new frame or stop.
+    pollfd fds[3] = {{fd.get(), POLLIN, 0}, {frame_waker_.fd(), POLLIN, 0}, {stop_waker_.fd(), POLLIN, 0}};
+    const int n = poll(fds, 3, options_.credit_idle_timeout_ms);
+    if (n < 0 && errno != EINTR) return;
+    if (fds[2].revents & POLLIN) return;
+    if (fds[1].revents & POLLIN) frame_waker_.clear();
+    if (fds[0].revents & (POLLIN | POLLHUP | POLLERR)) {
+      std::size_t got = 0;
+      const net::IoStatus s = net::read_some(fd.get(), buffer, sizeof buffer, &got, stop_waker_, 0);
+      if (s != net::IoStatus::kOk && s != net::IoStatus::kTimeout) {
+        log_->warn("{} stream: connection lost ({})", protocol::to_string(options_.kind).data(), net::to_string(s));
+        return;
+      }
+      decoder->feed(buffer, got);
+    }
+  }
+}
+
+bool StreamSender::send_newest(int fd, std::optional<std::uint32_t>* last_sent) {
+  std::optional<capture::SourceFrame> frame;
+  std::uint32_t sequence = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!mailbox_) return true;
+    frame.swap(mailbox_);
+    sequence = mailbox_sequence_;
+  }
+  const std::int64_t start_us = clock_->now_us();
+  std::string error;
+  const auto payload = encoder_->encode(*frame, &error);
+  const std::int64_t encoded_us = clock_->now_us();
+  if (!payload) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++counters_.encode_errors;
+    log_->error("encode failed: {}", error);
+    *last_sent = sequence;
+    return true;
+  }
+  protocol::FrameHeader header;
+  header.sequence = sequence;
+  header.capture_timestamp_us = static_cast<std::uint64_t>(
+      std::visit([](const auto& f) { return f.capture_timestamp_us; }, *frame));
+  header.send_timestamp_us = static_cast<std::uint64_t>(encoded_us);
+  header.width = static_cast<std::uint16_t>(options_.width_px);
+  header.height = static_cast<std::uint16_t>(options_.height_px);
+  header.pixel_format = options_.kind == protocol::StreamKind::kRgb ? protocol::PixelFormat::kRgb8
+                                                                     : protocol::PixelFormat::kDepth16;
+  header.encoding = options_.encoding;
+  header.payload_length = static_cast<std::uint32_t>(payload->size());
+  const auto bytes = protocol::encode_frame(header, payload->data(), payload->size());
+  if (!bytes.ok()) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++counters_.encode_errors;
+    log_->error("frame {} rejected by the protocol encoder: {}", sequence, bytes.error);
+    *last_sent = sequence;
+    return true;
+  }
+  const net::IoStatus s = net::send_all(fd, bytes.bytes.data(), bytes.bytes.size(), stop_waker_,
+                                        options_.stall_timeout_ms);
+  if (s != net::IoStatus::kOk) {
+    log_->warn("{} stream: send failed ({})", protocol::to_string(options_.kind).data(), net::to_string(s));
+    return false;
+  }
+  *last_sent = sequence;
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++counters_.sent;
+  counters_.bytes_sent += bytes.bytes.size();
+  counters_.encode_us_total += encoded_us - start_us;
+  return true;
+}
+
+}  // namespace rgbdquad::stream
