@@ -1,0 +1,60 @@
+// C++ ground-station side of the control link (protocol/control/control_spec.json, docs/protocol-control.md):
+// builds the authenticated "PUT /control?seq=..&arm=..&roll=..&pitch=..&thr=..&yaw=..&mac=.." target and
+// parses the "<status> <json>" reply. Ranges are read from the spec file (load_control_spec), never
+// redefined here; the MAC is protocol/control's SipHash-2-4 header. Proven against
+// protocol/control/vectors/control_vectors.json in tests/control_codec_test.cpp.
+// NOTE: protocol/control/ plans its own C++ codec; when it lands this file should become a thin
+// adapter over it. Pure functions; thread-safe.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "core/stick_mapping.hpp"
+
+namespace rgbdquad::quadcontrol {
+
+using ControlKey = std::array<std::uint8_t, 16>;
+
+/// Parses 32 hex digits into a key; nullopt (error set) otherwise.
+std::optional<ControlKey> parse_control_key(const std::string& hex, std::string* error);
+
+/// Field ranges read from control_spec.json ("control_fields").
+struct ControlSpec {
+  std::uint32_t seq_min = 0, seq_max = 0;
+  PwmRanges pwm;  ///< neutral = middle of each range (RC stick centre)
+  std::string control_path;  ///< "/control"
+  std::string status_path;   ///< "/status"
+};
+std::optional<ControlSpec> load_control_spec(const std::string& spec_path, std::string* error);
+
+struct ControlFields {
+  std::uint32_t seq = 0;
+  bool arm = false;
+  std::uint16_t roll_us = 0, pitch_us = 0, thr_us = 0, yaw_us = 0;
+};
+
+/// HTTP target (path + query, MAC last) of an authenticated PUT /control. The MAC covers
+/// "PUT <target before &mac=>". Fails (error set) when a field is outside the spec's range.
+std::optional<std::string> build_control_target(const ControlSpec& spec, const ControlKey& key,
+                                                const ControlFields& fields, std::string* error);
+
+/// One reply of the firmware (fields of the spec's "reply").
+struct ControlReply {
+  int status = 0;
+  std::string err, fw, state;
+  std::uint32_t seq = 0;
+  std::array<int, 4> out_us{};
+  int clamped = 0;
+  std::array<int, 3> att_mrad{};
+  std::optional<std::uint32_t> att_age_ms;
+  std::array<int, 6> imu_raw{};
+  std::optional<std::uint32_t> imu_age_ms;
+};
+
+/// Parses the HTTP status and JSON body of a reply; nullopt (error set) when malformed.
+std::optional<ControlReply> parse_control_reply(int status, const std::string& json_body, std::string* error);
+
+}  // namespace rgbdquad::quadcontrol
