@@ -175,6 +175,8 @@ def _run(args, warn) -> int:
     jobs = sweep.make_jobs(datasets, args.features, args.backends, args.k, args.mode,
                            tuple(shlex.split(args.slam_eval_args)))
     todo = [j for j in jobs if not sweep.is_finished(j, args.out, args.retry_failed)]
+    todo = sweep.longest_first(todo, {str(d.resolve()): tum.Dataset.load(d).rgb_stamps_s.size
+                                      for d in datasets})
     warn(f"{len(jobs)} runs in the sweep, {len(jobs) - len(todo)} already finished, "
          f"{len(todo)} to do on {'Ray at ' + args.ray if args.ray else f'{args.jobs} local workers'}")
     clock = time.monotonic
@@ -186,14 +188,17 @@ def _run(args, warn) -> int:
         failed = sweep.run_local(todo, slam_eval, args.out, args.jobs, args.timeout_s, progress,
                                  clock)
     wall = clock() - start
-    sweep.write_sweep_record(args.out, {
+    summary = sweep.summarize_runs(args.out)
+    sweep.write_sweep_record(args.out, {**summary,
         "datasets": [str(d) for d in datasets], "features": args.features,
         "backends": args.backends, "k": args.k, "mode": args.mode,
         "slam_eval": slam_eval, "slam_eval_args": args.slam_eval_args,
         "executor": f"ray {args.ray}" if args.ray else f"local, {args.jobs} workers",
         "runs_total": len(jobs), "runs_this_invocation": len(todo),
         "failed_this_invocation": failed, "wall_s_this_invocation": round(wall, 1)})
-    warn(f"sweep: {len(todo)} runs in {wall:.1f} s, {failed} failed")
+    warn(f"sweep: {len(todo)} runs in {wall:.1f} s wall, {failed} failed; slam-eval CPU over all "
+         f"{summary['runs_ok'] + summary['runs_failed']} recorded runs: "
+         f"{summary['slam_eval_cpu_s_all_runs']:.0f} s")
     if not args.no_report:
         path = report.build(args.out, [tuple(r) for r in args.reference], args.k, warn)
         print(f"report: {path}")

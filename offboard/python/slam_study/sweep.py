@@ -53,6 +53,20 @@ def make_jobs(datasets: list[Path], features: list[str], backends: list[str], ks
             for d in datasets for f in features for b in backends for k in ks]
 
 
+# Relative per-frame cost of the detectors, for ordering only (slam-eval on fr1_desk, 9 frames:
+# sift ~4x orb; surf assumed like sift).
+kFeatureCostWeight = {"sift": 4.0, "surf": 4.0, "orb": 1.0}
+
+
+def longest_first(jobs: list[Job], frames_by_dataset: dict[str, int]) -> list[Job]:
+    """Expected-longest runs first (frames kept x detector weight), so the last runs to finish are
+    short ones and the workers stay busy to the end (LPT scheduling)."""
+    def cost(job: Job) -> float:
+        frames = frames_by_dataset.get(job.dataset, 0) / job.k
+        return frames * kFeatureCostWeight.get(job.features, 1.0)
+    return sorted(jobs, key=cost, reverse=True)
+
+
 def is_finished(job: Job, out: Path, retry_failed: bool) -> bool:
     result = job.run_dir(out) / "result.json"
     if not result.is_file():
@@ -167,6 +181,21 @@ def _ray_task(job: dict, slam_eval: str, timeout_s: float):
 
 def default_workers() -> int:
     return os.cpu_count() or 1
+
+
+def summarize_runs(out: Path) -> dict:
+    """Counts and CPU seconds over every run recorded under out/runs (all invocations)."""
+    ok = failed = 0
+    cpu_s = 0.0
+    for path in (out / "runs").glob("*/*/result.json"):
+        try:
+            meta = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        ok += meta.get("status") == "ok"
+        failed += meta.get("status") != "ok"
+        cpu_s += meta.get("cpu_s") or 0.0
+    return {"runs_ok": ok, "runs_failed": failed, "slam_eval_cpu_s_all_runs": round(cpu_s, 1)}
 
 
 def write_sweep_record(out: Path, record: dict) -> None:

@@ -8,12 +8,16 @@ the report folder only has to exist on the driver.
 
 from __future__ import annotations
 
+import os
 import subprocess
 import tempfile
+import time
 from pathlib import Path
 
 # Lines of slam-eval's stderr kept in a result: enough to show why a run failed.
 kStderrTailLines = 30
+# How often a running slam-eval is polled: negligible CPU, adds at most this to a run's wall time.
+kPollS = 0.05
 
 
 def job_command(slam_eval: str, job: dict, out_dir: str) -> list[str]:
@@ -24,33 +28,57 @@ def job_command(slam_eval: str, job: dict, out_dir: str) -> list[str]:
 
 def execute_job(job: dict, slam_eval: str, timeout_s: float) -> dict:
     """Runs one job; never raises. Returns {status: ok|failed, returncode, reason, command,
-    stderr_tail, trajectory (text or None), metrics (text or None)}."""
+    cpu_s (user+system CPU seconds of slam-eval, all threads; independent of other load on the
+    machine), stderr_tail, trajectory (text or None), metrics (text or None)}.
+
+    This is the process boundary, so it reads the clock, but only to enforce timeout_s."""
     with tempfile.TemporaryDirectory(prefix="slam-study-") as tmp:
         cmd = job_command(slam_eval, job, tmp)
         result = {"status": "failed", "returncode": None, "reason": "", "command": cmd,
-                  "stderr_tail": "", "trajectory": None, "metrics": None}
+                  "cpu_s": None, "stderr_tail": "", "trajectory": None, "metrics": None}
+        err_path = Path(tmp) / "stderr.txt"
         try:
-            proc = subprocess.run(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                  stderr=subprocess.PIPE, timeout=timeout_s, check=False)
-        except subprocess.TimeoutExpired:
-            result["reason"] = f"timed out after {timeout_s:g} s"
-            return result
+            with err_path.open("wb") as err_fh:
+                proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL,
+                                        stdout=subprocess.DEVNULL, stderr=err_fh)
         except OSError as err:
             result["reason"] = f"cannot start {slam_eval}: {err.strerror}"
             return result
-        stderr = proc.stderr.decode("utf-8", "replace").splitlines()
-        result["returncode"] = proc.returncode
+        status, usage, timed_out = _wait_with_usage(proc, timeout_s)
+        result["cpu_s"] = round(usage.ru_utime + usage.ru_stime, 3)
+        stderr = err_path.read_text("utf-8", "replace").splitlines()
         result["stderr_tail"] = "\n".join(stderr[-kStderrTailLines:])
+        if timed_out:
+            result["reason"] = f"timed out after {timeout_s:g} s"
+            return result
+        returncode = os.waitstatus_to_exitcode(status)
+        result["returncode"] = returncode
         traj = Path(tmp) / "trajectory.tum"
         metrics = Path(tmp) / "metrics.json"
         if traj.is_file():
             result["trajectory"] = traj.read_text()
         if metrics.is_file():
             result["metrics"] = metrics.read_text()
-        if proc.returncode != 0:
-            result["reason"] = f"slam-eval exited with {proc.returncode}"
+        if returncode != 0:
+            result["reason"] = f"slam-eval exited with {returncode}"
         elif result["trajectory"] is None:
             result["reason"] = "slam-eval wrote no trajectory.tum"
         else:
             result["status"] = "ok"
         return result
+
+
+def _wait_with_usage(proc: subprocess.Popen, timeout_s: float):
+    """Reaps proc with wait4 (for its own resource usage); kills it after timeout_s."""
+    deadline = time.monotonic() + timeout_s
+    timed_out = False
+    while True:
+        pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+        if pid:
+            break
+        if not timed_out and time.monotonic() > deadline:
+            proc.kill()
+            timed_out = True
+        time.sleep(kPollS)
+    proc.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must not wait again
+    return status, usage, timed_out

@@ -25,9 +25,12 @@ def test_sweep_runs_every_job_resumes_and_reports(tmp_path, fr1_xyz30, fake_slam
     ok = json.loads((out / "runs/fr1_xyz_first30/sift-vo-k2/result.json").read_text())
     bad = json.loads((out / "runs/fr1_xyz_first30/orb-vo-k1/result.json").read_text())
     assert ok["status"] == "ok" and bad["status"] == "failed"
+    assert ok["cpu_s"] > 0.0                  # the stand-in's own CPU time, from wait4
     assert "exited with 3" in bad["reason"]
     assert "configured to fail" in (out / "runs/fr1_xyz_first30/orb-vo-k1/stderr.txt").read_text()
     report = (out / "report.md").read_text()
+    record = json.loads((out / "sweep.json").read_text())
+    assert record["runs_ok"] == 2 and record["runs_failed"] == 2
     assert "Table 4.14" in report and "Table 4.20a" in report and "Table 3.4" in report
     assert "| fr1_xyz_first30 | orb-vo | 1 | slam-eval exited with 3 |" in report
     assert (out / "plots" / "traj_fr1_xyz_first30.png").stat().st_size > 1000
