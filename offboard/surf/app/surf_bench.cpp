@@ -1,6 +1,7 @@
 // surf-bench: speed and invariance of slam_surf (thesis parameters) next to OpenCV's SIFT on
 // real TUM frames; prints a table (no assertions - the tests hold the bounds).
 #include <chrono>
+#include <ctime>
 #include <cstdlib>
 #include <filesystem>
 #include <iomanip>
@@ -19,7 +20,8 @@ constexpr const char* kUsage =
     "usage: surf-bench [--repeats N] IMAGE...\n"
     "\n"
     "For each IMAGE (8-bit, e.g. a 640x480 TUM rgb/*.png): milliseconds per detectAndCompute\n"
-    "(median of N runs, default 5) and keypoint count for SURF (thesis parameters: 4 octaves,\n"
+    "(median of N runs, default 5; wall and process-CPU time; SURF also detect() alone) and\n"
+    "keypoint count for SURF (thesis parameters: 4 octaves,\n"
     "3 scales, 128-d, Hessian threshold 550) and OpenCV SIFT (default parameters); then, on the\n"
     "first IMAGE, match precision (ratio 0.8, within 3 px) and repeatability (3 px) under\n"
     "rotations of 30/90 deg and scalings of 0.7x/1.5x.\n";
@@ -29,18 +31,35 @@ constexpr double kTolPx = 3.0;
 /// Lowe's ratio test threshold used throughout the project's matcher.
 constexpr double kRatio = 0.8;
 
-double median_ms(cv::Feature2D& f, const cv::Mat& gray, int repeats, std::size_t* count) {
-  std::vector<double> ms;
+/// CPU time of the whole process (all threads): robust to other load on the machine, unlike
+/// wall time; equals the work done when OpenCV runs single-threaded (OPENCV_FOR_THREADS_NUM=1).
+double process_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
+}
+
+double median_ms(cv::Feature2D& f, const cv::Mat& gray, int repeats, std::size_t* count,
+                 bool describe = true, double* median_cpu_ms = nullptr) {
+  std::vector<double> ms, cpu;
   for (int i = 0; i < repeats; ++i) {
     std::vector<cv::KeyPoint> kp;
     cv::Mat desc;
     const auto t0 = std::chrono::steady_clock::now();
-    f.detectAndCompute(gray, cv::noArray(), kp, desc);
+    const double c0 = process_cpu_ms();
+    if (describe) {
+      f.detectAndCompute(gray, cv::noArray(), kp, desc);
+    } else {
+      f.detect(gray, kp);
+    }
     const auto t1 = std::chrono::steady_clock::now();
+    cpu.push_back(process_cpu_ms() - c0);
     ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
     *count = kp.size();
   }
   std::sort(ms.begin(), ms.end());
+  std::sort(cpu.begin(), cpu.end());
+  if (median_cpu_ms != nullptr) *median_cpu_ms = cpu[cpu.size() / 2];
   return ms[ms.size() / 2];
 }
 
@@ -74,7 +93,8 @@ int main(int argc, char** argv) {
   auto sift = cv::SIFT::create();
   std::vector<cv::Mat> grays;
   std::cout << std::fixed << std::setprecision(1);
-  std::cout << "image | size | SURF ms | SURF kp | SIFT ms | SIFT kp\n";
+  std::cout << "image | size | SURF ms (cpu ms) | SURF detect-only ms (cpu ms) | SURF kp | "
+               "SIFT ms (cpu ms) | SIFT kp\n";
   for (const auto& path : images) {
     const cv::Mat gray = cv::imread(path, cv::IMREAD_GRAYSCALE);
     if (gray.empty()) {
@@ -83,11 +103,14 @@ int main(int argc, char** argv) {
     }
     grays.push_back(gray);
     std::size_t n_surf = 0, n_sift = 0;
-    const double t_surf = median_ms(*surf, gray, repeats, &n_surf);
-    const double t_sift = median_ms(*sift, gray, repeats, &n_sift);
+    double c_surf = 0, c_detect = 0, c_sift = 0;
+    const double t_surf = median_ms(*surf, gray, repeats, &n_surf, true, &c_surf);
+    const double t_detect = median_ms(*surf, gray, repeats, &n_surf, false, &c_detect);
+    const double t_sift = median_ms(*sift, gray, repeats, &n_sift, true, &c_sift);
     std::cout << std::filesystem::path(path).filename().string() << " | " << gray.cols << "x"
-              << gray.rows << " | " << t_surf << " | " << n_surf << " | " << t_sift << " | "
-              << n_sift << "\n";
+              << gray.rows << " | " << t_surf << " (" << c_surf << ") | " << t_detect << " ("
+              << c_detect << ") | " << n_surf << " | " << t_sift << " (" << c_sift << ") | " << n_sift
+              << "\n";
   }
   std::cout << "\ntransform | SURF precision | SURF matches | SURF repeat | SIFT precision | "
                "SIFT matches | SIFT repeat\n";
