@@ -19,9 +19,10 @@ struct ClockState {
 ClockState g_clock = {0};
 
 struct PwmState {
-  uint16_t active_ticks[5];           // schedule of the frame being played (ISR only)
-  volatile uint16_t pending_ticks[5]; // next frame's schedule (main writes, ISR copies at frame start)
-  uint8_t slot;                       // slot being played (ISR only)
+  uint16_t active_ticks[5];      // schedule of the frame being played (ISR only)
+  uint16_t pending_ticks[2][5];  // double buffer: main fills [1 - ready], then flips `ready`
+  volatile uint8_t ready;        // buffer the ISR copies at the next frame start (1-byte: atomic)
+  uint8_t slot;                  // slot being played (ISR only)
 };
 PwmState g_pwm;
 
@@ -97,8 +98,9 @@ ISR(TIMER0_COMPA_vect, ISR_NOBLOCK) { g_clock.ms = g_clock.ms + 1; }
 void pwm_init(const uint16_t slot_ticks[5]) {
   for (uint8_t i = 0; i < 5; ++i) {
     g_pwm.active_ticks[i] = slot_ticks[i];
-    g_pwm.pending_ticks[i] = slot_ticks[i];
+    g_pwm.pending_ticks[0][i] = slot_ticks[i];
   }
+  g_pwm.ready = 0;
   g_pwm.slot = 4;  // start in the gap; the first compare match starts channel 1
   PORTB &= static_cast<uint8_t>(~board::kPwmPortBMask);
   DDRB |= board::kPwmPortBMask;
@@ -110,10 +112,12 @@ void pwm_init(const uint16_t slot_ticks[5]) {
   TIMSK1 = _BV(OCIE1A);
 }
 
+// Lock-free (no cli): a disabled-interrupt window here would delay RC pulse edges. The ISR only
+// reads buffer `ready`; main writes the other one and then flips the index with one byte store.
 void pwm_set(const uint16_t slot_ticks[5]) {
-  ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
-    for (uint8_t i = 0; i < 5; ++i) g_pwm.pending_ticks[i] = slot_ticks[i];
-  }
+  const uint8_t fill = static_cast<uint8_t>(1 - g_pwm.ready);
+  for (uint8_t i = 0; i < 5; ++i) g_pwm.pending_ticks[fill][i] = slot_ticks[i];
+  g_pwm.ready = fill;
 }
 
 // Every edge is written first thing in the ISR, so all edges share one fixed latency and pulse
@@ -125,7 +129,8 @@ ISR(TIMER1_COMPA_vect) {
   if (next < 4) port = static_cast<uint8_t>(port | board::kPwmPortBBits[next]);
   PORTB = port;
   if (next == 0) {
-    for (uint8_t i = 0; i < 5; ++i) g_pwm.active_ticks[i] = g_pwm.pending_ticks[i];
+    const uint8_t r = g_pwm.ready;
+    for (uint8_t i = 0; i < 5; ++i) g_pwm.active_ticks[i] = g_pwm.pending_ticks[r][i];
   }
   OCR1A = static_cast<uint16_t>(g_pwm.active_ticks[next] - 1);
   g_pwm.slot = next;
@@ -162,7 +167,13 @@ uint16_t bridge_rx_overruns() {
   return v;
 }
 
-ISR(USART_RX_vect) { g_bridge_rx.push_isr(UDR0); }
+// Reading UDR0 clears the interrupt source, so interrupts can be re-enabled at once: RC pulse edges
+// then wait only for this ISR's prologue, not its body.
+ISR(USART_RX_vect) {
+  const uint8_t b = UDR0;
+  sei();
+  g_bridge_rx.push_isr(b);
+}
 
 ISR(USART_UDRE_vect) {
   const char* p = g_tx.ptr;

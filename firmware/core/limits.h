@@ -80,11 +80,11 @@ constexpr uint16_t kFailsafeFinalUs = 950;
 static_assert(kFailsafeFinalUs < kApmFsThrValueUs, "final failsafe throttle must trigger FS_THR");
 
 // ---- serial request link --------------------------------------------------------------------------
-/// Longest request line (bytes, without the newline). The longest valid control request is 104
+/// Longest request line (bytes, without the newline). The longest valid control request is 93
 /// bytes (control_spec.json); 128 leaves margin and bounds the line buffer in the ATmega's 2 KB RAM.
 constexpr uint8_t kMaxRequestBytes = 128;
 /// A request line left incomplete this long is discarded with a 408 reply: the bridge forwards whole
-/// requests, and a 128-byte line takes 5 ms at 250 kbaud, so 100 ms only fires on a truncated request.
+/// requests, and a 128-byte line takes 2.6 ms at 500 kbaud, so 100 ms only fires on a truncated request.
 constexpr uint32_t kLineStallTimeoutMs = 100;
 
 }  // namespace fw

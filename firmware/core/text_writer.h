@@ -24,11 +24,24 @@ class TextWriter {
     }
   }
   void u32(uint32_t v) {
+    if (v <= 0xFFFFU) {  // 16-bit division is ~4x faster than 32-bit on the ATmega
+      u16(static_cast<uint16_t>(v));
+      return;
+    }
     char tmp[10];
     int n = 0;
     do {
       tmp[n++] = static_cast<char>('0' + v % 10U);
       v /= 10U;
+    } while (v != 0U);
+    while (n > 0) ch(tmp[--n]);
+  }
+  void u16(uint16_t v) {
+    char tmp[5];
+    int n = 0;
+    do {
+      tmp[n++] = static_cast<char>('0' + v % 10U);
+      v = static_cast<uint16_t>(v / 10U);
     } while (v != 0U);
     while (n > 0) ch(tmp[--n]);
   }

@@ -1,0 +1,209 @@
+"""The REAL firmware image (.elf from firmware/build.sh) on simavr, observed on the wire.
+
+Each scenario is a few simulated seconds (simavr runs ~3.7x real time). Measured figures are
+printed (run with -s to see them); assertions are on what the pins and the UART show, against
+simulated-time deadlines. Targets: pulse widths within +-4 us of commanded, 50 Hz frames, failsafe
+engaged <= 250 ms after the last valid command and ramping without a step, >= 50 commands/s with
+replies, IMU values from MAVLink in the replies.
+"""
+import pytest
+from pymavlink.dialects.v10 import common as mavlink1
+from pymavlink.dialects.v20 import common as mavlink2
+
+from arduino.simavr_session import Scenario
+from provision_key import key_record
+from rgbd_protocol.control import build_control_request, build_status_request, parse_reply
+
+KEY = bytes(range(16))
+RECORD = key_record(KEY)
+#: Pulse-width tolerance (us) required by the firmware issue.
+PULSE_TOLERANCE_US = 4.0
+FRAME_US = 20000.0
+MS = 1000.0
+
+
+def cmd(seq, arm=True, roll=1500, pitch=1500, thr=1000, yaw=1500, key=KEY):
+    return build_control_request(key, seq, arm, roll, pitch, thr, yaw)
+
+
+def statuses(result):
+    return [parse_reply(r.text + "\n").status for r in result.replies]
+
+
+def test_pwm_widths_and_period_on_all_four_pins():
+    # GIVEN an armed firmware commanded to distinct values on the four channels
+    commanded = [1600, 1400, 1500, 1550]
+    sc = Scenario()
+    sc.req(20 * MS, cmd(1))
+    for i in range(20):  # commands keep coming at 50 Hz, so UART and SipHash load the CPU meanwhile
+        sc.req(40 * MS + i * 20 * MS, cmd(2 + i, roll=commanded[0], pitch=commanded[1],
+                                          thr=commanded[2], yaw=commanded[3]))
+    sc.end(440 * MS)
+    r = sc.run(RECORD)
+    assert statuses(r) == [200] * 21
+    # WHEN the frames after the second reply are measured
+    t0 = r.replies[1].end_us + FRAME_US
+    worst_width = 0.0
+    worst_period = 0.0
+    for ch in range(1, 5):
+        pulses = r.pulses_of(ch, after_us=t0)
+        assert len(pulses) >= 10, f"channel {ch}: too few pulses"
+        for p in pulses:
+            worst_width = max(worst_width, abs(p.width_us - commanded[ch - 1]))
+        for a, b in zip(pulses, pulses[1:]):
+            worst_period = max(worst_period, abs((b.rise_us - a.rise_us) - FRAME_US))
+    print(f"\nsimavr PWM: worst pulse-width error {worst_width:.3f} us, "
+          f"worst period error {worst_period:.3f} us over {len(r.pulses_of(1, t0))} frames")
+    # THEN every pulse is within tolerance and frames are 20 ms apart
+    assert worst_width <= PULSE_TOLERANCE_US
+    assert worst_period <= PULSE_TOLERANCE_US
+    # and before arming the outputs were at the safe values
+    before = r.frame_at(0)
+    assert all(abs(w - s) <= PULSE_TOLERANCE_US for w, s in zip(before, [1500, 1500, 1000, 1500]))
+
+
+def test_failsafe_engages_within_timeout_and_ramps_throttle_down():
+    # GIVEN a hovering craft commanded at ~50 Hz for 0.4 s, then silence; status polled every 10 ms
+    sc = Scenario()
+    seq = 1
+    sc.req(10 * MS, cmd(seq))
+    t = 30 * MS
+    while t < 400 * MS:
+        seq += 1
+        sc.req(t, cmd(seq, roll=1600, thr=1500))
+        t += 20 * MS
+    last_cmd_seq = seq
+    t = 420 * MS
+    while t < 900 * MS:
+        sc.req(t, build_status_request())
+        t += 10 * MS
+    sc.end(6200 * MS)
+    r = sc.run(RECORD)
+    replies = [(x, parse_reply(x.text + "\n")) for x in r.replies]
+    last_ok = [x for x, p in replies if p.status == 200 and p.seq == last_cmd_seq and p.state == "armed"]
+    assert last_ok, "the last command was not accepted"
+    t_last_valid = last_ok[0].start_us  # the command was accepted just before its reply started
+    armed_polls = [x for x, p in replies if p.state == "armed" and x.start_us > t_last_valid]
+    fs_polls = [x for x, p in replies if p.state == "failsafe"]
+    assert fs_polls, "failsafe never engaged"
+    engaged_by = fs_polls[0].start_us - t_last_valid
+    still_armed = max((x.start_us for x in armed_polls), default=t_last_valid) - t_last_valid
+    # Pins: first frame with roll back at neutral.
+    roll = r.pulses_of(1, after_us=t_last_valid)
+    first_neutral = next(p for p in roll if abs(p.width_us - 1500) <= PULSE_TOLERANCE_US)
+    thr = r.pulses_of(3, after_us=t_last_valid)
+    steps = [a.width_us - b.width_us for a, b in zip(thr, thr[1:])]
+    t_fs = t_last_valid + 250 * MS
+
+    def thr_at(dt_ms):
+        return next(p.width_us for p in thr if p.rise_us >= t_fs + dt_ms * MS)
+
+    print(f"\nsimavr failsafe: still armed {still_armed / MS:.1f} ms after the last valid command, "
+          f"failsafe seen by {engaged_by / MS:.1f} ms (10 ms status polling); first neutral roll "
+          f"pulse {(first_neutral.rise_us - t_last_valid) / MS:.1f} ms; throttle at +0.5 s "
+          f"{thr_at(500):.1f} us, +1 s {thr_at(1000):.1f}, +3.5 s {thr_at(3500):.1f}, "
+          f"+5 s {thr_at(5000):.1f}; largest frame-to-frame drop {max(steps):.2f} us")
+    # THEN failsafe engages within 250 ms (+ one 10 ms poll interval of observation granularity)
+    assert still_armed < 250 * MS
+    assert engaged_by <= 260 * MS
+    # and throttle ramps down steadily (200 us/s = 4 us per 20 ms frame), never jumps, never rises
+    assert max(steps) <= 4 + 2 * PULSE_TOLERANCE_US
+    assert min(steps) >= -2 * PULSE_TOLERANCE_US
+    assert abs(thr_at(500) - 1400) <= 8
+    assert abs(thr_at(1000) - 1300) <= 8
+    assert abs(thr_at(2500) - 1300) <= PULSE_TOLERANCE_US   # holding at the descent level
+    assert abs(thr_at(5000) - 950) <= PULSE_TOLERANCE_US    # below FS_THR_VALUE 975 us
+
+
+def test_bad_requests_get_error_replies_and_change_no_output():
+    sc = Scenario()
+    sc.req(10 * MS, cmd(1))
+    sc.req(30 * MS, cmd(2, roll=1600, thr=1400))
+    forged = cmd(3, roll=1600, thr=1400).replace("thr=1400", "thr=1700")
+    bad = [
+        cmd(2, roll=1700, thr=1700),                       # replayed seq
+        forged,                                            # forged field
+        cmd(3, roll=1700, thr=1700, key=bytes(range(1, 17))),  # wrong key
+        "PUT /control?seq=3&arm=1",                        # truncated
+        "hello",                                           # garbage
+        "X" * 300,                                         # over-long
+        "DELETE /control",                                 # bad method
+    ]
+    t = 60 * MS
+    for line in bad:
+        sc.req(t, line)
+        t += 10 * MS
+    sc.raw(t + 10 * MS, b"PUT /control?seq=3")            # stalls: no newline
+    t += 200 * MS
+    while t < 420 * MS:  # keep sending rejected requests past the failsafe deadline
+        sc.req(t, bad[1])
+        t += 20 * MS  # one request/reply cycle takes ~17 ms in simavr
+    sc.req(t, build_status_request())
+    sc.end(t + 60 * MS)
+    r = sc.run(RECORD)
+    got = statuses(r)
+    print(f"\nsimavr error replies: {got[:11]} then {len(got) - 12} x {got[11]}")
+    assert got[:11] == [200, 200, 409, 401, 401, 400, 400, 414, 405, 408, 401]
+    assert set(got[11:-1]) == {401} and got[-1] == 200
+    # THEN outputs stayed at the last valid command until the failsafe deadline, and the rejected
+    # requests did not feed the failsafe timer: the final status shows failsafe.
+    t_last_valid = r.replies[1].start_us
+    frames = [p.width_us for p in r.pulses_of(3, r.replies[1].end_us + FRAME_US, t_last_valid + 250 * MS)]
+    assert len(frames) >= 8 and all(abs(w - 1400) <= PULSE_TOLERANCE_US for w in frames)
+    assert parse_reply(r.replies[-1].text + "\n").state == "failsafe"
+
+
+def test_at_least_50_commands_per_second_with_replies():
+    n = 100
+    sc = Scenario()
+    for i in range(n):
+        sc.req(10 * MS, cmd(i + 1, roll=1500 + (i % 50), thr=1000 + (i % 100)))
+    sc.end(10 * MS + n * 40 * MS)
+    r = sc.run(RECORD)
+    assert len(r.replies) == n
+    assert all(s == 200 for s in statuses(r))
+    span_s = (r.replies[-1].end_us - r.sent[0].start_us) / 1e6
+    rate = n / span_s
+    per_cmd = [(rep.start_us - s.end_us) / MS for s, rep in zip(r.sent, r.replies)]
+    print(f"\nsimavr throughput: {rate:.1f} commands/s with replies ({n} in {span_s * 1000:.0f} ms "
+          f"simulated); firmware processing per command {min(per_cmd):.2f}-{max(per_cmd):.2f} ms")
+    assert rate >= 50
+
+
+@pytest.mark.parametrize("wire_version", [1, 2])
+def test_mavlink_attitude_and_raw_imu_appear_in_replies(wire_version):
+    # ArduCopter on the APM 2.6 sends MAVLink v1; newer ArduPilot sends v2 (with zero truncation).
+    dialect = mavlink1 if wire_version == 1 else mavlink2
+    mav = dialect.MAVLink(None, srcSystem=1, srcComponent=1)
+    att = mav.attitude_encode(1234, 0.25, -0.125, 1.5, 0.01, 0.02, 0.03).pack(mav)
+    imu = mav.raw_imu_encode(5678, 10, -20, -1000, 1, 2, -3, 0, 0, 0).pack(mav)
+    assert (att[0], imu[0]) == ((0xFE, 0xFE) if wire_version == 1 else (0xFD, 0xFD))
+    sc = Scenario()
+    sc.req(10 * MS, build_status_request())
+    sc.mav(30 * MS, b"\x00\x55garbage" + att + imu)
+    sc.req(100 * MS, build_status_request())
+    sc.end(130 * MS)
+    r = sc.run(RECORD)
+    first, second = (parse_reply(x.text + "\n") for x in r.replies)
+    assert first.att_age_ms is None and first.imu_age_ms is None
+    assert second.att_mrad == (250, -125, 1500)
+    assert second.imu_raw == (10, -20, -1000, 1, 2, -3)
+    # The frames end ~30 + (len * 10 bits / 57600) ms; the reply is built at ~100 ms.
+    att_end_ms = 30 + len(b"\x00\x55garbage" + att) * 10 / 57.6
+    age_expected = r.replies[1].start_us / MS - att_end_ms
+    print(f"\nsimavr MAVLink v{wire_version}: attitude {second.att_mrad} mrad, age {second.att_age_ms} ms "
+          f"(expected ~{age_expected:.1f}), raw IMU {second.imu_raw}, age {second.imu_age_ms} ms")
+    assert abs(second.att_age_ms - age_expected) <= 3
+    assert second.imu_age_ms <= second.att_age_ms
+
+
+def test_without_a_provisioned_key_every_command_is_refused():
+    sc = Scenario()
+    sc.req(10 * MS, cmd(1))
+    sc.req(30 * MS, build_status_request())
+    sc.end(100 * MS)
+    r = sc.run(None)
+    got = [parse_reply(x.text + "\n") for x in r.replies]
+    assert [g.status for g in got] == [503, 200]
+    assert got[1].state == "disarmed"
+    assert all(abs(p.width_us - 1000) <= PULSE_TOLERANCE_US for p in r.pulses_of(3))

@@ -1,0 +1,290 @@
+// fw_sim: runs the real firmware .elf on simavr's ATmega328P @ 16 MHz and plays a scenario script.
+//
+// Usage: fw_sim --elf FILE [--eeprom FILE] < script > log
+//   --elf FILE     firmware image (firmware/.pio/build/uno_wifi/program.elf)
+//   --eeprom FILE  raw bytes loaded into EEPROM at address 0 before reset (the key record)
+// Script (stdin), one command per line, times in simulated microseconds, in any order:
+//   req  T TEXT   send TEXT + '\n' on the bridge UART at T, or as soon as the previous request's
+//                 reply line has arrived (the bridge forwards one request at a time)
+//   raw  T HEX    send raw bytes on the bridge UART at T (no reply awaited)
+//   mav  T HEX    send bytes to the MAVLink telemetry pin (PD2) as 57600-baud 8N1 serial from T
+//   end  T        stop the simulation at T
+// Log (stdout), one event per line:
+//   pulse CH RISE_US WIDTH_US    a completed pulse on RC channel CH (1..4)
+//   sent  START_US END_US        a request line finished going out on the bridge UART
+//   reply START_US END_US TEXT   a reply line from the firmware (first byte, newline)
+//   done  END_US                 simulation finished
+// Time comes from simavr's cycle counter only; the harness never reads the wall clock.
+#include <sim_avr.h>
+#include <sim_elf.h>
+#include <sim_irq.h>
+#include <avr_eeprom.h>
+#include <avr_ioport.h>
+#include <avr_uart.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <deque>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+constexpr uint32_t kCpuHz = 16000000;
+constexpr double kCyclesPerUs = kCpuHz / 1e6;
+/// Bridge link: 500000 baud 8N1 = 10 bits per byte = 20 us = 320 cycles per byte.
+constexpr uint64_t kBridgeByteCycles = 320;
+/// MAVLink telemetry: 57600 baud; a bit lasts 16e6 / 57600 = 277.78 cycles.
+constexpr double kMavBitCycles = kCpuHz / 57600.0;
+/// RC outputs PB1..PB4 = channels 1..4.
+constexpr int kPwmPins[4] = {1, 2, 3, 4};
+
+struct Request {
+  uint64_t at_cycle;
+  std::string bytes;
+  bool await_reply;
+};
+
+struct PinEdge {
+  uint64_t cycle;
+  int level;
+};
+
+struct Sim {
+  avr_t* avr = nullptr;
+  // PWM measurement
+  uint64_t rise_cycle[4] = {0, 0, 0, 0};
+  bool high[4] = {false, false, false, false};
+  // Bridge RX (firmware -> harness)
+  std::string reply;
+  uint64_t reply_start = 0;
+  bool awaiting_reply = false;
+};
+
+double us(uint64_t cycle) { return static_cast<double>(cycle) / kCyclesPerUs; }
+
+void on_pwm_pin(avr_irq_t* irq, uint32_t value, void* param) {
+  Sim* sim = static_cast<Sim*>(param);
+  const int ch = static_cast<int>(irq->irq);  // ioport irq index = pin number
+  int idx = -1;
+  for (int i = 0; i < 4; ++i) {
+    if (kPwmPins[i] == ch) idx = i;
+  }
+  if (idx < 0) return;
+  const uint64_t now = sim->avr->cycle;
+  if (value && !sim->high[idx]) {
+    sim->high[idx] = true;
+    sim->rise_cycle[idx] = now;
+  } else if (!value && sim->high[idx]) {
+    sim->high[idx] = false;
+    std::printf("pulse %d %.3f %.3f\n", idx + 1, us(sim->rise_cycle[idx]), us(now - sim->rise_cycle[idx]));
+  }
+}
+
+void on_uart_out(avr_irq_t*, uint32_t value, void* param) {
+  Sim* sim = static_cast<Sim*>(param);
+  const char c = static_cast<char>(value & 0xFF);
+  if (sim->reply.empty()) sim->reply_start = sim->avr->cycle;
+  if (c == '\n') {
+    std::printf("reply %.3f %.3f %s\n", us(sim->reply_start), us(sim->avr->cycle), sim->reply.c_str());
+    sim->reply.clear();
+    sim->awaiting_reply = false;
+  } else if (sim->reply.size() < 4096) {
+    sim->reply += c;
+  }
+}
+
+std::string from_hex(const std::string& h) {
+  std::string out;
+  for (size_t i = 0; i + 1 < h.size(); i += 2) out += static_cast<char>(std::stoi(h.substr(i, 2), nullptr, 16));
+  return out;
+}
+
+/// Appends the pin levels of 8N1 serial bytes starting at `start` (idle high between bytes).
+void append_serial_edges(std::vector<PinEdge>* edges, uint64_t start, const std::string& bytes) {
+  double t = static_cast<double>(start);
+  for (unsigned char b : bytes) {
+    int bits[10];
+    bits[0] = 0;
+    for (int i = 0; i < 8; ++i) bits[1 + i] = (b >> i) & 1;
+    bits[9] = 1;
+    for (int i = 0; i < 10; ++i) {
+      edges->push_back({static_cast<uint64_t>(t + 0.5), bits[i]});
+      t += kMavBitCycles;
+    }
+  }
+}
+
+int usage(const char* msg) {
+  std::fprintf(stderr, "fw_sim: %s\nusage: fw_sim --elf FILE [--eeprom FILE] < script > log\n", msg);
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string elf_path;
+  std::string eeprom_path;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--elf" && i + 1 < argc) {
+      elf_path = argv[++i];
+    } else if (a == "--eeprom" && i + 1 < argc) {
+      eeprom_path = argv[++i];
+    } else if (a == "-h" || a == "--help") {
+      std::printf("usage: fw_sim --elf FILE [--eeprom FILE] < script > log\n"
+                  "Runs the firmware image on simavr (ATmega328P, 16 MHz) and plays the script;\n"
+                  "see the header of hil/arduino/fw_sim.cpp for the script and log formats.\n");
+      return 0;
+    } else {
+      return usage(("unknown argument " + a).c_str());
+    }
+  }
+  if (elf_path.empty()) return usage("--elf is required");
+
+  // Script.
+  std::deque<Request> requests;
+  std::vector<Request> raws;
+  std::vector<PinEdge> mav_edges;
+  uint64_t end_cycle = 0;
+  std::string line;
+  int line_no = 0;
+  while (std::getline(std::cin, line)) {
+    ++line_no;
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream in(line);
+    std::string cmd;
+    double t_us = -1;
+    in >> cmd >> t_us;
+    if (!in || t_us < 0) {
+      std::fprintf(stderr, "fw_sim: script line %d: expected 'CMD T ...'\n", line_no);
+      return 2;
+    }
+    const uint64_t at = static_cast<uint64_t>(t_us * kCyclesPerUs);
+    std::string rest;
+    std::getline(in, rest);
+    if (!rest.empty() && rest[0] == ' ') rest.erase(0, 1);
+    if (cmd == "req") {
+      requests.push_back({at, rest + "\n", true});
+    } else if (cmd == "raw") {
+      raws.push_back({at, from_hex(rest), false});
+    } else if (cmd == "mav") {
+      append_serial_edges(&mav_edges, at, from_hex(rest));
+    } else if (cmd == "end") {
+      end_cycle = at;
+    } else {
+      std::fprintf(stderr, "fw_sim: script line %d: unknown command '%s'\n", line_no, cmd.c_str());
+      return 2;
+    }
+  }
+  if (end_cycle == 0) {
+    std::fprintf(stderr, "fw_sim: script has no 'end T' line\n");
+    return 2;
+  }
+  // Raw byte groups go out in time order, interleaved with requests by the feeder below.
+  std::vector<Request> raw_sorted = raws;
+  std::stable_sort(raw_sorted.begin(), raw_sorted.end(),
+                   [](const Request& a, const Request& b) { return a.at_cycle < b.at_cycle; });
+  std::stable_sort(mav_edges.begin(), mav_edges.end(),
+                   [](const PinEdge& a, const PinEdge& b) { return a.cycle < b.cycle; });
+
+  // Firmware.
+  elf_firmware_t fw;
+  std::memset(&fw, 0, sizeof(fw));
+  if (elf_read_firmware(elf_path.c_str(), &fw) != 0) {
+    std::fprintf(stderr, "fw_sim: cannot read ELF %s\n", elf_path.c_str());
+    return 1;
+  }
+  Sim sim;
+  sim.avr = avr_make_mcu_by_name("atmega328p");
+  if (sim.avr == nullptr) {
+    std::fprintf(stderr, "fw_sim: simavr has no atmega328p\n");
+    return 1;
+  }
+  avr_init(sim.avr);
+  sim.avr->frequency = kCpuHz;
+  avr_load_firmware(sim.avr, &fw);
+  sim.avr->log = 0;
+  if (!eeprom_path.empty()) {
+    std::ifstream f(eeprom_path, std::ios::binary);
+    if (!f) {
+      std::fprintf(stderr, "fw_sim: cannot read EEPROM file %s\n", eeprom_path.c_str());
+      return 1;
+    }
+    std::vector<uint8_t> ee((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    avr_eeprom_desc_t d;
+    d.ee = ee.data();
+    d.offset = 0;
+    d.size = static_cast<uint32_t>(ee.size());
+    avr_ioctl(sim.avr, AVR_IOCTL_EEPROM_SET, &d);
+  }
+  uint32_t flags = 0;
+  avr_ioctl(sim.avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
+  flags &= ~static_cast<uint32_t>(AVR_UART_FLAG_STDIO);
+  avr_ioctl(sim.avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
+  for (int pin : kPwmPins) {
+    avr_irq_register_notify(avr_io_getirq(sim.avr, AVR_IOCTL_IOPORT_GETIRQ('B'), pin), on_pwm_pin, &sim);
+  }
+  avr_irq_register_notify(avr_io_getirq(sim.avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), on_uart_out, &sim);
+  avr_irq_t* uart_in = avr_io_getirq(sim.avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
+  avr_irq_t* mav_pin = avr_io_getirq(sim.avr, AVR_IOCTL_IOPORT_GETIRQ('D'), 2);
+  avr_raise_irq(mav_pin, 1);  // idle line high
+
+  // Run.
+  std::string tx;            // bytes being fed into the bridge UART
+  size_t tx_pos = 0;
+  uint64_t tx_next = 0;
+  bool tx_is_request = false;
+  size_t raw_idx = 0;
+  size_t mav_idx = 0;
+  uint64_t tx_start = 0;
+  int state = cpu_Running;
+  while (sim.avr->cycle < end_cycle && state != cpu_Done && state != cpu_Crashed) {
+    state = avr_run(sim.avr);
+    const uint64_t now = sim.avr->cycle;
+    while (mav_idx < mav_edges.size() && now >= mav_edges[mav_idx].cycle) {
+      avr_raise_irq(mav_pin, static_cast<uint32_t>(mav_edges[mav_idx].level));
+      ++mav_idx;
+    }
+    if (tx_pos < tx.size()) {
+      if (now >= tx_next) {
+        avr_raise_irq(uart_in, static_cast<uint8_t>(tx[tx_pos++]));
+        tx_next += kBridgeByteCycles;
+        if (tx_pos == tx.size() && tx_is_request) {
+          std::printf("sent %.3f %.3f\n", us(tx_start), us(tx_next));
+          sim.awaiting_reply = true;
+        }
+      }
+      continue;
+    }
+    if (raw_idx < raw_sorted.size() && now >= raw_sorted[raw_idx].at_cycle &&
+        (requests.empty() || raw_sorted[raw_idx].at_cycle <= requests.front().at_cycle)) {
+      tx = raw_sorted[raw_idx++].bytes;
+      tx_pos = 0;
+      tx_next = now;
+      tx_start = now;
+      tx_is_request = false;
+    } else if (!requests.empty() && !sim.awaiting_reply && now >= requests.front().at_cycle) {
+      tx = requests.front().bytes;
+      requests.pop_front();
+      tx_pos = 0;
+      tx_next = now;
+      tx_start = now;
+      tx_is_request = true;
+    }
+  }
+  std::printf("done %.3f\n", us(sim.avr->cycle));
+  if (state == cpu_Crashed) {
+    std::fprintf(stderr, "fw_sim: firmware crashed at %.3f us\n", us(sim.avr->cycle));
+    return 3;
+  }
+  std::fflush(stdout);
+  // uart_pty_stop() hangs in simavr 1.6 and avr_terminate is not needed: just exit.
+  std::_Exit(0);
+}

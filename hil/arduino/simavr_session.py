@@ -1,0 +1,143 @@
+"""Python driver of fw_sim, the libsimavr harness that runs the REAL firmware image.
+
+A Scenario collects timed inputs (bridge requests, raw bridge bytes, MAVLink telemetry bytes), runs
+the firmware under simavr once, deterministically, and returns what was observable on the wire:
+every RC pulse (channel, rise time, width), every request sent and every reply line, all in
+simulated microseconds. The HIL rig builds on this.
+
+    sc = Scenario()
+    sc.req(20_000, build_control_request(key, 1, True, 1500, 1500, 1000, 1500))
+    sc.end(200_000)
+    result = sc.run(key_record=record_bytes)
+    result.pulses_of(3)          # throttle pulses
+
+Binary and image are found at <repo>/build/bin/fw_sim and firmware/.pio/build/uno_wifi/program.elf
+(`make build` makes both), or from FW_SIM_BIN / FW_ELF.
+"""
+from __future__ import annotations
+
+import os
+import pathlib
+import subprocess
+from dataclasses import dataclass, field
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+#: Upper bound on one fw_sim run (wall clock): scenarios are a few simulated seconds, simavr runs
+#: ~3.7x faster than real time, so anything near this is a hang.
+RUN_TIMEOUT_S = 120
+
+
+def fw_sim_path() -> pathlib.Path:
+    return pathlib.Path(os.environ.get("FW_SIM_BIN", REPO / "build" / "bin" / "fw_sim"))
+
+
+def firmware_elf_path() -> pathlib.Path:
+    return pathlib.Path(os.environ.get("FW_ELF", REPO / "firmware" / ".pio" / "build" / "uno_wifi" / "program.elf"))
+
+
+@dataclass(frozen=True)
+class Pulse:
+    channel: int      # 1..4 (roll, pitch, throttle, yaw)
+    rise_us: float
+    width_us: float
+
+
+@dataclass(frozen=True)
+class Reply:
+    start_us: float
+    end_us: float
+    text: str
+
+
+@dataclass(frozen=True)
+class Sent:
+    start_us: float
+    end_us: float
+
+
+@dataclass
+class Result:
+    pulses: list[Pulse] = field(default_factory=list)
+    replies: list[Reply] = field(default_factory=list)
+    sent: list[Sent] = field(default_factory=list)
+    done_us: float = 0.0
+
+    def pulses_of(self, channel: int, after_us: float = 0.0, before_us: float = float("inf")) -> list[Pulse]:
+        return [p for p in self.pulses if p.channel == channel and after_us <= p.rise_us < before_us]
+
+    def frame_at(self, t_us: float) -> list[float]:
+        """Widths of the four channels in the first complete frame starting at or after t_us."""
+        out = []
+        for ch in range(1, 5):
+            later = self.pulses_of(ch, after_us=t_us)
+            if not later:
+                raise ValueError(f"no pulse on channel {ch} after {t_us} us")
+            out.append(later[0].width_us)
+        return out
+
+
+class Scenario:
+    """Timed inputs for one simulated run (times in simulated microseconds from reset)."""
+
+    def __init__(self) -> None:
+        self._lines: list[str] = []
+        self._end_us: float | None = None
+
+    def req(self, t_us: float, line: str) -> None:
+        """A bridge request line, sent at t_us or once the previous reply has arrived."""
+        if "\n" in line:
+            raise ValueError("request lines must not contain newlines (use raw())")
+        self._lines.append(f"req {t_us:.3f} {line}")
+
+    def raw(self, t_us: float, data: bytes) -> None:
+        """Raw bytes on the bridge UART at t_us (no reply awaited)."""
+        self._lines.append(f"raw {t_us:.3f} {data.hex()}")
+
+    def mav(self, t_us: float, data: bytes) -> None:
+        """Bytes on the MAVLink telemetry pin as 57600-baud serial from t_us."""
+        self._lines.append(f"mav {t_us:.3f} {data.hex()}")
+
+    def end(self, t_us: float) -> None:
+        self._end_us = t_us
+
+    def script(self) -> str:
+        if self._end_us is None:
+            raise ValueError("call end(t_us) first")
+        return "\n".join(self._lines + [f"end {self._end_us:.3f}"]) + "\n"
+
+    def run(self, key_record: bytes | None, workdir: pathlib.Path | None = None) -> Result:
+        """Runs fw_sim; key_record is the EEPROM content (None: erased EEPROM, no key)."""
+        sim, elf = fw_sim_path(), firmware_elf_path()
+        for p, how in ((sim, "build it: make build (or cmake --build ... --target fw_sim)"),
+                       (elf, "build it: firmware/build.sh")):
+            if not p.is_file():
+                raise FileNotFoundError(f"{p} not found: {how}")
+        args = [str(sim), "--elf", str(elf)]
+        if key_record is not None:
+            wd = workdir or pathlib.Path(os.environ.get("TMPDIR", "/tmp"))
+            ee = wd / f"fw_sim_eeprom_{os.getpid()}.bin"
+            ee.write_bytes(key_record)
+            args += ["--eeprom", str(ee)]
+        proc = subprocess.run(args, input=self.script(), capture_output=True, text=True,
+                              timeout=RUN_TIMEOUT_S, check=False)
+        if proc.returncode != 0:
+            raise RuntimeError(f"fw_sim failed ({proc.returncode}): {proc.stderr.strip()}")
+        return parse_log(proc.stdout)
+
+
+def parse_log(text: str) -> Result:
+    r = Result()
+    for line in text.splitlines():
+        kind, _, rest = line.partition(" ")
+        if kind == "pulse":
+            ch, rise, width = rest.split()
+            r.pulses.append(Pulse(int(ch), float(rise), float(width)))
+        elif kind == "reply":
+            start, end, body = rest.split(" ", 2)
+            r.replies.append(Reply(float(start), float(end), body))
+        elif kind == "sent":
+            start, end = rest.split()
+            r.sent.append(Sent(float(start), float(end)))
+        elif kind == "done":
+            r.done_us = float(rest)
+    return r
