@@ -46,7 +46,7 @@ class CameraMount:
     origin_room_m: tuple[float, float, float] = (-1.5, 0.5, 0.2)
 
 
-def arm(fc: FlightControllerEmulator, log: FlightLog | None = None) -> None:
+def arm(fc: FlightControllerEmulator, on_sticks=None) -> None:
     """Holds the arming gesture until the emulator arms (ArduCopter: 2 s); raises if it never does."""
     deadline = fc.t_us + 5_000_000
     while not fc.armed:
@@ -54,14 +54,17 @@ def arm(fc: FlightControllerEmulator, log: FlightLog | None = None) -> None:
             raise RuntimeError("FC emulator did not arm within 5 s of the arming gesture")
         t = fc.t_us + RC_READ_PERIOD_US
         fc.feed_rc(ARM_STICKS_US, t)
+        if on_sticks is not None:
+            on_sticks(t, ARM_STICKS_US)
         fc.advance_to(t)
     fc.feed_rc(IDLE_STICKS_US, fc.t_us)
 
 
 def fly_plan(fc: FlightControllerEmulator, legs: list[Leg], kinect: KinectEmulator | None = None,
              sink=None, mount: CameraMount = CameraMount(), gains: PilotGains = PilotGains(),
-             log: FlightLog | None = None) -> FlightLog:
-    """Flies each leg with the ground-truth pilot; renders Kinect frames into `sink(frame)` if given."""
+             log: FlightLog | None = None, on_sticks=None) -> FlightLog:
+    """Flies each leg with the ground-truth pilot; renders Kinect frames into `sink(frame)` if given;
+    `on_sticks(t_us, sticks)` sees every RC frame the pilot sends (to replay it through firmware)."""
     log = log or FlightLog()
     for leg in legs:
         end_us = fc.t_us + int(round(leg.duration_s * 1e6))
@@ -83,7 +86,10 @@ def fly_plan(fc: FlightControllerEmulator, legs: list[Leg], kinect: KinectEmulat
             t = min(next_rc, end_us)
             fc.advance_to(t)
             s = fc.snapshot()
-            fc.feed_rc(sticks_for(s, leg.target_ned_m, leg.yaw_rad, gains), t)
+            sticks = sticks_for(s, leg.target_ned_m, leg.yaw_rad, gains)
+            fc.feed_rc(sticks, t)
+            if on_sticks is not None:
+                on_sticks(t, sticks)
             log.t_us.append(t)
             log.pos_ned_m.append(s.pos_ned_m)
             log.target_ned_m.append(tuple(leg.target_ned_m))
