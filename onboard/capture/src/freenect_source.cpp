@@ -3,6 +3,7 @@
 
 #include <libfreenect.h>
 
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 
@@ -57,7 +58,7 @@ FreenectSource::FreenectSource(const FreenectOptions& options, Clock* clock)
       freenect_find_video_mode(FREENECT_RESOLUTION_MEDIUM, FREENECT_VIDEO_RGB);
   const freenect_frame_mode depth = freenect_find_depth_mode(
       FREENECT_RESOLUTION_MEDIUM,
-      options_.passthrough_depth ? FREENECT_DEPTH_11BIT : FREENECT_DEPTH_REGISTERED);
+      options_.disparity_depth ? FREENECT_DEPTH_11BIT : FREENECT_DEPTH_REGISTERED);
   if (!video.is_valid || !depth.is_valid || freenect_set_video_mode(device_, video) < 0 ||
       freenect_set_depth_mode(device_, depth) < 0) {
     fail("640x480 RGB / depth mode refused");
@@ -99,9 +100,12 @@ void FreenectSource::on_depth(const void* data) {
   f.width = kKinectWidthPx;
   f.height = kKinectHeightPx;
   f.units_per_m = kMillimetreUnitsPerM;
-  f.registered_to_rgb = true;  // registered mode, or a passthrough dump of registered depth
+  f.registered_to_rgb = !options_.disparity_depth;
   f.depth.resize(static_cast<std::size_t>(f.width) * f.height);
   std::memcpy(f.depth.data(), data, f.depth.size() * sizeof(std::uint16_t));
+  if (options_.disparity_depth) {
+    for (auto& v : f.depth) v = disparity_to_mm(v);
+  }
   push(std::move(f));
 }
 
@@ -151,7 +155,18 @@ std::string FreenectSource::error() const {
 
 std::string FreenectSource::describe() const {
   return "freenect:" + std::to_string(options_.device_index) +
-         (options_.passthrough_depth ? " (11-bit passthrough depth)" : " (registered mm)");
+         (options_.disparity_depth ? " (11-bit disparity -> mm, software registration)" : " (registered mm)");
+}
+
+std::uint16_t FreenectSource::disparity_to_mm(std::uint16_t raw) {
+  // 2047 (and anything above the 11-bit range) means no reading; Magnenat's fit of the Kinect v1
+  // disparity-depth relation (OpenKinect wiki, "Imaging Information").
+  constexpr std::uint16_t kNoReading = 2047;
+  if (raw >= kNoReading) return 0;
+  const double z_m = 0.1236 * std::tan(raw / 2842.5 + 1.1863);
+  // raw >= ~1084 gives negative or huge values (tan beyond pi/2): not a measurable depth.
+  if (!(z_m > 0) || z_m > 10.0) return 0;
+  return static_cast<std::uint16_t>(std::lround(z_m * 1000.0));
 }
 
 }  // namespace rgbdquad::capture

@@ -5,9 +5,10 @@
 // Depth modes:
 //  - registered: FREENECT_DEPTH_REGISTERED, millimetres already registered onto RGB by the driver
 //    (live Kinect; the default).
-//  - passthrough: FREENECT_DEPTH_11BIT buffers forwarded unchanged, declared as registered
-//    millimetres. Debian's fakenect 0.5.3 replays only this mode (it asserts 11-bit), so dumps made
-//    for replay store registered millimetres in it (see onboard/tools/make_fakenect_dump.py).
+//  - disparity: FREENECT_DEPTH_11BIT raw disparity (what fakenect-record stores, and the only mode
+//    Debian's fakenect 0.5.3 replays - it asserts 11-bit), converted to millimetres with
+//    z = 0.1236 m * tan(raw / 2842.5 + 1.1863) (raw 2047 = no reading). Frames are in the IR
+//    camera's view (registered_to_rgb = false): the pipeline's DepthRegistration aligns them.
 //
 // Thread safety: libfreenect's event loop runs on an internal thread owned by this object; frames
 // cross to the consumer through a small queue (the newest kept when the consumer falls behind).
@@ -30,7 +31,7 @@ namespace rgbdquad::capture {
 
 struct FreenectOptions {
   int device_index = 0;
-  bool passthrough_depth = false;  // true: FREENECT_DEPTH_11BIT passthrough (fakenect dumps)
+  bool disparity_depth = false;  // true: FREENECT_DEPTH_11BIT disparity -> mm (fakenect dumps)
   // Frames held for a slow consumer before the oldest is dropped: 4 = ~2 RGB+depth pairs.
   std::size_t queue_capacity = 4;
 
@@ -54,6 +55,9 @@ class FreenectSource final : public FrameSource {
 
   // libfreenect C callbacks (public so the C trampolines can reach them).
   void on_depth(const void* data);
+
+  // The disparity -> millimetre conversion used in disparity mode (0 for no reading).
+  static std::uint16_t disparity_to_mm(std::uint16_t raw);
   void on_video(const void* data);
 
  private:
