@@ -58,7 +58,7 @@ def test_inconsistent_max_body_bytes_is_caught():
         Spec(raw).validate()
 
 
-@pytest.mark.parametrize("tool", ["gen_cpp.py", "make_vectors.py"])
+@pytest.mark.parametrize("tool", ["gen_cpp.py", "gen_docs.py", "make_vectors.py"])
 def test_generated_files_are_up_to_date(tool):
     r = subprocess.run([sys.executable, str(PROTOCOL / "tools" / tool), "--check"],
                        capture_output=True, text=True, timeout=120)
