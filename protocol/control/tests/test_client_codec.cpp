@@ -92,7 +92,9 @@ TEST(ClientCodec, ParsesGoldenReplies) {
     for (int i = 0; i < 3; ++i) EXPECT_EQ(p->att_mrad[i], f["att_mrad"][i].get<int>());
     for (int i = 0; i < 6; ++i) EXPECT_EQ(p->imu_raw[i], f["imu_raw"][i].get<int>());
     EXPECT_EQ(p->att_age_ms.has_value(), !f["att_age_ms"].is_null());
-    if (p->att_age_ms) EXPECT_EQ(*p->att_age_ms, f["att_age_ms"].get<uint32_t>());
+    if (p->att_age_ms) {
+      EXPECT_EQ(*p->att_age_ms, f["att_age_ms"].get<uint32_t>());
+    }
     EXPECT_EQ(p->imu_age_ms.has_value(), !f["imu_age_ms"].is_null());
   }
 }
