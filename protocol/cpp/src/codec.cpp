@@ -21,16 +21,22 @@ using wire::Writer;
 // 2e-6 on |q|^2 is 1e-6 on |q| (spec Pose3 check unit_quaternion).
 constexpr double kUnitQuaternionTolerance = 2e-6;
 
-constexpr std::array<std::uint32_t, 256> make_crc_table() {
-  std::array<std::uint32_t, 256> table{};
+// CRC-32 tables for slicing-by-8 (8 bytes per step; table[0] is the classic bytewise table).
+constexpr std::array<std::array<std::uint32_t, 256>, 8> make_crc_tables() {
+  std::array<std::array<std::uint32_t, 256>, 8> tables{};
   for (std::uint32_t i = 0; i < 256; ++i) {
     std::uint32_t c = i;
     for (int k = 0; k < 8; ++k) c = (c & 1u) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
-    table[i] = c;
+    tables[0][i] = c;
   }
-  return table;
+  for (std::uint32_t i = 0; i < 256; ++i) {
+    for (std::size_t s = 1; s < 8; ++s) {
+      tables[s][i] = (tables[s - 1][i] >> 8) ^ tables[0][tables[s - 1][i] & 0xFFu];
+    }
+  }
+  return tables;
 }
-constexpr std::array<std::uint32_t, 256> kCrcTable = make_crc_table();
+constexpr std::array<std::array<std::uint32_t, 256>, 8> kCrcTables = make_crc_tables();
 
 std::size_t bytes_per_pixel(PixelFormat format) {
   return format == PixelFormat::kRgb8 ? 3 : 2;
@@ -489,20 +495,20 @@ std::uint32_t get_le32(const std::uint8_t* in) {
          std::uint32_t{in[3]} << 24;
 }
 
-// Wraps an already-encoded body: header (with header CRC), body, body CRC.
-std::vector<std::uint8_t> wrap(MessageType type, const std::vector<std::uint8_t>& body) {
-  std::vector<std::uint8_t> out;
-  out.reserve(kEnvelopeHeaderBytes + body.size() + kEnvelopeTrailerBytes);
-  Writer w(out);
-  w.raw(kMagic, sizeof kMagic);
-  w.u8(kProtocolVersion);
-  w.u8(static_cast<std::uint8_t>(type));
-  w.u16(0);
-  w.u32(static_cast<std::uint32_t>(body.size()));
-  w.u32(crc32(out.data(), 12));
-  w.raw(body.data(), body.size());
-  w.u32(crc32(body.data(), body.size()));
-  return out;
+// Bytes to reserve for a message so encoding never reallocates (its bulk plus a margin for the
+// fixed fields and the envelope).
+constexpr std::size_t kFixedPartMarginBytes = 512;
+std::size_t reserve_hint(const Frame& m) { return m.image.payload.size() + kFixedPartMarginBytes; }
+std::size_t reserve_hint(const RgbdFrame& m) {
+  return m.rgb.payload.size() + m.depth.payload.size() + kFixedPartMarginBytes;
+}
+std::size_t reserve_hint(const PoseGraph& m) {
+  return m.nodes.size() * kNodeBytes + m.edges.size() * kEdgeBytes + kFixedPartMarginBytes;
+}
+std::size_t reserve_hint(const FloorMap& m) { return m.cells.size() + kFixedPartMarginBytes; }
+template <typename T>
+std::size_t reserve_hint(const T&) {
+  return kFixedPartMarginBytes;
 }
 
 template <typename T>
@@ -518,15 +524,34 @@ constexpr MessageType type_of() {
   if constexpr (std::is_same_v<T, FloorMap>) return MessageType::kFloorMap;
 }
 
+// Encodes straight into the output: header with placeholders, body, then the length and CRCs are
+// filled in (one pass over the payload for the copy, one for the CRC).
 template <typename T>
 EncodeResult encode_typed(const T& message, bool with_envelope) {
   EncodeResult result;
   result.error = validate_one(message);
   if (!result.error.empty()) return result;
-  std::vector<std::uint8_t> body;
-  Writer w(body);
+  std::vector<std::uint8_t>& out = result.bytes;
+  out.reserve(reserve_hint(message));
+  Writer w(out);
+  if (!with_envelope) {
+    put_body(w, message);
+    return result;
+  }
+  w.raw(kMagic, sizeof kMagic);
+  w.u8(kProtocolVersion);
+  w.u8(static_cast<std::uint8_t>(type_of<T>()));
+  w.u16(0);
+  w.u32(0);  // body_length, filled below
+  w.u32(0);  // header_crc32, filled below
   put_body(w, message);
-  result.bytes = with_envelope ? wrap(type_of<T>(), body) : std::move(body);
+  const std::size_t body_length = out.size() - kEnvelopeHeaderBytes;
+  auto patch_le32 = [&out](std::size_t at, std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) out[at + i] = static_cast<std::uint8_t>(v >> (8 * i));
+  };
+  patch_le32(8, static_cast<std::uint32_t>(body_length));
+  patch_le32(12, crc32(out.data(), 12));
+  w.u32(crc32(out.data() + kEnvelopeHeaderBytes, body_length));
   return result;
 }
 
@@ -555,8 +580,17 @@ MessageType message_type(const Message& message) {
 }
 
 std::uint32_t crc32(const std::uint8_t* data, std::size_t size, std::uint32_t crc) {
+  const auto& t = kCrcTables;
   crc = ~crc;
-  for (std::size_t i = 0; i < size; ++i) crc = kCrcTable[(crc ^ data[i]) & 0xFFu] ^ (crc >> 8);
+  std::size_t i = 0;
+  for (; i + 8 <= size; i += 8) {  // bytes combined explicitly: independent of host byte order
+    const std::uint32_t lo = crc ^ (std::uint32_t{data[i]} | std::uint32_t{data[i + 1]} << 8 |
+                                    std::uint32_t{data[i + 2]} << 16 |
+                                    std::uint32_t{data[i + 3]} << 24);
+    crc = t[7][lo & 0xFF] ^ t[6][(lo >> 8) & 0xFF] ^ t[5][(lo >> 16) & 0xFF] ^ t[4][lo >> 24] ^
+          t[3][data[i + 4]] ^ t[2][data[i + 5]] ^ t[1][data[i + 6]] ^ t[0][data[i + 7]];
+  }
+  for (; i < size; ++i) crc = t[0][(crc ^ data[i]) & 0xFFu] ^ (crc >> 8);
   return ~crc;
 }
 

@@ -412,13 +412,15 @@ class StreamDecoder:
         return len(self._buf)
 
     def _discard_to_next_magic(self, start: int) -> int:
+        # First i >= start where the magic starts, or a prefix of it ends the buffer.
         buf, magic = self._buf, self._magic
-        i = start
-        while i < len(buf):
-            n = min(len(magic), len(buf) - i)
-            if buf[i:i + n] == magic[:n]:
-                break
-            i += 1
+        i = buf.find(magic, start)
+        if i < 0:
+            i = len(buf)
+            for k in range(len(magic) - 1, 0, -1):  # longest partial first = smallest offset
+                if len(buf) - k >= start and buf[len(buf) - k:] == magic[:k]:
+                    i = len(buf) - k
+                    break
         del buf[:i]
         return i
 
