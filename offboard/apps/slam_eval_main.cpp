@@ -28,9 +28,11 @@ using nlohmann::json;
 struct RunArgs {
   std::string dataset, out, features = "sift", backend = "glc", mode = "wait", camera = "auto";
   std::string ransac = "random", keyframe_policy = "ransac";
-  int rate = 1, max_frames = 0, map_stride = 8;
+  int cv_threads = -1;
+  int rate = 1, max_frames = 0, map_stride = 8, sift_first_octave = -1, max_features = 0;
   std::uint64_t seed = 20260101;
-  bool undistort = false, no_map = false, quiet = false;
+  bool undistort = false, no_map = false, quiet = false, no_reprojection = false;
+  std::string stamp = "depth";
 };
 
 json stage_stats(std::vector<double> v) {
@@ -56,6 +58,7 @@ std::string guess_camera(const std::string& folder) {
 
 int run_command(const RunArgs& a) {
   std::string err;
+  if (a.cv_threads >= 0) cv::setNumThreads(a.cv_threads);
   slam::PipelineOptions po;
   if (!slam::parse_detector_kind(a.features, &po.frontend.features.kind, &err) ||
       !slam::parse_backend_kind(a.backend, &po.backend.kind, &err) ||
@@ -64,6 +67,9 @@ int run_command(const RunArgs& a) {
     return 2;
   }
   po.frontend.features.undistort = a.undistort;
+  po.reprojection_refine = !a.no_reprojection;
+  po.frontend.features.sift_upsample_first_octave = a.sift_first_octave < 0;
+  po.frontend.features.sift_max_features = a.max_features;
   po.frontend.seed = a.seed;
   po.backend.seed = a.seed + 1;
   const auto sampling = a.ransac == "thesis" ? slam::RansacSampling::kThesis : slam::RansacSampling::kRandom;
@@ -81,6 +87,7 @@ int run_command(const RunArgs& a) {
   slam::TumDatasetOptions dso;
   dso.rate_divisor = a.rate;
   dso.max_frames = a.max_frames;
+  dso.stamp_from_depth = a.stamp == "depth";
   auto ds = slam::TumDataset::open(a.dataset, dso, &err);
   if (!ds) {
     std::cerr << "slam-eval: " << err << "\n";
@@ -167,6 +174,12 @@ int run_command(const RunArgs& a) {
   m["ransac_sampling"] = a.ransac;
   m["keyframe_policy"] = a.keyframe_policy;
   m["seed"] = a.seed;
+  m["sift_first_octave"] = a.sift_first_octave;
+  m["max_features"] = a.max_features;
+  m["undistort"] = a.undistort;
+  m["stamp"] = a.stamp;
+  m["reprojection_refine"] = !a.no_reprojection;
+  m["cv_threads"] = a.cv_threads;
   m["frames"] = records.size();
   m["frames_submitted"] = summary.frames_submitted;
   m["frames_failed"] = summary.frames_failed;
@@ -178,7 +191,7 @@ int run_command(const RunArgs& a) {
   m["map_points"] = map_points;
   m["wall_s"] = wall_s;
   std::size_t lost = 0, llc = 0;
-  std::vector<double> feat, match, ransac, fe, kf, llc_ms, glc, pg, bend, nfeat;
+  std::vector<double> feat, match, ransac, fe, kf, llc_ms, glc, pg, bend, nfeat, fe_cpu, be_cpu;
   for (const auto& r : records) {
     if (!r.ok) continue;
     if (r.state == slam::TrackingState::kLost) ++lost;
@@ -186,10 +199,12 @@ int run_command(const RunArgs& a) {
     match.push_back(r.matching_ms);
     ransac.push_back(r.ransac_ms);
     fe.push_back(r.frontend_ms);
+    fe_cpu.push_back(r.frontend_cpu_ms);
     nfeat.push_back(static_cast<double>(r.features));
     if (!r.backend_processed) continue;
     kf.push_back(r.keyframe_ms);
     bend.push_back(r.backend_ms);
+    be_cpu.push_back(r.backend_cpu_ms);
     if (r.llc_applied) { ++llc; llc_ms.push_back(r.llc_ms); }
     if (po.backend.kind == slam::BackendKind::kGlc) glc.push_back(r.glc_ms);
     if (r.loop_closed) pg.push_back(r.posegraph_ms);
@@ -203,7 +218,8 @@ int run_command(const RunArgs& a) {
                  {"ransac", stage_stats(ransac)},   {"frontend", stage_stats(fe)},
                  {"keyframe", stage_stats(kf)},     {"llc", stage_stats(llc_ms)},
                  {"glc", stage_stats(glc)},         {"posegraph", stage_stats(pg)},
-                 {"backend", stage_stats(bend)}};
+                 {"backend", stage_stats(bend)},    {"frontend_cpu", stage_stats(fe_cpu)},
+                 {"backend_cpu", stage_stats(be_cpu)}};
   if (!ds->groundtruth_path().empty()) {
     auto gt = slam::eval::read_tum_trajectory(ds->groundtruth_path(), &err);
     if (!gt) {
@@ -274,6 +290,18 @@ int main(int argc, char** argv) {
   run->add_option("--max-frames", a.max_frames, "stop after N frames (0 = all)")->check(CLI::NonNegativeNumber)->capture_default_str();
   run->add_option("--seed", a.seed, "RANSAC seed")->capture_default_str();
   run->add_option("--map-stride", a.map_stride, "PLY map: every N-th pixel")->check(CLI::PositiveNumber)->capture_default_str();
+  run->add_option("--sift-first-octave", a.sift_first_octave,
+                  "-1: OpenCV's upsampled first octave; 0: start at input resolution (~4x faster)")
+      ->check(CLI::IsMember({-1, 0}))->capture_default_str();
+  run->add_option("--max-features", a.max_features, "SIFT: keep the N strongest (0 = all)")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  run->add_option("--stamp", a.stamp, "pose time: depth (geometry's capture time) | rgb")
+      ->check(CLI::IsMember({"depth", "rgb"}))->capture_default_str();
+  run->add_flag("--no-reprojection-refine", a.no_reprojection,
+                "skip the Gauss-Newton reprojection refinement after RANSAC");
+  run->add_option("--cv-threads", a.cv_threads,
+                  "OpenCV worker threads (-1 = OpenCV default; 1 makes *_cpu timings complete)")
+      ->capture_default_str();
   run->add_flag("--undistort", a.undistort, "undistort keypoints before lifting to 3D");
   run->add_flag("--no-map", a.no_map, "do not write map.ply");
   run->add_flag("--quiet", a.quiet, "no per-25-frame progress");

@@ -68,6 +68,7 @@ std::optional<TumDataset> TumDataset::open(const std::string& folder, const TumD
   }
   TumDataset ds;
   ds.folder_ = folder;
+  ds.stamp_from_depth_ = o.stamp_from_depth;
   const fs::path gt = fs::path(folder) / "groundtruth.txt";
   if (fs::is_regular_file(gt, ec)) ds.groundtruth_path_ = gt.string();
   std::vector<TumEntry> all;
@@ -110,7 +111,7 @@ std::optional<RgbdFrame> TumDataset::load(std::size_t i, std::string* error) con
   const TumEntry& e = entries_[i];
   RgbdFrame f;
   f.index = static_cast<std::int64_t>(i);
-  f.stamp_s = e.rgb_stamp_s;
+  f.stamp_s = stamp_from_depth_ ? e.depth_stamp_s : e.rgb_stamp_s;
   f.rgb = cv::imread(e.rgb_path, cv::IMREAD_COLOR);
   if (f.rgb.empty()) {
     if (error) *error = "cannot read colour image '" + e.rgb_path + "'";

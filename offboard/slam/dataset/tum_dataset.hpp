@@ -26,6 +26,10 @@ struct TumDatasetOptions {
   double max_dt_s = 0.02;  ///< TUM associate.py default (20 ms)
   int rate_divisor = 1;    ///< keep every k-th frame (k >= 1)
   int max_frames = 0;      ///< 0 = all
+  /// Stamp given to a frame: the depth image's (default) or the colour image's. The 3D geometry
+  /// every estimate rests on comes from the depth image, so its capture time is the pose's time
+  /// (RGBD-SLAM's reference trajectories use it too); fr1 colour and depth differ by up to 17 ms.
+  bool stamp_from_depth = true;
   bool is_valid(std::string* error) const;
 };
 
@@ -52,6 +56,7 @@ class TumDataset {
   std::string groundtruth_path_;
   std::vector<TumEntry> entries_;
   double frame_period_s_ = 1.0 / 30.0;
+  bool stamp_from_depth_ = true;
 };
 
 /// Parses "timestamp filename" lines (comments '#' and blank lines skipped).

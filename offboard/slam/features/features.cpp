@@ -106,7 +106,18 @@ std::optional<FrameFeatures> FeatureExtractor::extract(const RgbdFrame& frame,
   std::vector<cv::KeyPoint> kps;
   cv::Mat desc;
   try {
-    detector_->detectAndCompute(grey, cv::noArray(), kps, desc);
+    if (options_.kind == DetectorKind::kSift && !options_.sift_upsample_first_octave) {
+      cv::Mat half;
+      cv::resize(grey, half, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
+      detector_->detectAndCompute(half, cv::noArray(), kps, desc);
+      for (auto& kp : kps) {
+        // Pixel centres: input = 2 * half + 0.5 (INTER_AREA averages 2x2 blocks).
+        kp.pt = cv::Point2f(2.0f * kp.pt.x + 0.5f, 2.0f * kp.pt.y + 0.5f);
+        kp.size *= 2.0f;
+      }
+    } else {
+      detector_->detectAndCompute(grey, cv::noArray(), kps, desc);
+    }
   } catch (const cv::Exception& e) {
     if (error) *error = std::string("features: detector failed: ") + e.what();
     return std::nullopt;

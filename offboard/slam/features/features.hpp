@@ -31,6 +31,10 @@ struct FeatureOptions {
   double sift_edge_threshold = 15.0;
   double sift_sigma = 1.6;
   int sift_max_features = 0;  ///< 0 = keep all (thesis)
+  /// OpenCV 4.6 always starts SIFT at an upsampled octave -1 (4x the pixels of the input). With
+  /// this off, SIFT runs on a half-size copy so that octave -1 is the input resolution (first
+  /// octave 0, as SiftGPU's default): ~4x less work, keypoints scaled back to input pixels.
+  bool sift_upsample_first_octave = true;
   // SURF (thesis Table 4.2): 4 octaves, 3 scales per octave, 128-element descriptor, Hessian 550.
   int surf_octaves = 4;
   int surf_scales_per_octave = 3;

@@ -52,7 +52,7 @@ bool RansacOptions::is_valid(std::string* error) const {
   if (!(inlier_threshold_m > 0) || !(accept_inlier_ratio > 0 && accept_inlier_ratio <= 1) ||
       thesis_sample_size < 3 || thesis_max_attempts < 1 || max_iterations < 1 ||
       min_iterations < 0 || !(confidence > 0 && confidence < 1) || refit_rounds < 0 ||
-      min_pairs < 3) {
+      min_pairs < 3 || reprojection_iterations < 0 || !(reprojection_huber_px > 0)) {
     if (error) *error = "ransac: options out of range";
     return false;
   }
@@ -198,6 +198,17 @@ std::optional<MotionEstimate> estimate_motion_ransac(const std::vector<Eigen::Ve
       }
     }
   }
+  if (o.reprojection_camera.fx_px > 0 && o.reprojection_iterations > 0) {
+    const Eigen::Isometry3d T = refine_reprojection(best_T, src, dst, best.inliers,
+                                                    o.reprojection_camera,
+                                                    o.reprojection_iterations,
+                                                    o.reprojection_huber_px);
+    Scored s = score(T, src, dst, o.inlier_threshold_m);
+    if (s.inliers.size() >= 3) {
+      best = std::move(s);
+      best_T = T;
+    }
+  }
   MotionEstimate m;
   m.T_dst_src = best_T;
   m.inliers = best.inliers;
@@ -206,6 +217,96 @@ std::optional<MotionEstimate> estimate_motion_ransac(const std::vector<Eigen::Ve
   m.accepted = m.inlier_ratio >= o.accept_inlier_ratio;
   m.iterations = iterations;
   return m;
+}
+
+namespace {
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
+// Adds one reprojection residual: point q (camera coords, already transformed) against pixel uv,
+// with dq/ddelta = J_q (3x6). Returns the robust cost contribution.
+double accumulate(const Eigen::Vector3d& q, const Eigen::Vector2d& uv,
+                  const Eigen::Matrix<double, 3, 6>& J_q, const RansacOptions::Pinhole& c,
+                  double huber_px, Eigen::Matrix<double, 6, 6>* H, Eigen::Matrix<double, 6, 1>* g) {
+  constexpr double kMinDepthM = 0.1;  // points behind or at the camera give no information
+  if (q.z() < kMinDepthM) return 0.0;
+  const double iz = 1.0 / q.z();
+  const Eigen::Vector2d r(c.fx_px * q.x() * iz + c.cx_px - uv.x(), c.fy_px * q.y() * iz + c.cy_px - uv.y());
+  Eigen::Matrix<double, 2, 3> Jp;
+  Jp << c.fx_px * iz, 0, -c.fx_px * q.x() * iz * iz, 0, c.fy_px * iz, -c.fy_px * q.y() * iz * iz;
+  const Eigen::Matrix<double, 2, 6> J = Jp * J_q;
+  const double n = r.norm();
+  const double w = n <= huber_px ? 1.0 : huber_px / n;
+  *H += w * J.transpose() * J;
+  *g += w * J.transpose() * r;
+  return n <= huber_px ? 0.5 * n * n : huber_px * (n - 0.5 * huber_px);
+}
+
+Eigen::Vector2d project(const Eigen::Vector3d& p, const RansacOptions::Pinhole& c) {
+  return {c.fx_px * p.x() / p.z() + c.cx_px, c.fy_px * p.y() / p.z() + c.cy_px};
+}
+
+}  // namespace
+
+Eigen::Isometry3d refine_reprojection(const Eigen::Isometry3d& T0,
+                                      const std::vector<Eigen::Vector3d>& src,
+                                      const std::vector<Eigen::Vector3d>& dst,
+                                      const std::vector<int>& pairs,
+                                      const RansacOptions::Pinhole& c, int iterations,
+                                      double huber_px) {
+  if (pairs.size() < 3 || !(c.fx_px > 0) || !(c.fy_px > 0) || !(huber_px > 0)) return T0;
+  auto cost_and_system = [&](const Eigen::Isometry3d& T, Eigen::Matrix<double, 6, 6>* H,
+                             Eigen::Matrix<double, 6, 1>* g) {
+    H->setZero();
+    g->setZero();
+    double cost = 0;
+    const Eigen::Isometry3d Ti = T.inverse();
+    const Eigen::Matrix3d Rt = T.rotation().transpose();
+    for (int i : pairs) {
+      const Eigen::Vector3d& s = src[static_cast<std::size_t>(i)];
+      const Eigen::Vector3d& d = dst[static_cast<std::size_t>(i)];
+      if (s.z() <= 0 || d.z() <= 0) continue;
+      // Forward: q = exp(delta) T s  ->  dq/ddelta = [I, -[q]x]
+      const Eigen::Vector3d q = T * s;
+      Eigen::Matrix<double, 3, 6> Jf;
+      Jf << Eigen::Matrix3d::Identity(), -skew(q);
+      cost += accumulate(q, project(d, c), Jf, c, huber_px, H, g);
+      // Backward: b = T^-1 exp(-delta) d  ->  db/ddelta = R^T [-I, [d]x]
+      const Eigen::Vector3d b = Ti * d;
+      Eigen::Matrix<double, 3, 6> Jb;
+      Jb << -Rt, Rt * skew(d);
+      cost += accumulate(b, project(s, c), Jb, c, huber_px, H, g);
+    }
+    return cost;
+  };
+  Eigen::Isometry3d T = T0;
+  Eigen::Matrix<double, 6, 6> H;
+  Eigen::Matrix<double, 6, 1> g;
+  double cost = cost_and_system(T, &H, &g);
+  for (int it = 0; it < iterations; ++it) {
+    const Eigen::Matrix<double, 6, 1> delta = H.ldlt().solve(-g);
+    if (!delta.allFinite()) break;
+    Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+    const double angle = delta.tail<3>().norm();
+    if (angle > 1e-12)
+      step.linear() = Eigen::AngleAxisd(angle, delta.tail<3>() / angle).toRotationMatrix();
+    step.translation() = delta.head<3>();
+    const Eigen::Isometry3d T_new = step * T;
+    Eigen::Matrix<double, 6, 6> H_new;
+    Eigen::Matrix<double, 6, 1> g_new;
+    const double cost_new = cost_and_system(T_new, &H_new, &g_new);
+    if (!(cost_new < cost)) break;
+    T = T_new;
+    cost = cost_new;
+    H = H_new;
+    g = g_new;
+    if (delta.norm() < 1e-10) break;
+  }
+  return T;
 }
 
 }  // namespace slam

@@ -46,8 +46,25 @@ struct RansacOptions {
   int refit_rounds = 4;                ///< LS refit / re-classify rounds after the best sample
   bool depth_weighted_refine = true;   ///< final refit weighted by 1/z^2 (Kinect noise model)
   std::size_t min_pairs = 6;           ///< fewer pairs: no estimate
+  /// Optional final refinement: Gauss-Newton on the symmetric reprojection error of the inliers
+  /// (pixels are precise, Kinect depth is not). Needs the pinhole intrinsics; off when fx_px = 0.
+  struct Pinhole {
+    double fx_px = 0, fy_px = 0, cx_px = 0, cy_px = 0;
+  } reprojection_camera;
+  int reprojection_iterations = 5;
+  double reprojection_huber_px = 2.0;  ///< Huber threshold: ~2x the keypoint localisation noise
   bool is_valid(std::string* error) const;
 };
+
+/// Refines T_dst_src by minimising sum_i rho(|pi(T src_i) - pi(dst_i)|^2) +
+/// rho(|pi(T^-1 dst_i) - pi(src_i)|^2) over the given pairs (Gauss-Newton, Huber weights).
+/// Returns the input unchanged when the problem is degenerate or the cost does not decrease.
+Eigen::Isometry3d refine_reprojection(const Eigen::Isometry3d& T_dst_src,
+                                      const std::vector<Eigen::Vector3d>& src,
+                                      const std::vector<Eigen::Vector3d>& dst,
+                                      const std::vector<int>& pairs,
+                                      const RansacOptions::Pinhole& camera, int iterations,
+                                      double huber_px);
 
 struct MotionEstimate {
   Eigen::Isometry3d T_dst_src = Eigen::Isometry3d::Identity();

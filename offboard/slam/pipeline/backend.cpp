@@ -112,6 +112,7 @@ PoseGraph BackEnd::graph_before_optimisation() const {
 
 BackendOutput BackEnd::process(const FrontendOutput& in) {
   const std::int64_t t0 = steady_now_ns();
+  const std::int64_t c0 = thread_cpu_now_ns();
   BackendOutput out;
   out.index = in.index;
   ++iteration_;
@@ -225,6 +226,7 @@ BackendOutput BackEnd::process(const FrontendOutput& in) {
   last_T_odom_cam_ = in.T_odom_cam;
   have_last_ = true;
   out.total_ms = ms_since(t0);
+  out.total_cpu_ms = (thread_cpu_now_ns() - c0) * 1e-6;
   return out;
 }
 

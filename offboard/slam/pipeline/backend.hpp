@@ -61,6 +61,7 @@ struct BackendOutput {
   std::int64_t reference_keyframe = -1;  ///< keyframe this pose is anchored to
   Eigen::Isometry3d T_kf_cam = Eigen::Isometry3d::Identity();
   double keyframe_ms = 0, llc_ms = 0, glc_ms = 0, posegraph_ms = 0, total_ms = 0;
+  double total_cpu_ms = 0;  ///< CPU time of the calling thread
 };
 
 class BackEnd {

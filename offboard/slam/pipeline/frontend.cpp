@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <numeric>
 
 namespace slam {
@@ -11,6 +12,12 @@ std::int64_t steady_now_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::steady_clock::now().time_since_epoch())
       .count();
+}
+
+std::int64_t thread_cpu_now_ns() {
+  timespec ts{};
+  if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts) != 0) return 0;
+  return static_cast<std::int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
 }
 
 const char* to_string(TrackingState s) {
@@ -70,6 +77,7 @@ std::optional<FrontEnd> FrontEnd::create(const FrontendOptions& o, const Intrins
 
 std::optional<FrontendOutput> FrontEnd::process(const RgbdFrame& frame, std::string* error) {
   const std::int64_t t0 = steady_now_ns();
+  const std::int64_t c0 = thread_cpu_now_ns();
   FrontendOutput out;
   out.index = frame.index;
   out.stamp_s = frame.stamp_s;
@@ -98,6 +106,7 @@ std::optional<FrontendOutput> FrontEnd::process(const RgbdFrame& frame, std::str
   T_odom_prev_ = out.T_odom_cam;
   prev_ = out.features;
   out.total_ms = ms_since(t0);
+  out.total_cpu_ms = (thread_cpu_now_ns() - c0) * 1e-6;
   return out;
 }
 

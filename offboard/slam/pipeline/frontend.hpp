@@ -46,6 +46,7 @@ struct FrontendOutput {
   std::size_t inliers = 0;
   double rms_error_m = 0;
   double features_ms = 0, matching_ms = 0, ransac_ms = 0, total_ms = 0;
+  double total_cpu_ms = 0;  ///< CPU time of the calling thread (load-independent when OpenCV runs single-threaded)
 };
 
 class FrontEnd {
@@ -75,6 +76,8 @@ std::optional<MotionEstimate> estimate_between(const FrameFeatures& cur, const F
 
 /// Milliseconds elapsed on a steady clock since `start_ns` (instrumentation only, never logic).
 std::int64_t steady_now_ns();
+/// CPU time consumed by the calling thread, nanoseconds (instrumentation only).
+std::int64_t thread_cpu_now_ns();
 inline double ms_since(std::int64_t start_ns) { return (steady_now_ns() - start_ns) * 1e-6; }
 
 }  // namespace slam

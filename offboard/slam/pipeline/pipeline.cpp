@@ -29,11 +29,17 @@ bool PipelineOptions::is_valid(std::string* error) const {
 std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intrinsics& k,
                                            std::string* error) {
   if (!o.is_valid(error)) return nullptr;
-  auto fe = FrontEnd::create(o.frontend, k, error);
+  PipelineOptions opts = o;
+  if (o.reprojection_refine) {
+    const RansacOptions::Pinhole cam{k.fx_px, k.fy_px, k.cx_px, k.cy_px};
+    opts.frontend.ransac.reprojection_camera = cam;
+    opts.backend.ransac.reprojection_camera = cam;
+  }
+  auto fe = FrontEnd::create(opts.frontend, k, error);
   if (!fe) return nullptr;
-  auto be = BackEnd::create(o.backend, error);
+  auto be = BackEnd::create(opts.backend, error);
   if (!be) return nullptr;
-  std::unique_ptr<Pipeline> p(new Pipeline(o, std::move(*fe), std::move(*be)));
+  std::unique_ptr<Pipeline> p(new Pipeline(opts, std::move(*fe), std::move(*be)));
   if (o.mode != PipelineMode::kSequential) {
     p->frontend_thread_ = std::thread([q = p.get()] { q->frontend_loop(); });
     p->backend_thread_ = std::thread([q = p.get()] { q->backend_loop(); });
@@ -148,6 +154,7 @@ void Pipeline::run_frontend(const RgbdFrame& frame) {
   rec.matching_ms = out->matching_ms;
   rec.ransac_ms = out->ransac_ms;
   rec.frontend_ms = out->total_ms;
+  rec.frontend_cpu_ms = out->total_cpu_ms;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     rec.T_world_cam = correction_ * out->T_odom_cam;  // replaced when the back-end processes it
@@ -193,6 +200,7 @@ void Pipeline::run_backend(const FrontendOutput& in) {
     it->glc_ms = out.glc_ms;
     it->posegraph_ms = out.posegraph_ms;
     it->backend_ms = out.total_ms;
+    it->backend_cpu_ms = out.total_cpu_ms;
     break;
   }
 }

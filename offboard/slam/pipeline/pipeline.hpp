@@ -37,6 +37,9 @@ struct PipelineOptions {
   FrontendOptions frontend;
   BackendOptions backend;
   PipelineMode mode = PipelineMode::kWait;
+  /// Refine every RANSAC estimate on the reprojection error (RansacOptions::reprojection_camera is
+  /// filled from the intrinsics when true).
+  bool reprojection_refine = true;
   bool is_valid(std::string* error) const;
 };
 
@@ -58,6 +61,7 @@ struct FrameRecord {
   std::size_t features = 0, matches = 0, inliers = 0;
   double features_ms = 0, matching_ms = 0, ransac_ms = 0, frontend_ms = 0;
   double keyframe_ms = 0, llc_ms = 0, glc_ms = 0, posegraph_ms = 0, backend_ms = 0;
+  double frontend_cpu_ms = 0, backend_cpu_ms = 0;
 };
 
 struct PipelineSummary {
