@@ -1,0 +1,98 @@
+#!/usr/bin/env python3
+"""Prints the SLAM benchmark tables from the metrics.json files that offboard/bench.sh wrote.
+
+Layout: OUT/<sequence>/<features>_<backend>/metrics.json, OUT/<sequence>/peer/metrics.json,
+OUT/realtime_orb/metrics.json. Tables follow thesis Table 4.8 (RPE, frame to frame) and
+Table 4.10 (ATE RMSE): one row per detector, one column per back-end (VO, VO+LLC, VO+GLC).
+Standard library only.
+"""
+import json
+import sys
+from pathlib import Path
+
+DETECTORS = ["sift", "surf", "orb"]
+BACKENDS = [("vo", "VO"), ("llc", "VO+LLC"), ("glc", "VO+GLC")]
+
+
+def load(path: Path):
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def cell(m, key, fmt):
+    if m is None or key not in m:
+        return "n/a"
+    return fmt.format(m[key])
+
+
+def stage(m, name, key="median_ms"):
+    try:
+        return m["stages"][name][key]
+    except (KeyError, TypeError):
+        return None
+
+
+def main(out_dir: str) -> int:
+    out = Path(out_dir)
+    seqs = sorted(p.name for p in out.iterdir() if p.is_dir() and p.name != "realtime_orb")
+    for seq in seqs:
+        runs = {(d, b): load(out / seq / f"{d}_{b}" / "metrics.json") for d in DETECTORS for b, _ in BACKENDS}
+        peer = load(out / seq / "peer" / "metrics.json")
+        print(f"\n### {seq}")
+        print("\nTable 4.8 shape - RPE frame-to-frame, translation RMSE mm / rotation RMSE deg")
+        print("| detector | " + " | ".join(h for _, h in BACKENDS) + " |")
+        print("|---|" + "---|" * len(BACKENDS))
+        for d in DETECTORS:
+            cells = [f"{cell(runs[d, b], 'rpe_trans_rmse_mm', '{:.2f}')} / {cell(runs[d, b], 'rpe_rot_rmse_deg', '{:.3f}')}"
+                     for b, _ in BACKENDS]
+            print(f"| {d.upper()} | " + " | ".join(cells) + " |")
+        print("\nTable 4.10 shape - ATE translation RMSE m (rotation RMSE deg)")
+        print("| detector | " + " | ".join(h for _, h in BACKENDS) + " |")
+        print("|---|" + "---|" * len(BACKENDS))
+        for d in DETECTORS:
+            cells = [f"{cell(runs[d, b], 'ate_rmse_m', '{:.4f}')} ({cell(runs[d, b], 'ate_rot_rmse_deg', '{:.2f}')})"
+                     for b, _ in BACKENDS]
+            print(f"| {d.upper()} | " + " | ".join(cells) + " |")
+        print("\nPer-stage median ms (wall clock; frontend_cpu = CPU ms of the front-end thread, OpenCV single-threaded)")
+        names = ["features", "matching", "ransac", "frontend", "frontend_cpu", "keyframe", "llc", "glc", "posegraph", "backend"]
+        print("| run | keyframes | loops | " + " | ".join(names) + " |")
+        print("|---|---|---|" + "---|" * len(names))
+        for d in DETECTORS:
+            for b, _ in BACKENDS:
+                m = runs[d, b]
+                if m is None:
+                    continue
+                vals = []
+                for n in names:
+                    v = stage(m, n)
+                    vals.append("-" if v is None else f"{v:.1f}")
+                print(f"| {d}_{b} | {m.get('keyframes', '?')} | {m.get('loop_closures', '?')} | " + " | ".join(vals) + " |")
+        if peer is not None:
+            print(f"\nPeer cv::rgbd::RgbdOdometry: ATE {cell(peer, 'ate_rmse_m', '{:.4f}')} m, "
+                  f"RPE {cell(peer, 'rpe_trans_rmse_mm', '{:.2f}')} mm / {cell(peer, 'rpe_rot_rmse_deg', '{:.3f}')} deg, "
+                  f"{cell(peer, 'ms_per_frame_median', '{:.1f}')} ms/frame median")
+            for d in DETECTORS:
+                m = runs[d, "glc"]
+                if m is None or "ate_rmse_m" not in m or "ate_rmse_m" not in peer:
+                    continue
+                fe = stage(m, "frontend")
+                pm = peer.get("ms_per_frame_median")
+                ratio_t = f"{fe / pm:.2f}" if fe and pm else "n/a"
+                print(f"  {d.upper()} VO+GLC vs peer: ATE ratio {m['ate_rmse_m'] / peer['ate_rmse_m']:.2f}, "
+                      f"front-end ms ratio {ratio_t}")
+    rt = load(out / "realtime_orb" / "metrics.json")
+    if rt is not None:
+        print("\n### Real-time replay (ORB, VO+GLC, 30 fps pacing, fr1_xyz_first300)")
+        print(f"frames {rt.get('frames_submitted')}, dropped front-end frames {rt.get('frontend_dropped')}, "
+              f"back-end skipped {rt.get('backend_skipped')}, ATE {cell(rt, 'ate_rmse_m', '{:.4f}')} m, "
+              f"front-end median {stage(rt, 'frontend') or float('nan'):.1f} ms")
+    return 0
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 2:
+        print("usage: bench_table.py OUT_DIR", file=sys.stderr)
+        sys.exit(2)
+    sys.exit(main(sys.argv[1]))
