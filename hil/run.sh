@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# `make hil`: every hardware-in-loop scenario (pytest tests marked `hil` under hil/), then a summary
+# of what each reported (test-artifacts/hil/*.json).
+#   RGBD_BUILD_DIR   build folder holding bin/fw_sim, bin/slam-eval, ... (default: build)
+#   RGBD_FIRMWARE_ELF firmware image (default: firmware/.pio/build/uno_wifi/program.elf)
+# Scenarios whose components are not built are skipped with the reason. Extra args go to pytest.
+set -uo pipefail
+if [ "${1:-}" = "-h" ] || [ "${1:-}" = "--help" ]; then
+  sed -n '2,7p' "$0" | sed 's/^# \{0,1\}//'
+  exit 0
+fi
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+export RGBD_BUILD_DIR=${RGBD_BUILD_DIR:-$root/build}
+export MPLBACKEND=Agg
+rm -f test-artifacts/hil/*.json
+.venv/bin/python -m pytest -m hil hil -v -s -rsxX "$@"
+status=$?
+echo "=== HIL summary (test-artifacts/hil/)"
+for f in test-artifacts/hil/*.json; do
+  [ -e "$f" ] || continue
+  .venv/bin/python - "$f" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+print(sys.argv[1].split("/")[-1] + ": " + ", ".join(f"{k}={v:.3f}" if isinstance(v, float) else f"{k}={v}"
+                                                    for k, v in d.items() if k != "events"))
+PY
+done
+exit $status
