@@ -4,6 +4,7 @@
 // offboard/eval/tests/test_against_evo.py checks the numbers against evo itself.
 #include "slam/eval/metrics.hpp"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -13,8 +14,6 @@
 #include <numeric>
 #include <sstream>
 #include <utility>
-
-#include <Eigen/Geometry>
 
 namespace slam::eval {
 namespace {
@@ -291,26 +290,26 @@ bool write_tum_trajectory(const std::string& path, const Trajectory& trajectory,
   return true;
 }
 
-std::vector<AssociatedPair> associate(const Trajectory& gt, const Trajectory& est,
-                                      double max_dt_s, Association method) {
+std::vector<AssociatedPair> associate(const Trajectory& gt, const Trajectory& est, double max_dt_s,
+                                      Association method) {
   if (!std::isfinite(max_dt_s) || max_dt_s <= 0.0) return {};
   return method == Association::kEvoNearest ? associate_evo_nearest(gt, est, max_dt_s)
                                             : associate_tum_greedy(gt, est, max_dt_s);
 }
 
-std::optional<AteResult> compute_ate(const Trajectory& gt, const Trajectory& est,
-                                     double max_dt_s, std::string* error) {
+std::optional<AteResult> compute_ate(const Trajectory& gt, const Trajectory& est, double max_dt_s,
+                                     std::string* error) {
   return compute_ate(gt, est, max_dt_s, Association::kEvoNearest, error);
 }
 
-std::optional<AteResult> compute_ate(const Trajectory& gt, const Trajectory& est,
-                                     double max_dt_s, Association method, std::string* error) {
+std::optional<AteResult> compute_ate(const Trajectory& gt, const Trajectory& est, double max_dt_s,
+                                     Association method, std::string* error) {
   if (!check_inputs(gt, est, max_dt_s, error)) return std::nullopt;
   const auto pairs = associate(gt, est, max_dt_s, method);
   if (pairs.size() < kMinAtePairs) {
-    set_error(error, "only " + std::to_string(pairs.size()) +
-                         " pose pair(s) associated within " + format_json_number(max_dt_s) +
-                         " s; ATE needs at least " + std::to_string(kMinAtePairs));
+    set_error(error, "only " + std::to_string(pairs.size()) + " pose pair(s) associated within " +
+                         format_json_number(max_dt_s) + " s; ATE needs at least " +
+                         std::to_string(kMinAtePairs));
     return std::nullopt;
   }
   const auto n = static_cast<Eigen::Index>(pairs.size());
@@ -346,19 +345,18 @@ std::optional<AteResult> compute_ate(const Trajectory& gt, const Trajectory& est
   return result;
 }
 
-std::optional<RpeResult> compute_rpe(const Trajectory& gt, const Trajectory& est,
-                                     double max_dt_s, std::string* error) {
+std::optional<RpeResult> compute_rpe(const Trajectory& gt, const Trajectory& est, double max_dt_s,
+                                     std::string* error) {
   return compute_rpe(gt, est, max_dt_s, Association::kEvoNearest, error);
 }
 
-std::optional<RpeResult> compute_rpe(const Trajectory& gt, const Trajectory& est,
-                                     double max_dt_s, Association method, std::string* error) {
+std::optional<RpeResult> compute_rpe(const Trajectory& gt, const Trajectory& est, double max_dt_s,
+                                     Association method, std::string* error) {
   if (!check_inputs(gt, est, max_dt_s, error)) return std::nullopt;
   const auto pairs = associate(gt, est, max_dt_s, method);
   if (pairs.size() < 2) {
-    set_error(error, "only " + std::to_string(pairs.size()) +
-                         " pose pair(s) associated within " + format_json_number(max_dt_s) +
-                         " s; RPE needs at least 2");
+    set_error(error, "only " + std::to_string(pairs.size()) + " pose pair(s) associated within " +
+                         format_json_number(max_dt_s) + " s; RPE needs at least 2");
     return std::nullopt;
   }
   std::vector<double> trans_err_mm, rot_err_deg;
@@ -429,8 +427,8 @@ int run_score_command(const std::string& gt_path, const std::string& est_path, d
       << "  \"association\": \"" << association_name(method) << "\",\n"
       << "  \"T_gt_est_xyz_m\": [" << num(t.x()) << ", " << num(t.y()) << ", " << num(t.z())
       << "],\n"
-      << "  \"T_gt_est_qxyzw\": [" << num(q.x()) << ", " << num(q.y()) << ", " << num(q.z())
-      << ", " << num(q.w()) << "]\n"
+      << "  \"T_gt_est_qxyzw\": [" << num(q.x()) << ", " << num(q.y()) << ", " << num(q.z()) << ", "
+      << num(q.w()) << "]\n"
       << "}\n";
   return out ? 0 : 1;
 }

@@ -1,6 +1,8 @@
 // Tests of slam_metrics: TUM I/O and its error messages, association rules, ATE/RPE on
 // synthetic trajectories with known answers, and the numbers evo 1.38.1 gives on the shipped
 // RGBD-SLAM fr1/xyz trajectory (offboard/eval/testdata, see README there).
+#include "slam/eval/metrics.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,8 +11,6 @@
 #include <fstream>
 #include <random>
 #include <sstream>
-
-#include "slam/eval/metrics.hpp"
 
 namespace slam::eval {
 namespace {
@@ -175,8 +175,8 @@ TEST(Ate, GivenAlternatingPerpendicularNoiseWhenScoredThenStatisticsMatchClosedF
   for (int i = 0; i < 40; ++i) {
     const Eigen::Vector3d p(0.1 * (i / 2), 0.02 * ((i / 2) % 3), 0.01 * ((i / 2) % 4));
     gt.push_back({i * kCameraPeriodS, make_pose(0, 0, 0, p)});
-    est.push_back({i * kCameraPeriodS,
-                   make_pose(0, 0, 0, p + Eigen::Vector3d(0, 0, (i % 2 ? kD : -kD)))});
+    est.push_back(
+        {i * kCameraPeriodS, make_pose(0, 0, 0, p + Eigen::Vector3d(0, 0, (i % 2 ? kD : -kD)))});
   }
   const auto ate = compute_ate(gt, est, 0.02, nullptr);
   ASSERT_TRUE(ate);
@@ -192,8 +192,10 @@ TEST(Ate, GivenRotationOnlyErrorWhenScoredThenRotationRmseIsThatAngle) {
   // Rotating each camera about its own optical centre leaves positions (and so the alignment)
   // unchanged: the rotation error is exactly that angle.
   constexpr double kAngleDeg = 3.0;
-  for (auto& p : est) p.T_world_cam.linear() = p.T_world_cam.linear() *
-      Eigen::AngleAxisd(kAngleDeg * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  for (auto& p : est)
+    p.T_world_cam.linear() =
+        p.T_world_cam.linear() *
+        Eigen::AngleAxisd(kAngleDeg * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
   const auto ate = compute_ate(gt, est, 0.02, nullptr);
   ASSERT_TRUE(ate);
   EXPECT_LT(ate->trans_rmse_m, 1e-9);
@@ -250,8 +252,8 @@ TEST(Rpe, GivenSeededRotationNoisePerFrameWhenScoredThenRotationErrorsAppear) {
   Trajectory est = gt;
   for (auto& p : est) {
     p.T_world_cam.linear() =
-        p.T_world_cam.linear() * make_pose(noise_rad(rng), noise_rad(rng), noise_rad(rng),
-                                           Eigen::Vector3d::Zero()).linear();
+        p.T_world_cam.linear() *
+        make_pose(noise_rad(rng), noise_rad(rng), noise_rad(rng), Eigen::Vector3d::Zero()).linear();
   }
   const auto rpe = compute_rpe(gt, est, 0.02, nullptr);
   ASSERT_TRUE(rpe);
@@ -273,9 +275,9 @@ struct EvoReference {
 // offboard/eval/tests/test_against_evo.py which recomputes them. The acceptance numbers:
 // ATE RMSE 0.0135 m (full sequence) and 0.0148 m (first-300-frame span).
 const EvoReference kEvoReferences[] = {
-    {"fr1_xyz_rgbdslam.txt", 786, 0.01347346776990678, 0.012029476392023605,
-     0.011175751133287705, 0.03472720168113181, 2.0518937319212176, 0.00575924678223505,
-     0.004813800440653205, 0.35282746125711173, 0.29999228722562343},
+    {"fr1_xyz_rgbdslam.txt", 786, 0.01347346776990678, 0.012029476392023605, 0.011175751133287705,
+     0.03472720168113181, 2.0518937319212176, 0.00575924678223505, 0.004813800440653205,
+     0.35282746125711173, 0.29999228722562343},
     {"fr1_xyz_rgbdslam_first300.txt", 288, 0.014822086996131214, 0.013619802251733518,
      0.01245214434572456, 0.03266453890822331, 1.6686351684319258, 0.006621337536723465,
      0.005690333662387975, 0.3818393518019666, 0.31157181417556384},
@@ -316,7 +318,8 @@ TEST(EvoReference, GivenShippedRgbdslamTrajectoryWhenScoredThenMatchesEvo) {
 
 TEST(EvoReference, GivenSharedDataWhenScoredThenMatchesEvo) {
   const char* env = std::getenv("RGBD_DATA_DIR");
-  const fs::path data_dir = env ? fs::path(env) : fs::path(SLAM_REPO_DIR) / ".." / "shared" / "data";
+  const fs::path data_dir =
+      env ? fs::path(env) : fs::path(SLAM_REPO_DIR) / ".." / "shared" / "data";
   const fs::path gt_path = data_dir / "fr1_xyz_first300" / "groundtruth.txt";
   const fs::path est_path = data_dir / "reference_trajectories" / "freiburg1_xyz-rgbdslam.txt";
   if (!fs::exists(gt_path) || !fs::exists(est_path)) {
@@ -336,9 +339,9 @@ TEST(ScoreCommand, GivenGoodFilesWhenRunThenJsonWithRequiredKeys) {
   const int rc = run_score_command(kTestData + "/fr1_xyz_groundtruth.txt",
                                    kTestData + "/fr1_xyz_rgbdslam_first300.txt", out, err);
   ASSERT_EQ(rc, 0) << err.str();
-  for (const char* key : {"\"ate_rmse_m\": 0.014822087", "\"ate_rot_rmse_deg\"",
-                          "\"rpe_trans_rmse_mm\": 6.6213375", "\"rpe_rot_rmse_deg\"",
-                          "\"pairs\": 288"}) {
+  for (const char* key :
+       {"\"ate_rmse_m\": 0.014822087", "\"ate_rot_rmse_deg\"", "\"rpe_trans_rmse_mm\": 6.6213375",
+        "\"rpe_rot_rmse_deg\"", "\"pairs\": 288"}) {
     EXPECT_NE(out.str().find(key), std::string::npos) << key << " in\n" << out.str();
   }
 }

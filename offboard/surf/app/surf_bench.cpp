@@ -1,15 +1,14 @@
 // surf-bench: speed and invariance of slam_surf (thesis parameters) next to OpenCV's SIFT on
 // real TUM frames; prints a table (no assertions - the tests hold the bounds).
 #include <chrono>
-#include <ctime>
 #include <cstdlib>
+#include <ctime>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/imgcodecs.hpp>
 
 #include "../tests/invariance.hpp"
 #include "slam/surf.hpp"
@@ -109,8 +108,8 @@ int main(int argc, char** argv) {
     const double t_sift = median_ms(*sift, gray, repeats, &n_sift, true, &c_sift);
     std::cout << std::filesystem::path(path).filename().string() << " | " << gray.cols << "x"
               << gray.rows << " | " << t_surf << " (" << c_surf << ") | " << t_detect << " ("
-              << c_detect << ") | " << n_surf << " | " << t_sift << " (" << c_sift << ") | " << n_sift
-              << "\n";
+              << c_detect << ") | " << n_surf << " | " << t_sift << " (" << c_sift << ") | "
+              << n_sift << "\n";
   }
   std::cout << "\ntransform | SURF precision | SURF matches | SURF repeat | SIFT precision | "
                "SIFT matches | SIFT repeat\n";
@@ -118,13 +117,16 @@ int main(int argc, char** argv) {
   const struct {
     const char* name;
     double angle_deg, scale;
-  } transforms[] = {{"rot 30", 30, 1.0}, {"rot 90", 90, 1.0}, {"scale 0.7", 0, 0.7},
-                    {"scale 1.5", 0, 1.5}, {"rot 30 + scale 1.5", 30, 1.5}};
+  } transforms[] = {{"rot 30", 30, 1.0},
+                    {"rot 90", 90, 1.0},
+                    {"scale 0.7", 0, 0.7},
+                    {"scale 1.5", 0, 1.5},
+                    {"rot 30 + scale 1.5", 30, 1.5}};
   for (const auto& t : transforms) {
-    const auto a = slam::surf_test::evaluate_invariance(*surf, grays[0], t.angle_deg, t.scale,
-                                                        kRatio, kTolPx);
-    const auto b = slam::surf_test::evaluate_invariance(*sift, grays[0], t.angle_deg, t.scale,
-                                                        kRatio, kTolPx);
+    const auto a =
+        slam::surf_test::evaluate_invariance(*surf, grays[0], t.angle_deg, t.scale, kRatio, kTolPx);
+    const auto b =
+        slam::surf_test::evaluate_invariance(*sift, grays[0], t.angle_deg, t.scale, kRatio, kTolPx);
     std::cout << t.name << " | " << a.match_precision << " | " << a.matches << " | "
               << a.repeatability << " | " << b.match_precision << " | " << b.matches << " | "
               << b.repeatability << "\n";

@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-
 #include <opencv2/core/utility.hpp>
 
 namespace slam::surf_detail {
@@ -38,8 +37,8 @@ std::vector<HaarBox> fuse_three_lobes(const std::vector<HaarBox>& lobes) {
 }
 
 inline double box(const double* corner, const BoxOffsets& b) {
-  return b.weight *
-         (corner[b.bottom_right] - corner[b.bottom_left] - corner[b.top_right] + corner[b.top_left]);
+  return b.weight * (corner[b.bottom_right] - corner[b.bottom_left] - corner[b.top_right] +
+                     corner[b.top_left]);
 }
 
 // Fixed box counts (2 + 2 + 4) so the per-cell loop is fully unrolled.
@@ -101,8 +100,8 @@ HessianKernel make_hessian_kernel(int octave, int layer) {
   return k;
 }
 
-double box_filter_response(const IntegralImage& integral, const std::vector<HaarBox>& boxes,
-                           int x0, int y0) {
+double box_filter_response(const IntegralImage& integral, const std::vector<HaarBox>& boxes, int x0,
+                           int y0) {
   double sum = 0.0;
   for (const auto& b : boxes) {
     sum += b.weight * integral.box_sum(x0 + b.x0, y0 + b.y0, b.x1 - b.x0, b.y1 - b.y0);

@@ -3,17 +3,16 @@
 // suppression and quadratic sub-pixel / sub-scale interpolation.
 #pragma once
 
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "integral_image.hpp"
 
 namespace slam::surf_detail {
 
-/// One lobe of a box filter: the half-open box [x0, x1) x [y0, y1) relative to the filter's top-left
-/// corner, with `weight` = sign / lobe area (so each lobe contributes its mean intensity, the
-/// normalisation OpenCV's SURF uses; see docs/surf.md).
+/// One lobe of a box filter: the half-open box [x0, x1) x [y0, y1) relative to the filter's
+/// top-left corner, with `weight` = sign / lobe area (so each lobe contributes its mean intensity,
+/// the normalisation OpenCV's SURF uses; see docs/surf.md).
 struct HaarBox {
   int x0, y0, x1, y1;
   float weight;
@@ -52,7 +51,7 @@ struct HessianLayer {
   int step = 1;
   int rows = 0, cols = 0;
   int row_min = 0, row_max = -1, col_min = 0, col_max = -1;  ///< valid cells, inclusive
-  std::vector<float> det;    ///< rows * cols, row-major
+  std::vector<float> det;                                    ///< rows * cols, row-major
   std::vector<float> trace;  ///< Dxx + Dyy (the Laplacian), same layout
 
   bool valid() const { return row_min <= row_max && col_min <= col_max; }
@@ -66,8 +65,8 @@ HessianLayer compute_hessian_layer(const IntegralImage& integral, int octave, in
 
 /// Box-filter response of one kernel part at a filter top-left corner (x0, y0): sum over lobes
 /// of weight * box sum. Used by compute_hessian_layer's reference path in tests.
-double box_filter_response(const IntegralImage& integral, const std::vector<HaarBox>& boxes,
-                           int x0, int y0);
+double box_filter_response(const IntegralImage& integral, const std::vector<HaarBox>& boxes, int x0,
+                           int y0);
 
 struct DetectorParams {
   int octaves;

@@ -3,10 +3,9 @@
 #include "slam/surf.hpp"
 
 #include <cmath>
-#include <stdexcept>
-
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
+#include <stdexcept>
 
 #include "descriptor.hpp"
 #include "hessian.hpp"
@@ -147,8 +146,8 @@ bool SurfOptions::validate(std::string* error) const {
 }
 
 std::ostream& operator<<(std::ostream& out, const SurfOptions& o) {
-  return out << "SurfOptions{octaves=" << o.octaves << ", scales_per_octave="
-             << o.scales_per_octave << ", extended=" << (o.extended ? "true" : "false")
+  return out << "SurfOptions{octaves=" << o.octaves << ", scales_per_octave=" << o.scales_per_octave
+             << ", extended=" << (o.extended ? "true" : "false")
              << ", hessian_threshold=" << o.hessian_threshold
              << ", upright=" << (o.upright ? "true" : "false") << "}";
 }

@@ -1,11 +1,12 @@
 // Unit tests of the integral image and the SURF box filters against direct pixel sums.
+#include "integral_image.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <opencv2/core.hpp>
 
 #include "hessian.hpp"
-#include "integral_image.hpp"
 
 namespace slam::surf_detail {
 namespace {
@@ -112,7 +113,8 @@ TEST(HessianLayer, GivenRandomImageWhenComputedThenEqualsDirectBoxFilterSums) {
           return s;
         };
         const double dxx = direct(k.dxx), dyy = direct(k.dyy), dxy = direct(k.dxy);
-        EXPECT_NEAR(hl.det_at(r, c), dxx * dyy - 0.81 * dxy * dxy, 1e-2 + 1e-5 * std::abs(dxx * dyy));
+        EXPECT_NEAR(hl.det_at(r, c), dxx * dyy - 0.81 * dxy * dxy,
+                    1e-2 + 1e-5 * std::abs(dxx * dyy));
         EXPECT_NEAR(hl.trace_at(r, c), dxx + dyy, 1e-3);
         EXPECT_NEAR(box_filter_response(ii, k.dxx, x0, y0), dxx, 1e-6);
       }

@@ -5,10 +5,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <vector>
-
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <vector>
 
 namespace slam::surf_test {
 
@@ -31,10 +30,10 @@ inline Warped warp_similarity(const cv::Mat& image, double angle_deg, double sca
   M.at<double>(1, 2) += 0.5 * box.height - centre.y;
   Warped out;
   out.A = cv::Matx23d(M);
-  cv::warpAffine(image, out.image, M,
-                 cv::Size(static_cast<int>(std::lround(box.width)),
-                          static_cast<int>(std::lround(box.height))),
-                 cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar::all(0));
+  cv::warpAffine(
+      image, out.image, M,
+      cv::Size(static_cast<int>(std::lround(box.width)), static_cast<int>(std::lround(box.height))),
+      cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar::all(0));
   return out;
 }
 

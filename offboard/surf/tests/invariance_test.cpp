@@ -3,9 +3,10 @@
 // detections against the transform. Bounds sit below the measured values given in the table
 // (fr1/xyz frame 1305031102.175304, measured with this implementation; SIFT for comparison is
 // printed by `surf-bench`, see docs/surf.md).
+#include "invariance.hpp"
+
 #include <gtest/gtest.h>
 
-#include "invariance.hpp"
 #include "slam/surf.hpp"
 #include "test_images.hpp"
 

@@ -1,18 +1,18 @@
 // Tests of the SURF Feature2D: options, the cv::Feature2D contract, detections on a synthetic
 // blob with known position and scale, descriptor norm, determinism and bad input.
+#include "slam/surf.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <sstream>
-#include <stdexcept>
-
 #include <opencv2/core.hpp>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <stdexcept>
 
 #include "descriptor.hpp"
 #include "integral_image.hpp"
-#include "slam/surf.hpp"
 #include "test_images.hpp"
 
 namespace slam {
@@ -121,7 +121,8 @@ TEST(SurfDescribe, GivenHaarWaveletOnARampThenResponseIsSlopeTimesWaveletMoment)
   // I(x, y) = 2x: right half minus left half of a w x w wavelet = 2 * (w/2) * (w/2 * w).
   cv::Mat ramp(40, 60, CV_8UC1);
   for (int r = 0; r < ramp.rows; ++r)
-    for (int c = 0; c < ramp.cols; ++c) ramp.at<unsigned char>(r, c) = static_cast<unsigned char>(2 * c);
+    for (int c = 0; c < ramp.cols; ++c)
+      ramp.at<unsigned char>(r, c) = static_cast<unsigned char>(2 * c);
   const surf_detail::IntegralImage ii(ramp);
   for (float x : {20.f, 20.25f, 20.5f, 31.7f}) {
     float dx = 0, dy = 0;

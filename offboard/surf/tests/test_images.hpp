@@ -1,9 +1,8 @@
 // Real TUM frames shipped in tests/data (CC BY 4.0, see tests/data/README.md).
 #pragma once
 
-#include <string>
-
 #include <opencv2/imgcodecs.hpp>
+#include <string>
 
 namespace slam::surf_test {
 
@@ -13,8 +12,6 @@ inline const std::string kXyzFrame =
 inline const std::string kDeskFrame =
     std::string(SLAM_REPO_DIR) + "/tests/data/fr1_desk_9frames/rgb/1305031453.359684.png";
 
-inline cv::Mat load_gray(const std::string& path) {
-  return cv::imread(path, cv::IMREAD_GRAYSCALE);
-}
+inline cv::Mat load_gray(const std::string& path) { return cv::imread(path, cv::IMREAD_GRAYSCALE); }
 
 }  // namespace slam::surf_test

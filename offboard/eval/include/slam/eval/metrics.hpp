@@ -60,8 +60,7 @@ struct AssociatedPair {
 };
 
 /// Associates est with gt by timestamp (see Association). Returns pairs in sequence order.
-std::vector<AssociatedPair> associate(const Trajectory& gt, const Trajectory& est,
-                                      double max_dt_s,
+std::vector<AssociatedPair> associate(const Trajectory& gt, const Trajectory& est, double max_dt_s,
                                       Association method = Association::kEvoNearest);
 
 struct AteResult {
@@ -83,18 +82,18 @@ constexpr std::size_t kMinAtePairs = 3;
 /// ATE (evo_ape tum GT EST -a --t_max_diff max_dt): translation error |t_gt - t_aligned| over
 /// associated pairs (RMSE/mean/median/max, metres) and rotation error angle(R_gt^-1 R_aligned)
 /// (RMSE, degrees). Needs >= kMinAtePairs pairs and finite max_dt_s > 0.
-std::optional<AteResult> compute_ate(const Trajectory& gt, const Trajectory& est,
-                                     double max_dt_s, std::string* error);
-std::optional<AteResult> compute_ate(const Trajectory& gt, const Trajectory& est,
-                                     double max_dt_s, Association method, std::string* error);
+std::optional<AteResult> compute_ate(const Trajectory& gt, const Trajectory& est, double max_dt_s,
+                                     std::string* error);
+std::optional<AteResult> compute_ate(const Trajectory& gt, const Trajectory& est, double max_dt_s,
+                                     Association method, std::string* error);
 
 /// RPE over consecutive associated poses (evo_rpe --delta 1 --delta_unit f): with Q = gt and
 /// P = est, E_i = (Q_i^-1 Q_{i+1})^-1 (P_i^-1 P_{i+1}); translation |t(E_i)| in mm and rotation
 /// angle(E_i) in degrees, RMSE and mean. Needs >= 2 associated pairs.
-std::optional<RpeResult> compute_rpe(const Trajectory& gt, const Trajectory& est,
-                                     double max_dt_s, std::string* error);
-std::optional<RpeResult> compute_rpe(const Trajectory& gt, const Trajectory& est,
-                                     double max_dt_s, Association method, std::string* error);
+std::optional<RpeResult> compute_rpe(const Trajectory& gt, const Trajectory& est, double max_dt_s,
+                                     std::string* error);
+std::optional<RpeResult> compute_rpe(const Trajectory& gt, const Trajectory& est, double max_dt_s,
+                                     Association method, std::string* error);
 
 /// Reads both files, scores est against gt with kDefaultMaxDtS and writes one JSON object to
 /// `out` (`ate_rmse_m`, `ate_rot_rmse_deg`, `rpe_trans_rmse_mm`, `rpe_rot_rmse_deg`, `pairs`, ...).
