@@ -207,3 +207,28 @@ def test_without_a_provisioned_key_every_command_is_refused():
     assert [g.status for g in got] == [503, 200]
     assert got[1].state == "disarmed"
     assert all(abs(p.width_us - 1000) <= PULSE_TOLERANCE_US for p in r.pulses_of(3))
+
+
+def test_live_lock_step_session_closes_the_loop():
+    # GIVEN a live session, WHEN each command is computed from the previous reply (a toy controller
+    # stepping throttle up by 10 us per cycle from what the firmware reports it outputs), THEN the
+    # pins follow each command within tolerance in the next frame: the loop is closed through the
+    # real image with no wall clock involved.
+    from arduino.simavr_session import LiveSession
+
+    with LiveSession(RECORD) as live:
+        live.req(5 * MS, cmd(1))
+        first = live.run(40 * MS)
+        thr = parse_reply(first.replies[0].text + "\n").out_us[2]
+        assert thr == 1000
+        t = 40 * MS
+        for seq in range(2, 12):
+            live.req(t, cmd(seq, thr=thr + 10))
+            step = live.run(t + 60 * MS)
+            t += 60 * MS
+            reply = parse_reply(step.replies[-1].text + "\n")
+            assert reply.status == 200 and reply.out_us[2] == thr + 10
+            last_frame = step.pulses_of(3)[-1]
+            assert abs(last_frame.width_us - (thr + 10)) <= PULSE_TOLERANCE_US
+            thr = reply.out_us[2]
+        assert thr == 1100

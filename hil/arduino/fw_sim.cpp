@@ -1,13 +1,18 @@
 // fw_sim: runs the real firmware .elf on simavr's ATmega328P @ 16 MHz and plays a scenario script.
 //
-// Usage: fw_sim --elf FILE [--eeprom FILE] < script > log
-//   --elf FILE     firmware image (firmware/.pio/build/uno_wifi/program.elf)
-//   --eeprom FILE  raw bytes loaded into EEPROM at address 0 before reset (the key record)
-// Script (stdin), one command per line, times in simulated microseconds, in any order:
+// Usage: fw_sim --elf FILE [--eeprom FILE] [--interactive] < script > log
+//   --elf FILE       firmware image (firmware/.pio/build/uno_wifi/program.elf)
+//   --eeprom FILE    raw bytes loaded into EEPROM at address 0 before reset (the key record)
+//   --interactive    lock-step co-simulation: commands are applied as they are read, and
+//                    "run T" advances the simulation to T, then prints "at T" and flushes, so a
+//                    driver (e.g. a flight-controller model) can react to the pulses before it sends
+//                    the next inputs. Inputs must not be timed before the current simulated time.
+// Script (stdin), one command per line, times in simulated microseconds:
 //   req  T TEXT   send TEXT + '\n' on the bridge UART at T, or as soon as the previous request's
 //                 reply line has arrived (the bridge forwards one request at a time)
 //   raw  T HEX    send raw bytes on the bridge UART at T (no reply awaited)
 //   mav  T HEX    send bytes to the MAVLink telemetry pin (PD2) as 57600-baud 8N1 serial from T
+//   run  T        (interactive only) simulate up to T, then print "at T"
 //   end  T        stop the simulation at T
 // Log (stdout), one event per line:
 //   pulse CH RISE_US WIDTH_US    a completed pulse on RC channel CH (1..4)
@@ -122,8 +127,105 @@ void append_serial_edges(std::vector<PinEdge>* edges, uint64_t start, const std:
 }
 
 int usage(const char* msg) {
-  std::fprintf(stderr, "fw_sim: %s\nusage: fw_sim --elf FILE [--eeprom FILE] < script > log\n", msg);
+  std::fprintf(stderr, "fw_sim: %s\nusage: fw_sim --elf FILE [--eeprom FILE] [--interactive] < script > log\n", msg);
   return 2;
+}
+
+/// Inputs waiting to be played into the simulated chip, and the playing state.
+struct Feeder {
+  std::deque<Request> requests;   // in script order
+  std::vector<Request> raws;      // sorted by time
+  size_t raw_idx = 0;
+  std::vector<PinEdge> mav_edges; // sorted by time
+  size_t mav_idx = 0;
+  std::string tx;                 // bytes being fed into the bridge UART
+  size_t tx_pos = 0;
+  uint64_t tx_next = 0;
+  uint64_t tx_start = 0;
+  bool tx_is_request = false;
+
+  void add_raw(const Request& r) {
+    auto it = std::upper_bound(raws.begin() + static_cast<long>(raw_idx), raws.end(), r,
+                               [](const Request& a, const Request& b) { return a.at_cycle < b.at_cycle; });
+    raws.insert(it, r);
+  }
+  void add_mav(uint64_t at, const std::string& bytes) {
+    std::vector<PinEdge> e;
+    append_serial_edges(&e, at, bytes);
+    mav_edges.insert(mav_edges.end(), e.begin(), e.end());
+    std::stable_sort(mav_edges.begin() + static_cast<long>(mav_idx), mav_edges.end(),
+                     [](const PinEdge& a, const PinEdge& b) { return a.cycle < b.cycle; });
+  }
+};
+
+/// Parses one script line into the feeder. Returns 0 ok, 1 for "run"/"end" (with *at set), -1 on error.
+int apply_line(const std::string& line, int line_no, Feeder* f, std::string* cmd_out, uint64_t* at_out) {
+  std::istringstream in(line);
+  std::string cmd;
+  double t_us = -1;
+  in >> cmd >> t_us;
+  if (!in || t_us < 0) {
+    std::fprintf(stderr, "fw_sim: script line %d: expected 'CMD T ...'\n", line_no);
+    return -1;
+  }
+  const uint64_t at = static_cast<uint64_t>(t_us * kCyclesPerUs);
+  std::string rest;
+  std::getline(in, rest);
+  if (!rest.empty() && rest[0] == ' ') rest.erase(0, 1);
+  if (cmd == "req") {
+    f->requests.push_back({at, rest + "\n", true});
+  } else if (cmd == "raw") {
+    f->add_raw({at, from_hex(rest), false});
+  } else if (cmd == "mav") {
+    f->add_mav(at, from_hex(rest));
+  } else if (cmd == "run" || cmd == "end") {
+    *cmd_out = cmd;
+    *at_out = at;
+    return 1;
+  } else {
+    std::fprintf(stderr, "fw_sim: script line %d: unknown command '%s'\n", line_no, cmd.c_str());
+    return -1;
+  }
+  return 0;
+}
+
+/// Simulates until `end_cycle`, playing the feeder's inputs at their times. Returns the CPU state.
+int run_until(Sim* sim, Feeder* f, avr_irq_t* uart_in, avr_irq_t* mav_pin, uint64_t end_cycle) {
+  int state = cpu_Running;
+  while (sim->avr->cycle < end_cycle && state != cpu_Done && state != cpu_Crashed) {
+    state = avr_run(sim->avr);
+    const uint64_t now = sim->avr->cycle;
+    while (f->mav_idx < f->mav_edges.size() && now >= f->mav_edges[f->mav_idx].cycle) {
+      avr_raise_irq(mav_pin, static_cast<uint32_t>(f->mav_edges[f->mav_idx].level));
+      ++f->mav_idx;
+    }
+    if (f->tx_pos < f->tx.size()) {
+      if (now >= f->tx_next) {
+        avr_raise_irq(uart_in, static_cast<uint8_t>(f->tx[f->tx_pos++]));
+        f->tx_next += kBridgeByteCycles;
+        if (f->tx_pos == f->tx.size() && f->tx_is_request) {
+          std::printf("sent %.3f %.3f\n", us(f->tx_start), us(f->tx_next));
+          sim->awaiting_reply = true;
+        }
+      }
+      continue;
+    }
+    if (f->raw_idx < f->raws.size() && now >= f->raws[f->raw_idx].at_cycle &&
+        (f->requests.empty() || f->raws[f->raw_idx].at_cycle <= f->requests.front().at_cycle)) {
+      f->tx = f->raws[f->raw_idx++].bytes;
+      f->tx_is_request = false;
+    } else if (!f->requests.empty() && !sim->awaiting_reply && now >= f->requests.front().at_cycle) {
+      f->tx = f->requests.front().bytes;
+      f->requests.pop_front();
+      f->tx_is_request = true;
+    } else {
+      continue;
+    }
+    f->tx_pos = 0;
+    f->tx_next = now;
+    f->tx_start = now;
+  }
+  return state;
 }
 
 }  // namespace
@@ -131,14 +233,17 @@ int usage(const char* msg) {
 int main(int argc, char** argv) {
   std::string elf_path;
   std::string eeprom_path;
+  bool interactive = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--elf" && i + 1 < argc) {
       elf_path = argv[++i];
     } else if (a == "--eeprom" && i + 1 < argc) {
       eeprom_path = argv[++i];
+    } else if (a == "--interactive") {
+      interactive = true;
     } else if (a == "-h" || a == "--help") {
-      std::printf("usage: fw_sim --elf FILE [--eeprom FILE] < script > log\n"
+      std::printf("usage: fw_sim --elf FILE [--eeprom FILE] [--interactive] < script > log\n"
                   "Runs the firmware image on simavr (ATmega328P, 16 MHz) and plays the script;\n"
                   "see the header of hil/arduino/fw_sim.cpp for the script and log formats.\n");
       return 0;
@@ -148,51 +253,30 @@ int main(int argc, char** argv) {
   }
   if (elf_path.empty()) return usage("--elf is required");
 
-  // Script.
-  std::deque<Request> requests;
-  std::vector<Request> raws;
-  std::vector<PinEdge> mav_edges;
+  // Batch mode reads the whole script first; interactive mode reads it as it goes (below).
+  Feeder feeder;
   uint64_t end_cycle = 0;
   std::string line;
   int line_no = 0;
-  while (std::getline(std::cin, line)) {
-    ++line_no;
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream in(line);
-    std::string cmd;
-    double t_us = -1;
-    in >> cmd >> t_us;
-    if (!in || t_us < 0) {
-      std::fprintf(stderr, "fw_sim: script line %d: expected 'CMD T ...'\n", line_no);
-      return 2;
+  if (!interactive) {
+    while (std::getline(std::cin, line)) {
+      ++line_no;
+      if (line.empty() || line[0] == '#') continue;
+      std::string cmd;
+      uint64_t at = 0;
+      const int rc = apply_line(line, line_no, &feeder, &cmd, &at);
+      if (rc < 0) return 2;
+      if (rc == 1 && cmd == "run") {
+        std::fprintf(stderr, "fw_sim: script line %d: 'run' needs --interactive\n", line_no);
+        return 2;
+      }
+      if (rc == 1) end_cycle = at;
     }
-    const uint64_t at = static_cast<uint64_t>(t_us * kCyclesPerUs);
-    std::string rest;
-    std::getline(in, rest);
-    if (!rest.empty() && rest[0] == ' ') rest.erase(0, 1);
-    if (cmd == "req") {
-      requests.push_back({at, rest + "\n", true});
-    } else if (cmd == "raw") {
-      raws.push_back({at, from_hex(rest), false});
-    } else if (cmd == "mav") {
-      append_serial_edges(&mav_edges, at, from_hex(rest));
-    } else if (cmd == "end") {
-      end_cycle = at;
-    } else {
-      std::fprintf(stderr, "fw_sim: script line %d: unknown command '%s'\n", line_no, cmd.c_str());
+    if (end_cycle == 0) {
+      std::fprintf(stderr, "fw_sim: script has no 'end T' line\n");
       return 2;
     }
   }
-  if (end_cycle == 0) {
-    std::fprintf(stderr, "fw_sim: script has no 'end T' line\n");
-    return 2;
-  }
-  // Raw byte groups go out in time order, interleaved with requests by the feeder below.
-  std::vector<Request> raw_sorted = raws;
-  std::stable_sort(raw_sorted.begin(), raw_sorted.end(),
-                   [](const Request& a, const Request& b) { return a.at_cycle < b.at_cycle; });
-  std::stable_sort(mav_edges.begin(), mav_edges.end(),
-                   [](const PinEdge& a, const PinEdge& b) { return a.cycle < b.cycle; });
 
   // Firmware.
   elf_firmware_t fw;
@@ -237,46 +321,22 @@ int main(int argc, char** argv) {
   avr_raise_irq(mav_pin, 1);  // idle line high
 
   // Run.
-  std::string tx;            // bytes being fed into the bridge UART
-  size_t tx_pos = 0;
-  uint64_t tx_next = 0;
-  bool tx_is_request = false;
-  size_t raw_idx = 0;
-  size_t mav_idx = 0;
-  uint64_t tx_start = 0;
   int state = cpu_Running;
-  while (sim.avr->cycle < end_cycle && state != cpu_Done && state != cpu_Crashed) {
-    state = avr_run(sim.avr);
-    const uint64_t now = sim.avr->cycle;
-    while (mav_idx < mav_edges.size() && now >= mav_edges[mav_idx].cycle) {
-      avr_raise_irq(mav_pin, static_cast<uint32_t>(mav_edges[mav_idx].level));
-      ++mav_idx;
-    }
-    if (tx_pos < tx.size()) {
-      if (now >= tx_next) {
-        avr_raise_irq(uart_in, static_cast<uint8_t>(tx[tx_pos++]));
-        tx_next += kBridgeByteCycles;
-        if (tx_pos == tx.size() && tx_is_request) {
-          std::printf("sent %.3f %.3f\n", us(tx_start), us(tx_next));
-          sim.awaiting_reply = true;
-        }
-      }
-      continue;
-    }
-    if (raw_idx < raw_sorted.size() && now >= raw_sorted[raw_idx].at_cycle &&
-        (requests.empty() || raw_sorted[raw_idx].at_cycle <= requests.front().at_cycle)) {
-      tx = raw_sorted[raw_idx++].bytes;
-      tx_pos = 0;
-      tx_next = now;
-      tx_start = now;
-      tx_is_request = false;
-    } else if (!requests.empty() && !sim.awaiting_reply && now >= requests.front().at_cycle) {
-      tx = requests.front().bytes;
-      requests.pop_front();
-      tx_pos = 0;
-      tx_next = now;
-      tx_start = now;
-      tx_is_request = true;
+  if (!interactive) {
+    state = run_until(&sim, &feeder, uart_in, mav_pin, end_cycle);
+  } else {
+    while (std::getline(std::cin, line)) {
+      ++line_no;
+      if (line.empty() || line[0] == '#') continue;
+      std::string cmd;
+      uint64_t at = 0;
+      const int rc = apply_line(line, line_no, &feeder, &cmd, &at);
+      if (rc < 0) return 2;
+      if (rc == 0) continue;
+      state = run_until(&sim, &feeder, uart_in, mav_pin, at);
+      if (cmd == "end" || state == cpu_Done || state == cpu_Crashed) break;
+      std::printf("at %.3f\n", us(sim.avr->cycle));
+      std::fflush(stdout);
     }
   }
   std::printf("done %.3f\n", us(sim.avr->cycle));

@@ -19,6 +19,7 @@ from __future__ import annotations
 import os
 import pathlib
 import subprocess
+import tempfile
 from dataclasses import dataclass, field
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
@@ -141,3 +142,82 @@ def parse_log(text: str) -> Result:
         elif kind == "done":
             r.done_us = float(rest)
     return r
+
+
+class LiveSession:
+    """Lock-step co-simulation with the firmware (fw_sim --interactive).
+
+    The caller advances simulated time with run(t_us) and gets the pulses, requests sent and replies
+    produced up to t_us, so a flight-controller model or a ground-station loop can react to them
+    before feeding the next inputs (closed loop, still deterministic: no wall clock involved).
+    Use as a context manager; the fw_sim process is stopped by its PID on exit.
+    """
+
+    def __init__(self, key_record: bytes | None, workdir: pathlib.Path | None = None) -> None:
+        sim, elf = fw_sim_path(), firmware_elf_path()
+        for p in (sim, elf):
+            if not p.is_file():
+                raise FileNotFoundError(f"{p} not found: run make build")
+        args = [str(sim), "--elf", str(elf), "--interactive"]
+        self._eeprom = None
+        if key_record is not None:
+            wd = workdir or pathlib.Path(os.environ.get("TMPDIR", "/tmp"))
+            self._eeprom = wd / f"fw_sim_live_eeprom_{os.getpid()}_{id(self)}.bin"
+            self._eeprom.write_bytes(key_record)
+            args += ["--eeprom", str(self._eeprom)]
+        # stderr to a file, not a pipe: nobody reads it while the session runs, so a pipe could fill.
+        self._stderr = tempfile.TemporaryFile(mode="w+")
+        self._proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                      stderr=self._stderr, text=True, bufsize=1)
+        self.now_us = 0.0
+
+    def _send(self, line: str) -> None:
+        assert self._proc.stdin is not None
+        self._proc.stdin.write(line + "\n")
+
+    def req(self, t_us: float, line: str) -> None:
+        if "\n" in line:
+            raise ValueError("request lines must not contain newlines")
+        self._send(f"req {max(t_us, self.now_us):.3f} {line}")
+
+    def raw(self, t_us: float, data: bytes) -> None:
+        self._send(f"raw {max(t_us, self.now_us):.3f} {data.hex()}")
+
+    def mav(self, t_us: float, data: bytes) -> None:
+        self._send(f"mav {max(t_us, self.now_us):.3f} {data.hex()}")
+
+    def run(self, t_us: float) -> Result:
+        """Simulates up to t_us and returns what happened since the previous run()."""
+        self._send(f"run {t_us:.3f}")
+        assert self._proc.stdin is not None and self._proc.stdout is not None
+        self._proc.stdin.flush()
+        lines = []
+        while True:
+            line = self._proc.stdout.readline()
+            if not line:
+                self._stderr.seek(0)
+                raise RuntimeError(f"fw_sim ended unexpectedly: {self._stderr.read()[-2000:]}")
+            if line.startswith("at "):
+                self.now_us = float(line.split()[1])
+                break
+            lines.append(line)
+        return parse_log("".join(lines))
+
+    def close(self) -> None:
+        if self._proc.poll() is None:
+            try:
+                self._send(f"end {self.now_us:.3f}")
+                self._proc.stdin.close()  # type: ignore[union-attr]
+                self._proc.wait(timeout=10)
+            except (OSError, subprocess.TimeoutExpired):
+                self._proc.kill()  # by PID (Popen keeps it), never by name
+                self._proc.wait()
+        self._stderr.close()
+        if self._eeprom is not None:
+            self._eeprom.unlink(missing_ok=True)
+
+    def __enter__(self) -> "LiveSession":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
