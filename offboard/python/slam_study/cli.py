@@ -131,7 +131,8 @@ def build_parser() -> argparse.ArgumentParser:
     gd.add_argument("--report", type=Path, default=kRepoRoot / "build" / "study",
                     metavar="REPORT_DIR", help="report folder holding pairs.csv (default "
                                                "<repo>/build/study, where `make study` writes)")
-    gd.add_argument("--source", help="which source's pairs to use (default: the sweep's)")
+    gd.add_argument("--source", help="which source's pairs to use, as named in pairs.csv (default: the one "
+                         "with the most pairs)")
     return parser
 
 
@@ -213,8 +214,7 @@ def _guide(args) -> int:
         print(f"slam-study: error: {pairs_csv} not found: run `slam-study run` or `slam-study "
               "report` first, or pass --report", file=sys.stderr)
         return 2
-    pairs, names = report.read_pairs_csv(pairs_csv, args.source)
-    source = args.source or (report.kSweepSource if report.kSweepSource in names else names[0])
+    pairs, source, _ = report.read_pairs_csv(pairs_csv, args.source)
     preds = guide.predict(pairs, args.trans_vel, args.rot_vel)
     sys.stdout.write(guide.guide_text(preds, args.trans_vel, args.rot_vel, args.target_rpe_mm,
                                       source))

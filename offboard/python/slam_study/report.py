@@ -24,7 +24,9 @@ from slam_study.tum import Dataset, Trajectory, TumFormatError, read_trajectory
 kPairColumns = ["source", "dataset", "features", "backend", "k", "stamp_s", "dt_s", "gt_trans_mm",
                 "gt_rot_deg", "share_x", "share_y", "share_z", "share_roll", "share_pitch",
                 "share_yaw", "rpe_trans_mm", "rpe_rot_deg"]
-kSweepSource = "slam-eval sweep (all runs pooled)"
+# The per-pair study takes one back-end per detector: frame-to-frame error is the front end's, and
+# pooling vo/llc/glc would count the same frame pairs three times. vo is the plain front end.
+kGridBackend = "vo"
 
 
 @dataclass
@@ -272,9 +274,10 @@ def write_pairs_csv(path: Path, sources: list[Source]) -> None:
                                      f"{p.rpe_trans_mm[i]:.4f}", f"{p.rpe_rot_deg[i]:.5f}"])
 
 
-def read_pairs_csv(path: str | Path, source: str | None = None) -> tuple[PairTable, list[str]]:
-    """Pairs of one source from pairs.csv (the sweep's by default, else the first). Returns the
-    pairs and the list of sources in the file."""
+def read_pairs_csv(path: str | Path,
+                   source: str | None = None) -> tuple[PairTable, str, list[str]]:
+    """Pairs of one source from pairs.csv (default: the one with the most pairs). Returns the
+    pairs, the source used and the list of sources in the file."""
     path = Path(path)
     try:
         with path.open(newline="") as fh:
@@ -285,7 +288,7 @@ def read_pairs_csv(path: str | Path, source: str | None = None) -> tuple[PairTab
     if not names:
         raise TumFormatError(f"{path}: no pairs")
     if source is None:
-        source = kSweepSource if kSweepSource in names else names[0]
+        source = default_source(rows)
     if source not in names:
         raise TumFormatError(f"{path}: no source '{source}'; sources: {names}")
     sel = [r for r in rows if r["source"] == source]
@@ -297,7 +300,15 @@ def read_pairs_csv(path: str | Path, source: str | None = None) -> tuple[PairTab
                       np.stack([col["share_x"], col["share_y"], col["share_z"]], axis=1),
                       np.stack([col["share_roll"], col["share_pitch"], col["share_yaw"]], axis=1),
                       col["rpe_trans_mm"], col["rpe_rot_deg"])
-    return pairs, names
+    return pairs, source, names
+
+
+def default_source(rows: list[dict]) -> str:
+    """The source with the most pairs (the densest grid); ties by name."""
+    counts: dict[str, int] = {}
+    for r in rows:
+        counts[r["source"]] = counts.get(r["source"], 0) + 1
+    return min(counts, key=lambda name: (-counts[name], name))
 
 
 def _slug(name: str) -> str:
@@ -344,9 +355,13 @@ def build(out: Path, references: list[tuple[str, str]], ks_for_rates: list[int],
     runs = load_runs(out, datasets, warn)
     sources: list[Source] = []
     ok_runs = [r for r in runs if r.pairs is not None]
-    if ok_runs:
-        rows = [(r.dataset, r.features, r.backend, r.k, r.pairs) for r in ok_runs]
-        sources.append(Source(kSweepSource, PairTable.concat([r.pairs for r in ok_runs]), rows))
+    backends = {r.backend for r in ok_runs}
+    grid_backend = kGridBackend if kGridBackend in backends else min(backends, default=None)
+    for feat in sorted({r.features for r in ok_runs if r.backend == grid_backend}):
+        chosen = [r for r in ok_runs if r.features == feat and r.backend == grid_backend]
+        rows = [(r.dataset, r.features, r.backend, r.k, r.pairs) for r in chosen]
+        sources.append(Source(f"slam-eval {feat}-{grid_backend} (all datasets and k)",
+                              PairTable.concat([r.pairs for r in chosen]), rows))
     ref_trajs: dict[str, dict[str, Trajectory]] = {}
     for ds_dir, traj_file in references:
         ds = _dataset(str(Path(ds_dir).resolve()), datasets, warn)

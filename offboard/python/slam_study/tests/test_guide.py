@@ -48,8 +48,8 @@ def test_guide_cli_reads_pairs_csv(tmp_path, capsys):
     p = _dense_pairs()
     report.write_pairs_csv(tmp_path / "pairs.csv",
                            [report.Source("s", p, [("d", "orb", "vo", 1, p)])])
-    back, names = report.read_pairs_csv(tmp_path / "pairs.csv")
-    assert names == ["s"] and len(back) == len(p)
+    back, source, names = report.read_pairs_csv(tmp_path / "pairs.csv")
+    assert source == "s" and names == ["s"] and len(back) == len(p)
     np.testing.assert_allclose(back.gt_trans_mm, p.gt_trans_mm)
     assert cli.main(["guide", "--trans-vel", "0.27", "--rot-vel", "15", "--target-rpe-mm", "5",
                      "--report", str(tmp_path)]) == 0
@@ -68,3 +68,8 @@ def test_platform_table_reports_envelope_or_not_enough_data():
     assert table.rows[0][3] == "not enough data"      # no pure-rotation pairs at all
     empty = guide.platform_table(make_pairs([], []))
     assert empty.rows[0][1] == "not enough data"
+
+
+def test_default_source_is_the_densest():
+    rows = [{"source": "a"}, {"source": "b"}, {"source": "b"}, {"source": "c"}, {"source": "c"}]
+    assert report.default_source(rows) == "b"
