@@ -1,7 +1,7 @@
-// libFuzzer target: the StreamDecoder (envelope, resynchronisation, every body decoder) on arbitrary
-// bytes fed in arbitrary chunks. Properties: never crashes; every error reports a reason; progress
-// is always made (each next() either consumes bytes or asks for more), so it cannot hang; after the
-// input ends it holds fewer bytes than one maximal frame.
+// libFuzzer target: the StreamDecoder (envelope, resynchronisation, every body decoder) on
+// arbitrary bytes fed in arbitrary chunks. Properties: never crashes; every error reports a reason;
+// progress is always made (each next() either consumes bytes or asks for more), so it cannot hang;
+// after the input ends it holds fewer bytes than one maximal frame.
 #include <cstdint>
 #include <cstdlib>
 

@@ -38,9 +38,7 @@ constexpr std::array<std::array<std::uint32_t, 256>, 8> make_crc_tables() {
 }
 constexpr std::array<std::array<std::uint32_t, 256>, 8> kCrcTables = make_crc_tables();
 
-std::size_t bytes_per_pixel(PixelFormat format) {
-  return format == PixelFormat::kRgb8 ? 3 : 2;
-}
+std::size_t bytes_per_pixel(PixelFormat format) { return format == PixelFormat::kRgb8 ? 3 : 2; }
 
 // ---------------------------------------------------------------- value checks (validate)
 // Each returns "" when fine, else "<field>: <reason>"; the first failure wins.
@@ -73,9 +71,9 @@ std::string check_string(const std::string& s, const char* field) {
   return {};
 }
 
-#define RGBD_CHECK(expr)          \
-  do {                            \
-    std::string rgbd_err = expr;  \
+#define RGBD_CHECK(expr)                    \
+  do {                                      \
+    std::string rgbd_err = expr;            \
     if (!rgbd_err.empty()) return rgbd_err; \
   } while (false)
 
@@ -84,7 +82,8 @@ std::string check_intrinsics(const CameraIntrinsics& k) {
   RGBD_CHECK(check_range(k.fy_px, field_range::kCameraIntrinsicsFyPx, "intrinsics.fy_px"));
   RGBD_CHECK(check_range(k.cx_px, field_range::kCameraIntrinsicsCxPx, "intrinsics.cx_px"));
   RGBD_CHECK(check_range(k.cy_px, field_range::kCameraIntrinsicsCyPx, "intrinsics.cy_px"));
-  for (double d : k.distortion) RGBD_CHECK(check_range(d, field_range::kCameraIntrinsicsDistortion, "intrinsics.distortion"));
+  for (double d : k.distortion)
+    RGBD_CHECK(check_range(d, field_range::kCameraIntrinsicsDistortion, "intrinsics.distortion"));
   return {};
 }
 
@@ -92,7 +91,8 @@ std::string check_image(const ImageFrame& f, const char* field) {
   const std::string prefix = std::string(field) + ".";
   const FrameHeader& h = f.header;
   RGBD_CHECK(check_int_range(h.width, field_range::kImageFrameWidth, (prefix + "width").c_str()));
-  RGBD_CHECK(check_int_range(h.height, field_range::kImageFrameHeight, (prefix + "height").c_str()));
+  RGBD_CHECK(
+      check_int_range(h.height, field_range::kImageFrameHeight, (prefix + "height").c_str()));
   if (!is_valid_pixel_format(static_cast<std::uint8_t>(h.pixel_format)))
     return prefix + "pixel_format: unknown value";
   if (!is_valid_encoding(static_cast<std::uint8_t>(h.encoding)))
@@ -112,8 +112,10 @@ std::string check_image(const ImageFrame& f, const char* field) {
 
 std::string check_pose(const Pose3& p, const char* field) {
   const std::string prefix = std::string(field) + ".";
-  for (double t : p.t_m) RGBD_CHECK(check_range(t, field_range::kPose3TM, (prefix + "t_m").c_str()));
-  for (double q : p.q_xyzw) RGBD_CHECK(check_range(q, field_range::kPose3QXyzw, (prefix + "q_xyzw").c_str()));
+  for (double t : p.t_m)
+    RGBD_CHECK(check_range(t, field_range::kPose3TM, (prefix + "t_m").c_str()));
+  for (double q : p.q_xyzw)
+    RGBD_CHECK(check_range(q, field_range::kPose3QXyzw, (prefix + "q_xyzw").c_str()));
   const auto& q = p.q_xyzw;
   const double norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
   if (!(std::fabs(norm2 - 1.0) <= kUnitQuaternionTolerance))
@@ -139,7 +141,8 @@ std::string validate_one(const Handshake& m) {
     return "encoding: does not carry this pixel_format";
   RGBD_CHECK(check_stream_kind(m.stream_kind, m.pixel_format));
   RGBD_CHECK(check_intrinsics(m.intrinsics));
-  RGBD_CHECK(check_range(m.depth_scale_units_per_m, field_range::kHandshakeDepthScaleUnitsPerM, "depth_scale_units_per_m"));
+  RGBD_CHECK(check_range(m.depth_scale_units_per_m, field_range::kHandshakeDepthScaleUnitsPerM,
+                         "depth_scale_units_per_m"));
   return check_string(m.device_id, "device_id");
 }
 
@@ -155,7 +158,8 @@ std::string validate_one(const SlamHello& m) { return check_string(m.peer_name, 
 
 std::string validate_one(const RgbdFrame& m) {
   RGBD_CHECK(check_intrinsics(m.intrinsics));
-  RGBD_CHECK(check_range(m.depth_scale_units_per_m, field_range::kRgbdFrameDepthScaleUnitsPerM, "depth_scale_units_per_m"));
+  RGBD_CHECK(check_range(m.depth_scale_units_per_m, field_range::kRgbdFrameDepthScaleUnitsPerM,
+                         "depth_scale_units_per_m"));
   RGBD_CHECK(check_image(m.rgb, "rgb"));
   RGBD_CHECK(check_image(m.depth, "depth"));
   if (m.rgb.header.pixel_format != PixelFormat::kRgb8) return "rgb.pixel_format: must be RGB8";
@@ -559,18 +563,30 @@ EncodeResult encode_typed(const T& message, bool with_envelope) {
 
 const char* to_string(DecodeError error) {
   switch (error) {
-    case DecodeError::kNone: return "none";
-    case DecodeError::kGarbageSkipped: return "garbage_skipped";
-    case DecodeError::kBadHeaderCrc: return "bad_header_crc";
-    case DecodeError::kUnsupportedVersion: return "unsupported_version";
-    case DecodeError::kUnknownMessageType: return "unknown_message_type";
-    case DecodeError::kReservedNonzero: return "reserved_nonzero";
-    case DecodeError::kBodyTooLarge: return "body_too_large";
-    case DecodeError::kBadBodyCrc: return "bad_body_crc";
-    case DecodeError::kTruncatedBody: return "truncated_body";
-    case DecodeError::kLengthTooLarge: return "length_too_large";
-    case DecodeError::kTrailingBytes: return "trailing_bytes";
-    case DecodeError::kInvalidValue: return "invalid_value";
+    case DecodeError::kNone:
+      return "none";
+    case DecodeError::kGarbageSkipped:
+      return "garbage_skipped";
+    case DecodeError::kBadHeaderCrc:
+      return "bad_header_crc";
+    case DecodeError::kUnsupportedVersion:
+      return "unsupported_version";
+    case DecodeError::kUnknownMessageType:
+      return "unknown_message_type";
+    case DecodeError::kReservedNonzero:
+      return "reserved_nonzero";
+    case DecodeError::kBodyTooLarge:
+      return "body_too_large";
+    case DecodeError::kBadBodyCrc:
+      return "bad_body_crc";
+    case DecodeError::kTruncatedBody:
+      return "truncated_body";
+    case DecodeError::kLengthTooLarge:
+      return "length_too_large";
+    case DecodeError::kTrailingBytes:
+      return "trailing_bytes";
+    case DecodeError::kInvalidValue:
+      return "invalid_value";
   }
   return "?";
 }
@@ -584,9 +600,9 @@ std::uint32_t crc32(const std::uint8_t* data, std::size_t size, std::uint32_t cr
   crc = ~crc;
   std::size_t i = 0;
   for (; i + 8 <= size; i += 8) {  // bytes combined explicitly: independent of host byte order
-    const std::uint32_t lo = crc ^ (std::uint32_t{data[i]} | std::uint32_t{data[i + 1]} << 8 |
-                                    std::uint32_t{data[i + 2]} << 16 |
-                                    std::uint32_t{data[i + 3]} << 24);
+    const std::uint32_t lo =
+        crc ^ (std::uint32_t{data[i]} | std::uint32_t{data[i + 1]} << 8 |
+               std::uint32_t{data[i + 2]} << 16 | std::uint32_t{data[i + 3]} << 24);
     crc = t[7][lo & 0xFF] ^ t[6][(lo >> 8) & 0xFF] ^ t[5][(lo >> 16) & 0xFF] ^ t[4][lo >> 24] ^
           t[3][data[i + 4]] ^ t[2][data[i + 5]] ^ t[1][data[i + 6]] ^ t[0][data[i + 7]];
   }
@@ -619,15 +635,24 @@ EncodeResult encode_frame(const FrameHeader& header, const std::uint8_t* payload
 
 BodyResult decode_body(std::uint8_t type, const std::uint8_t* data, std::size_t size) {
   switch (static_cast<MessageType>(type)) {
-    case MessageType::kHandshake: return decode_as<Handshake>(data, size);
-    case MessageType::kHandshakeAck: return decode_as<HandshakeAck>(data, size);
-    case MessageType::kFrame: return decode_as<Frame>(data, size);
-    case MessageType::kFrameRequest: return decode_as<FrameRequest>(data, size);
-    case MessageType::kSlamHello: return decode_as<SlamHello>(data, size);
-    case MessageType::kRgbdFrame: return decode_as<RgbdFrame>(data, size);
-    case MessageType::kPoseUpdate: return decode_as<PoseUpdate>(data, size);
-    case MessageType::kPoseGraph: return decode_as<PoseGraph>(data, size);
-    case MessageType::kFloorMap: return decode_as<FloorMap>(data, size);
+    case MessageType::kHandshake:
+      return decode_as<Handshake>(data, size);
+    case MessageType::kHandshakeAck:
+      return decode_as<HandshakeAck>(data, size);
+    case MessageType::kFrame:
+      return decode_as<Frame>(data, size);
+    case MessageType::kFrameRequest:
+      return decode_as<FrameRequest>(data, size);
+    case MessageType::kSlamHello:
+      return decode_as<SlamHello>(data, size);
+    case MessageType::kRgbdFrame:
+      return decode_as<RgbdFrame>(data, size);
+    case MessageType::kPoseUpdate:
+      return decode_as<PoseUpdate>(data, size);
+    case MessageType::kPoseGraph:
+      return decode_as<PoseGraph>(data, size);
+    case MessageType::kFloorMap:
+      return decode_as<FloorMap>(data, size);
   }
   BodyResult result;
   result.error = DecodeError::kUnknownMessageType;
@@ -722,9 +747,9 @@ DecodeResult StreamDecoder::next() {
   };
   if (crc32(h, 12) != header_crc) return header_error(DecodeError::kBadHeaderCrc, "header CRC");
   if (version != kProtocolVersion) {
-    return header_error(DecodeError::kUnsupportedVersion,
-                        "version " + std::to_string(version) + ", ours " +
-                            std::to_string(kProtocolVersion));
+    return header_error(
+        DecodeError::kUnsupportedVersion,
+        "version " + std::to_string(version) + ", ours " + std::to_string(kProtocolVersion));
   }
   const std::size_t type_max = max_body_bytes(type);
   if (type_max == 0) {

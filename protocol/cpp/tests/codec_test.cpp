@@ -1,12 +1,13 @@
 // Round trips of every message, envelope layout byte by byte, and hostile input to the
 // StreamDecoder (truncation at every length, corruption, garbage, oversized lengths, chunking).
+#include "rgbdquad/protocol/codec.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cstring>
 #include <random>
 
 #include "json_view.hpp"
-#include "rgbdquad/protocol/codec.hpp"
 
 namespace rgbdquad::protocol {
 namespace {
@@ -19,8 +20,9 @@ std::vector<std::uint8_t> must_encode(const Message& m) {
 
 Frame make_rgb_frame(std::uint16_t w, std::uint16_t h, std::uint32_t seq) {
   Frame f;
-  f.image.header = {seq, 1'000'000u + seq, 2'000'000u + seq, w, h, PixelFormat::kRgb8,
-                    Encoding::kRaw, static_cast<std::uint32_t>(w * h * 3)};
+  f.image.header = {
+      seq, 1'000'000u + seq,   2'000'000u + seq, w,
+      h,   PixelFormat::kRgb8, Encoding::kRaw,   static_cast<std::uint32_t>(w * h * 3)};
   f.image.payload.resize(std::size_t{w} * h * 3);
   for (std::size_t i = 0; i < f.image.payload.size(); ++i)
     f.image.payload[i] = static_cast<std::uint8_t>(i * 7 + seq);
@@ -299,7 +301,8 @@ TEST(StreamDecoder, SeededRandomCorruptionNeverCrashesAndLaterFramesSurvive) {
   for (int trial = 0; trial < 500; ++trial) {
     std::vector<std::uint8_t> bad = must_encode(make_rgb_frame(4, 3, 0));
     const int flips = 1 + static_cast<int>(rng() % 4);
-    for (int i = 0; i < flips; ++i) bad[rng() % bad.size()] ^= static_cast<std::uint8_t>(1 + rng() % 255);
+    for (int i = 0; i < flips; ++i)
+      bad[rng() % bad.size()] ^= static_cast<std::uint8_t>(1 + rng() % 255);
     StreamDecoder decoder;
     decoder.feed(bad);
     decoder.feed(good);

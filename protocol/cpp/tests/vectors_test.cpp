@@ -33,8 +33,8 @@ json normalize(const json& events) {
   for (const json& e : events) {
     if (e.value("error", "") == "garbage_skipped" && !out.empty() &&
         out.back()["event"] == "error") {
-      out.back()["bytes_discarded"] =
-          out.back()["bytes_discarded"].get<std::size_t>() + e["bytes_discarded"].get<std::size_t>();
+      out.back()["bytes_discarded"] = out.back()["bytes_discarded"].get<std::size_t>() +
+                                      e["bytes_discarded"].get<std::size_t>();
     } else {
       out.push_back(e);
     }
@@ -60,8 +60,9 @@ Replay replay(const std::vector<std::uint8_t>& data, std::size_t chunk) {
         r.events.push_back({{"event", "message"}, {"message", to_json(*d.message)}});
         r.messages.push_back(*d.message);
       } else {
-        r.events.push_back(
-            {{"event", "error"}, {"error", to_string(d.error)}, {"bytes_discarded", d.bytes_discarded}});
+        r.events.push_back({{"event", "error"},
+                            {"error", to_string(d.error)},
+                            {"bytes_discarded", d.bytes_discarded}});
       }
     }
   }

@@ -94,7 +94,10 @@ bool boolean(const json& j, const char* field) {
 }
 
 json intrinsics_json(const CameraIntrinsics& k) {
-  return {{"fx_px", k.fx_px}, {"fy_px", k.fy_px}, {"cx_px", k.cx_px}, {"cy_px", k.cy_px},
+  return {{"fx_px", k.fx_px},
+          {"fy_px", k.fy_px},
+          {"cx_px", k.cx_px},
+          {"cy_px", k.cy_px},
           {"distortion", k.distortion}};
 }
 CameraIntrinsics intrinsics_from(const json& j) {
@@ -312,7 +315,8 @@ Message from_fields(const std::string& type, const json& f) {
 
 nlohmann::json to_json(const Message& message) {
   const std::string type(to_string(message_type(message)));
-  return {{"type", type}, {"fields", std::visit([](const auto& m) { return fields_of(m); }, message)}};
+  return {{"type", type},
+          {"fields", std::visit([](const auto& m) { return fields_of(m); }, message)}};
 }
 
 Message message_from_json(const nlohmann::json& view) {

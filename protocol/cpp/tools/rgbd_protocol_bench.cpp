@@ -23,7 +23,13 @@ double us_since(Clock::time_point t0) {
 void bench(const char* label, proto::PixelFormat format, int frames) {
   const std::size_t bpp = format == proto::PixelFormat::kRgb8 ? 3 : 2;
   proto::Frame frame;
-  frame.image.header = {0, 0, 0, 640, 480, format, proto::Encoding::kRaw,
+  frame.image.header = {0,
+                        0,
+                        0,
+                        640,
+                        480,
+                        format,
+                        proto::Encoding::kRaw,
                         static_cast<std::uint32_t>(640 * 480 * bpp)};
   frame.image.payload.resize(640 * 480 * bpp);
   for (std::size_t i = 0; i < frame.image.payload.size(); ++i)
@@ -61,8 +67,9 @@ void bench(const char* label, proto::PixelFormat format, int frames) {
 int main(int argc, char** argv) {
   int frames = 200;
   if (argc == 2 && (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0)) {
-    std::printf("usage: rgbd-protocol-bench [FRAMES]\n  encodes and decodes FRAMES (default 200) "
-                "640x480 RAW RGB8 and DEPTH16 frames, prints us/frame and MB/s\n");
+    std::printf(
+        "usage: rgbd-protocol-bench [FRAMES]\n  encodes and decodes FRAMES (default 200) "
+        "640x480 RAW RGB8 and DEPTH16 frames, prints us/frame and MB/s\n");
     return 0;
   }
   if (argc == 2) {
@@ -75,7 +82,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: rgbd-protocol-bench [FRAMES]\n");
     return 2;
   }
-  std::printf("| frame          | wire B    | encode us  | enc MB/s | decode us  | dec MB/s | ok |\n");
+  std::printf(
+      "| frame          | wire B    | encode us  | enc MB/s | decode us  | dec MB/s | ok |\n");
   std::printf("|---|---|---|---|---|---|---|\n");
   bench("640x480 RGB8", proto::PixelFormat::kRgb8, frames);
   bench("640x480 DEPTH16", proto::PixelFormat::kDepth16, frames);

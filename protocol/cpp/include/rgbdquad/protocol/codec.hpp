@@ -1,6 +1,6 @@
 // Encoders and the incremental decoder of the shared envelope (docs/protocol.md, "Envelope"):
-//   header (16 B: magic "RGBQ", version u8, type u8, reserved u16, body_length u32, header_crc32 u32)
-//   body (body_length B, fields little-endian in spec order) | trailer (body_crc32 u32)
+//   header (16 B: magic "RGBQ", version u8, type u8, reserved u16, body_length u32, header_crc32
+//   u32) body (body_length B, fields little-endian in spec order) | trailer (body_crc32 u32)
 // Pure functions and one value-owning class; no sockets, no clock, no globals. Every field is
 // written explicitly little-endian (never a memcpy of a struct).
 //
