@@ -1,0 +1,156 @@
+// quad-control configuration loading: see app_config.hpp.
+#include "app/app_config.hpp"
+
+#include <fstream>
+#include <set>
+
+#include "app/http_server.hpp"
+
+namespace rgbdquad::quadcontrol {
+
+namespace {
+
+using nlohmann::json;
+
+bool check_keys(const json& obj, const std::string& section, const std::set<std::string>& allowed, std::string* error) {
+  if (!obj.is_object()) {
+    *error = section + ": expected an object";
+    return false;
+  }
+  for (const auto& [k, v] : obj.items()) {
+    (void)v;
+    if (!allowed.count(k)) {
+      *error = section + "." + k + ": unknown key";
+      return false;
+    }
+  }
+  return true;
+}
+
+template <typename T>
+bool read(const json& obj, const std::string& section, const char* key, T& out, std::string* error) {
+  if (!obj.contains(key)) return true;
+  try {
+    out = obj.at(key).get<T>();
+    return true;
+  } catch (const std::exception&) {
+    *error = section + "." + key + ": wrong type";
+    return false;
+  }
+}
+
+}  // namespace
+
+AppConfig default_app_config(const std::string& repo_dir) {
+  AppConfig c;
+  c.dashboard_static_dir = repo_dir + "/offboard/dashboard/static";
+  c.control_spec_path = repo_dir + "/protocol/control/control_spec.json";
+  c.replay.folder = repo_dir + "/tests/data/fr1_xyz_first30";
+  return c;
+}
+
+std::string AppConfig::validate() const {
+  if (dashboard_port == 0) return "dashboard.port must be > 0";
+  if (!is_loopback_address(dashboard_bind_address) && dashboard_token.empty()) {
+    return "dashboard.bind_address " + dashboard_bind_address +
+           " is not loopback: set dashboard.token (or --token) to expose the dashboard";
+  }
+  if (stream_source != "tum") {
+    return "stream.source '" + stream_source +
+           "' is not available: only 'tum' (dataset replay) is implemented until offboard/receiver lands";
+  }
+  if (slam_mode != "in-process") {
+    return "slam.mode '" + slam_mode + "' is not available: slam-server does not exist yet, use 'in-process'";
+  }
+  if (firmware_enabled) {
+    if (auto e = firmware.validate(); !e.empty()) return e;
+    if (firmware_key_hex.empty()) return "firmware.key_hex is empty: set the craft's 32-hex-digit key (or disable the firmware link)";
+  }
+  return station.validate();
+}
+
+nlohmann::json AppConfig::to_json_redacted() const {
+  return {{"dashboard", {{"bind_address", dashboard_bind_address}, {"port", dashboard_port},
+                         {"token", dashboard_token.empty() ? "" : "<set>"}, {"static_dir", dashboard_static_dir}}},
+          {"stream", {{"source", stream_source}, {"tum_folder", replay.folder}, {"speed", replay.speed},
+                      {"camera", replay.camera}}},
+          {"slam", {{"mode", slam_mode}, {"socket", slam_socket}}},
+          {"firmware", {{"enabled", firmware_enabled}, {"host", firmware.host}, {"port", firmware.port},
+                        {"timeout_ms", firmware.timeout_ms}, {"period_ms", firmware.period_ms},
+                        {"key_hex", firmware_key_hex.empty() ? "" : "<redacted>"},
+                        {"control_spec", control_spec_path}}},
+          {"camera", {{"mount_pitch_down_deg", station.mount_pitch_down_deg}}},
+          {"controller", to_json(station.controller)}};
+}
+
+std::optional<AppConfig> load_app_config(const std::string& path, const std::string& repo_dir, std::string* error) {
+  AppConfig c = default_app_config(repo_dir);
+  std::ifstream in(path);
+  if (!in) {
+    *error = "cannot read config file " + path;
+    return std::nullopt;
+  }
+  const json j = json::parse(in, nullptr, false, true);
+  if (j.is_discarded()) {
+    *error = "config file " + path + " is not valid JSON";
+    return std::nullopt;
+  }
+  if (!check_keys(j, "config", {"about", "dashboard", "stream", "slam", "firmware", "camera", "floor", "map", "controller"}, error)) {
+    return std::nullopt;
+  }
+  const json empty = json::object();
+  const json& d = j.value("dashboard", empty);
+  const json& s = j.value("stream", empty);
+  const json& sl = j.value("slam", empty);
+  const json& f = j.value("firmware", empty);
+  const json& cam = j.value("camera", empty);
+  const json& fl = j.value("floor", empty);
+  const json& m = j.value("map", empty);
+  std::string loop = "bounce";
+  if (!check_keys(d, "dashboard", {"bind_address", "port", "token", "static_dir"}, error) ||
+      !read(d, "dashboard", "bind_address", c.dashboard_bind_address, error) ||
+      !read(d, "dashboard", "port", c.dashboard_port, error) || !read(d, "dashboard", "token", c.dashboard_token, error) ||
+      !read(d, "dashboard", "static_dir", c.dashboard_static_dir, error) ||
+      !check_keys(s, "stream", {"source", "tum_folder", "loop", "speed", "camera"}, error) ||
+      !read(s, "stream", "source", c.stream_source, error) || !read(s, "stream", "tum_folder", c.replay.folder, error) ||
+      !read(s, "stream", "loop", loop, error) || !read(s, "stream", "speed", c.replay.speed, error) ||
+      !read(s, "stream", "camera", c.replay.camera, error) ||
+      !check_keys(sl, "slam", {"mode", "socket"}, error) || !read(sl, "slam", "mode", c.slam_mode, error) ||
+      !read(sl, "slam", "socket", c.slam_socket, error) ||
+      !check_keys(f, "firmware", {"enabled", "host", "port", "timeout_ms", "period_ms", "key_hex", "control_spec"}, error) ||
+      !read(f, "firmware", "enabled", c.firmware_enabled, error) || !read(f, "firmware", "host", c.firmware.host, error) ||
+      !read(f, "firmware", "port", c.firmware.port, error) ||
+      !read(f, "firmware", "timeout_ms", c.firmware.timeout_ms, error) ||
+      !read(f, "firmware", "period_ms", c.firmware.period_ms, error) ||
+      !read(f, "firmware", "key_hex", c.firmware_key_hex, error) ||
+      !read(f, "firmware", "control_spec", c.control_spec_path, error) ||
+      !check_keys(cam, "camera", {"mount_pitch_down_deg"}, error) ||
+      !read(cam, "camera", "mount_pitch_down_deg", c.station.mount_pitch_down_deg, error) ||
+      !check_keys(fl, "floor", {"iterations", "inlier_distance_m", "max_tilt_deg", "min_inlier_fraction", "seed", "search_frames"}, error) ||
+      !read(fl, "floor", "iterations", c.station.floor.iterations, error) ||
+      !read(fl, "floor", "inlier_distance_m", c.station.floor.inlier_distance_m, error) ||
+      !read(fl, "floor", "max_tilt_deg", c.station.floor.max_tilt_deg, error) ||
+      !read(fl, "floor", "min_inlier_fraction", c.station.floor.min_inlier_fraction, error) ||
+      !read(fl, "floor", "seed", c.station.floor.seed, error) ||
+      !read(fl, "floor", "search_frames", c.station.floor_search_frames, error) ||
+      !check_keys(m, "map", {"resolution_m", "size_m", "max_depth_m"}, error) ||
+      !read(m, "map", "resolution_m", c.station.map.resolution_m, error) ||
+      !read(m, "map", "size_m", c.station.map.size_m, error) ||
+      !read(m, "map", "max_depth_m", c.station.max_depth_m, error)) {
+    return std::nullopt;
+  }
+  if (!parse_replay_loop(loop, &c.replay.loop)) {
+    *error = "stream.loop must be once, wrap or bounce";
+    return std::nullopt;
+  }
+  if (j.contains("controller")) {
+    const std::string e = load_control_config(j["controller"], c.station.controller);
+    if (!e.empty()) {
+      *error = e;
+      return std::nullopt;
+    }
+  }
+  return c;
+}
+
+}  // namespace rgbdquad::quadcontrol

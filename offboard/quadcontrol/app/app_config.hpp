@@ -1,0 +1,47 @@
+// quad-control's configuration: one JSON file (config/quad-control.json documents every key and
+// its default). Absent keys keep the defaults below; unknown keys are errors (typos caught at
+// start-up). The loaded configuration is printed at start-up (secret key redacted).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "app/firmware_link.hpp"
+#include "app/frame_source.hpp"
+#include "app/ground_station.hpp"
+
+namespace rgbdquad::quadcontrol {
+
+struct AppConfig {
+  // dashboard
+  std::string dashboard_bind_address = "127.0.0.1";  ///< loopback: only this machine sees the UI
+  std::uint16_t dashboard_port = 8080;
+  std::string dashboard_token;   ///< required (non-empty) to bind a non-loopback address
+  std::string dashboard_static_dir;  ///< default: the repo's offboard/dashboard/static
+  // stream
+  std::string stream_source = "tum";  ///< "tum" (dataset replay); "receiver" once offboard/receiver lands
+  TumReplayOptions replay;
+  // SLAM link
+  std::string slam_mode = "in-process";  ///< "in-process"; "server" once slam-server exists
+  std::string slam_socket = "/tmp/rgbdquad-slam.sock";
+  // firmware
+  bool firmware_enabled = true;
+  FirmwareLinkOptions firmware;
+  std::string firmware_key_hex;  ///< 32 hex digits, the craft's SipHash key (same as provisioned)
+  std::string control_spec_path;  ///< default: the repo's protocol/control/control_spec.json
+  // control + map
+  GroundStationOptions station;
+
+  std::string validate() const;
+  nlohmann::json to_json_redacted() const;
+};
+
+/// Reads `path` over the defaults; nullopt with `error` naming the bad key.
+std::optional<AppConfig> load_app_config(const std::string& path, const std::string& repo_dir, std::string* error);
+/// Defaults only (no file).
+AppConfig default_app_config(const std::string& repo_dir);
+
+}  // namespace rgbdquad::quadcontrol

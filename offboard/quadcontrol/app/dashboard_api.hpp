@@ -1,0 +1,35 @@
+// HTTP routes of the web dashboard (static assets + JSON/PNG/JPEG API), mapped onto GroundStation.
+//   GET  /                   index.html (and the other files of the static dir, loaded at start-up)
+//   GET  /api/state          JSON snapshot: flight state, pose, setpoint, waypoint, links, fps, map
+//   GET  /api/rgb.jpg        newest RGB frame, JPEG;   GET /api/depth.png  newest depth, greyscale PNG
+//   GET  /api/map.png        2D floor map (north up; geometry in /api/state "map")
+//   GET  /api/cloud?max=N    sub-sampled coloured point cloud (JSON [x,y,z,r,g,b]...)
+//   GET  /api/map.ply        the whole coloured point-cloud map, ASCII PLY
+//   POST /api/command        {"command": "arm" | "disarm" | "takeoff" | "land"}
+//   POST /api/waypoint       {"x_m": .., "y_m": ..}   (floor-aligned world frame)
+//   POST /api/manual         {"forward_m", "left_m", "up_m", "yaw_ccw_deg"} (setpoint steps)
+// With a token configured every /api/ request must carry it (header X-Dashboard-Token or ?token=).
+#pragma once
+
+#include <map>
+#include <string>
+
+#include "app/ground_station.hpp"
+#include "app/http_server.hpp"
+
+namespace rgbdquad::quadcontrol {
+
+class DashboardApi {
+ public:
+  /// Loads the static assets of `static_dir` (regular files, top level only); throws
+  /// std::runtime_error when the folder or its index.html is missing.
+  DashboardApi(GroundStation& station, const std::string& static_dir, std::string token);
+  HttpResponse handle(const HttpRequest& request);
+
+ private:
+  GroundStation& station_;
+  std::map<std::string, std::pair<std::string, std::string>> files_;  // path -> (content type, bytes)
+  std::string token_;
+};
+
+}  // namespace rgbdquad::quadcontrol

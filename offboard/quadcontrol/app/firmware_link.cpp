@@ -1,0 +1,175 @@
+// Two rotating HTTP clients of the control link: see firmware_link.hpp.
+#include "app/firmware_link.hpp"
+
+#include <stdexcept>
+
+#include "app/frame_source.hpp"
+
+namespace rgbdquad::quadcontrol {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+
+namespace {
+constexpr double kLatencyEmaWeight = 0.1;  // ~10-reply memory: smooth yet responsive on the dashboard
+}
+
+std::string FirmwareLinkOptions::validate() const {
+  if (host.empty()) return "firmware.host must not be empty";
+  if (port == 0) return "firmware.port must be > 0";
+  if (timeout_ms < 1 || timeout_ms > 10000) return "firmware.timeout_ms must be in [1, 10000]";
+  if (period_ms < 5 || period_ms > 1000) return "firmware.period_ms must be in [5, 1000]";
+  return {};
+}
+
+FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, ControlKey key, ReplyCallback callback)
+    : options_(std::move(options)), spec_(std::move(spec)), key_(key), callback_(std::move(callback)), timer_(io_) {
+  const std::string error = options_.validate();
+  if (!error.empty()) throw std::runtime_error(error);
+  asio::ip::tcp::resolver resolver(io_);
+  beast::error_code ec;
+  endpoints_ = resolver.resolve(options_.host, std::to_string(options_.port), ec);
+  if (ec) throw std::runtime_error("firmware: cannot resolve " + options_.host + ": " + ec.message());
+  command_.roll_us = spec_.pwm.roll.neutral_us;
+  command_.pitch_us = spec_.pwm.pitch.neutral_us;
+  command_.yaw_us = spec_.pwm.yaw.neutral_us;
+  command_.throttle_us = spec_.pwm.throttle.min_us;
+  schedule();
+  thread_ = std::thread([this] { io_.run(); });
+}
+
+FirmwareLink::~FirmwareLink() {
+  io_.stop();
+  if (thread_.joinable()) thread_.join();
+}
+
+void FirmwareLink::set_command(const PwmCommand& command) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  command_ = command;
+}
+
+FirmwareLinkStats FirmwareLink::stats() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return stats_;
+}
+
+void FirmwareLink::schedule() {
+  timer_.expires_after(std::chrono::milliseconds(options_.period_ms));
+  timer_.async_wait([this](beast::error_code ec) {
+    if (ec) return;
+    tick();
+    schedule();
+  });
+}
+
+void FirmwareLink::tick() {
+  // Round robin over idle clients: a client still waiting for its reply is skipped.
+  for (std::size_t i = 0; i < clients_.size(); ++i) {
+    Client& c = clients_[(next_client_ + i) % clients_.size()];
+    if (!c.busy) {
+      next_client_ = (next_client_ + i + 1) % clients_.size();
+      start(c);
+      return;
+    }
+  }
+}
+
+void FirmwareLink::start(Client& c) {
+  std::string target;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!seq_known_) {
+      target = spec_.status_path;
+      c.is_status = true;
+    } else {
+      if (stats_.seq >= spec_.seq_max) {
+        stats_.last_error = "sequence numbers exhausted: provision a new key";
+        return;
+      }
+      ControlFields f{stats_.seq + 1, command_.armed, command_.roll_us, command_.pitch_us, command_.throttle_us,
+                      command_.yaw_us};
+      std::string error;
+      auto t = build_control_target(spec_, key_, f, &error);
+      if (!t) {
+        stats_.last_error = "command not sent: " + error;
+        return;
+      }
+      ++stats_.seq;
+      target = *t;
+      c.is_status = false;
+    }
+    ++stats_.sent;
+  }
+  c.busy = true;
+  c.started_us = monotonic_now_us();
+  c.request = {};
+  c.request.method(c.is_status ? http::verb::get : http::verb::put);
+  c.request.target(target);
+  c.request.version(11);
+  c.request.set(http::field::host, options_.host);
+  c.request.set(http::field::connection, "close");
+  c.response = {};
+  c.buffer.clear();
+  c.stream = std::make_unique<beast::tcp_stream>(io_);
+  c.stream->expires_after(std::chrono::milliseconds(options_.timeout_ms));
+  c.stream->async_connect(endpoints_, [this, &c](beast::error_code ec, const asio::ip::tcp::endpoint&) {
+    if (ec) return finish(c, ec);
+    http::async_write(*c.stream, c.request, [this, &c](beast::error_code ec2, std::size_t) {
+      if (ec2) return finish(c, ec2);
+      http::async_read(*c.stream, c.buffer, c.response,
+                       [this, &c](beast::error_code ec3, std::size_t) { finish(c, ec3); });
+    });
+  });
+}
+
+void FirmwareLink::finish(Client& c, beast::error_code ec) {
+  const std::int64_t now = monotonic_now_us();
+  c.busy = false;
+  beast::error_code ignored;
+  c.stream->socket().shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
+  std::optional<ControlReply> reply;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (ec == beast::error::timeout) {
+      ++stats_.timeouts;
+      stats_.last_error = "request timed out after " + std::to_string(options_.timeout_ms) + " ms";
+      return;
+    }
+    if (ec) {
+      ++stats_.connect_errors;
+      stats_.last_error = "link: " + ec.message();
+      return;
+    }
+    std::string error;
+    reply = parse_control_reply(static_cast<int>(c.response.result_int()), c.response.body(), &error);
+    if (!reply) {
+      ++stats_.http_errors;
+      stats_.last_error = "bad reply: " + error;
+      return;
+    }
+    const double latency_ms = static_cast<double>(now - c.started_us) / 1000.0;
+    stats_.last_latency_ms = latency_ms;
+    stats_.mean_latency_ms = stats_.ok == 0 ? latency_ms
+                                            : (1.0 - kLatencyEmaWeight) * stats_.mean_latency_ms +
+                                                  kLatencyEmaWeight * latency_ms;
+    stats_.last_reply = reply;
+    stats_.last_reply_us = now;
+    if (reply->status == 200) {
+      ++stats_.ok;
+    } else if (reply->status == 409) {
+      ++stats_.stale;  // the other client's newer command arrived first: harmless
+    } else {
+      ++stats_.http_errors;
+      stats_.last_error = "firmware replied " + std::to_string(reply->status) + " " + reply->err;
+    }
+    if (c.is_status || reply->seq > stats_.seq) {
+      // Continue above what the craft accepted (restart of quad-control, or a replay rejection).
+      if (reply->seq > stats_.seq || !seq_known_) stats_.seq = std::max(stats_.seq, reply->seq);
+      seq_known_ = true;
+    }
+  }
+  if (callback_) callback_(now, *reply);
+}
+
+}  // namespace rgbdquad::quadcontrol

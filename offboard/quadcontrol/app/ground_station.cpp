@@ -1,0 +1,370 @@
+// The quad-control hub: see ground_station.hpp.
+#include "app/ground_station.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/geometry.hpp"
+
+namespace rgbdquad::quadcontrol {
+
+namespace {
+constexpr double kFpsEmaWeight = 0.2;       // frame-to-frame fps, smoothed over ~5 frames
+constexpr double kDepthDisplayMaxM = 5.0;   // greyscale: 0 m white .. 5 m black (Kinect range)
+constexpr std::int64_t kUsPerMs = 1000;
+
+CraftPose craft_pose(const Eigen::Isometry3d& T_floor_cam) {
+  const Eigen::Vector3d t = T_floor_cam.translation();
+  // Heading = optical axis (camera +z) projected on the floor.
+  const Eigen::Vector3d forward = T_floor_cam.linear().col(2);
+  return CraftPose{t.x(), t.y(), t.z(), std::atan2(forward.y(), forward.x()) * kDegPerRad};
+}
+
+nlohmann::json pose_json(const CraftPose& p) {
+  return {{"x_m", p.x_m}, {"y_m", p.y_m}, {"z_m", p.z_m}, {"yaw_deg", p.yaw_deg}};
+}
+}  // namespace
+
+std::string GroundStationOptions::validate() const {
+  if (auto e = controller.validate(); !e.empty()) return e;
+  if (auto e = floor.validate(); !e.empty()) return e;
+  if (auto e = map.validate(); !e.empty()) return e;
+  if (!(mount_pitch_down_deg >= 0.0 && mount_pitch_down_deg < 90.0)) return "camera.mount_pitch_down_deg must be in [0, 90)";
+  if (floor_search_frames < 1 || floor_pixel_step < 1 || map_pixel_step < 1) return "floor/map steps must be >= 1";
+  if (!(max_depth_m > 0.0)) return "map.max_depth_m must be > 0";
+  if (control_period_ms < 5 || control_period_ms > 200) return "control_period_ms must be in [5, 200]";
+  return {};
+}
+
+GroundStation::GroundStation(GroundStationOptions options, std::unique_ptr<FrameSource> source,
+                             std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, ControlKey key)
+    : options_(options), spec_(spec), source_(std::move(source)), controller_(options.controller), map_(options.map) {
+  last_pwm_ = to_pwm(StickCommand{}, spec_.pwm);
+  std::string error;
+  slam::Intrinsics intrinsics;
+  slam::Intrinsics::from_name("fr1", &intrinsics, &error);
+  slam_ = InProcessSlam::create(intrinsics, [this](const SlamResult& r, const CameraFrame& f) { on_slam(r, f); },
+                                &error);
+  if (!slam_) {
+    start_error_ = "SLAM link: " + error;
+    return;
+  }
+  if (firmware) {
+    firmware_ = std::make_unique<FirmwareLink>(*firmware, spec_, key,
+                                               [this](std::int64_t t, const ControlReply& r) { on_reply(t, r); });
+  }
+  frame_thread_ = std::thread([this] { frame_loop(); });
+  control_thread_ = std::thread([this] { control_loop(); });
+}
+
+GroundStation::~GroundStation() {
+  stop_ = true;
+  if (frame_thread_.joinable()) frame_thread_.join();
+  if (control_thread_.joinable()) control_thread_.join();
+  slam_.reset();  // joins the SLAM thread before the state it calls back into goes away
+  firmware_.reset();
+}
+
+void GroundStation::frame_loop() {
+  while (!stop_) {
+    std::string error;
+    auto frame = source_->next(stop_, &error);
+    if (!frame) {
+      if (stop_) return;
+      std::lock_guard<std::mutex> lock(mutex_);
+      source_error_ = error;
+      if (error == "replay finished") return;
+      continue;
+    }
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (last_frame_us_ > 0 && frame->received_us > last_frame_us_) {
+        const double inst = 1e6 / static_cast<double>(frame->received_us - last_frame_us_);
+        fps_ = frames_ <= 1 ? inst : (1.0 - kFpsEmaWeight) * fps_ + kFpsEmaWeight * inst;
+      }
+      last_frame_us_ = frame->received_us;
+      ++frames_;
+      stream_latency_ms_ = frame->link_latency_ms;
+      latest_frame_ = *frame;
+      if (auto imu = imu_replies_.nearest(frame->received_us, options_.imu_match_window_us)) {
+        imu_match_dt_ms_ = static_cast<double>(imu->first - frame->received_us) / kUsPerMs;
+      } else {
+        imu_match_dt_ms_.reset();
+      }
+    }
+    slam_->submit(*frame);  // dropped when SLAM is busy (thesis behaviour)
+  }
+}
+
+void GroundStation::control_loop() {
+  auto next = std::chrono::steady_clock::now();
+  while (!stop_) {
+    next += std::chrono::milliseconds(options_.control_period_ms);
+    std::this_thread::sleep_until(next);
+    const std::int64_t now = monotonic_now_us();
+    PwmCommand pwm;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      last_stick_ = controller_.update(now);
+      last_pwm_ = to_pwm(last_stick_, spec_.pwm);
+      pwm = last_pwm_;
+    }
+    if (firmware_) firmware_->set_command(pwm);
+  }
+}
+
+std::vector<Eigen::Vector3d> GroundStation::depth_points(const CameraFrame& f, int step) const {
+  std::vector<Eigen::Vector3d> pts;
+  if (f.depth.type() != CV_16UC1) return pts;
+  const auto& k = f.intrinsics;
+  for (int v = 0; v < f.depth.rows; v += step) {
+    const auto* row = f.depth.ptr<std::uint16_t>(v);
+    for (int u = 0; u < f.depth.cols; u += step) {
+      if (row[u] == 0) continue;
+      const double z = row[u] / k.depth_units_per_m;
+      if (z > options_.max_depth_m) continue;
+      pts.emplace_back((u - k.cx_px) * z / k.fx_px, (v - k.cy_px) * z / k.fy_px, z);
+    }
+  }
+  return pts;
+}
+
+void GroundStation::on_slam(const SlamResult& result, const CameraFrame& frame) {
+  // Floor plane search on the first frames (outside the lock: RANSAC takes a few ms).
+  std::optional<FloorPlane> found;
+  bool need_floor;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    need_floor = !T_floor_world_.has_value() && result.tracking;
+  }
+  if (need_floor) {
+    found = fit_floor_plane(depth_points(frame, options_.floor_pixel_step),
+                            expected_up_in_camera(options_.mount_pitch_down_deg), options_.floor);
+  }
+  std::vector<Eigen::Vector3d> cam_points;
+  if (result.tracking) cam_points = depth_points(frame, options_.map_pixel_step);
+
+  std::lock_guard<std::mutex> lock(mutex_);
+  last_slam_ = result;
+  if (need_floor && !T_floor_world_) {
+    ++floor_attempts_;
+    if (found) {
+      floor_ = found;
+      // World = first SLAM camera; T_floor_world = T_floor_cam * T_world_cam^-1.
+      T_floor_world_ = floor_frame_from_plane(*found) * result.T_world_cam.inverse();
+    } else if (floor_attempts_ >= options_.floor_search_frames) {
+      // No floor in view: gravity from the mount angle, height counted from the start (0 m).
+      FloorPlane assumed{expected_up_in_camera(options_.mount_pitch_down_deg), 0.0, 0, 0.0};
+      T_floor_world_ = floor_frame_from_plane(assumed) * result.T_world_cam.inverse();
+      floor_fallback_ = true;
+    }
+  }
+  const std::int64_t now = monotonic_now_us();
+  if (!T_floor_world_ || !result.tracking) {
+    controller_.on_pose(PoseSample{now, false, pose_.value_or(CraftPose{})});
+    return;
+  }
+  const Eigen::Isometry3d T_floor_cam = *T_floor_world_ * result.T_world_cam;
+  pose_ = craft_pose(T_floor_cam);
+  controller_.on_pose(PoseSample{now, true, *pose_});
+  if (trajectory_.size() >= options_.trajectory_max_points) trajectory_.erase(trajectory_.begin());
+  trajectory_.push_back({pose_->x_m, pose_->y_m});
+
+  std::vector<ColouredPoint> world;
+  world.reserve(cam_points.size());
+  const auto& k = frame.intrinsics;
+  for (const auto& p : cam_points) {
+    const Eigen::Vector3d w = T_floor_cam * p;
+    const int u = static_cast<int>(std::lround(p.x() * k.fx_px / p.z() + k.cx_px));
+    const int v = static_cast<int>(std::lround(p.y() * k.fy_px / p.z() + k.cy_px));
+    ColouredPoint cp{w.cast<float>(), 128, 128, 128};
+    if (u >= 0 && v >= 0 && u < frame.rgb.cols && v < frame.rgb.rows && frame.rgb.type() == CV_8UC3) {
+      const auto& bgr = frame.rgb.at<cv::Vec3b>(v, u);
+      cp.r = bgr[2];
+      cp.g = bgr[1];
+      cp.b = bgr[0];
+    }
+    world.push_back(cp);
+  }
+  map_.add_points(world);
+  ++map_revision_;
+}
+
+void GroundStation::on_reply(std::int64_t received_us, const ControlReply& reply) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  imu_replies_.push(received_us, reply);
+}
+
+nlohmann::json GroundStation::state_json() {
+  const SlamStats slam_stats = slam_ ? slam_->stats() : SlamStats{};
+  std::optional<FirmwareLinkStats> fw;
+  if (firmware_) fw = firmware_->stats();
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto& st = controller_.status();
+  nlohmann::json j;
+  j["state"] = to_string(st.state);
+  j["last_event"] = st.last_event;
+  j["tracking"] = st.tracking;
+  j["facing_waypoint"] = st.facing_waypoint;
+  j["pose"] = pose_ ? pose_json(*pose_) : nlohmann::json(nullptr);
+  j["setpoint"] = pose_json(st.setpoint);
+  j["waypoint"] = st.waypoint ? nlohmann::json{{"x_m", st.waypoint->x_m}, {"y_m", st.waypoint->y_m}}
+                              : nlohmann::json(nullptr);
+  j["command"] = {{"roll_pct", last_stick_.roll_pct},     {"pitch_pct", last_stick_.pitch_pct},
+                  {"yaw_pct", last_stick_.yaw_pct},       {"throttle_pct", last_stick_.throttle_pct},
+                  {"armed", last_stick_.armed},
+                  {"pwm_us", {last_pwm_.roll_us, last_pwm_.pitch_us, last_pwm_.throttle_us, last_pwm_.yaw_us}}};
+  j["stream"] = {{"source", source_->describe()},
+                 {"frames", frames_},
+                 {"fps", fps_},
+                 {"sequence", latest_frame_ ? latest_frame_->sequence : -1},
+                 {"latency_ms", stream_latency_ms_},
+                 {"error", source_error_}};
+  j["slam"] = {{"link", slam_ ? slam_->name() : "none"},
+               {"state", last_slam_ ? last_slam_->state : "waiting"},
+               {"inliers", last_slam_ ? last_slam_->inliers : 0},
+               {"submitted", slam_stats.submitted},
+               {"processed", slam_stats.processed},
+               {"dropped_busy", slam_stats.dropped_busy},
+               {"latency_ms", slam_stats.last_latency_ms},
+               {"error", slam_stats.last_error}};
+  nlohmann::json fwj = {{"enabled", fw.has_value()}};
+  if (fw) {
+    const bool connected = fw->last_reply_us > 0 && monotonic_now_us() - fw->last_reply_us < 1000 * kUsPerMs;
+    fwj.update({{"connected", connected},
+                {"latency_ms", fw->last_latency_ms},
+                {"mean_latency_ms", fw->mean_latency_ms},
+                {"sent", fw->sent},
+                {"ok", fw->ok},
+                {"timeouts", fw->timeouts},
+                {"http_errors", fw->http_errors},
+                {"stale", fw->stale},
+                {"connect_errors", fw->connect_errors},
+                {"seq", fw->seq},
+                {"last_error", fw->last_error}});
+    if (fw->last_reply) {
+      const auto& r = *fw->last_reply;
+      fwj["reply"] = {{"status", r.status}, {"state", r.state}, {"fw", r.fw}, {"out_us", r.out_us},
+                      {"att_mrad", r.att_mrad}, {"att_age_ms", r.att_age_ms ? nlohmann::json(*r.att_age_ms) : nullptr},
+                      {"imu_raw", r.imu_raw}};
+    }
+    fwj["imu_match_dt_ms"] = imu_match_dt_ms_ ? nlohmann::json(*imu_match_dt_ms_) : nlohmann::json(nullptr);
+  }
+  j["firmware"] = fwj;
+  j["floor"] = {{"found", floor_.has_value()},
+                {"fallback", floor_fallback_},
+                {"height_m", floor_ ? floor_->d_m : 0.0},
+                {"inlier_fraction", floor_ ? floor_->inlier_fraction : 0.0}};
+  j["map"] = {{"origin_x_m", map_.origin_x_m()},   {"origin_y_m", map_.origin_y_m()},
+              {"resolution_m", map_.resolution_m()}, {"width_cells", map_.width_cells()},
+              {"height_cells", map_.height_cells()}, {"revision", map_revision_},
+              {"cloud_points", map_.cloud().size()}};
+  nlohmann::json traj = nlohmann::json::array();
+  const std::size_t stride = std::max<std::size_t>(1, trajectory_.size() / 500);
+  for (std::size_t i = 0; i < trajectory_.size(); i += stride) traj.push_back(trajectory_[i]);
+  j["trajectory"] = traj;
+  return j;
+}
+
+std::optional<std::string> GroundStation::rgb_jpeg() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!latest_frame_) return std::nullopt;
+  if (cache_sequence_ != latest_frame_->sequence) {
+    rgb_jpeg_cache_.reset();
+    depth_png_cache_.reset();
+    cache_sequence_ = latest_frame_->sequence;
+  }
+  if (!rgb_jpeg_cache_) {
+    std::vector<std::uint8_t> buf;
+    if (!cv::imencode(".jpg", latest_frame_->rgb, buf, {cv::IMWRITE_JPEG_QUALITY, 80})) return std::nullopt;
+    rgb_jpeg_cache_ = std::string(buf.begin(), buf.end());
+  }
+  return rgb_jpeg_cache_;
+}
+
+std::optional<std::string> GroundStation::depth_png() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!latest_frame_) return std::nullopt;
+  if (cache_sequence_ != latest_frame_->sequence) {
+    rgb_jpeg_cache_.reset();
+    depth_png_cache_.reset();
+    cache_sequence_ = latest_frame_->sequence;
+  }
+  if (!depth_png_cache_) {
+    // 16-bit depth as greyscale: near = bright, far = dark, no reading = black.
+    const cv::Mat& d = latest_frame_->depth;
+    cv::Mat grey(d.rows, d.cols, CV_8UC1);
+    const double units_max = kDepthDisplayMaxM * latest_frame_->intrinsics.depth_units_per_m;
+    for (int v = 0; v < d.rows; ++v) {
+      const auto* in = d.ptr<std::uint16_t>(v);
+      auto* out = grey.ptr<std::uint8_t>(v);
+      for (int u = 0; u < d.cols; ++u) {
+        out[u] = in[u] == 0 ? 0 : static_cast<std::uint8_t>(255.0 - 235.0 * std::min(1.0, in[u] / units_max));
+      }
+    }
+    std::vector<std::uint8_t> buf;
+    if (!cv::imencode(".png", grey, buf)) return std::nullopt;
+    depth_png_cache_ = std::string(buf.begin(), buf.end());
+  }
+  return depth_png_cache_;
+}
+
+std::string GroundStation::map_png() {
+  std::vector<std::uint8_t> rgb;
+  int n;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    rgb = map_.render_rgb();
+    n = map_.width_cells();
+  }
+  cv::Mat img(n, n, CV_8UC3, rgb.data());
+  cv::Mat bgr;
+  cv::cvtColor(img, bgr, cv::COLOR_RGB2BGR);
+  std::vector<std::uint8_t> buf;
+  cv::imencode(".png", bgr, buf);
+  return std::string(buf.begin(), buf.end());
+}
+
+nlohmann::json GroundStation::cloud_json(std::size_t max_points) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto& cloud = map_.cloud();
+  nlohmann::json pts = nlohmann::json::array();
+  const std::size_t stride = std::max<std::size_t>(1, (cloud.size() + max_points - 1) / std::max<std::size_t>(1, max_points));
+  for (std::size_t i = 0; i < cloud.size(); i += stride) {
+    const auto& p = cloud[i];
+    pts.push_back({std::round(p.p_world.x() * 1000) / 1000, std::round(p.p_world.y() * 1000) / 1000,
+                   std::round(p.p_world.z() * 1000) / 1000, p.r, p.g, p.b});
+  }
+  nlohmann::json pose = pose_ ? pose_json(*pose_) : nlohmann::json(nullptr);
+  return {{"points", pts}, {"total", cloud.size()}, {"pose", pose}};
+}
+
+std::string GroundStation::map_ply() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return map_.to_ply();
+}
+
+std::string GroundStation::command(const std::string& name) {
+  OperatorCommand cmd;
+  if (name == "arm") cmd = OperatorCommand::kArm;
+  else if (name == "disarm") cmd = OperatorCommand::kDisarm;
+  else if (name == "takeoff") cmd = OperatorCommand::kTakeOff;
+  else if (name == "land") cmd = OperatorCommand::kLand;
+  else return "unknown command '" + name + "' (arm, disarm, takeoff, land)";
+  std::lock_guard<std::mutex> lock(mutex_);
+  return controller_.command(monotonic_now_us(), cmd);
+}
+
+std::string GroundStation::waypoint(double x_m, double y_m) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return controller_.set_waypoint(monotonic_now_us(), x_m, y_m);
+}
+
+std::string GroundStation::manual(double forward_m, double left_m, double up_m, double yaw_ccw_deg) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return controller_.nudge(monotonic_now_us(), forward_m, left_m, up_m, yaw_ccw_deg);
+}
+
+}  // namespace rgbdquad::quadcontrol

@@ -1,0 +1,113 @@
+// The hub of quad-control: joins the frame source, the SLAM link, the flight controller, the floor
+// map and the firmware link, and exposes snapshots for the dashboard.
+//
+// Threads (all owned here, joined in the destructor): the frame thread (source -> latest frame ->
+// SLAM hand-over), the SLAM thread (inside SlamLink; its results update pose, floor frame and map),
+// the control thread (controller.update(now) every control_period_ms -> firmware command), and the
+// firmware link's I/O thread. Shared state is guarded by one mutex; the controller is only touched
+// under it. This is the only place that reads the clock and passes it into the logic.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "app/firmware_link.hpp"
+#include "app/frame_source.hpp"
+#include "app/slam_link.hpp"
+#include "core/flight_controller.hpp"
+#include "core/timestamp_buffer.hpp"
+#include "map/floor_map.hpp"
+#include "map/floor_plane.hpp"
+
+namespace rgbdquad::quadcontrol {
+
+struct GroundStationOptions {
+  ControlConfig controller;
+  FloorPlaneOptions floor;
+  FloorMapOptions map;
+  double mount_pitch_down_deg = 30.0;  ///< Kinect tilt on the craft (thesis: mounted at an angle)
+  int floor_search_frames = 30;        ///< ~1 s at 30 Hz to find the floor, then fall back
+  int floor_pixel_step = 4;            ///< depth sub-sampling for the RANSAC (19200 points)
+  int map_pixel_step = 8;              ///< depth sub-sampling for the map (4800 points/frame)
+  double max_depth_m = 4.0;            ///< Kinect depth beyond ~4 m is too noisy for a map
+  int control_period_ms = 20;          ///< 50 Hz, the firmware command rate
+  std::size_t trajectory_max_points = 5000;
+  std::int64_t imu_match_window_us = 20000;  ///< TUM's association rule: nearest within 20 ms
+  std::string validate() const;
+};
+
+class GroundStation {
+ public:
+  /// Starts every thread. `firmware` may be null options (no craft: commands are computed, not sent).
+  GroundStation(GroundStationOptions options, std::unique_ptr<FrameSource> source,
+                std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, ControlKey key);
+  ~GroundStation();
+  GroundStation(const GroundStation&) = delete;
+  GroundStation& operator=(const GroundStation&) = delete;
+
+  /// Creation of the SLAM link failed etc.: empty when running.
+  const std::string& start_error() const { return start_error_; }
+
+  // Dashboard API (thread-safe).
+  nlohmann::json state_json();
+  std::optional<std::string> rgb_jpeg();
+  std::optional<std::string> depth_png();
+  std::string map_png();
+  nlohmann::json cloud_json(std::size_t max_points);
+  std::string map_ply();
+  std::string command(const std::string& name);
+  std::string waypoint(double x_m, double y_m);
+  std::string manual(double forward_m, double left_m, double up_m, double yaw_ccw_deg);
+
+ private:
+  void frame_loop();
+  void control_loop();
+  void on_slam(const SlamResult& result, const CameraFrame& frame);
+  void on_reply(std::int64_t received_us, const ControlReply& reply);
+  std::vector<Eigen::Vector3d> depth_points(const CameraFrame& frame, int step) const;
+
+  GroundStationOptions options_;
+  ControlSpec spec_;
+  std::unique_ptr<FrameSource> source_;
+  std::string start_error_;
+  std::atomic<bool> stop_{false};
+
+  std::mutex mutex_;
+  FlightController controller_;
+  FloorMap map_;
+  std::optional<CameraFrame> latest_frame_;
+  std::optional<std::string> rgb_jpeg_cache_, depth_png_cache_;
+  std::int64_t cache_sequence_ = -1;
+  std::int64_t frames_ = 0;
+  double fps_ = 0.0;
+  std::int64_t last_frame_us_ = 0;
+  double stream_latency_ms_ = 0.0;
+  std::string source_error_;
+  std::optional<SlamResult> last_slam_;
+  std::optional<CraftPose> pose_;
+  std::optional<Eigen::Isometry3d> T_floor_world_;
+  std::optional<FloorPlane> floor_;
+  bool floor_fallback_ = false;
+  int floor_attempts_ = 0;
+  std::int64_t map_revision_ = 0;
+  std::vector<std::array<double, 2>> trajectory_;
+  StickCommand last_stick_;
+  PwmCommand last_pwm_;
+  TimestampBuffer<ControlReply> imu_replies_{256};
+  std::optional<double> imu_match_dt_ms_;
+
+  std::unique_ptr<SlamLink> slam_;
+  std::unique_ptr<FirmwareLink> firmware_;
+  std::thread frame_thread_;
+  std::thread control_thread_;
+};
+
+}  // namespace rgbdquad::quadcontrol

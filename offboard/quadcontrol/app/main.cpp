@@ -1,0 +1,122 @@
+// quad-control: the ground-station hub (thesis Section 3.3.3). Wiring only: configuration, links,
+// the control loop and the web dashboard; the logic lives in core/, map/ and link/.
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+
+#include <CLI/CLI.hpp>
+
+#include "app/app_config.hpp"
+#include "app/dashboard_api.hpp"
+#include "app/ground_station.hpp"
+#include "app/http_server.hpp"
+
+using namespace rgbdquad::quadcontrol;
+
+int main(int argc, char** argv) {
+  CLI::App cli{
+      "quad-control: ground-station control loop and web dashboard.\n"
+      "Joins the RGB-D frame source, SLAM, the flight controller (PID position control, take-off / hold at\n"
+      "1.7 m / waypoint / land) and the firmware REST link, and serves the dashboard on\n"
+      "http://127.0.0.1:8080/ by default. Every setting and its default is in the config file\n"
+      "(offboard/quadcontrol/config/quad-control.json); command-line options override it.\n"
+      "Available now: stream.source=tum (TUM dataset replay) and slam.mode=in-process (the SLAM\n"
+      "engine's front-end in this process); the live receiver and slam-server are not wired yet."};
+  std::string config_path, bind_address, token, tum_folder, firmware_host, key_hex;
+  int port = -1, firmware_port = -1;
+  bool no_firmware = false, print_config = false;
+  cli.add_option("-c,--config", config_path, "JSON config file (default: built-in defaults)");
+  cli.add_option("--bind", bind_address, "dashboard address (default 127.0.0.1; non-loopback needs --token)");
+  cli.add_option("--port", port, "dashboard TCP port (default 8080; 0 = any free port, printed)");
+  cli.add_option("--token", token, "dashboard access token (required for a non-loopback --bind)");
+  cli.add_option("--tum", tum_folder, "TUM RGB-D folder to replay as the camera");
+  cli.add_option("--firmware-host", firmware_host, "firmware (WiFi bridge) address");
+  cli.add_option("--firmware-port", firmware_port, "firmware HTTP port");
+  cli.add_option("--key", key_hex, "craft control key, 32 hex digits (prefer the config file)");
+  cli.add_flag("--no-firmware", no_firmware, "do not talk to the firmware (commands are computed only)");
+  cli.add_flag("--print-config", print_config, "print the effective configuration and exit");
+  CLI11_PARSE(cli, argc, argv);
+
+  const std::string repo_dir = QC_REPO_DIR;
+  std::string error;
+  std::optional<AppConfig> config = config_path.empty() ? default_app_config(repo_dir)
+                                                        : load_app_config(config_path, repo_dir, &error);
+  if (!config) {
+    std::cerr << "quad-control: " << error << "\n";
+    return 2;
+  }
+  if (!bind_address.empty()) config->dashboard_bind_address = bind_address;
+  if (port >= 0) {
+    if (port > 65535) {
+      std::cerr << "quad-control: --port must be in [0, 65535]\n";
+      return 2;
+    }
+    config->dashboard_port = static_cast<std::uint16_t>(port);
+  }
+  if (!token.empty()) config->dashboard_token = token;
+  if (!tum_folder.empty()) config->replay.folder = tum_folder;
+  if (!firmware_host.empty()) config->firmware.host = firmware_host;
+  if (firmware_port > 0 && firmware_port <= 65535) config->firmware.port = static_cast<std::uint16_t>(firmware_port);
+  if (!key_hex.empty()) config->firmware_key_hex = key_hex;
+  if (no_firmware) config->firmware_enabled = false;
+  // Port 0 is accepted on the command line (tests): validate with a placeholder.
+  const std::uint16_t wanted_port = config->dashboard_port;
+  if (wanted_port == 0) config->dashboard_port = 1;
+  if (const std::string e = config->validate(); !e.empty()) {
+    std::cerr << "quad-control: invalid configuration: " << e << "\n";
+    return 2;
+  }
+  config->dashboard_port = wanted_port;
+  std::cout << "quad-control: configuration " << config->to_json_redacted().dump() << std::endl;
+  if (print_config) return 0;
+
+  auto spec = load_control_spec(config->control_spec_path, &error);
+  if (!spec) {
+    std::cerr << "quad-control: " << error << "\n";
+    return 2;
+  }
+  ControlKey key{};
+  std::optional<FirmwareLinkOptions> firmware;
+  if (config->firmware_enabled) {
+    auto k = parse_control_key(config->firmware_key_hex, &error);
+    if (!k) {
+      std::cerr << "quad-control: firmware.key_hex: " << error << "\n";
+      return 2;
+    }
+    key = *k;
+    firmware = config->firmware;
+  }
+  auto source = TumReplaySource::open(config->replay, &error);
+  if (!source) {
+    std::cerr << "quad-control: stream: " << error << "\n";
+    return 2;
+  }
+
+  // Block the stop signals before any thread starts so only sigwait below receives them.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  try {
+    GroundStation station(config->station, std::move(source), firmware, *spec, key);
+    if (!station.start_error().empty()) {
+      std::cerr << "quad-control: " << station.start_error() << "\n";
+      return 1;
+    }
+    DashboardApi api(station, config->dashboard_static_dir, config->dashboard_token);
+    HttpServer server(config->dashboard_bind_address, config->dashboard_port,
+                      [&api](const HttpRequest& r) { return api.handle(r); });
+    std::cout << "quad-control: dashboard on http://" << config->dashboard_bind_address << ":" << server.port()
+              << "/" << std::endl;
+    int sig = 0;
+    sigwait(&signals, &sig);
+    std::cout << "quad-control: stopping (signal " << sig << ")" << std::endl;
+  } catch (const std::exception& e) {
+    std::cerr << "quad-control: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

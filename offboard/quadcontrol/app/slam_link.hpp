@@ -1,0 +1,75 @@
+// quad-control's link to SLAM. The design target is slam-server (a separate process reached over
+// protocol/'s SLAM link on a local socket); it does not exist yet, so the available implementation
+// runs the SLAM engine's front-end (offboard/slam, FrontEnd: features, matching, RANSAC egomotion)
+// in-process on its own thread, behind the same interface.
+// Semantics of both (thesis): the newest frame is handed over; a frame arriving while SLAM is busy
+// is dropped (counted). Results are delivered through the callback on the SLAM thread.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include <Eigen/Geometry>
+
+#include "app/frame_source.hpp"
+#include "slam/pipeline/frontend.hpp"
+
+namespace rgbdquad::quadcontrol {
+
+struct SlamResult {
+  std::int64_t frame_sequence = 0;
+  std::int64_t capture_us = 0;
+  bool tracking = false;
+  std::string state;                                              ///< "initialising", "tracking", "lost"
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< world = first camera frame
+  std::size_t inliers = 0;
+  double latency_ms = 0.0;  ///< hand-over to result
+};
+
+struct SlamStats {
+  std::size_t submitted = 0, processed = 0, dropped_busy = 0, failed = 0;
+  double last_latency_ms = 0.0;
+  std::string last_error;
+};
+
+class SlamLink {
+ public:
+  using Callback = std::function<void(const SlamResult&, const CameraFrame&)>;
+  virtual ~SlamLink() = default;
+  /// Hands over a frame; false when SLAM is busy (the frame is dropped).
+  virtual bool submit(const CameraFrame& frame) = 0;
+  virtual SlamStats stats() const = 0;
+  virtual std::string name() const = 0;
+};
+
+class InProcessSlam : public SlamLink {
+ public:
+  static std::unique_ptr<InProcessSlam> create(const slam::Intrinsics& intrinsics, Callback callback,
+                                               std::string* error);
+  ~InProcessSlam() override;
+  bool submit(const CameraFrame& frame) override;
+  SlamStats stats() const override;
+  std::string name() const override { return "in-process front-end (offboard/slam)"; }
+
+ private:
+  InProcessSlam(slam::FrontEnd frontend, Callback callback);
+  void run();
+
+  slam::FrontEnd frontend_;
+  Callback callback_;
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  std::optional<CameraFrame> pending_;
+  bool busy_ = false;
+  SlamStats stats_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+}  // namespace rgbdquad::quadcontrol
