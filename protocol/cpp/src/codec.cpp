@@ -87,9 +87,8 @@ std::string check_intrinsics(const CameraIntrinsics& k) {
   return {};
 }
 
-std::string check_image(const ImageFrame& f, const char* field) {
+std::string check_image(const FrameHeader& h, std::size_t payload_size, const char* field) {
   const std::string prefix = std::string(field) + ".";
-  const FrameHeader& h = f.header;
   RGBD_CHECK(check_int_range(h.width, field_range::kImageFrameWidth, (prefix + "width").c_str()));
   RGBD_CHECK(
       check_int_range(h.height, field_range::kImageFrameHeight, (prefix + "height").c_str()));
@@ -99,15 +98,18 @@ std::string check_image(const ImageFrame& f, const char* field) {
     return prefix + "encoding: unknown value";
   if (!encoding_allows_pixel_format(h.encoding, h.pixel_format))
     return prefix + "encoding: does not carry this pixel_format";
-  if (f.payload.size() > kMaxFramePayloadBytes) return prefix + "payload: too large";
-  if (h.payload_length != f.payload.size())
-    return prefix + "payload_length: differs from payload size";
+  if (payload_size > kMaxFramePayloadBytes) return prefix + "payload: too large";
+  if (h.payload_length != payload_size) return prefix + "payload_length: differs from payload size";
   if (h.encoding == Encoding::kRaw) {
     const std::size_t expected =
         std::size_t{h.width} * std::size_t{h.height} * bytes_per_pixel(h.pixel_format);
-    if (f.payload.size() != expected) return prefix + "payload: RAW size != width*height*bpp";
+    if (payload_size != expected) return prefix + "payload: RAW size != width*height*bpp";
   }
   return {};
+}
+
+std::string check_image(const ImageFrame& f, const char* field) {
+  return check_image(f.header, f.payload.size(), field);
 }
 
 std::string check_pose(const Pose3& p, const char* field) {
@@ -528,27 +530,18 @@ constexpr MessageType type_of() {
   if constexpr (std::is_same_v<T, FloorMap>) return MessageType::kFloorMap;
 }
 
-// Encodes straight into the output: header with placeholders, body, then the length and CRCs are
-// filled in (one pass over the payload for the copy, one for the CRC).
-template <typename T>
-EncodeResult encode_typed(const T& message, bool with_envelope) {
-  EncodeResult result;
-  result.error = validate_one(message);
-  if (!result.error.empty()) return result;
-  std::vector<std::uint8_t>& out = result.bytes;
-  out.reserve(reserve_hint(message));
+// Writes an envelope straight into `out`: header with placeholders, the body by `put_body`, then
+// the length and both CRCs (one pass over a payload for the copy, one for the CRC).
+template <typename PutBody>
+void write_envelope(std::vector<std::uint8_t>& out, MessageType type, PutBody put_body_fn) {
   Writer w(out);
-  if (!with_envelope) {
-    put_body(w, message);
-    return result;
-  }
   w.raw(kMagic, sizeof kMagic);
   w.u8(kProtocolVersion);
-  w.u8(static_cast<std::uint8_t>(type_of<T>()));
+  w.u8(static_cast<std::uint8_t>(type));
   w.u16(0);
-  w.u32(0);  // body_length, filled below
-  w.u32(0);  // header_crc32, filled below
-  put_body(w, message);
+  w.u32(0);  // body_length, patched below
+  w.u32(0);  // header_crc32, patched below
+  put_body_fn(w);
   const std::size_t body_length = out.size() - kEnvelopeHeaderBytes;
   auto patch_le32 = [&out](std::size_t at, std::uint32_t v) {
     for (int i = 0; i < 4; ++i) out[at + i] = static_cast<std::uint8_t>(v >> (8 * i));
@@ -556,6 +549,20 @@ EncodeResult encode_typed(const T& message, bool with_envelope) {
   patch_le32(8, static_cast<std::uint32_t>(body_length));
   patch_le32(12, crc32(out.data(), 12));
   w.u32(crc32(out.data() + kEnvelopeHeaderBytes, body_length));
+}
+
+template <typename T>
+EncodeResult encode_typed(const T& message, bool with_envelope) {
+  EncodeResult result;
+  result.error = validate_one(message);
+  if (!result.error.empty()) return result;
+  result.bytes.reserve(reserve_hint(message));
+  if (with_envelope) {
+    write_envelope(result.bytes, type_of<T>(), [&message](Writer& w) { put_body(w, message); });
+  } else {
+    Writer w(result.bytes);
+    put_body(w, message);
+  }
   return result;
 }
 
@@ -627,10 +634,19 @@ EncodeResult encode_frame_request(const FrameRequest& m) { return encode_typed(m
 
 EncodeResult encode_frame(const FrameHeader& header, const std::uint8_t* payload,
                           std::size_t payload_size) {
-  Frame frame;
-  frame.image.header = header;
-  if (payload_size > 0) frame.image.payload.assign(payload, payload + payload_size);
-  return encode_typed(frame, true);
+  EncodeResult result;
+  result.error = check_image(header, payload_size, "image");
+  if (!result.error.empty()) return result;
+  if (payload == nullptr && payload_size > 0) {
+    result.error = "image.payload: null pointer with a non-zero size";
+    return result;
+  }
+  result.bytes.reserve(payload_size + kFixedPartMarginBytes);
+  write_envelope(result.bytes, MessageType::kFrame, [&](Writer& w) {
+    put_frame_header(w, header);
+    w.raw(payload, payload_size);
+  });
+  return result;
 }
 
 BodyResult decode_body(std::uint8_t type, const std::uint8_t* data, std::size_t size) {

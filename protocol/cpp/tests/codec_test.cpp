@@ -202,6 +202,23 @@ TEST(Encode, RejectsMessagesThatBreakTheSpec) {
   }
 }
 
+TEST(Encode, HeaderAndPointerOverloadEqualsTheFrameOverload) {
+  const Frame f = make_rgb_frame(6, 5, 3);
+  const EncodeResult a = encode_frame(f);
+  const EncodeResult b =
+      encode_frame(f.image.header, f.image.payload.data(), f.image.payload.size());
+  ASSERT_TRUE(a.ok() && b.ok()) << a.error << b.error;
+  EXPECT_EQ(a.bytes, b.bytes);
+  // WHEN payload_length disagrees with the size given THEN it refuses, naming the field.
+  const EncodeResult c = encode_frame(f.image.header, f.image.payload.data(), 10);
+  EXPECT_FALSE(c.ok());
+  EXPECT_NE(c.error.find("payload"), std::string::npos);
+  FrameHeader h = f.image.header;
+  h.payload_length = 4;
+  h.encoding = Encoding::kRgbJpeg;
+  EXPECT_FALSE(encode_frame(h, nullptr, 4).ok());
+}
+
 TEST(StreamDecoder, EveryTruncationNeedsMoreBytesAndThenDecodes) {
   const auto bytes = must_encode(make_handshake());
   for (std::size_t cut = 0; cut < bytes.size(); ++cut) {
