@@ -66,7 +66,7 @@ TxState g_tx = {nullptr, 0};
 Ring<kTelemetryRingBytes> g_telemetry_rx;
 struct SoftUartState {
   uint16_t sample_pos_fp;  // next sample time, Timer2 ticks in 8.8 fixed point (mod 256 ticks)
-  uint8_t bit_index;       // 0 = start bit, 1..8 data, 9 stop
+  uint8_t bit_index;       // 0 = start bit, 1..8 data bits 0..7
   uint8_t shift;
 };
 SoftUartState g_suart;
@@ -197,7 +197,7 @@ void telemetry_init() {
 
 bool telemetry_read(uint8_t* byte) { return g_telemetry_rx.pop(byte); }
 
-uint16_t telemetry_framing_errors() {
+uint16_t telemetry_overruns() {
   uint16_t v;
   ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { v = g_telemetry_rx.overruns; }
   return v;
@@ -216,27 +216,30 @@ ISR(INT0_vect) {
   TIMSK2 = _BV(OCIE2A);
 }
 
+// Samples start bit (must be low), then data bits 0..7. The byte is finished in the middle of bit 7:
+// from there until the next start bit the line can only rise (bit 7 -> stop bit) or stay high, so
+// INT0 is re-armed 1.5 bit times before the next possible start edge instead of 0.5 (after a stop-bit
+// sample), which keeps back-to-back bytes aligned even when this ISR is delayed by the RC pulse ISR.
+// Stop bits are not checked; MAVLink's CRC rejects any corrupted frame.
 ISR(TIMER2_COMPA_vect) {
   const bool high = (PIND & _BV(PD2)) != 0;
   const uint8_t i = g_suart.bit_index;
-  bool done = false;
   if (i == 0) {
-    done = high;  // a glitch, not a start bit
-  } else if (i <= 8) {
-    g_suart.shift = static_cast<uint8_t>((g_suart.shift >> 1) | (high ? 0x80 : 0));
-  } else {
-    if (high) {
-      g_telemetry_rx.push_isr(g_suart.shift);
-    } else {
-      g_telemetry_rx.overruns = static_cast<uint16_t>(g_telemetry_rx.overruns + 1);  // framing error
+    if (high) {  // a glitch, not a start bit
+      TIMSK2 = 0;
+      EIFR = _BV(INTF0);
+      EIMSK = _BV(INT0);
+      return;
     }
-    done = true;
-  }
-  if (done) {
-    TIMSK2 = 0;
-    EIFR = _BV(INTF0);
-    EIMSK = _BV(INT0);
-    return;
+  } else {
+    g_suart.shift = static_cast<uint8_t>((g_suart.shift >> 1) | (high ? 0x80 : 0));
+    if (i == 8) {
+      g_telemetry_rx.push_isr(g_suart.shift);
+      TIMSK2 = 0;
+      EIFR = _BV(INTF0);
+      EIMSK = _BV(INT0);
+      return;
+    }
   }
   g_suart.bit_index = static_cast<uint8_t>(i + 1);
   const uint16_t pos = static_cast<uint16_t>(g_suart.sample_pos_fp + kBitTicksFp);

@@ -30,7 +30,8 @@ uint16_t bridge_rx_overruns();
 /// Software UART receiver (INT0 start edge + Timer2 bit sampling) for MAVLink telemetry on PD2.
 void telemetry_init();
 bool telemetry_read(uint8_t* byte);
-uint16_t telemetry_framing_errors();
+/// Bytes dropped because the telemetry ring was full (diagnostics).
+uint16_t telemetry_overruns();
 
 }  // namespace drivers
 

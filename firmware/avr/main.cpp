@@ -11,14 +11,41 @@
 #include "../core/line_assembler.h"
 #include "../core/mavlink_imu_reader.h"
 #include "../core/pwm_schedule.h"
+#include "../core/seq_store.h"
 #include "drivers.h"
 
 namespace {
 
+/// Sequence floors in the two EEPROM slots (core/seq_store.h). eeprom_update_block blocks the main
+/// loop ~3.4 ms per changed byte, once per 65536 commands; the RC pulses are interrupt-driven.
+class EepromSeqStore final : public fw::SeqStore {
+ public:
+  static uint32_t load() {
+    uint8_t slots[fw::kSeqSlotsBytes];
+    read(slots);
+    return fw::load_seq_floor(slots);
+  }
+  void persist_seq_floor(uint32_t floor) override {
+    uint8_t slots[fw::kSeqSlotsBytes];
+    read(slots);
+    uint8_t slot[fw::kSeqSlotBytes];
+    fw::encode_seq_slot(floor, slot);
+    const uint16_t addr = static_cast<uint16_t>(fw::kSeqSlotsEepromAddress +
+                                                fw::seq_slot_to_write(slots) * fw::kSeqSlotBytes);
+    wdt_reset();
+    eeprom_update_block(slot, reinterpret_cast<void*>(addr), sizeof(slot));
+  }
+
+ private:
+  static void read(uint8_t* slots) {
+    eeprom_read_block(slots, reinterpret_cast<const void*>(fw::kSeqSlotsEepromAddress), fw::kSeqSlotsBytes);
+  }
+};
+
 /// The application: owns every piece of state the main loop uses (no globals).
 class App {
  public:
-  explicit App(const uint8_t* key) : controller_(key) {}
+  App(const uint8_t* key, uint32_t seq_floor) : controller_(key, seq_floor, &seq_store_) {}
 
   void init() {
     uint16_t out[fw::kChannelCount];
@@ -61,6 +88,7 @@ class App {
   }
 
  private:
+  EepromSeqStore seq_store_;  // declared before controller_, which holds a pointer to it
   fw::Controller controller_;
   fw::LineAssembler assembler_;
   fw::ImuCache imu_;
@@ -79,7 +107,7 @@ int main() {
   eeprom_read_block(record, reinterpret_cast<const void*>(fw::kKeyRecordEepromAddress), sizeof(record));
   uint8_t key[fw::kKeyBytes];
   const bool has_key = fw::load_key_record(record, key);
-  static App app(has_key ? key : nullptr);
+  static App app(has_key ? key : nullptr, EepromSeqStore::load());
   for (uint8_t i = 0; i < sizeof(key); ++i) key[i] = 0;
   for (uint8_t i = 0; i < sizeof(record); ++i) record[i] = 0;
   drivers::clock_init();

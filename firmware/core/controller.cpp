@@ -38,7 +38,8 @@ const char* arm_state_name(ArmState s) {
   return "unknown";
 }
 
-Controller::Controller(const uint8_t* key) {
+Controller::Controller(const uint8_t* key, uint32_t seq_floor, SeqStore* seq_store)
+    : last_seq_(seq_floor), seq_reserved_(seq_floor), seq_store_(seq_store) {
   for (size_t i = 0; i < kKeyBytes; ++i) key_[i] = key != nullptr ? key[i] : 0;
   has_key_ = key != nullptr;
   safe_outputs(command_us_);
@@ -60,6 +61,11 @@ Status Controller::apply_control(const ParsedRequest& r, uint32_t now_ms) {
     case ArmState::kArmed:
       if (!arm) state_ = ArmState::kDisarmed;
       break;
+  }
+  if (r.seq > seq_reserved_) {
+    // Persist the reservation BEFORE applying, so a reset can never re-open this number.
+    seq_reserved_ = r.seq > 0xFFFFFFFFUL - kSeqReserveCount ? 0xFFFFFFFFUL : r.seq + kSeqReserveCount;
+    if (seq_store_ != nullptr) seq_store_->persist_seq_floor(seq_reserved_);
   }
   last_seq_ = r.seq;
   last_valid_ms_ = now_ms;

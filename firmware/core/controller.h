@@ -9,7 +9,7 @@
 //         kFailsafe -> (arm=0) -> kDisarmed ; arm=1 in kFailsafe is refused (403): a fresh arm is needed.
 // Request checks, in order: syntax (400/404/405) -> key present (503) -> MAC (401) -> sequence (409)
 // -> ranges (422) -> state (403) -> applied (200). Only a 200 changes outputs, the last accepted
-// sequence number, or the failsafe timer.
+// sequence number, or the failsafe timer. Sequence numbers stay stale across resets (seq_store.h).
 #ifndef FIRMWARE_CORE_CONTROLLER_H_
 #define FIRMWARE_CORE_CONTROLLER_H_
 
@@ -20,6 +20,7 @@
 #include "key_store.h"
 #include "limits.h"
 #include "request_parser.h"
+#include "seq_store.h"
 #include "status.h"
 
 namespace fw {
@@ -34,7 +35,10 @@ constexpr size_t kReplyBufferBytes = 272;
 class Controller {
  public:
   /// `key`: kKeyBytes bytes, or nullptr when no valid key is provisioned (all commands get 503).
-  explicit Controller(const uint8_t* key);
+  /// `seq_floor`: the persisted sequence floor (load_seq_floor); numbers at or below it are stale.
+  /// `seq_store`: where new floors are persisted (nullptr: not persisted, e.g. in unit tests that
+  /// do not care); must outlive the controller.
+  explicit Controller(const uint8_t* key, uint32_t seq_floor = 0, SeqStore* seq_store = nullptr);
 
   /// Handles one complete request line received at now_ms and writes the reply line (ending in
   /// '\n', NUL-terminated) into reply[0..cap). Returns the reply length without the NUL.
@@ -64,6 +68,8 @@ class Controller {
   bool has_key_ = false;
   ArmState state_ = ArmState::kDisarmed;
   uint32_t last_seq_ = 0;
+  uint32_t seq_reserved_ = 0;  ///< persisted floor: accepting a number above it persists a new one
+  SeqStore* seq_store_ = nullptr;
   uint16_t command_us_[kChannelCount];  ///< clamped command being output while armed
   uint8_t clamped_mask_ = 0;
   uint32_t last_valid_ms_ = 0;

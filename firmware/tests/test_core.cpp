@@ -14,6 +14,7 @@
 #include "mavlink_imu_reader.h"
 #include "pwm_schedule.h"
 #include "request_parser.h"
+#include "seq_store.h"
 #include "rgbd_control/siphash24.h"
 
 namespace {
@@ -513,4 +514,80 @@ TEST(Robustness, MutatedAndRandomStreamsNeverApplyAnythingOrOverflow) {
   EXPECT_EQ(out[fw::kChRoll], 1600);
   EXPECT_EQ(out[fw::kChThrottle], 1300);
   EXPECT_GT(replies, 10000);
+}
+
+// ---- replay protection across resets ------------------------------------------------------------------------
+namespace {
+
+/// EEPROM stand-in: two slots, records every write.
+class FakeSeqStore final : public fw::SeqStore {
+ public:
+  FakeSeqStore() {
+    for (auto& b : slots) b = 0xFF;  // erased EEPROM
+  }
+  void persist_seq_floor(uint32_t floor) override {
+    fw::encode_seq_slot(floor, slots + fw::seq_slot_to_write(slots) * fw::kSeqSlotBytes);
+    ++writes;
+  }
+  uint8_t slots[fw::kSeqSlotsBytes];
+  int writes = 0;
+};
+
+}  // namespace
+
+TEST(SeqStore, ReplayAfterResetIsRejectedAndGroundStationResyncs) {
+  FakeSeqStore store;
+  ASSERT_EQ(fw::load_seq_floor(store.slots), 0u);
+  const std::string recorded_arm = cmd(5, 1, 1500, 1500, 1000, 1500);
+  {
+    // GIVEN a craft that accepted seq 5..7 before a reset
+    fw::Controller c(kKey, fw::load_seq_floor(store.slots), &store);
+    ASSERT_EQ(send(c, recorded_arm, 0), 200);
+    ASSERT_EQ(send(c, cmd(6, 1, 1500, 1500, 1200, 1500), 10), 200);
+    ASSERT_EQ(send(c, cmd(7, 1, 1500, 1500, 1200, 1500), 20), 200);
+    EXPECT_EQ(store.writes, 1) << "one EEPROM write per kSeqReserveCount numbers";
+  }
+  // WHEN it reboots and an attacker replays the recorded arm command (or a later one)
+  fw::Controller rebooted(kKey, fw::load_seq_floor(store.slots), &store);
+  EXPECT_EQ(send(rebooted, recorded_arm, 0), 409);
+  EXPECT_EQ(send(rebooted, cmd(8, 1, 1500, 1500, 1000, 1500), 0), 409);
+  EXPECT_EQ(rebooted.state(), fw::ArmState::kDisarmed);
+  // THEN the ground station resumes after the seq its 409 reply reports
+  EXPECT_EQ(rebooted.last_seq(), 5u + fw::kSeqReserveCount);
+  EXPECT_EQ(send(rebooted, cmd(rebooted.last_seq() + 1, 1, 1500, 1500, 1000, 1500), 1), 200);
+  EXPECT_EQ(store.writes, 2);
+}
+
+TEST(SeqStore, ReservationIsWrittenOncePerWindowAndBeforeItIsUsed) {
+  FakeSeqStore store;
+  fw::Controller c(kKey, 0, &store);
+  uint32_t seq = 1;
+  for (int i = 0; i < 300; ++i, seq += 1000) {
+    ASSERT_EQ(send(c, cmd(seq, 0, 1500, 1500, 1000, 1500), static_cast<uint32_t>(i)), 200);
+    ASSERT_GE(fw::load_seq_floor(store.slots), seq) << "accepted a number not yet covered in EEPROM";
+  }
+  EXPECT_EQ(store.writes, 5);  // 299001 / 65536 -> windows starting at 1, 65537+.., ...
+}
+
+TEST(SeqStore, SlotsSurviveATornWriteAndSaturate) {
+  uint8_t slots[fw::kSeqSlotsBytes];
+  for (auto& b : slots) b = 0xFF;
+  EXPECT_EQ(fw::load_seq_floor(slots), 0u);
+  EXPECT_EQ(fw::seq_slot_to_write(slots), 0);
+  fw::encode_seq_slot(70000, slots);
+  EXPECT_EQ(fw::seq_slot_to_write(slots), 1);
+  fw::encode_seq_slot(140000, slots + 8);
+  EXPECT_EQ(fw::load_seq_floor(slots), 140000u);
+  EXPECT_EQ(fw::seq_slot_to_write(slots), 0);
+  // A write of 210000 into slot 0 torn after 3 bytes: slot 0 invalid, slot 1 still covers.
+  uint8_t next[8];
+  fw::encode_seq_slot(210000, next);
+  for (int i = 0; i < 3; ++i) slots[i] = next[i];
+  EXPECT_EQ(fw::load_seq_floor(slots), 140000u);
+  EXPECT_EQ(fw::seq_slot_to_write(slots), 0);
+  // Near the top the reservation saturates instead of wrapping.
+  FakeSeqStore store;
+  fw::Controller c(kKey, 0, &store);
+  ASSERT_EQ(send(c, cmd(0xFFFFFFF0u, 0, 1500, 1500, 1000, 1500), 0), 200);
+  EXPECT_EQ(fw::load_seq_floor(store.slots), 0xFFFFFFFFu);
 }

@@ -3,6 +3,8 @@
 // Usage: fw_sim --elf FILE [--eeprom FILE] [--interactive] < script > log
 //   --elf FILE       firmware image (firmware/.pio/build/uno_wifi/program.elf)
 //   --eeprom FILE    raw bytes loaded into EEPROM at address 0 before reset (the key record)
+//   --eeprom-out FILE  write the whole EEPROM (1024 bytes) to FILE when the simulation ends, to
+//                    start a later run from it (a reset / power cycle of the board)
 //   --interactive    lock-step co-simulation: commands are applied as they are read, and
 //                    "run T" advances the simulation to T, then prints "at T" and flushes, so a
 //                    driver (e.g. a flight-controller model) can react to the pulses before it sends
@@ -43,8 +45,10 @@ namespace {
 
 constexpr uint32_t kCpuHz = 16000000;
 constexpr double kCyclesPerUs = kCpuHz / 1e6;
-/// Bridge link: 500000 baud 8N1 = 10 bits per byte = 20 us = 320 cycles per byte.
-constexpr uint64_t kBridgeByteCycles = 320;
+/// Bridge link bytes are fed at simavr 1.6's own UART byte time at 500000 baud, 32 us (it models a
+/// byte as 16 bit times, measured from the firmware's TX; real 8N1 is 10 bit times = 20 us): faster
+/// feeding would pile bytes up in simavr's input FIFO and overflow it on long lines.
+constexpr uint64_t kBridgeByteCycles = 512;
 /// MAVLink telemetry: 57600 baud; a bit lasts 16e6 / 57600 = 277.78 cycles.
 constexpr double kMavBitCycles = kCpuHz / 57600.0;
 /// RC outputs PB1..PB4 = channels 1..4.
@@ -127,7 +131,7 @@ void append_serial_edges(std::vector<PinEdge>* edges, uint64_t start, const std:
 }
 
 int usage(const char* msg) {
-  std::fprintf(stderr, "fw_sim: %s\nusage: fw_sim --elf FILE [--eeprom FILE] [--interactive] < script > log\n", msg);
+  std::fprintf(stderr, "fw_sim: %s\nusage: fw_sim --elf FILE [--eeprom FILE] [--eeprom-out FILE] [--interactive] < script > log\n", msg);
   return 2;
 }
 
@@ -233,6 +237,7 @@ int run_until(Sim* sim, Feeder* f, avr_irq_t* uart_in, avr_irq_t* mav_pin, uint6
 int main(int argc, char** argv) {
   std::string elf_path;
   std::string eeprom_path;
+  std::string eeprom_out_path;
   bool interactive = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -240,10 +245,12 @@ int main(int argc, char** argv) {
       elf_path = argv[++i];
     } else if (a == "--eeprom" && i + 1 < argc) {
       eeprom_path = argv[++i];
+    } else if (a == "--eeprom-out" && i + 1 < argc) {
+      eeprom_out_path = argv[++i];
     } else if (a == "--interactive") {
       interactive = true;
     } else if (a == "-h" || a == "--help") {
-      std::printf("usage: fw_sim --elf FILE [--eeprom FILE] [--interactive] < script > log\n"
+      std::printf("usage: fw_sim --elf FILE [--eeprom FILE] [--eeprom-out FILE] [--interactive] < script > log\n"
                   "Runs the firmware image on simavr (ATmega328P, 16 MHz) and plays the script;\n"
                   "see the header of hil/arduino/fw_sim.cpp for the script and log formats.\n");
       return 0;
@@ -337,6 +344,22 @@ int main(int argc, char** argv) {
       if (cmd == "end" || state == cpu_Done || state == cpu_Crashed) break;
       std::printf("at %.3f\n", us(sim.avr->cycle));
       std::fflush(stdout);
+    }
+  }
+  if (!eeprom_out_path.empty()) {
+    std::vector<uint8_t> ee(1024, 0xFF);  // ATmega328P: 1 KB EEPROM
+    avr_eeprom_desc_t d;
+    d.ee = ee.data();
+    d.offset = 0;
+    d.size = static_cast<uint32_t>(ee.size());
+    // simavr 1.6 copies into d.ee but does not return 0 for this ioctl: the result is not checked
+    // (the replay-after-reset test proves the copy).
+    avr_ioctl(sim.avr, AVR_IOCTL_EEPROM_GET, &d);
+    std::ofstream out(eeprom_out_path, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(ee.data()), static_cast<std::streamsize>(ee.size()));
+    if (!out) {
+      std::fprintf(stderr, "fw_sim: cannot write %s\n", eeprom_out_path.c_str());
+      return 1;
     }
   }
   std::printf("done %.3f\n", us(sim.avr->cycle));

@@ -62,6 +62,7 @@ class Result:
     replies: list[Reply] = field(default_factory=list)
     sent: list[Sent] = field(default_factory=list)
     done_us: float = 0.0
+    eeprom: bytes | None = None  # the EEPROM at the end (1024 bytes), when run(..., keep_eeprom=True)
 
     def pulses_of(self, channel: int, after_us: float = 0.0, before_us: float = float("inf")) -> list[Pulse]:
         return [p for p in self.pulses if p.channel == channel and after_us <= p.rise_us < before_us]
@@ -106,24 +107,32 @@ class Scenario:
             raise ValueError("call end(t_us) first")
         return "\n".join(self._lines + [f"end {self._end_us:.3f}"]) + "\n"
 
-    def run(self, key_record: bytes | None, workdir: pathlib.Path | None = None) -> Result:
-        """Runs fw_sim; key_record is the EEPROM content (None: erased EEPROM, no key)."""
+    def run(self, key_record: bytes | None, workdir: pathlib.Path | None = None,
+            keep_eeprom: bool = False) -> Result:
+        """Runs fw_sim; key_record is the EEPROM content from address 0 (None: erased EEPROM, no
+        key), e.g. a key record or the `eeprom` of an earlier Result (a reboot)."""
         sim, elf = fw_sim_path(), firmware_elf_path()
         for p, how in ((sim, "build it: make build (or cmake --build ... --target fw_sim)"),
                        (elf, "build it: firmware/build.sh")):
             if not p.is_file():
                 raise FileNotFoundError(f"{p} not found: {how}")
         args = [str(sim), "--elf", str(elf)]
-        if key_record is not None:
-            wd = workdir or pathlib.Path(os.environ.get("TMPDIR", "/tmp"))
-            ee = wd / f"fw_sim_eeprom_{os.getpid()}.bin"
-            ee.write_bytes(key_record)
-            args += ["--eeprom", str(ee)]
-        proc = subprocess.run(args, input=self.script(), capture_output=True, text=True,
-                              timeout=RUN_TIMEOUT_S, check=False)
-        if proc.returncode != 0:
-            raise RuntimeError(f"fw_sim failed ({proc.returncode}): {proc.stderr.strip()}")
-        return parse_log(proc.stdout)
+        with tempfile.TemporaryDirectory(dir=workdir) as tmp:
+            if key_record is not None:
+                ee = pathlib.Path(tmp) / "eeprom_in.bin"
+                ee.write_bytes(key_record)
+                args += ["--eeprom", str(ee)]
+            ee_out = pathlib.Path(tmp) / "eeprom_out.bin"
+            if keep_eeprom:
+                args += ["--eeprom-out", str(ee_out)]
+            proc = subprocess.run(args, input=self.script(), capture_output=True, text=True,
+                                  timeout=RUN_TIMEOUT_S, check=False)
+            if proc.returncode != 0:
+                raise RuntimeError(f"fw_sim failed ({proc.returncode}): {proc.stderr.strip()}")
+            result = parse_log(proc.stdout)
+            if keep_eeprom:
+                result.eeprom = ee_out.read_bytes()
+        return result
 
 
 def parse_log(text: str) -> Result:
