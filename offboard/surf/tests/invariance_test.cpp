@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "rgbd_pair.hpp"
 #include "slam/surf.hpp"
 #include "test_images.hpp"
 
@@ -70,6 +71,28 @@ TEST(SurfInvarianceUpright, GivenRotationThenUprightDescriptorsMatchFarWorse) {
   const auto a = surf_test::evaluate_invariance(*oriented, gray, 90, 1.0, kRatio, kTolPx);
   const auto b = surf_test::evaluate_invariance(*fixed, gray, 90, 1.0, kRatio, kTolPx);
   EXPECT_GT(a.correct_matches, 3 * b.correct_matches);
+}
+
+TEST(SurfRealMotion, GivenNearbyFr1XyzFramesThenMatchesAgreeWithGroundTruthMotion) {
+  // GIVEN frame 0 and frames 1 and 5 (0.04 s, 0.17 s later) of tests/data/fr1_xyz_first30 with
+  // depth and motion-capture poses.
+  const auto frames =
+      surf_test::load_rgbd_sequence(std::string(SLAM_REPO_DIR) + "/tests/data/fr1_xyz_first30", 6);
+  ASSERT_EQ(frames.size(), 6u) << "tests/data/fr1_xyz_first30 incomplete";
+  auto surf = create_surf({});
+  // Tolerance: PnP on the matches and the ground truth disagree by ~8 mm / 0.25 deg on this
+  // sequence (hand-eye calibration, time sync), ~5 px at 1 m; wrong matches land far away.
+  constexpr double kGroundTruthTolPx = 10.0;
+  // measured: 0-1: 579 of 588 consistent (0.985), 0-5: 585 of 594 (0.985); SIFT 0.928 / 0.935.
+  for (std::size_t k : {1u, 5u}) {
+    const auto r =
+        surf_test::evaluate_rgbd_pair(*surf, frames[0], frames[k], kRatio, kGroundTruthTolPx);
+    std::cout << "[ measured ] frames 0-" << k << ": " << r.consistent << " of " << r.with_depth
+              << " matches with depth consistent, median error " << r.median_error_px << " px\n";
+    EXPECT_GE(r.with_depth, 400u);
+    EXPECT_GE(r.precision, 0.93);
+    EXPECT_LT(r.median_error_px, 3.0);
+  }
 }
 
 }  // namespace
