@@ -53,6 +53,9 @@ class BridgeOptions:
 
 class _Handler(BaseHTTPRequestHandler):
     protocol_version = "HTTP/1.1"  # keep-alive, as quad-control's two clients expect
+    # Error replies to unparsable requests still carry a status line (http.server would otherwise
+    # answer a request it takes for HTTP/0.9 with a bare body).
+    default_request_version = "HTTP/1.0"
     server_version = "rgbdquad-bridge-emulator/1"
 
     def log_message(self, fmt, *args) -> None:  # the scenarios count requests instead

@@ -1,0 +1,187 @@
+"""Real-time HIL rig: the firmware image in simavr (fw_sim --interactive, via hil/arduino's
+LiveSession) in lock-step with the FC emulator, paced to the wall clock so real processes (HTTP
+clients through the WiFi-bridge emulator, quad-control) can talk to it.
+
+Each step (step_us of simulated time, run when the paced clock reaches it): inject the next queued
+bridge request line (one in flight at a time, as the bridge chip does), feed the FC emulator's
+MAVLink bytes to the telemetry pin, simulate the firmware to the step's end, feed every measured RC
+pulse to the FC emulator, advance it, and resolve the request whose reply line arrived.
+The wall clock is read only here, through the `clock` passed in (the adapter between simulated time
+and the real processes); everything below it stays simulated. If the machine cannot keep up, the rig
+runs as fast as it can and reports its real-time factor.
+Thread safety: transact()/snapshot()/history() may be called from any thread; one rig thread.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+import os
+import threading
+import time
+
+from fc_emulator import FcOptions, FcSnapshot, FlightControllerEmulator
+from hilrig.fw_sim import firmware_elf
+from hilrig.paths import find_binary
+
+
+@dataclass
+class _Pending:
+    line: str
+    done: threading.Event = field(default_factory=threading.Event)
+    reply: str | None = None
+    injected_us: float | None = None
+    reply_end_us: float | None = None
+    abandoned: bool = False
+
+
+@dataclass(frozen=True)
+class LineTiming:
+    """Simulated times of one bridge request: injected on the serial link, reply complete, and the
+    rise of the first throttle pulse after the reply (when the new command reaches the APM)."""
+
+    injected_us: float
+    reply_end_us: float
+    first_pulse_after_us: float | None
+
+
+class LiveRig:
+    def __init__(self, key_record: bytes, fc_options: FcOptions | None = None, step_us: int = 5000,
+                 time_scale: float = 1.0, workdir=None, clock=time.monotonic) -> None:
+        binary, elf = find_binary("fw_sim"), firmware_elf()
+        if binary is None or elf is None:
+            raise FileNotFoundError("fw_sim or the firmware .elf is not built (make build / make firmware)")
+        if not step_us > 0 or not time_scale > 0:
+            raise ValueError("step_us and time_scale must be > 0")
+        os.environ["FW_SIM_BIN"] = str(binary)   # LiveSession finds the harness through these
+        os.environ["FW_ELF"] = str(elf)
+        from arduino.simavr_session import LiveSession
+
+        self._session = LiveSession(key_record, workdir)
+        self._mav: list[tuple[int, bytes]] = []
+        self.fc = FlightControllerEmulator(sink=lambda t, d: self._mav.append((t, d)),
+                                           options=fc_options)
+        self.step_us = step_us
+        self.time_scale = time_scale
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._queue: deque[_Pending] = deque()
+        self._inflight: _Pending | None = None
+        self._history: list[FcSnapshot] = []
+        self._timings: list[LineTiming] = []
+        self._awaiting_pulse: list[tuple[float, float]] = []
+        self._stop = threading.Event()
+        self._error: BaseException | None = None
+        self.sim_us = 0
+        self.wall_s = 0.0
+        self._thread = threading.Thread(target=self._run, name="live-rig", daemon=True)
+
+    # ---- API ------------------------------------------------------------------------------------
+    def start(self) -> "LiveRig":
+        self._thread.start()
+        return self
+
+    def transact(self, line: str, timeout_s: float) -> str | None:
+        """Sends one line on the firmware's serial link; the reply line, or None after timeout_s."""
+        p = _Pending(line)
+        with self._lock:
+            self._queue.append(p)
+        if not p.done.wait(timeout_s):
+            with self._lock:
+                p.abandoned = True
+                if p in self._queue:
+                    self._queue.remove(p)
+            return None
+        return p.reply
+
+    def snapshot(self) -> FcSnapshot:
+        with self._lock:
+            return self._history[-1] if self._history else self.fc.snapshot()
+
+    def history(self) -> list[FcSnapshot]:
+        with self._lock:
+            return list(self._history)
+
+    def timings(self) -> list[LineTiming]:
+        with self._lock:
+            return list(self._timings)
+
+    def wait_sim(self, t_us: float, timeout_s: float) -> bool:
+        end = time.monotonic() + timeout_s
+        while self.sim_us < t_us and time.monotonic() < end and self._thread.is_alive():
+            time.sleep(0.01)
+        return self.sim_us >= t_us
+
+    @property
+    def realtime_factor(self) -> float:
+        return (self.sim_us / 1e6) / self.wall_s if self.wall_s > 0 else 0.0
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=10)
+        self._session.close()
+        if self._error is not None:
+            raise RuntimeError(f"live rig failed: {self._error!r}") from self._error
+
+    def __enter__(self) -> "LiveRig":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ---- rig thread -------------------------------------------------------------------------------
+    def _run(self) -> None:
+        try:
+            wall0 = self._clock()
+            while not self._stop.is_set():
+                t_next = self.sim_us + self.step_us
+                due_wall = wall0 + t_next / 1e6 / self.time_scale
+                now = self._clock()
+                if now < due_wall:
+                    time.sleep(min(due_wall - now, 0.002))
+                    continue
+                self._step(t_next)
+                self.wall_s = self._clock() - wall0
+        except BaseException as e:  # reported by close(); nothing escapes the thread
+            self._error = e
+
+    def _step(self, t_next: int) -> None:
+        s = self._session
+        with self._lock:
+            if self._inflight is None:
+                while self._queue and self._queue[0].abandoned:
+                    self._queue.popleft()
+                if self._queue:
+                    self._inflight = self._queue.popleft()
+                    self._inflight.injected_us = max(float(self.sim_us), s.now_us)
+                    s.req(self._inflight.injected_us, self._inflight.line)
+        for t, data in self._mav:
+            s.mav(t, data)
+        self._mav.clear()
+        res = s.run(t_next)
+        for p in sorted(res.pulses, key=lambda q: q.rise_us + q.width_us):
+            end = int(p.rise_us + p.width_us)
+            self.fc.advance_to(end)
+            self.fc.feed_pulse(p.channel - 1, p.width_us, end)
+            if p.channel == 3 and self._awaiting_pulse:
+                with self._lock:
+                    for inj, rep in self._awaiting_pulse:
+                        if p.rise_us >= rep:
+                            self._timings.append(LineTiming(inj, rep, p.rise_us))
+                    self._awaiting_pulse = [(i, r) for i, r in self._awaiting_pulse if p.rise_us < r]
+        self.fc.advance_to(t_next)
+        snap = self.fc.snapshot()
+        with self._lock:
+            self.sim_us = t_next
+            self._history.append(snap)
+            for r in res.replies:
+                p = self._inflight
+                self._inflight = None
+                if p is None:
+                    continue
+                p.reply = r.text
+                p.reply_end_us = r.end_us
+                if p.injected_us is not None:
+                    self._awaiting_pulse.append((p.injected_us, r.end_us))
+                p.done.set()
