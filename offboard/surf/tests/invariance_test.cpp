@@ -35,6 +35,9 @@ const InvarianceCase kCases[] = {
     {"scale1.5", 0, 1.5, 0.80, 0.70},
 };
 
+// Readable names in gtest/ctest output instead of a byte dump.
+void PrintTo(const InvarianceCase& c, std::ostream* out) { *out << c.name; }
+
 class SurfInvariance : public ::testing::TestWithParam<InvarianceCase> {};
 
 TEST_P(SurfInvariance, GivenWarpedFrameThenMatchesAndDetectionsFollowTheTransform) {
