@@ -108,3 +108,22 @@ def test_seeded_random_bytes_never_raise_and_always_progress():
             assert dec.buffered_bytes < before, trial
         else:
             pytest.fail("decoder did not settle")
+
+
+def test_decoder_cap_refuses_bodies_above_it_before_they_arrive():
+    fields = {"image": {"sequence": 0, "capture_timestamp_us": 0, "send_timestamp_us": 0,
+                        "width": 8, "height": 8, "pixel_format": "RGB8", "encoding": "RAW",
+                        "payload": bytes(192)}}
+    data = CODEC.encode("Frame", fields)
+    dec = StreamDecoder(CODEC, max_body_bytes=64)
+    dec.feed(data[:16])  # the header alone is enough to refuse
+    (event,) = dec.drain()
+    assert event.error == "body_too_large"
+
+
+def test_schema_mismatch_reason_names_both_hashes():
+    reason = CODEC.incompatibility({"protocol_version": 1, "schema_hash": 1})
+    assert "0x0000000000000001" in reason and f"{CODEC.spec.schema_hash:016x}" in reason
+    assert "version" in CODEC.incompatibility({"protocol_version": 2, "schema_hash": 1})
+    assert CODEC.incompatibility({"protocol_version": 1,
+                                  "schema_hash": CODEC.spec.schema_hash}) == ""
