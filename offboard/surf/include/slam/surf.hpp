@@ -10,6 +10,9 @@
 // scale), angle = dominant orientation in degrees [0, 360) measured from +x towards +y (image
 // axes; 0 for upright), response = Hessian determinant, octave = octave index, class_id = sign
 // of the Laplacian (-1: bright blob on dark, +1: dark blob on bright).
+// compute() on keypoints from elsewhere uses their pt and size, re-estimates the orientation
+// (unless upright, as OpenCV's SURF does) and drops keypoints it cannot describe (non-finite,
+// size <= 0, no wavelet inside the image), so the descriptor rows always match `keypoints`.
 //
 // Thread safety: the object holds only its immutable options, so concurrent calls on one
 // instance are safe. Each call parallelises internally with cv::parallel_for_ and gives
