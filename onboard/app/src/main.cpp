@@ -72,6 +72,12 @@ int run(const app::StreamerConfig& config, std::shared_ptr<spdlog::logger> log, 
   depth_options.kind = protocol::StreamKind::kDepth;
   depth_options.port = config.depth_port;
   depth_options.encoding = *stream::depth_encoding_from_string(config.depth_encoding);
+  if (config.pair_depth_with_rgb) {
+    auto hint = std::make_shared<stream::PairHint>();
+    rgb_options.pair_hint = hint;
+    depth_options.pair_hint = hint;
+    depth_options.held_frames = 6;  // 200 ms at 30 fps (see StreamSenderOptions::held_frames)
+  }
   depth_options.depth_units_per_m =
       config.source == "tum" ? capture::kTumDepthUnitsPerM : capture::kMillimetreUnitsPerM;
 
@@ -156,6 +162,7 @@ int main(int argc, char** argv) {
   over(parser.add_option("--depth-encoding", cli.depth_encoding, "raw | rvl | zstd-delta (default rvl, lossless)"), [&](auto* c) { c->depth_encoding = cli.depth_encoding; });
   over(parser.add_option("--rgb-encoding", cli.rgb_encoding, "raw | jpeg (default raw)"), [&](auto* c) { c->rgb_encoding = cli.rgb_encoding; });
   over(parser.add_option("--jpeg-quality", cli.jpeg_quality, "JPEG quality 1..100 (default 90)"), [&](auto* c) { c->jpeg_quality = cli.jpeg_quality; });
+  over(parser.add_option("--pair-depth-with-rgb", cli.pair_depth_with_rgb, "send the depth frame nearest the RGB frame just sent (true/false, default true)"), [&](auto* c) { c->pair_depth_with_rgb = cli.pair_depth_with_rgb; });
   over(parser.add_option("--stats-period", cli.stats_period_s, "seconds between counter lines, 0 = off (default 5)"), [&](auto* c) { c->stats_period_s = cli.stats_period_s; });
   over(parser.add_option("--log-level", cli.log_level, "trace | debug | info | warn | error (default info)"), [&](auto* c) { c->log_level = cli.log_level; });
   over(parser.add_option("--exit-linger-ms", cli.exit_linger_ms, "after a replay ends, wait this long for the last frames to go (default 2000)"), [&](auto* c) { c->exit_linger_ms = cli.exit_linger_ms; });

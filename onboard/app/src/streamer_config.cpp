@@ -75,6 +75,7 @@ void load_yaml_file(const std::string& path, StreamerConfig* c) {
       else if (key == "rgb_encoding") read(v, key, &c->rgb_encoding);
       else if (key == "jpeg_quality") read(v, key, &c->jpeg_quality);
       else if (key == "zstd_level") read(v, key, &c->zstd_level);
+      else if (key == "pair_depth_with_rgb") read(v, key, &c->pair_depth_with_rgb);
       else if (key == "device_id") read(v, key, &c->device_id);
       else if (key == "rgb_intrinsics") read_array(v, key, &c->rgb_intrinsics);
       else if (key == "rgb_distortion") read_array(v, key, &c->rgb_distortion);
@@ -139,6 +140,7 @@ std::string StreamerConfig::to_string() const {
     << "rgb_encoding: " << rgb_encoding << "\n"
     << "jpeg_quality: " << jpeg_quality << "\n"
     << "zstd_level: " << zstd_level << "\n"
+    << "pair_depth_with_rgb: " << (pair_depth_with_rgb ? "true" : "false") << "\n"
     << "device_id: " << device_id << "\n"
     << "rgb_intrinsics: " << join(rgb_intrinsics) << "\n"
     << "rgb_distortion: " << join(rgb_distortion) << "\n"

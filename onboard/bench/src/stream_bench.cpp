@@ -143,17 +143,24 @@ void end_to_end(const Frames& f, double link_mbps, double fps, double seconds) {
               link_mbps, fps, fps, seconds);
   std::printf("(raw arithmetic: %.0f Mbps / (921600 + 614400 B) = %.1f fps)\n", link_mbps,
               link_mbps * 1e6 / 8 / (921600.0 + 614400.0));
-  std::printf("| depth | rgb | rgb fps | depth fps | pairs/s | link Mbps used | latency ms mean / p95 (capture -> decoded) | encode ms rgb / depth | decode ms rgb / depth |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|\n");
-  const std::pair<protocol::Encoding, protocol::Encoding> modes[] = {
-      {protocol::Encoding::kRaw, protocol::Encoding::kRaw},
-      {protocol::Encoding::kDepthRvl, protocol::Encoding::kRaw},
-      {protocol::Encoding::kDepthZstdDelta, protocol::Encoding::kRaw},
-      {protocol::Encoding::kDepthRvl, protocol::Encoding::kRgbJpeg},
-      {protocol::Encoding::kDepthZstdDelta, protocol::Encoding::kRgbJpeg}};
+  std::printf("| depth | rgb | pair depth with rgb | credits | rgb fps | depth fps | pairs/s | link Mbps used | latency ms mean / p95 (capture -> decoded) | encode ms rgb / depth | decode ms rgb / depth |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
+  struct Mode {
+    protocol::Encoding depth, rgb;
+    bool pair;
+    std::uint16_t credits;
+  };
+  using E = protocol::Encoding;
+  const Mode modes[] = {{E::kRaw, E::kRaw, false, 2},         {E::kRaw, E::kRaw, true, 2},
+                        {E::kRaw, E::kRaw, true, 1},          {E::kDepthRvl, E::kRaw, true, 2},
+                        {E::kDepthZstdDelta, E::kRaw, true, 2}, {E::kDepthRvl, E::kRgbJpeg, true, 2},
+                        {E::kDepthRvl, E::kRgbJpeg, true, 1}, {E::kDepthZstdDelta, E::kRgbJpeg, true, 2}};
   capture::SteadyClock clock;
-  for (const auto& [depth_enc, rgb_enc] : modes) {
+  for (const auto& mode : modes) {
+    const auto depth_enc = mode.depth;
+    const auto rgb_enc = mode.rgb;
     receiver::ReceiverOptions ro;
+    ro.credits_in_flight = mode.credits;
     ro.bind_address = "127.0.0.1";
     ro.rgb_port = 0;
     ro.depth_port = 0;
@@ -163,10 +170,16 @@ void end_to_end(const Frames& f, double link_mbps, double fps, double seconds) {
     so.host = "127.0.0.1";
     so.intrinsics = {517.3, 516.5, 318.6, 255.3, {}};
     so.depth_units_per_m = capture::kTumDepthUnitsPerM;
+    if (mode.pair) {
+      so.pair_hint = std::make_shared<stream::PairHint>();
+      so.held_frames = 6;
+    }
     so.kind = protocol::StreamKind::kRgb;
     so.port = proxy.port(0);
     so.encoding = rgb_enc;
-    stream::StreamSender rgb(so, &clock, nullptr);
+    auto rgb_so = so;
+    rgb_so.held_frames = 1;
+    stream::StreamSender rgb(rgb_so, &clock, nullptr);
     so.kind = protocol::StreamKind::kDepth;
     so.port = proxy.port(1);
     so.encoding = depth_enc;
@@ -207,8 +220,9 @@ void end_to_end(const Frames& f, double link_mbps, double fps, double seconds) {
     const double mbps = static_cast<double>((c1.rgb.wire_bytes - c0.rgb.wire_bytes) + (c1.depth.wire_bytes - c0.depth.wire_bytes)) * 8 / 1e6 / elapsed;
     auto per = [](std::int64_t us, std::uint64_t n) { return n ? static_cast<double>(us) / 1000.0 / static_cast<double>(n) : 0.0; };
     const double mean = latency_ms.empty() ? 0 : std::accumulate(latency_ms.begin(), latency_ms.end(), 0.0) / static_cast<double>(latency_ms.size());
-    std::printf("| %s | %s | %.1f | %.1f | %.1f | %.1f | %.1f / %.1f | %.2f / %.2f | %.2f / %.2f |\n",
-                stream::encoding_name(depth_enc).c_str(), stream::encoding_name(rgb_enc).c_str(), rgb_fps, depth_fps,
+    std::printf("| %s | %s | %s | %u | %.1f | %.1f | %.1f | %.1f | %.1f / %.1f | %.2f / %.2f | %.2f / %.2f |\n",
+                stream::encoding_name(depth_enc).c_str(), stream::encoding_name(rgb_enc).c_str(),
+                mode.pair ? "yes" : "no", static_cast<unsigned>(mode.credits), rgb_fps, depth_fps,
                 static_cast<double>(pair_id - first_pair) / elapsed, mbps, mean, percentile(latency_ms, 0.95),
                 per(s1.rgb.encode_us_total - s0.rgb.encode_us_total, s1.rgb.sent - s0.rgb.sent),
                 per(s1.depth.encode_us_total - s0.depth.encode_us_total, s1.depth.sent - s0.depth.sent),

@@ -18,6 +18,21 @@ constexpr std::size_t kReadChunkBytes = 4096;
 constexpr std::uint32_t kMaxBankedCredits = protocol::kMaxCreditsPerRequest;
 }  // namespace
 
+std::size_t choose_frame(const std::vector<std::int64_t>& capture_us, std::int64_t hint,
+                         std::int64_t hint_used_before) {
+  const std::size_t newest = capture_us.size() - 1;
+  if (hint == PairHint::kNone || hint == hint_used_before) return newest;
+  const auto gap = [&](std::size_t k) {
+    const std::int64_t d = capture_us[k] - hint;
+    return d < 0 ? -d : d;
+  };
+  std::size_t best = newest;
+  for (std::size_t i = newest; i-- > 0;) {  // newest to oldest: a tie keeps the newer frame
+    if (gap(i) < gap(best)) best = i;
+  }
+  return best;
+}
+
 bool StreamSenderOptions::is_valid(std::string* error) const {
   const auto format = kind == protocol::StreamKind::kRgb ? protocol::PixelFormat::kRgb8
                                                           : protocol::PixelFormat::kDepth16;
@@ -28,6 +43,7 @@ bool StreamSenderOptions::is_valid(std::string* error) const {
   else if (jpeg_quality < 1 || jpeg_quality > 100) *error = "jpeg_quality must be 1..100";
   else if (zstd_level < 1 || zstd_level > 19) *error = "zstd_level must be 1..19";
   else if (backoff_first_ms < 1 || backoff_max_ms < backoff_first_ms || backoff_max_ms > 1000) *error = "backoff must satisfy 1 <= first <= max <= 1000 ms";
+  else if (held_frames < 1 || held_frames > 30) *error = "held_frames must be 1..30";
   else if (connect_timeout_ms < 1 || handshake_timeout_ms < 1 || stall_timeout_ms < 1 || credit_idle_timeout_ms < 1) *error = "timeouts must be >= 1 ms";
   else if (kind == protocol::StreamKind::kDepth && !(depth_units_per_m > 0 && depth_units_per_m < 1e6)) *error = "depth_units_per_m must be in (0, 1e6)";
   else return true;
@@ -55,9 +71,11 @@ void StreamSender::publish(capture::SourceFrame frame) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ++counters_.published;
-    if (mailbox_) ++counters_.superseded;
-    mailbox_ = std::move(frame);
-    mailbox_sequence_ = next_sequence_++;
+    mailbox_.emplace_back(next_sequence_++, std::move(frame));
+    if (mailbox_.size() > options_.held_frames) {
+      mailbox_.pop_front();
+      ++counters_.superseded;
+    }
   }
   frame_waker_.wake();
 }
@@ -174,7 +192,7 @@ void StreamSender::session(net::UniqueFd fd, protocol::StreamDecoder* decoder) {
     bool waiting;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      waiting = mailbox_.has_value();
+      waiting = !mailbox_.empty();
     }
     if (credits == 0 && waiting &&
         clock_->now_us() - last_request_us > std::int64_t{options_.credit_idle_timeout_ms} * 1000) {
@@ -205,9 +223,22 @@ bool StreamSender::send_newest(int fd, std::optional<std::uint32_t>* last_sent) 
   std::uint32_t sequence = 0;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!mailbox_) return true;
-    frame.swap(mailbox_);
-    sequence = mailbox_sequence_;
+    if (mailbox_.empty()) return true;
+    std::size_t pick = mailbox_.size() - 1;
+    if (options_.pair_hint && options_.kind == protocol::StreamKind::kDepth) {
+      std::vector<std::int64_t> times;
+      for (const auto& held : mailbox_) {
+        times.push_back(std::visit([](const auto& f) { return f.capture_timestamp_us; }, held.second));
+      }
+      const std::int64_t hint = options_.pair_hint->rgb_sent_us();
+      pick = choose_frame(times, hint, hint_used_us_);
+      hint_used_us_ = hint;
+    }
+    sequence = mailbox_[pick].first;
+    frame.emplace(std::move(mailbox_[pick].second));
+    // Frames older than the one sent will never be sent.
+    counters_.superseded += pick;
+    mailbox_.erase(mailbox_.begin(), mailbox_.begin() + static_cast<std::ptrdiff_t>(pick) + 1);
   }
   const std::int64_t start_us = clock_->now_us();
   std::string error;
@@ -246,6 +277,9 @@ bool StreamSender::send_newest(int fd, std::optional<std::uint32_t>* last_sent) 
     return false;
   }
   *last_sent = sequence;
+  if (options_.pair_hint && options_.kind == protocol::StreamKind::kRgb) {
+    options_.pair_hint->set_rgb_sent_us(static_cast<std::int64_t>(header.capture_timestamp_us));
+  }
   std::lock_guard<std::mutex> lock(mutex_);
   ++counters_.sent;
   counters_.bytes_sent += bytes.bytes.size();

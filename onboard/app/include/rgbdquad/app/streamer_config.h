@@ -31,6 +31,9 @@ struct StreamerConfig {
   std::string rgb_encoding = "raw";    // raw | jpeg
   int jpeg_quality = 90;
   int zstd_level = 1;
+  // Send the depth frame nearest in time to the RGB frame just sent (from the 6 newest) instead of
+  // strictly the newest: on a slow link the frames that arrive then form RGB-D pairs.
+  bool pair_depth_with_rgb = true;
 
   // camera: intrinsics of the RGB image (what the depth is registered to). Defaults: the usual
   // Kinect v1 colour camera values (fx = fy = 525 px, principal point at the centre).

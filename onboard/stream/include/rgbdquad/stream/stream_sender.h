@@ -14,6 +14,8 @@
 
 #include <atomic>
 #include <cstdint>
+#include <deque>
+#include <vector>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -33,6 +35,25 @@ class logger;
 namespace rgbdquad::stream {
 
 class PayloadEncoder;
+
+// Shared by the two senders of one streamer: the RGB sender records the capture time of each RGB
+// frame it sends; a depth sender with pair_with_rgb picks, from its few newest depth frames, the
+// one nearest that time, so what reaches the ground station pairs up (<= 20 ms) even when the
+// link carries only a few frames per second. Thread-safe.
+class PairHint {
+ public:
+  void set_rgb_sent_us(std::int64_t capture_us) { rgb_sent_us_ = capture_us; }
+  std::int64_t rgb_sent_us() const { return rgb_sent_us_; }
+  static constexpr std::int64_t kNone = INT64_MIN;
+
+ private:
+  std::atomic<std::int64_t> rgb_sent_us_{kNone};
+};
+
+// Which held frame to send: the newest, unless `hint` is a new RGB time (not `hint_used_before`),
+// then the one whose capture time is nearest it. `capture_us` is oldest first, non-empty.
+std::size_t choose_frame(const std::vector<std::int64_t>& capture_us, std::int64_t hint,
+                         std::int64_t hint_used_before);
 
 struct StreamSenderOptions {
   std::string host = "127.0.0.1";
@@ -54,6 +75,10 @@ struct StreamSenderOptions {
   int handshake_timeout_ms = 2000;
   // A send making no progress for 2 s: the WiFi link is gone (TCP would wait minutes).
   int stall_timeout_ms = 2000;
+  // Frames held for sending. 1 = strictly the newest. A depth sender with a PairHint holds 6
+  // (200 ms at 30 fps: longer than one raw RGB frame takes on 120 Mbps) to find the RGB's partner.
+  std::size_t held_frames = 1;
+  std::shared_ptr<PairHint> pair_hint;  // RGB sender: written; depth sender: read (may be null)
   // No FrameRequest for 3 s while frames wait: the receiver library grants a credit as soon as it
   // has taken a frame (milliseconds), so 3 s of silence means a dead peer.
   int credit_idle_timeout_ms = 3000;
@@ -64,7 +89,7 @@ struct StreamSenderOptions {
 struct SenderCounters {
   std::uint64_t published = 0;
   std::uint64_t sent = 0;
-  std::uint64_t superseded = 0;  // published but overwritten by a newer frame before a credit came
+  std::uint64_t superseded = 0;  // published but dropped for a newer frame before a credit came
   std::uint64_t encode_errors = 0;
   std::uint64_t connects = 0;
   std::uint64_t disconnects = 0;
@@ -103,8 +128,8 @@ class StreamSender {
   net::Waker stop_waker_;
   net::Waker frame_waker_;
   mutable std::mutex mutex_;  // guards mailbox_, next_sequence_, counters_
-  std::optional<capture::SourceFrame> mailbox_;
-  std::uint32_t mailbox_sequence_ = 0;
+  std::deque<std::pair<std::uint32_t, capture::SourceFrame>> mailbox_;  // (sequence, frame), oldest first
+  std::int64_t hint_used_us_ = PairHint::kNone;  // connection thread only
   std::uint32_t next_sequence_ = 0;
   SenderCounters counters_;
   std::atomic<bool> stopping_{false};
