@@ -69,6 +69,9 @@ def generate() -> str:
         for k, v in values.items():
             out.append(f"  k{camel(k)} = {v},")
         out.append("};")
+        out.append(f"/// Every registered {ename} value, in spec order.")
+        out.append(f"inline constexpr {ename} kAll{ename}[] = {{"
+                   + ", ".join(f"{ename}::k{camel(k)}" for k in values) + "};")
         out.append(f"/// True when `wire` is a registered {ename} value.")
         out.append(f"constexpr bool is_valid_{snake(ename)}"
                    f"({ut} wire) {{")

@@ -10,7 +10,7 @@ namespace {
 using nlohmann::json;
 
 template <typename E, std::size_t N>
-json enum_name(E value, const std::array<E, N>& all) {
+json enum_name(E value, const E (&all)[N]) {
   for (E e : all) {
     if (e == value) return std::string(to_string(e));
   }
@@ -18,7 +18,7 @@ json enum_name(E value, const std::array<E, N>& all) {
 }
 
 template <typename E, std::size_t N>
-E enum_from(const json& j, const std::array<E, N>& all, const char* field) {
+E enum_from(const json& j, const E (&all)[N], const char* field) {
   if (j.is_number_unsigned()) {
     const auto v = j.get<std::uint64_t>();
     if (v > 255) throw std::invalid_argument(std::string(field) + ": enum number above 255");
@@ -31,19 +31,6 @@ E enum_from(const json& j, const std::array<E, N>& all, const char* field) {
   }
   throw std::invalid_argument(std::string(field) + ": unknown name " + name);
 }
-
-constexpr std::array<StreamKind, 2> kStreamKinds{StreamKind::kRgb, StreamKind::kDepth};
-constexpr std::array<PixelFormat, 2> kPixelFormats{PixelFormat::kRgb8, PixelFormat::kDepth16};
-constexpr std::array<Encoding, 4> kEncodings{Encoding::kRaw, Encoding::kDepthRvl,
-                                             Encoding::kDepthZstdDelta, Encoding::kRgbJpeg};
-constexpr std::array<TrackingState, 4> kTrackingStates{
-    TrackingState::kInitializing, TrackingState::kTracking, TrackingState::kLost,
-    TrackingState::kRelocalized};
-constexpr std::array<GraphStage, 2> kGraphStages{GraphStage::kBeforeOptimisation,
-                                                 GraphStage::kAfterOptimisation};
-constexpr std::array<EdgeKind, 2> kEdgeKinds{EdgeKind::kOdometry, EdgeKind::kLoopClosure};
-constexpr std::array<CellFormat, 2> kCellFormats{CellFormat::kOccupancyU8,
-                                                 CellFormat::kPointCountU8};
 
 const json& at(const json& j, const char* field) {
   if (!j.is_object() || !j.contains(field))
@@ -117,8 +104,8 @@ json image_json(const ImageFrame& f) {
           {"send_timestamp_us", h.send_timestamp_us},
           {"width", h.width},
           {"height", h.height},
-          {"pixel_format", enum_name(h.pixel_format, kPixelFormats)},
-          {"encoding", enum_name(h.encoding, kEncodings)},
+          {"pixel_format", enum_name(h.pixel_format, kAllPixelFormat)},
+          {"encoding", enum_name(h.encoding, kAllEncoding)},
           {"payload", to_hex(f.payload.data(), f.payload.size())}};
 }
 ImageFrame image_from(const json& j) {
@@ -129,8 +116,8 @@ ImageFrame image_from(const json& j) {
   h.send_timestamp_us = num<std::uint64_t>(j, "send_timestamp_us");
   h.width = num<std::uint16_t>(j, "width");
   h.height = num<std::uint16_t>(j, "height");
-  h.pixel_format = enum_from(at(j, "pixel_format"), kPixelFormats, "pixel_format");
-  h.encoding = enum_from(at(j, "encoding"), kEncodings, "encoding");
+  h.pixel_format = enum_from(at(j, "pixel_format"), kAllPixelFormat, "pixel_format");
+  h.encoding = enum_from(at(j, "encoding"), kAllEncoding, "encoding");
   f.payload = from_hex(str(j, "payload"));
   h.payload_length = static_cast<std::uint32_t>(f.payload.size());
   return f;
@@ -147,11 +134,11 @@ Pose3 pose_from(const json& j) {
 json fields_of(const Handshake& m) {
   return {{"protocol_version", m.protocol_version},
           {"schema_hash", m.schema_hash},
-          {"stream_kind", enum_name(m.stream_kind, kStreamKinds)},
+          {"stream_kind", enum_name(m.stream_kind, kAllStreamKind)},
           {"width", m.width},
           {"height", m.height},
-          {"pixel_format", enum_name(m.pixel_format, kPixelFormats)},
-          {"encoding", enum_name(m.encoding, kEncodings)},
+          {"pixel_format", enum_name(m.pixel_format, kAllPixelFormat)},
+          {"encoding", enum_name(m.encoding, kAllEncoding)},
           {"intrinsics", intrinsics_json(m.intrinsics)},
           {"depth_scale_units_per_m", m.depth_scale_units_per_m},
           {"device_id", m.device_id}};
@@ -176,7 +163,7 @@ json fields_of(const RgbdFrame& m) {
 json fields_of(const PoseUpdate& m) {
   return {{"pair_sequence", m.pair_sequence},
           {"timestamp_us", m.timestamp_us},
-          {"tracking_state", enum_name(m.tracking_state, kTrackingStates)},
+          {"tracking_state", enum_name(m.tracking_state, kAllTrackingState)},
           {"T_world_cam", pose_json(m.T_world_cam)},
           {"T_prev_cur", pose_json(m.T_prev_cur)},
           {"is_keyframe", m.is_keyframe},
@@ -193,12 +180,12 @@ json fields_of(const PoseGraph& m) {
   for (const auto& e : m.edges) {
     edges.push_back({{"from_id", e.from_id},
                      {"to_id", e.to_id},
-                     {"kind", enum_name(e.kind, kEdgeKinds)},
+                     {"kind", enum_name(e.kind, kAllEdgeKind)},
                      {"T_from_to", pose_json(e.T_from_to)}});
   }
   return {{"revision", m.revision},
           {"timestamp_us", m.timestamp_us},
-          {"stage", enum_name(m.stage, kGraphStages)},
+          {"stage", enum_name(m.stage, kAllGraphStage)},
           {"nodes", nodes},
           {"edges", edges}};
 }
@@ -210,7 +197,7 @@ json fields_of(const FloorMap& m) {
           {"origin_y_m", m.origin_y_m},
           {"width_cells", m.width_cells},
           {"height_cells", m.height_cells},
-          {"cell_format", enum_name(m.cell_format, kCellFormats)},
+          {"cell_format", enum_name(m.cell_format, kAllCellFormat)},
           {"cells", to_hex(m.cells.data(), m.cells.size())}};
 }
 
@@ -219,11 +206,11 @@ Message from_fields(const std::string& type, const json& f) {
     Handshake m;
     m.protocol_version = num<std::uint16_t>(f, "protocol_version");
     m.schema_hash = num<std::uint64_t>(f, "schema_hash");
-    m.stream_kind = enum_from(at(f, "stream_kind"), kStreamKinds, "stream_kind");
+    m.stream_kind = enum_from(at(f, "stream_kind"), kAllStreamKind, "stream_kind");
     m.width = num<std::uint16_t>(f, "width");
     m.height = num<std::uint16_t>(f, "height");
-    m.pixel_format = enum_from(at(f, "pixel_format"), kPixelFormats, "pixel_format");
-    m.encoding = enum_from(at(f, "encoding"), kEncodings, "encoding");
+    m.pixel_format = enum_from(at(f, "pixel_format"), kAllPixelFormat, "pixel_format");
+    m.encoding = enum_from(at(f, "encoding"), kAllEncoding, "encoding");
     m.intrinsics = intrinsics_from(at(f, "intrinsics"));
     m.depth_scale_units_per_m = num<double>(f, "depth_scale_units_per_m");
     m.device_id = str(f, "device_id");
@@ -266,7 +253,7 @@ Message from_fields(const std::string& type, const json& f) {
     PoseUpdate m;
     m.pair_sequence = num<std::uint32_t>(f, "pair_sequence");
     m.timestamp_us = num<std::uint64_t>(f, "timestamp_us");
-    m.tracking_state = enum_from(at(f, "tracking_state"), kTrackingStates, "tracking_state");
+    m.tracking_state = enum_from(at(f, "tracking_state"), kAllTrackingState, "tracking_state");
     m.T_world_cam = pose_from(at(f, "T_world_cam"));
     m.T_prev_cur = pose_from(at(f, "T_prev_cur"));
     m.is_keyframe = boolean(f, "is_keyframe");
@@ -277,7 +264,7 @@ Message from_fields(const std::string& type, const json& f) {
     PoseGraph m;
     m.revision = num<std::uint32_t>(f, "revision");
     m.timestamp_us = num<std::uint64_t>(f, "timestamp_us");
-    m.stage = enum_from(at(f, "stage"), kGraphStages, "stage");
+    m.stage = enum_from(at(f, "stage"), kAllGraphStage, "stage");
     for (const json& n : at(f, "nodes")) {
       PoseGraphNode node;
       node.node_id = num<std::uint32_t>(n, "node_id");
@@ -289,7 +276,7 @@ Message from_fields(const std::string& type, const json& f) {
       PoseGraphEdge edge;
       edge.from_id = num<std::uint32_t>(e, "from_id");
       edge.to_id = num<std::uint32_t>(e, "to_id");
-      edge.kind = enum_from(at(e, "kind"), kEdgeKinds, "kind");
+      edge.kind = enum_from(at(e, "kind"), kAllEdgeKind, "kind");
       edge.T_from_to = pose_from(at(e, "T_from_to"));
       m.edges.push_back(edge);
     }
@@ -304,7 +291,7 @@ Message from_fields(const std::string& type, const json& f) {
     m.origin_y_m = num<double>(f, "origin_y_m");
     m.width_cells = num<std::uint16_t>(f, "width_cells");
     m.height_cells = num<std::uint16_t>(f, "height_cells");
-    m.cell_format = enum_from(at(f, "cell_format"), kCellFormats, "cell_format");
+    m.cell_format = enum_from(at(f, "cell_format"), kAllCellFormat, "cell_format");
     m.cells = from_hex(str(f, "cells"));
     return m;
   }

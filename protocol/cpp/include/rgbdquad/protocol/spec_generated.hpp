@@ -39,6 +39,8 @@ enum class StreamKind : std::uint8_t {
   kRgb = 0,
   kDepth = 1,
 };
+/// Every registered StreamKind value, in spec order.
+inline constexpr StreamKind kAllStreamKind[] = {StreamKind::kRgb, StreamKind::kDepth};
 /// True when `wire` is a registered StreamKind value.
 constexpr bool is_valid_stream_kind(std::uint8_t wire) {
   switch (wire) {
@@ -65,6 +67,8 @@ enum class PixelFormat : std::uint8_t {
   kRgb8 = 0,
   kDepth16 = 1,
 };
+/// Every registered PixelFormat value, in spec order.
+inline constexpr PixelFormat kAllPixelFormat[] = {PixelFormat::kRgb8, PixelFormat::kDepth16};
 /// True when `wire` is a registered PixelFormat value.
 constexpr bool is_valid_pixel_format(std::uint8_t wire) {
   switch (wire) {
@@ -93,6 +97,8 @@ enum class Encoding : std::uint8_t {
   kDepthZstdDelta = 2,
   kRgbJpeg = 3,
 };
+/// Every registered Encoding value, in spec order.
+inline constexpr Encoding kAllEncoding[] = {Encoding::kRaw, Encoding::kDepthRvl, Encoding::kDepthZstdDelta, Encoding::kRgbJpeg};
 /// True when `wire` is a registered Encoding value.
 constexpr bool is_valid_encoding(std::uint8_t wire) {
   switch (wire) {
@@ -127,6 +133,8 @@ enum class TrackingState : std::uint8_t {
   kLost = 2,
   kRelocalized = 3,
 };
+/// Every registered TrackingState value, in spec order.
+inline constexpr TrackingState kAllTrackingState[] = {TrackingState::kInitializing, TrackingState::kTracking, TrackingState::kLost, TrackingState::kRelocalized};
 /// True when `wire` is a registered TrackingState value.
 constexpr bool is_valid_tracking_state(std::uint8_t wire) {
   switch (wire) {
@@ -159,6 +167,8 @@ enum class GraphStage : std::uint8_t {
   kBeforeOptimisation = 0,
   kAfterOptimisation = 1,
 };
+/// Every registered GraphStage value, in spec order.
+inline constexpr GraphStage kAllGraphStage[] = {GraphStage::kBeforeOptimisation, GraphStage::kAfterOptimisation};
 /// True when `wire` is a registered GraphStage value.
 constexpr bool is_valid_graph_stage(std::uint8_t wire) {
   switch (wire) {
@@ -185,6 +195,8 @@ enum class EdgeKind : std::uint8_t {
   kOdometry = 0,
   kLoopClosure = 1,
 };
+/// Every registered EdgeKind value, in spec order.
+inline constexpr EdgeKind kAllEdgeKind[] = {EdgeKind::kOdometry, EdgeKind::kLoopClosure};
 /// True when `wire` is a registered EdgeKind value.
 constexpr bool is_valid_edge_kind(std::uint8_t wire) {
   switch (wire) {
@@ -211,6 +223,8 @@ enum class CellFormat : std::uint8_t {
   kOccupancyU8 = 0,
   kPointCountU8 = 1,
 };
+/// Every registered CellFormat value, in spec order.
+inline constexpr CellFormat kAllCellFormat[] = {CellFormat::kOccupancyU8, CellFormat::kPointCountU8};
 /// True when `wire` is a registered CellFormat value.
 constexpr bool is_valid_cell_format(std::uint8_t wire) {
   switch (wire) {
