@@ -122,12 +122,15 @@ void pwm_set(const uint16_t slot_ticks[5]) {
 
 // Every edge is written first thing in the ISR, so all edges share one fixed latency and pulse
 // widths equal the programmed slot lengths (CTC restarts the count in hardware at each match).
+// After the edge, interrupts are re-enabled: the rest of this ISR must not delay the software
+// UART's bit sampling (the next compare match is >= 900 us away, so it cannot re-enter).
 ISR(TIMER1_COMPA_vect) {
   uint8_t next = static_cast<uint8_t>(g_pwm.slot + 1);
   if (next == 5) next = 0;
   uint8_t port = static_cast<uint8_t>(PORTB & ~board::kPwmPortBMask);
   if (next < 4) port = static_cast<uint8_t>(port | board::kPwmPortBBits[next]);
   PORTB = port;
+  sei();
   if (next == 0) {
     const uint8_t r = g_pwm.ready;
     for (uint8_t i = 0; i < 5; ++i) g_pwm.active_ticks[i] = g_pwm.pending_ticks[r][i];
@@ -175,13 +178,18 @@ ISR(USART_RX_vect) {
   g_bridge_rx.push_isr(b);
 }
 
+// The data-register-empty interrupt is masked while this ISR runs (it would re-trigger as soon as
+// UDR0 moves to the shift register), so interrupts can be re-enabled after the byte is written.
 ISR(USART_UDRE_vect) {
+  UCSR0B &= static_cast<uint8_t>(~_BV(UDRIE0));
   const char* p = g_tx.ptr;
   UDR0 = static_cast<uint8_t>(*p);
+  sei();
   g_tx.ptr = p + 1;
   const uint16_t left = static_cast<uint16_t>(g_tx.left - 1);
   g_tx.left = left;
-  if (left == 0) UCSR0B &= static_cast<uint8_t>(~_BV(UDRIE0));
+  cli();
+  if (left != 0) UCSR0B |= _BV(UDRIE0);
 }
 
 // ---- telemetry software UART -------------------------------------------------------------------------
