@@ -266,21 +266,23 @@ def test_recorded_commands_cannot_be_replayed_after_a_reset():
 
 
 def test_telemetry_stream_under_command_load_loses_no_frame():
-    # GIVEN ATTITUDE frames every 10 ms (roll = k mrad) back to back with RAW_IMU (xacc = k) on the
+    # GIVEN full-length (untruncated) ATTITUDE (roll = k mrad) + RAW_IMU (xacc = k) pairs every 16 ms
+    # - 77 bytes = 13.4 ms of back-to-back bytes per 16 ms, 84 % of the 57600-baud line - on the
     # software UART while commands run at full rate through the hardware UART (SipHash + replies)
     mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
     frame_end_us = []
     sc = Scenario()
     n = 60
     for k in range(1, n + 1):
-        t0 = 20 * MS + k * 10 * MS
-        att = mav.attitude_encode(k, k / 1000.0, 0.0, 0.0, 0.0, 0.0, 0.0).pack(mav)
-        imu = mav.raw_imu_encode(k, k, 0, 0, 0, 0, 0, 0, 0, 0).pack(mav)
+        t0 = 20 * MS + k * 16 * MS
+        att = mav.attitude_encode(k, k / 1000.0, 0.5, 0.25, 0.1, 0.2, 0.3).pack(mav)
+        imu = mav.raw_imu_encode(k, k, -k, 3 * k, 4, 5, 6, 7, 8, 9).pack(mav)
+        assert len(att) + len(imu) == 77  # no base field truncated (only the 2 extension fields)
         sc.mav(t0, att + imu)
         frame_end_us.append((k, t0 + len(att) * 10 / 57600 * 1e6, t0 + len(att + imu) * 10 / 57600 * 1e6))
-    for seq in range(1, 40):
+    for seq in range(1, 60):
         sc.req(30 * MS, cmd(seq, thr=1000 + seq))
-    sc.end(20 * MS + (n + 5) * 10 * MS)
+    sc.end(20 * MS + (n + 5) * 16 * MS)
     r = sc.run(RECORD)
     replies = [parse_reply(x.text + "\n") for x in r.replies]
     assert all(p.status == 200 for p in replies)
@@ -301,5 +303,5 @@ def test_telemetry_stream_under_command_load_loses_no_frame():
         assert lo_imu <= rep.imu_raw[0] <= hi_imu, (sent, rep.imu_raw, lo_imu, hi_imu)
         checked += 1
     print(f"\nsimavr telemetry under load: {checked} replies carried the newest frame "
-          f"({n} ATTITUDE+RAW_IMU pairs at 100 Hz, {len(replies)} commands)")
-    assert checked >= 25
+          f"({n} ATTITUDE+RAW_IMU pairs every 16 ms, {len(replies)} commands)")
+    assert checked >= 40

@@ -26,6 +26,8 @@ REPO = pathlib.Path(__file__).resolve().parents[2]
 #: Upper bound on one fw_sim run (wall clock): scenarios are a few simulated seconds, simavr runs
 #: ~3.7x faster than real time, so anything near this is a hang.
 RUN_TIMEOUT_S = 120
+#: One 8N1 byte on the 57600-baud telemetry wire (the rate fw_sim drives the pin at).
+MAV_BYTE_US = 10 / 57600 * 1e6
 
 
 def fw_sim_path() -> pathlib.Path:
@@ -84,6 +86,7 @@ class Scenario:
     def __init__(self) -> None:
         self._lines: list[str] = []
         self._end_us: float | None = None
+        self._mav_free_us = 0.0
 
     def req(self, t_us: float, line: str) -> None:
         """A bridge request line, sent at t_us or once the previous reply has arrived."""
@@ -96,7 +99,11 @@ class Scenario:
         self._lines.append(f"raw {t_us:.3f} {data.hex()}")
 
     def mav(self, t_us: float, data: bytes) -> None:
-        """Bytes on the MAVLink telemetry pin as 57600-baud serial from t_us."""
+        """Bytes on the MAVLink telemetry pin as 57600-baud serial from t_us (one wire: a burst
+        must not start before the previous one has ended)."""
+        if t_us < self._mav_free_us:
+            raise ValueError(f"telemetry burst at {t_us} us overlaps the previous one (ends {self._mav_free_us:.0f} us)")
+        self._mav_free_us = t_us + len(data) * MAV_BYTE_US
         self._lines.append(f"mav {t_us:.3f} {data.hex()}")
 
     def end(self, t_us: float) -> None:
