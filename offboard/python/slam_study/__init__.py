@@ -7,4 +7,4 @@ error (RPE) the way the thesis's Tables 4.14-4.21 do, and writes a Markdown/CSV/
 Entry point: `python -m slam_study {run,report,analyze,guide}` (see `--help`).
 """
 
-__all__ = ["se3", "tum", "pairs", "velocity", "tables", "sweep", "report", "guide", "thesis"]
+__all__ = ["guide", "pairs", "report", "se3", "sweep", "tables", "thesis", "tum", "velocity"]

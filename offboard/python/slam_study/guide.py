@@ -9,6 +9,7 @@ beyond the last edge, is answered "not enough data", never extrapolated.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,7 +44,7 @@ class Prediction:
 
 
 def _locate(value: float, edges) -> int | None:
-    for i, (lo, hi) in enumerate(zip(edges[:-1], edges[1:])):
+    for i, (lo, hi) in enumerate(itertools.pairwise(edges)):
         if lo <= value < hi:
             return i
     return None
@@ -83,8 +84,8 @@ def guide_text(preds: list[Prediction], trans_m_per_s: float, rot_deg_per_s: flo
                target_rpe_mm: float | None, source: str) -> str:
     lines = [f"Frame-to-frame error predicted for {trans_m_per_s:g} m/s and {rot_deg_per_s:g} deg/s",
              f"(grid measured on: {source}; a cell needs >= {tables.kMinSamplesPerCell} pairs)", "",
-             f"{'fps':>6} {'mm/frame':>9} {'deg/frame':>9}  {'cell mm x deg':>16}  {'n':>5}  "
-             f"{'RPE trans mm':>16}  {'RPE rot deg':>16}"]
+             (f"{'fps':>6} {'mm/frame':>9} {'deg/frame':>9}  {'cell mm x deg':>16}  {'n':>5}  "
+             f"{'RPE trans mm':>16}  {'RPE rot deg':>16}")]
     for p in preds:
         cell = f"{p.trans_bin} x {p.rot_bin}" if p.cell is not None else "beyond grid"
         if p.cell is None:
@@ -131,7 +132,7 @@ def platform_table(pairs: PairTable) -> Table:
 
     def envelope(values, edges, sub):
         best = None
-        for lo, hi in zip(edges[:-1], edges[1:]):
+        for lo, hi in itertools.pairwise(edges):
             sel = tables.in_bin(values, lo, hi)
             if sel.sum() >= tables.kMinSamplesPerCell:
                 best = (hi, CellStats.of(sub.select(sel)))

@@ -44,13 +44,13 @@ class PairTable:
         return int(self.stamp_s.shape[0])
 
     @staticmethod
-    def concat(tables: list["PairTable"]) -> "PairTable":
+    def concat(tables: list[PairTable]) -> PairTable:
         if not tables:
             return empty_pairs()
         return PairTable(*(np.concatenate([getattr(t, f) for t in tables])
                            for f in PairTable.__dataclass_fields__))
 
-    def select(self, mask: np.ndarray) -> "PairTable":
+    def select(self, mask: np.ndarray) -> PairTable:
         return PairTable(*(getattr(self, f)[mask] for f in PairTable.__dataclass_fields__))
 
 

@@ -7,19 +7,21 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402  (after the backend is chosen)
-import numpy as np  # noqa: E402
+import itertools
 
-from slam_study import tables  # noqa: E402
-from slam_study.pairs import PairTable, kRotAxes, kTransAxes  # noqa: E402
-from slam_study.tum import Trajectory  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+
+from slam_study import tables
+from slam_study.pairs import PairTable, kRotAxes, kTransAxes
+from slam_study.tum import Trajectory
 
 kAxisColours = ("tab:red", "tab:green", "tab:blue")
 
 
 def _bin_means(x: np.ndarray, y: np.ndarray, edges) -> tuple[np.ndarray, np.ndarray]:
     centres, means = [], []
-    for lo, hi in zip(edges[:-1], edges[1:]):
+    for lo, hi in itertools.pairwise(edges):
         sel = tables.in_bin(x, lo, hi)
         if sel.sum() >= tables.kMinSamplesPerCell:
             centres.append(0.5 * (lo + hi))

@@ -11,10 +11,11 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Callable, TextIO
+from typing import TextIO
 
 from slam_study.worker import execute_job
 
@@ -159,7 +160,7 @@ def run_ray(jobs: list[Job], slam_eval: str, out: Path, address: str, timeout_s:
                 job = pending.pop(ref)
                 try:
                     result, wall_s = ray.get(ref)
-                except Exception as err:  # a task that died on its node: record, keep sweeping
+                except Exception as err:  # noqa: BLE001 - a task that died on its node: record, go on
                     result, wall_s = {"status": "failed", "reason": f"ray task failed: {err}",
                                       "returncode": None, "command": []}, None
                 store_result(job, out, result, wall_s)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import csv
 import io
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -47,7 +48,7 @@ class CellStats:
     motion_rot_mean_deg: float
 
     @staticmethod
-    def of(pairs: PairTable) -> "CellStats":
+    def of(pairs: PairTable) -> CellStats:
         n = len(pairs)
         if n == 0:
             nan = float("nan")
@@ -122,7 +123,7 @@ def translation_study(pairs: PairTable) -> tuple[Table, Table]:
                  "Table 4.14 - translation study: pairs rotating < 0.3 deg, by translation per frame",
                  ["translation mm/frame", "n", "RPE trans mm (mean ± std)", "trans err %",
                   "RPE rot deg (mean ± std)"])
-    for lo, hi in zip(edges[:-1], edges[1:]):
+    for lo, hi in itertools.pairwise(edges):
         c = CellStats.of(pure.select(in_bin(pure.gt_trans_mm, lo, hi)))
         t414.rows.append([bin_label(lo, hi), c.n_text(), c.trans_text(),
                           _pct(c.trans_mean_mm, c.motion_trans_mean_mm), c.rot_text()])
@@ -130,7 +131,7 @@ def translation_study(pairs: PairTable) -> tuple[Table, Table]:
                  "Table 4.15 - single-axis translation (> 80 % of |t| on one camera axis), "
                  "RPE trans mm mean ± std [n]",
                  ["translation mm/frame"] + [f"{a} (camera)" for a in kTransAxes])
-    for lo, hi in zip(edges[:-1], edges[1:]):
+    for lo, hi in itertools.pairwise(edges):
         row = [bin_label(lo, hi)]
         for ax in range(3):
             sel = in_bin(pure.gt_trans_mm, lo, hi) & (pure.trans_share[:, ax] > kTransSingleAxisShare)
@@ -148,7 +149,7 @@ def rotation_study(pairs: PairTable) -> tuple[Table, Table]:
                  "Table 4.17 - rotation study: pairs translating < 3 mm, by rotation per frame",
                  ["rotation deg/frame", "n", "RPE trans mm (mean ± std)",
                   "RPE rot deg (mean ± std)", "rot err %"])
-    for lo, hi in zip(edges[:-1], edges[1:]):
+    for lo, hi in itertools.pairwise(edges):
         c = CellStats.of(pure.select(in_bin(pure.gt_rot_deg, lo, hi)))
         t417.rows.append([bin_label(lo, hi), c.n_text(), c.trans_text(), c.rot_text(),
                           _pct(c.rot_mean_deg, c.motion_rot_mean_deg)])
@@ -156,7 +157,7 @@ def rotation_study(pairs: PairTable) -> tuple[Table, Table]:
                  "Table 4.18 - single-axis rotation (> 85 % of the rotation vector on one axis), "
                  "RPE rot deg mean ± std [n]",
                  ["rotation deg/frame"] + [f"{a}" for a in kRotAxes])
-    for lo, hi in zip(edges[:-1], edges[1:]):
+    for lo, hi in itertools.pairwise(edges):
         row = [bin_label(lo, hi)]
         for ax in range(3):
             sel = in_bin(pure.gt_rot_deg, lo, hi) & (pure.rot_share[:, ax] > kRotSingleAxisShare)
@@ -170,10 +171,10 @@ def grid_cells(pairs: PairTable, trans_edges=kGridTransEdgesMm,
                rot_edges=kGridRotEdgesDeg) -> list[list[CellStats]]:
     """cells[i][j]: translation bin i x rotation bin j."""
     cells = []
-    for tlo, thi in zip(trans_edges[:-1], trans_edges[1:]):
+    for tlo, thi in itertools.pairwise(trans_edges):
         row = []
         in_t = in_bin(pairs.gt_trans_mm, tlo, thi)
-        for rlo, rhi in zip(rot_edges[:-1], rot_edges[1:]):
+        for rlo, rhi in itertools.pairwise(rot_edges):
             row.append(CellStats.of(pairs.select(in_t & in_bin(pairs.gt_rot_deg, rlo, rhi))))
         cells.append(row)
     return cells
@@ -182,7 +183,7 @@ def grid_cells(pairs: PairTable, trans_edges=kGridTransEdgesMm,
 def joint_grid(pairs: PairTable) -> tuple[Table, Table, list[list[CellStats]]]:
     """Table 4.20: 9x9 grid; one table of translational, one of rotational RPE (each with n)."""
     cells = grid_cells(pairs)
-    rot_labels = [bin_label(a, b) for a, b in zip(kGridRotEdgesDeg[:-1], kGridRotEdgesDeg[1:])]
+    rot_labels = [bin_label(a, b) for a, b in itertools.pairwise(kGridRotEdgesDeg)]
     t_tab = Table("table_4_20_grid_trans",
                   "Table 4.20a - joint grid, translational RPE mm mean ± std [n]; rows translation "
                   "mm/frame, columns rotation deg/frame",
@@ -190,7 +191,7 @@ def joint_grid(pairs: PairTable) -> tuple[Table, Table, list[list[CellStats]]]:
     r_tab = Table("table_4_20_grid_rot",
                   "Table 4.20b - joint grid, rotational RPE deg mean ± std [n]",
                   ["mm \\ deg"] + rot_labels)
-    for (tlo, thi), row in zip(zip(kGridTransEdgesMm[:-1], kGridTransEdgesMm[1:]), cells):
+    for (tlo, thi), row in zip(itertools.pairwise(kGridTransEdgesMm), cells):
         t_tab.rows.append([bin_label(tlo, thi)] + [f"{c.trans_text()} [{c.n}]" for c in row])
         r_tab.rows.append([bin_label(tlo, thi)] + [f"{c.rot_text()} [{c.n}]" for c in row])
     return t_tab, r_tab, cells
@@ -205,7 +206,7 @@ def velocity_tables(pairs: PairTable) -> tuple[Table, Table]:
                  ["mm/frame"] + [f"m/s @ {f:g} fps" for f in kVelocityTableFps]
                  + ["n", "RPE trans mm", "RPE trans mm/s @ 30 fps"])
     e = kTransStudyEdgesMm
-    for lo, hi in zip(e[:-1], e[1:]):
+    for lo, hi in itertools.pairwise(e):
         c = CellStats.of(pure_t.select(in_bin(pure_t.gt_trans_mm, lo, hi)))
         t416.rows.append([bin_label(lo, hi)]
                          + [f"{lo * f / 1000:.3f}-{hi * f / 1000:.3f}" for f in kVelocityTableFps]
@@ -216,7 +217,7 @@ def velocity_tables(pairs: PairTable) -> tuple[Table, Table]:
                  ["deg/frame"] + [f"deg/s @ {f:g} fps" for f in kVelocityTableFps]
                  + ["n", "RPE rot deg", "RPE trans mm"])
     e = kRotStudyEdgesDeg
-    for lo, hi in zip(e[:-1], e[1:]):
+    for lo, hi in itertools.pairwise(e):
         c = CellStats.of(pure_r.select(in_bin(pure_r.gt_rot_deg, lo, hi)))
         t419.rows.append([bin_label(lo, hi)]
                          + [f"{lo * f:.1f}-{hi * f:.1f}" for f in kVelocityTableFps]

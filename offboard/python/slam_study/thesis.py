@@ -10,9 +10,9 @@ kNotQuoted = "not quoted"
 
 # Findings (thesis Chapter 4 summary, as quoted in the issue).
 kFindings = (
-    "rotation hurts more than translation: 1 deg of rotation per frame ~ 4 mm translational error "
+    ("rotation hurts more than translation: 1 deg of rotation per frame ~ 4 mm translational error "
     "and ~20 % rotational error; 10 mm of translation per frame ~ 45 % translational error and "
-    "0.2 deg",
+    "0.2 deg"),
     "z-translation (along the optical axis) and roll cost less than the other axes",
     "the combined effect is multiplicative: 18 mm + 1.8 deg per frame -> 36.10 mm / 1.88 deg",
 )

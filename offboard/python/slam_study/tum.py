@@ -37,7 +37,7 @@ class Trajectory:
     def positions_m(self) -> np.ndarray:
         return self.poses[:, :3, 3]
 
-    def subset(self, indices: np.ndarray) -> "Trajectory":
+    def subset(self, indices: np.ndarray) -> Trajectory:
         idx = np.asarray(indices, dtype=int)
         return Trajectory(self.stamps_s[idx], self.poses[idx])
 
@@ -152,7 +152,7 @@ class Dataset:
     groundtruth: Trajectory
 
     @staticmethod
-    def load(path: str | Path) -> "Dataset":
+    def load(path: str | Path) -> Dataset:
         path = Path(path)
         if not path.is_dir():
             raise TumFormatError(f"{path}: not a folder")

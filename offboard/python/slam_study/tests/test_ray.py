@@ -58,7 +58,7 @@ def ray_head():
     port = _free_port()
     temp_dir = tempfile.mkdtemp(prefix="rs", dir="/tmp")   # short: Ray's socket paths < 108 chars
     env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0")
-    log = open(Path(temp_dir) / "head.log", "w")
+    log = open(Path(temp_dir) / "head.log", "w")  # noqa: SIM115 - open for the node's lifetime
     head = subprocess.Popen(
         [str(ray_bin), "start", "--head", "--block", "--port", str(port),
          "--node-ip-address", "127.0.0.1", "--num-cpus", "1", "--include-dashboard=false",
