@@ -186,3 +186,54 @@ def test_bad_input_gives_message_and_nonzero_exit(tmp_path):
                           capture_output=True, text=True, timeout=60, check=False)
     assert proc.returncode == 2
     assert "--max-dt must be a positive number" in proc.stderr
+
+
+def tum_associate(first: list, second: list, max_difference: float) -> list:
+    """TUM's associate.py (rgbd_benchmark_tools), reimplemented: greedy by |dt|, unique stamps."""
+    candidates = sorted(
+        (abs(a - b), a, b) for a in first for b in second if abs(a - b) < max_difference
+    )
+    first_left, second_left, matches = set(first), set(second), []
+    for _, a, b in candidates:
+        if a in first_left and b in second_left:
+            first_left.remove(a)
+            second_left.remove(b)
+            matches.append((a, b))
+    return sorted(matches)
+
+
+def test_tum_association_mode_matches_associate_py(tmp_path):
+    # GIVEN an estimate as dense as the ground truth with +-12 ms stamp jitter, where evo's
+    # nearest-stamp rule re-uses ground-truth stamps and associate.py's greedy rule does not.
+    rng = np.random.default_rng(7)
+    gt = load_tum(GT)[:600]
+    est = gt.copy()
+    est[:, 0] += rng.uniform(-0.012, 0.012, size=len(est))
+    est[:, 1:4] += rng.normal(0.0, 0.005, size=(len(est), 3))
+    est = est[np.argsort(est[:, 0])]
+    est_path = tmp_path / "dense.txt"
+    np.savetxt(est_path, est, fmt="%.9f")
+    expected_pairs = tum_associate(list(gt[:, 0]), list(est[:, 0]), MAX_DT_S)
+    proc = subprocess.run(
+        [str(tum_score_binary()), "--association", "tum", str(GT), str(est_path)],
+        capture_output=True, text=True, timeout=60, check=False,
+    )
+    assert proc.returncode == 0, proc.stderr
+    tum = json.loads(proc.stdout)
+    evo_mode = cpp_numbers(GT, est_path)
+    # THEN the tum mode finds exactly associate.py's pairs, and the two rules really differ here.
+    assert tum["pairs"] == len(expected_pairs)
+    assert tum["association"] == "tum_greedy"
+    assert evo_mode["pairs"] != tum["pairs"]
+    # ATE over associate.py's pairs with Horn's closed form (numpy), as evaluate_ate.py does.
+    gt_by_stamp = {row[0]: row for row in load_tum(GT)}
+    est_by_stamp = {row[0]: row for row in est}
+    P = np.array([est_by_stamp[b][1:4] for a, b in expected_pairs]).T
+    Q = np.array([gt_by_stamp[a][1:4] for a, b in expected_pairs]).T
+    mu_p, mu_q = P.mean(axis=1, keepdims=True), Q.mean(axis=1, keepdims=True)
+    U, _, Vt = np.linalg.svd((Q - mu_q) @ (P - mu_p).T)
+    S = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    R = U @ S @ Vt
+    residual = Q - (R @ (P - mu_p) + mu_q)
+    ate = np.sqrt(np.mean(np.sum(residual**2, axis=0)))
+    assert tum["ate_rmse_m"] == pytest.approx(ate, abs=TOL_M)
