@@ -7,8 +7,12 @@ nose-up positive, yaw clockwise from north. `altitude_m` = -z.
 The attitude loop lumps ArduCopter's angle P controller, its rate loop and the airframe's rotational
 inertia into: angle error -> rate target (P, rate-limited) -> body rate following it with a first-order
 lag. Motors follow the commanded output with a first-order lag (ESC + propeller spin-up).
-Time is passed in: `step(dt_s, ...)`; the model never reads a clock and draws no random numbers.
-Not thread-safe.
+Disturbances (off by default): indoor air currents as a first-order Gauss-Markov acceleration per
+horizontal axis (std `gust_accel_std_mss`, correlation time `gust_tau_s`, seeded by `disturbance_seed`)
+and an accelerometer level-trim error (`trim_error_deg`: the APM holds "level" that far off, so the
+craft drifts until the position loop leans against it).
+Time is passed in: `step(dt_s, ...)`; the model never reads a clock; its only randomness is the
+seeded gust generator. Not thread-safe.
 """
 
 from __future__ import annotations
@@ -51,17 +55,27 @@ class QuadParams:
     battery_internal_ohm: float = 0.03
     # Current drawn at full output (4 motors): ~60 A for this class; hover draws ~ (0.5)^1.5 * 60 = 21 A.
     battery_full_output_a: float = 60.0
+    # Disturbances (0 = off). Indoors: 0.3 m/s^2 gusts (~2 deg of lean to reject) with 2 s correlation
+    # are what a 450 frame feels from its own prop wash off walls and room drafts.
+    gust_accel_std_mss: float = 0.0
+    gust_tau_s: float = 2.0
+    trim_error_deg: tuple[float, float] = (0.0, 0.0)  # (roll, pitch) level-calibration error
+    disturbance_seed: int = 1
 
     def validate(self) -> None:
         """Raises ValueError naming the first invalid field."""
         positive = ["mass_kg", "motor_tau_s", "angle_p_per_s", "max_tilt_rate_rad_s", "rate_tau_s",
                     "yaw_rate_tau_s", "battery_full_v", "battery_empty_v", "battery_capacity_mah",
-                    "battery_full_output_a"]
+                    "battery_full_output_a", "gust_tau_s"]
         for name in positive:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"QuadParams.{name} must be finite and > 0, got {v}")
-        for name in ["drag_linear_n_per_mps", "drag_quadratic_n_per_mps2", "battery_internal_ohm"]:
+        if len(self.trim_error_deg) != 2 or not all(math.isfinite(v) and abs(v) < 10
+                                                    for v in self.trim_error_deg):
+            raise ValueError(f"QuadParams.trim_error_deg must be two angles under 10 deg, got {self.trim_error_deg}")
+        for name in ["drag_linear_n_per_mps", "drag_quadratic_n_per_mps2", "battery_internal_ohm",
+                     "gust_accel_std_mss"]:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"QuadParams.{name} must be finite and >= 0, got {v}")
@@ -124,6 +138,8 @@ class QuadModel:
         self.state = state or QuadState(battery_v=self.params.battery_full_v)
         # Set on every airborne -> ground transition: vertical speed (m/s, positive down) at contact.
         self.touchdowns_mps: list[float] = []
+        self._gust_rng = np.random.default_rng(self.params.disturbance_seed)
+        self.gust_mss = np.zeros(3)
 
     def thrust_n(self) -> float:
         p, s = self.params, self.state
@@ -150,6 +166,9 @@ class QuadModel:
             s.rate_body_rad_s[:] = 0.0
         else:
             lim = p.max_tilt_rate_rad_s
+            # A level-trim error makes the APM hold its "level" that far off the true level.
+            roll_target_rad += math.radians(p.trim_error_deg[0])
+            pitch_target_rad += math.radians(p.trim_error_deg[1])
             rate_tgt = np.array([
                 min(max(p.angle_p_per_s * (roll_target_rad - s.roll_rad), -lim), lim),
                 min(max(p.angle_p_per_s * (pitch_target_rad - s.pitch_rad), -lim), lim),
@@ -169,6 +188,13 @@ class QuadModel:
         speed = float(np.linalg.norm(v))
         drag = -p.drag_linear_n_per_mps * v - p.drag_quadratic_n_per_mps2 * speed * v
         accel = (thrust + drag) / p.mass_kg + np.array([0.0, 0.0, GRAVITY_MSS])
+        if p.gust_accel_std_mss > 0:
+            # Exact discretisation of the Gauss-Markov process (stationary std gust_accel_std_mss).
+            a = math.exp(-dt_s / p.gust_tau_s)
+            w = self._gust_rng.standard_normal(2) * p.gust_accel_std_mss * math.sqrt(1.0 - a * a)
+            self.gust_mss[:2] = a * self.gust_mss[:2] + w
+            if not s.on_ground:
+                accel = accel + self.gust_mss
 
         if s.on_ground:
             if accel[2] < 0.0:  # net upward force: lift-off

@@ -7,7 +7,7 @@ Everything is deterministic (seeded emulators, no clock).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 
 import numpy as np
@@ -25,6 +25,13 @@ class Leg:
     target_ned_m: tuple[float, float, float]
     yaw_rad: float
     duration_s: float
+    # Vertical speed limit for this leg (None: the pilot's default); a landing leg uses a slow one.
+    max_climb_mps: float | None = None
+    # Landing leg: once the craft is on the ground, the ground station disarms.
+    land: bool = False
+
+    def gains(self, base: PilotGains) -> PilotGains:
+        return base if self.max_climb_mps is None else replace(base, max_climb_mps=self.max_climb_mps)
 
 
 @dataclass
@@ -86,7 +93,7 @@ def fly_plan(fc: FlightControllerEmulator, legs: list[Leg], kinect: KinectEmulat
             t = min(next_rc, end_us)
             fc.advance_to(t)
             s = fc.snapshot()
-            sticks = sticks_for(s, leg.target_ned_m, leg.yaw_rad, gains)
+            sticks = sticks_for(s, leg.target_ned_m, leg.yaw_rad, leg.gains(gains))
             fc.feed_rc(sticks, t)
             if on_sticks is not None:
                 on_sticks(t, sticks)

@@ -15,7 +15,7 @@ import threading
 import time
 
 from hilrig.flight import Leg
-from hilrig.pilot import ARM_STICKS_US, sticks_for
+from hilrig.pilot import ARM_STICKS_US, IDLE_STICKS_US, PilotGains, sticks_for
 
 COMMAND_PERIOD_S = 0.02      # 50 Hz, the thesis' command rate (quad-control's period_ms)
 ARM_GESTURE_S = 2.4          # ArduCopter's 2 s arming delay + margin for the PWM frame delay
@@ -46,6 +46,7 @@ class GroundStation:
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="ground-station", daemon=True)
         self.leg_index = 0
+        self.disarmed_sim_us: int | None = None
         self.leg_started_sim_us: list[int] = []
 
     def start(self) -> "GroundStation":
@@ -93,7 +94,11 @@ class GroundStation:
                     self.leg_started_sim_us.append(s.t_us)
                     leg_end_sim = s.t_us + int(leg.duration_s * 1e6)
                 leg = self.plan[self.leg_index]
-                self._put(conn, sticks_for(s, leg.target_ned_m, leg.yaw_rad), True)
+                if leg.land and s.landed:
+                    self._put(conn, IDLE_STICKS_US, False)  # on the ground: disarm
+                    self.disarmed_sim_us = self.disarmed_sim_us or s.t_us
+                    continue
+                self._put(conn, sticks_for(s, leg.target_ned_m, leg.yaw_rad, leg.gains(PilotGains())), True)
             except (OSError, http.client.HTTPException):
                 self.stats.errors += 1
                 conn.close()

@@ -8,7 +8,9 @@ MAVLink bytes to the telemetry pin, simulate the firmware to the step's end, fee
 pulse to the FC emulator, advance it, and resolve the request whose reply line arrived.
 The wall clock is read only here, through the `clock` passed in (the adapter between simulated time
 and the real processes); everything below it stays simulated. If the machine cannot keep up, the rig
-runs as fast as it can and reports its real-time factor.
+never races to catch up (simulated time running faster than the clients' wall time would make a
+client's ordinary delay look like a long silence to the firmware's failsafe): a lag beyond
+MAX_LAG_S is dropped, so the simulation simply runs slower than real time (realtime_factor < 1).
 Thread safety: transact()/snapshot()/history() may be called from any thread; one rig thread.
 """
 
@@ -20,9 +22,14 @@ import os
 import threading
 import time
 
-from fc_emulator import FcOptions, FcSnapshot, FlightControllerEmulator
+from fc_emulator import FcOptions, FcSnapshot, FlightControllerEmulator, QuadParams
 from hilrig.fw_sim import firmware_elf
 from hilrig.paths import find_binary
+
+
+# Largest lag behind the wall clock the rig makes up for (one 20 ms RC frame); beyond it the lag is
+# dropped rather than caught up at simavr's ~3.7x speed.
+MAX_LAG_S = 0.02
 
 
 @dataclass
@@ -46,7 +53,8 @@ class LineTiming:
 
 
 class LiveRig:
-    def __init__(self, key_record: bytes, fc_options: FcOptions | None = None, step_us: int = 5000,
+    def __init__(self, key_record: bytes, fc_options: FcOptions | None = None,
+                 quad_params: QuadParams | None = None, step_us: int = 5000,
                  time_scale: float = 1.0, workdir=None, clock=time.monotonic) -> None:
         binary, elf = find_binary("fw_sim"), firmware_elf()
         if binary is None or elf is None:
@@ -60,7 +68,7 @@ class LiveRig:
         self._session = LiveSession(key_record, workdir)
         self._mav: list[tuple[int, bytes]] = []
         self.fc = FlightControllerEmulator(sink=lambda t, d: self._mav.append((t, d)),
-                                           options=fc_options)
+                                           options=fc_options, params=quad_params)
         self.step_us = step_us
         self.time_scale = time_scale
         self._clock = clock
@@ -74,6 +82,7 @@ class LiveRig:
         self._error: BaseException | None = None
         self.sim_us = 0
         self.wall_s = 0.0
+        self.lag_dropped_s = 0.0
         self._thread = threading.Thread(target=self._run, name="live-rig", daemon=True)
 
     # ---- API ------------------------------------------------------------------------------------
@@ -141,6 +150,9 @@ class LiveRig:
                 if now < due_wall:
                     time.sleep(min(due_wall - now, 0.002))
                     continue
+                if now - due_wall > MAX_LAG_S:
+                    wall0 += now - due_wall - MAX_LAG_S
+                    self.lag_dropped_s += now - due_wall - MAX_LAG_S
                 self._step(t_next)
                 self.wall_s = self._clock() - wall0
         except BaseException as e:  # reported by close(); nothing escapes the thread

@@ -25,6 +25,7 @@ import time
 import numpy as np
 import pytest
 
+from fc_emulator import QuadParams
 from hilrig.flight import Leg
 from hilrig.fw_sim import firmware_elf
 from hilrig.ground_station import GroundStation
@@ -36,6 +37,11 @@ KEY = bytes(range(0x11, 0x21))
 HOLD = (0.0, 0.0, -1.7)
 HOLD_TOLERANCE_M = 0.15     # issue target: within +-0.15 m of the goal after settling
 SETTLE_S = 8.0              # arm gesture (2.4 s) + climb to 1.7 m + settling
+# Indoor disturbances the position loop must reject (fc_emulator.quad_model): 0.15 m/s^2 air
+# currents with 2 s correlation (a draft of ~0.5 m/s on the frame) and a 0.5 / -0.3 deg level-trim
+# error of the APM.
+DISTURBED = QuadParams(gust_accel_std_mss=0.15, gust_tau_s=2.0, trim_error_deg=(0.5, -0.3),
+                       disturbance_seed=7)
 
 
 def _need_rig():
@@ -49,7 +55,7 @@ def _rig_and_bridge(tmp_path):
     from hilrig.live_rig import LiveRig
     from wifi_bridge import WifiBridgeEmulator
 
-    rig = LiveRig(key_record(KEY), workdir=tmp_path)
+    rig = LiveRig(key_record(KEY), quad_params=DISTURBED, workdir=tmp_path)
     rig.start()
     bridge = WifiBridgeEmulator(rig.transact).start()
     return rig, bridge
@@ -86,6 +92,7 @@ def test_scenario1_takeoff_and_hold_30s(tmp_path):
                   "command_rate_hz": gs.stats.sent / (hist[-1].t_us / 1e6),
                   "http_round_trip_median_ms": float(np.median(gs.stats.round_trip_ms)),
                   "statuses": gs.stats.statuses, "realtime_factor": rig.realtime_factor,
+                  "lag_dropped_s": rig.lag_dropped_s,
                   "position_source": "emulator ground truth (slam-server/quad-control not in loop)"}
     finally:
         bridge.close()
@@ -95,6 +102,52 @@ def test_scenario1_takeoff_and_hold_30s(tmp_path):
     assert not [e for t, e in rig.fc.events if "failsafe" in e]
     assert err["max_m"] <= HOLD_TOLERANCE_M
     assert set(report["statuses"]) == {200}
+
+
+WAYPOINTS = [(1.5, 0.0, -1.7), (1.5, 1.0, -1.7)]
+WAYPOINT_TOLERANCE_M = 0.15
+LAND_DESCENT_MPS = 0.3  # the ground station's own landing: slow enough for a soft touchdown
+
+
+def test_scenario2_two_waypoints_and_land(tmp_path):
+    _need_rig()
+    plan = [Leg(HOLD, 0.0, SETTLE_S - 2.4),
+            Leg(WAYPOINTS[0], 0.0, 8.0),
+            Leg(WAYPOINTS[1], 0.0, 8.0),
+            Leg((WAYPOINTS[1][0], WAYPOINTS[1][1], 1.0), 0.0, 1e9, max_climb_mps=LAND_DESCENT_MPS,
+                land=True)]
+    rig, bridge = _rig_and_bridge(tmp_path)
+    try:
+        gs = GroundStation(bridge.port, KEY, rig, plan).start()
+        deadline = time.monotonic() + 120
+        while gs.disarmed_sim_us is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        rig.wait_sim(rig.sim_us + 1e6, timeout_s=10)
+        gs.kill()
+        hist = rig.history()
+        starts = list(gs.leg_started_sim_us)
+        touchdowns = list(rig.fc.touchdowns_mps)
+        events = list(rig.fc.events)
+    finally:
+        bridge.close()
+        rig.close()
+    assert gs.disarmed_sim_us is not None, "never landed"
+    arrivals = []
+    for i, wp in enumerate(WAYPOINTS):
+        leg_end = starts[i + 2]
+        s = min(hist, key=lambda h: abs(h.t_us - leg_end))
+        arrivals.append(math.dist(s.pos_ned_m, wp))
+    report = {"waypoint_errors_at_leg_end_m": arrivals,
+              "touchdown_vertical_speed_mps": touchdowns[-1] if touchdowns else None,
+              "touchdown_xy_m": hist[-1].pos_ned_m[:2], "flight_time_s": gs.disarmed_sim_us / 1e6,
+              "commands_sent": gs.stats.sent, "statuses": gs.stats.statuses,
+              "position_source": "emulator ground truth (slam-server/quad-control not in loop)"}
+    (artifacts_dir() / "scenario2_waypoints.json").write_text(json.dumps(report, indent=2))
+    print("\nscenario 2 (two waypoints and land):", json.dumps(report))
+    assert all(e <= WAYPOINT_TOLERANCE_M for e in arrivals)
+    assert len(touchdowns) == 1 and touchdowns[0] <= 0.5
+    assert math.dist(hist[-1].pos_ned_m[:2], WAYPOINTS[1][:2]) <= 0.3
+    assert not [e for t, e in events if "failsafe" in e]
 
 
 # (raw bytes sent to the bridge, HTTP status expected back). Lines reaching the firmware are

@@ -274,3 +274,32 @@ def test_raw_imu_reads_gravity_and_is_seeded():
     assert np.array_equal(a, b) and not np.array_equal(a, c)
     assert np.mean(a[:, 2]) == pytest.approx(-1000, abs=5)  # -1 g on body z, in mg
     assert np.std(a[:, 0]) == pytest.approx(8, rel=0.4)
+
+
+def test_gusts_are_seeded_with_the_configured_strength():
+    def gusts(seed):
+        m = QuadModel(QuadParams(gust_accel_std_mss=0.3, gust_tau_s=2.0, disturbance_seed=seed))
+        out = []
+        for _ in range(40000):  # 100 s
+            m.step(0.0025, 0.0, 0.0, 0.0, 0.0)
+            out.append(m.gust_mss[0])
+        return np.array(out)
+    a, b, c = gusts(1), gusts(1), gusts(2)
+    assert np.array_equal(a, b) and not np.array_equal(a, c)
+    assert np.std(a) == pytest.approx(0.3, rel=0.35)  # 100 s is ~50 correlation times
+
+
+def test_trim_error_makes_a_craft_drift_under_level_sticks():
+    fc = armed_and_hovering(1.0, params=QuadParams(trim_error_deg=(1.0, 0.0)))
+    fly(fc, MID, 5.0)
+    s = fc.snapshot()
+    assert math.degrees(s.roll_rad) == pytest.approx(1.0, abs=0.1)
+    assert s.vel_ned_mps[1] > 0.1  # drifting east (right)
+
+
+def test_gusts_push_a_hovering_craft_around():
+    fc = armed_and_hovering(1.0, params=QuadParams(gust_accel_std_mss=0.3))
+    alt0 = fc.snapshot().altitude_m
+    fly(fc, MID, 10.0)
+    assert np.hypot(*fc.snapshot().pos_ned_m[:2]) > 0.05
+    assert fc.snapshot().altitude_m == pytest.approx(alt0, abs=0.05)  # gusts are horizontal
