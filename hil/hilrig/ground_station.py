@@ -32,8 +32,51 @@ class GroundStationStats:
     errors: int = 0
 
 
+class _Client:
+    """One keep-alive HTTP connection to the bridge with its own thread (quad-control has two)."""
+
+    def __init__(self, gs: "GroundStation", name: str) -> None:
+        self.gs = gs
+        self.busy = threading.Event()
+        self.job: tuple | None = None
+        self.wake = threading.Event()
+        self.thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def submit(self, sticks, arm: bool) -> None:
+        self.job = (sticks, arm, self.gs.seqs.next())
+        self.busy.set()
+        self.wake.set()
+
+    def _run(self) -> None:
+        from rgbd_protocol.control import build_control_request
+
+        conn = http.client.HTTPConnection("127.0.0.1", self.gs.port, timeout=HTTP_TIMEOUT_S)
+        while not self.gs._stop.is_set():
+            if not self.wake.wait(0.05):
+                continue
+            self.wake.clear()
+            sticks, arm, seq = self.job
+            line = build_control_request(self.gs.key, seq, arm, *sticks)
+            t0 = self.gs.clock()
+            try:
+                conn.request("PUT", line.split(" ", 1)[1])
+                r = conn.getresponse()
+                r.read()
+                self.gs._record(r.status, (self.gs.clock() - t0) * 1e3)
+            except (OSError, http.client.HTTPException):
+                self.gs._record(None, None)
+                conn.close()
+                conn = http.client.HTTPConnection("127.0.0.1", self.gs.port, timeout=HTTP_TIMEOUT_S)
+            self.busy.clear()
+        conn.close()
+
+
 class GroundStation:
-    def __init__(self, bridge_port: int, key: bytes, rig, plan: list[Leg], clock=time.monotonic) -> None:
+    """Every COMMAND_PERIOD_S the latest command goes out on the next idle client (round robin, as
+    quad-control's FirmwareLink does), so one stalled request never stops the commands."""
+
+    def __init__(self, bridge_port: int, key: bytes, rig, plan: list[Leg], clock=time.monotonic,
+                 clients: int = 2) -> None:
         from rgbd_protocol.control import SequenceCounter
 
         self.port = bridge_port
@@ -43,35 +86,48 @@ class GroundStation:
         self.clock = clock
         self.seqs = SequenceCounter()
         self.stats = GroundStationStats()
+        self._stats_lock = threading.Lock()
         self._stop = threading.Event()
+        self._clients = [_Client(self, f"gs-client-{i}") for i in range(clients)]
+        self._next_client = 0
         self._thread = threading.Thread(target=self._run, name="ground-station", daemon=True)
         self.leg_index = 0
         self.disarmed_sim_us: int | None = None
         self.leg_started_sim_us: list[int] = []
+        self.skipped_busy = 0
 
     def start(self) -> "GroundStation":
+        for c in self._clients:
+            c.thread.start()
         self._thread.start()
         return self
 
     def kill(self) -> None:
+        """Stops dead, without a goodbye (a crashed ground-station process)."""
         self._stop.set()
         self._thread.join(timeout=5)
+        for c in self._clients:
+            c.thread.join(timeout=5)
 
-    def _put(self, conn: http.client.HTTPConnection, sticks, arm: bool) -> None:
-        from rgbd_protocol.control import build_control_request
+    def _record(self, status, rtt_ms) -> None:
+        with self._stats_lock:
+            self.stats.sent += 1
+            if status is None:
+                self.stats.errors += 1
+                return
+            self.stats.statuses[status] = self.stats.statuses.get(status, 0) + 1
+            self.stats.round_trip_ms.append(rtt_ms)
 
-        line = build_control_request(self.key, self.seqs.next(), arm, *sticks)
-        target = line.split(" ", 1)[1]
-        t0 = self.clock()
-        conn.request("PUT", target)
-        r = conn.getresponse()
-        r.read()
-        self.stats.round_trip_ms.append((self.clock() - t0) * 1e3)
-        self.stats.sent += 1
-        self.stats.statuses[r.status] = self.stats.statuses.get(r.status, 0) + 1
+    def _send(self, sticks, arm: bool) -> None:
+        for k in range(len(self._clients)):
+            c = self._clients[(self._next_client + k) % len(self._clients)]
+            if not c.busy.is_set():
+                self._next_client = (self._next_client + k + 1) % len(self._clients)
+                c.submit(sticks, arm)
+                return
+        self.skipped_busy += 1
 
     def _run(self) -> None:
-        conn = http.client.HTTPConnection("127.0.0.1", self.port, timeout=HTTP_TIMEOUT_S)
         start = self.clock()
         next_t = start
         arm_until = start + ARM_GESTURE_S
@@ -82,25 +138,19 @@ class GroundStation:
                 time.sleep(min(next_t - now, 0.005))
                 continue
             next_t += COMMAND_PERIOD_S
-            try:
-                if now < arm_until:
-                    self._put(conn, ARM_STICKS_US, True)
-                    continue
-                s = self.rig.snapshot()
-                if leg_end_sim is None or (s.t_us >= leg_end_sim and self.leg_index < len(self.plan) - 1):
-                    if leg_end_sim is not None:
-                        self.leg_index += 1
-                    leg = self.plan[self.leg_index]
-                    self.leg_started_sim_us.append(s.t_us)
-                    leg_end_sim = s.t_us + int(leg.duration_s * 1e6)
+            if now < arm_until:
+                self._send(ARM_STICKS_US, True)
+                continue
+            s = self.rig.snapshot()
+            if leg_end_sim is None or (s.t_us >= leg_end_sim and self.leg_index < len(self.plan) - 1):
+                if leg_end_sim is not None:
+                    self.leg_index += 1
                 leg = self.plan[self.leg_index]
-                if leg.land and s.landed:
-                    self._put(conn, IDLE_STICKS_US, False)  # on the ground: disarm
-                    self.disarmed_sim_us = self.disarmed_sim_us or s.t_us
-                    continue
-                self._put(conn, sticks_for(s, leg.target_ned_m, leg.yaw_rad, leg.gains(PilotGains())), True)
-            except (OSError, http.client.HTTPException):
-                self.stats.errors += 1
-                conn.close()
-                conn = http.client.HTTPConnection("127.0.0.1", self.port, timeout=HTTP_TIMEOUT_S)
-        conn.close()
+                self.leg_started_sim_us.append(s.t_us)
+                leg_end_sim = s.t_us + int(leg.duration_s * 1e6)
+            leg = self.plan[self.leg_index]
+            if leg.land and s.landed:
+                self._send(IDLE_STICKS_US, False)  # on the ground: disarm
+                self.disarmed_sim_us = self.disarmed_sim_us or s.t_us
+                continue
+            self._send(sticks_for(s, leg.target_ned_m, leg.yaw_rad, leg.gains(PilotGains())), True)

@@ -123,6 +123,7 @@ class LiveRig:
 
     @property
     def realtime_factor(self) -> float:
+        """Simulated seconds per wall second since start (< 1 when the machine could not keep up)."""
         return (self.sim_us / 1e6) / self.wall_s if self.wall_s > 0 else 0.0
 
     def close(self) -> None:
@@ -143,6 +144,7 @@ class LiveRig:
     def _run(self) -> None:
         try:
             wall0 = self._clock()
+            wall_start = wall0
             while not self._stop.is_set():
                 t_next = self.sim_us + self.step_us
                 due_wall = wall0 + t_next / 1e6 / self.time_scale
@@ -154,7 +156,7 @@ class LiveRig:
                     wall0 += now - due_wall - MAX_LAG_S
                     self.lag_dropped_s += now - due_wall - MAX_LAG_S
                 self._step(t_next)
-                self.wall_s = self._clock() - wall0
+                self.wall_s = self._clock() - wall_start
         except BaseException as e:  # reported by close(); nothing escapes the thread
             self._error = e
 
