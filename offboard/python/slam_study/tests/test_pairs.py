@@ -148,3 +148,19 @@ def test_rpe_and_ate_match_evo(fr1_xyz30, tmp_path):
         rpe_r.get_statistic(evo_metrics.StatisticsType.rmse), rel=1e-5)
     assert ours_ate.rmse_m == pytest.approx(ape.get_statistic(evo_metrics.StatisticsType.rmse),
                                             rel=1e-6)
+
+
+def test_effect_fit_recovers_known_coefficients():
+    """GIVEN pairs whose error is exactly 1 + 0.4 t + 4 r + 0.1 t r (+ small seeded noise)
+    THEN the least-squares fit in the thesis comparison recovers the coefficients."""
+    from slam_study import report
+    from slam_study.tests.test_tables import make_pairs
+
+    rng = np.random.default_rng(3)
+    t = rng.uniform(0, 18, 400)
+    r = rng.uniform(0, 1.8, 400)
+    err = 1 + 0.4 * t + 4 * r + 0.1 * t * r + rng.normal(0, 0.01, 400)
+    coef, se = report.effect_fit(make_pairs(t, r, rpe_mm=err))
+    np.testing.assert_allclose(coef, [1, 0.4, 4, 0.1], atol=0.02)
+    assert np.all(se < 0.02)
+    assert report.effect_fit(make_pairs(t[:5], r[:5], rpe_mm=err[:5])) is None
