@@ -19,6 +19,7 @@ from hilrig.pilot import ARM_STICKS_US, IDLE_STICKS_US, PilotGains, sticks_for
 
 COMMAND_PERIOD_S = 0.02      # 50 Hz, the thesis' command rate (quad-control's period_ms)
 ARM_GESTURE_S = 2.4          # ArduCopter's 2 s arming delay + margin for the PWM frame delay
+ARM_GIVE_UP_S = 15.0         # stop holding the gesture if the APM has not armed by then
 # quad-control gives up after 100 ms; this stand-in waits 1 s so a loaded CI machine is not mistaken
 # for a link fault (late replies are counted in round_trip_ms).
 HTTP_TIMEOUT_S = 1.0
@@ -131,6 +132,7 @@ class GroundStation:
         start = self.clock()
         next_t = start
         arm_until = start + ARM_GESTURE_S
+        arm_give_up = start + ARM_GIVE_UP_S
         leg_end_sim = None
         while not self._stop.is_set():
             now = self.clock()
@@ -138,7 +140,9 @@ class GroundStation:
                 time.sleep(min(next_t - now, 0.005))
                 continue
             next_t += COMMAND_PERIOD_S
-            if now < arm_until:
+            # Hold the arming gesture until the APM is armed (an operator watches the motors spin up),
+            # at least ARM_GESTURE_S: on a loaded machine simulated time may run slower than ours.
+            if now < arm_until or (not self.rig.snapshot().armed and now < arm_give_up):
                 self._send(ARM_STICKS_US, True)
                 continue
             s = self.rig.snapshot()
