@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 
 namespace slam::surf_detail {
 namespace {
@@ -12,6 +13,11 @@ constexpr float kPi = 3.14159265358979f;
 constexpr float kDegPerRad = 180.f / kPi;
 /// Orientation: samples within 6s of the keypoint (Bay et al. 4.1).
 constexpr int kOrientationRadiusSamples = 6;
+/// Upper bound of the samples inside that circle (the bounding square), for stack buffers;
+/// must stay <= 256 for the uint8 sort indices.
+constexpr std::size_t kMaxOrientationSamples =
+    (2 * kOrientationRadiusSamples + 1) * (2 * kOrientationRadiusSamples + 1);
+static_assert(kMaxOrientationSamples <= 256, "orientation sort indices are uint8");
 /// Orientation: Gaussian sigma 2s (Bay et al. 4.1), in sample units.
 constexpr float kOrientationSigmaSamples = 2.f;
 /// Orientation: the sliding sector spans pi/3 (Bay et al. 4.1) ...
@@ -111,36 +117,36 @@ bool haar_response(const IntegralImage& integral, float x, float y, int wavelet_
 float dominant_orientation_deg(const IntegralImage& integral, const cv::KeyPoint& kp) {
   const float s = keypoint_scale(kp);
   const int wavelet = even_wavelet_px(4.f * s);
-  std::vector<float> rx, ry, angle_deg;
-  const auto& samples = orientation_samples();
-  rx.reserve(samples.size());
-  ry.reserve(samples.size());
-  angle_deg.reserve(samples.size());
-  for (const auto& smp : samples) {
+  // Fixed-size buffers on the stack: no heap traffic per keypoint.
+  std::array<float, kMaxOrientationSamples> rx, ry, angle_deg;
+  std::size_t n = 0;
+  for (const auto& smp : orientation_samples()) {
     float dx = 0.f, dy = 0.f;
     if (!haar_response(integral, kp.pt.x + static_cast<float>(smp.j) * s,
                        kp.pt.y + static_cast<float>(smp.i) * s, wavelet, &dx, &dy)) {
       continue;
     }
-    rx.push_back(dx * smp.weight);
-    ry.push_back(dy * smp.weight);
-    float a = std::atan2(ry.back(), rx.back()) * kDegPerRad;
+    rx[n] = dx * smp.weight;
+    ry[n] = dy * smp.weight;
+    float a = std::atan2(ry[n], rx[n]) * kDegPerRad;
     if (a < 0.f) a += 360.f;
-    angle_deg.push_back(a);
+    angle_deg[n] = a;
+    ++n;
   }
-  if (rx.empty()) return -1.f;
+  if (n == 0) return -1.f;
   // Sector sums via prefix sums over the responses sorted by angle, unrolled over
   // [-360, 720) so sectors that wrap around 0 deg are contiguous: each of the 72 sectors costs
   // two binary searches instead of a pass over all samples. A sample is in the sector centred
   // on c when |angle - c| < 30 deg (modulo 360).
-  std::vector<std::size_t> order(rx.size());
-  for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return angle_deg[a] < angle_deg[b] || (angle_deg[a] == angle_deg[b] && a < b);
-  });
-  const std::size_t n = order.size();
-  std::vector<float> unrolled_deg(3 * n);
-  std::vector<double> prefix_x(3 * n + 1, 0.0), prefix_y(3 * n + 1, 0.0);
+  std::array<std::uint8_t, kMaxOrientationSamples> order;
+  for (std::size_t k = 0; k < n; ++k) order[k] = static_cast<std::uint8_t>(k);
+  std::sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(n),
+            [&](std::uint8_t a, std::uint8_t b) {
+              return angle_deg[a] < angle_deg[b] || (angle_deg[a] == angle_deg[b] && a < b);
+            });
+  std::array<float, 3 * kMaxOrientationSamples> unrolled_deg;
+  std::array<double, 3 * kMaxOrientationSamples + 1> prefix_x, prefix_y;
+  prefix_x[0] = prefix_y[0] = 0.0;
   for (std::size_t copy = 0; copy < 3; ++copy) {
     for (std::size_t k = 0; k < n; ++k) {
       const std::size_t idx = copy * n + k;
@@ -149,14 +155,14 @@ float dominant_orientation_deg(const IntegralImage& integral, const cv::KeyPoint
       prefix_y[idx + 1] = prefix_y[idx] + ry[order[k]];
     }
   }
+  const auto first = unrolled_deg.begin();
+  const auto last = unrolled_deg.begin() + static_cast<std::ptrdiff_t>(3 * n);
   double best_x = 0.0, best_y = 0.0, best_norm_sq = -1.0;
   for (int centre = 0; centre < 360; centre += kOrientationSearchStepDeg) {
     const float lo_deg = static_cast<float>(centre) - 0.5f * kOrientationWindowDeg;
     const float hi_deg = static_cast<float>(centre) + 0.5f * kOrientationWindowDeg;
-    const auto lo = static_cast<std::size_t>(
-        std::upper_bound(unrolled_deg.begin(), unrolled_deg.end(), lo_deg) - unrolled_deg.begin());
-    const auto hi = static_cast<std::size_t>(
-        std::lower_bound(unrolled_deg.begin(), unrolled_deg.end(), hi_deg) - unrolled_deg.begin());
+    const auto lo = static_cast<std::size_t>(std::upper_bound(first, last, lo_deg) - first);
+    const auto hi = static_cast<std::size_t>(std::lower_bound(first, last, hi_deg) - first);
     const double sx = prefix_x[hi] - prefix_x[lo];
     const double sy = prefix_y[hi] - prefix_y[lo];
     const double norm_sq = sx * sx + sy * sy;
