@@ -30,8 +30,7 @@ OpenNi2Source::OpenNi2Source(const OpenNi2Options& options, Clock* clock)
   if (openni::OpenNI::initialize() != openni::STATUS_OK) fail("initialize failed");
   const char* uri = options_.uri.empty() ? openni::ANY_DEVICE : options_.uri.c_str();
   if (device_->device.open(uri) != openni::STATUS_OK) {
-    device_.reset();
-    openni::OpenNI::shutdown();
+    device_.reset();  // (no OpenNI::shutdown(): see the destructor)
     fail("cannot open device '" + options_.uri + "'");
   }
   auto open_stream = [&](openni::VideoStream& s, openni::SensorType type,
@@ -52,7 +51,6 @@ OpenNi2Source::OpenNi2Source(const OpenNi2Options& options, Clock* clock)
     device_->color.destroy();
     device_->device.close();
     device_.reset();
-    openni::OpenNI::shutdown();
     fail("cannot start depth and colour streams");
   }
   if (device_->device.isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR) &&
@@ -70,7 +68,9 @@ OpenNi2Source::~OpenNi2Source() {
     device_->color.destroy();
     device_->device.close();
     device_.reset();
-    openni::OpenNI::shutdown();
+    // No OpenNI::shutdown() here: it unloads the driver libraries while driver threads may still
+    // run (Debian's OpenNI2 2.2 DummyDevice then crashes in unmapped code). OpenNI::initialize()
+    // is idempotent, so a later source reuses the loaded drivers; the OS frees them at exit.
   }
 }
 
