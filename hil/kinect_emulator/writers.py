@@ -4,8 +4,10 @@
   depth/*.png with 5000 units per metre) that onboard/capture's TumReplaySource replays, and that
   slam-eval / tum-score score against groundtruth.txt.
 * FakenectDumpWriter: a libfreenect "fakenect" dump (INDEX.txt, r-*.ppm, d-*.pgm) that the real
-  libfreenect API replays (`fakenect <dir> rgbd-streamer ...`). Depth is stored as 11-bit raw
-  disparity, the format fakenect-record writes and FreenectSource's passthrough mode expects.
+  libfreenect API replays (`fakenect <dir> rgbd-streamer --source freenect --freenect-disparity-depth`).
+  Depth is stored as 11-bit raw disparity, the format fakenect-record writes; fakenect copies the
+  bytes after the PGM header verbatim into the depth buffer, so the samples are in HOST order
+  (little-endian here), not the big-endian the PGM format specifies.
 Timestamps are the frames' simulated capture times (seconds, 6 decimals) offset by `t0_s`, so they
 look like the benchmark's. Blank frames are written as they are (all-zero), as a real dump would be.
 Not thread-safe; files are complete after `close()` (also on `with` exit).
@@ -38,9 +40,12 @@ def depth_mm_to_freenect_raw(depth_mm: np.ndarray) -> np.ndarray:
 
 
 def freenect_raw_to_depth_mm(raw: np.ndarray) -> np.ndarray:
+    """What onboard/capture's FreenectSource::disparity_to_mm makes of raw disparity (same fit,
+    same rounding half away from zero, 0 for no reading or beyond 10 m)."""
     r = raw.astype(np.float64)
     z = 0.1236 * np.tan(r / 2842.5 + 1.1863)
-    return np.where(raw < FREENECT_NO_READING, np.round(z * 1000.0), 0).astype(np.uint16)
+    ok = (raw < FREENECT_NO_READING) & (z > 0) & (z <= FREENECT_MAX_DEPTH_MM / 1000.0)
+    return np.where(ok, np.floor(z * 1000.0 + 0.5), 0).astype(np.uint16)
 
 
 class TumFolderWriter:
@@ -104,7 +109,7 @@ class FakenectDumpWriter:
         raw = depth_mm_to_freenect_raw(frame.depth_mm)
         with open(self.dir / dname, "wb") as f:
             f.write(f"P5 {w} {h} 65535\n".encode())
-            f.write(raw.astype(">u2").tobytes())  # PGM 16-bit samples are big-endian
+            f.write(raw.astype("=u2").tobytes())  # host order: what fakenect-record writes and reads
         with open(self.dir / rname, "wb") as f:
             f.write(f"P6 {w} {h} 255\n".encode())
             f.write(np.ascontiguousarray(frame.rgb).tobytes())

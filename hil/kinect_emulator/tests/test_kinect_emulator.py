@@ -242,7 +242,7 @@ def test_fakenect_dump(room, tmp_path):
     data = (tmp_path / "dump" / index[0]).read_bytes()
     header = b"P5 640 480 65535\n"
     assert data.startswith(header) and len(data) == len(header) + 640 * 480 * 2
-    raw = np.frombuffer(data[len(header):], dtype=">u2").reshape(480, 640)
+    raw = np.frombuffer(data[len(header):], dtype="=u2").reshape(480, 640)  # host order (fakenect)
     back = freenect_raw_to_depth_mm(raw)
     valid = f.depth_mm > 0
     assert np.all((raw == 2047) == ~valid)
