@@ -16,15 +16,21 @@ std::string format_stats(const PipelineCounters& now, const PipelineCounters& pr
     return frames == 0 ? 0.0 : static_cast<double>(n.encode_us_total - p.encode_us_total) / 1000.0 / frames;
   };
   const auto& v = now.validation;
+  // Totals only when there is no interval (the final line), totals and rates otherwise.
+  auto with_rate = [&](std::uint64_t a, std::uint64_t b) {
+    return seconds > 0 ? fmt::format("{} ({:.1f}/s)", a, rate(a, b)) : fmt::format("{}", a);
+  };
+  const std::string bytes =
+      seconds > 0 ? fmt::format("{:.2f} MB/s", (rate(now.rgb.bytes_sent, previous.rgb.bytes_sent) +
+                                                 rate(now.depth.bytes_sent, previous.depth.bytes_sent)) / 1e6)
+                  : fmt::format("{:.1f} MB sent", static_cast<double>(now.rgb.bytes_sent + now.depth.bytes_sent) / 1e6);
   return fmt::format(
-      "captured {} ({:.1f}/s) sent rgb {} ({:.1f}/s) depth {} ({:.1f}/s) dropped blank {} "
-      "malformed {} out-of-order {} unregistered {} superseded rgb {} depth {} | {:.2f} MB/s | "
-      "encode ms rgb {:.2f} depth {:.2f} | connected rgb {} depth {}",
-      now.captured, rate(now.captured, previous.captured), now.rgb.sent,
-      rate(now.rgb.sent, previous.rgb.sent), now.depth.sent, rate(now.depth.sent, previous.depth.sent),
-      v.rgb_blank + v.depth_blank, v.malformed, v.out_of_order, now.unregistered_dropped,
-      now.rgb.superseded, now.depth.superseded,
-      (rate(now.rgb.bytes_sent, previous.rgb.bytes_sent) + rate(now.depth.bytes_sent, previous.depth.bytes_sent)) / 1e6,
+      "captured {} sent rgb {} depth {} dropped blank {} malformed {} out-of-order {} "
+      "unregistered {} superseded rgb {} depth {} | {} | encode ms rgb {:.2f} depth {:.2f} | "
+      "connected rgb {} depth {}",
+      with_rate(now.captured, previous.captured), with_rate(now.rgb.sent, previous.rgb.sent),
+      with_rate(now.depth.sent, previous.depth.sent), v.rgb_blank + v.depth_blank, v.malformed,
+      v.out_of_order, now.unregistered_dropped, now.rgb.superseded, now.depth.superseded, bytes,
       encode_ms(now.rgb, previous.rgb), encode_ms(now.depth, previous.depth),
       now.rgb.connects - now.rgb.disconnects, now.depth.connects - now.depth.disconnects);
 }
