@@ -29,7 +29,7 @@ struct RunArgs {
   std::string dataset, out, features = "sift", backend = "glc", mode = "wait", camera = "auto";
   std::string ransac = "random", keyframe_policy = "ransac";
   int cv_threads = -1;
-  int rate = 1, max_frames = 0, map_stride = 8, sift_first_octave = -1, max_features = 0;
+  int rate = 1, max_frames = 0, map_stride = 8, sift_first_octave = 0, max_features = 0;
   std::uint64_t seed = 20260101;
   bool undistort = false, no_map = false, quiet = false, no_reprojection = false;
   std::string stamp = "depth";

@@ -233,48 +233,57 @@ def thesis_comparison(pairs: PairTable) -> tables.Table:
 kMinPairsForFit = 20
 
 
-def effect_fit(pairs: PairTable) -> tuple[np.ndarray, np.ndarray] | None:
-    """Least squares over every pair: rpe_trans_mm = a + b*t_mm + c*r_deg + d*t_mm*r_deg.
-    Returns (coefficients [a, b, c, d], standard errors) or None with too few pairs. b and c are
-    the marginal costs of translation and rotation (thesis: ~0.45 mm/mm, ~4 mm/deg); d > 0 means
-    the two compound (the thesis's 'multiplicative' finding)."""
+def effect_fit(pairs: PairTable, interaction: bool = True
+               ) -> tuple[np.ndarray, np.ndarray] | None:
+    """Least squares over every pair: rpe_trans_mm = a + b*t_mm + c*r_deg (+ d*t_mm*r_deg when
+    interaction). Returns (coefficients, standard errors) or None with too few pairs. From the
+    additive fit, b and c are the marginal costs of translation and rotation (thesis: ~0.45 mm/mm,
+    ~4 mm/deg); in the full fit d > 0 means the two compound (the 'multiplicative' finding)."""
     n = len(pairs)
+    cols = [np.ones(n), pairs.gt_trans_mm, pairs.gt_rot_deg]
+    if interaction:
+        cols.append(pairs.gt_trans_mm * pairs.gt_rot_deg)
     if n < kMinPairsForFit:
         return None
-    x = np.column_stack([np.ones(n), pairs.gt_trans_mm, pairs.gt_rot_deg,
-                         pairs.gt_trans_mm * pairs.gt_rot_deg])
+    x = np.column_stack(cols)
     coef, _, rank, _ = np.linalg.lstsq(x, pairs.rpe_trans_mm, rcond=None)
-    if rank < 4:
+    if rank < x.shape[1]:
         return None
     resid = pairs.rpe_trans_mm - x @ coef
-    sigma2 = float(resid @ resid) / (n - 4)
+    sigma2 = float(resid @ resid) / (n - x.shape[1])
     se = np.sqrt(np.diag(sigma2 * np.linalg.inv(x.T @ x)))
     return coef, se
 
 
 def _fit_rows(pairs: PairTable) -> list[list[str]]:
-    fit = effect_fit(pairs)
-    sel = "all pairs, trans RPE = a + b t + c r + d t r"
-    if fit is None:
-        return [["fit over all pairs", sel, "-", str(len(pairs)), "-", "not enough data"]]
-    (a, b, c, d), (_, sb, sc, sd) = fit
+    additive = effect_fit(pairs, interaction=False)
+    full = effect_fit(pairs, interaction=True)
+    sel_add = "all pairs, trans RPE = a + b t + c r"
+    sel_full = "all pairs, trans RPE = a + b t + c r + d t r"
     n = str(len(pairs))
-    mm_per_deg = "agrees (within x2)" if 0.5 <= c / thesis.kRotation1DegTransRpeMm <= 2 else \
-        f"differs (x{c / thesis.kRotation1DegTransRpeMm:.2f})"
+    if additive is None or full is None:
+        return [["fits over all pairs", sel_full, "-", n, "-", "not enough data"]]
+    (_, b, c), (_, sb, sc) = additive
+    (a4, b4, c4, d), (_, _, _, sd) = full
+    per_deg = thesis.kRotation1DegTransRpeMm
     per_mm = thesis.kTranslation10MmTransRpeFraction
-    mm_per_mm = "agrees (within x2)" if 0.5 <= b / per_mm <= 2 else f"differs (x{b / per_mm:.2f})"
-    corner = a + b * 17.0 + c * 1.7 + d * 17.0 * 1.7
+
+    def ratio_verdict(ours: float, theirs: float) -> str:
+        return ("agrees (within x2)" if 0.5 <= ours / theirs <= 2
+                else f"differs (x{ours / theirs:.2f})")
+
+    corner = a4 + b4 * 17.0 + c4 * 1.7 + d * 17.0 * 1.7
     return [
-        ["marginal cost of rotation (fit c)", sel, f"{c:.2f} ± {sc:.2f} mm per deg", n,
-         f"~{thesis.kRotation1DegTransRpeMm:g} mm per deg", mm_per_deg],
-        ["marginal cost of translation (fit b)", sel, f"{b:.3f} ± {sb:.3f} mm per mm", n,
-         f"~{per_mm:.2f} mm per mm (45 % at 10 mm)", mm_per_mm],
-        ["compounding (fit d; > 0 = super-additive)", sel, f"{d:.3f} ± {sd:.3f} mm per mm·deg", n,
-         "multiplicative (no coefficient quoted)",
+        ["marginal cost of rotation (fit c)", sel_add, f"{c:.2f} ± {sc:.2f} mm per deg", n,
+         f"~{per_deg:g} mm per deg", ratio_verdict(c, per_deg)],
+        ["marginal cost of translation (fit b)", sel_add, f"{b:.3f} ± {sb:.3f} mm per mm", n,
+         "45 % at 10 mm (0.45 mm per mm if proportional)", ratio_verdict(b, per_mm)],
+        ["compounding (fit d; > 0 = super-additive)", sel_full,
+         f"{d:.3f} ± {sd:.3f} mm per mm·deg", n, "multiplicative (no coefficient quoted)",
          "agrees" if d - 2 * sd > 0 else ("differs" if d + 2 * sd < 0 else "inconclusive (±2σ)")],
-        ["fit evaluated at 17 mm + 1.7 deg", sel, f"{corner:.2f} mm", n,
+        ["full fit evaluated at 17 mm + 1.7 deg", sel_full, f"{corner:.2f} mm", n,
          f"{thesis.kGridCorner['rpe_trans_mm']:.2f} mm (18 mm + 1.8 deg)",
-         _verdict_ratio(corner, thesis.kGridCorner["rpe_trans_mm"], len(pairs))
+         ratio_verdict(corner, thesis.kGridCorner["rpe_trans_mm"])
          + " (extrapolated where the grid is thin)"],
     ]
 

@@ -55,9 +55,12 @@ std::string AppConfig::validate() const {
     return "dashboard.bind_address " + dashboard_bind_address +
            " is not loopback: set dashboard.token (or --token) to expose the dashboard";
   }
-  if (stream_source != "tum") {
-    return "stream.source '" + stream_source +
-           "' is not available: only 'tum' (dataset replay) is implemented until offboard/receiver lands";
+  if (stream_source != "tum" && stream_source != "receiver") {
+    return "stream.source must be 'tum' or 'receiver', not '" + stream_source + "'";
+  }
+  if (stream_source == "receiver") {
+    std::string e;
+    if (!receiver.is_valid(&e)) return "stream: " + e;
   }
   if (slam_mode != "in-process") {
     return "slam.mode '" + slam_mode + "' is not available: slam-server does not exist yet, use 'in-process'";
@@ -73,7 +76,8 @@ nlohmann::json AppConfig::to_json_redacted() const {
   return {{"dashboard", {{"bind_address", dashboard_bind_address}, {"port", dashboard_port},
                          {"token", dashboard_token.empty() ? "" : "<set>"}, {"static_dir", dashboard_static_dir}}},
           {"stream", {{"source", stream_source}, {"tum_folder", replay.folder}, {"speed", replay.speed},
-                      {"camera", replay.camera}}},
+                      {"camera", replay.camera}, {"bind_address", receiver.bind_address},
+                      {"rgb_port", receiver.rgb_port}, {"depth_port", receiver.depth_port}}},
           {"slam", {{"mode", slam_mode}, {"socket", slam_socket}}},
           {"firmware", {{"enabled", firmware_enabled}, {"host", firmware.host}, {"port", firmware.port},
                         {"timeout_ms", firmware.timeout_ms}, {"period_ms", firmware.period_ms},
@@ -111,7 +115,10 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
       !read(d, "dashboard", "bind_address", c.dashboard_bind_address, error) ||
       !read(d, "dashboard", "port", c.dashboard_port, error) || !read(d, "dashboard", "token", c.dashboard_token, error) ||
       !read(d, "dashboard", "static_dir", c.dashboard_static_dir, error) ||
-      !check_keys(s, "stream", {"source", "tum_folder", "loop", "speed", "camera"}, error) ||
+      !check_keys(s, "stream", {"source", "tum_folder", "loop", "speed", "camera", "bind_address", "rgb_port", "depth_port"}, error) ||
+      !read(s, "stream", "bind_address", c.receiver.bind_address, error) ||
+      !read(s, "stream", "rgb_port", c.receiver.rgb_port, error) ||
+      !read(s, "stream", "depth_port", c.receiver.depth_port, error) ||
       !read(s, "stream", "source", c.stream_source, error) || !read(s, "stream", "tum_folder", c.replay.folder, error) ||
       !read(s, "stream", "loop", loop, error) || !read(s, "stream", "speed", c.replay.speed, error) ||
       !read(s, "stream", "camera", c.replay.camera, error) ||
@@ -139,6 +146,11 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
       !read(m, "map", "max_depth_m", c.station.max_depth_m, error)) {
     return std::nullopt;
   }
+  // "" means the repo default (the shipped config file leaves these empty).
+  const AppConfig defaults = default_app_config(repo_dir);
+  if (c.dashboard_static_dir.empty()) c.dashboard_static_dir = defaults.dashboard_static_dir;
+  if (c.replay.folder.empty()) c.replay.folder = defaults.replay.folder;
+  if (c.control_spec_path.empty()) c.control_spec_path = defaults.control_spec_path;
   if (!parse_replay_loop(loop, &c.replay.loop)) {
     *error = "stream.loop must be once, wrap or bounce";
     return std::nullopt;

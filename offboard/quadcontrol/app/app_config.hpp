@@ -12,6 +12,7 @@
 #include "app/firmware_link.hpp"
 #include "app/frame_source.hpp"
 #include "app/ground_station.hpp"
+#include "rgbdquad/receiver/stream_receiver.h"
 
 namespace rgbdquad::quadcontrol {
 
@@ -22,8 +23,9 @@ struct AppConfig {
   std::string dashboard_token;   ///< required (non-empty) to bind a non-loopback address
   std::string dashboard_static_dir;  ///< default: the repo's offboard/dashboard/static
   // stream
-  std::string stream_source = "tum";  ///< "tum" (dataset replay); "receiver" once offboard/receiver lands
+  std::string stream_source = "tum";  ///< "tum" (dataset replay) or "receiver" (rgbd-streamer, live)
   TumReplayOptions replay;
+  receiver::ReceiverOptions receiver;  ///< bind address and RGB/depth ports (offboard/receiver defaults)
   // SLAM link
   std::string slam_mode = "in-process";  ///< "in-process"; "server" once slam-server exists
   std::string slam_socket = "/tmp/rgbdquad-slam.sock";

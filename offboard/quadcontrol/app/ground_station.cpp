@@ -42,15 +42,6 @@ GroundStation::GroundStation(GroundStationOptions options, std::unique_ptr<Frame
                              std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, ControlKey key)
     : options_(options), spec_(spec), source_(std::move(source)), controller_(options.controller), map_(options.map) {
   last_pwm_ = to_pwm(StickCommand{}, spec_.pwm);
-  std::string error;
-  slam::Intrinsics intrinsics;
-  slam::Intrinsics::from_name("fr1", &intrinsics, &error);
-  slam_ = InProcessSlam::create(intrinsics, [this](const SlamResult& r, const CameraFrame& f) { on_slam(r, f); },
-                                &error);
-  if (!slam_) {
-    start_error_ = "SLAM link: " + error;
-    return;
-  }
   if (firmware) {
     firmware_ = std::make_unique<FirmwareLink>(*firmware, spec_, key,
                                                [this](std::int64_t t, const ControlReply& r) { on_reply(t, r); });
@@ -63,7 +54,7 @@ GroundStation::~GroundStation() {
   stop_ = true;
   if (frame_thread_.joinable()) frame_thread_.join();
   if (control_thread_.joinable()) control_thread_.join();
-  slam_.reset();  // joins the SLAM thread before the state it calls back into goes away
+  slam_.reset();  // frame thread joined: nobody submits; this joins the SLAM thread
   firmware_.reset();
 }
 
@@ -71,6 +62,18 @@ void GroundStation::frame_loop() {
   while (!stop_) {
     std::string error;
     auto frame = source_->next(stop_, &error);
+    if (frame && !slam_ready_.load()) {
+      // The SLAM link needs the camera's intrinsics: created on the first frame.
+      std::string slam_error;
+      slam_ = InProcessSlam::create(frame->intrinsics,
+                                    [this](const SlamResult& r, const CameraFrame& f) { on_slam(r, f); }, &slam_error);
+      if (!slam_) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        source_error_ = "SLAM link: " + slam_error;
+        return;
+      }
+      slam_ready_ = true;
+    }
     if (!frame) {
       if (stop_) return;
       std::lock_guard<std::mutex> lock(mutex_);
@@ -198,7 +201,8 @@ void GroundStation::on_reply(std::int64_t received_us, const ControlReply& reply
 }
 
 nlohmann::json GroundStation::state_json() {
-  const SlamStats slam_stats = slam_ ? slam_->stats() : SlamStats{};
+  const bool slam_ready = slam_ready_.load();
+  const SlamStats slam_stats = slam_ready ? slam_->stats() : SlamStats{};
   std::optional<FirmwareLinkStats> fw;
   if (firmware_) fw = firmware_->stats();
   std::lock_guard<std::mutex> lock(mutex_);
@@ -222,7 +226,7 @@ nlohmann::json GroundStation::state_json() {
                  {"sequence", latest_frame_ ? latest_frame_->sequence : -1},
                  {"latency_ms", stream_latency_ms_},
                  {"error", source_error_}};
-  j["slam"] = {{"link", slam_ ? slam_->name() : "none"},
+  j["slam"] = {{"link", slam_ready ? slam_->name() : "starting"},
                {"state", last_slam_ ? last_slam_->state : "waiting"},
                {"inliers", last_slam_ ? last_slam_->inliers : 0},
                {"submitted", slam_stats.submitted},

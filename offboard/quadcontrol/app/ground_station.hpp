@@ -4,7 +4,7 @@
 // Threads (all owned here, joined in the destructor): the frame thread (source -> latest frame ->
 // SLAM hand-over), the SLAM thread (inside SlamLink; its results update pose, floor frame and map),
 // the control thread (controller.update(now) every control_period_ms -> firmware command), and the
-// firmware link's I/O thread. Shared state is guarded by one mutex; the controller is only touched
+// firmware link's I/O thread. The SLAM link is created on the first frame (it needs the intrinsics). Shared state is guarded by one mutex; the controller is only touched
 // under it. This is the only place that reads the clock and passes it into the logic.
 #pragma once
 
@@ -53,9 +53,6 @@ class GroundStation {
   GroundStation(const GroundStation&) = delete;
   GroundStation& operator=(const GroundStation&) = delete;
 
-  /// Creation of the SLAM link failed etc.: empty when running.
-  const std::string& start_error() const { return start_error_; }
-
   // Dashboard API (thread-safe).
   nlohmann::json state_json();
   std::optional<std::string> rgb_jpeg();
@@ -77,7 +74,6 @@ class GroundStation {
   GroundStationOptions options_;
   ControlSpec spec_;
   std::unique_ptr<FrameSource> source_;
-  std::string start_error_;
   std::atomic<bool> stop_{false};
 
   std::mutex mutex_;
@@ -104,7 +100,8 @@ class GroundStation {
   TimestampBuffer<ControlReply> imu_replies_{256};
   std::optional<double> imu_match_dt_ms_;
 
-  std::unique_ptr<SlamLink> slam_;
+  std::unique_ptr<SlamLink> slam_;  ///< set once by the frame thread, then slam_ready_
+  std::atomic<bool> slam_ready_{false};
   std::unique_ptr<FirmwareLink> firmware_;
   std::thread frame_thread_;
   std::thread control_thread_;

@@ -11,6 +11,7 @@
 #include "app/dashboard_api.hpp"
 #include "app/ground_station.hpp"
 #include "app/http_server.hpp"
+#include "app/receiver_source.hpp"
 
 using namespace rgbdquad::quadcontrol;
 
@@ -21,8 +22,9 @@ int main(int argc, char** argv) {
       "1.7 m / waypoint / land) and the firmware REST link, and serves the dashboard on\n"
       "http://127.0.0.1:8080/ by default. Every setting and its default is in the config file\n"
       "(offboard/quadcontrol/config/quad-control.json); command-line options override it.\n"
-      "Available now: stream.source=tum (TUM dataset replay) and slam.mode=in-process (the SLAM\n"
-      "engine's front-end in this process); the live receiver and slam-server are not wired yet."};
+      "Frame sources: stream.source=receiver (rgbd-streamer, RGB port 5600 / depth port 5601) or\n"
+      "tum (TUM dataset replay, the default). SLAM: slam.mode=in-process (the SLAM engine's\n"
+      "front-end in this process); slam-server is not wired yet."};
   std::string config_path, bind_address, token, tum_folder, firmware_host, key_hex;
   int port = -1, firmware_port = -1;
   bool no_firmware = false, print_config = false;
@@ -30,7 +32,9 @@ int main(int argc, char** argv) {
   cli.add_option("--bind", bind_address, "dashboard address (default 127.0.0.1; non-loopback needs --token)");
   cli.add_option("--port", port, "dashboard TCP port (default 8080; 0 = any free port, printed)");
   cli.add_option("--token", token, "dashboard access token (required for a non-loopback --bind)");
-  cli.add_option("--tum", tum_folder, "TUM RGB-D folder to replay as the camera");
+  cli.add_option("--tum", tum_folder, "replay this TUM RGB-D folder as the camera (sets stream.source=tum)");
+  bool live = false;
+  cli.add_flag("--live", live, "take frames from rgbd-streamer (sets stream.source=receiver)");
   cli.add_option("--firmware-host", firmware_host, "firmware (WiFi bridge) address");
   cli.add_option("--firmware-port", firmware_port, "firmware HTTP port");
   cli.add_option("--key", key_hex, "craft control key, 32 hex digits (prefer the config file)");
@@ -55,7 +59,11 @@ int main(int argc, char** argv) {
     config->dashboard_port = static_cast<std::uint16_t>(port);
   }
   if (!token.empty()) config->dashboard_token = token;
-  if (!tum_folder.empty()) config->replay.folder = tum_folder;
+  if (!tum_folder.empty()) {
+    config->replay.folder = tum_folder;
+    config->stream_source = "tum";
+  }
+  if (live) config->stream_source = "receiver";
   if (!firmware_host.empty()) config->firmware.host = firmware_host;
   if (firmware_port > 0 && firmware_port <= 65535) config->firmware.port = static_cast<std::uint16_t>(firmware_port);
   if (!key_hex.empty()) config->firmware_key_hex = key_hex;
@@ -87,11 +95,21 @@ int main(int argc, char** argv) {
     key = *k;
     firmware = config->firmware;
   }
-  auto source = TumReplaySource::open(config->replay, &error);
+  std::unique_ptr<FrameSource> source;
+  if (config->stream_source == "tum") {
+    source = TumReplaySource::open(config->replay, &error);
+  } else {
+    try {
+      source = std::make_unique<ReceiverSource>(config->receiver);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+  }
   if (!source) {
     std::cerr << "quad-control: stream: " << error << "\n";
     return 2;
   }
+  std::cout << "quad-control: stream from " << source->describe() << std::endl;
 
   // Block the stop signals before any thread starts so only sigwait below receives them.
   sigset_t signals;
@@ -102,10 +120,6 @@ int main(int argc, char** argv) {
 
   try {
     GroundStation station(config->station, std::move(source), firmware, *spec, key);
-    if (!station.start_error().empty()) {
-      std::cerr << "quad-control: " << station.start_error() << "\n";
-      return 1;
-    }
     DashboardApi api(station, config->dashboard_static_dir, config->dashboard_token);
     HttpServer server(config->dashboard_bind_address, config->dashboard_port,
                       [&api](const HttpRequest& r) { return api.handle(r); });

@@ -164,3 +164,6 @@ def test_effect_fit_recovers_known_coefficients():
     np.testing.assert_allclose(coef, [1, 0.4, 4, 0.1], atol=0.02)
     assert np.all(se < 0.02)
     assert report.effect_fit(make_pairs(t[:5], r[:5], rpe_mm=err[:5])) is None
+    additive, _ = report.effect_fit(make_pairs(t, r, rpe_mm=1 + 0.4 * t + 4 * r),
+                                    interaction=False)
+    np.testing.assert_allclose(additive, [1, 0.4, 4], atol=1e-9)
