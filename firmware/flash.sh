@@ -9,7 +9,7 @@
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 if [ $# -lt 1 ] || [ "$1" = "-h" ] || [ "$1" = "--help" ]; then
-  sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'; [ $# -ge 1 ] && exit 0 || exit 2
+  sed -n '2,/^set /p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; [ $# -ge 1 ] && exit 0 || exit 2
 fi
 port=$1
 hex="$here/.pio/build/uno_wifi/program.hex"
