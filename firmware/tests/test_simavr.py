@@ -305,3 +305,17 @@ def test_telemetry_stream_under_command_load_loses_no_frame():
     print(f"\nsimavr telemetry under load: {checked} replies carried the newest frame "
           f"({n} ATTITUDE+RAW_IMU pairs every 16 ms, {len(replies)} commands)")
     assert checked >= 40
+
+
+def test_telemetry_bursts_given_the_same_time_are_queued_on_the_wire():
+    mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+    att = mav.attitude_encode(1, 0.5, 0.25, -0.5, 0.1, 0.2, 0.3).pack(mav)
+    imu = mav.raw_imu_encode(1, 7, 8, 9, 10, 11, 12, 0, 0, 0).pack(mav)
+    sc = Scenario()
+    sc.mav(20 * MS, att)
+    sc.mav(20 * MS, imu)  # same instant: sent after the ATTITUDE frame, as one UART would
+    sc.req(40 * MS, build_status_request())
+    sc.end(70 * MS)
+    rep = parse_reply(sc.run(RECORD).replies[0].text + "\n")
+    assert rep.att_mrad == (500, 250, -500)
+    assert rep.imu_raw == (7, 8, 9, 10, 11, 12)

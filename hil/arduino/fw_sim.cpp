@@ -13,7 +13,8 @@
 //   req  T TEXT   send TEXT + '\n' on the bridge UART at T, or as soon as the previous request's
 //                 reply line has arrived (the bridge forwards one request at a time)
 //   raw  T HEX    send raw bytes on the bridge UART at T (no reply awaited)
-//   mav  T HEX    send bytes to the MAVLink telemetry pin (PD2) as 57600-baud 8N1 serial from T
+//   mav  T HEX    send bytes to the MAVLink telemetry pin (PD2) as 57600-baud 8N1 serial from T,
+//                 or right after the previous burst if that one is still on the wire (one UART)
 //   run  T        (interactive only) simulate up to T, then print "at T"
 //   end  T        stop the simulation at T
 // Log (stdout), one event per line:
@@ -142,6 +143,7 @@ struct Feeder {
   size_t raw_idx = 0;
   std::vector<PinEdge> mav_edges; // sorted by time
   size_t mav_idx = 0;
+  uint64_t mav_free_cycle = 0;    // when the telemetry wire is idle again
   std::string tx;                 // bytes being fed into the bridge UART
   size_t tx_pos = 0;
   uint64_t tx_next = 0;
@@ -154,8 +156,10 @@ struct Feeder {
     raws.insert(it, r);
   }
   void add_mav(uint64_t at, const std::string& bytes) {
+    const uint64_t start = std::max(at, mav_free_cycle);
+    mav_free_cycle = start + static_cast<uint64_t>(static_cast<double>(bytes.size()) * 10 * kMavBitCycles + 0.5);
     std::vector<PinEdge> e;
-    append_serial_edges(&e, at, bytes);
+    append_serial_edges(&e, start, bytes);
     mav_edges.insert(mav_edges.end(), e.begin(), e.end());
     std::stable_sort(mav_edges.begin() + static_cast<long>(mav_idx), mav_edges.end(),
                      [](const PinEdge& a, const PinEdge& b) { return a.cycle < b.cycle; });
