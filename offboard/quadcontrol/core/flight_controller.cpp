@@ -77,6 +77,11 @@ void FlightController::enter(FlightState state, std::int64_t now_us, const std::
   if (state == FlightState::kLand) {
     land_start_throttle_pct_ = std::max(last_throttle_pct_, config_.land_min_throttle_pct);
     land_floor_reached_us_.reset();
+    // Land where the craft is: an unfinished go-to or manual step is abandoned.
+    if (pose_ && pose_->tracking) {
+      status_.setpoint.x_m = pose_->pose.x_m;
+      status_.setpoint.y_m = pose_->pose.y_m;
+    }
   }
   if (state == FlightState::kDisarmed || state == FlightState::kArmed) reset_pids();
 }

@@ -287,6 +287,19 @@ TEST_F(Flight, LandingIsASteadyRampThenMotorsStop) {
   EXPECT_LE(pose.z_m, fc.config().motor_stop_height_m + 0.02);
 }
 
+TEST_F(Flight, LandingAbandonsTheWaypointAndLandsInPlace) {
+  to_hold();
+  ASSERT_EQ(fc.set_waypoint(now_us, 0.2, 0.0), "");  // close: moves at once
+  pose.x_m = 0.1;
+  step();
+  ASSERT_EQ(fc.command(now_us, OperatorCommand::kLand), "");
+  EXPECT_FALSE(fc.status().waypoint.has_value());
+  EXPECT_DOUBLE_EQ(fc.status().setpoint.x_m, 0.1);
+  step();
+  const StickCommand s = step();
+  EXPECT_NEAR(s.pitch_pct, 0.0, 1e-9);
+}
+
 TEST_F(Flight, BlindLandingStopsAfterFloorHold) {
   to_hold();
   ASSERT_EQ(fc.command(now_us, OperatorCommand::kLand), "");
