@@ -5,6 +5,9 @@
 //   --eeprom FILE    raw bytes loaded into EEPROM at address 0 before reset (the key record)
 //   --eeprom-out FILE  write the whole EEPROM (1024 bytes) to FILE when the simulation ends, to
 //                    start a later run from it (a reset / power cycle of the board)
+//   --stack-paint ADDR  fill SRAM from ADDR (the image's __bss_end, e.g. 0x6a2) to RAMEND with 0xAA
+//                    before reset and report at the end how much of it was never written
+//                    ("stack_free N"): the stack's high-water mark under the scenario's load
 //   --interactive    lock-step co-simulation: commands are applied as they are read, and
 //                    "run T" advances the simulation to T, then prints "at T" and flushes, so a
 //                    driver (e.g. a flight-controller model) can react to the pulses before it sends
@@ -21,6 +24,7 @@
 //   pulse CH RISE_US WIDTH_US    a completed pulse on RC channel CH (1..4)
 //   sent  START_US END_US        a request line finished going out on the bridge UART
 //   reply START_US END_US TEXT   a reply line from the firmware (first byte, newline)
+//   stack_free N                 (with --stack-paint) bytes above ADDR never written
 //   done  END_US                 simulation finished
 // Time comes from simavr's cycle counter only; the harness never reads the wall clock.
 #include <sim_avr.h>
@@ -52,6 +56,10 @@ constexpr double kCyclesPerUs = kCpuHz / 1e6;
 constexpr uint64_t kBridgeByteCycles = 512;
 /// MAVLink telemetry: 57600 baud; a bit lasts 16e6 / 57600 = 277.78 cycles.
 constexpr double kMavBitCycles = kCpuHz / 57600.0;
+/// ATmega328P SRAM ends at 0x8FF; the stack starts there and grows down.
+constexpr long kRamEnd = 0x8FF;
+/// Fill byte for the stack high-water measurement.
+constexpr uint8_t kStackPaint = 0xAA;
 /// RC outputs PB1..PB4 = channels 1..4.
 constexpr int kPwmPins[4] = {1, 2, 3, 4};
 
@@ -132,7 +140,7 @@ void append_serial_edges(std::vector<PinEdge>* edges, uint64_t start, const std:
 }
 
 int usage(const char* msg) {
-  std::fprintf(stderr, "fw_sim: %s\nusage: fw_sim --elf FILE [--eeprom FILE] [--eeprom-out FILE] [--interactive] < script > log\n", msg);
+  std::fprintf(stderr, "fw_sim: %s\nusage: fw_sim --elf FILE [--eeprom FILE] [--eeprom-out FILE] [--stack-paint ADDR] [--interactive] < script > log\n", msg);
   return 2;
 }
 
@@ -242,6 +250,7 @@ int main(int argc, char** argv) {
   std::string elf_path;
   std::string eeprom_path;
   std::string eeprom_out_path;
+  long stack_paint_addr = -1;
   bool interactive = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -251,10 +260,13 @@ int main(int argc, char** argv) {
       eeprom_path = argv[++i];
     } else if (a == "--eeprom-out" && i + 1 < argc) {
       eeprom_out_path = argv[++i];
+    } else if (a == "--stack-paint" && i + 1 < argc) {
+      stack_paint_addr = std::strtol(argv[++i], nullptr, 0);
+      if (stack_paint_addr < 0x100 || stack_paint_addr > kRamEnd) return usage("--stack-paint: address outside SRAM");
     } else if (a == "--interactive") {
       interactive = true;
     } else if (a == "-h" || a == "--help") {
-      std::printf("usage: fw_sim --elf FILE [--eeprom FILE] [--eeprom-out FILE] [--interactive] < script > log\n"
+      std::printf("usage: fw_sim --elf FILE [--eeprom FILE] [--eeprom-out FILE] [--stack-paint ADDR] [--interactive] < script > log\n"
                   "Runs the firmware image on simavr (ATmega328P, 16 MHz) and plays the script;\n"
                   "see the header of hil/arduino/fw_sim.cpp for the script and log formats.\n");
       return 0;
@@ -306,6 +318,9 @@ int main(int argc, char** argv) {
   sim.avr->frequency = kCpuHz;
   avr_load_firmware(sim.avr, &fw);
   sim.avr->log = 0;
+  if (stack_paint_addr >= 0) {
+    std::memset(sim.avr->data + stack_paint_addr, kStackPaint, static_cast<size_t>(kRamEnd + 1 - stack_paint_addr));
+  }
   if (!eeprom_path.empty()) {
     std::ifstream f(eeprom_path, std::ios::binary);
     if (!f) {
@@ -365,6 +380,11 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "fw_sim: cannot write %s\n", eeprom_out_path.c_str());
       return 1;
     }
+  }
+  if (stack_paint_addr >= 0) {
+    long n = 0;
+    while (stack_paint_addr + n <= kRamEnd && sim.avr->data[stack_paint_addr + n] == kStackPaint) ++n;
+    std::printf("stack_free %ld\n", n);
   }
   std::printf("done %.3f\n", us(sim.avr->cycle));
   if (state == cpu_Crashed) {

@@ -65,6 +65,7 @@ class Result:
     sent: list[Sent] = field(default_factory=list)
     done_us: float = 0.0
     eeprom: bytes | None = None  # the EEPROM at the end (1024 bytes), when run(..., keep_eeprom=True)
+    stack_free: int | None = None  # SRAM bytes above .bss never written, when run(..., stack_paint_from=)
 
     def pulses_of(self, channel: int, after_us: float = 0.0, before_us: float = float("inf")) -> list[Pulse]:
         return [p for p in self.pulses if p.channel == channel and after_us <= p.rise_us < before_us]
@@ -111,7 +112,7 @@ class Scenario:
         return "\n".join(self._lines + [f"end {self._end_us:.3f}"]) + "\n"
 
     def run(self, key_record: bytes | None, workdir: pathlib.Path | None = None,
-            keep_eeprom: bool = False) -> Result:
+            keep_eeprom: bool = False, stack_paint_from: int | None = None) -> Result:
         """Runs fw_sim; key_record is the EEPROM content from address 0 (None: erased EEPROM, no
         key), e.g. a key record or the `eeprom` of an earlier Result (a reboot)."""
         sim, elf = fw_sim_path(), firmware_elf_path()
@@ -128,6 +129,8 @@ class Scenario:
             ee_out = pathlib.Path(tmp) / "eeprom_out.bin"
             if keep_eeprom:
                 args += ["--eeprom-out", str(ee_out)]
+            if stack_paint_from is not None:
+                args += ["--stack-paint", hex(stack_paint_from)]
             proc = subprocess.run(args, input=self.script(), capture_output=True, text=True,
                                   timeout=RUN_TIMEOUT_S, check=False)
             if proc.returncode != 0:
@@ -153,6 +156,8 @@ def parse_log(text: str) -> Result:
             r.sent.append(Sent(float(start), float(end)))
         elif kind == "done":
             r.done_us = float(rest)
+        elif kind == "stack_free":
+            r.stack_free = int(rest)
     return r
 
 
