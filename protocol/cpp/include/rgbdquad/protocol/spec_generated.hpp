@@ -251,11 +251,11 @@ constexpr bool encoding_allows_pixel_format(Encoding encoding, PixelFormat forma
   switch (encoding) {
     case Encoding::kRaw:  // implemented
       return format == PixelFormat::kRgb8 || format == PixelFormat::kDepth16;
-    case Encoding::kDepthRvl:  // reserved
+    case Encoding::kDepthRvl:  // implemented
       return format == PixelFormat::kDepth16;
-    case Encoding::kDepthZstdDelta:  // reserved
+    case Encoding::kDepthZstdDelta:  // implemented
       return format == PixelFormat::kDepth16;
-    case Encoding::kRgbJpeg:  // reserved
+    case Encoding::kRgbJpeg:  // implemented
       return format == PixelFormat::kRgb8;
   }
   return false;
