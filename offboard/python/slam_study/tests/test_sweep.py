@@ -72,3 +72,13 @@ def test_progress_line_counts_failures():
     lines = stream.getvalue().splitlines()
     assert lines[0].startswith("[#####.....] 1/2 runs (0 failed)    1.5 s  a")
     assert lines[1].endswith("b FAILED") and "(1 failed)" in lines[1]
+
+
+def test_a_source_without_pairs_still_renders(tmp_path):
+    from slam_study import pairs, report
+
+    (tmp_path / "tables").mkdir()
+    (tmp_path / "plots").mkdir()
+    md = "\n".join(report.pair_sections(report.Source("empty", pairs.empty_pairs(), []), tmp_path))
+    assert "not enough data" in md and "Table 4.20a" in md
+    assert (tmp_path / "plots" / "empty_grid.png").is_file()
