@@ -1,5 +1,6 @@
 """Python ground-station codec of the control link (rgbd_protocol.control) against the golden
 vectors, plus the consistency of the spec with the firmware's constants."""
+
 import json
 import pathlib
 import re
@@ -7,7 +8,6 @@ import subprocess
 import sys
 
 import pytest
-
 from rgbd_protocol import control
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -18,7 +18,10 @@ KEY = bytes.fromhex(VECTORS["key_hex"])
 
 @pytest.mark.parametrize("v", VECTORS["siphash"], ids=lambda v: f"len{len(v['msg_hex']) // 2}")
 def test_siphash_vectors(v):
-    assert control.siphash24(bytes.fromhex(v["key_hex"]), bytes.fromhex(v["msg_hex"])).hex() == v["tag_hex"]
+    assert (
+        control.siphash24(bytes.fromhex(v["key_hex"]), bytes.fromhex(v["msg_hex"])).hex()
+        == v["tag_hex"]
+    )
 
 
 def test_siphash_reference_vectors_from_the_paper():
@@ -30,8 +33,15 @@ def test_siphash_reference_vectors_from_the_paper():
 
 @pytest.mark.parametrize("r", VECTORS["requests"], ids=lambda r: f"seq{r['seq']}")
 def test_builder_reproduces_golden_requests(r):
-    line = control.build_control_request(bytes.fromhex(r["key_hex"]), r["seq"], bool(r["arm"]),
-                                         r["roll"], r["pitch"], r["thr"], r["yaw"])
+    line = control.build_control_request(
+        bytes.fromhex(r["key_hex"]),
+        r["seq"],
+        bool(r["arm"]),
+        r["roll"],
+        r["pitch"],
+        r["thr"],
+        r["yaw"],
+    )
     assert line == r["line"]
     assert len(line) <= control.MAX_REQUEST_BYTES
 
@@ -39,7 +49,9 @@ def test_builder_reproduces_golden_requests(r):
 @pytest.mark.parametrize("r", VECTORS["invalid_requests"])
 def test_builder_refuses_out_of_range_values(r):
     with pytest.raises(ValueError):
-        control.build_control_request(KEY, r["seq"], bool(r["arm"]), r["roll"], r["pitch"], r["thr"], r["yaw"])
+        control.build_control_request(
+            KEY, r["seq"], bool(r["arm"]), r["roll"], r["pitch"], r["thr"], r["yaw"]
+        )
 
 
 def test_builder_refuses_wrong_key_length_and_bool_as_int():
@@ -51,12 +63,14 @@ def test_builder_refuses_wrong_key_length_and_bool_as_int():
 
 def test_mac_covers_every_field():
     base = control.build_control_request(KEY, 7, True, 1500, 1500, 1000, 1500)
-    variants = [control.build_control_request(KEY, 8, True, 1500, 1500, 1000, 1500),
-                control.build_control_request(KEY, 7, False, 1500, 1500, 1000, 1500),
-                control.build_control_request(KEY, 7, True, 1501, 1500, 1000, 1500),
-                control.build_control_request(KEY, 7, True, 1500, 1501, 1000, 1500),
-                control.build_control_request(KEY, 7, True, 1500, 1500, 1001, 1500),
-                control.build_control_request(KEY, 7, True, 1500, 1500, 1000, 1501)]
+    variants = [
+        control.build_control_request(KEY, 8, True, 1500, 1500, 1000, 1500),
+        control.build_control_request(KEY, 7, False, 1500, 1500, 1000, 1500),
+        control.build_control_request(KEY, 7, True, 1501, 1500, 1000, 1500),
+        control.build_control_request(KEY, 7, True, 1500, 1501, 1000, 1500),
+        control.build_control_request(KEY, 7, True, 1500, 1500, 1001, 1500),
+        control.build_control_request(KEY, 7, True, 1500, 1500, 1000, 1501),
+    ]
     macs = {line.rsplit("&mac=", 1)[1] for line in [base] + variants}
     assert len(macs) == 7
 
@@ -86,7 +100,7 @@ def test_sequence_counter_is_strictly_increasing_and_resumable():
 
 def test_golden_vectors_are_up_to_date():
     gen = HERE.parent / "tools" / "gen_control_vectors.py"
-    proc = subprocess.run([sys.executable, str(gen), "--check"], capture_output=True, text=True)
+    proc = subprocess.run([sys.executable, str(gen), "--check"], capture_output=True, text=True, check=False)
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
@@ -98,7 +112,10 @@ def _firmware_constant(name):
 
 
 def test_spec_ranges_and_limits_agree_with_the_firmware():
-    assert tuple(control.RANGES["roll"]) == (_firmware_constant("kCommandMinUs"), _firmware_constant("kCommandMaxUs"))
+    assert tuple(control.RANGES["roll"]) == (
+        _firmware_constant("kCommandMinUs"),
+        _firmware_constant("kCommandMaxUs"),
+    )
     for ch in ("roll", "pitch", "thr", "yaw"):
         assert control.RANGES[ch] == control.RANGES["roll"]
     assert control.MAX_REQUEST_BYTES == _firmware_constant("kMaxRequestBytes")
@@ -107,7 +124,10 @@ def test_spec_ranges_and_limits_agree_with_the_firmware():
     reasons = re.findall(r'case Status::k\w+: return "(\w+)";', status_h)
     assert dict(zip(codes, reasons)) == control.STATUS_REASONS
     board_h = (REPO / "firmware" / "avr" / "board.h").read_text()
-    assert int(re.search(r"kBridgeBaud = (\d+);", board_h).group(1)) == control.SPEC["serial_link"]["baud"]
+    assert (
+        int(re.search(r"kBridgeBaud = (\d+);", board_h).group(1))
+        == control.SPEC["serial_link"]["baud"]
+    )
 
 
 def test_longest_reply_fits_the_spec_bound():

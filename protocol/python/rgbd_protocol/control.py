@@ -13,6 +13,7 @@ ground-station codec replay too. See docs/protocol-control.md.
 
 Pure functions plus one small counter class; thread-safe except SequenceCounter (one per sender).
 """
+
 from __future__ import annotations
 
 import json
@@ -20,7 +21,6 @@ import pathlib
 import re
 import struct
 from dataclasses import dataclass
-from typing import Optional
 
 SPEC_PATH = pathlib.Path(__file__).resolve().parents[2] / "control" / "control_spec.json"
 
@@ -50,10 +50,20 @@ def _rotl(x: int, b: int) -> int:
 
 
 def _sipround(v0: int, v1: int, v2: int, v3: int) -> tuple[int, int, int, int]:
-    v0 = (v0 + v1) & _MASK64; v1 = _rotl(v1, 13); v1 ^= v0; v0 = _rotl(v0, 32)  # noqa: E702
-    v2 = (v2 + v3) & _MASK64; v3 = _rotl(v3, 16); v3 ^= v2  # noqa: E702
-    v0 = (v0 + v3) & _MASK64; v3 = _rotl(v3, 21); v3 ^= v0  # noqa: E702
-    v2 = (v2 + v1) & _MASK64; v1 = _rotl(v1, 17); v1 ^= v2; v2 = _rotl(v2, 32)  # noqa: E702
+    v0 = (v0 + v1) & _MASK64
+    v1 = _rotl(v1, 13)
+    v1 ^= v0
+    v0 = _rotl(v0, 32)
+    v2 = (v2 + v3) & _MASK64
+    v3 = _rotl(v3, 16)
+    v3 ^= v2
+    v0 = (v0 + v3) & _MASK64
+    v3 = _rotl(v3, 21)
+    v3 ^= v0
+    v2 = (v2 + v1) & _MASK64
+    v1 = _rotl(v1, 17)
+    v1 ^= v2
+    v2 = _rotl(v2, 32)
     return v0, v1, v2, v3
 
 
@@ -92,16 +102,23 @@ def _check_range(name: str, value: int) -> None:
         raise ValueError(f"{name}={value!r} outside its range [{lo}, {hi}]")
 
 
-def build_control_request(key: bytes, seq: int, arm: bool, roll_us: int, pitch_us: int,
-                          thr_us: int, yaw_us: int) -> str:
+def build_control_request(
+    key: bytes, seq: int, arm: bool, roll_us: int, pitch_us: int, thr_us: int, yaw_us: int
+) -> str:
     """Returns the request line (without newline) for PUT /control, authenticated under key.
 
     Raises ValueError when a value is outside its protocol range or the key has the wrong length.
     """
     if len(key) != KEY_BYTES:
         raise ValueError(f"control key must be {KEY_BYTES} bytes, got {len(key)}")
-    values = {"seq": seq, "arm": 1 if arm else 0, "roll": roll_us, "pitch": pitch_us,
-              "thr": thr_us, "yaw": yaw_us}
+    values = {
+        "seq": seq,
+        "arm": 1 if arm else 0,
+        "roll": roll_us,
+        "pitch": pitch_us,
+        "thr": thr_us,
+        "yaw": yaw_us,
+    }
     for name in FIELDS:
         _check_range(name, values[name])
     query = "&".join(f"{name}={values[name]}" for name in FIELDS)
@@ -143,9 +160,9 @@ class Reply:
     out_us: tuple[int, int, int, int]
     clamped: int
     att_mrad: tuple[int, int, int]
-    att_age_ms: Optional[int]
+    att_age_ms: int | None
     imu_raw: tuple[int, int, int, int, int, int]
-    imu_age_ms: Optional[int]
+    imu_age_ms: int | None
 
 
 _REPLY_RE = re.compile(r"^([1-5][0-9]{2}) (\{.*\})\r?\n?$", re.DOTALL)
@@ -153,13 +170,16 @@ _REPLY_RE = re.compile(r"^([1-5][0-9]{2}) (\{.*\})\r?\n?$", re.DOTALL)
 
 def _int_list(obj: dict, name: str, n: int, lo: int, hi: int) -> tuple:
     v = obj[name]
-    if (not isinstance(v, list) or len(v) != n
-            or not all(isinstance(x, int) and not isinstance(x, bool) and lo <= x <= hi for x in v)):
+    if (
+        not isinstance(v, list)
+        or len(v) != n
+        or not all(isinstance(x, int) and not isinstance(x, bool) and lo <= x <= hi for x in v)
+    ):
         raise ValueError(f"reply field {name} must be {n} integers in [{lo}, {hi}], got {v!r}")
     return tuple(v)
 
 
-def _opt_age(obj: dict, name: str) -> Optional[int]:
+def _opt_age(obj: dict, name: str) -> int | None:
     v = obj[name]
     if v is None:
         return None
@@ -181,7 +201,9 @@ def parse_reply(line: str) -> Reply:
     except json.JSONDecodeError as e:
         raise ValueError(f"reply JSON invalid: {e}") from e
     if not isinstance(obj, dict) or list(obj.keys()) != REPLY_FIELDS:
-        raise ValueError(f"reply keys {list(obj) if isinstance(obj, dict) else obj!r} != {REPLY_FIELDS}")
+        raise ValueError(
+            f"reply keys {list(obj) if isinstance(obj, dict) else obj!r} != {REPLY_FIELDS}"
+        )
     if obj["err"] != STATUS_REASONS[status]:
         raise ValueError(f"reason {obj['err']!r} does not match status {status}")
     if obj["state"] not in STATES:
@@ -194,9 +216,16 @@ def parse_reply(line: str) -> Reply:
     clamped = obj["clamped"]
     if not isinstance(clamped, int) or isinstance(clamped, bool) or not 0 <= clamped <= 15:
         raise ValueError(f"clamped must be a 4-bit mask, got {clamped!r}")
-    return Reply(status=status, err=obj["err"], fw=obj["fw"], state=obj["state"], seq=seq,
-                 out_us=_int_list(obj, "out_us", 4, 0, 65535), clamped=clamped,
-                 att_mrad=_int_list(obj, "att_mrad", 3, -32768, 32767),
-                 att_age_ms=_opt_age(obj, "att_age_ms"),
-                 imu_raw=_int_list(obj, "imu_raw", 6, -32768, 32767),
-                 imu_age_ms=_opt_age(obj, "imu_age_ms"))
+    return Reply(
+        status=status,
+        err=obj["err"],
+        fw=obj["fw"],
+        state=obj["state"],
+        seq=seq,
+        out_us=_int_list(obj, "out_us", 4, 0, 65535),
+        clamped=clamped,
+        att_mrad=_int_list(obj, "att_mrad", 3, -32768, 32767),
+        att_age_ms=_opt_age(obj, "att_age_ms"),
+        imu_raw=_int_list(obj, "imu_raw", 6, -32768, 32767),
+        imu_age_ms=_opt_age(obj, "imu_age_ms"),
+    )
