@@ -1,4 +1,5 @@
 """PlatformIO platform class of the local offline AVR platform (no packages to fetch)."""
+
 from platformio.public import PlatformBase
 
 

@@ -6,14 +6,14 @@ simulated-time deadlines. Targets: pulse widths within +-4 us of commanded, 50 H
 engaged <= 250 ms after the last valid command and ramping without a step, >= 50 commands/s with
 replies, IMU values from MAVLink in the replies.
 """
+
 import subprocess
 
 import pytest
-from pymavlink.dialects.v10 import common as mavlink1
-from pymavlink.dialects.v20 import common as mavlink2
-
 from arduino.simavr_session import Scenario, firmware_elf_path
 from provision_key import key_record
+from pymavlink.dialects.v10 import common as mavlink1
+from pymavlink.dialects.v20 import common as mavlink2
 from rgbd_protocol.control import build_control_request, build_status_request, parse_reply
 
 KEY = bytes(range(16))
@@ -38,8 +38,10 @@ def test_pwm_widths_and_period_on_all_four_pins():
     sc = Scenario()
     sc.req(20 * MS, cmd(1))
     for i in range(20):  # commands keep coming at 50 Hz, so UART and SipHash load the CPU meanwhile
-        sc.req(40 * MS + i * 20 * MS, cmd(2 + i, roll=commanded[0], pitch=commanded[1],
-                                          thr=commanded[2], yaw=commanded[3]))
+        sc.req(
+            40 * MS + i * 20 * MS,
+            cmd(2 + i, roll=commanded[0], pitch=commanded[1], thr=commanded[2], yaw=commanded[3]),
+        )
     sc.end(440 * MS)
     r = sc.run(RECORD)
     assert statuses(r) == [200] * 21
@@ -54,8 +56,10 @@ def test_pwm_widths_and_period_on_all_four_pins():
             worst_width = max(worst_width, abs(p.width_us - commanded[ch - 1]))
         for a, b in zip(pulses, pulses[1:]):
             worst_period = max(worst_period, abs((b.rise_us - a.rise_us) - FRAME_US))
-    print(f"\nsimavr PWM: worst pulse-width error {worst_width:.3f} us, "
-          f"worst period error {worst_period:.3f} us over {len(r.pulses_of(1, t0))} frames")
+    print(
+        f"\nsimavr PWM: worst pulse-width error {worst_width:.3f} us, "
+        f"worst period error {worst_period:.3f} us over {len(r.pulses_of(1, t0))} frames"
+    )
     # THEN every pulse is within tolerance and frames are 20 ms apart
     assert worst_width <= PULSE_TOLERANCE_US
     assert worst_period <= PULSE_TOLERANCE_US
@@ -82,7 +86,9 @@ def test_failsafe_engages_within_timeout_and_ramps_throttle_down():
     sc.end(6200 * MS)
     r = sc.run(RECORD)
     replies = [(x, parse_reply(x.text + "\n")) for x in r.replies]
-    last_ok = [x for x, p in replies if p.status == 200 and p.seq == last_cmd_seq and p.state == "armed"]
+    last_ok = [
+        x for x, p in replies if p.status == 200 and p.seq == last_cmd_seq and p.state == "armed"
+    ]
     assert last_ok, "the last command was not accepted"
     t_last_valid = last_ok[0].start_us  # the command was accepted just before its reply started
     armed_polls = [x for x, p in replies if p.state == "armed" and x.start_us > t_last_valid]
@@ -100,11 +106,13 @@ def test_failsafe_engages_within_timeout_and_ramps_throttle_down():
     def thr_at(dt_ms):
         return next(p.width_us for p in thr if p.rise_us >= t_fs + dt_ms * MS)
 
-    print(f"\nsimavr failsafe: still armed {still_armed / MS:.1f} ms after the last valid command, "
-          f"failsafe seen by {engaged_by / MS:.1f} ms (10 ms status polling); first neutral roll "
-          f"pulse {(first_neutral.rise_us - t_last_valid) / MS:.1f} ms; throttle at +0.5 s "
-          f"{thr_at(500):.1f} us, +1 s {thr_at(1000):.1f}, +3.5 s {thr_at(3500):.1f}, "
-          f"+5 s {thr_at(5000):.1f}; largest frame-to-frame drop {max(steps):.2f} us")
+    print(
+        f"\nsimavr failsafe: still armed {still_armed / MS:.1f} ms after the last valid command, "
+        f"failsafe seen by {engaged_by / MS:.1f} ms (10 ms status polling); first neutral roll "
+        f"pulse {(first_neutral.rise_us - t_last_valid) / MS:.1f} ms; throttle at +0.5 s "
+        f"{thr_at(500):.1f} us, +1 s {thr_at(1000):.1f}, +3.5 s {thr_at(3500):.1f}, "
+        f"+5 s {thr_at(5000):.1f}; largest frame-to-frame drop {max(steps):.2f} us"
+    )
     # THEN failsafe engages within 250 ms (+ one 10 ms poll interval of observation granularity)
     assert still_armed < 250 * MS
     assert engaged_by <= 260 * MS
@@ -113,8 +121,8 @@ def test_failsafe_engages_within_timeout_and_ramps_throttle_down():
     assert min(steps) >= -2 * PULSE_TOLERANCE_US
     assert abs(thr_at(500) - 1400) <= 8
     assert abs(thr_at(1000) - 1300) <= 8
-    assert abs(thr_at(2500) - 1300) <= PULSE_TOLERANCE_US   # holding at the descent level
-    assert abs(thr_at(5000) - 950) <= PULSE_TOLERANCE_US    # below FS_THR_VALUE 975 us
+    assert abs(thr_at(2500) - 1300) <= PULSE_TOLERANCE_US  # holding at the descent level
+    assert abs(thr_at(5000) - 950) <= PULSE_TOLERANCE_US  # below FS_THR_VALUE 975 us
 
 
 def test_bad_requests_get_error_replies_and_change_no_output():
@@ -123,19 +131,19 @@ def test_bad_requests_get_error_replies_and_change_no_output():
     sc.req(30 * MS, cmd(2, roll=1600, thr=1400))
     forged = cmd(3, roll=1600, thr=1400).replace("thr=1400", "thr=1700")
     bad = [
-        cmd(2, roll=1700, thr=1700),                       # replayed seq
-        forged,                                            # forged field
+        cmd(2, roll=1700, thr=1700),  # replayed seq
+        forged,  # forged field
         cmd(3, roll=1700, thr=1700, key=bytes(range(1, 17))),  # wrong key
-        "PUT /control?seq=3&arm=1",                        # truncated
-        "hello",                                           # garbage
-        "X" * 300,                                         # over-long
-        "DELETE /control",                                 # bad method
+        "PUT /control?seq=3&arm=1",  # truncated
+        "hello",  # garbage
+        "X" * 300,  # over-long
+        "DELETE /control",  # bad method
     ]
     t = 60 * MS
     for line in bad:
         sc.req(t, line)
         t += 10 * MS
-    sc.raw(t + 10 * MS, b"PUT /control?seq=3")            # stalls: no newline
+    sc.raw(t + 10 * MS, b"PUT /control?seq=3")  # stalls: no newline
     t += 200 * MS
     while t < 420 * MS:  # keep sending rejected requests past the failsafe deadline
         sc.req(t, bad[1])
@@ -150,7 +158,9 @@ def test_bad_requests_get_error_replies_and_change_no_output():
     # THEN outputs stayed at the last valid command until the failsafe deadline, and the rejected
     # requests did not feed the failsafe timer: the final status shows failsafe.
     t_last_valid = r.replies[1].start_us
-    frames = [p.width_us for p in r.pulses_of(3, r.replies[1].end_us + FRAME_US, t_last_valid + 250 * MS)]
+    frames = [
+        p.width_us for p in r.pulses_of(3, r.replies[1].end_us + FRAME_US, t_last_valid + 250 * MS)
+    ]
     assert len(frames) >= 8 and all(abs(w - 1400) <= PULSE_TOLERANCE_US for w in frames)
     assert parse_reply(r.replies[-1].text + "\n").state == "failsafe"
 
@@ -167,8 +177,10 @@ def test_at_least_50_commands_per_second_with_replies():
     span_s = (r.replies[-1].end_us - r.sent[0].start_us) / 1e6
     rate = n / span_s
     per_cmd = [(rep.start_us - s.end_us) / MS for s, rep in zip(r.sent, r.replies)]
-    print(f"\nsimavr throughput: {rate:.1f} commands/s with replies ({n} in {span_s * 1000:.0f} ms "
-          f"simulated); firmware processing per command {min(per_cmd):.2f}-{max(per_cmd):.2f} ms")
+    print(
+        f"\nsimavr throughput: {rate:.1f} commands/s with replies ({n} in {span_s * 1000:.0f} ms "
+        f"simulated); firmware processing per command {min(per_cmd):.2f}-{max(per_cmd):.2f} ms"
+    )
     assert rate >= 50
 
 
@@ -193,8 +205,10 @@ def test_mavlink_attitude_and_raw_imu_appear_in_replies(wire_version):
     # The frames end ~30 + (len * 10 bits / 57600) ms; the reply is built at ~100 ms.
     att_end_ms = 30 + len(b"\x00\x55garbage" + att) * 10 / 57.6
     age_expected = r.replies[1].start_us / MS - att_end_ms
-    print(f"\nsimavr MAVLink v{wire_version}: attitude {second.att_mrad} mrad, age {second.att_age_ms} ms "
-          f"(expected ~{age_expected:.1f}), raw IMU {second.imu_raw}, age {second.imu_age_ms} ms")
+    print(
+        f"\nsimavr MAVLink v{wire_version}: attitude {second.att_mrad} mrad, age {second.att_age_ms} ms "
+        f"(expected ~{age_expected:.1f}), raw IMU {second.imu_raw}, age {second.imu_age_ms} ms"
+    )
     assert abs(second.att_age_ms - age_expected) <= 3
     assert second.imu_age_ms <= second.att_age_ms
 
@@ -264,7 +278,9 @@ def test_recorded_commands_cannot_be_replayed_after_a_reset():
     sc.end(60 * MS)
     third = sc.run(second.eeprom)
     assert statuses(third) == [200]
-    print(f"\nsimavr replay after reset: rejected {len(recorded)}/{len(recorded)}, resumed at seq {resume}")
+    print(
+        f"\nsimavr replay after reset: rejected {len(recorded)}/{len(recorded)}, resumed at seq {resume}"
+    )
 
 
 def test_telemetry_stream_under_command_load_loses_no_frame():
@@ -281,7 +297,9 @@ def test_telemetry_stream_under_command_load_loses_no_frame():
         imu = mav.raw_imu_encode(k, k, -k, 3 * k, 4, 5, 6, 7, 8, 9).pack(mav)
         assert len(att) + len(imu) == 77  # no base field truncated (only the 2 extension fields)
         sc.mav(t0, att + imu)
-        frame_end_us.append((k, t0 + len(att) * 10 / 57600 * 1e6, t0 + len(att + imu) * 10 / 57600 * 1e6))
+        frame_end_us.append(
+            (k, t0 + len(att) * 10 / 57600 * 1e6, t0 + len(att + imu) * 10 / 57600 * 1e6)
+        )
     for seq in range(1, 60):
         sc.req(30 * MS, cmd(seq, thr=1000 + seq))
     sc.end(20 * MS + (n + 5) * 16 * MS)
@@ -294,6 +312,7 @@ def test_telemetry_stream_under_command_load_loses_no_frame():
         def latest(t_us, idx):
             done = [k for k, *ends in frame_end_us if ends[idx] <= t_us]
             return done[-1] if done else None
+
         # A lost frame shows as an older value than the newest frame completed before the request
         # was received; newer values (frames finishing while the line is still being delivered
         # and picked up, up to ~3 ms later) are fine.
@@ -304,8 +323,10 @@ def test_telemetry_stream_under_command_load_loses_no_frame():
         assert lo_att <= rep.att_mrad[0] <= hi_att, (sent, rep.att_mrad, lo_att, hi_att)
         assert lo_imu <= rep.imu_raw[0] <= hi_imu, (sent, rep.imu_raw, lo_imu, hi_imu)
         checked += 1
-    print(f"\nsimavr telemetry under load: {checked} replies carried the newest frame "
-          f"({n} ATTITUDE+RAW_IMU pairs every 16 ms, {len(replies)} commands)")
+    print(
+        f"\nsimavr telemetry under load: {checked} replies carried the newest frame "
+        f"({n} ATTITUDE+RAW_IMU pairs every 16 ms, {len(replies)} commands)"
+    )
     assert checked >= 40
 
 
@@ -339,8 +360,11 @@ def test_stack_high_water_mark_under_full_load():
     mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
     sc = Scenario()
     for k in range(1, 40):
-        sc.mav(20 * MS + k * 16 * MS, mav.attitude_encode(k, 0.1, 0.2, 0.3, 0.1, 0.2, 0.3).pack(mav)
-               + mav.raw_imu_encode(k, k, -k, 3 * k, 4, 5, 6, 7, 8, 9).pack(mav))
+        sc.mav(
+            20 * MS + k * 16 * MS,
+            mav.attitude_encode(k, 0.1, 0.2, 0.3, 0.1, 0.2, 0.3).pack(mav)
+            + mav.raw_imu_encode(k, k, -k, 3 * k, 4, 5, 6, 7, 8, 9).pack(mav),
+        )
     for seq in range(1, 30):
         sc.req(30 * MS, cmd(seq, roll=2000, thr=1000 + seq))
     for line in ("X" * 300, "hello", cmd(1), cmd(99, key=bytes(range(1, 17)))):
@@ -350,6 +374,8 @@ def test_stack_high_water_mark_under_full_load():
     r = sc.run(RECORD, stack_paint_from=bss_end)
     ram_free = 0x900 - bss_end
     used = ram_free - r.stack_free
-    print(f"\nsimavr stack: peak {used} B used of the {ram_free} B above .bss "
-          f"({r.stack_free} B never touched)")
+    print(
+        f"\nsimavr stack: peak {used} B used of the {ram_free} B above .bss "
+        f"({r.stack_free} B never touched)"
+    )
     assert r.stack_free >= 128

@@ -9,6 +9,7 @@ so the MAVLink state fits the ATmega328P's 2 KB of RAM (the full CRC table alone
 
 Usage: gen_mavlink.py OUT_DIR      (idempotent: does nothing when OUT_DIR is up to date)
 """
+
 import argparse
 import pathlib
 import re
@@ -26,8 +27,10 @@ def main() -> int:
     try:
         import pymavlink
     except ImportError:
-        print("gen_mavlink: pymavlink is not installed (make deps installs it into .venv)",
-              file=sys.stderr)
+        print(
+            "gen_mavlink: pymavlink is not installed (make deps installs it into .venv)",
+            file=sys.stderr,
+        )
         return 2
     xml = pathlib.Path(pymavlink.__file__).parent / "dialects" / "v20" / "common.xml"
     if not xml.is_file():
@@ -41,9 +44,19 @@ def main() -> int:
         return 0
     gen_dir = out / "mavlink"
     gen_dir.mkdir(parents=True, exist_ok=True)
-    subprocess.run([sys.executable, "-m", "pymavlink.tools.mavgen", "--lang=C",
-                    "--wire-protocol=2.0", f"--output={gen_dir}", str(xml)],
-                   check=True, stdout=subprocess.DEVNULL)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pymavlink.tools.mavgen",
+            "--lang=C",
+            "--wire-protocol=2.0",
+            f"--output={gen_dir}",
+            str(xml),
+        ],
+        check=True,
+        stdout=subprocess.DEVNULL,
+    )
     common_h = (gen_dir / "common" / "common.h").read_text()
     m = re.search(r"#define MAVLINK_MESSAGE_CRCS \{(.*)\}\s*$", common_h, re.MULTILINE)
     if not m:
@@ -66,7 +79,8 @@ def main() -> int:
         "#define MAVLINK_NO_SIGNATURE_CHECK 1\n"
         "#define MAVLINK_NO_SIGN_PACKET 1\n"
         f"#define MAVLINK_MESSAGE_CRCS {{{crcs}}}\n"
-        '#include "mavlink/common/mavlink.h"\n#endif\n')
+        '#include "mavlink/common/mavlink.h"\n#endif\n'
+    )
     stamp.write_text(source_id)
     return 0
 

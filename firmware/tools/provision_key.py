@@ -9,6 +9,7 @@ the 20 bytes before it, little-endian.
   provision_key.py --new --out key.hex                      # a fresh random key, printed once
 Put the same key (hex) in the ground station's config (control_key_hex).
 """
+
 import argparse
 import secrets
 import sys
@@ -37,7 +38,7 @@ def key_record(key: bytes) -> bytes:
 def intel_hex(data: bytes, address: int = 0) -> str:
     lines = []
     for off in range(0, len(data), 16):
-        chunk = data[off:off + 16]
+        chunk = data[off : off + 16]
         addr = address + off
         rec = bytes([len(chunk), addr >> 8, addr & 0xFF, 0]) + chunk
         lines.append(":" + rec.hex().upper() + f"{(-sum(rec)) & 0xFF:02X}")
@@ -50,7 +51,9 @@ def main() -> int:
     g = ap.add_mutually_exclusive_group(required=True)
     g.add_argument("--key-hex", help="the 16-byte key as 32 hex digits")
     g.add_argument("--new", action="store_true", help="generate a fresh random key and print it")
-    ap.add_argument("--out", required=True, help="Intel HEX file to write (for avrdude -U eeprom:w:)")
+    ap.add_argument(
+        "--out", required=True, help="Intel HEX file to write (for avrdude -U eeprom:w:)"
+    )
     ap.add_argument("--raw-out", help="also write the raw 22-byte record (e.g. for simavr)")
     args = ap.parse_args()
     try:

@@ -14,6 +14,7 @@ simulated microseconds. The HIL rig builds on this.
 Binary and image are found at <repo>/build/bin/fw_sim and firmware/.pio/build/uno_wifi/program.elf
 (`make build` makes both), or from FW_SIM_BIN / FW_ELF.
 """
+
 from __future__ import annotations
 
 import os
@@ -35,12 +36,14 @@ def fw_sim_path() -> pathlib.Path:
 
 
 def firmware_elf_path() -> pathlib.Path:
-    return pathlib.Path(os.environ.get("FW_ELF", REPO / "firmware" / ".pio" / "build" / "uno_wifi" / "program.elf"))
+    return pathlib.Path(
+        os.environ.get("FW_ELF", REPO / "firmware" / ".pio" / "build" / "uno_wifi" / "program.elf")
+    )
 
 
 @dataclass(frozen=True)
 class Pulse:
-    channel: int      # 1..4 (roll, pitch, throttle, yaw)
+    channel: int  # 1..4 (roll, pitch, throttle, yaw)
     rise_us: float
     width_us: float
 
@@ -64,11 +67,19 @@ class Result:
     replies: list[Reply] = field(default_factory=list)
     sent: list[Sent] = field(default_factory=list)
     done_us: float = 0.0
-    eeprom: bytes | None = None  # the EEPROM at the end (1024 bytes), when run(..., keep_eeprom=True)
-    stack_free: int | None = None  # SRAM bytes above .bss never written, when run(..., stack_paint_from=)
+    eeprom: bytes | None = (
+        None  # the EEPROM at the end (1024 bytes), when run(..., keep_eeprom=True)
+    )
+    stack_free: int | None = (
+        None  # SRAM bytes above .bss never written, when run(..., stack_paint_from=)
+    )
 
-    def pulses_of(self, channel: int, after_us: float = 0.0, before_us: float = float("inf")) -> list[Pulse]:
-        return [p for p in self.pulses if p.channel == channel and after_us <= p.rise_us < before_us]
+    def pulses_of(
+        self, channel: int, after_us: float = 0.0, before_us: float = float("inf")
+    ) -> list[Pulse]:
+        return [
+            p for p in self.pulses if p.channel == channel and after_us <= p.rise_us < before_us
+        ]
 
     def frame_at(self, t_us: float) -> list[float]:
         """Widths of the four channels in the first complete frame starting at or after t_us."""
@@ -111,13 +122,20 @@ class Scenario:
             raise ValueError("call end(t_us) first")
         return "\n".join(self._lines + [f"end {self._end_us:.3f}"]) + "\n"
 
-    def run(self, key_record: bytes | None, workdir: pathlib.Path | None = None,
-            keep_eeprom: bool = False, stack_paint_from: int | None = None) -> Result:
+    def run(
+        self,
+        key_record: bytes | None,
+        workdir: pathlib.Path | None = None,
+        keep_eeprom: bool = False,
+        stack_paint_from: int | None = None,
+    ) -> Result:
         """Runs fw_sim; key_record is the EEPROM content from address 0 (None: erased EEPROM, no
         key), e.g. a key record or the `eeprom` of an earlier Result (a reboot)."""
         sim, elf = fw_sim_path(), firmware_elf_path()
-        for p, how in ((sim, "build it: make build (or cmake --build ... --target fw_sim)"),
-                       (elf, "build it: firmware/build.sh")):
+        for p, how in (
+            (sim, "build it: make build (or cmake --build ... --target fw_sim)"),
+            (elf, "build it: firmware/build.sh"),
+        ):
             if not p.is_file():
                 raise FileNotFoundError(f"{p} not found: {how}")
         args = [str(sim), "--elf", str(elf)]
@@ -131,8 +149,14 @@ class Scenario:
                 args += ["--eeprom-out", str(ee_out)]
             if stack_paint_from is not None:
                 args += ["--stack-paint", hex(stack_paint_from)]
-            proc = subprocess.run(args, input=self.script(), capture_output=True, text=True,
-                                  timeout=RUN_TIMEOUT_S, check=False)
+            proc = subprocess.run(
+                args,
+                input=self.script(),
+                capture_output=True,
+                text=True,
+                timeout=RUN_TIMEOUT_S,
+                check=False,
+            )
             if proc.returncode != 0:
                 raise RuntimeError(f"fw_sim failed ({proc.returncode}): {proc.stderr.strip()}")
             result = parse_log(proc.stdout)
@@ -184,8 +208,14 @@ class LiveSession:
             args += ["--eeprom", str(self._eeprom)]
         # stderr to a file, not a pipe: nobody reads it while the session runs, so a pipe could fill.
         self._stderr = tempfile.TemporaryFile(mode="w+")
-        self._proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                      stderr=self._stderr, text=True, bufsize=1)
+        self._proc = subprocess.Popen(
+            args,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=self._stderr,
+            text=True,
+            bufsize=1,
+        )
         self.now_us = 0.0
 
     def _send(self, line: str) -> None:
@@ -233,7 +263,7 @@ class LiveSession:
         if self._eeprom is not None:
             self._eeprom.unlink(missing_ok=True)
 
-    def __enter__(self) -> "LiveSession":
+    def __enter__(self) -> LiveSession:
         return self
 
     def __exit__(self, *exc) -> None:
