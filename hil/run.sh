@@ -26,4 +26,5 @@ print(sys.argv[1].split("/")[-1] + ": " + ", ".join(f"{k}={v:.3f}" if isinstance
                                                     for k, v in d.items() if k != "events"))
 PY
 done
+.venv/bin/python hil/hilrig/latency_budget.py test-artifacts/hil
 exit $status

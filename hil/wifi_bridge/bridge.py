@@ -108,6 +108,14 @@ for _m in FORWARDED_METHODS:
     setattr(_Handler, f"do_{_m}", _Handler._forward)
 
 
+class _Server(ThreadingHTTPServer):
+    daemon_threads = True
+
+    def handle_error(self, request, client_address) -> None:
+        # A client resetting its connection (scenario 7 does on purpose) is counted, not printed.
+        self.bridge._count("connection_errors")  # type: ignore[attr-defined]
+
+
 class WifiBridgeEmulator:
     def __init__(self, transact: Transact, options: BridgeOptions | None = None) -> None:
         self.options = options or BridgeOptions()
@@ -126,8 +134,7 @@ class WifiBridgeEmulator:
         return self._server.server_address[1]
 
     def start(self) -> "WifiBridgeEmulator":
-        server = ThreadingHTTPServer(("127.0.0.1", self.options.port), _Handler)
-        server.daemon_threads = True
+        server = _Server(("127.0.0.1", self.options.port), _Handler)
         server.bridge = self  # type: ignore[attr-defined]
         self._server = server
         self._thread = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05},
