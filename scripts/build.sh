@@ -15,7 +15,7 @@ cmake --build build-asan -j "$jobs"
 
 cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRGBD_FUZZ=ON \
   -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
-  -DRGBD_BUILD_FIRMWARE_NATIVE=OFF -DRGBD_BUILD_ONBOARD=OFF -DRGBD_BUILD_OFFBOARD=OFF \
+  -DRGBD_BUILD_ONBOARD=OFF -DRGBD_BUILD_OFFBOARD=OFF \
   -DRGBD_BUILD_HIL=OFF >/dev/null
 cmake --build build-fuzz -j "$jobs"
 
