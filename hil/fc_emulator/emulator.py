@@ -6,13 +6,16 @@ What is emulated (ArduCopter 3.x behaviour, parameters at their defaults unless 
   * Arming by stick gesture: throttle at zero + yaw full right held ARM_DELAY (2 s); disarm with yaw
     full left, or automatically after landing in Land mode.
   * Radio failsafe (FS_THR_ENABLE = 3, "always Land"): throttle below FS_THR_VALUE (975 us) for
-    FS_COUNTER consecutive RC reads, or no RC pulses for 500 ms -> Land mode, descending at LAND_SPEED
+    FS_COUNTER consecutive RC reads, or no RC pulses for 500 ms -> Land mode, descending at
+    LAND_SPEED
     (50 cm/s); if already landed, disarm at once.
   * Land detector: on the ground with the motors at their lower limit for 1 s -> landed.
 Simplification (documented in docs/hil.md): there is no mode switch channel (the craft has only four
-RC inputs), so the flight mode is an option; after a failsafe Land and disarm it returns to that mode.
+RC inputs), so the flight mode is an option; after a failsafe Land and disarm it returns to that
+mode.
 
-Time is passed in: `advance_to(t_us)` runs 400 Hz main-loop ticks up to t_us. Telemetry goes to a sink
+Time is passed in: `advance_to(t_us)` runs 400 Hz main-loop ticks up to t_us. Telemetry goes to a
+sink
 callable `sink(t_us, data: bytes)` as real MAVLink v2 frames (pymavlink), each stamped with the tick
 that produced it. Random IMU noise is drawn from a generator seeded by the options. Not thread-safe.
 """
@@ -30,29 +33,32 @@ from pymavlink.dialects.v20 import common as mavlink2
 from fc_emulator.quad_model import GRAVITY_MSS, QuadModel, QuadParams
 from fc_emulator.rc_input import CH_PITCH, CH_ROLL, CH_THROTTLE, CH_YAW, RcInput
 
-# ---- ArduCopter constants (names as in ArduCopter's parameters / source) ---------------------------
-MAIN_LOOP_PERIOD_US = 2500          # 400 Hz: ArduCopter's main loop rate on the APM 2.x (SCHED_LOOP_RATE)
-RC_READ_PERIOD_US = 20000           # RC is read at the 50 Hz frame rate of the receiver
-FS_THR_VALUE_US = 975               # FS_THR_VALUE default
-FS_COUNTER = 3                      # radio.cpp: consecutive low-throttle reads before failsafe (60 ms)
-FS_RADIO_TIMEOUT_US = 500_000       # no RC pulses for 500 ms -> failsafe (FS_RADIO_TIMEOUT_MS)
-ARM_DELAY_US = 2_000_000            # motors.cpp ARM_DELAY: gesture held 2 s
-ARM_THROTTLE_MAX_US = 1030          # throttle "at zero": RC3_MIN 1000 + RC3_DZ 30
-ARM_YAW_RIGHT_MIN_US = 1900         # yaw control_in > 4000 of 4500 centi-degrees -> ~1944 us; 1900 with trims
+# ---- ArduCopter constants (names as in ArduCopter's parameters / source)
+# ---------------------------
+MAIN_LOOP_PERIOD_US = 2500  # 400 Hz: ArduCopter's main loop rate on the APM 2.x (SCHED_LOOP_RATE)
+RC_READ_PERIOD_US = 20000  # RC is read at the 50 Hz frame rate of the receiver
+FS_THR_VALUE_US = 975  # FS_THR_VALUE default
+FS_COUNTER = 3  # radio.cpp: consecutive low-throttle reads before failsafe (60 ms)
+FS_RADIO_TIMEOUT_US = 500_000  # no RC pulses for 500 ms -> failsafe (FS_RADIO_TIMEOUT_MS)
+ARM_DELAY_US = 2_000_000  # motors.cpp ARM_DELAY: gesture held 2 s
+ARM_THROTTLE_MAX_US = 1030  # throttle "at zero": RC3_MIN 1000 + RC3_DZ 30
+ARM_YAW_RIGHT_MIN_US = (
+    1900  # yaw control_in > 4000 of 4500 centi-degrees -> ~1944 us; 1900 with trims
+)
 DISARM_YAW_LEFT_MAX_US = 1100
 ANGLE_MAX_RAD = math.radians(45.0)  # ANGLE_MAX 4500 cdeg
 YAW_RATE_MAX_RAD_S = math.radians(202.5)  # 4.5 * 45 deg/s full stick (ACRO_YAW_P default)
-STICK_DEADZONE_US = 20              # RC1/2/4_DZ default
-THR_DZ = 100                        # THR_DZ (of 1000): AltHold throttle dead band around mid-stick
-PILOT_SPEED_UP_MPS = 2.5            # PILOT_VELZ_MAX 250 cm/s (up and down)
-LAND_SPEED_MPS = 0.5                # LAND_SPEED 50 cm/s (below LAND_ALT_LOW, always the case indoors)
-PSC_POSZ_P = 1.0                    # altitude error (m) -> climb rate (m/s)
-PSC_VELZ_P = 5.0                    # climb rate error (m/s) -> acceleration (m/s^2)
-PSC_VELZ_I = 1.0                    # integral on the same error: learns hover output / battery sag
-MOT_SPIN_ARM = 0.1                  # motor output while armed on the ground
-LAND_DETECT_US = 1_000_000          # land_detector: 1 s at the lower limit on the ground
-LAND_DETECT_OUTPUT_FRACTION = 0.9   # "lower limit" = output below 90 % of the hover output
-MAX_TILT_ANGLE_BOOST = 0.75         # angle boost only up to cos(tilt) >= 0.75 (ArduCopter limits boost)
+STICK_DEADZONE_US = 20  # RC1/2/4_DZ default
+THR_DZ = 100  # THR_DZ (of 1000): AltHold throttle dead band around mid-stick
+PILOT_SPEED_UP_MPS = 2.5  # PILOT_VELZ_MAX 250 cm/s (up and down)
+LAND_SPEED_MPS = 0.5  # LAND_SPEED 50 cm/s (below LAND_ALT_LOW, always the case indoors)
+PSC_POSZ_P = 1.0  # altitude error (m) -> climb rate (m/s)
+PSC_VELZ_P = 5.0  # climb rate error (m/s) -> acceleration (m/s^2)
+PSC_VELZ_I = 1.0  # integral on the same error: learns hover output / battery sag
+MOT_SPIN_ARM = 0.1  # motor output while armed on the ground
+LAND_DETECT_US = 1_000_000  # land_detector: 1 s at the lower limit on the ground
+LAND_DETECT_OUTPUT_FRACTION = 0.9  # "lower limit" = output below 90 % of the hover output
+MAX_TILT_ANGLE_BOOST = 0.75  # angle boost only up to cos(tilt) >= 0.75 (ArduCopter limits boost)
 
 
 class FlightMode(enum.IntEnum):
@@ -66,7 +72,8 @@ class FlightMode(enum.IntEnum):
 @dataclass(frozen=True)
 class FcOptions:
     mode: FlightMode = FlightMode.ALT_HOLD
-    # Telemetry rates (Hz); ArduPilot's SRx_ stream rates. ATTITUDE at 25 Hz sits in the 10-50 Hz range
+    # Telemetry rates (Hz); ArduPilot's SRx_ stream rates. ATTITUDE at 25 Hz sits in the 10-50 Hz
+    # range
     # ArduCopter is usually configured to; RAW_IMU at 10 Hz; HEARTBEAT is always 1 Hz.
     heartbeat_hz: float = 1.0
     attitude_hz: float = 25.0
@@ -88,7 +95,9 @@ class FcOptions:
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"FcOptions.{name} must be finite and >= 0, got {v}")
         if self.mode not in (FlightMode.STABILIZE, FlightMode.ALT_HOLD):
-            raise ValueError("FcOptions.mode must be STABILIZE or ALT_HOLD (LAND is entered by failsafe)")
+            raise ValueError(
+                "FcOptions.mode must be STABILIZE or ALT_HOLD (LAND is entered by failsafe)"
+            )
 
 
 @dataclass(frozen=True)
@@ -119,7 +128,8 @@ Sink = Callable[[int, bytes], None]
 
 
 class _SinkFile:
-    """pymavlink writes through file.write(); this forwards each frame to the sink with the tick time."""
+    """pymavlink writes through file.write(); this forwards each frame to the sink with the tick
+    time."""
 
     def __init__(self, sink: Sink) -> None:
         self.sink = sink
@@ -144,8 +154,13 @@ def _throttle_in(pwm_us: int) -> float:
 
 
 class FlightControllerEmulator:
-    def __init__(self, sink: Sink | None = None, options: FcOptions | None = None,
-                 params: QuadParams | None = None, start_us: int = 0) -> None:
+    def __init__(
+        self,
+        sink: Sink | None = None,
+        options: FcOptions | None = None,
+        params: QuadParams | None = None,
+        start_us: int = 0,
+    ) -> None:
         self.options = options or FcOptions()
         self.options.validate()
         self.rc = RcInput()
@@ -153,8 +168,11 @@ class FlightControllerEmulator:
         self._t_us = int(start_us)
         self._rng = np.random.default_rng(self.options.seed)
         self._sink_file = _SinkFile(sink or (lambda _t, _d: None))
-        self._mav = mavlink2.MAVLink(self._sink_file, srcSystem=self.options.system_id,
-                                     srcComponent=self.options.component_id)
+        self._mav = mavlink2.MAVLink(
+            self._sink_file,
+            srcSystem=self.options.system_id,
+            srcComponent=self.options.component_id,
+        )
         self.armed = False
         self.mode = self.options.mode
         self.radio_failsafe = False
@@ -176,7 +194,8 @@ class FlightControllerEmulator:
         self._next_msg_us = dict.fromkeys(self._periods_us, self._t_us)
         self.events: list[tuple[int, str]] = []  # (t_us, text): arming, failsafe, mode changes
 
-    # ---- public API -------------------------------------------------------------------------------
+    # ---- public API
+    # -------------------------------------------------------------------------------
     @property
     def t_us(self) -> int:
         return self._t_us
@@ -195,25 +214,37 @@ class FlightControllerEmulator:
 
     def snapshot(self) -> FcSnapshot:
         s = self.model.state
-        return FcSnapshot(self._t_us, self.armed, self.mode, self.radio_failsafe, self.landed,
-                          tuple(float(v) for v in s.pos_ned_m), tuple(float(v) for v in s.vel_ned_mps),
-                          float(s.roll_rad), float(s.pitch_rad), float(s.yaw_rad),
-                          float(s.motor_output), float(s.battery_v))
+        return FcSnapshot(
+            self._t_us,
+            self.armed,
+            self.mode,
+            self.radio_failsafe,
+            self.landed,
+            tuple(float(v) for v in s.pos_ned_m),
+            tuple(float(v) for v in s.vel_ned_mps),
+            float(s.roll_rad),
+            float(s.pitch_rad),
+            float(s.yaw_rad),
+            float(s.motor_output),
+            float(s.battery_v),
+        )
 
     @property
     def touchdowns_mps(self) -> list[float]:
         """Vertical speed (m/s, down positive) at each ground contact."""
         return self.model.touchdowns_mps
 
-    # ---- main loop --------------------------------------------------------------------------------
+    # ---- main loop
+    # --------------------------------------------------------------------------------
     def _tick(self) -> None:
         now = self._t_us
         if now >= self._next_rc_read_us:
             self._next_rc_read_us += RC_READ_PERIOD_US
             self._read_radio(now)
         output = self._run_mode(MAIN_LOOP_PERIOD_US * 1e-6)
-        self.model.step(MAIN_LOOP_PERIOD_US * 1e-6, self._roll_tgt, self._pitch_tgt,
-                        self._yaw_rate_tgt, output)
+        self.model.step(
+            MAIN_LOOP_PERIOD_US * 1e-6, self._roll_tgt, self._pitch_tgt, self._yaw_rate_tgt, output
+        )
         self._update_land_detector(now, output)
         self._send_telemetry(now)
 
@@ -242,7 +273,11 @@ class FlightControllerEmulator:
             self._throttle_pwm = 1000
             self._arm_gesture_since_us = self._disarm_gesture_since_us = None
             return
-        roll, pitch, yaw = frame.pulses_us[CH_ROLL], frame.pulses_us[CH_PITCH], frame.pulses_us[CH_YAW]
+        roll, pitch, yaw = (
+            frame.pulses_us[CH_ROLL],
+            frame.pulses_us[CH_PITCH],
+            frame.pulses_us[CH_YAW],
+        )
         self._throttle_pwm = thr
         self._roll_tgt = _stick(roll) * ANGLE_MAX_RAD
         self._pitch_tgt = _stick(pitch) * ANGLE_MAX_RAD
@@ -286,7 +321,8 @@ class FlightControllerEmulator:
             self._alt_target_m = self.model.state.altitude_m
             self._event(now, f"mode {mode.name}")
 
-    # ---- flight modes -----------------------------------------------------------------------------
+    # ---- flight modes
+    # -----------------------------------------------------------------------------
     def _run_mode(self, dt_s: float) -> float:
         """Collective motor output 0..1 for this tick."""
         if not self.armed:
@@ -294,14 +330,16 @@ class FlightControllerEmulator:
         p = self.model.params
         s = self.model.state
         if self.mode == FlightMode.LAND:
-            self._roll_tgt = self._pitch_tgt = 0.0  # no position source: land level (no GPS indoors)
+            self._roll_tgt = self._pitch_tgt = (
+                0.0  # no position source: land level (no GPS indoors)
+            )
             return self._climb_rate_controller(-LAND_SPEED_MPS, dt_s, hold_altitude=False)
         if self.mode == FlightMode.STABILIZE:
             thr_in = _throttle_in(self._throttle_pwm)
             if thr_in <= 0.0:
                 return MOT_SPIN_ARM if self.landed else 0.0
             expo = min(max(-(p.hover_output - 0.5) / 0.375, -0.5), 1.0)
-            out = thr_in * (1.0 - expo) + expo * thr_in ** 3
+            out = thr_in * (1.0 - expo) + expo * thr_in**3
             return min(1.0, max(MOT_SPIN_ARM, out) / self._tilt_cos(s))
         # ALT_HOLD
         thr = _throttle_in(self._throttle_pwm) * 1000.0
@@ -340,12 +378,15 @@ class FlightControllerEmulator:
         output = p.hover_output * (1.0 + out_unlimited_accel / GRAVITY_MSS) / self._tilt_cos(s)
         saturated = output <= MOT_SPIN_ARM or output >= 1.0
         if not saturated or (output >= 1.0 and err < 0) or (output <= MOT_SPIN_ARM and err > 0):
-            self._velz_integrator += PSC_VELZ_I * err * dt_s  # anti-windup: integrate only unsaturated
+            self._velz_integrator += (
+                PSC_VELZ_I * err * dt_s
+            )  # anti-windup: integrate only unsaturated
         return min(max(output, MOT_SPIN_ARM), 1.0)
 
     def _update_land_detector(self, now: int, output: float) -> None:
         s = self.model.state
-        # Motors at their lower limit: output below 90 % of hover (the z loop is pushing down on the floor).
+        # Motors at their lower limit: output below 90 % of hover (the z loop is pushing down on the
+        # floor).
         at_lower_limit = output <= LAND_DETECT_OUTPUT_FRACTION * self.model.params.hover_output
         if self.armed and s.on_ground and at_lower_limit:
             if self._landed_since_us is None:
@@ -363,7 +404,8 @@ class FlightControllerEmulator:
         if not self.armed and s.on_ground:
             self.landed = True
 
-    # ---- telemetry --------------------------------------------------------------------------------
+    # ---- telemetry
+    # --------------------------------------------------------------------------------
     def _send_telemetry(self, now: int) -> None:
         self._sink_file.t_us = now
         for name, period in self._periods_us.items():
@@ -382,14 +424,26 @@ class FlightControllerEmulator:
             status = mavlink2.MAV_STATE_CRITICAL
         else:
             status = mavlink2.MAV_STATE_ACTIVE if self.armed else mavlink2.MAV_STATE_STANDBY
-        self._mav.heartbeat_send(mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
-                                 base, int(self.mode), status)
+        self._mav.heartbeat_send(
+            mavlink2.MAV_TYPE_QUADROTOR,
+            mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
+            base,
+            int(self.mode),
+            status,
+        )
 
     def _send_attitude(self, now: int) -> None:
         s = self.model.state
         r = s.rate_body_rad_s
-        self._mav.attitude_send(now // 1000 & 0xFFFFFFFF, s.roll_rad, s.pitch_rad, s.yaw_rad,
-                                float(r[0]), float(r[1]), float(r[2]))
+        self._mav.attitude_send(
+            now // 1000 & 0xFFFFFFFF,
+            s.roll_rad,
+            s.pitch_rad,
+            s.yaw_rad,
+            float(r[0]),
+            float(r[1]),
+            float(r[2]),
+        )
 
     def _send_raw_imu(self, now: int) -> None:
         acc_mg = self.model.specific_force_body_mss() * 1000.0 / GRAVITY_MSS
@@ -401,8 +455,12 @@ class FlightControllerEmulator:
         self._mav.raw_imu_send(now, a[0], a[1], a[2], g[0], g[1], g[2], 0, 0, 0)
 
 
-def fly(fc: "FlightControllerEmulator", pulses_us, duration_s: float,
-        frame_period_us: int = RC_READ_PERIOD_US) -> None:
+def fly(
+    fc: "FlightControllerEmulator",
+    pulses_us,
+    duration_s: float,
+    frame_period_us: int = RC_READ_PERIOD_US,
+) -> None:
     """Feeds a constant RC frame every frame_period_us for duration_s and advances the emulator.
 
     A stand-in for the harness (tests and scenarios without the firmware in the loop); `pulses_us`

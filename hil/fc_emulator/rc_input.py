@@ -19,7 +19,8 @@ CH_ROLL, CH_PITCH, CH_THROTTLE, CH_YAW = 0, 1, 2, 3
 # anything outside is treated as "no signal" on that channel.
 VALID_PULSE_MIN_US = 900
 VALID_PULSE_MAX_US = 2200
-# Stick centre (RCx_TRIM default) and throttle low (RC3_MIN default): values before any pulse arrives.
+# Stick centre (RCx_TRIM default) and throttle low (RC3_MIN default): values before any pulse
+# arrives.
 NEUTRAL_US = 1500
 THROTTLE_LOW_US = 1000
 
@@ -41,7 +42,8 @@ class RcInput:
     def feed(self, channel: int, width_us: float, t_us: int) -> bool:
         """One measured pulse on `channel` (0..3) of `width_us` ending at simulated time `t_us`.
 
-        Returns False (and counts it) for an out-of-window or non-finite pulse; raises ValueError for a
+        Returns False (and counts it) for an out-of-window or non-finite pulse; raises ValueError
+        for a
         channel index that does not exist (a wiring bug in the caller, not a signal condition).
         """
         if not 0 <= channel < CHANNEL_COUNT:
@@ -55,7 +57,8 @@ class RcInput:
         return True
 
     def feed_frame(self, widths_us, t_us: int) -> int:
-        """All four channels at once (roll, pitch, throttle, yaw). Returns how many were accepted."""
+        """All four channels at once (roll, pitch, throttle, yaw). Returns how many were
+        accepted."""
         if len(widths_us) != CHANNEL_COUNT:
             raise ValueError(f"expected {CHANNEL_COUNT} pulse widths, got {len(widths_us)}")
         return sum(self.feed(ch, w, t_us) for ch, w in enumerate(widths_us))

@@ -31,7 +31,9 @@ class Leg:
     land: bool = False
 
     def gains(self, base: PilotGains) -> PilotGains:
-        return base if self.max_climb_mps is None else replace(base, max_climb_mps=self.max_climb_mps)
+        return (
+            base if self.max_climb_mps is None else replace(base, max_climb_mps=self.max_climb_mps)
+        )
 
 
 @dataclass
@@ -48,13 +50,15 @@ class FlightLog:
 @dataclass(frozen=True)
 class CameraMount:
     mount_pitch_down_deg: float = 30.0
-    # Body centre at take-off in the room frame (x north, y west, z up): 20 cm above the floor (landing
+    # Body centre at take-off in the room frame (x north, y west, z up): 20 cm above the floor
+    # (landing
     # gear), placed so the walls stay within the Kinect's 4.5 m range for the scenario plans.
     origin_room_m: tuple[float, float, float] = (-1.5, 0.5, 0.2)
 
 
 def arm(fc: FlightControllerEmulator, on_sticks=None) -> None:
-    """Holds the arming gesture until the emulator arms (ArduCopter: 2 s); raises if it never does."""
+    """Holds the arming gesture until the emulator arms (ArduCopter: 2 s); raises if it never
+    does."""
     deadline = fc.t_us + 5_000_000
     while not fc.armed:
         if fc.t_us >= deadline:
@@ -67,24 +71,41 @@ def arm(fc: FlightControllerEmulator, on_sticks=None) -> None:
     fc.feed_rc(IDLE_STICKS_US, fc.t_us)
 
 
-def fly_plan(fc: FlightControllerEmulator, legs: list[Leg], kinect: KinectEmulator | None = None,
-             sink=None, mount: CameraMount = CameraMount(), gains: PilotGains = PilotGains(),
-             log: FlightLog | None = None, on_sticks=None) -> FlightLog:
-    """Flies each leg with the ground-truth pilot; renders Kinect frames into `sink(frame)` if given;
-    `on_sticks(t_us, sticks)` sees every RC frame the pilot sends (to replay it through firmware)."""
+def fly_plan(
+    fc: FlightControllerEmulator,
+    legs: list[Leg],
+    kinect: KinectEmulator | None = None,
+    sink=None,
+    mount: CameraMount = CameraMount(),
+    gains: PilotGains = PilotGains(),
+    log: FlightLog | None = None,
+    on_sticks=None,
+) -> FlightLog:
+    """Flies each leg with the ground-truth pilot; renders Kinect frames into `sink(frame)` if
+    given;
+    `on_sticks(t_us, sticks)` sees every RC frame the pilot sends (to replay it through
+    firmware)."""
     log = log or FlightLog()
     for leg in legs:
         end_us = fc.t_us + int(round(leg.duration_s * 1e6))
         next_rc = fc.t_us + RC_READ_PERIOD_US
-        last_cam_us = fc.t_us  # captures strictly after this (the FC's 2.5 ms tick may lag behind it)
+        last_cam_us = (
+            fc.t_us
+        )  # captures strictly after this (the FC's 2.5 ms tick may lag behind it)
         while fc.t_us < end_us:
             next_cam = kinect.frames_due(last_cam_us, end_us)[:1] if kinect is not None else []
             if next_cam and next_cam[0] <= next_rc:
                 last_cam_us = next_cam[0]
                 fc.advance_to(next_cam[0])
                 s = fc.snapshot()
-                T = camera_pose_from_ned(s.pos_ned_m, s.roll_rad, s.pitch_rad, s.yaw_rad,
-                                         mount.mount_pitch_down_deg, origin_room_m=mount.origin_room_m)
+                T = camera_pose_from_ned(
+                    s.pos_ned_m,
+                    s.roll_rad,
+                    s.pitch_rad,
+                    s.yaw_rad,
+                    mount.mount_pitch_down_deg,
+                    origin_room_m=mount.origin_room_m,
+                )
                 frame = kinect.render(T, next_cam[0])
                 log.frames += 1
                 if sink is not None:
@@ -112,5 +133,9 @@ def hold_error_m(log: FlightLog, from_us: int, to_us: int) -> dict:
     sel = (t >= from_us) & (t <= to_us)
     err = p[sel] - g[sel]
     e3 = np.linalg.norm(err, axis=1)
-    return {"max_m": float(e3.max()), "rms_m": float(math.sqrt(np.mean(e3 ** 2))),
-            "max_vertical_m": float(np.abs(err[:, 2]).max()), "samples": int(sel.sum())}
+    return {
+        "max_m": float(e3.max()),
+        "rms_m": float(math.sqrt(np.mean(e3**2))),
+        "max_vertical_m": float(np.abs(err[:, 2]).max()),
+        "samples": int(sel.sum()),
+    }

@@ -28,7 +28,7 @@ def firmware_elf() -> Path | None:
 
 @dataclass(frozen=True)
 class Pulse:
-    channel: int      # 0..3 (roll, pitch, throttle, yaw)
+    channel: int  # 0..3 (roll, pitch, throttle, yaw)
     rise_us: float
     width_us: float
 
@@ -90,13 +90,20 @@ def parse_log(text: str) -> FwSimResult:
     return r
 
 
-def run_fw_sim(script: FwScript, eeprom: bytes | None, workdir: Path, timeout_s: float = 300.0,
-               name: str = "fw_sim") -> FwSimResult:
+def run_fw_sim(
+    script: FwScript,
+    eeprom: bytes | None,
+    workdir: Path,
+    timeout_s: float = 300.0,
+    name: str = "fw_sim",
+) -> FwSimResult:
     """Runs fw_sim on the script; raises RuntimeError with the harness's stderr if it fails."""
     binary = find_binary("fw_sim")
     elf = firmware_elf()
     if binary is None or elf is None:
-        raise FileNotFoundError("fw_sim or the firmware .elf is not built (make build / make firmware)")
+        raise FileNotFoundError(
+            "fw_sim or the firmware .elf is not built (make build / make firmware)"
+        )
     workdir.mkdir(parents=True, exist_ok=True)
     # A private copy: the image in the tree can be rebuilt while the scenario runs.
     elf_copy = workdir / "program.elf"
@@ -107,12 +114,18 @@ def run_fw_sim(script: FwScript, eeprom: bytes | None, workdir: Path, timeout_s:
     if eeprom is not None:
         (workdir / "eeprom.bin").write_bytes(eeprom)
         argv += ["--eeprom", workdir / "eeprom.bin"]
-    proc = ManagedProcess(argv, workdir / f"{name}.log", stdin_path=script_path,
-                          stderr_path=workdir / f"{name}.stderr")
+    proc = ManagedProcess(
+        argv,
+        workdir / f"{name}.log",
+        stdin_path=script_path,
+        stderr_path=workdir / f"{name}.stderr",
+    )
     try:
         rc = proc.wait(timeout_s)
     finally:
         proc.stop()
     if rc != 0:
-        raise RuntimeError(f"fw_sim exited {rc}: {(workdir / f'{name}.stderr').read_text()[-2000:]}")
+        raise RuntimeError(
+            f"fw_sim exited {rc}: {(workdir / f'{name}.stderr').read_text()[-2000:]}"
+        )
     return parse_log((workdir / f"{name}.log").read_text())

@@ -17,9 +17,9 @@ import time
 from hilrig.flight import Leg
 from hilrig.pilot import ARM_STICKS_US, IDLE_STICKS_US, PilotGains, sticks_for
 
-COMMAND_PERIOD_S = 0.02      # 50 Hz, the thesis' command rate (quad-control's period_ms)
-ARM_GESTURE_S = 2.4          # ArduCopter's 2 s arming delay + margin for the PWM frame delay
-ARM_GIVE_UP_S = 15.0         # stop holding the gesture if the APM has not armed by then
+COMMAND_PERIOD_S = 0.02  # 50 Hz, the thesis' command rate (quad-control's period_ms)
+ARM_GESTURE_S = 2.4  # ArduCopter's 2 s arming delay + margin for the PWM frame delay
+ARM_GIVE_UP_S = 15.0  # stop holding the gesture if the APM has not armed by then
 # quad-control gives up after 100 ms; this stand-in waits 1 s so a loaded CI machine is not mistaken
 # for a link fault (late replies are counted in round_trip_ms).
 HTTP_TIMEOUT_S = 1.0
@@ -76,8 +76,15 @@ class GroundStation:
     """Every COMMAND_PERIOD_S the latest command goes out on the next idle client (round robin, as
     quad-control's FirmwareLink does), so one stalled request never stops the commands."""
 
-    def __init__(self, bridge_port: int, key: bytes, rig, plan: list[Leg], clock=time.monotonic,
-                 clients: int = 2) -> None:
+    def __init__(
+        self,
+        bridge_port: int,
+        key: bytes,
+        rig,
+        plan: list[Leg],
+        clock=time.monotonic,
+        clients: int = 2,
+    ) -> None:
         from rgbd_protocol.control import SequenceCounter
 
         self.port = bridge_port
@@ -140,13 +147,16 @@ class GroundStation:
                 time.sleep(min(next_t - now, 0.005))
                 continue
             next_t += COMMAND_PERIOD_S
-            # Hold the arming gesture until the APM is armed (an operator watches the motors spin up),
+            # Hold the arming gesture until the APM is armed (an operator watches the motors spin
+            # up),
             # at least ARM_GESTURE_S: on a loaded machine simulated time may run slower than ours.
             if now < arm_until or (not self.rig.snapshot().armed and now < arm_give_up):
                 self._send(ARM_STICKS_US, True)
                 continue
             s = self.rig.snapshot()
-            if leg_end_sim is None or (s.t_us >= leg_end_sim and self.leg_index < len(self.plan) - 1):
+            if leg_end_sim is None or (
+                s.t_us >= leg_end_sim and self.leg_index < len(self.plan) - 1
+            ):
                 if leg_end_sim is not None:
                     self.leg_index += 1
                 leg = self.plan[self.leg_index]

@@ -1,8 +1,11 @@
 """A degraded network link in user space: a loopback TCP proxy that delays and "loses" data.
 
-The kernel's netem qdisc is not available on this machine (and would shape every process's loopback),
-so link faults are emulated here, per link, for the processes a scenario starts. TCP never shows loss
-to the application: a lost segment shows up as a stall of one retransmission timeout (Linux's minimum
+The kernel's netem qdisc is not available on this machine (and would shape every process's
+loopback),
+so link faults are emulated here, per link, for the processes a scenario starts. TCP never shows
+loss
+to the application: a lost segment shows up as a stall of one retransmission timeout (Linux's
+minimum
 RTO is 200 ms) after which the data arrives in order. So each chunk forwarded is delayed by
 `delay_ms` (+ uniform `jitter_ms`), and with probability `loss` it is held an extra `rto_ms`; order
 is kept (a stalled chunk holds back the ones behind it, as TCP's in-order delivery does).
@@ -25,9 +28,9 @@ LINUX_MIN_RTO_MS = 200.0  # TCP_RTO_MIN
 
 @dataclass(frozen=True)
 class LinkImpairment:
-    delay_ms: float = 0.0     # one-way, each direction
-    jitter_ms: float = 0.0    # uniform 0..jitter added per chunk
-    loss: float = 0.0         # probability a chunk needs a retransmission
+    delay_ms: float = 0.0  # one-way, each direction
+    jitter_ms: float = 0.0  # uniform 0..jitter added per chunk
+    loss: float = 0.0  # probability a chunk needs a retransmission
     rto_ms: float = LINUX_MIN_RTO_MS
     seed: int = 1
 
@@ -46,8 +49,10 @@ class _Pipe:
         self.queue: deque[tuple[float, bytes]] = deque()
         self.cv = threading.Condition()
         self.closed = False
-        self.threads = [threading.Thread(target=self._read, daemon=True),
-                        threading.Thread(target=self._write, daemon=True)]
+        self.threads = [
+            threading.Thread(target=self._read, daemon=True),
+            threading.Thread(target=self._write, daemon=True),
+        ]
         for t in self.threads:
             t.start()
 
@@ -95,8 +100,12 @@ class _Pipe:
 
 
 class LinkProxy:
-    def __init__(self, upstream_port: int, impairment: LinkImpairment = LinkImpairment(),
-                 clock=time.monotonic) -> None:
+    def __init__(
+        self,
+        upstream_port: int,
+        impairment: LinkImpairment = LinkImpairment(),
+        clock=time.monotonic,
+    ) -> None:
         impairment.validate()
         self.upstream_port = upstream_port
         self.impairment = impairment
@@ -147,8 +156,9 @@ class LinkProxy:
                 continue
             client.settimeout(None)
             with self._lock:
-                self._conns.append((client, upstream, _Pipe(client, upstream, self),
-                                    _Pipe(upstream, client, self)))
+                self._conns.append(
+                    (client, upstream, _Pipe(client, upstream, self), _Pipe(upstream, client, self))
+                )
 
     def sever(self) -> None:
         """The link goes down: every connection is reset and the port refuses new ones."""

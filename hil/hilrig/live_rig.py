@@ -53,22 +53,32 @@ class LineTiming:
 
 
 class LiveRig:
-    def __init__(self, key_record: bytes, fc_options: FcOptions | None = None,
-                 quad_params: QuadParams | None = None, step_us: int = 5000,
-                 time_scale: float = 1.0, workdir=None, clock=time.monotonic) -> None:
+    def __init__(
+        self,
+        key_record: bytes,
+        fc_options: FcOptions | None = None,
+        quad_params: QuadParams | None = None,
+        step_us: int = 5000,
+        time_scale: float = 1.0,
+        workdir=None,
+        clock=time.monotonic,
+    ) -> None:
         binary, elf = find_binary("fw_sim"), firmware_elf()
         if binary is None or elf is None:
-            raise FileNotFoundError("fw_sim or the firmware .elf is not built (make build / make firmware)")
+            raise FileNotFoundError(
+                "fw_sim or the firmware .elf is not built (make build / make firmware)"
+            )
         if not step_us > 0 or not time_scale > 0:
             raise ValueError("step_us and time_scale must be > 0")
-        os.environ["FW_SIM_BIN"] = str(binary)   # LiveSession finds the harness through these
+        os.environ["FW_SIM_BIN"] = str(binary)  # LiveSession finds the harness through these
         os.environ["FW_ELF"] = str(elf)
         from arduino.simavr_session import LiveSession
 
         self._session = LiveSession(key_record, workdir)
         self._mav: list[tuple[int, bytes]] = []
-        self.fc = FlightControllerEmulator(sink=lambda t, d: self._mav.append((t, d)),
-                                           options=fc_options, params=quad_params)
+        self.fc = FlightControllerEmulator(
+            sink=lambda t, d: self._mav.append((t, d)), options=fc_options, params=quad_params
+        )
         self.step_us = step_us
         self.time_scale = time_scale
         self._clock = clock
@@ -123,7 +133,8 @@ class LiveRig:
 
     @property
     def realtime_factor(self) -> float:
-        """Simulated seconds per wall second since start (< 1 when the machine could not keep up)."""
+        """Simulated seconds per wall second since start (< 1 when the machine could not keep
+        up)."""
         return (self.sim_us / 1e6) / self.wall_s if self.wall_s > 0 else 0.0
 
     def close(self) -> None:
@@ -140,7 +151,8 @@ class LiveRig:
     def __exit__(self, *exc) -> None:
         self.close()
 
-    # ---- rig thread -------------------------------------------------------------------------------
+    # ---- rig thread
+    # -------------------------------------------------------------------------------
     def _run(self) -> None:
         try:
             wall0 = self._clock()
@@ -183,7 +195,9 @@ class LiveRig:
                     for inj, rep in self._awaiting_pulse:
                         if p.rise_us >= rep:
                             self._timings.append(LineTiming(inj, rep, p.rise_us))
-                    self._awaiting_pulse = [(i, r) for i, r in self._awaiting_pulse if p.rise_us < r]
+                    self._awaiting_pulse = [
+                        (i, r) for i, r in self._awaiting_pulse if p.rise_us < r
+                    ]
         self.fc.advance_to(t_next)
         snap = self.fc.snapshot()
         with self._lock:

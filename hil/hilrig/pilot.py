@@ -12,18 +12,30 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from fc_emulator.emulator import (ANGLE_MAX_RAD, PILOT_SPEED_UP_MPS, STICK_DEADZONE_US, THR_DZ,
-                                  YAW_RATE_MAX_RAD_S, FcSnapshot)
+from fc_emulator.emulator import (
+    ANGLE_MAX_RAD,
+    PILOT_SPEED_UP_MPS,
+    STICK_DEADZONE_US,
+    THR_DZ,
+    YAW_RATE_MAX_RAD_S,
+    FcSnapshot,
+)
 from fc_emulator.quad_model import GRAVITY_MSS, wrap_pi
 
-ARM_STICKS_US = (1500, 1500, 1000, 2000)  # throttle zero, yaw full right (ArduCopter arming gesture)
+ARM_STICKS_US = (
+    1500,
+    1500,
+    1000,
+    2000,
+)  # throttle zero, yaw full right (ArduCopter arming gesture)
 IDLE_STICKS_US = (1500, 1500, 1000, 1500)
 
 
 @dataclass(frozen=True)
 class PilotGains:
     # Horizontal PD: 10 cm error -> 0.3 m/s^2 (~1.8 deg lean); damping 3 /s keeps it just under
-    # critical with the ~0.1 s command path (HTTP + firmware frame + APM attitude loop). Stiff enough
+    # critical with the ~0.1 s command path (HTTP + firmware frame + APM attitude loop). Stiff
+    # enough
     # to hold +-0.15 m against 0.15 m/s^2 gusts and a 0.5 deg trim error (hilrig tests).
     pos_p_per_s2: float = 3.0
     vel_d_per_s: float = 3.0
@@ -52,9 +64,11 @@ def _climb_to_throttle(rate_mps: float) -> int:
     return int(round(1000 + thr))
 
 
-def sticks_for(s: FcSnapshot, target_ned_m, target_yaw_rad: float,
-               gains: PilotGains = PilotGains()) -> tuple[int, int, int, int]:
-    """RC pulses (roll, pitch, throttle, yaw) steering the craft towards target_ned_m / target_yaw."""
+def sticks_for(
+    s: FcSnapshot, target_ned_m, target_yaw_rad: float, gains: PilotGains = PilotGains()
+) -> tuple[int, int, int, int]:
+    """RC pulses (roll, pitch, throttle, yaw) steering the craft towards target_ned_m /
+    target_yaw."""
     n_err = target_ned_m[0] - s.pos_ned_m[0]
     e_err = target_ned_m[1] - s.pos_ned_m[1]
     a_n = gains.pos_p_per_s2 * n_err - gains.vel_d_per_s * s.vel_ned_mps[0]
@@ -67,9 +81,21 @@ def sticks_for(s: FcSnapshot, target_ned_m, target_yaw_rad: float,
     roll = max(-lim, min(lim, math.atan2(a_right, GRAVITY_MSS)))
     alt_err = -target_ned_m[2] - s.altitude_m
     climb = max(-gains.max_climb_mps, min(gains.max_climb_mps, gains.alt_p_per_s * alt_err))
-    yaw_rate = max(-YAW_RATE_MAX_RAD_S, min(YAW_RATE_MAX_RAD_S,
-                                            gains.yaw_p_per_s * wrap_pi(target_yaw_rad - s.yaw_rad)))
+    yaw_rate = max(
+        -YAW_RATE_MAX_RAD_S,
+        min(YAW_RATE_MAX_RAD_S, gains.yaw_p_per_s * wrap_pi(target_yaw_rad - s.yaw_rad)),
+    )
     yaw_frac = yaw_rate / YAW_RATE_MAX_RAD_S
-    yaw_us = 1500 if abs(yaw_frac) < 1e-3 else int(round(
-        1500 + math.copysign(STICK_DEADZONE_US + abs(yaw_frac) * (500 - STICK_DEADZONE_US), yaw_frac)))
+    yaw_us = (
+        1500
+        if abs(yaw_frac) < 1e-3
+        else int(
+            round(
+                1500
+                + math.copysign(
+                    STICK_DEADZONE_US + abs(yaw_frac) * (500 - STICK_DEADZONE_US), yaw_frac
+                )
+            )
+        )
+    )
     return (_angle_to_stick(roll), _angle_to_stick(pitch), _climb_to_throttle(climb), yaw_us)

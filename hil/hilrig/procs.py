@@ -11,18 +11,29 @@ import subprocess
 
 
 class ManagedProcess:
-    def __init__(self, argv: list[str], log_path: Path, cwd: Path | None = None, env=None,
-                 stdin_path: Path | None = None, stderr_path: Path | None = None) -> None:
+    def __init__(
+        self,
+        argv: list[str],
+        log_path: Path,
+        cwd: Path | None = None,
+        env=None,
+        stdin_path: Path | None = None,
+        stderr_path: Path | None = None,
+    ) -> None:
         """stdout (and stderr unless stderr_path is given) go to log_path; stdin from stdin_path."""
         self.argv = [str(a) for a in argv]
         self.log_path = Path(log_path)
         self._log = open(self.log_path, "wb")
         self._err = open(stderr_path, "wb") if stderr_path else None
         self._stdin = open(stdin_path, "rb") if stdin_path else None
-        self.proc = subprocess.Popen(self.argv, stdout=self._log,
-                                     stderr=self._err if self._err else subprocess.STDOUT,
-                                     stdin=self._stdin if self._stdin else subprocess.DEVNULL,
-                                     cwd=cwd, env=env)
+        self.proc = subprocess.Popen(
+            self.argv,
+            stdout=self._log,
+            stderr=self._err if self._err else subprocess.STDOUT,
+            stdin=self._stdin if self._stdin else subprocess.DEVNULL,
+            cwd=cwd,
+            env=env,
+        )
 
     @property
     def pid(self) -> int:

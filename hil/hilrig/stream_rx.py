@@ -1,7 +1,8 @@
 """A minimal ground-station receiver of the RGB-D stream, in Python, for HIL scenarios.
 
 Listens on loopback for the two connections rgbd-streamer opens (RGB, depth), answers the handshake,
-grants credits the way docs/protocol.md prescribes (2 at start, 1 per frame taken off the socket) and
+grants credits the way docs/protocol.md prescribes (2 at start, 1 per frame taken off the socket)
+and
 records every frame with its receive time on CLOCK_MONOTONIC, the clock rgbd-streamer stamps
 send_timestamp_us with (same host), so send -> receive latency is measurable.
 `drop()` closes the connections and the listeners (link dropped); `restore()` listens again on the
@@ -22,7 +23,7 @@ INITIAL_CREDITS = 2  # docs/protocol.md: one frame in flight while the next is p
 
 @dataclass(frozen=True)
 class ReceivedFrame:
-    kind: str               # "rgb" | "depth"
+    kind: str  # "rgb" | "depth"
     sequence: int
     capture_timestamp_us: int
     send_timestamp_us: int
@@ -86,19 +87,37 @@ class _StreamPort:
                 if ev.name == "Handshake":
                     self.owner._handshake(self.kind, ev.fields)
                     reason = codec.incompatibility(ev.fields)
-                    conn.sendall(codec.encode("HandshakeAck", {"accepted": not reason, "reason": reason}))
+                    conn.sendall(
+                        codec.encode("HandshakeAck", {"accepted": not reason, "reason": reason})
+                    )
                     if reason:
                         self.owner._note(f"{self.kind}: refused handshake: {reason}")
                         return
-                    conn.sendall(codec.encode("FrameRequest", {"credits": INITIAL_CREDITS,
-                                                               "last_received_sequence": 0}))
+                    conn.sendall(
+                        codec.encode(
+                            "FrameRequest",
+                            {"credits": INITIAL_CREDITS, "last_received_sequence": 0},
+                        )
+                    )
                 elif ev.name == "Frame":
                     im = ev.fields["image"]
-                    self.owner._add(ReceivedFrame(self.kind, im["sequence"], im["capture_timestamp_us"],
-                                                  im["send_timestamp_us"], now_us, im["width"],
-                                                  im["height"], bytes(im["payload"])))
-                    conn.sendall(codec.encode("FrameRequest", {"credits": 1,
-                                                               "last_received_sequence": im["sequence"]}))
+                    self.owner._add(
+                        ReceivedFrame(
+                            self.kind,
+                            im["sequence"],
+                            im["capture_timestamp_us"],
+                            im["send_timestamp_us"],
+                            now_us,
+                            im["width"],
+                            im["height"],
+                            bytes(im["payload"]),
+                        )
+                    )
+                    conn.sendall(
+                        codec.encode(
+                            "FrameRequest", {"credits": 1, "last_received_sequence": im["sequence"]}
+                        )
+                    )
 
     def shutdown(self) -> None:
         self.stop.set()
@@ -153,8 +172,10 @@ class StreamReceiver:
 
     def restore(self) -> None:
         """The link comes back: listen again on the same ports."""
-        self._ports = {k: _StreamPort(k, self, port) for k, port in
-                       (("rgb", self.rgb_port), ("depth", self.depth_port))}
+        self._ports = {
+            k: _StreamPort(k, self, port)
+            for k, port in (("rgb", self.rgb_port), ("depth", self.depth_port))
+        }
 
     def close(self) -> None:
         for p in self._ports.values():

@@ -3,7 +3,8 @@
 Renders 640x480 RGB + 16-bit depth (mm) from a camera pose inside a box room whose walls, floor,
 ceiling and obstacles are textured with real photographs (TUM RGB-D frames shipped in tests/data),
 with Kinect-like depth noise, disparity quantisation, range limits, projector shadows and dropouts,
-and writes the frames where the real rgbd-streamer's capture sources read them (TUM folder, fakenect dump).
+and writes the frames where the real rgbd-streamer's capture sources read them (TUM folder, fakenect
+dump).
 """
 
 from kinect_emulator.renderer import KinectFrame, KinectEmulator, KinectOptions, Intrinsics
@@ -12,6 +13,16 @@ from kinect_emulator.writers import FakenectDumpWriter, TumFolderWriter
 from kinect_emulator.poses import camera_pose_from_ned, pose_matrix
 
 __all__ = [
-    "Box", "Room", "default_room", "load_textures", "KinectFrame", "KinectEmulator", "KinectOptions",
-    "Intrinsics", "FakenectDumpWriter", "TumFolderWriter", "camera_pose_from_ned", "pose_matrix",
+    "Box",
+    "Room",
+    "default_room",
+    "load_textures",
+    "KinectFrame",
+    "KinectEmulator",
+    "KinectOptions",
+    "Intrinsics",
+    "FakenectDumpWriter",
+    "TumFolderWriter",
+    "camera_pose_from_ned",
+    "pose_matrix",
 ]

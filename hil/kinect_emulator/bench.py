@@ -16,8 +16,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from kinect_emulator import (KinectEmulator, KinectOptions, TumFolderWriter,  # noqa: E402
-                             camera_pose_from_ned, default_room)
+from kinect_emulator import (
+    KinectEmulator,
+    KinectOptions,
+    TumFolderWriter,  # noqa: E402
+    camera_pose_from_ned,
+    default_room,
+)
 
 
 def main() -> int:
@@ -31,8 +36,9 @@ def main() -> int:
     render_ms, write_ms = [], []
     with tempfile.TemporaryDirectory() as d, TumFolderWriter(Path(d) / "seq") as w:
         for i in range(args.frames):
-            T = camera_pose_from_ned([0.02 * i, 0.0, -1.7], 0.02, -0.03, 0.01 * i, 30.0,
-                                     origin_room_m=(-1.5, 0.5, 0.2))
+            T = camera_pose_from_ned(
+                [0.02 * i, 0.0, -1.7], 0.02, -0.03, 0.01 * i, 30.0, origin_room_m=(-1.5, 0.5, 0.2)
+            )
             t0 = time.perf_counter()
             f = emu.render(T, i * 33333)
             t1 = time.perf_counter()
@@ -43,8 +49,10 @@ def main() -> int:
     r = np.array(render_ms[1:] or render_ms)
     wr = np.array(write_ms)
     print(f"kinect emulator: {args.frames} frames 640x480")
-    print(f"  render      median {np.median(r):6.1f} ms  p95 {np.percentile(r, 95):6.1f} ms"
-          f"  -> {1000 / np.median(r):5.1f} fps")
+    print(
+        f"  render      median {np.median(r):6.1f} ms  p95 {np.percentile(r, 95):6.1f} ms"
+        f"  -> {1000 / np.median(r):5.1f} fps"
+    )
     print(f"  TUM write   median {np.median(wr):6.1f} ms  p95 {np.percentile(wr, 95):6.1f} ms")
     return 0
 

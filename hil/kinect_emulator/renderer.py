@@ -1,7 +1,8 @@
 """Kinect v1 renderer: RGB + registered depth (mm) from a camera pose in a textured box room.
 
 Geometry is exact ray casting, vectorised over all 640x480 pixels: inside an axis-aligned room each
-ray leaves through exactly one of the two planes of each axis, so the hit is min over three divisions;
+ray leaves through exactly one of the two planes of each axis, so the hit is min over three
+divisions;
 obstacle boxes use the slab test. Depth is the camera-z distance (what a Kinect reports), registered
 to RGB (one camera for both, as FREENECT_DEPTH_REGISTERED / TUM depth are).
 
@@ -10,7 +11,8 @@ Depth error model (Khoshelham & Elberink 2012, "Accuracy and resolution of Kinec
   * quantisation in disparity: the Kinect reports 1/8-pixel disparity steps, with f = 580 px and
     baseline b = 7.5 cm, so the depth step is z^2 / (8 f b) (about 1.5 mm at 0.7 m, 12 mm at 2 m);
   * range: no reading below 0.5 m or beyond 4.5 m (the v1's usable range);
-  * projector shadows: a point the IR projector (b to the side) cannot see has no reading (holes beside
+  * projector shadows: a point the IR projector (b to the side) cannot see has no reading (holes
+  beside
     every occluding edge), computed per scan line from the projector's disparity ordering;
   * random dropouts (specular / low-return pixels) at `dropout_fraction`.
 Blank-frame injection returns an all-zero frame (what a USB hiccup delivers) for the chosen indices.
@@ -30,9 +32,9 @@ import numpy as np
 from kinect_emulator.room import Room
 
 # Kinect v1 geometry for the noise model (Khoshelham & Elberink 2012; libfreenect's registration):
-IR_FOCAL_PX = 580.0        # IR camera focal length in pixels
-BASELINE_M = 0.075         # IR camera - IR projector baseline
-DISPARITY_SUBPIXELS = 8    # the v1 reports disparity in 1/8 pixel
+IR_FOCAL_PX = 580.0  # IR camera focal length in pixels
+BASELINE_M = 0.075  # IR camera - IR projector baseline
+DISPARITY_SUBPIXELS = 8  # the v1 reports disparity in 1/8 pixel
 NOISE_COEFF_PER_M = 1.425e-3  # sigma_z = NOISE_COEFF_PER_M * z^2
 # Each texture tile shows a 60 % window of its photograph (see _shade).
 TILE_WINDOW_FRACTION = 0.6
@@ -40,7 +42,8 @@ TILE_WINDOW_FRACTION = 0.6
 
 @dataclass(frozen=True)
 class Intrinsics:
-    """Pinhole intrinsics (pixels). Default: TUM Freiburg 1 colour camera (the real frames' camera)."""
+    """Pinhole intrinsics (pixels). Default: TUM Freiburg 1 colour camera (the real frames'
+    camera)."""
 
     width: int = 640
     height: int = 480
@@ -53,15 +56,15 @@ class Intrinsics:
 @dataclass(frozen=True)
 class KinectOptions:
     intrinsics: Intrinsics = field(default_factory=Intrinsics)
-    fps: float = 30.0                 # Kinect v1 streams at 30 Hz
-    latency_ms: float = 0.0           # capture -> available to the capture source
-    min_range_m: float = 0.5          # v1 near limit
-    max_range_m: float = 4.5          # v1 usable far limit
+    fps: float = 30.0  # Kinect v1 streams at 30 Hz
+    latency_ms: float = 0.0  # capture -> available to the capture source
+    min_range_m: float = 0.5  # v1 near limit
+    max_range_m: float = 4.5  # v1 usable far limit
     depth_noise: bool = True
     quantise: bool = True
     shadows: bool = True
-    dropout_fraction: float = 0.005   # ~0.5 % isolated holes on matte indoor surfaces
-    rgb_noise_std: float = 2.0        # 8-bit levels of sensor noise
+    dropout_fraction: float = 0.005  # ~0.5 % isolated holes on matte indoor surfaces
+    rgb_noise_std: float = 2.0  # 8-bit levels of sensor noise
     blank_frames: frozenset[int] = frozenset()  # frame indices delivered all-zero
     seed: int = 1
 
@@ -88,10 +91,10 @@ class KinectOptions:
 @dataclass(frozen=True)
 class KinectFrame:
     index: int
-    capture_us: int         # exposure time (simulated)
-    available_us: int       # when the capture source can read it (capture + latency)
-    rgb: np.ndarray         # (H, W, 3) uint8
-    depth_mm: np.ndarray    # (H, W) uint16, 0 = no reading
+    capture_us: int  # exposure time (simulated)
+    available_us: int  # when the capture source can read it (capture + latency)
+    rgb: np.ndarray  # (H, W, 3) uint8
+    depth_mm: np.ndarray  # (H, W) uint16, 0 = no reading
     T_room_cam: np.ndarray  # ground truth pose (4x4)
     blank: bool
 
@@ -103,7 +106,9 @@ class KinectEmulator:
         self.room = room
         self._rng = np.random.default_rng(self.options.seed)
         i = self.options.intrinsics
-        u, v = np.meshgrid(np.arange(i.width, dtype=np.float64), np.arange(i.height, dtype=np.float64))
+        u, v = np.meshgrid(
+            np.arange(i.width, dtype=np.float64), np.arange(i.height, dtype=np.float64)
+        )
         # Ray directions in the camera frame with z = 1, so the ray parameter t is the depth itself.
         self._ray_x = ((u - i.cx) / i.fx).astype(np.float32).ravel()
         self._ray_y = ((v - i.cy) / i.fy).astype(np.float32).ravel()
@@ -114,11 +119,14 @@ class KinectEmulator:
         self._tex_flat = tex.reshape(-1, 3)
         self._tex_n, self._tex_h, self._tex_w = tex.shape[0], tex.shape[1], tex.shape[2]
 
-    # ---- geometry -----------------------------------------------------------------------------------
+    # ---- geometry
+    # -----------------------------------------------------------------------------------
     def raycast(self, T_room_cam: np.ndarray) -> tuple[np.ndarray, tuple, np.ndarray]:
-        """Exact depth (m, camera z) per pixel, the hit point (x, y, z arrays) and the face id per pixel.
+        """Exact depth (m, camera z) per pixel, the hit point (x, y, z arrays) and the face id per
+        pixel.
 
-        Face id: axis*2 + (1 on the max side) for the room's faces 0..5; 6 + 6*k + the same for obstacle
+        Face id: axis*2 + (1 on the max side) for the room's faces 0..5; 6 + 6*k + the same for
+        obstacle
         k. Per-axis float32 arrays (not (N, 3)) keep every operation a contiguous vector op.
         """
         T = np.asarray(T_room_cam, dtype=np.float64)
@@ -128,7 +136,10 @@ class KinectEmulator:
         if not self.room.contains(o):
             raise ValueError(f"camera position {o.tolist()} is outside the room's free space")
         cx, cy = self._ray_x, self._ray_y  # camera-frame direction (cx, cy, 1)
-        d = [np.float32(R[a, 0]) * cx + np.float32(R[a, 1]) * cy + np.float32(R[a, 2]) for a in range(3)]
+        d = [
+            np.float32(R[a, 0]) * cx + np.float32(R[a, 1]) * cy + np.float32(R[a, 2])
+            for a in range(3)
+        ]
         lo, hi = self.room.bounds.lo_m, self.room.bounds.hi_m
         inf = np.float32(np.inf)
         t = None
@@ -194,7 +205,8 @@ class KinectEmulator:
         flat = (idx * self._tex_h + row) * self._tex_w + col
         return self._tex_flat[flat]
 
-    # ---- sensor -------------------------------------------------------------------------------------
+    # ---- sensor
+    # -------------------------------------------------------------------------------------
     def render(self, T_room_cam: np.ndarray, capture_us: int) -> KinectFrame:
         """Next frame seen from T_room_cam at simulated time capture_us."""
         opt = self.options
@@ -203,24 +215,37 @@ class KinectEmulator:
         self._index += 1
         available = capture_us + int(round(opt.latency_ms * 1000))
         if index in opt.blank_frames:
-            return KinectFrame(index, capture_us, available, np.zeros((i.height, i.width, 3), np.uint8),
-                               np.zeros((i.height, i.width), np.uint16), np.array(T_room_cam, float), True)
+            return KinectFrame(
+                index,
+                capture_us,
+                available,
+                np.zeros((i.height, i.width, 3), np.uint8),
+                np.zeros((i.height, i.width), np.uint16),
+                np.array(T_room_cam, float),
+                True,
+            )
         z, pts, face = self.raycast(T_room_cam)
         rgb = self._shade(pts, face).reshape(i.height, i.width, 3)
         if opt.rgb_noise_std > 0:
-            # A seeded bank of noise frames, read at a random offset: per-frame Gaussian draws of 0.9 M
+            # A seeded bank of noise frames, read at a random offset: per-frame Gaussian draws of
+            # 0.9 M
             # values cost more than the whole ray cast.
             if self._rgb_noise_bank is None:
                 n = i.height * i.width * 3 * 4
-                self._rgb_noise_bank = np.round(self._rng.standard_normal(n, dtype=np.float32)
-                                                * opt.rgb_noise_std).astype(np.int16)
+                self._rgb_noise_bank = np.round(
+                    self._rng.standard_normal(n, dtype=np.float32) * opt.rgb_noise_std
+                ).astype(np.int16)
             off = int(self._rng.integers(0, self._rgb_noise_bank.size - rgb.size))
-            noisy = rgb.astype(np.int16) + self._rgb_noise_bank[off:off + rgb.size].reshape(rgb.shape)
+            noisy = rgb.astype(np.int16) + self._rgb_noise_bank[off : off + rgb.size].reshape(
+                rgb.shape
+            )
             rgb = np.clip(noisy, 0, 255).astype(np.uint8)
         z = z.reshape(i.height, i.width)
         depth_m = self.sensor_depth(z)
         depth_mm = np.where(np.isfinite(depth_m), np.round(depth_m * 1000.0), 0).astype(np.uint16)
-        return KinectFrame(index, capture_us, available, rgb, depth_mm, np.array(T_room_cam, float), False)
+        return KinectFrame(
+            index, capture_us, available, rgb, depth_mm, np.array(T_room_cam, float), False
+        )
 
     def sensor_depth(self, z_true_m: np.ndarray) -> np.ndarray:
         """Applies the Kinect error model to exact depth (m). Missing readings are NaN."""
@@ -241,8 +266,10 @@ class KinectEmulator:
         return z
 
     def _projector_shadow(self, z: np.ndarray) -> np.ndarray:
-        """Pixels the projector cannot illuminate. The projector sits BASELINE_M to the camera's right
-        (+x); a pixel at column u projects to projector column u - f b / z. Scanning from the right, a
+        """Pixels the projector cannot illuminate. The projector sits BASELINE_M to the camera's
+        right
+        (+x); a pixel at column u projects to projector column u - f b / z. Scanning from the right,
+        a
         pixel is shadowed when a pixel to its right already projects at or left of it."""
         f = self.options.intrinsics.fx
         with np.errstate(divide="ignore"):
@@ -255,7 +282,8 @@ class KinectEmulator:
         return shadow_rev[:, ::-1]
 
     def frames_due(self, t_from_us: int, t_to_us: int) -> list[int]:
-        """Capture times in (t_from_us, t_to_us] on the fps grid (the sensor's free-running clock)."""
+        """Capture times in (t_from_us, t_to_us] on the fps grid (the sensor's free-running
+        clock)."""
         p = self.options.frame_period_us
         first = (t_from_us // p + 1) * p
         return list(range(first, t_to_us + 1, p))

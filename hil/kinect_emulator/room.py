@@ -1,6 +1,7 @@
 """The room the emulated Kinect sees: an axis-aligned box plus axis-aligned obstacle boxes.
 
-World frame of the room: x, y horizontal, z up, metres; the floor is z = 0. Each surface is tiled with
+World frame of the room: x, y horizontal, z up, metres; the floor is z = 0. Each surface is tiled
+with
 real photographs: tile (i, j) of a face shows texture number hash(face, i, j) mod N, so neighbouring
 tiles differ and feature matchers meet real, non-repeating texture over a few metres.
 Textures are RGB uint8 arrays of equal size, loaded once (`load_textures`). Immutable after build.
@@ -15,8 +16,10 @@ import numpy as np
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 # Real TUM RGB-D frames shipped in the repository (CC BY 4.0, credit in tests/data/README.md).
-DEFAULT_TEXTURE_DIRS = (REPO_ROOT / "tests/data/fr1_xyz_first30/rgb",
-                        REPO_ROOT / "tests/data/fr1_desk_9frames/rgb")
+DEFAULT_TEXTURE_DIRS = (
+    REPO_ROOT / "tests/data/fr1_xyz_first30/rgb",
+    REPO_ROOT / "tests/data/fr1_desk_9frames/rgb",
+)
 
 
 @dataclass(frozen=True)
@@ -28,7 +31,9 @@ class Box:
 
     def __post_init__(self) -> None:
         if not all(a < b for a, b in zip(self.lo_m, self.hi_m)):
-            raise ValueError(f"Box corners must satisfy lo < hi on every axis: {self.lo_m} {self.hi_m}")
+            raise ValueError(
+                f"Box corners must satisfy lo < hi on every axis: {self.lo_m} {self.hi_m}"
+            )
 
 
 @dataclass
@@ -50,8 +55,10 @@ class Room:
         if not (self.tile_w_m > 0 and self.tile_h_m > 0):
             raise ValueError("Room tile sizes must be > 0")
         for o in self.obstacles:
-            if not all(bl <= ol and oh <= bh for bl, ol, oh, bh in
-                       zip(self.bounds.lo_m, o.lo_m, o.hi_m, self.bounds.hi_m)):
+            if not all(
+                bl <= ol and oh <= bh
+                for bl, ol, oh, bh in zip(self.bounds.lo_m, o.lo_m, o.hi_m, self.bounds.hi_m)
+            ):
                 raise ValueError(f"obstacle {o} is not inside the room bounds")
 
     def contains(self, p_m) -> bool:
@@ -60,8 +67,9 @@ class Room:
         lo, hi = np.array(self.bounds.lo_m), np.array(self.bounds.hi_m)
         if not (np.all(p > lo) and np.all(p < hi)):
             return False
-        return not any(np.all(p >= np.array(o.lo_m)) and np.all(p <= np.array(o.hi_m))
-                       for o in self.obstacles)
+        return not any(
+            np.all(p >= np.array(o.lo_m)) and np.all(p <= np.array(o.hi_m)) for o in self.obstacles
+        )
 
 
 def load_textures(dirs=DEFAULT_TEXTURE_DIRS, max_count: int = 24) -> np.ndarray:
@@ -87,12 +95,15 @@ def load_textures(dirs=DEFAULT_TEXTURE_DIRS, max_count: int = 24) -> np.ndarray:
 
 
 def default_room(textures: np.ndarray | None = None) -> Room:
-    """An 8 m x 6 m x 3 m room (a lab/gym the thesis flights fit in) with a desk-sized box and a pillar,
+    """An 8 m x 6 m x 3 m room (a lab/gym the thesis flights fit in) with a desk-sized box and a
+    pillar,
     so the depth image has occluding edges (and Kinect shadows) and the floor map has obstacles."""
     tex = load_textures() if textures is None else textures
     return Room(
         bounds=Box((-4.0, -3.0, 0.0), (4.0, 3.0, 3.0)),
         textures=tex,
-        obstacles=[Box((1.5, -2.2, 0.0), (2.7, -1.4, 0.75)),   # desk-height crate
-                   Box((-2.6, 1.6, 0.0), (-2.2, 2.0, 3.0))],   # floor-to-ceiling pillar
+        obstacles=[
+            Box((1.5, -2.2, 0.0), (2.7, -1.4, 0.75)),  # desk-height crate
+            Box((-2.6, 1.6, 0.0), (-2.2, 2.0, 3.0)),
+        ],  # floor-to-ceiling pillar
     )

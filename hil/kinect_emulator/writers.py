@@ -4,7 +4,8 @@
   depth/*.png with 5000 units per metre) that onboard/capture's TumReplaySource replays, and that
   slam-eval / tum-score score against groundtruth.txt.
 * FakenectDumpWriter: a libfreenect "fakenect" dump (INDEX.txt, r-*.ppm, d-*.pgm) that the real
-  libfreenect API replays (`fakenect <dir> rgbd-streamer --source freenect --freenect-disparity-depth`).
+  libfreenect API replays (`fakenect <dir> rgbd-streamer --source freenect
+  --freenect-disparity-depth`).
   Depth is stored as 11-bit raw disparity, the format fakenect-record writes; fakenect copies the
   bytes after the PGM header verbatim into the depth buffer, so the samples are in HOST order
   (little-endian here), not the big-endian the PGM format specifies.
@@ -34,8 +35,15 @@ def depth_mm_to_freenect_raw(depth_mm: np.ndarray) -> np.ndarray:
     z = depth_mm.astype(np.float64) / 1000.0
     with np.errstate(divide="ignore", invalid="ignore"):
         raw = np.round((np.arctan(z / 0.1236) - 1.1863) * 2842.5)
-    raw = np.where((depth_mm > 0) & (depth_mm <= FREENECT_MAX_DEPTH_MM) & np.isfinite(raw) & (raw >= 0) & (raw < FREENECT_NO_READING), raw,
-                   FREENECT_NO_READING)
+    raw = np.where(
+        (depth_mm > 0)
+        & (depth_mm <= FREENECT_MAX_DEPTH_MM)
+        & np.isfinite(raw)
+        & (raw >= 0)
+        & (raw < FREENECT_NO_READING),
+        raw,
+        FREENECT_NO_READING,
+    )
     return raw.astype(np.uint16)
 
 
@@ -57,8 +65,11 @@ class TumFolderWriter:
         self._rgb = open(self.dir / "rgb.txt", "w")
         self._depth = open(self.dir / "depth.txt", "w")
         self._gt = open(self.dir / "groundtruth.txt", "w")
-        for f, what in ((self._rgb, "color images"), (self._depth, "depth maps"),
-                        (self._gt, "ground truth trajectory")):
+        for f, what in (
+            (self._rgb, "color images"),
+            (self._depth, "depth maps"),
+            (self._gt, "ground truth trajectory"),
+        ):
             f.write(f"# {what} (emulated Kinect, hil/kinect_emulator)\n")
         self._gt.write("# timestamp tx ty tz qx qy qz qw\n")
         self.count = 0
@@ -70,12 +81,16 @@ class TumFolderWriter:
         ts = f"{self.t0_s + frame.capture_us * 1e-6:.6f}"
         Image.fromarray(frame.rgb, "RGB").save(self.dir / "rgb" / f"{ts}.png", compress_level=1)
         d = np.minimum(frame.depth_mm.astype(np.uint32) * TUM_DEPTH_UNITS_PER_M // 1000, 65535)
-        Image.fromarray(d.astype(np.uint16)).save(self.dir / "depth" / f"{ts}.png", compress_level=1)
+        Image.fromarray(d.astype(np.uint16)).save(
+            self.dir / "depth" / f"{ts}.png", compress_level=1
+        )
         self._rgb.write(f"{ts} rgb/{ts}.png\n")
         self._depth.write(f"{ts} depth/{ts}.png\n")
         t = frame.T_room_cam[:3, 3]
         q = rotation_to_quaternion_xyzw(frame.T_room_cam[:3, :3])
-        self._gt.write(f"{ts} {t[0]:.6f} {t[1]:.6f} {t[2]:.6f} {q[0]:.6f} {q[1]:.6f} {q[2]:.6f} {q[3]:.6f}\n")
+        self._gt.write(
+            f"{ts} {t[0]:.6f} {t[1]:.6f} {t[2]:.6f} {q[0]:.6f} {q[1]:.6f} {q[2]:.6f} {q[3]:.6f}\n"
+        )
         self.count += 1
         return ts
 
@@ -109,7 +124,9 @@ class FakenectDumpWriter:
         raw = depth_mm_to_freenect_raw(frame.depth_mm)
         with open(self.dir / dname, "wb") as f:
             f.write(f"P5 {w} {h} 65535\n".encode())
-            f.write(raw.astype("=u2").tobytes())  # host order: what fakenect-record writes and reads
+            f.write(
+                raw.astype("=u2").tobytes()
+            )  # host order: what fakenect-record writes and reads
         with open(self.dir / rname, "wb") as f:
             f.write(f"P6 {w} {h} 255\n".encode())
             f.write(np.ascontiguousarray(frame.rgb).tobytes())

@@ -30,12 +30,12 @@ from hilrig.pilot import ARM_STICKS_US
 
 pytestmark = pytest.mark.hil
 
-KEY = bytes(range(0x11, 0x21))   # the test craft's 16-byte control key
-BOOT_US = 200_000                 # first command after the firmware has booted
-ARM_GESTURE_S = 2.4               # ArduCopter needs 2 s; 0.4 s margin for the PWM frame delay
+KEY = bytes(range(0x11, 0x21))  # the test craft's 16-byte control key
+BOOT_US = 200_000  # first command after the firmware has booted
+ARM_GESTURE_S = 2.4  # ArduCopter needs 2 s; 0.4 s margin for the PWM frame delay
 HOLD_ALT_M = 1.7
-FLY_S = 14.0                      # take off (~4 s) + hold; the ground station dies at the end
-AFTER_KILL_S = 14.0               # firmware ramp (~4.75 s) + APM Land from 1.7 m at 0.5 m/s + 1 s
+FLY_S = 14.0  # take off (~4 s) + hold; the ground station dies at the end
+AFTER_KILL_S = 14.0  # firmware ramp (~4.75 s) + APM Land from 1.7 m at 0.5 m/s + 1 s
 
 
 def _ground_station_commands() -> list[tuple[int, tuple[int, int, int, int], bool]]:
@@ -51,8 +51,11 @@ def _ground_station_commands() -> list[tuple[int, tuple[int, int, int, int], boo
         fc.advance_to(t)
         cmds.append((t, ARM_STICKS_US, True))
     assert fc.armed, "dry run did not arm"
-    fly_plan(fc, [Leg((0.0, 0.0, -HOLD_ALT_M), 0.0, FLY_S)],
-             on_sticks=lambda tt, s: cmds.append((tt, tuple(s), True)))
+    fly_plan(
+        fc,
+        [Leg((0.0, 0.0, -HOLD_ALT_M), 0.0, FLY_S)],
+        on_sticks=lambda tt, s: cmds.append((tt, tuple(s), True)),
+    )
     return cmds
 
 
@@ -89,7 +92,10 @@ def _fly_on_pulses(pulses, end_us: int, sink=None):
 @pytest.fixture(scope="module")
 def scenario(tmp_path_factory):
     if find_binary("fw_sim") is None or firmware_elf() is None:
-        pytest.skip("fw_sim (hil/arduino) or the firmware image is not built: run make build / make firmware")
+        pytest.skip(
+            "fw_sim (hil/arduino) or the firmware image is not built: "
+            "run make build / make firmware"
+        )
     from provision_key import key_record
 
     work = tmp_path_factory.mktemp("scenario3")
@@ -101,8 +107,16 @@ def scenario(tmp_path_factory):
     mav = []
     fc, trace = _fly_on_pulses(pass1.pulses, end_us, sink=lambda t, d: mav.append((t, d)))
     pass2 = run_fw_sim(_script(cmds, kill_us, end_us, mavlink=mav), eeprom, work, name="pass2")
-    return dict(cmds=cmds, kill_us=kill_us, end_us=end_us, pass1=pass1, pass2=pass2, fc=fc,
-                trace=trace, work=work)
+    return dict(
+        cmds=cmds,
+        kill_us=kill_us,
+        end_us=end_us,
+        pass1=pass1,
+        pass2=pass2,
+        fc=fc,
+        trace=trace,
+        work=work,
+    )
 
 
 def _metrics(sc) -> dict:
@@ -136,7 +150,10 @@ def _metrics(sc) -> dict:
 def test_scenario3_lands_safely(scenario):
     m = _metrics(scenario)
     (artifacts_dir() / "scenario3_failsafe.json").write_text(json.dumps(m, indent=2))
-    print("\nscenario 3 (ground station killed):", json.dumps({k: v for k, v in m.items() if k != "events"}))
+    print(
+        "\nscenario 3 (ground station killed):",
+        json.dumps({k: v for k, v in m.items() if k != "events"}),
+    )
     assert m["altitude_at_kill_m"] == pytest.approx(HOLD_ALT_M, abs=0.15)
     # Firmware: 250 ms without a valid command (kFailsafeTimeoutMs), seen at the next 20 ms frame.
     assert 250 <= m["firmware_failsafe_onset_after_last_command_ms"] <= 250 + 2 * 20 + 5
@@ -148,18 +165,24 @@ def test_scenario3_lands_safely(scenario):
     assert m["touchdowns"] == 1
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "firmware failsafe timeline (firmware/core/limits.h): after 2 s at 1300 us the ramp to 950 us "
-    "passes AltHold descent rates up to 2.5 m/s, so the craft touches down at ~0.95 m/s before the "
-    "APM's FS_THR Land (0.5 m/s) takes over; dropping to kFailsafeFinalUs sooner (or holding nearer "
-    "the AltHold dead band) meets the target - see docs/hil.md"))
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "firmware failsafe timeline (firmware/core/limits.h): after 2 s at 1300 us the ramp "
+        "to 950 us passes AltHold descent rates up to 2.5 m/s, so the craft touches down at "
+        "~0.95 m/s before the APM's FS_THR Land (0.5 m/s) takes over; dropping to "
+        "kFailsafeFinalUs sooner (or holding nearer the AltHold dead band) meets the target "
+        "- see docs/hil.md"
+    ),
+)
 def test_scenario3_touchdown_speed_within_target(scenario):
     m = _metrics(scenario)
     assert m["touchdown_vertical_speed_mps"] <= LAND_SPEED_MPS + 0.01, m
 
 
 # The soft-UART receiving telemetry (INT0 + Timer2 ISRs) delays the PWM sequencer's ISR by up to a
-# few microseconds; RC receivers jitter by as much, and ArduPilot's 20 us stick dead zone absorbs it.
+# few microseconds; RC receivers jitter by as much, and ArduPilot's 20 us stick dead zone absorbs
+# it.
 PWM_JITTER_TOLERANCE_US = 10.0
 
 
@@ -169,8 +192,10 @@ def test_scenario3_outputs_do_not_depend_on_telemetry_and_replies_carry_it(scena
     assert all(a.channel == b.channel for a, b in zip(p1, p2))
     width_jitter = max(abs(a.width_us - b.width_us) for a, b in zip(p1, p2))
     rise_jitter = max(abs(a.rise_us - b.rise_us) for a, b in zip(p1, p2))
-    print(f"\nscenario 3: PWM jitter caused by telemetry: width {width_jitter:.1f} us, "
-          f"edge {rise_jitter:.1f} us over {len(p1)} pulses")
+    print(
+        f"\nscenario 3: PWM jitter caused by telemetry: width {width_jitter:.1f} us, "
+        f"edge {rise_jitter:.1f} us over {len(p1)} pulses"
+    )
     assert width_jitter <= PWM_JITTER_TOLERANCE_US and rise_jitter <= PWM_JITTER_TOLERANCE_US
     from rgbd_protocol.control import parse_reply
 

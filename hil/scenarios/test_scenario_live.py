@@ -3,7 +3,8 @@ emulator -> firmware image in simavr (lock-step with) -> RC pulses -> FC emulato
 
 The ground station is hilrig.ground_station (signed PUT /control at 50 Hz, sticks from the
 ground-truth pilot): the position source is the emulator's truth, standing in for slam-server +
-quad-control, which had not landed when this was written. Everything between the HTTP request and the
+quad-control, which had not landed when this was written. Everything between the HTTP request and
+the
 craft's motion is the real system or its emulator.
 
   scenario 1  take off, hold 1.7 m for 30 s            -> hold error, HTTP->PWM latency
@@ -35,20 +36,23 @@ pytestmark = pytest.mark.hil
 
 KEY = bytes(range(0x11, 0x21))
 HOLD = (0.0, 0.0, -1.7)
-HOLD_TOLERANCE_M = 0.15     # issue target: within +-0.15 m of the goal after settling
+HOLD_TOLERANCE_M = 0.15  # issue target: within +-0.15 m of the goal after settling
 # "Never flying away": the craft stays within 1 m of where the fault hit (a small indoor room).
 FLYAWAY_RADIUS_M = 1.0
-SETTLE_S = 8.0              # arm gesture (2.4 s) + climb to 1.7 m + settling
+SETTLE_S = 8.0  # arm gesture (2.4 s) + climb to 1.7 m + settling
 # Indoor disturbances the position loop must reject (fc_emulator.quad_model): 0.15 m/s^2 air
 # currents with 2 s correlation (a draft of ~0.5 m/s on the frame) and a 0.5 / -0.3 deg level-trim
 # error of the APM.
-DISTURBED = QuadParams(gust_accel_std_mss=0.15, gust_tau_s=2.0, trim_error_deg=(0.5, -0.3),
-                       disturbance_seed=7)
+DISTURBED = QuadParams(
+    gust_accel_std_mss=0.15, gust_tau_s=2.0, trim_error_deg=(0.5, -0.3), disturbance_seed=7
+)
 
 
 def _need_rig():
     if find_binary("fw_sim") is None or firmware_elf() is None:
-        pytest.skip("fw_sim (hil/arduino) or the firmware image is not built: make build / make firmware")
+        pytest.skip(
+            "fw_sim (hil/arduino) or the firmware image is not built: make build / make firmware"
+        )
 
 
 def _rig_and_bridge(tmp_path):
@@ -68,17 +72,27 @@ def _hold_errors(history, from_us, to_us):
     horiz = [math.hypot(s.pos_ned_m[0] - HOLD[0], s.pos_ned_m[1] - HOLD[1]) for s in sel]
     vert = [abs(s.pos_ned_m[2] - HOLD[2]) for s in sel]
     err3 = [math.hypot(h, v) for h, v in zip(horiz, vert)]
-    return {"max_m": max(err3), "rms_m": float(np.sqrt(np.mean(np.square(err3)))),
-            "max_horizontal_m": max(horiz), "max_vertical_m": max(vert), "samples": len(sel)}
+    return {
+        "max_m": max(err3),
+        "rms_m": float(np.sqrt(np.mean(np.square(err3)))),
+        "max_horizontal_m": max(horiz),
+        "max_vertical_m": max(vert),
+        "samples": len(sel),
+    }
 
 
 def _latency(rig) -> dict:
     t = rig.timings()
     fw = np.array([x.reply_end_us - x.injected_us for x in t]) / 1000
-    pwm = np.array([x.first_pulse_after_us - x.reply_end_us for x in t if x.first_pulse_after_us]) / 1000
-    return {"serial_and_firmware_median_ms": float(np.median(fw)),
-            "reply_to_next_pwm_frame_median_ms": float(np.median(pwm)),
-            "serial_in_to_pwm_median_ms": float(np.median(fw) + np.median(pwm))}
+    pwm = (
+        np.array([x.first_pulse_after_us - x.reply_end_us for x in t if x.first_pulse_after_us])
+        / 1000
+    )
+    return {
+        "serial_and_firmware_median_ms": float(np.median(fw)),
+        "reply_to_next_pwm_frame_median_ms": float(np.median(pwm)),
+        "serial_in_to_pwm_median_ms": float(np.median(fw) + np.median(pwm)),
+    }
 
 
 def test_scenario1_takeoff_and_hold_30s(tmp_path):
@@ -90,12 +104,17 @@ def test_scenario1_takeoff_and_hold_30s(tmp_path):
         gs.kill()
         hist = rig.history()
         err = _hold_errors(hist, SETTLE_S * 1e6, (SETTLE_S + 30.0) * 1e6)
-        report = {**err, **_latency(rig), "commands_sent": gs.stats.sent,
-                  "command_rate_hz": gs.stats.sent / (hist[-1].t_us / 1e6),
-                  "http_round_trip_median_ms": float(np.median(gs.stats.round_trip_ms)),
-                  "statuses": gs.stats.statuses, "realtime_factor": rig.realtime_factor,
-                  "lag_dropped_s": rig.lag_dropped_s,
-                  "position_source": "emulator ground truth (slam-server/quad-control not in loop)"}
+        report = {
+            **err,
+            **_latency(rig),
+            "commands_sent": gs.stats.sent,
+            "command_rate_hz": gs.stats.sent / (hist[-1].t_us / 1e6),
+            "http_round_trip_median_ms": float(np.median(gs.stats.round_trip_ms)),
+            "statuses": gs.stats.statuses,
+            "realtime_factor": rig.realtime_factor,
+            "lag_dropped_s": rig.lag_dropped_s,
+            "position_source": "emulator ground truth (slam-server/quad-control not in loop)",
+        }
     finally:
         bridge.close()
         rig.close()
@@ -116,11 +135,18 @@ LAND_DESCENT_MPS = 0.3  # the ground station's own landing: slow enough for a so
 
 def test_scenario2_two_waypoints_and_land(tmp_path):
     _need_rig()
-    plan = [Leg(HOLD, 0.0, SETTLE_S - 2.4),
-            Leg(WAYPOINTS[0], 0.0, 8.0),
-            Leg(WAYPOINTS[1], 0.0, 8.0),
-            Leg((WAYPOINTS[1][0], WAYPOINTS[1][1], 1.0), 0.0, 1e9, max_climb_mps=LAND_DESCENT_MPS,
-                land=True)]
+    plan = [
+        Leg(HOLD, 0.0, SETTLE_S - 2.4),
+        Leg(WAYPOINTS[0], 0.0, 8.0),
+        Leg(WAYPOINTS[1], 0.0, 8.0),
+        Leg(
+            (WAYPOINTS[1][0], WAYPOINTS[1][1], 1.0),
+            0.0,
+            1e9,
+            max_climb_mps=LAND_DESCENT_MPS,
+            land=True,
+        ),
+    ]
     rig, bridge = _rig_and_bridge(tmp_path)
     try:
         gs = GroundStation(bridge.port, KEY, rig, plan).start()
@@ -142,11 +168,15 @@ def test_scenario2_two_waypoints_and_land(tmp_path):
         leg_end = starts[i + 2]
         s = min(hist, key=lambda h: abs(h.t_us - leg_end))
         arrivals.append(math.dist(s.pos_ned_m, wp))
-    report = {"waypoint_errors_at_leg_end_m": arrivals,
-              "touchdown_vertical_speed_mps": touchdowns[-1] if touchdowns else None,
-              "touchdown_xy_m": hist[-1].pos_ned_m[:2], "flight_time_s": gs.disarmed_sim_us / 1e6,
-              "commands_sent": gs.stats.sent, "statuses": gs.stats.statuses,
-              "position_source": "emulator ground truth (slam-server/quad-control not in loop)"}
+    report = {
+        "waypoint_errors_at_leg_end_m": arrivals,
+        "touchdown_vertical_speed_mps": touchdowns[-1] if touchdowns else None,
+        "touchdown_xy_m": hist[-1].pos_ned_m[:2],
+        "flight_time_s": gs.disarmed_sim_us / 1e6,
+        "commands_sent": gs.stats.sent,
+        "statuses": gs.stats.statuses,
+        "position_source": "emulator ground truth (slam-server/quad-control not in loop)",
+    }
     (artifacts_dir() / "scenario2_waypoints.json").write_text(json.dumps(report, indent=2))
     print("\nscenario 2 (two waypoints and land):", json.dumps(report))
     assert all(e <= WAYPOINT_TOLERANCE_M for e in arrivals)
@@ -171,6 +201,7 @@ def _attacks(seq_base: int):
     def http(line):
         method, target = line.split(" ", 1)
         return f"{method} {target} HTTP/1.1\r\nHost: craft\r\n\r\n".encode()
+
     return [
         ("garbage", b"\x00\xff\x13garbage\r\n\r\n", 400),
         ("bad_http_version", b"PUT /control HTTP/7.0\r\n\r\n", 505),
@@ -223,23 +254,33 @@ def test_scenario7_bad_http_then_scenario3_ground_station_killed(tmp_path):
         bridge.close()
         rig.close()
     expected = {name: want for name, _, want in _attacks(1)}
-    report7 = {"attack_rounds": rounds, "statuses": {k: sorted(v, key=str) for k, v in results.items()},
-               **err7, "ground_station_statuses": gs.stats.statuses, "bridge_counts": bridge.counts}
-    (artifacts_dir() / "scenario7_bad_http.json").write_text(json.dumps(report7, indent=2, default=str))
+    report7 = {
+        "attack_rounds": rounds,
+        "statuses": {k: sorted(v, key=str) for k, v in results.items()},
+        **err7,
+        "ground_station_statuses": gs.stats.statuses,
+        "bridge_counts": bridge.counts,
+    }
+    (artifacts_dir() / "scenario7_bad_http.json").write_text(
+        json.dumps(report7, indent=2, default=str)
+    )
     print("\nscenario 7 (bad HTTP at the bridge):", json.dumps(report7, default=str))
     after = [s for s in hist if s.t_us >= kill_us]
     at_kill = min(hist, key=lambda s: abs(s.t_us - kill_us))
     alt_at_kill = at_kill.altitude_m
     fs = [t for t, e in fc_events if e.startswith("radio failsafe") and t > kill_us]
     disarm = [t for t, e in fc_events if e.startswith("disarmed") and t > kill_us]
-    report3 = {"altitude_at_kill_m": alt_at_kill,
-               "apm_radio_failsafe_after_kill_ms": (fs[0] - kill_us) / 1000 if fs else None,
-               "disarmed_after_kill_s": (disarm[0] - kill_us) / 1e6 if disarm else None,
-               "touchdown_vertical_speed_mps": touchdowns[-1] if touchdowns else None,
-               "max_altitude_after_kill_m": max(s.altitude_m for s in after),
-               "max_horizontal_drift_m": max(math.hypot(s.pos_ned_m[0] - at_kill.pos_ned_m[0],
-                                                        s.pos_ned_m[1] - at_kill.pos_ned_m[1])
-                                             for s in after)}
+    report3 = {
+        "altitude_at_kill_m": alt_at_kill,
+        "apm_radio_failsafe_after_kill_ms": (fs[0] - kill_us) / 1000 if fs else None,
+        "disarmed_after_kill_s": (disarm[0] - kill_us) / 1e6 if disarm else None,
+        "touchdown_vertical_speed_mps": touchdowns[-1] if touchdowns else None,
+        "max_altitude_after_kill_m": max(s.altitude_m for s in after),
+        "max_horizontal_drift_m": max(
+            math.hypot(s.pos_ned_m[0] - at_kill.pos_ned_m[0], s.pos_ned_m[1] - at_kill.pos_ned_m[1])
+            for s in after
+        ),
+    }
     (artifacts_dir() / "scenario3_live.json").write_text(json.dumps(report3, indent=2))
     print("\nscenario 3 live (ground station killed):", json.dumps(report3))
     for name, want in expected.items():
@@ -282,12 +323,17 @@ def test_scenario5_degraded_control_link(tmp_path):
     failsafe = [t for t, e in events if e.startswith("radio failsafe")]
     final = hist[-1]
     excursion = max(math.hypot(s.pos_ned_m[0], s.pos_ned_m[1]) for s in hist)
-    report = {"impairment": DEGRADED, "retransmission_stalls": stalls, "chunks": chunks,
-              "outcome": "landed after failsafe" if failsafe else "holding",
-              "apm_failsafe_s": failsafe[0] / 1e6 if failsafe else None,
-              "max_horizontal_excursion_m": excursion, "statuses": gs.stats.statuses,
-              "http_round_trip_median_ms": float(np.median(gs.stats.round_trip_ms)),
-              "http_round_trip_p95_ms": float(np.percentile(gs.stats.round_trip_ms, 95))}
+    report = {
+        "impairment": DEGRADED,
+        "retransmission_stalls": stalls,
+        "chunks": chunks,
+        "outcome": "landed after failsafe" if failsafe else "holding",
+        "apm_failsafe_s": failsafe[0] / 1e6 if failsafe else None,
+        "max_horizontal_excursion_m": excursion,
+        "statuses": gs.stats.statuses,
+        "http_round_trip_median_ms": float(np.median(gs.stats.round_trip_ms)),
+        "http_round_trip_p95_ms": float(np.percentile(gs.stats.round_trip_ms, 95)),
+    }
     if not failsafe:
         report.update(_hold_errors(hist, SETTLE_S * 1e6, (SETTLE_S + 20.0) * 1e6))
     (artifacts_dir() / "scenario5_degraded_control.json").write_text(json.dumps(report, indent=2))

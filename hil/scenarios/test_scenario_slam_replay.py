@@ -1,4 +1,5 @@
-"""HIL rig check: the real SLAM engine on emulated Kinect frames, scored against emulator ground truth.
+"""HIL rig check: the real SLAM engine on emulated Kinect frames, scored against emulator ground
+truth.
 
 The FC emulator flies a plan with the ground-truth pilot (take off, hold, 1 m north, 1 m west); the
 Kinect emulator renders what the mounted camera sees (real TUM photographs on the room's surfaces,
@@ -27,10 +28,14 @@ HOLD_ALT_M = 1.7
 # 15 fps: twice the thesis's best closed-loop rate (Table 4.22: 6-8 fps) at half the rendering cost
 # of the Kinect's 30 fps.
 FPS = 15.0
-PLAN = [Leg((0.0, 0.0, -HOLD_ALT_M), 0.0, 2.0),
-        Leg((1.0, 0.0, -HOLD_ALT_M), 0.0, 5.0),
-        Leg((1.0, -1.0, -HOLD_ALT_M), 0.0, 5.0)]
-ATE_RMSE_LIMIT_M = 0.05  # 5 cm: a third of the +-0.15 m hold target, so SLAM error leaves room for control
+PLAN = [
+    Leg((0.0, 0.0, -HOLD_ALT_M), 0.0, 2.0),
+    Leg((1.0, 0.0, -HOLD_ALT_M), 0.0, 5.0),
+    Leg((1.0, -1.0, -HOLD_ALT_M), 0.0, 5.0),
+]
+ATE_RMSE_LIMIT_M = (
+    0.05  # 5 cm: a third of the +-0.15 m hold target, so SLAM error leaves room for control
+)
 
 
 @pytest.fixture(scope="module")
@@ -48,9 +53,23 @@ def replay(tmp_path_factory):
         log = fly_plan(fc, PLAN, kinect=kin, sink=w.write, mount=CameraMount())
     render_s = time.perf_counter() - t0
     out = work / "slam"
-    proc = ManagedProcess([slam_eval, "run", "--dataset", work / "emulated_seq", "--out", out,
-                           "--features", "orb", "--camera", "fr1", "--quiet", "--no-map"],
-                          work / "slam-eval.log")
+    proc = ManagedProcess(
+        [
+            slam_eval,
+            "run",
+            "--dataset",
+            work / "emulated_seq",
+            "--out",
+            out,
+            "--features",
+            "orb",
+            "--camera",
+            "fr1",
+            "--quiet",
+            "--no-map",
+        ],
+        work / "slam-eval.log",
+    )
     try:
         rc = proc.wait(600)
     finally:
@@ -63,10 +82,15 @@ def replay(tmp_path_factory):
 def test_slam_tracks_emulated_frames(replay):
     m = replay["metrics"]
     report = {
-        "frames": replay["frames"], "fps": FPS, "render_and_write_wall_s": round(replay["render_s"], 1),
-        "ate_rmse_m": m.get("ate_rmse_m"), "ate_max_m": m.get("ate_max_m"),
-        "rpe_trans_rmse_mm": m.get("rpe_trans_rmse_mm"), "rpe_rot_rmse_deg": m.get("rpe_rot_rmse_deg"),
-        "tracking_lost_frames": m.get("tracking_lost_frames"), "keyframes": m.get("keyframes"),
+        "frames": replay["frames"],
+        "fps": FPS,
+        "render_and_write_wall_s": round(replay["render_s"], 1),
+        "ate_rmse_m": m.get("ate_rmse_m"),
+        "ate_max_m": m.get("ate_max_m"),
+        "rpe_trans_rmse_mm": m.get("rpe_trans_rmse_mm"),
+        "rpe_rot_rmse_deg": m.get("rpe_rot_rmse_deg"),
+        "tracking_lost_frames": m.get("tracking_lost_frames"),
+        "keyframes": m.get("keyframes"),
         "mean_features_with_depth": m.get("mean_features_with_depth"),
         "frontend_median_ms": m.get("stages", {}).get("frontend", {}).get("median_ms"),
     }

@@ -1,7 +1,8 @@
 """HIL: emulated Kinect -> real rgbd-streamer -> ground-station receiver, on loopback.
 
 * Frames: the Kinect emulator renders a hovering flight (30 fps) into a TUM folder; the real
-  rgbd-streamer replays it through its TUM capture source (paced at 30 fps) to a receiver that speaks
+  rgbd-streamer replays it through its TUM capture source (paced at 30 fps) to a receiver that
+  speaks
   the stream protocol (hilrig.stream_rx, rgbd_protocol codec). Every received depth/RGB payload must
   equal the emulator's frame bit for bit (raw encodings).
 * Scenario 6 (blank frames): the emulator injects all-zero frames; none may reach the ground station
@@ -47,20 +48,44 @@ def emulated(tmp_path_factory):
     fly_plan(fc, [Leg((0.0, 0.0, -1.5), 0.0, 5.0)])
     frames = {}
     with TumFolderWriter(work / "seq", t0_s=T0_S) as w:
+
         def keep(f):
             w.write(f)
             frames[round((T0_S + f.capture_us * 1e-6) * 1e6)] = f
+
         fly_plan(fc, [Leg((0.3, 0.2, -1.5), 0.2, 2.0)], kinect=kin, sink=keep)
     return dict(streamer=streamer, work=work, frames=frames)
 
 
 def _streamer(emulated, rx: StreamReceiver, loop: bool, name: str) -> ManagedProcess:
-    return ManagedProcess([emulated["streamer"], "--source", "tum", "--tum-dir", emulated["work"] / "seq",
-                           "--tum-fps", str(FPS), "--tum-loop", "true" if loop else "false",
-                           "--host", "127.0.0.1", "--rgb-port", rx.rgb_port, "--depth-port", rx.depth_port,
-                           "--depth-encoding", "raw", "--rgb-encoding", "raw", "--stats-period", "0",
-                           "--exit-linger-ms", "1500"],
-                          emulated["work"] / f"{name}.log")
+    return ManagedProcess(
+        [
+            emulated["streamer"],
+            "--source",
+            "tum",
+            "--tum-dir",
+            emulated["work"] / "seq",
+            "--tum-fps",
+            str(FPS),
+            "--tum-loop",
+            "true" if loop else "false",
+            "--host",
+            "127.0.0.1",
+            "--rgb-port",
+            rx.rgb_port,
+            "--depth-port",
+            rx.depth_port,
+            "--depth-encoding",
+            "raw",
+            "--rgb-encoding",
+            "raw",
+            "--stats-period",
+            "0",
+            "--exit-linger-ms",
+            "1500",
+        ],
+        emulated["work"] / f"{name}.log",
+    )
 
 
 def _wait(pred, timeout_s: float) -> bool:
@@ -91,13 +116,19 @@ def test_stream_bit_exact_latency_and_blank_frames(emulated):
     for f in rgb:
         src = frames[f.capture_timestamp_us]
         assert not src.blank
-        assert np.array_equal(np.frombuffer(f.payload, np.uint8).reshape(f.height, f.width, 3), src.rgb)
+        assert np.array_equal(
+            np.frombuffer(f.payload, np.uint8).reshape(f.height, f.width, 3), src.rgb
+        )
     n_valid = sum(1 for f in frames.values() if not f.blank)
     lat = np.array([f.receive_monotonic_us - f.send_timestamp_us for f in depth + rgb]) / 1000.0
-    report = {"frames_rendered": len(frames), "blank_injected": len(BLANK),
-              "depth_received": len(depth), "rgb_received": len(rgb),
-              "send_to_receive_median_ms": float(np.median(lat)),
-              "send_to_receive_p95_ms": float(np.percentile(lat, 95))}
+    report = {
+        "frames_rendered": len(frames),
+        "blank_injected": len(BLANK),
+        "depth_received": len(depth),
+        "rgb_received": len(rgb),
+        "send_to_receive_median_ms": float(np.median(lat)),
+        "send_to_receive_p95_ms": float(np.percentile(lat, 95)),
+    }
     path = artifacts_dir() / "stream.json"
     old = json.loads(path.read_text()) if path.exists() else {}
     path.write_text(json.dumps({**old, **report}, indent=2))
@@ -119,8 +150,11 @@ def test_scenario4_stream_link_dropped_and_restored(emulated):
             after = [f for f in rx.frames("depth") if f.receive_monotonic_us > restored]
     assert ok, f"frames did not resume after the link came back: {rx.notes()}"
     reconnect_ms = (after[0].receive_monotonic_us - restored) / 1000.0
-    report = {"link_down_s": 1.0, "first_frame_after_restore_ms": reconnect_ms,
-              "frames_after_restore": len(after)}
+    report = {
+        "link_down_s": 1.0,
+        "first_frame_after_restore_ms": reconnect_ms,
+        "frames_after_restore": len(after),
+    }
     path = artifacts_dir() / "stream.json"
     old = json.loads(path.read_text()) if path.exists() else {}
     path.write_text(json.dumps({**old, **report}, indent=2))
@@ -137,11 +171,32 @@ def test_scenario5_stream_link_degraded(emulated):
     with StreamReceiver() as rx:
         imp = LinkImpairment(delay_ms=20.0, jitter_ms=10.0, loss=0.02, seed=9)
         with LinkProxy(rx.rgb_port, imp) as prgb, LinkProxy(rx.depth_port, imp) as pdepth:
-            proc = ManagedProcess([emulated["streamer"], "--source", "tum", "--tum-dir",
-                                   emulated["work"] / "seq", "--tum-fps", str(FPS), "--tum-loop", "true",
-                                   "--host", "127.0.0.1", "--rgb-port", prgb.port, "--depth-port",
-                                   pdepth.port, "--depth-encoding", "raw", "--rgb-encoding", "raw",
-                                   "--stats-period", "0"], emulated["work"] / "streamer_degraded.log")
+            proc = ManagedProcess(
+                [
+                    emulated["streamer"],
+                    "--source",
+                    "tum",
+                    "--tum-dir",
+                    emulated["work"] / "seq",
+                    "--tum-fps",
+                    str(FPS),
+                    "--tum-loop",
+                    "true",
+                    "--host",
+                    "127.0.0.1",
+                    "--rgb-port",
+                    prgb.port,
+                    "--depth-port",
+                    pdepth.port,
+                    "--depth-encoding",
+                    "raw",
+                    "--rgb-encoding",
+                    "raw",
+                    "--stats-period",
+                    "0",
+                ],
+                emulated["work"] / "streamer_degraded.log",
+            )
             with proc:
                 started = _wait(lambda: len(rx.frames("depth")) >= 1, 30)
                 t0 = time.monotonic()
@@ -152,10 +207,13 @@ def test_scenario5_stream_link_degraded(emulated):
         depth = rx.frames("depth")
     assert started, "stream never started through the degraded link"
     lat = np.array([f.receive_monotonic_us - f.send_timestamp_us for f in depth]) / 1000.0
-    report = {"impairment": "20 ms +-10 ms, 2 % stalls of 200 ms", "stalls": stalls,
-              "depth_fps_received": n / elapsed,
-              "send_to_receive_median_ms_degraded": float(np.median(lat)),
-              "send_to_receive_p95_ms_degraded": float(np.percentile(lat, 95))}
+    report = {
+        "impairment": "20 ms +-10 ms, 2 % stalls of 200 ms",
+        "stalls": stalls,
+        "depth_fps_received": n / elapsed,
+        "send_to_receive_median_ms_degraded": float(np.median(lat)),
+        "send_to_receive_p95_ms_degraded": float(np.percentile(lat, 95)),
+    }
     path = artifacts_dir() / "stream.json"
     old = json.loads(path.read_text()) if path.exists() else {}
     path.write_text(json.dumps({**old, **report}, indent=2))
@@ -166,7 +224,8 @@ def test_scenario5_stream_link_degraded(emulated):
 
 def test_fakenect_dump_replays_through_real_libfreenect(tmp_path, emulated):
     """The emulator's fakenect dump, replayed by Debian's fakenect through the real libfreenect API
-    into rgbd-streamer (freenect source, disparity mode), arrives bit-exact after disparity -> mm."""
+    into rgbd-streamer (freenect source, disparity mode), arrives bit-exact after disparity ->
+    mm."""
     import shutil
 
     from kinect_emulator import FakenectDumpWriter
@@ -180,25 +239,47 @@ def test_fakenect_dump_replays_through_real_libfreenect(tmp_path, emulated):
     fly_plan(fc, [Leg((0.0, 0.0, -1.5), 0.0, 5.0)])
     frames = []
     with FakenectDumpWriter(tmp_path / "dump") as w:
+
         def keep(f):
             w.write(f)
             frames.append(f)
+
         fly_plan(fc, [Leg((0.2, 0.0, -1.5), 0.0, 0.5)], kinect=kin, sink=keep)
     # The emulator renders depth registered to RGB already: identity registration.
     i = kin.options.intrinsics
     (tmp_path / "streamer.yaml").write_text(
         f"depth_intrinsics: [{i.fx}, {i.fy}, {i.cx}, {i.cy}]\n"
         f"rgb_intrinsics: [{i.fx}, {i.fy}, {i.cx}, {i.cy}]\n"
-        "t_rgb_depth_m: [0, 0, 0]\nstats_period_s: 0\nlog_level: warn\nexit_linger_ms: 2000\n")
-    expected = {freenect_raw_to_depth_mm(depth_mm_to_freenect_raw(f.depth_mm)).tobytes() for f in frames}
+        "t_rgb_depth_m: [0, 0, 0]\nstats_period_s: 0\nlog_level: warn\nexit_linger_ms: 2000\n"
+    )
+    expected = {
+        freenect_raw_to_depth_mm(depth_mm_to_freenect_raw(f.depth_mm)).tobytes() for f in frames
+    }
     rgbs = {f.rgb.tobytes() for f in frames}
     with StreamReceiver() as rx:
-        proc = ManagedProcess(["fakenect", tmp_path / "dump", emulated["streamer"], "-c",
-                               tmp_path / "streamer.yaml", "--source", "freenect",
-                               "--freenect-disparity-depth", "--host", "127.0.0.1",
-                               "--rgb-port", rx.rgb_port, "--depth-port", rx.depth_port,
-                               "--depth-encoding", "raw", "--rgb-encoding", "raw"],
-                              tmp_path / "fakenect_streamer.log")
+        proc = ManagedProcess(
+            [
+                "fakenect",
+                tmp_path / "dump",
+                emulated["streamer"],
+                "-c",
+                tmp_path / "streamer.yaml",
+                "--source",
+                "freenect",
+                "--freenect-disparity-depth",
+                "--host",
+                "127.0.0.1",
+                "--rgb-port",
+                rx.rgb_port,
+                "--depth-port",
+                rx.depth_port,
+                "--depth-encoding",
+                "raw",
+                "--rgb-encoding",
+                "raw",
+            ],
+            tmp_path / "fakenect_streamer.log",
+        )
         with proc:
             _wait(lambda: not proc.alive(), 30)
             log = proc.log_text()
@@ -208,12 +289,16 @@ def test_fakenect_dump_replays_through_real_libfreenect(tmp_path, emulated):
     assert scale == 1000.0
     assert all(f.payload in expected for f in depth)
     assert all(f.payload in rgbs for f in rgb)
-    # The freenect source stamps capture on the steady clock (CLOCK_MONOTONIC), like our receive time:
+    # The freenect source stamps capture on the steady clock (CLOCK_MONOTONIC), like our receive
+    # time:
     # capture (libfreenect callback) -> validated, encoded, sent, received.
     lat = np.array([f.receive_monotonic_us - f.capture_timestamp_us for f in depth + rgb]) / 1000.0
-    report = {"fakenect_frames": len(frames), "fakenect_depth_received": len(depth),
-              "capture_to_receive_median_ms": float(np.median(lat)),
-              "capture_to_receive_p95_ms": float(np.percentile(lat, 95))}
+    report = {
+        "fakenect_frames": len(frames),
+        "fakenect_depth_received": len(depth),
+        "capture_to_receive_median_ms": float(np.median(lat)),
+        "capture_to_receive_p95_ms": float(np.percentile(lat, 95)),
+    }
     path = artifacts_dir() / "stream.json"
     old = json.loads(path.read_text()) if path.exists() else {}
     path.write_text(json.dumps({**old, **report}, indent=2))

@@ -14,7 +14,8 @@ Behaviour this emulator defines where the real chip's is not documented (docs/hi
   * no reply line within reply_timeout_ms -> 504 (gateway timeout) with a JSON error body;
   * a reply line that is not `<status> <json>` -> 502.
 Thread safety: HTTP requests are served on a thread each; the serial link is serialised by a lock.
-Start/stop: `start()` binds 127.0.0.1 (port 0 = any free port, see `.port`), `close()` stops and joins.
+Start/stop: `start()` binds 127.0.0.1 (port 0 = any free port, see `.port`), `close()` stops and
+joins.
 """
 
 from __future__ import annotations
@@ -137,8 +138,12 @@ class WifiBridgeEmulator:
         server = _Server(("127.0.0.1", self.options.port), _Handler)
         server.bridge = self  # type: ignore[attr-defined]
         self._server = server
-        self._thread = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05},
-                                        name="bridge-http", daemon=True)
+        self._thread = threading.Thread(
+            target=server.serve_forever,
+            kwargs={"poll_interval": 0.05},
+            name="bridge-http",
+            daemon=True,
+        )
         self._thread.start()
         return self
 

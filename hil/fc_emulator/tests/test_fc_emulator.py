@@ -1,4 +1,5 @@
-"""Flight-controller emulator: hover, step responses, arming, radio failsafe, ground contact, MAVLink.
+"""Flight-controller emulator: hover, step responses, arming, radio failsafe, ground contact,
+MAVLink.
 
 GIVEN/WHEN/THEN in each test; everything runs in simulated time (deterministic, seeded noise).
 """
@@ -13,10 +14,10 @@ from fc_emulator import FcOptions, FlightControllerEmulator, FlightMode, QuadMod
 from fc_emulator.emulator import ARM_DELAY_US, LAND_SPEED_MPS
 from fc_emulator.quad_model import GRAVITY_MSS
 
-ARM = [1500, 1500, 1000, 2000]      # throttle zero, yaw full right
-MID = [1500, 1500, 1500, 1500]      # AltHold: hold altitude
+ARM = [1500, 1500, 1000, 2000]  # throttle zero, yaw full right
+MID = [1500, 1500, 1500, 1500]  # AltHold: hold altitude
 CLIMB = [1500, 1500, 1800, 1500]
-FS_LOW = [1500, 1500, 950, 1500]    # the firmware's final failsafe throttle (below FS_THR_VALUE)
+FS_LOW = [1500, 1500, 950, 1500]  # the firmware's final failsafe throttle (below FS_THR_VALUE)
 
 
 def armed_and_hovering(altitude_m=1.7, **kw):
@@ -80,8 +81,8 @@ def test_roll_step_response(stick_us, expected_deg):
         peak = max(peak, math.degrees(fc.snapshot().roll_rad), key=abs)
     final = math.degrees(fc.snapshot().roll_rad)
     assert final == pytest.approx(expected_deg, abs=0.5)
-    assert abs(early) > 0.6 * abs(expected_deg)             # 60 % of the step within 300 ms
-    assert abs(peak) <= abs(expected_deg) * 1.10             # overshoot <= 10 %
+    assert abs(early) > 0.6 * abs(expected_deg)  # 60 % of the step within 300 ms
+    assert abs(peak) <= abs(expected_deg) * 1.10  # overshoot <= 10 %
     # Positive roll (right wing down) accelerates the craft east (+y in NED).
     assert np.sign(fc.snapshot().vel_ned_mps[1]) == np.sign(expected_deg)
 
@@ -210,8 +211,15 @@ def test_invalid_pulses_are_rejected():
         fc.feed_rc([1500, 1500], 1000)
 
 
-@pytest.mark.parametrize("bad", [dict(attitude_hz=0), dict(raw_imu_hz=-1.0), dict(mode=FlightMode.LAND),
-                                 dict(accel_noise_mg=float("nan"))])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        dict(attitude_hz=0),
+        dict(raw_imu_hz=-1.0),
+        dict(mode=FlightMode.LAND),
+        dict(accel_noise_mg=float("nan")),
+    ],
+)
 def test_options_validation(bad):
     with pytest.raises(ValueError):
         FlightControllerEmulator(options=FcOptions(**bad))
@@ -226,8 +234,10 @@ def test_params_validation():
 
 def test_mavlink_v2_bytes_decode_at_configured_rates():
     frames = []
-    fc = FlightControllerEmulator(sink=lambda t, d: frames.append((t, d)),
-                                  options=FcOptions(attitude_hz=25.0, raw_imu_hz=10.0, seed=7))
+    fc = FlightControllerEmulator(
+        sink=lambda t, d: frames.append((t, d)),
+        options=FcOptions(attitude_hz=25.0, raw_imu_hz=10.0, seed=7),
+    )
     fly(fc, ARM, 2.1)
     fly(fc, CLIMB, 1.0)
     fly(fc, [1700, 1500, 1500, 1500], 6.9)  # 10 s in all, leaning right for the last 6.9 s
@@ -267,9 +277,11 @@ def test_raw_imu_reads_gravity_and_is_seeded():
             for m in parser.parse_buffer(d) or []:
                 if m.get_type() == "RAW_IMU":
                     out.append((m.xacc, m.yacc, m.zacc))
+
         fc = FlightControllerEmulator(sink=sink, options=FcOptions(seed=seed))
         fly(fc, [1500, 1500, 1000, 1500], 3.0)
         return np.array(out)
+
     a, b, c = run(3), run(3), run(4)
     assert np.array_equal(a, b) and not np.array_equal(a, c)
     assert np.mean(a[:, 2]) == pytest.approx(-1000, abs=5)  # -1 g on body z, in mg
@@ -284,6 +296,7 @@ def test_gusts_are_seeded_with_the_configured_strength():
             m.step(0.0025, 0.0, 0.0, 0.0, 0.0)
             out.append(m.gust_mss[0])
         return np.array(out)
+
     a, b, c = gusts(1), gusts(1), gusts(2)
     assert np.array_equal(a, b) and not np.array_equal(a, c)
     assert np.std(a) == pytest.approx(0.3, rel=0.35)  # 100 s is ~50 correlation times

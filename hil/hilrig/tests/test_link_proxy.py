@@ -23,6 +23,7 @@ def echo_server():
                 continue
             except OSError:
                 return
+
             def echo(c=c):
                 with c:
                     while True:
@@ -30,7 +31,9 @@ def echo_server():
                         if not d:
                             return
                         c.sendall(d)
+
             threading.Thread(target=echo, daemon=True).start()
+
     t = threading.Thread(target=serve, daemon=True)
     t.start()
     yield srv.getsockname()[1]

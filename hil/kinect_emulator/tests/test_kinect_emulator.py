@@ -9,14 +9,26 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from kinect_emulator import (Box, FakenectDumpWriter, Intrinsics, KinectEmulator, KinectOptions, Room,
-                             TumFolderWriter, camera_pose_from_ned, default_room, load_textures,
-                             pose_matrix)
+from kinect_emulator import (
+    Box,
+    FakenectDumpWriter,
+    Intrinsics,
+    KinectEmulator,
+    KinectOptions,
+    Room,
+    TumFolderWriter,
+    camera_pose_from_ned,
+    default_room,
+    load_textures,
+    pose_matrix,
+)
 from kinect_emulator.poses import rotation_to_quaternion_xyzw
 from kinect_emulator.renderer import BASELINE_M, DISPARITY_SUBPIXELS, IR_FOCAL_PX, NOISE_COEFF_PER_M
 from kinect_emulator.writers import depth_mm_to_freenect_raw, freenect_raw_to_depth_mm
 
-EXACT = dict(depth_noise=False, quantise=False, shadows=False, dropout_fraction=0.0, rgb_noise_std=0.0)
+EXACT = dict(
+    depth_noise=False, quantise=False, shadows=False, dropout_fraction=0.0, rgb_noise_std=0.0
+)
 
 
 @pytest.fixture(scope="module")
@@ -31,14 +43,15 @@ def room(textures):
 
 def level_camera_at(x, y, z, yaw_rad=0.0, mount_pitch_down_deg=0.0):
     """T_room_cam for a level craft whose camera centre is at room (x, y, z) (no body offset)."""
-    return camera_pose_from_ned([x, -y, -z], 0.0, 0.0, yaw_rad, mount_pitch_down_deg,
-                                cam_offset_body_m=(0.0, 0.0, 0.0))
+    return camera_pose_from_ned(
+        [x, -y, -z], 0.0, 0.0, yaw_rad, mount_pitch_down_deg, cam_offset_body_m=(0.0, 0.0, 0.0)
+    )
 
 
 def test_camera_pose_axes():
     T = level_camera_at(0.0, 0.0, 1.0)
     R = T[:3, :3]
-    assert np.allclose(R[:, 2], [1, 0, 0])   # optical axis = room +x (north)
+    assert np.allclose(R[:, 2], [1, 0, 0])  # optical axis = room +x (north)
     assert np.allclose(R[:, 0], [0, -1, 0])  # image right = east = room -y
     assert np.allclose(R[:, 1], [0, 0, -1])  # image down = room -z
     Td = level_camera_at(0.0, 0.0, 1.0, mount_pitch_down_deg=90.0)
@@ -48,9 +61,13 @@ def test_camera_pose_axes():
 def test_quaternion_round_trip():
     T = camera_pose_from_ned([0.3, 0.2, -1.5], 0.1, -0.2, 2.5, 30.0)
     x, y, z, w = rotation_to_quaternion_xyzw(T[:3, :3])
-    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    R = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
     assert np.allclose(R, T[:3, :3], atol=1e-9)
 
 
@@ -106,21 +123,26 @@ def test_camera_outside_free_space_is_a_clear_error(room):
 
 @pytest.mark.parametrize("z_m", [1.0, 2.0, 3.0])
 def test_depth_noise_is_quadratic(room, z_m):
-    emu = KinectEmulator(room, KinectOptions(depth_noise=True, quantise=False, shadows=False,
-                                             dropout_fraction=0.0, seed=5))
+    emu = KinectEmulator(
+        room,
+        KinectOptions(
+            depth_noise=True, quantise=False, shadows=False, dropout_fraction=0.0, seed=5
+        ),
+    )
     zt = np.full((480, 640), z_m, dtype=np.float32)
     err = emu.sensor_depth(zt) - zt
-    assert np.nanstd(err) == pytest.approx(NOISE_COEFF_PER_M * z_m ** 2, rel=0.05)
-    assert abs(np.nanmean(err)) < 0.1 * NOISE_COEFF_PER_M * z_m ** 2
+    assert np.nanstd(err) == pytest.approx(NOISE_COEFF_PER_M * z_m**2, rel=0.05)
+    assert abs(np.nanmean(err)) < 0.1 * NOISE_COEFF_PER_M * z_m**2
 
 
 def test_quantisation_follows_disparity_steps(room):
-    emu = KinectEmulator(room, KinectOptions(depth_noise=False, quantise=True, shadows=False,
-                                             dropout_fraction=0.0))
+    emu = KinectEmulator(
+        room, KinectOptions(depth_noise=False, quantise=True, shadows=False, dropout_fraction=0.0)
+    )
     zt = np.linspace(0.6, 4.0, 640 * 480, dtype=np.float32).reshape(480, 640)
     zq = emu.sensor_depth(zt)
     k = IR_FOCAL_PX * BASELINE_M * DISPARITY_SUBPIXELS
-    step = zt ** 2 / k
+    step = zt**2 / k
     assert np.all(np.abs(zq - zt) <= 0.5 * step * 1.01 + 1e-6)
     assert len(np.unique(zq[zt > 3.5])) < len(np.unique(zq[zt < 1.0]))  # coarser far away
     assert np.max(np.abs(zq - zt)[zt > 3.9]) > 0.015  # ~2 cm steps at 4 m
@@ -134,20 +156,34 @@ def test_range_limits_give_no_reading(room):
 
 
 def test_dropout_fraction(room):
-    emu = KinectEmulator(room, KinectOptions(depth_noise=False, quantise=False, shadows=False,
-                                             dropout_fraction=0.02, seed=9))
+    emu = KinectEmulator(
+        room,
+        KinectOptions(
+            depth_noise=False, quantise=False, shadows=False, dropout_fraction=0.02, seed=9
+        ),
+    )
     out = emu.sensor_depth(np.full((480, 640), 2.0, dtype=np.float32))
     assert np.isnan(out).mean() == pytest.approx(0.02, rel=0.1)
 
 
 def test_projector_shadow_beside_occluding_edge(textures):
-    # GIVEN a tall narrow box 1 m in front of a wall 3 m away THEN a hole of width f b (1/1 - 1/3) px
+    # GIVEN a tall narrow box 1 m in front of a wall 3 m away THEN a hole of width f b (1/1 - 1/3)
+    # px
     # opens on the box's left (the projector sits to the camera's right)
-    room = Room(Box((-1.0, -3.0, 0.0), (3.0, 3.0, 3.0)), textures,
-                obstacles=[Box((1.0, -0.1, 0.0), (1.2, 0.1, 3.0))])
+    room = Room(
+        Box((-1.0, -3.0, 0.0), (3.0, 3.0, 3.0)),
+        textures,
+        obstacles=[Box((1.0, -0.1, 0.0), (1.2, 0.1, 3.0))],
+    )
     i = Intrinsics(cx=320.0, cy=240.0, fx=500.0, fy=500.0)
-    opts = KinectOptions(intrinsics=i, depth_noise=False, quantise=False, shadows=True,
-                         dropout_fraction=0.0, rgb_noise_std=0.0)
+    opts = KinectOptions(
+        intrinsics=i,
+        depth_noise=False,
+        quantise=False,
+        shadows=True,
+        dropout_fraction=0.0,
+        rgb_noise_std=0.0,
+    )
     frame = KinectEmulator(room, opts).render(level_camera_at(0.0, 0.0, 1.5), 0)
     row = frame.depth_mm[240]
     box_cols = np.where(row == 1000)[0]
@@ -157,11 +193,13 @@ def test_projector_shadow_beside_occluding_edge(textures):
     expected_px = 500.0 * BASELINE_M * (1 / 1.0 - 1 / 3.0)  # 25 px
     assert holes.size == pytest.approx(expected_px, abs=2)
     assert holes.max() == left - 1  # adjacent to the edge
-    assert np.all(row[box_cols.max() + 1:] > 0)  # no shadow on the right side
+    assert np.all(row[box_cols.max() + 1 :] > 0)  # no shadow on the right side
 
 
 def test_blank_frames_latency_and_schedule(room):
-    emu = KinectEmulator(room, KinectOptions(fps=30.0, latency_ms=40.0, blank_frames=frozenset({1})))
+    emu = KinectEmulator(
+        room, KinectOptions(fps=30.0, latency_ms=40.0, blank_frames=frozenset({1}))
+    )
     T = level_camera_at(0.0, 0.0, 1.5, mount_pitch_down_deg=30.0)
     f0, f1, f2 = (emu.render(T, t) for t in (0, 33333, 66667))
     assert not f0.blank and f1.blank and not f2.blank
@@ -190,13 +228,18 @@ def _harris_corners(rgb: np.ndarray) -> int:
 
     def box(a, r=2):
         c = np.cumsum(np.cumsum(np.pad(a, ((r + 1, r), (r + 1, r))), 0), 1)
-        return c[2 * r + 1:, 2 * r + 1:] - c[:-2 * r - 1, 2 * r + 1:] - c[2 * r + 1:, :-2 * r - 1] + \
-            c[:-2 * r - 1, :-2 * r - 1]
+        return (
+            c[2 * r + 1 :, 2 * r + 1 :]
+            - c[: -2 * r - 1, 2 * r + 1 :]
+            - c[2 * r + 1 :, : -2 * r - 1]
+            + c[: -2 * r - 1, : -2 * r - 1]
+        )
+
     sxx, syy, sxy = box(gx * gx), box(gy * gy), box(gx * gy)
     resp = sxx * syy - sxy * sxy - 0.04 * (sxx + syy) ** 2
     strong = resp > 0.01 * resp.max()
     # count local maxima in 8x8 cells
-    cells = strong[:480 // 8 * 8, :640 // 8 * 8].reshape(60, 8, 80, 8).any(axis=(1, 3))
+    cells = strong[: 480 // 8 * 8, : 640 // 8 * 8].reshape(60, 8, 80, 8).any(axis=(1, 3))
     return int(cells.sum())
 
 
@@ -218,16 +261,22 @@ def test_tum_writer_round_trip(room, tmp_path):
     with TumFolderWriter(tmp_path / "seq", t0_s=100.0) as w:
         stamps = [w.write(f) for f in frames]
     assert stamps == ["100.000000", "100.033333"]
-    rgb_lines = [ln.split() for ln in (tmp_path / "seq/rgb.txt").read_text().splitlines()
-                 if not ln.startswith("#")]
+    rgb_lines = [
+        ln.split()
+        for ln in (tmp_path / "seq/rgb.txt").read_text().splitlines()
+        if not ln.startswith("#")
+    ]
     assert rgb_lines[1] == ["100.033333", "rgb/100.033333.png"]
     d = np.asarray(Image.open(tmp_path / "seq/depth/100.000000.png"))
     assert d.dtype == np.uint16 and d.shape == (480, 640)
     assert np.array_equal(d.astype(np.uint32), frames[0].depth_mm.astype(np.uint32) * 5)
     rgb = np.asarray(Image.open(tmp_path / "seq/rgb/100.033333.png"))
     assert np.array_equal(rgb, frames[1].rgb)
-    gt = [ln.split() for ln in (tmp_path / "seq/groundtruth.txt").read_text().splitlines()
-          if not ln.startswith("#")]
+    gt = [
+        ln.split()
+        for ln in (tmp_path / "seq/groundtruth.txt").read_text().splitlines()
+        if not ln.startswith("#")
+    ]
     assert len(gt) == 2
     assert np.allclose([float(v) for v in gt[0][1:4]], T[:3, 3], atol=1e-6)
 
@@ -242,11 +291,12 @@ def test_fakenect_dump(room, tmp_path):
     data = (tmp_path / "dump" / index[0]).read_bytes()
     header = b"P5 640 480 65535\n"
     assert data.startswith(header) and len(data) == len(header) + 640 * 480 * 2
-    raw = np.frombuffer(data[len(header):], dtype="=u2").reshape(480, 640)  # host order (fakenect)
+    raw = np.frombuffer(data[len(header) :], dtype="=u2").reshape(480, 640)  # host order (fakenect)
     back = freenect_raw_to_depth_mm(raw)
     valid = f.depth_mm > 0
     assert np.all((raw == 2047) == ~valid)
-    # 11-bit raw disparity is coarser than mm: within one disparity step (z^2 / 348 m) plus rounding.
+    # 11-bit raw disparity is coarser than mm: within one disparity step (z^2 / 348 m) plus
+    # rounding.
     z = f.depth_mm[valid] / 1000.0
     assert np.all(np.abs(back[valid].astype(float) - f.depth_mm[valid]) <= 1000 * z * z / 300 + 2)
 
@@ -257,8 +307,9 @@ def test_freenect_raw_conversion_limits():
     assert np.all(np.diff(raw[1:4].astype(int)) > 0)
 
 
-@pytest.mark.parametrize("bad", [dict(fps=0), dict(latency_ms=-1), dict(min_range_m=5.0),
-                                 dict(dropout_fraction=1.0)])
+@pytest.mark.parametrize(
+    "bad", [dict(fps=0), dict(latency_ms=-1), dict(min_range_m=5.0), dict(dropout_fraction=1.0)]
+)
 def test_options_validation(room, bad):
     with pytest.raises(ValueError):
         KinectEmulator(room, KinectOptions(**bad))

@@ -11,7 +11,7 @@ from wifi_bridge import BridgeOptions, WifiBridgeEmulator
 
 
 class FakeSerial:
-    def __init__(self, reply="200 {\"err\":\"ok\"}"):
+    def __init__(self, reply='200 {"err":"ok"}'):
         self.lines = []
         self.reply = reply
 
@@ -62,12 +62,15 @@ def test_keep_alive_serves_several_requests_on_one_connection():
     assert serial.lines == ["GET /status?i=0", "GET /status?i=1", "GET /status?i=2"]
 
 
-@pytest.mark.parametrize("raw,code", [
-    (b"GARBAGE\r\n\r\n", b" 400 "),
-    (b"PUT /control HTTP/9.9\r\n\r\n", b" 505 "),
-    (b"GET /" + b"a" * 70000 + b" HTTP/1.1\r\n\r\n", b" 414 "),
-    (b"BREW /pot HTTP/1.1\r\nHost: x\r\n\r\n", b" 501 "),
-])
+@pytest.mark.parametrize(
+    "raw,code",
+    [
+        (b"GARBAGE\r\n\r\n", b" 400 "),
+        (b"PUT /control HTTP/9.9\r\n\r\n", b" 505 "),
+        (b"GET /" + b"a" * 70000 + b" HTTP/1.1\r\n\r\n", b" 414 "),
+        (b"BREW /pot HTTP/1.1\r\nHost: x\r\n\r\n", b" 501 "),
+    ],
+)
 def test_malformed_http_never_reaches_the_serial_link(raw, code):
     serial = FakeSerial()
     with WifiBridgeEmulator(serial) as b:
