@@ -1,8 +1,7 @@
 """APM 2.6 / ArduCopter flight-controller emulator for the hardware-in-loop rig.
 
 Reads the four RC channels as pulse widths (the harness feeds them from the simavr PWM pins), flies
-a
-quadcopter model with simulation time passed in, applies ArduCopter's arming gesture and radio
+a quadcopter model with simulation time passed in, applies ArduCopter's arming gesture and radio
 failsafe, and emits HEARTBEAT / ATTITUDE / RAW_IMU as real MAVLink v2 bytes (pymavlink).
 """
 

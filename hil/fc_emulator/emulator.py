@@ -7,17 +7,16 @@ What is emulated (ArduCopter 3.x behaviour, parameters at their defaults unless 
     full left, or automatically after landing in Land mode.
   * Radio failsafe (FS_THR_ENABLE = 3, "always Land"): throttle below FS_THR_VALUE (975 us) for
     FS_COUNTER consecutive RC reads, or no RC pulses for 500 ms -> Land mode, descending at
-    LAND_SPEED
-    (50 cm/s); if already landed, disarm at once.
+    LAND_SPEED (50 cm/s); if already landed, disarm at once.
   * Land detector: on the ground with the motors at their lower limit for 1 s -> landed.
 Simplification (documented in docs/hil.md): there is no mode switch channel (the craft has only four
 RC inputs), so the flight mode is an option; after a failsafe Land and disarm it returns to that
 mode.
 
 Time is passed in: `advance_to(t_us)` runs 400 Hz main-loop ticks up to t_us. Telemetry goes to a
-sink
-callable `sink(t_us, data: bytes)` as real MAVLink v2 frames (pymavlink), each stamped with the tick
-that produced it. Random IMU noise is drawn from a generator seeded by the options. Not thread-safe.
+sink callable `sink(t_us, data: bytes)` as real MAVLink v2 frames (pymavlink), each stamped with the
+tick that produced it. Random IMU noise is drawn from a generator seeded by the options. Not
+thread-safe.
 """
 
 from __future__ import annotations

@@ -33,8 +33,7 @@ class QuadParams:
     # v1.
     mass_kg: float = 1.5
     # Hover at half output (ArduCopter MOT_THST_HOVER default 0.35..0.5; 0.5 makes mid-stick hover
-    # in
-    # Stabilize with a linear throttle curve): max thrust = weight / hover_output.
+    # in Stabilize with a linear throttle curve): max thrust = weight / hover_output.
     hover_output: float = 0.5
     # Motor/ESC/prop spin-up time constant ~40 ms for 10" props (measured figures for such motors
     # are 30-60 ms).
@@ -51,8 +50,7 @@ class QuadParams:
     # Linear (rotor/"induced") drag, N per m/s: dominant at indoor speeds (< 2 m/s).
     drag_linear_n_per_mps: float = 0.35
     # Quadratic body drag, N per (m/s)^2: with the linear term gives ~6 m/s terminal horizontal
-    # speed
-    # at 22.5 deg lean (the firmware's hard roll/pitch limit).
+    # speed at 22.5 deg lean (the firmware's hard roll/pitch limit).
     drag_quadratic_n_per_mps2: float = 0.1
     # Battery sag (optional): a 3S 2200 mAh LiPo. Thrust at a given output scales with (V /
     # V_full)^2.
@@ -65,8 +63,7 @@ class QuadParams:
     # 21 A.
     battery_full_output_a: float = 60.0
     # Disturbances (0 = off). Indoors: 0.3 m/s^2 gusts (~2 deg of lean to reject) with 2 s
-    # correlation
-    # are what a 450 frame feels from its own prop wash off walls and room drafts.
+    # correlation are what a 450 frame feels from its own prop wash off walls and room drafts.
     gust_accel_std_mss: float = 0.0
     gust_tau_s: float = 2.0
     trim_error_deg: tuple[float, float] = (0.0, 0.0)  # (roll, pitch) level-calibration error

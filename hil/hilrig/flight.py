@@ -82,8 +82,7 @@ def fly_plan(
     on_sticks=None,
 ) -> FlightLog:
     """Flies each leg with the ground-truth pilot; renders Kinect frames into `sink(frame)` if
-    given;
-    `on_sticks(t_us, sticks)` sees every RC frame the pilot sends (to replay it through
+    given; `on_sticks(t_us, sticks)` sees every RC frame the pilot sends (to replay it through
     firmware)."""
     log = log or FlightLog()
     for leg in legs:

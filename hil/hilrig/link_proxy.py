@@ -3,10 +3,8 @@
 The kernel's netem qdisc is not available on this machine (and would shape every process's
 loopback),
 so link faults are emulated here, per link, for the processes a scenario starts. TCP never shows
-loss
-to the application: a lost segment shows up as a stall of one retransmission timeout (Linux's
-minimum
-RTO is 200 ms) after which the data arrives in order. So each chunk forwarded is delayed by
+loss to the application: a lost segment shows up as a stall of one retransmission timeout (Linux's
+minimum RTO is 200 ms) after which the data arrives in order. So each chunk forwarded is delayed by
 `delay_ms` (+ uniform `jitter_ms`), and with probability `loss` it is held an extra `rto_ms`; order
 is kept (a stalled chunk holds back the ones behind it, as TCP's in-order delivery does).
 `sever()` drops every connection and refuses new ones until `restore()`.

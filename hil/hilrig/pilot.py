@@ -35,8 +35,7 @@ IDLE_STICKS_US = (1500, 1500, 1000, 1500)
 class PilotGains:
     # Horizontal PD: 10 cm error -> 0.3 m/s^2 (~1.8 deg lean); damping 3 /s keeps it just under
     # critical with the ~0.1 s command path (HTTP + firmware frame + APM attitude loop). Stiff
-    # enough
-    # to hold +-0.15 m against 0.15 m/s^2 gusts and a 0.5 deg trim error (hilrig tests).
+    # enough to hold +-0.15 m against 0.15 m/s^2 gusts and a 0.5 deg trim error (hilrig tests).
     pos_p_per_s2: float = 3.0
     vel_d_per_s: float = 3.0
     max_lean_rad: float = math.radians(15.0)  # gentle indoor flying

@@ -2,8 +2,7 @@
 
 Listens on loopback for the two connections rgbd-streamer opens (RGB, depth), answers the handshake,
 grants credits the way docs/protocol.md prescribes (2 at start, 1 per frame taken off the socket)
-and
-records every frame with its receive time on CLOCK_MONOTONIC, the clock rgbd-streamer stamps
+and records every frame with its receive time on CLOCK_MONOTONIC, the clock rgbd-streamer stamps
 send_timestamp_us with (same host), so send -> receive latency is measurable.
 `drop()` closes the connections and the listeners (link dropped); `restore()` listens again on the
 same ports. One thread per stream; `close()` joins them. Protocol: rgbd_protocol (the spec's codec).

@@ -3,8 +3,7 @@
 Room frame: x north, y west, z up (right-handed; "NWU"), origin on the floor at the take-off point
 plus
 `origin_room_m`. Camera optical frame: x right, y down, z forward. The Kinect is mounted looking
-along
-the body's x axis (forward), pitched down by mount_pitch_down_deg.
+along the body's x axis (forward), pitched down by mount_pitch_down_deg.
 T_room_cam (4x4) maps camera points to room points.
 """
 

@@ -228,8 +228,7 @@ class KinectEmulator:
         rgb = self._shade(pts, face).reshape(i.height, i.width, 3)
         if opt.rgb_noise_std > 0:
             # A seeded bank of noise frames, read at a random offset: per-frame Gaussian draws of
-            # 0.9 M
-            # values cost more than the whole ray cast.
+            # 0.9 M values cost more than the whole ray cast.
             if self._rgb_noise_bank is None:
                 n = i.height * i.width * 3 * 4
                 self._rgb_noise_bank = np.round(

@@ -4,8 +4,7 @@ emulator -> firmware image in simavr (lock-step with) -> RC pulses -> FC emulato
 The ground station is hilrig.ground_station (signed PUT /control at 50 Hz, sticks from the
 ground-truth pilot): the position source is the emulator's truth, standing in for slam-server +
 quad-control, which had not landed when this was written. Everything between the HTTP request and
-the
-craft's motion is the real system or its emulator.
+the craft's motion is the real system or its emulator.
 
   scenario 1  take off, hold 1.7 m for 30 s            -> hold error, HTTP->PWM latency
   scenario 7  malformed HTTP / forged / replayed requests at the bridge during a hover

@@ -290,8 +290,7 @@ def test_fakenect_dump_replays_through_real_libfreenect(tmp_path, emulated):
     assert all(f.payload in expected for f in depth)
     assert all(f.payload in rgbs for f in rgb)
     # The freenect source stamps capture on the steady clock (CLOCK_MONOTONIC), like our receive
-    # time:
-    # capture (libfreenect callback) -> validated, encoded, sent, received.
+    # time: capture (libfreenect callback) -> validated, encoded, sent, received.
     lat = np.array([f.receive_monotonic_us - f.capture_timestamp_us for f in depth + rgb]) / 1000.0
     report = {
         "fakenect_frames": len(frames),

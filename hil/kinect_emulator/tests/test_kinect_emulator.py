@@ -168,8 +168,7 @@ def test_dropout_fraction(room):
 
 def test_projector_shadow_beside_occluding_edge(textures):
     # GIVEN a tall narrow box 1 m in front of a wall 3 m away THEN a hole of width f b (1/1 - 1/3)
-    # px
-    # opens on the box's left (the projector sits to the camera's right)
+    # px opens on the box's left (the projector sits to the camera's right)
     room = Room(
         Box((-1.0, -3.0, 0.0), (3.0, 3.0, 3.0)),
         textures,
