@@ -5,6 +5,7 @@
 #include <spdlog/sinks/null_sink.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
 
@@ -32,7 +33,8 @@ struct Session {
   std::int64_t last_activity_us = 0;
 };
 
-std::string check_handshake(const protocol::Handshake& h, StreamKind expected) {
+std::string check_handshake(const protocol::Handshake& h, StreamKind expected,
+                            const std::vector<Encoding>& accepted) {
   std::string why = protocol::handshake_incompatibility(h);
   if (!why.empty()) return why;
   if (h.stream_kind != expected) {
@@ -41,6 +43,9 @@ std::string check_handshake(const protocol::Handshake& h, StreamKind expected) {
   const auto format = expected == StreamKind::kRgb ? protocol::PixelFormat::kRgb8 : protocol::PixelFormat::kDepth16;
   if (h.pixel_format != format) return "pixel format does not match the stream kind";
   if (!protocol::encoding_allows_pixel_format(h.encoding, format)) return "encoding cannot carry this stream";
+  if (!accepted.empty() && std::find(accepted.begin(), accepted.end(), h.encoding) == accepted.end()) {
+    return std::string("encoding ") + protocol::to_string(h.encoding).data() + " not accepted by this receiver";
+  }
   if (expected == StreamKind::kDepth && !(h.depth_scale_units_per_m > 0)) return "depth scale must be > 0";
   return {};
 }
@@ -156,7 +161,7 @@ void StreamReceiver::serve(int index) {
         continue;
       }
       if (const auto* hello = std::get_if<protocol::Handshake>(&*r.message)) {
-        const std::string why = check_handshake(*hello, kind);
+        const std::string why = check_handshake(*hello, kind, options_.accepted_encodings);
         protocol::HandshakeAck ack;
         ack.accepted = why.empty();
         ack.reason = why;

@@ -200,6 +200,28 @@ TEST(StreamEndToEnd, ReceiverSurvivesStreamerRestarts) {
   EXPECT_EQ(rx.counters().depth.connections, 20u);
 }
 
+TEST(StreamEndToEnd, RefusedEncodingFallsBackToRawAndStillDeliversBitExact) {
+  capture::SteadyClock clock;
+  const auto frames = testing::load_tum(kDesk);
+  // GIVEN a ground station that accepts only raw depth
+  auto options = loopback_receiver();
+  options.accepted_encodings = {Encoding::kRaw};
+  receiver::StreamReceiver rx(options, testing::steady_now_us(), nullptr);
+  // WHEN the streamer offers RVL
+  stream::StreamSender depth(sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kDepthRvl), &clock, nullptr);
+  auto depth_frame = std::get<capture::DepthFrame>(
+      std::holds_alternative<capture::DepthFrame>(frames[0]) ? frames[0] : frames[1]);
+  // THEN it is refused once, falls back to raw, and frames arrive raw and bit-exact
+  ASSERT_TRUE(eventually([&] {
+    depth.publish(depth_frame);
+    return rx.newest_depth() != nullptr;
+  }));
+  EXPECT_EQ(rx.newest_depth()->info.encoding, Encoding::kRaw);
+  EXPECT_EQ(rx.newest_depth()->depth, depth_frame.depth);
+  EXPECT_GE(depth.counters().refused, 1u);
+  EXPECT_GE(rx.counters().depth.handshakes_refused, 1u);
+}
+
 // --- raw-socket peers ---------------------------------------------------------------------
 
 struct RawPeer {

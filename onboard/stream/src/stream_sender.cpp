@@ -58,6 +58,8 @@ StreamSender::StreamSender(const StreamSenderOptions& options, capture::Clock* c
   if (!log_) log_ = std::make_shared<spdlog::logger>("null", std::make_shared<spdlog::sinks::null_sink_mt>());
   encoder_ = std::make_unique<PayloadEncoder>(options_.kind, options_.encoding,
                                               options_.jpeg_quality, options_.zstd_level);
+  raw_encoder_ = std::make_unique<PayloadEncoder>(options_.kind, protocol::Encoding::kRaw,
+                                                  options_.jpeg_quality, options_.zstd_level);
   thread_ = std::thread([this] { run(); });
 }
 
@@ -89,12 +91,17 @@ void StreamSender::run() {
   const char* kind = protocol::to_string(options_.kind).data();
   net::Backoff backoff(options_.backoff_first_ms, options_.backoff_max_ms);
   std::string last_error;
+  // Negotiation: offer the configured encoding; if the receiver refuses it, offer raw at once
+  // (when raw_fallback), and offer the configured one again on the next connection.
+  bool offer_raw = false;
   while (!stopping_) {
     std::string error;
+    current_encoding_ = offer_raw ? protocol::Encoding::kRaw : options_.encoding;
     auto fd = net::connect_tcp(options_.host, options_.port, options_.connect_timeout_ms,
                                stop_waker_, &error);
     protocol::StreamDecoder decoder;
-    if (fd && handshake(fd->get(), &decoder, &error)) {
+    bool refused = false;
+    if (fd && handshake(fd->get(), &decoder, &error, &refused)) {
       backoff.reset();
       last_error.clear();
       {
@@ -102,15 +109,22 @@ void StreamSender::run() {
         ++counters_.connects;
       }
       log_->info("{} stream: connected to {}:{} ({})", kind, options_.host, options_.port,
-                 encoding_name(options_.encoding));
+                 encoding_name(current_encoding_));
       connected_ = true;
       session(std::move(*fd), &decoder);
       connected_ = false;
+      offer_raw = false;
       std::lock_guard<std::mutex> lock(mutex_);
       ++counters_.disconnects;
       continue;  // reconnect at once: the server may already be back
     }
     if (stopping_) break;
+    if (refused && !offer_raw && options_.raw_fallback && options_.encoding != protocol::Encoding::kRaw) {
+      log_->warn("{} stream: {}; offering raw instead", kind, error);
+      offer_raw = true;
+      continue;
+    }
+    offer_raw = false;
     if (error != last_error) {  // log each new reason once, not every retry
       log_->warn("{} stream: {}:{}: {}; retrying (backoff <= {} ms)", kind, options_.host,
                  options_.port, error, options_.backoff_max_ms);
@@ -121,14 +135,15 @@ void StreamSender::run() {
   }
 }
 
-bool StreamSender::handshake(int fd, protocol::StreamDecoder* decoder, std::string* why) {
+bool StreamSender::handshake(int fd, protocol::StreamDecoder* decoder, std::string* why,
+                             bool* refused) {
   protocol::Handshake hello;
   hello.stream_kind = options_.kind;
   hello.width = static_cast<std::uint16_t>(options_.width_px);
   hello.height = static_cast<std::uint16_t>(options_.height_px);
   hello.pixel_format = options_.kind == protocol::StreamKind::kRgb ? protocol::PixelFormat::kRgb8
                                                                     : protocol::PixelFormat::kDepth16;
-  hello.encoding = options_.encoding;
+  hello.encoding = current_encoding_;
   hello.intrinsics = options_.intrinsics;
   hello.depth_scale_units_per_m =
       options_.kind == protocol::StreamKind::kDepth ? options_.depth_units_per_m : 0.0;
@@ -159,6 +174,7 @@ bool StreamSender::handshake(int fd, protocol::StreamDecoder* decoder, std::stri
       if (const auto* ack = std::get_if<protocol::HandshakeAck>(&*r.message)) {
         if (ack->accepted) return true;
         *why = "receiver refused the handshake: " + ack->reason;
+        *refused = true;
         std::lock_guard<std::mutex> lock(mutex_);
         ++counters_.refused;
         return false;
@@ -242,7 +258,8 @@ bool StreamSender::send_newest(int fd, std::optional<std::uint32_t>* last_sent) 
   }
   const std::int64_t start_us = clock_->now_us();
   std::string error;
-  const auto payload = encoder_->encode(*frame, &error);
+  PayloadEncoder* encoder = current_encoding_ == options_.encoding ? encoder_.get() : raw_encoder_.get();
+  const auto payload = encoder->encode(*frame, &error);
   const std::int64_t encoded_us = clock_->now_us();
   if (!payload) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -260,7 +277,7 @@ bool StreamSender::send_newest(int fd, std::optional<std::uint32_t>* last_sent) 
   header.height = static_cast<std::uint16_t>(options_.height_px);
   header.pixel_format = options_.kind == protocol::StreamKind::kRgb ? protocol::PixelFormat::kRgb8
                                                                      : protocol::PixelFormat::kDepth16;
-  header.encoding = options_.encoding;
+  header.encoding = current_encoding_;
   header.payload_length = static_cast<std::uint32_t>(payload->size());
   const auto bytes = protocol::encode_frame(header, payload->data(), payload->size());
   if (!bytes.ok()) {

@@ -79,6 +79,9 @@ struct ReceiverOptions {
   // Frames kept per stream to search for the nearest partner: 8 = 267 ms at 30 fps, enough when
   // one stream runs several frames ahead of the other.
   std::size_t history_frames = 8;
+  // Encodings this receiver accepts in a handshake; empty = every encoding it can decode. A
+  // streamer offering another one is refused and falls back to raw.
+  std::vector<protocol::Encoding> accepted_encodings;
   // A connection silent this long while it owes frames is dropped (WiFi gone without a FIN);
   // the streamer reconnects.
   int idle_timeout_ms = 5000;

@@ -1,7 +1,7 @@
 // One stream connection of rgbd-streamer (RGB or depth) to the ground-station receiver.
 //
 // Contract (docs/protocol.md): connect to host:port, send Handshake (stream kind, size, encoding,
-// intrinsics, depth scale), wait for HandshakeAck; then send one Frame per credit granted by the
+// intrinsics, depth scale), wait for HandshakeAck (refused: offer raw next, see raw_fallback); then send one Frame per credit granted by the
 // receiver's FrameRequests, always the NEWEST frame published since the last one sent (a slow
 // receiver never gets a backlog: frames it had no credit for are overwritten, counted as
 // "superseded"). On any failure (refused, closed, stalled, no credit for credit_idle_timeout_ms
@@ -65,6 +65,9 @@ struct StreamSenderOptions {
   protocol::CameraIntrinsics intrinsics;
   double depth_units_per_m = capture::kMillimetreUnitsPerM;  // handshake; ignored on RGB
   std::string device_id = "kinect";
+  // If the receiver refuses the handshake (e.g. it does not accept this encoding), offer raw on
+  // the next attempt, and the configured encoding again after that connection ends.
+  bool raw_fallback = true;
   int jpeg_quality = 90;  // 90: ~10:1 on TUM frames at > 35 dB PSNR (make bench)
   int zstd_level = 1;     // 1: zstd's fastest level; higher buys little on delta-coded depth
   int connect_timeout_ms = 1000;
@@ -118,13 +121,15 @@ class StreamSender {
   void run();
   // One connection's lifetime; returns when it ends (error or stop).
   void session(net::UniqueFd fd, protocol::StreamDecoder* decoder);
-  bool handshake(int fd, protocol::StreamDecoder* decoder, std::string* why);
+  bool handshake(int fd, protocol::StreamDecoder* decoder, std::string* why, bool* refused);
   bool send_newest(int fd, std::optional<std::uint32_t>* last_sent);
 
   StreamSenderOptions options_;
   capture::Clock* clock_;
   std::shared_ptr<spdlog::logger> log_;
-  std::unique_ptr<PayloadEncoder> encoder_;  // used by the connection thread only
+  std::unique_ptr<PayloadEncoder> encoder_;      // configured encoding; connection thread only
+  std::unique_ptr<PayloadEncoder> raw_encoder_;  // fallback; connection thread only
+  protocol::Encoding current_encoding_ = protocol::Encoding::kRaw;  // connection thread only
   net::Waker stop_waker_;
   net::Waker frame_waker_;
   mutable std::mutex mutex_;  // guards mailbox_, next_sequence_, counters_
