@@ -210,6 +210,13 @@ std::vector<FrameRecord> Pipeline::records() const {
   return records_;
 }
 
+std::optional<FrameRecord> Pipeline::record(std::int64_t index) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (auto it = records_.rbegin(); it != records_.rend(); ++it)
+    if (it->index == index) return *it;
+  return std::nullopt;
+}
+
 PipelineSummary Pipeline::summary() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return summary_;

@@ -92,6 +92,8 @@ class Pipeline {
   std::vector<FrameRecord> records() const;
   std::vector<std::pair<double, Eigen::Isometry3d>> final_trajectory() const;
   PipelineSummary summary() const;
+  /// Record of frame `index` as it stands now (sequential mode: final once submit() returned).
+  std::optional<FrameRecord> record(std::int64_t index) const;
   const BackEnd& backend() const { return *backend_; }
 
  private:
