@@ -3,6 +3,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <unistd.h>
 
 #include "slam/dataset/tum_dataset.hpp"
 
@@ -42,7 +43,9 @@ TEST(TumDataset, GivenBadInputThenClearErrors) {
   std::string err;
   EXPECT_FALSE(TumDataset::open("/nonexistent/folder", TumDatasetOptions{}, &err));
   EXPECT_NE(err.find("does not exist"), std::string::npos);
-  const auto tmp = std::filesystem::temp_directory_path() / "slam_dataset_test_bad";
+  // Unique per process so parallel test runs never share the folder.
+  const auto tmp = std::filesystem::temp_directory_path() /
+                   ("slam_dataset_test_bad_" + std::to_string(::getpid()));
   std::filesystem::create_directories(tmp);
   std::ofstream(tmp / "rgb.txt") << "# header\n1.0 rgb/missing.png\n";
   EXPECT_FALSE(TumDataset::open(tmp.string(), TumDatasetOptions{}, &err));
