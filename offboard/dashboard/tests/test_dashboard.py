@@ -14,7 +14,7 @@ import time
 import urllib.error
 import urllib.request
 
-from conftest import QuadControl
+from dashboard_fixtures import QuadControl
 
 STATE_WAIT_MS = 60_000  # SLAM on a busy 2-core machine can take seconds per frame
 

@@ -13,7 +13,7 @@ import urllib.request
 
 import pytest
 
-from conftest import REPO, QuadControl
+from dashboard_fixtures import REPO, QuadControl
 
 
 def free_port() -> int:

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -83,6 +84,7 @@ class FirmwareLink {
   ReplyCallback callback_;
   boost::asio::io_context io_;
   boost::asio::steady_timer timer_;
+  std::chrono::steady_clock::time_point next_tick_{};
   boost::asio::ip::tcp::resolver::results_type endpoints_;
   std::array<Client, 2> clients_;
   std::size_t next_client_ = 0;
