@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
 # `make hil`: every hardware-in-loop scenario (pytest tests marked `hil` under hil/), then a summary
-# of what each reported (test-artifacts/hil/*.json).
+# of what each reported (test-artifacts/hil/*.json) and the latency budget.
 #   RGBD_BUILD_DIR   build folder holding bin/fw_sim, bin/slam-eval, ... (default: build)
 #   RGBD_FIRMWARE_ELF firmware image (default: firmware/.pio/build/uno_wifi/program.elf)
 # Scenarios whose components are not built are skipped with the reason. Extra args go to pytest.
 set -uo pipefail
 if [ "${1:-}" = "-h" ] || [ "${1:-}" = "--help" ]; then
-  sed -n '2,7p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,6p' "$0" | sed 's/^# \{0,1\}//'
   exit 0
 fi
 root=$(cd "$(dirname "$0")/.." && pwd)
