@@ -60,7 +60,8 @@ def execute_job(job: dict, slam_eval: str, timeout_s: float) -> dict:
         if metrics.is_file():
             result["metrics"] = metrics.read_text()
         if returncode != 0:
-            result["reason"] = f"slam-eval exited with {returncode}"
+            last = stderr[-1].strip() if stderr else ""
+            result["reason"] = f"slam-eval exited with {returncode}" + (f": {last}" if last else "")
         elif result["trajectory"] is None:
             result["reason"] = "slam-eval wrote no trajectory.tum"
         else:

@@ -32,7 +32,8 @@ def test_sweep_runs_every_job_resumes_and_reports(tmp_path, fr1_xyz30, fake_slam
     record = json.loads((out / "sweep.json").read_text())
     assert record["runs_ok"] == 2 and record["runs_failed"] == 2
     assert "Table 4.14" in report and "Table 4.20a" in report and "Table 3.4" in report
-    assert "| fr1_xyz_first30 | orb-vo | 1 | slam-eval exited with 3 |" in report
+    assert ("| fr1_xyz_first30 | orb-vo | 1 | slam-eval exited with 3: fake-slam-eval: orb is "
+            "configured to fail |") in report
     assert (out / "plots" / "traj_fr1_xyz_first30.png").stat().st_size > 1000
     assert (out / "tables" / "table_4_5_rpe.csv").is_file()
     pairs_lines = (out / "pairs.csv").read_text().splitlines()
