@@ -83,6 +83,7 @@ def write_config(tmp: pathlib.Path, bridge_port: int) -> pathlib.Path:
     cfg = {
         "dashboard": {"bind_address": "127.0.0.1", "port": 0},
         "stream": {"source": "tum", "tum_folder": str(REPO / "tests/data/fr1_xyz_first30"), "loop": "bounce"},
+        "slam": {"mode": "in-process"},
         "firmware": {"host": "127.0.0.1", "port": bridge_port, "key_hex": KEY.hex(), "timeout_ms": 200},
         "camera": {"mount_pitch_down_deg": 0.0},
         "controller": {"hold_height_m": 1.0, "takeoff_reached_tolerance_m": 0.5,

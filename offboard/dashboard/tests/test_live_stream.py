@@ -39,6 +39,7 @@ def test_frames_from_rgbd_streamer_reach_the_dashboard(binary, tmp_path):
         "dashboard": {"port": 0},
         "stream": {"source": "receiver", "bind_address": "127.0.0.1", "rgb_port": rgb_port,
                    "depth_port": depth_port},
+        "slam": {"mode": "in-process"},
         "firmware": {"enabled": False},
     }))
     qc = QuadControl(binary, ["--config", str(cfg), "--port", "0"])

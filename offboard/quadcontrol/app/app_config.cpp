@@ -62,9 +62,6 @@ std::string AppConfig::validate() const {
     std::string e;
     if (!receiver.is_valid(&e)) return "stream: " + e;
   }
-  if (slam_mode != "in-process") {
-    return "slam.mode '" + slam_mode + "' is not available: slam-server does not exist yet, use 'in-process'";
-  }
   if (firmware_enabled) {
     if (auto e = firmware.validate(); !e.empty()) return e;
     if (firmware_key_hex.empty()) return "firmware.key_hex is empty: set the craft's 32-hex-digit key (or disable the firmware link)";
@@ -78,7 +75,8 @@ nlohmann::json AppConfig::to_json_redacted() const {
           {"stream", {{"source", stream_source}, {"tum_folder", replay.folder}, {"speed", replay.speed},
                       {"camera", replay.camera}, {"bind_address", receiver.bind_address},
                       {"rgb_port", receiver.rgb_port}, {"depth_port", receiver.depth_port}}},
-          {"slam", {{"mode", slam_mode}, {"socket", slam_socket}}},
+          {"slam", {{"mode", station.slam_mode}, {"host", station.slam_server.host}, {"port", station.slam_server.port},
+                    {"timeout_ms", station.slam_server.reply_timeout_ms}}},
           {"firmware", {{"enabled", firmware_enabled}, {"host", firmware.host}, {"port", firmware.port},
                         {"timeout_ms", firmware.timeout_ms}, {"period_ms", firmware.period_ms},
                         {"key_hex", firmware_key_hex.empty() ? "" : "<redacted>"},
@@ -122,8 +120,10 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
       !read(s, "stream", "source", c.stream_source, error) || !read(s, "stream", "tum_folder", c.replay.folder, error) ||
       !read(s, "stream", "loop", loop, error) || !read(s, "stream", "speed", c.replay.speed, error) ||
       !read(s, "stream", "camera", c.replay.camera, error) ||
-      !check_keys(sl, "slam", {"mode", "socket"}, error) || !read(sl, "slam", "mode", c.slam_mode, error) ||
-      !read(sl, "slam", "socket", c.slam_socket, error) ||
+      !check_keys(sl, "slam", {"mode", "host", "port", "timeout_ms"}, error) ||
+      !read(sl, "slam", "mode", c.station.slam_mode, error) || !read(sl, "slam", "host", c.station.slam_server.host, error) ||
+      !read(sl, "slam", "port", c.station.slam_server.port, error) ||
+      !read(sl, "slam", "timeout_ms", c.station.slam_server.reply_timeout_ms, error) ||
       !check_keys(f, "firmware", {"enabled", "host", "port", "timeout_ms", "period_ms", "key_hex", "control_spec"}, error) ||
       !read(f, "firmware", "enabled", c.firmware_enabled, error) || !read(f, "firmware", "host", c.firmware.host, error) ||
       !read(f, "firmware", "port", c.firmware.port, error) ||

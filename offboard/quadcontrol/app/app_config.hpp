@@ -26,9 +26,7 @@ struct AppConfig {
   std::string stream_source = "tum";  ///< "tum" (dataset replay) or "receiver" (rgbd-streamer, live)
   TumReplayOptions replay;
   receiver::ReceiverOptions receiver;  ///< bind address and RGB/depth ports (offboard/receiver defaults)
-  // SLAM link
-  std::string slam_mode = "in-process";  ///< "in-process"; "server" once slam-server exists
-  std::string slam_socket = "/tmp/rgbdquad-slam.sock";
+  // SLAM link: station.slam_mode / station.slam_server
   // firmware
   bool firmware_enabled = true;
   FirmwareLinkOptions firmware;

@@ -35,6 +35,8 @@ std::string GroundStationOptions::validate() const {
   if (floor_search_frames < 1 || floor_pixel_step < 1 || map_pixel_step < 1) return "floor/map steps must be >= 1";
   if (!(max_depth_m > 0.0)) return "map.max_depth_m must be > 0";
   if (control_period_ms < 5 || control_period_ms > 200) return "control_period_ms must be in [5, 200]";
+  if (slam_mode != "server" && slam_mode != "in-process") return "slam.mode must be 'server' or 'in-process'";
+  if (auto e = slam_server.validate(); !e.empty()) return e;
   return {};
 }
 
@@ -65,8 +67,12 @@ void GroundStation::frame_loop() {
     if (frame && !slam_ready_.load()) {
       // The SLAM link needs the camera's intrinsics: created on the first frame.
       std::string slam_error;
-      slam_ = InProcessSlam::create(frame->intrinsics,
-                                    [this](const SlamResult& r, const CameraFrame& f) { on_slam(r, f); }, &slam_error);
+      auto callback = [this](const SlamResult& r, const CameraFrame& f) { on_slam(r, f); };
+      if (options_.slam_mode == "server") {
+        slam_ = std::make_unique<SlamServerClient>(options_.slam_server, callback);
+      } else {
+        slam_ = InProcessSlam::create(frame->intrinsics, callback, &slam_error);
+      }
       if (!slam_) {
         std::lock_guard<std::mutex> lock(mutex_);
         source_error_ = "SLAM link: " + slam_error;

@@ -22,6 +22,7 @@
 #include "app/firmware_link.hpp"
 #include "app/frame_source.hpp"
 #include "app/slam_link.hpp"
+#include "app/slam_server_client.hpp"
 #include "core/flight_controller.hpp"
 #include "core/timestamp_buffer.hpp"
 #include "map/floor_map.hpp"
@@ -41,6 +42,8 @@ struct GroundStationOptions {
   int control_period_ms = 20;          ///< 50 Hz, the firmware command rate
   std::size_t trajectory_max_points = 5000;
   std::int64_t imu_match_window_us = 20000;  ///< TUM's association rule: nearest within 20 ms
+  std::string slam_mode = "server";  ///< "server": slam-server over the SLAM link; "in-process": front-end here
+  SlamServerOptions slam_server;
   std::string validate() const;
 };
 

@@ -23,8 +23,9 @@ int main(int argc, char** argv) {
       "http://127.0.0.1:8080/ by default. Every setting and its default is in the config file\n"
       "(offboard/quadcontrol/config/quad-control.json); command-line options override it.\n"
       "Frame sources: stream.source=receiver (rgbd-streamer, RGB port 5600 / depth port 5601) or\n"
-      "tum (TUM dataset replay, the default). SLAM: slam.mode=in-process (the SLAM engine's\n"
-      "front-end in this process); slam-server is not wired yet."};
+      "tum (TUM dataset replay, the default). SLAM: slam.mode=server (slam-server on\n"
+      "127.0.0.1:5700, the default; frames still show while it is down) or in-process (the SLAM\n"
+      "engine's front-end inside quad-control, odometry only)."};
   std::string config_path, bind_address, token, tum_folder, firmware_host, key_hex;
   int port = -1, firmware_port = -1;
   bool no_firmware = false, print_config = false;
@@ -38,6 +39,8 @@ int main(int argc, char** argv) {
   cli.add_option("--firmware-host", firmware_host, "firmware (WiFi bridge) address");
   cli.add_option("--firmware-port", firmware_port, "firmware HTTP port");
   cli.add_option("--key", key_hex, "craft control key, 32 hex digits (prefer the config file)");
+  std::string slam_mode;
+  cli.add_option("--slam", slam_mode, "SLAM link: server (slam-server, default) or in-process");
   cli.add_flag("--no-firmware", no_firmware, "do not talk to the firmware (commands are computed only)");
   cli.add_flag("--print-config", print_config, "print the effective configuration and exit");
   CLI11_PARSE(cli, argc, argv);
@@ -68,6 +71,7 @@ int main(int argc, char** argv) {
   if (firmware_port > 0 && firmware_port <= 65535) config->firmware.port = static_cast<std::uint16_t>(firmware_port);
   if (!key_hex.empty()) config->firmware_key_hex = key_hex;
   if (no_firmware) config->firmware_enabled = false;
+  if (!slam_mode.empty()) config->station.slam_mode = slam_mode;
   // Port 0 is accepted on the command line (tests): validate with a placeholder.
   const std::uint16_t wanted_port = config->dashboard_port;
   if (wanted_port == 0) config->dashboard_port = 1;
