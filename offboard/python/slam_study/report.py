@@ -410,8 +410,10 @@ def build(out: Path, references: list[tuple[str, str]], ks_for_rates: list[int],
     """Writes OUT/report.md (+ tables/, plots/, pairs.csv) from OUT/runs and the references
     [(dataset_dir, trajectory_file)]. Returns the report path."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / "tables").mkdir(exist_ok=True)
-    (out / "plots").mkdir(exist_ok=True)
+    for sub, pattern in (("tables", "*.csv"), ("plots", "*.png")):
+        (out / sub).mkdir(exist_ok=True)
+        for stale in (out / sub).glob(pattern):  # from an earlier report with other sources
+            stale.unlink()
     datasets: dict[str, Dataset] = {}
     runs = load_runs(out, datasets, warn)
     sources: list[Source] = []
