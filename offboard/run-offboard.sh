@@ -47,5 +47,11 @@ if [ -x "$slam_bin" ]; then
 else
   echo "run-offboard: $slam_bin not built; quad-control shows frames but gets no poses unless slam.mode is in-process"
 fi
-trap 'true' INT  # Ctrl-C goes to quad-control (same process group); we wait for it, then clean up
-"$bin" --config "$config" "$@"
+"$bin" --config "$config" "$@" &
+qc_pid=$!
+# Ctrl-C / SIGTERM: stop quad-control by its PID; the EXIT trap then stops slam-server.
+trap 'kill -TERM "$qc_pid" 2>/dev/null || true' INT TERM
+status=0
+wait "$qc_pid" || status=$?
+if kill -0 "$qc_pid" 2>/dev/null; then wait "$qc_pid" || status=$?; fi
+exit "$status"
