@@ -74,10 +74,18 @@ def predict(pairs: PairTable, trans_m_per_s: float, rot_deg_per_s: float,
 
 
 def lowest_fps_meeting(preds: list[Prediction], target_rpe_mm: float) -> Prediction | None:
-    """The lowest candidate rate whose cell has enough data and a mean translational RPE at or
-    below the target."""
-    meeting = [p for p in preds if p.enough and p.cell.trans_mean_mm <= target_rpe_mm]
-    return min(meeting, key=lambda p: p.fps) if meeting else None
+    """Going down from the highest candidate rate, the last rate whose cell has enough data and a
+    mean translational RPE at or below the target, stopping at the first rate that misses it (a
+    noisy dip below a failing rate is not trusted: error grows with motion per frame). Rates
+    without enough data are passed over."""
+    best = None
+    for p in sorted(preds, key=lambda p: -p.fps):
+        if not p.enough:
+            continue
+        if p.cell.trans_mean_mm > target_rpe_mm:
+            break
+        best = p
+    return best
 
 
 def guide_text(preds: list[Prediction], trans_m_per_s: float, rot_deg_per_s: float,

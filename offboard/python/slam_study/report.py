@@ -28,6 +28,7 @@ kPairColumns = ["source", "dataset", "features", "backend", "k", "stamp_s", "dt_
 # The per-pair study takes one back-end per detector: frame-to-frame error is the front end's, and
 # pooling vo/llc/glc would count the same frame pairs three times. vo is the plain front end.
 kGridBackend = "vo"
+kSweepSourcePrefix = "slam-eval "
 
 
 @dataclass
@@ -365,11 +366,13 @@ def read_pairs_csv(path: str | Path,
 
 
 def default_source(rows: list[dict]) -> str:
-    """The source with the most pairs (the densest grid); ties by name."""
+    """The slam-eval source with the most pairs (its runs cover the reduced frame rates), else the
+    source with the most pairs; ties by name."""
     counts: dict[str, int] = {}
     for r in rows:
         counts[r["source"]] = counts.get(r["source"], 0) + 1
-    return min(counts, key=lambda name: (-counts[name], name))
+    own = [name for name in counts if name.startswith(kSweepSourcePrefix)]
+    return min(own or counts, key=lambda name: (-counts[name], name))
 
 
 def _slug(name: str) -> str:
@@ -423,7 +426,7 @@ def build(out: Path, references: list[tuple[str, str]], ks_for_rates: list[int],
     for feat in sorted({r.features for r in ok_runs if r.backend == grid_backend}):
         chosen = [r for r in ok_runs if r.features == feat and r.backend == grid_backend]
         rows = [(r.dataset, r.features, r.backend, r.k, r.pairs) for r in chosen]
-        sources.append(Source(f"slam-eval {feat}-{grid_backend} (all datasets and k)",
+        sources.append(Source(f"{kSweepSourcePrefix}{feat}-{grid_backend} (all datasets and k)",
                               PairTable.concat([r.pairs for r in chosen]), rows))
     ref_trajs: dict[str, dict[str, Trajectory]] = {}
     for ds_dir, traj_file in references:

@@ -70,6 +70,18 @@ def test_platform_table_reports_envelope_or_not_enough_data():
     assert empty.rows[0][1] == "not enough data"
 
 
-def test_default_source_is_the_densest():
+def test_default_source_is_the_densest_sweep_source():
     rows = [{"source": "a"}, {"source": "b"}, {"source": "b"}, {"source": "c"}, {"source": "c"}]
     assert report.default_source(rows) == "b"
+    rows += [{"source": "slam-eval orb-vo"}]
+    assert report.default_source(rows) == "slam-eval orb-vo"
+
+
+def test_lowest_rate_stops_at_the_first_rate_missing_the_target():
+    # 9 mm/frame cell (3 mm) at 30 fps, 17 mm cell (9 mm) at 16 fps; a noisy 3 mm cell lower down
+    trans = [9.0] * 6 + [17.0] * 6 + [40.0] * 6
+    rot = [0.5] * 6 + [0.9] * 6 + [2.0] * 6
+    pairs = make_pairs(trans, rot, rpe_mm=[3.0] * 6 + [9.0] * 6 + [3.0] * 6)
+    preds = guide.predict(pairs, 0.27, 15.0, fps_list=(30.0, 16.0, 6.75))
+    assert preds[2].enough and preds[2].cell.trans_mean_mm == pytest.approx(3.0)
+    assert guide.lowest_fps_meeting(preds, 5.0).fps == 30.0
