@@ -279,6 +279,11 @@ def _fit_rows(pairs: PairTable) -> list[list[str]]:
          f"~{per_deg:g} mm per deg", ratio_verdict(c, per_deg)],
         ["marginal cost of translation (fit b)", sel_add, f"{b:.3f} ± {sb:.3f} mm per mm", n,
          "45 % at 10 mm (0.45 mm per mm if proportional)", ratio_verdict(b, per_mm)],
+        ["rotation hurts more: 1 deg costs as much as c/b mm of translation", sel_add,
+         f"{c / b:.1f} mm" if b > 0 else "b <= 0 (translation adds no error)", n,
+         f"~{per_deg / per_mm:.1f} mm (derived: 4 mm per deg / 0.45 mm per mm)",
+         "agrees (rotation costs more)" if (b <= 0 < c or (b > 0 and c / b > 1))
+         else "differs"],
         ["compounding (fit d; > 0 = super-additive)", sel_full,
          f"{d:.3f} ± {sd:.3f} mm per mm·deg", n, "multiplicative (no coefficient quoted)",
          "agrees" if d - 2 * sd > 0 else ("differs" if d + 2 * sd < 0 else "inconclusive (±2σ)")],
