@@ -200,6 +200,14 @@ def summarize_runs(out: Path) -> dict:
 
 
 def write_sweep_record(out: Path, record: dict) -> None:
+    """Appends this invocation's record to out/sweep.json ({"invocations": [...]}), so resuming a
+    sweep keeps the wall time of the invocations that did the work."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / "sweep.json").write_text(json.dumps(record, indent=1))
-
+    path = out / "sweep.json"
+    history: list = []
+    try:
+        history = json.loads(path.read_text()).get("invocations", [])
+    except (OSError, ValueError, AttributeError):
+        history = []
+    history.append(record)
+    path.write_text(json.dumps({"invocations": history}, indent=1))

@@ -29,7 +29,7 @@ def test_sweep_runs_every_job_resumes_and_reports(tmp_path, fr1_xyz30, fake_slam
     assert "exited with 3" in bad["reason"]
     assert "configured to fail" in (out / "runs/fr1_xyz_first30/orb-vo-k1/stderr.txt").read_text()
     report = (out / "report.md").read_text()
-    record = json.loads((out / "sweep.json").read_text())
+    record = json.loads((out / "sweep.json").read_text())["invocations"][-1]
     assert record["runs_ok"] == 2 and record["runs_failed"] == 2
     assert "Table 4.14" in report and "Table 4.20a" in report and "Table 3.4" in report
     assert ("| fr1_xyz_first30 | orb-vo | 1 | slam-eval exited with 3: fake-slam-eval: orb is "
@@ -44,6 +44,8 @@ def test_sweep_runs_every_job_resumes_and_reports(tmp_path, fr1_xyz30, fake_slam
     monkeypatch.delenv("FAKE_SLAM_EVAL_FAIL")
     assert _run_cli(out, fr1_xyz30, fake_slam_eval, "--retry-failed", "--no-report") == 0
     assert len(log.read_text().splitlines()) == 6
+    history = json.loads((out / "sweep.json").read_text())["invocations"]
+    assert [h["runs_this_invocation"] for h in history] == [4, 0, 2]
     assert json.loads((out / "runs/fr1_xyz_first30/orb-vo-k1/result.json").read_text())[
         "status"] == "ok"
 
