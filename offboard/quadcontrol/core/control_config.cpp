@@ -27,6 +27,8 @@ std::map<std::string, double*> scalar_fields(ControlConfig& c) {
       {"manual_step_m", &c.manual_step_m},
       {"manual_yaw_step_deg", &c.manual_yaw_step_deg},
       {"max_waypoint_distance_m", &c.max_waypoint_distance_m},
+      {"arm_gesture_ms", &c.arm_gesture_ms},
+      {"disarm_gesture_ms", &c.disarm_gesture_ms},
   };
 }
 

@@ -37,6 +37,10 @@ struct ControlConfig {
   double manual_step_m = 0.1;             ///< one manual key press moves the setpoint 10 cm
   double manual_yaw_step_deg = 10.0;      ///< one manual key press turns the setpoint 10 deg
   double max_waypoint_distance_m = 10.0;  ///< a click further than this is a mistake, rejected
+  /// ArduCopter arms on throttle low + yaw full right held for 2 s, disarms on yaw full left for
+  /// 2 s (docs/firmware.md); +1 s / +0.5 s margin for pre-arm checks and the PWM frame delay.
+  double arm_gesture_ms = 3000.0;
+  double disarm_gesture_ms = 2500.0;
 
   std::string validate() const;
 };

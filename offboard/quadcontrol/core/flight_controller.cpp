@@ -84,6 +84,8 @@ void FlightController::enter(FlightState state, std::int64_t now_us, const std::
     }
   }
   if (state == FlightState::kDisarmed || state == FlightState::kArmed) reset_pids();
+  // The APM was armed by the gesture: leaving armed/flight needs the disarm gesture.
+  disarm_gesture_pending_ = state == FlightState::kDisarmed;
 }
 
 std::string FlightController::command(std::int64_t now_us, OperatorCommand cmd) {
@@ -100,6 +102,9 @@ std::string FlightController::command(std::int64_t now_us, OperatorCommand cmd) 
       return {};
     case OperatorCommand::kTakeOff: {
       if (s != FlightState::kArmed) return "takeoff: only when armed";
+      if (static_cast<double>(now_us - state_entered_us_) < config_.arm_gesture_ms * kUsPerMs) {
+        return "takeoff: arming gesture still in progress";
+      }
       if (!has_fresh_pose(now_us)) return "takeoff: no tracked pose";
       reset_pids();
       const CraftPose& p = pose_->pose;
@@ -219,11 +224,17 @@ StickCommand FlightController::update(std::int64_t now_us) {
   }
 
   StickCommand cmd;
+  const double in_state_ms = static_cast<double>(now_us - state_entered_us_) / kUsPerMs;
   switch (s) {
     case FlightState::kDisarmed:
+      if (disarm_gesture_pending_ && in_state_ms < config_.disarm_gesture_ms) {
+        cmd.armed = true;
+        cmd.yaw_pct = -100.0;  // ArduCopter disarm gesture: throttle 0, yaw full left
+      }
       break;
     case FlightState::kArmed:
       cmd.armed = true;
+      if (in_state_ms < config_.arm_gesture_ms) cmd.yaw_pct = 100.0;  // arming gesture: yaw full right
       break;
     case FlightState::kLostHold:
       cmd.armed = true;
@@ -275,6 +286,8 @@ StickCommand FlightController::update(std::int64_t now_us) {
       if (near_ground || floor_long_enough) {
         enter(FlightState::kDisarmed, now_us, near_ground ? "landed, motors stopped" : "landed blind, motors stopped");
         cmd = StickCommand{};
+        cmd.armed = true;  // disarm gesture starts now (see kDisarmed)
+        cmd.yaw_pct = -100.0;
       }
       break;
     }

@@ -12,6 +12,11 @@
 // and pitch hold the position meanwhile), then moving with the heading fixed.
 // Landing is a steady throttle reduction; motors stop once the craft is close to the ground.
 //
+// Arming the APM: on entering armed the sticks hold ArduCopter's arming gesture (throttle 0, yaw
+// full right) for arm_gesture_ms, and take-off waits for it; on entering disarmed from armed or
+// from a landing they hold the disarm gesture (yaw full left) for disarm_gesture_ms with the
+// firmware still armed, then release it (armed = false).
+//
 // Stick convention of StickCommand (percent of full deflection from neutral): roll_pct > 0 rolls
 // right, pitch_pct > 0 pitches forward (nose down), yaw_pct > 0 turns clockwise seen from above
 // (right stick); throttle_pct is absolute, 0..100. Conversion to the firmware's PWM units is
@@ -116,6 +121,7 @@ class FlightController {
   double last_throttle_pct_ = 0.0;
   std::optional<double> unwrapped_yaw_deg_;
   double last_raw_yaw_deg_ = 0.0;
+  bool disarm_gesture_pending_ = false;
 };
 
 }  // namespace rgbdquad::quadcontrol

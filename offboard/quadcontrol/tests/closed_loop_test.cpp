@@ -64,6 +64,7 @@ class ClosedLoop : public ::testing::Test {
 TEST_F(ClosedLoop, TakeoffHoldWaypointBehindLand) {
   run_s(0.1);
   ASSERT_EQ(fc.command(now_us, OperatorCommand::kArm), "");
+  run_s(fc.config().arm_gesture_ms / 1000.0 + 0.1);  // ArduCopter's arming gesture
   ASSERT_EQ(fc.command(now_us, OperatorCommand::kTakeOff), "");
   // GIVEN take-off WHEN 15 s pass THEN holding at 1.7 m, within 10 cm, over the take-off point
   run_s(15.0);

@@ -23,9 +23,14 @@ class Flight : public ::testing::Test {
     fc.on_pose(PoseSample{now_us, tracking, pose});
     return fc.update(now_us);
   }
+  void arm_and_wait_gesture(bool tracking = true) {
+    ASSERT_EQ(fc.command(now_us, OperatorCommand::kArm), "");
+    const std::int64_t until = now_us + static_cast<std::int64_t>(fc.config().arm_gesture_ms) * kMsUs;
+    while (now_us < until) step(tracking);
+  }
   void to_hold() {
     step();
-    ASSERT_EQ(fc.command(now_us, OperatorCommand::kArm), "");
+    arm_and_wait_gesture();
     ASSERT_EQ(fc.command(now_us, OperatorCommand::kTakeOff), "");
     // The ideal craft follows the height setpoint.
     for (int i = 0; i < 500 && fc.status().state == FlightState::kTakeOff; ++i) {
@@ -66,6 +71,11 @@ TEST_F(Flight, CommandTransitionTable) {
     c.update(t);
     if (row.from != FlightState::kDisarmed) {
       ASSERT_EQ(c.command(t, OperatorCommand::kArm), "");
+      for (int i = 0; i < 160; ++i) {  // 3.2 s: past the arming gesture
+        t += kStepUs;
+        c.on_pose({t, true, p});
+        c.update(t);
+      }
     }
     if (row.from == FlightState::kTakeOff || row.from == FlightState::kHold) {
       ASSERT_EQ(c.command(t, OperatorCommand::kTakeOff), "");
@@ -88,6 +98,7 @@ TEST_F(Flight, DisarmedAndArmedOutputsAreSafe) {
   StickCommand s = step();
   EXPECT_FALSE(s.armed);
   EXPECT_EQ(s.throttle_pct, 0.0);
+  EXPECT_EQ(s.yaw_pct, 0.0);  // no disarm gesture at start-up
   ASSERT_EQ(fc.command(now_us, OperatorCommand::kArm), "");
   s = step();
   EXPECT_TRUE(s.armed);
@@ -95,16 +106,43 @@ TEST_F(Flight, DisarmedAndArmedOutputsAreSafe) {
   EXPECT_EQ(s.roll_pct, 0.0);
 }
 
+TEST_F(Flight, ArmingAndDisarmingGestures) {
+  step();
+  ASSERT_EQ(fc.command(now_us, OperatorCommand::kArm), "");
+  const std::int64_t armed_at = now_us;
+  // GIVEN armed WHEN within arm_gesture_ms THEN throttle 0 + yaw full right, take-off refused
+  StickCommand s = step();
+  EXPECT_EQ(s.yaw_pct, 100.0);
+  EXPECT_EQ(s.throttle_pct, 0.0);
+  EXPECT_NE(fc.command(now_us, OperatorCommand::kTakeOff), "");
+  while (now_us - armed_at < 2980 * kMsUs) s = step();
+  EXPECT_EQ(s.yaw_pct, 100.0);
+  // WHEN the gesture time has passed THEN sticks neutral and take-off accepted
+  s = step();
+  s = step();
+  EXPECT_EQ(s.yaw_pct, 0.0);
+  // WHEN disarmed THEN yaw full left with the firmware still armed, then released
+  ASSERT_EQ(fc.command(now_us, OperatorCommand::kDisarm), "");
+  const std::int64_t disarmed_at = now_us;
+  s = step();
+  EXPECT_TRUE(s.armed);
+  EXPECT_EQ(s.yaw_pct, -100.0);
+  EXPECT_EQ(s.throttle_pct, 0.0);
+  while (now_us - disarmed_at < 2520 * kMsUs) s = step();
+  EXPECT_FALSE(s.armed);
+  EXPECT_EQ(s.yaw_pct, 0.0);
+}
+
 TEST_F(Flight, TakeoffNeedsTracking) {
   step(false);
-  ASSERT_EQ(fc.command(now_us, OperatorCommand::kArm), "");
-  EXPECT_NE(fc.command(now_us, OperatorCommand::kTakeOff), "");
+  arm_and_wait_gesture(false);
+  EXPECT_EQ(fc.command(now_us, OperatorCommand::kTakeOff), "takeoff: no tracked pose");
   EXPECT_EQ(fc.status().state, FlightState::kArmed);
 }
 
 TEST_F(Flight, TakeoffRampsToHoldHeight) {
   step();
-  ASSERT_EQ(fc.command(now_us, OperatorCommand::kArm), "");
+  arm_and_wait_gesture();
   ASSERT_EQ(fc.command(now_us, OperatorCommand::kTakeOff), "");
   // GIVEN the craft does not climb yet WHEN 1 s passes THEN the setpoint rose 0.5 m and throttle > hover
   StickCommand s;
@@ -280,10 +318,10 @@ TEST_F(Flight, LandingIsASteadyRampThenMotorsStop) {
     pose.z_m = std::max(0.0, pose.z_m - 0.02);
     ++steps;
   }
-  // THEN the motors stop once the craft is near the ground
+  // THEN the motors stop once the craft is near the ground, with the disarm gesture
   EXPECT_EQ(fc.status().state, FlightState::kDisarmed);
-  EXPECT_FALSE(s.armed);
   EXPECT_EQ(s.throttle_pct, 0.0);
+  EXPECT_EQ(s.yaw_pct, -100.0);
   EXPECT_LE(pose.z_m, fc.config().motor_stop_height_m + 0.02);
 }
 
@@ -314,7 +352,7 @@ TEST_F(Flight, BlindLandingStopsAfterFloorHold) {
   const double elapsed_s = static_cast<double>(now_us - start) / 1e6;
   EXPECT_NEAR(elapsed_s, expected_s, 2.0 * kStepUs / 1e6);
   EXPECT_EQ(fc.status().state, FlightState::kDisarmed);
-  EXPECT_FALSE(s.armed);
+  EXPECT_EQ(s.throttle_pct, 0.0);
 }
 
 TEST_F(Flight, ManualNudgeMovesSetpointInBodyFrame) {
