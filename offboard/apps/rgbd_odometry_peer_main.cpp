@@ -20,13 +20,16 @@ namespace fs = std::filesystem;
 int main(int argc, char** argv) {
   CLI::App app{"rgbd-odometry-peer: cv::rgbd::RgbdOdometry on a TUM folder, scored like slam-eval"};
   std::string dataset, out, camera = "fr1";
-  int rate = 1, max_frames = 0;
+  int rate = 1, max_frames = 0, cv_threads = 1;
   app.add_option("--dataset", dataset, "TUM folder")->required();
   app.add_option("--out", out, "output folder (created)")->required();
   app.add_option("--camera", camera, "fr1 | fr2 | fr3")->check(CLI::IsMember({"fr1", "fr2", "fr3"}))->capture_default_str();
   app.add_option("--rate", rate, "keep every K-th frame")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--max-frames", max_frames, "0 = all")->check(CLI::NonNegativeNumber)->capture_default_str();
+  app.add_option("--cv-threads", cv_threads, "OpenCV worker threads (1: CPU ms per frame is complete; -1 = OpenCV default)")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  if (cv_threads >= 0) cv::setNumThreads(cv_threads);
 
   std::string err;
   slam::Intrinsics k;
@@ -40,7 +43,7 @@ int main(int argc, char** argv) {
   const cv::Mat K = (cv::Mat_<float>(3, 3) << k.fx_px, 0, k.cx_px, 0, k.fy_px, k.cy_px, 0, 0, 1);
   cv::Ptr<cv::rgbd::RgbdOdometry> odo = cv::rgbd::RgbdOdometry::create(K);
   slam::eval::Trajectory traj;
-  std::vector<double> ms;
+  std::vector<double> ms, cpu_ms;
   cv::Mat prev_grey, prev_depth;
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
   std::size_t failures = 0;
@@ -48,6 +51,7 @@ int main(int argc, char** argv) {
     auto f = ds->load(i, &err);
     if (!f) { std::cerr << "rgbd-odometry-peer: " << err << "\n"; return 1; }
     const std::int64_t t0 = slam::steady_now_ns();
+    const std::int64_t c0 = slam::thread_cpu_now_ns();
     cv::Mat grey, depth;
     cv::cvtColor(f->rgb, grey, cv::COLOR_BGR2GRAY);
     f->depth.convertTo(depth, CV_32F, 1.0 / k.depth_units_per_m);
@@ -64,6 +68,7 @@ int main(int argc, char** argv) {
         ++failures;
       }
       ms.push_back(slam::ms_since(t0));
+      cpu_ms.push_back((slam::thread_cpu_now_ns() - c0) * 1e-6);
     }
     prev_grey = grey;
     prev_depth = depth;
@@ -78,6 +83,9 @@ int main(int argc, char** argv) {
   m["frames"] = traj.size();
   m["failures"] = failures;
   std::sort(ms.begin(), ms.end());
+  std::sort(cpu_ms.begin(), cpu_ms.end());
+  if (!cpu_ms.empty()) m["cpu_ms_per_frame_median"] = cpu_ms[cpu_ms.size() / 2];
+  m["cv_threads"] = cv_threads;
   if (!ms.empty()) {
     double s = 0;
     for (double x : ms) s += x;
