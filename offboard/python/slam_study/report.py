@@ -398,6 +398,16 @@ def pair_sections(src: Source, out: Path) -> list[str]:
     t420a, t420b, cells = tables.joint_grid(p)
     t416, t419 = tables.velocity_tables(p)
     t421 = guide.platform_table(p)
+    quoted = "Thesis (published) values for this table: "
+    t414.note = (quoted + "~45 % translational error and 0.2 deg at 10 mm per frame; other cells "
+                 "not quoted.")
+    t417.note = (quoted + "~4 mm translational error and ~20 % rotational error at 1 deg per "
+                 "frame; other cells not quoted.")
+    t420a.note = (quoted + f"cell 16-18 mm x 1.6-1.8 deg (18 mm + 1.8 deg): "
+                  f"{thesis.kGridCorner['rpe_trans_mm']:.2f} mm / "
+                  f"{thesis.kGridCorner['rpe_rot_deg']:.2f} deg; other cells not quoted.")
+    for table in (t415, t416, t418, t419, t420b, t421):
+        table.note = (table.note + " " if table.note else "") + "Thesis values: not quoted."
     comparison = thesis_comparison(p)
     for table in (comparison, t414, t415, t416, t417, t418, t419, t420a, t420b, t421):
         (out / "tables" / f"{slug}__{table.key}.csv").write_text(table.csv())
