@@ -54,15 +54,21 @@ def test_dashboard_end_to_end(quad_control, firmware, browser, artifacts):
     assert page.text_content("#state") == "disarmed"
     page.screenshot(path=str(artifacts / "01_frames.png"), full_page=True)
 
-    # WHEN Arm is clicked THEN the controller is armed and the firmware receives arm=1
+    # WHEN Arm is clicked THEN the controller is armed and the firmware receives arm=1 with
+    # ArduCopter's arming gesture (throttle 1000 us, yaw full right 2000 us)
     page.click("#btn-arm")
     page.wait_for_function("document.getElementById('state').textContent === 'armed'", timeout=10_000)
-    wait_for(lambda: (c := double.last_command()) and c["arm"] == 1, 10, "firmware to receive arm=1")
+    wait_for(lambda: (c := double.last_command()) and c["arm"] == 1 and c["yaw"] == 2000 and c["thr"] == 1000,
+             10, "firmware to receive arm=1 with the arming gesture")
     assert double.state == "armed"
+    # AND take-off is refused while the gesture is held
+    page.click("#btn-takeoff")
+    page.wait_for_function("document.getElementById('message').textContent.includes('gesture')", timeout=10_000)
 
-    # WHEN Take off is clicked (needs a tracked pose) THEN take-off, then hold at the bench height
+    # WHEN Take off is clicked after the gesture (needs a tracked pose) THEN take-off, then hold
     page.wait_for_function("document.getElementById('tracking').textContent.startsWith('tracking: yes')",
                            timeout=STATE_WAIT_MS)
+    wait_for(lambda: (c := double.last_command()) and c["yaw"] == 1500, 15, "the arming gesture to end")
     page.click("#btn-takeoff")
     page.wait_for_function("['take-off', 'hold'].includes(document.getElementById('state').textContent)",
                            timeout=10_000)
