@@ -31,7 +31,7 @@ struct RunArgs {
   int cv_threads = -1;
   int rate = 1, max_frames = 0, map_stride = 8, sift_first_octave = 0, max_features = 0;
   std::uint64_t seed = 20260101;
-  bool undistort = false, no_map = false, quiet = false, no_reprojection = false;
+  bool no_undistort = false, no_map = false, quiet = false, no_reprojection = false;
   std::string stamp = "depth";
 };
 
@@ -66,7 +66,7 @@ int run_command(const RunArgs& a) {
     std::cerr << "slam-eval: " << err << "\n";
     return 2;
   }
-  po.frontend.features.undistort = a.undistort;
+  po.frontend.features.undistort = !a.no_undistort;
   po.reprojection_refine = !a.no_reprojection;
   po.frontend.features.sift_upsample_first_octave = a.sift_first_octave < 0;
   po.frontend.features.sift_max_features = a.max_features;
@@ -176,7 +176,7 @@ int run_command(const RunArgs& a) {
   m["seed"] = a.seed;
   m["sift_first_octave"] = a.sift_first_octave;
   m["max_features"] = a.max_features;
-  m["undistort"] = a.undistort;
+  m["undistort"] = !a.no_undistort;
   m["stamp"] = a.stamp;
   m["reprojection_refine"] = !a.no_reprojection;
   m["cv_threads"] = a.cv_threads;
@@ -302,7 +302,8 @@ int main(int argc, char** argv) {
   run->add_option("--cv-threads", a.cv_threads,
                   "OpenCV worker threads (-1 = OpenCV default; 1 makes *_cpu timings complete)")
       ->capture_default_str();
-  run->add_flag("--undistort", a.undistort, "undistort keypoints before lifting to 3D");
+  run->add_flag("--no-undistort", a.no_undistort,
+                "use keypoints as detected (default: undistort them with the camera's coefficients before lifting to 3D)");
   run->add_flag("--no-map", a.no_map, "do not write map.ply");
   run->add_flag("--quiet", a.quiet, "no per-25-frame progress");
   std::string gt, est;

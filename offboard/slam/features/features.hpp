@@ -51,7 +51,10 @@ struct FeatureOptions {
   // (about 4 cm at 4 m), so points beyond `max_depth_m` are dropped.
   double min_depth_m = 0.3;
   double max_depth_m = 4.0;
-  bool undistort = false;  ///< undistort keypoint coordinates before back-projection
+  /// Undistort keypoint coordinates before back-projection (the TUM colour images are not
+  /// rectified; fr1 k1 = 0.26). Measured on fr1_xyz_first300, SIFT VO+GLC: ATE 13.0 -> 12.0 mm,
+  /// RPE 6.56 -> 6.40 mm.
+  bool undistort = true;
 
   bool is_valid(std::string* error) const;
 };
