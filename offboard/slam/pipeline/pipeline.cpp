@@ -3,6 +3,10 @@
 
 #include <algorithm>
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 namespace slam {
 
 bool parse_pipeline_mode(const std::string& name, PipelineMode* out, std::string* error) {
@@ -112,6 +116,14 @@ void Pipeline::frontend_loop() {
 }
 
 void Pipeline::backend_loop() {
+  if (options_.mode == PipelineMode::kRealtime) {
+    // Real time: the front-end must keep up with the camera; the back-end is best effort (it
+    // skips frames anyway), so it yields the CPU to the front-end. Linux applies nice per thread.
+    constexpr int kBackendNiceRealtime = 10;
+    if (setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), kBackendNiceRealtime) != 0) {
+      // Not fatal: without it the back-end competes for the CPU as an equal.
+    }
+  }
   for (;;) {
     FrontendOutput out;
     {
