@@ -1,75 +1,28 @@
-// Control-link codec: see control_codec.hpp.
+// Control-link adapter: see control_codec.hpp. Encoding, MAC and reply validation are
+// protocol/control's rgbd_control_client_codec; this file adds the spec-derived ranges and routes.
 #include "link/control_codec.hpp"
 
+#include <algorithm>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
-#include <sstream>
 
-#include "rgbd_control/siphash24.h"
+#include "rgbd_control/client_codec.h"
 
 namespace rgbdquad::quadcontrol {
 
 namespace {
 constexpr const char* kFieldOrder[] = {"seq", "arm", "roll", "pitch", "thr", "yaw"};
-constexpr const char* kReplyFields[] = {"err", "fw", "state", "seq", "out_us", "clamped",
-                                        "att_mrad", "att_age_ms", "imu_raw", "imu_age_ms"};
-
-template <std::size_t N>
-bool read_ints(const nlohmann::json& j, const char* name, std::array<int, N>& out, std::string* error) {
-  const auto& v = j[name];
-  if (!v.is_array() || v.size() != N) {
-    *error = std::string("reply field ") + name + " must be an array of " + std::to_string(N) + " integers";
-    return false;
-  }
-  for (std::size_t i = 0; i < N; ++i) {
-    if (!v[i].is_number_integer()) {
-      *error = std::string("reply field ") + name + " must hold integers";
-      return false;
-    }
-    out[i] = v[i].get<int>();
-  }
-  return true;
-}
-
-bool read_age(const nlohmann::json& j, const char* name, std::optional<std::uint32_t>& out, std::string* error) {
-  const auto& v = j[name];
-  if (v.is_null()) {
-    out.reset();
-    return true;
-  }
-  if (!v.is_number_unsigned() || v.get<std::uint64_t>() > 0xFFFFFFFFULL) {
-    *error = std::string("reply field ") + name + " must be null or a u32";
-    return false;
-  }
-  out = static_cast<std::uint32_t>(v.get<std::uint64_t>());
-  return true;
-}
+constexpr const char* kRequestMethod = "PUT ";
 }  // namespace
 
 std::optional<ControlKey> parse_control_key(const std::string& hex, std::string* error) {
-  if (hex.size() != 32) {
-    *error = "control key must be 32 hex digits (16 bytes), got " + std::to_string(hex.size()) + " characters";
+  const auto key = rgbd_control::parse_key_hex(hex);
+  if (!key) {
+    *error = "control key must be 32 hex digits (16 bytes), got \"" + hex.substr(0, 40) + "\"";
     return std::nullopt;
   }
-  ControlKey key{};
-  for (std::size_t i = 0; i < 16; ++i) {
-    unsigned v = 0;
-    for (int k = 0; k < 2; ++k) {
-      const char c = hex[2 * i + k];
-      unsigned d;
-      if (c >= '0' && c <= '9') d = c - '0';
-      else if (c >= 'a' && c <= 'f') d = c - 'a' + 10;
-      else if (c >= 'A' && c <= 'F') d = c - 'A' + 10;
-      else {
-        *error = "control key: not a hex digit";
-        return std::nullopt;
-      }
-      v = v * 16 + d;
-    }
-    key[i] = static_cast<std::uint8_t>(v);
-  }
-  return key;
+  return *key;
 }
 
 std::optional<ControlSpec> load_control_spec(const std::string& spec_path, std::string* error) {
@@ -120,51 +73,40 @@ std::optional<std::string> build_control_target(const ControlSpec& spec, const C
       return std::nullopt;
     }
   }
-  std::ostringstream target;
-  target << spec.control_path << '?';
-  for (int i = 0; i < 6; ++i) target << (i ? "&" : "") << kFieldOrder[i] << '=' << values[i];
-  const std::string signed_part = "PUT " + target.str();
-  const std::uint64_t tag = rgbd_control::siphash24(
-      key.data(), reinterpret_cast<const std::uint8_t*>(signed_part.data()), signed_part.size());
-  static const char* kHex = "0123456789abcdef";
-  std::string mac;
-  for (int i = 0; i < 8; ++i) {
-    const auto byte = static_cast<std::uint8_t>(tag >> (8 * i));
-    mac += kHex[byte >> 4];
-    mac += kHex[byte & 15];
+  rgbd_control::ControlCommand cmd;
+  cmd.seq = f.seq;
+  cmd.arm = f.arm;
+  cmd.roll_us = f.roll_us;
+  cmd.pitch_us = f.pitch_us;
+  cmd.thr_us = f.thr_us;
+  cmd.yaw_us = f.yaw_us;
+  auto line = rgbd_control::build_control_request(key, cmd, error);
+  if (!line) return std::nullopt;
+  // The shared codec returns the request line "PUT <target>"; Beast wants the target alone.
+  if (line->rfind(kRequestMethod, 0) != 0 || line->compare(4, spec.control_path.size(), spec.control_path) != 0) {
+    *error = "control request does not match the spec's route " + spec.control_path;
+    return std::nullopt;
   }
-  return target.str() + "&mac=" + mac;
+  return line->substr(4);
 }
 
 std::optional<ControlReply> parse_control_reply(int status, const std::string& body, std::string* error) {
-  const auto j = nlohmann::json::parse(body, nullptr, false);
-  if (j.is_discarded() || !j.is_object()) {
-    *error = "reply body is not a JSON object";
-    return std::nullopt;
-  }
-  for (const char* k : kReplyFields) {
-    if (!j.contains(k)) {
-      *error = std::string("reply lacks ") + k;
-      return std::nullopt;
-    }
-  }
-  if (!j["err"].is_string() || !j["fw"].is_string() || !j["state"].is_string() ||
-      !j["seq"].is_number_unsigned() || !j["clamped"].is_number_integer()) {
-    *error = "reply field of the wrong type";
-    return std::nullopt;
-  }
+  // The bridge turns the firmware's reply line "<status> <json>" into an HTTP status and body;
+  // rebuild the line and let the shared codec validate it exactly as the golden vectors do.
+  const auto reply = rgbd_control::parse_reply(std::to_string(status) + " " + body, error);
+  if (!reply) return std::nullopt;
   ControlReply r;
-  r.status = status;
-  r.err = j["err"].get<std::string>();
-  r.fw = j["fw"].get<std::string>();
-  r.state = j["state"].get<std::string>();
-  r.seq = j["seq"].get<std::uint32_t>();
-  r.clamped = j["clamped"].get<int>();
-  if (!read_ints(j, "out_us", r.out_us, error) || !read_ints(j, "att_mrad", r.att_mrad, error) ||
-      !read_ints(j, "imu_raw", r.imu_raw, error) || !read_age(j, "att_age_ms", r.att_age_ms, error) ||
-      !read_age(j, "imu_age_ms", r.imu_age_ms, error)) {
-    return std::nullopt;
-  }
+  r.status = reply->status;
+  r.err = reply->err;
+  r.fw = reply->fw;
+  r.state = reply->state;
+  r.seq = reply->seq;
+  r.clamped = reply->clamped;
+  std::copy(reply->out_us.begin(), reply->out_us.end(), r.out_us.begin());
+  std::copy(reply->att_mrad.begin(), reply->att_mrad.end(), r.att_mrad.begin());
+  std::copy(reply->imu_raw.begin(), reply->imu_raw.end(), r.imu_raw.begin());
+  r.att_age_ms = reply->att_age_ms;
+  r.imu_age_ms = reply->imu_age_ms;
   return r;
 }
 

@@ -1,10 +1,10 @@
 // C++ ground-station side of the control link (protocol/control/control_spec.json, docs/protocol-control.md):
 // builds the authenticated "PUT /control?seq=..&arm=..&roll=..&pitch=..&thr=..&yaw=..&mac=.." target and
-// parses the "<status> <json>" reply. Ranges are read from the spec file (load_control_spec), never
-// redefined here; the MAC is protocol/control's SipHash-2-4 header. Proven against
-// protocol/control/vectors/control_vectors.json in tests/control_codec_test.cpp.
-// NOTE: protocol/control/ plans its own C++ codec; when it lands this file should become a thin
-// adapter over it. Pure functions; thread-safe.
+// parses the "<status> <json>" reply. A thin adapter over protocol/control's shared C++ codec
+// (rgbd_control_client_codec: request line, SipHash-2-4 MAC, strict reply parsing) that adds the
+// ranges and routes read from the spec file (load_control_spec), never redefined here. Proven
+// against protocol/control/vectors/control_vectors.json in tests/control_codec_test.cpp.
+// Pure functions; thread-safe.
 #pragma once
 
 #include <array>
