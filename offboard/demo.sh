@@ -20,7 +20,9 @@ python=python3
 "$python" - "$OUT/score.json" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))
-print(f"demo: ATE RMSE {s['ate_rmse_m'] * 1000:.1f} mm (rotation {s['ate_rot_rmse_deg']:.2f} deg), "
+# The ATE rotation RMSE (in score.json) is not printed: on a 1 s, nearly straight excerpt the
+# position-only SE(3) alignment leaves the rotation about the path direction unconstrained.
+print(f"demo: ATE RMSE {s['ate_rmse_m'] * 1000:.1f} mm, "
       f"RPE {s['rpe_trans_rmse_mm']:.2f} mm / {s['rpe_rot_rmse_deg']:.3f} deg per frame, {s['pairs']} poses")
 PY
 if "$python" -c "import matplotlib" 2>/dev/null; then
