@@ -16,39 +16,17 @@ InProcessSlam::InProcessSlam(slam::FrontEnd frontend, Callback callback)
 }
 
 InProcessSlam::~InProcessSlam() {
-  stop_ = true;
-  cv_.notify_all();
+  mailbox_.close();
   if (thread_.joinable()) thread_.join();
 }
 
-bool InProcessSlam::submit(const CameraFrame& frame) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  ++stats_.submitted;
-  if (busy_ || pending_) {
-    ++stats_.dropped_busy;
-    return false;
-  }
-  pending_ = frame;
-  cv_.notify_one();
-  return true;
-}
+bool InProcessSlam::submit(const CameraFrame& frame) { return mailbox_.offer(frame); }
 
-SlamStats InProcessSlam::stats() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  return stats_;
-}
+SlamStats InProcessSlam::stats() const { return mailbox_.stats(); }
 
 void InProcessSlam::run() {
-  while (true) {
-    CameraFrame frame;
-    {
-      std::unique_lock<std::mutex> lock(mutex_);
-      cv_.wait(lock, [this] { return stop_.load() || pending_.has_value(); });
-      if (stop_) return;
-      frame = std::move(*pending_);
-      pending_.reset();
-      busy_ = true;
-    }
+  while (auto taken = mailbox_.take()) {
+    const CameraFrame& frame = *taken;
     slam::RgbdFrame input;
     input.index = frame.sequence;
     input.stamp_s = static_cast<double>(frame.capture_us) / 1e6;
@@ -73,16 +51,7 @@ void InProcessSlam::run() {
     } else {
       result.state = "lost";
     }
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      busy_ = false;
-      ++stats_.processed;
-      if (!out) {
-        ++stats_.failed;
-        stats_.last_error = error;
-      }
-      stats_.last_latency_ms = result.latency_ms;
-    }
+    mailbox_.finish(out.has_value(), result.latency_ms, error);
     if (callback_) callback_(result, frame);
   }
 }

@@ -6,17 +6,15 @@
 // is dropped (counted). Results are delivered through the callback on the SLAM thread.
 #pragma once
 
-#include <atomic>
-#include <condition_variable>
 #include <functional>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
 
 #include <Eigen/Geometry>
 
+#include "app/frame_mailbox.hpp"
 #include "app/frame_source.hpp"
 #include "slam/pipeline/frontend.hpp"
 
@@ -30,12 +28,6 @@ struct SlamResult {
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< world = first camera frame
   std::size_t inliers = 0;
   double latency_ms = 0.0;  ///< hand-over to result
-};
-
-struct SlamStats {
-  std::size_t submitted = 0, processed = 0, dropped_busy = 0, failed = 0;
-  double last_latency_ms = 0.0;
-  std::string last_error;
 };
 
 class SlamLink {
@@ -63,12 +55,7 @@ class InProcessSlam : public SlamLink {
 
   slam::FrontEnd frontend_;
   Callback callback_;
-  mutable std::mutex mutex_;
-  std::condition_variable cv_;
-  std::optional<CameraFrame> pending_;
-  bool busy_ = false;
-  SlamStats stats_;
-  std::atomic<bool> stop_{false};
+  FrameMailbox mailbox_;
   std::thread thread_;
 };
 

@@ -62,7 +62,7 @@ SlamServerClient::SlamServerClient(SlamServerOptions options, Callback callback)
 
 SlamServerClient::~SlamServerClient() {
   stop_ = true;
-  cv_.notify_all();
+  mailbox_.close();
   const int fd = socket_fd_.load();
   if (fd >= 0) ::shutdown(fd, SHUT_RDWR);  // unblocks a read in progress
   if (thread_.joinable()) thread_.join();
@@ -72,22 +72,9 @@ std::string SlamServerClient::name() const {
   return "slam-server at " + options_.host + ":" + std::to_string(options_.port);
 }
 
-bool SlamServerClient::submit(const CameraFrame& frame) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  ++stats_.submitted;
-  if (busy_ || pending_) {
-    ++stats_.dropped_busy;
-    return false;
-  }
-  pending_ = frame;
-  cv_.notify_one();
-  return true;
-}
+bool SlamServerClient::submit(const CameraFrame& frame) { return mailbox_.offer(frame); }
 
-SlamStats SlamServerClient::stats() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  return stats_;
-}
+SlamStats SlamServerClient::stats() const { return mailbox_.stats(); }
 
 void SlamServerClient::disconnect() {
   socket_fd_ = -1;
@@ -119,8 +106,7 @@ std::optional<proto::Message> SlamServerClient::receive(std::string* error) {
     auto r = decoder_.next();
     if (r.status == proto::DecodeStatus::kMessage) return r.message;
     if (r.status == proto::DecodeStatus::kError) {
-      std::lock_guard<std::mutex> lock(mutex_);
-      stats_.last_error = std::string("dropped bytes: ") + proto::to_string(r.error) + " " + r.detail;
+      mailbox_.note_error(std::string("dropped bytes: ") + proto::to_string(r.error) + " " + r.detail);
       continue;
     }
     boost::system::error_code ec;
@@ -225,16 +211,8 @@ std::optional<SlamResult> SlamServerClient::exchange(const CameraFrame& f, std::
 }
 
 void SlamServerClient::run() {
-  while (true) {
-    CameraFrame frame;
-    {
-      std::unique_lock<std::mutex> lock(mutex_);
-      cv_.wait(lock, [this] { return stop_.load() || pending_.has_value(); });
-      if (stop_) return;
-      frame = std::move(*pending_);
-      pending_.reset();
-      busy_ = true;
-    }
+  while (auto taken = mailbox_.take()) {
+    const CameraFrame& frame = *taken;
     std::string error;
     std::optional<SlamResult> result;
     const std::int64_t now = monotonic_now_us();
@@ -249,17 +227,7 @@ void SlamServerClient::run() {
       error = "not connected (retrying every " + std::to_string(options_.reconnect_interval_ms) + " ms)";
     }
     if (result) result->latency_ms = static_cast<double>(monotonic_now_us() - frame.received_us) / 1000.0;
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      busy_ = false;
-      if (result) {
-        ++stats_.processed;
-        stats_.last_latency_ms = result->latency_ms;
-      } else {
-        ++stats_.failed;
-        stats_.last_error = error;
-      }
-    }
+    mailbox_.finish(result.has_value(), result ? result->latency_ms : 0.0, error);
     if (result && callback_) callback_(*result, frame);
   }
 }

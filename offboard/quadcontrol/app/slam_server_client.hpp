@@ -8,9 +8,7 @@
 #pragma once
 
 #include <atomic>
-#include <condition_variable>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
@@ -55,11 +53,7 @@ class SlamServerClient : public SlamLink {
   bool connected_ = false;
   std::int64_t last_attempt_us_ = 0;
   protocol::StreamDecoder decoder_;
-  mutable std::mutex mutex_;
-  std::condition_variable cv_;
-  std::optional<CameraFrame> pending_;
-  bool busy_ = false;
-  SlamStats stats_;
+  FrameMailbox mailbox_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };
