@@ -278,14 +278,17 @@ nlohmann::json GroundStation::state_json() {
   return j;
 }
 
+void GroundStation::invalidate_image_caches_if_new_frame() {
+  if (cache_sequence_ == latest_frame_->sequence) return;
+  rgb_jpeg_cache_.reset();
+  depth_png_cache_.reset();
+  cache_sequence_ = latest_frame_->sequence;
+}
+
 std::optional<std::string> GroundStation::rgb_jpeg() {
   std::lock_guard<std::mutex> lock(mutex_);
   if (!latest_frame_) return std::nullopt;
-  if (cache_sequence_ != latest_frame_->sequence) {
-    rgb_jpeg_cache_.reset();
-    depth_png_cache_.reset();
-    cache_sequence_ = latest_frame_->sequence;
-  }
+  invalidate_image_caches_if_new_frame();
   if (!rgb_jpeg_cache_) {
     std::vector<std::uint8_t> buf;
     if (!cv::imencode(".jpg", latest_frame_->rgb, buf, {cv::IMWRITE_JPEG_QUALITY, 80})) return std::nullopt;
@@ -297,11 +300,7 @@ std::optional<std::string> GroundStation::rgb_jpeg() {
 std::optional<std::string> GroundStation::depth_png() {
   std::lock_guard<std::mutex> lock(mutex_);
   if (!latest_frame_) return std::nullopt;
-  if (cache_sequence_ != latest_frame_->sequence) {
-    rgb_jpeg_cache_.reset();
-    depth_png_cache_.reset();
-    cache_sequence_ = latest_frame_->sequence;
-  }
+  invalidate_image_caches_if_new_frame();
   if (!depth_png_cache_) {
     // 16-bit depth as greyscale: near = bright, far = dark, no reading = black.
     const cv::Mat& d = latest_frame_->depth;
