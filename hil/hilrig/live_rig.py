@@ -22,6 +22,8 @@ import os
 import threading
 import time
 
+import numpy as np
+
 from fc_emulator import FcOptions, FcSnapshot, FlightControllerEmulator, QuadParams
 from hilrig.fw_sim import firmware_elf
 from hilrig.paths import find_binary
@@ -45,11 +47,13 @@ class _Pending:
 @dataclass(frozen=True)
 class LineTiming:
     """Simulated times of one bridge request: injected on the serial link, reply complete, and the
-    rise of the first throttle pulse after the reply (when the new command reaches the APM)."""
+    rise of the first throttle pulse after the reply (when the new command reaches the APM);
+    `line` is the request line (its seq= ties it to the ground station's flight log)."""
 
     injected_us: float
     reply_end_us: float
     first_pulse_after_us: float | None
+    line: str = ""
 
 
 class LiveRig:
@@ -87,7 +91,10 @@ class LiveRig:
         self._inflight: _Pending | None = None
         self._history: list[FcSnapshot] = []
         self._timings: list[LineTiming] = []
-        self._awaiting_pulse: list[tuple[float, float]] = []
+        self._awaiting_pulse: list[tuple[float, float, str]] = []
+        # (simulated us at the end of a step, clock() right after it): maps simulated instants to
+        # the wall clock the real processes live on (sim_to_wall).
+        self._step_walls: list[tuple[int, float]] = []
         self._stop = threading.Event()
         self._error: BaseException | None = None
         self.sim_us = 0
@@ -124,6 +131,16 @@ class LiveRig:
     def timings(self) -> list[LineTiming]:
         with self._lock:
             return list(self._timings)
+
+    def sim_to_wall(self, sim_us) -> np.ndarray:
+        """Wall-clock time (the `clock` passed in, time.monotonic by default) at which simulated
+        instant(s) sim_us happened: interpolated between the rig's steps (each step is simulated in
+        a burst at its due time, so the error is below one step, 5 ms by default)."""
+        with self._lock:
+            steps = np.array(self._step_walls, dtype=float)
+        if len(steps) < 2:
+            raise ValueError("the rig has not run two steps yet")
+        return np.interp(np.asarray(sim_us, dtype=float), steps[:, 0], steps[:, 1])
 
     def wait_sim(self, t_us: float, timeout_s: float) -> bool:
         end = time.monotonic() + timeout_s
@@ -192,16 +209,16 @@ class LiveRig:
             self.fc.feed_pulse(p.channel - 1, p.width_us, end)
             if p.channel == 3 and self._awaiting_pulse:
                 with self._lock:
-                    for inj, rep in self._awaiting_pulse:
+                    for inj, rep, line in self._awaiting_pulse:
                         if p.rise_us >= rep:
-                            self._timings.append(LineTiming(inj, rep, p.rise_us))
-                    self._awaiting_pulse = [
-                        (i, r) for i, r in self._awaiting_pulse if p.rise_us < r
-                    ]
+                            self._timings.append(LineTiming(inj, rep, p.rise_us, line))
+                    self._awaiting_pulse = [a for a in self._awaiting_pulse if p.rise_us < a[1]]
         self.fc.advance_to(t_next)
         snap = self.fc.snapshot()
+        wall = self._clock()
         with self._lock:
             self.sim_us = t_next
+            self._step_walls.append((t_next, wall))
             self._history.append(snap)
             for r in res.replies:
                 p = self._inflight
@@ -211,5 +228,5 @@ class LiveRig:
                 p.reply = r.text
                 p.reply_end_us = r.end_us
                 if p.injected_us is not None:
-                    self._awaiting_pulse.append((p.injected_us, r.end_us))
+                    self._awaiting_pulse.append((p.injected_us, r.end_us, p.line))
                 p.done.set()

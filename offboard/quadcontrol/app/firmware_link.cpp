@@ -23,18 +23,20 @@ std::string FirmwareLinkOptions::validate() const {
   return {};
 }
 
-FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, ControlKey key, ReplyCallback callback)
-    : options_(std::move(options)), spec_(std::move(spec)), key_(key), callback_(std::move(callback)), timer_(io_) {
+FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, ControlKey key, CommandProvider provider,
+                           ReplyCallback callback)
+    : options_(std::move(options)),
+      spec_(std::move(spec)),
+      key_(key),
+      provider_(std::move(provider)),
+      callback_(std::move(callback)),
+      timer_(io_) {
   const std::string error = options_.validate();
   if (!error.empty()) throw std::runtime_error(error);
   asio::ip::tcp::resolver resolver(io_);
   beast::error_code ec;
   endpoints_ = resolver.resolve(options_.host, std::to_string(options_.port), ec);
   if (ec) throw std::runtime_error("firmware: cannot resolve " + options_.host + ": " + ec.message());
-  command_.roll_us = spec_.pwm.roll.neutral_us;
-  command_.pitch_us = spec_.pwm.pitch.neutral_us;
-  command_.yaw_us = spec_.pwm.yaw.neutral_us;
-  command_.throttle_us = spec_.pwm.throttle.min_us;
   schedule();
   thread_ = std::thread([this] { io_.run(); });
 }
@@ -42,11 +44,6 @@ FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, Contro
 FirmwareLink::~FirmwareLink() {
   io_.stop();
   if (thread_.joinable()) thread_.join();
-}
-
-void FirmwareLink::set_command(const PwmCommand& command) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  command_ = command;
 }
 
 FirmwareLinkStats FirmwareLink::stats() const {
@@ -82,6 +79,15 @@ void FirmwareLink::tick() {
 
 void FirmwareLink::start(Client& c) {
   std::string target;
+  // Only this thread changes seq_known_ and the sequence: read them, then compute the command
+  // without holding the link's lock (the provider takes the ground station's).
+  std::optional<PwmCommand> command;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (seq_known_ && stats_.seq < spec_.seq_max) command = PwmCommand{};
+  }
+  const std::uint32_t next_seq = stats().seq + 1;
+  if (command) *command = provider_(monotonic_now_us(), next_seq);
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!seq_known_) {
@@ -92,8 +98,8 @@ void FirmwareLink::start(Client& c) {
         stats_.last_error = "sequence numbers exhausted: provision a new key";
         return;
       }
-      ControlFields f{stats_.seq + 1, command_.armed, command_.roll_us, command_.pitch_us, command_.throttle_us,
-                      command_.yaw_us};
+      ControlFields f{next_seq, command->armed, command->roll_us, command->pitch_us, command->throttle_us,
+                      command->yaw_us};
       std::string error;
       auto t = build_control_target(spec_, key_, f, &error);
       if (!t) {

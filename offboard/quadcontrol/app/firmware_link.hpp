@@ -1,9 +1,10 @@
 // The firmware REST client of quad-control (thesis: two clients take turns sending the latest
 // command as HTTP PUT and wait for the IMU reply, so one timed-out client never stalls control).
 //
-// Every period_ms the link picks the next idle client (round robin) and sends the latest command
-// (protocol/control: PUT /control?...&mac=..., SipHash-2-4 under the craft key, strictly increasing
-// sequence). Before the first command it reads GET /status to continue above the sequence number
+// Every period_ms the link picks the next idle client (round robin), asks the command provider for
+// the command of this instant (the controller runs at send time, on the newest pose: no extra wait
+// between computing and sending) and sends it (protocol/control: PUT /control?...&mac=...,
+// SipHash-2-4 under the craft key, strictly increasing sequence). Before the first command it reads GET /status to continue above the sequence number
 // the craft last accepted. Each request has its own deadline (timeout_ms); a client still waiting
 // is skipped. Replies (with the craft's IMU reading) are timestamped on arrival and passed to the
 // callback on the link's thread. Owns one io_context thread; joined in the destructor.
@@ -51,15 +52,17 @@ struct FirmwareLinkStats {
 class FirmwareLink {
  public:
   using ReplyCallback = std::function<void(std::int64_t received_us, const ControlReply& reply)>;
+  /// Called on the link's thread just before each command is sent: the command for `now_us`, which
+  /// will carry sequence number `seq`. Must not call back into the link.
+  using CommandProvider = std::function<PwmCommand(std::int64_t now_us, std::uint32_t seq)>;
 
   /// Resolves host:port (numeric addresses never block); throws std::runtime_error on failure.
-  FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, ControlKey key, ReplyCallback callback);
+  FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, ControlKey key, CommandProvider provider,
+               ReplyCallback callback);
   ~FirmwareLink();
   FirmwareLink(const FirmwareLink&) = delete;
   FirmwareLink& operator=(const FirmwareLink&) = delete;
 
-  /// The command the next request carries (thread-safe).
-  void set_command(const PwmCommand& command);
   FirmwareLinkStats stats() const;
 
  private:
@@ -81,6 +84,7 @@ class FirmwareLink {
   FirmwareLinkOptions options_;
   ControlSpec spec_;
   ControlKey key_;
+  CommandProvider provider_;
   ReplyCallback callback_;
   boost::asio::io_context io_;
   boost::asio::steady_timer timer_;
@@ -90,7 +94,6 @@ class FirmwareLink {
   std::size_t next_client_ = 0;
   bool seq_known_ = false;
   mutable std::mutex mutex_;
-  PwmCommand command_;
   FirmwareLinkStats stats_;
   std::thread thread_;
 };

@@ -41,15 +41,22 @@ std::string GroundStationOptions::validate() const {
 }
 
 GroundStation::GroundStation(GroundStationOptions options, std::unique_ptr<FrameSource> source,
-                             std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, ControlKey key)
-    : options_(options), spec_(spec), source_(std::move(source)), controller_(options.controller), map_(options.map) {
+                             std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, ControlKey key,
+                             std::unique_ptr<FlightLog> log)
+    : options_(options),
+      spec_(spec),
+      source_(std::move(source)),
+      controller_(options.controller),
+      map_(options.map),
+      log_(std::move(log)) {
   last_pwm_ = to_pwm(StickCommand{}, spec_.pwm);
   if (firmware) {
-    firmware_ = std::make_unique<FirmwareLink>(*firmware, spec_, key,
-                                               [this](std::int64_t t, const ControlReply& r) { on_reply(t, r); });
+    firmware_ = std::make_unique<FirmwareLink>(
+        *firmware, spec_, key, [this](std::int64_t t, std::uint32_t seq) { return command_at(t, seq); },
+        [this](std::int64_t t, const ControlReply& r) { on_reply(t, r); });
   }
   frame_thread_ = std::thread([this] { frame_loop(); });
-  control_thread_ = std::thread([this] { control_loop(); });
+  if (!firmware_) control_thread_ = std::thread([this] { control_loop(); });
 }
 
 GroundStation::~GroundStation() {
@@ -97,6 +104,7 @@ void GroundStation::frame_loop() {
       ++frames_;
       stream_latency_ms_ = frame->link_latency_ms;
       latest_frame_ = *frame;
+      if (log_) log_->frame(frame->sequence, frame->capture_us, frame->received_us, frame->link_latency_ms);
       if (auto imu = imu_replies_.nearest(frame->received_us, options_.imu_match_window_us)) {
         imu_match_dt_ms_ = static_cast<double>(imu->first - frame->received_us) / kUsPerMs;
       } else {
@@ -113,15 +121,23 @@ void GroundStation::control_loop() {
     next += std::chrono::milliseconds(options_.control_period_ms);
     std::this_thread::sleep_until(next);
     const std::int64_t now = monotonic_now_us();
-    PwmCommand pwm;
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      last_stick_ = controller_.update(now);
-      last_pwm_ = to_pwm(last_stick_, spec_.pwm);
-      pwm = last_pwm_;
-    }
-    if (firmware_) firmware_->set_command(pwm);
+    std::lock_guard<std::mutex> lock(mutex_);
+    last_stick_ = controller_.update(now);
+    last_pwm_ = to_pwm(last_stick_, spec_.pwm);
   }
+}
+
+PwmCommand GroundStation::command_at(std::int64_t now_us, std::uint32_t seq) {
+  LoggedCommand logged;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    last_stick_ = controller_.update(now_us);
+    last_pwm_ = to_pwm(last_stick_, spec_.pwm);
+    if (!log_) return last_pwm_;
+    logged = LoggedCommand{seq, now_us, to_string(controller_.status().state), last_pwm_, pose_capture_us_, pose_us_};
+  }
+  log_->command(logged);
+  return logged.pwm;
 }
 
 std::vector<Eigen::Vector3d> GroundStation::depth_points(const CameraFrame& f, int step) const {
@@ -173,11 +189,17 @@ void GroundStation::on_slam(const SlamResult& result, const CameraFrame& frame) 
   const std::int64_t now = monotonic_now_us();
   if (!T_floor_world_ || !result.tracking) {
     controller_.on_pose(PoseSample{now, false, pose_.value_or(CraftPose{})});
+    if (log_) log_->pose(LoggedPose{frame.sequence, frame.capture_us, frame.received_us, now, false});
     return;
   }
   const Eigen::Isometry3d T_floor_cam = *T_floor_world_ * result.T_world_cam;
   pose_ = craft_pose(T_floor_cam);
+  pose_capture_us_ = frame.capture_us;
+  pose_us_ = now;
   controller_.on_pose(PoseSample{now, true, *pose_});
+  if (log_) {
+    log_->pose(LoggedPose{frame.sequence, frame.capture_us, frame.received_us, now, true, T_floor_cam, pose_->yaw_deg});
+  }
   if (trajectory_.size() >= options_.trajectory_max_points) trajectory_.erase(trajectory_.begin());
   trajectory_.push_back({pose_->x_m, pose_->y_m});
 

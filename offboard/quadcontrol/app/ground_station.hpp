@@ -3,8 +3,9 @@
 //
 // Threads (all owned here, joined in the destructor): the frame thread (source -> latest frame ->
 // SLAM hand-over), the SLAM thread (inside SlamLink; its results update pose, floor frame and map),
-// the control thread (controller.update(now) every control_period_ms -> firmware command), and the
-// firmware link's I/O thread. The SLAM link is created on the first frame (it needs the intrinsics). Shared state is guarded by one mutex; the controller is only touched
+// and either the firmware link's I/O thread, which runs controller.update(now) just before each
+// command it sends (every firmware.period_ms), or, with no firmware, the
+// control thread (controller.update(now) every control_period_ms, for the dashboard). The SLAM link is created on the first frame (it needs the intrinsics). Shared state is guarded by one mutex; the controller is only touched
 // under it. This is the only place that reads the clock and passes it into the logic.
 #pragma once
 
@@ -20,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "app/firmware_link.hpp"
+#include "app/flight_log.hpp"
 #include "app/frame_source.hpp"
 #include "app/slam_link.hpp"
 #include "app/slam_server_client.hpp"
@@ -49,9 +51,11 @@ struct GroundStationOptions {
 
 class GroundStation {
  public:
-  /// Starts every thread. `firmware` may be null options (no craft: commands are computed, not sent).
+  /// Starts every thread. `firmware` may be null options (no craft: commands are computed, not sent);
+  /// `log` may be null (no flight recorder).
   GroundStation(GroundStationOptions options, std::unique_ptr<FrameSource> source,
-                std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, ControlKey key);
+                std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, ControlKey key,
+                std::unique_ptr<FlightLog> log = nullptr);
   ~GroundStation();
   GroundStation(const GroundStation&) = delete;
   GroundStation& operator=(const GroundStation&) = delete;
@@ -70,6 +74,8 @@ class GroundStation {
  private:
   void frame_loop();
   void control_loop();
+  /// The firmware link's command provider: runs the controller at `now_us` on the newest pose.
+  PwmCommand command_at(std::int64_t now_us, std::uint32_t seq);
   void on_slam(const SlamResult& result, const CameraFrame& frame);
   void on_reply(std::int64_t received_us, const ControlReply& reply);
   std::vector<Eigen::Vector3d> depth_points(const CameraFrame& frame, int step) const;
@@ -94,6 +100,8 @@ class GroundStation {
   std::string source_error_;
   std::optional<SlamResult> last_slam_;
   std::optional<CraftPose> pose_;
+  std::int64_t pose_capture_us_ = -1;  ///< capture stamp of the frame behind pose_ (flight log)
+  std::int64_t pose_us_ = -1;          ///< when pose_ became available
   std::optional<Eigen::Isometry3d> T_floor_world_;
   std::optional<FloorPlane> floor_;
   bool floor_fallback_ = false;
@@ -107,6 +115,7 @@ class GroundStation {
 
   std::unique_ptr<SlamLink> slam_;  ///< set once by the frame thread, then slam_ready_
   std::atomic<bool> slam_ready_{false};
+  std::unique_ptr<FlightLog> log_;  ///< null: no flight recorder
   std::unique_ptr<FirmwareLink> firmware_;
   std::thread frame_thread_;
   std::thread control_thread_;

@@ -43,6 +43,10 @@ int main(int argc, char** argv) {
   cli.add_option("--slam", slam_mode, "SLAM link: server (slam-server, default) or in-process");
   cli.add_flag("--no-firmware", no_firmware, "do not talk to the firmware (commands are computed only)");
   cli.add_flag("--print-config", print_config, "print the effective configuration and exit");
+  std::string flight_log_dir;
+  cli.add_option("--flight-log", flight_log_dir,
+                 "record frames.csv, poses.csv, trajectory.tum and commands.csv in this folder "
+                 "(monotonic us stamps; created if missing)");
   CLI11_PARSE(cli, argc, argv);
 
   const std::string repo_dir = QC_REPO_DIR;
@@ -115,6 +119,16 @@ int main(int argc, char** argv) {
   }
   std::cout << "quad-control: stream from " << source->describe() << std::endl;
 
+  std::unique_ptr<FlightLog> flight_log;
+  if (!flight_log_dir.empty()) {
+    flight_log = FlightLog::open(flight_log_dir, &error);
+    if (!flight_log) {
+      std::cerr << "quad-control: " << error << "\n";
+      return 2;
+    }
+    std::cout << "quad-control: flight log in " << flight_log_dir << std::endl;
+  }
+
   // Block the stop signals before any thread starts so only sigwait below receives them.
   sigset_t signals;
   sigemptyset(&signals);
@@ -123,7 +137,7 @@ int main(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   try {
-    GroundStation station(config->station, std::move(source), firmware, *spec, key);
+    GroundStation station(config->station, std::move(source), firmware, *spec, key, std::move(flight_log));
     DashboardApi api(station, config->dashboard_static_dir, config->dashboard_token);
     HttpServer server(config->dashboard_bind_address, config->dashboard_port,
                       [&api](const HttpRequest& r) { return api.handle(r); });
