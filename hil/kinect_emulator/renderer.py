@@ -36,6 +36,8 @@ IR_FOCAL_PX = 580.0  # IR camera focal length in pixels
 BASELINE_M = 0.075  # IR camera - IR projector baseline
 DISPARITY_SUBPIXELS = 8  # the v1 reports disparity in 1/8 pixel
 NOISE_COEFF_PER_M = 1.425e-3  # sigma_z = NOISE_COEFF_PER_M * z^2
+# Stream id (with the seed) of the RGB noise bank render_indexed uses: any value no frame index takes.
+RGB_NOISE_BANK_STREAM = 2**40
 # Each texture tile shows a 60 % window of its photograph (see _shade).
 TILE_WINDOW_FRACTION = 0.6
 
@@ -115,6 +117,7 @@ class KinectEmulator:
         self._u = u
         self._index = 0
         self._rgb_noise_bank: np.ndarray | None = None
+        self._indexed_bank: np.ndarray | None = None  # render_indexed's bank, built once
         tex = room.textures
         self._tex_flat = tex.reshape(-1, 3)
         self._tex_n, self._tex_h, self._tex_w = tex.shape[0], tex.shape[1], tex.shape[2]
@@ -235,10 +238,7 @@ class KinectEmulator:
             # A seeded bank of noise frames, read at a random offset: per-frame Gaussian draws of
             # 0.9 M values cost more than the whole ray cast.
             if self._rgb_noise_bank is None:
-                n = i.height * i.width * 3 * 4
-                self._rgb_noise_bank = np.round(
-                    self._rng.standard_normal(n, dtype=np.float32) * opt.rgb_noise_std
-                ).astype(np.int16)
+                self._rgb_noise_bank = self._noise_bank()
             off = int(self._rng.integers(0, self._rgb_noise_bank.size - rgb.size))
             noisy = rgb.astype(np.int16) + self._rgb_noise_bank[off : off + rgb.size].reshape(
                 rgb.shape
@@ -250,6 +250,34 @@ class KinectEmulator:
         return KinectFrame(
             index, capture_us, available, rgb, depth_mm, np.array(T_room_cam, float), False
         )
+
+    def render_indexed(self, T_room_cam: np.ndarray, capture_us: int, index: int) -> KinectFrame:
+        """Frame number `index` as a pure function of (room, options, pose, index), whatever was
+        rendered before: its noise comes from a generator seeded by (options.seed, index) and the
+        RGB noise bank from one seeded by (options.seed, RGB_NOISE_BANK_STREAM). The live emulator
+        renders this way so that any delivered frame can be re-rendered bit for bit afterwards.
+        Does not touch the sequential stream `render` draws from."""
+        if index < 0:
+            raise ValueError(f"frame index must be >= 0, got {index}")
+        seq_rng, seq_bank, seq_index = self._rng, self._rgb_noise_bank, self._index
+        if self._indexed_bank is None:
+            self._rgb_noise_bank = None
+            self._rng = np.random.default_rng((self.options.seed, RGB_NOISE_BANK_STREAM))
+            self._indexed_bank = self._noise_bank()
+        self._rng = np.random.default_rng((self.options.seed, index))
+        self._rgb_noise_bank = self._indexed_bank
+        self._index = index
+        try:
+            return self.render(T_room_cam, capture_us)
+        finally:
+            self._rng, self._rgb_noise_bank, self._index = seq_rng, seq_bank, seq_index
+
+    def _noise_bank(self) -> np.ndarray:
+        i = self.options.intrinsics
+        n = i.height * i.width * 3 * 4
+        return np.round(
+            self._rng.standard_normal(n, dtype=np.float32) * self.options.rgb_noise_std
+        ).astype(np.int16)
 
     def sensor_depth(self, z_true_m: np.ndarray) -> np.ndarray:
         """Applies the Kinect error model to exact depth (m). Missing readings are NaN."""

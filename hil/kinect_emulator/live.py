@@ -1,0 +1,518 @@
+"""Live Kinect: renders frames from the craft's CURRENT pose and feeds them to the real rgbd-streamer
+through the real libfreenect API (Debian's fakenect replay library), for closed-loop HIL flights.
+
+How it works
+  * `dump_dir/INDEX.txt` is a FIFO (os.mkfifo). fakenect 0.5.3 reads INDEX.txt one line per
+    `freenect_process_events` call with fgetc, so the streamer's libfreenect event thread blocks in
+    read() until the next line arrives, then opens the named PGM/PPM, copies it into the depth/video
+    buffer and calls the callback (where rgbd-streamer stamps `capture_timestamp_us` on
+    CLOCK_MONOTONIC). Measured here: the callback runs < 1 ms after the line is written.
+  * A renderer child process (`python -m kinect_emulator.live`: its own GIL; a subprocess rather
+    than multiprocessing, so the caller's __main__ is never re-imported) takes the newest pose request,
+    renders RGB + depth (KinectEmulator.render_indexed, Kinect noise model of docs/hil.md), writes
+    `d-*.pgm` (11-bit disparity, host byte order, as FakenectDumpWriter) and `r-*.ppm` under
+    temporary names, renames them, and only then writes their two INDEX lines (one write() below
+    PIPE_BUF, so atomic).
+  * A camera never queues: requests arriving while the child renders replace each other (the newest
+    wins, the others are counted as `superseded`), and a frame is not written while the previous
+    frame's lines are still unread in the FIFO (the streamer is behind or not started; counted as
+    `reader_behind`). The FIFO therefore never holds more than one frame.
+  * fakenect sleeps by the difference of the time field of consecutive lines (only if positive;
+    never when the previous value is 0). Live lines carry 0.000000 there: the writer paces, fakenect
+    adds no delay. The %u field carries the exposure time in 60 MHz ticks, like real dumps.
+  * Before the first line the streamer simply waits (fopen of the FIFO returns once the child has
+    it open; fgetc blocks). When the child closes the FIFO (close(), or the child dies), fakenect
+    prints "No more lines", freenect_process_events returns -1 and rgbd-streamer ends its freenect
+    source (exit code 3 after --exit-linger-ms). Close the LiveKinect BEFORE stopping the streamer:
+    a streamer stopped by SIGTERM joins its event thread, which only returns at the next line / EOF.
+  * Frame files are deleted once the streamer has certainly read them (the FIFO shows the NEXT
+    frame's lines consumed: fakenect reads the FIFO again only after finishing the previous line's
+    file), so a long flight keeps ~3 frames (~4.6 MB) on disk; `keep_files=True` keeps all.
+
+Records: one JSON line per rendered frame in `dump_dir/live_frames.jsonl` (written by the child,
+flushed per frame; the parent reads it in `records()`). Time is time.monotonic() (CLOCK_MONOTONIC),
+the clock rgbd-streamer stamps frames with on the same host; `match_capture_stamps` maps streamer
+capture stamps to records.
+
+Usage (the rig thread calls submit() at the frame rate; it never blocks):
+    cam = LiveKinect(tmp / "live", KinectOptions(seed=3))
+    cam.start()
+    streamer = ManagedProcess(cam.streamer_command(bin, "--host", "127.0.0.1", ...),
+                              log, env=cam.streamer_env())
+    ... cam.submit(time.monotonic(), T_room_cam) every 1/fps s ...
+    cam.close(); streamer.stop()
+Thread safety: submit() may be called from one thread while another calls records()/stats();
+start() and close() from the owning thread.
+"""
+
+from __future__ import annotations
+
+from bisect import bisect_right
+from dataclasses import dataclass
+import fcntl
+import json
+import math
+import os
+from pathlib import Path
+import re
+import shutil
+import stat
+import struct
+import subprocess
+import termios
+import threading
+import time
+
+import numpy as np
+
+from kinect_emulator.renderer import KinectEmulator, KinectOptions
+from kinect_emulator.room import Room, default_room
+from kinect_emulator.writers import depth_mm_to_freenect_raw
+
+INDEX_NAME = "INDEX.txt"
+RECORDS_NAME = "live_frames.jsonl"
+# Default location of Debian's fakenect library (libfreenect-bin's wrapper sets the same).
+DEFAULT_FAKENECT_LIB_DIR = "/usr/lib/x86_64-linux-gnu/fakenect"
+# fakenect's pacing field: with 0 the "previous time != 0" guard skips its sleep entirely.
+FAKENECT_NO_PACING_TIME = "0.000000"
+FAKENECT_TICKS_PER_S = 60_000_000  # real dumps carry the Kinect's 60 MHz device clock
+# Request message: sequence (int64, -1 = stop), exposure time (s, float64), T_room_cam row-major.
+_REQUEST = struct.Struct("<qd16d")
+_STOP_SEQ = -1
+# The child starts in ~1 s (numpy import, texture loading); allow for a loaded 2-core machine.
+START_TIMEOUT_S = 60.0
+CLOSE_TIMEOUT_S = 10.0
+# Frame files kept at least (the newest ones), whatever the FIFO shows.
+KEEP_NEWEST_FRAMES = 2
+
+
+@dataclass(frozen=True)
+class LiveFrameRecord:
+    """One frame the child rendered. Times are time.monotonic() seconds (CLOCK_MONOTONIC)."""
+
+    index: int  # render number: seeds the frame's noise (render_indexed); increases by 1 per render
+    request_seq: int  # which submit() (0, 1, ...) it was rendered for
+    t_mono_s: float  # exposure time given to submit()
+    T_room_cam: np.ndarray  # 4x4 pose it was rendered at (maps camera points to room)
+    render_start_mono_s: float  # the child took the request
+    render_end_mono_s: float  # image computed (before the files were written)
+    index_written_mono_s: float  # just before the INDEX lines were written; NaN if not delivered
+    delivered: bool  # False: the streamer had not read the previous frame yet (never written)
+    superseded: int  # requests dropped in favour of this one since the previous render
+    depth_file: str
+    rgb_file: str
+
+
+def match_capture_stamps(
+    records: list[LiveFrameRecord], stamps_us, max_delay_us: int = 100_000
+) -> list[LiveFrameRecord | None]:
+    """For each streamer capture stamp (us, CLOCK_MONOTONIC), the delivered record whose INDEX lines
+    were written last before it, or None when there is none within max_delay_us (a stamp taken
+    more than that after the write cannot be a callback of that line: fakenect calls back within
+    a few ms). Order-preserving: the streamer's frames come in INDEX order."""
+    rs = sorted((r for r in records if r.delivered), key=lambda r: r.index_written_mono_s)
+    written_us = [r.index_written_mono_s * 1e6 for r in rs]
+    out: list[LiveFrameRecord | None] = []
+    for s in stamps_us:
+        k = bisect_right(written_us, float(s)) - 1
+        out.append(rs[k] if k >= 0 and float(s) - written_us[k] <= max_delay_us else None)
+    return out
+
+
+def fakenect_lib_dir() -> str | None:
+    """The directory the `fakenect` wrapper puts first on LD_LIBRARY_PATH, or None if not found."""
+    wrapper = shutil.which("fakenect")
+    if wrapper is not None:
+        try:
+            m = re.search(r'LD_LIBRARY_PATH="([^:"]+)', Path(wrapper).read_text(errors="replace"))
+        except OSError:
+            m = None
+        if m and Path(m.group(1)).is_dir():
+            return m.group(1)
+    return DEFAULT_FAKENECT_LIB_DIR if Path(DEFAULT_FAKENECT_LIB_DIR).is_dir() else None
+
+
+class FakenectFifoIndex:
+    """Writes live frames into a fakenect dump whose INDEX.txt is a FIFO (used in the child).
+
+    `open()` opens the FIFO read-write and non-blocking: it never waits for a reader, and the FIFO
+    stays open (no EOF for the reader) until `close()`. Not thread-safe. The clock is passed in.
+    """
+
+    def __init__(self, dump_dir, keep_files: bool = False) -> None:
+        self.dir = Path(dump_dir)
+        self.keep_files = keep_files
+        self._fd: int | None = None
+        self._bytes_written = 0
+        self._on_disk: list[tuple[int, list[Path]]] = []  # (end offset of the lines, files)
+
+    def open(self) -> None:
+        self._fd = os.open(self.dir / INDEX_NAME, os.O_RDWR | os.O_NONBLOCK)
+
+    def unread_bytes(self) -> int:
+        buf = fcntl.ioctl(self._fd, termios.FIONREAD, b"\0\0\0\0")
+        return struct.unpack("i", buf)[0]
+
+    def reader_is_behind(self) -> bool:
+        """True while the previous frame's lines are still in the FIFO."""
+        return self.unread_bytes() > 0
+
+    def write_frame(
+        self, index: int, t_mono_s: float, rgb: np.ndarray, raw_disparity: np.ndarray, clock
+    ) -> tuple[float, str, str]:
+        """Writes both files completely, then their INDEX lines. Returns (time just before the
+        lines were written, depth file name, rgb file name). The caller checks reader_is_behind()."""
+        h, w = raw_disparity.shape
+        ticks = int(t_mono_s * FAKENECT_TICKS_PER_S) & 0xFFFFFFFF
+        dname = f"d-{FAKENECT_NO_PACING_TIME}-{ticks}-{index}.pgm"
+        rname = f"r-{FAKENECT_NO_PACING_TIME}-{ticks}-{index}.ppm"
+        for name, header, data in (
+            (dname, f"P5 {w} {h} 65535\n", raw_disparity.astype("=u2", copy=False)),
+            (rname, f"P6 {w} {h} 255\n", rgb),
+        ):
+            tmp = self.dir / f".{name}.tmp"
+            with open(tmp, "wb") as f:
+                f.write(header.encode())
+                f.write(np.ascontiguousarray(data).data)
+            os.replace(tmp, self.dir / name)
+        lines = f"{dname}\n{rname}\n".encode()
+        written_s = clock()
+        n = os.write(self._fd, lines)  # < PIPE_BUF into an empty FIFO: whole and atomic
+        if n != len(lines):
+            raise OSError(f"short write to the fakenect INDEX FIFO ({n} of {len(lines)} bytes)")
+        self._bytes_written += n
+        self._on_disk.append((self._bytes_written, [self.dir / dname, self.dir / rname]))
+        self.collect()
+        return written_s, dname, rname
+
+    def collect(self) -> None:
+        """Deletes frame files fakenect has finished with: frame k is done once frame k+1's lines
+        have left the FIFO (fakenect reads the FIFO again only after it read frame k's files)."""
+        if self.keep_files or self._fd is None:
+            return
+        consumed = self._bytes_written - self.unread_bytes()
+        while len(self._on_disk) > KEEP_NEWEST_FRAMES and self._on_disk[1][0] <= consumed:
+            for p in self._on_disk.pop(0)[1]:
+                p.unlink(missing_ok=True)
+
+    def close(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)  # the reader sees EOF once it has read what is left
+            self._fd = None
+
+
+def _read_requests(fd: int, buf: bytearray, block: bool) -> list[tuple] | None:
+    """Whole request messages from the pipe: waits for one if `block`, then takes what is there.
+    None at EOF (the parent went away)."""
+    import select
+
+    while True:
+        ready, _, _ = select.select([fd], [], [], None if block and len(buf) < _REQUEST.size else 0)
+        if not ready:
+            break
+        chunk = os.read(fd, 64 * _REQUEST.size)
+        if not chunk:
+            return None
+        buf += chunk
+        if len(buf) >= _REQUEST.size:
+            block = False
+    n = len(buf) // _REQUEST.size
+    out = [_REQUEST.unpack_from(buf, k * _REQUEST.size) for k in range(n)]
+    del buf[: n * _REQUEST.size]
+    return out
+
+
+def _child_main() -> int:
+    """Renderer child (`python -m kinect_emulator.live`): stdin carries a length-prefixed pickle of
+    the configuration, then fixed-size requests; it answers "ready" on stdout once the FIFO is
+    open, then renders the newest request, writes it and records it, until the stop request."""
+    import pickle
+    import sys
+
+    fd = sys.stdin.fileno()
+    head = b""
+    while len(head) < 8:
+        chunk = os.read(fd, 8 - len(head))
+        if not chunk:
+            return 1
+        head += chunk
+    size = struct.unpack("<Q", head)[0]
+    blob = bytearray()
+    while len(blob) < size:
+        chunk = os.read(fd, min(1 << 20, size - len(blob)))
+        if not chunk:
+            return 1
+        blob += chunk
+    dump_dir, options, room, keep_files = pickle.loads(bytes(blob))
+    emu = KinectEmulator(room if room is not None else default_room(), options)
+    # mm -> raw disparity for every uint16 value: bit-identical to depth_mm_to_freenect_raw.
+    lut = depth_mm_to_freenect_raw(np.arange(1 << 16, dtype=np.uint16))
+    index = FakenectFifoIndex(dump_dir, keep_files)
+    index.open()
+    records = open(Path(dump_dir) / RECORDS_NAME, "a", encoding="utf-8")
+    sys.stdout.write("ready\n")
+    sys.stdout.flush()
+    buf = bytearray()
+    n_rendered = 0
+    try:
+        while True:
+            reqs = _read_requests(fd, buf, block=True)
+            if reqs is None or any(r[0] == _STOP_SEQ for r in reqs):
+                return 0
+            seq, t_s, *flat = reqs[-1]
+            start = time.monotonic()
+            rec = {"index": n_rendered, "seq": seq, "t_mono_s": t_s, "T_room_cam": flat,
+                   "superseded": len(reqs) - 1, "render_start_mono_s": start}
+            try:
+                frame = emu.render_indexed(
+                    np.array(flat).reshape(4, 4), int(round(t_s * 1e6)), n_rendered
+                )
+            except ValueError as e:  # e.g. a pose outside the room: no frame, the camera goes on
+                rec.update(error=str(e), delivered=False, render_end_mono_s=time.monotonic())
+            else:
+                rec["render_end_mono_s"] = time.monotonic()
+                if index.reader_is_behind():
+                    rec["delivered"] = False
+                else:
+                    written, dname, rname = index.write_frame(
+                        n_rendered, t_s, frame.rgb, lut[frame.depth_mm], time.monotonic
+                    )
+                    rec.update(delivered=True, index_written_mono_s=written, depth_file=dname,
+                               rgb_file=rname)
+            n_rendered += 1
+            records.write(json.dumps(rec) + "\n")
+            records.flush()
+    finally:
+        index.close()
+        records.close()
+
+
+class LiveKinect:
+    """A Kinect v1 that renders live from submitted poses into a fakenect FIFO dump (see module)."""
+
+    def __init__(self, dump_dir, options: KinectOptions | None = None, room: Room | None = None,
+                 keep_files: bool = False) -> None:
+        """dump_dir: created by start(); must not hold an offline dump (a regular INDEX.txt).
+        room: None = default_room() built in the child (saves pickling the textures)."""
+        self.dir = Path(dump_dir)
+        self.options = options or KinectOptions()
+        self.options.validate()
+        self.room = room
+        self.keep_files = keep_files
+        self._proc = None
+        self._tx = None
+        self._tx_lock = threading.Lock()  # submit(): never held for more than a pipe write
+        self._rec_lock = threading.Lock()  # records(), stats()
+        self._seq = 0
+        self._send_failed = 0
+        self._records: list[LiveFrameRecord] = []
+        self._undelivered: list[dict] = []
+        self._records_offset = 0
+        self._partial = b""
+
+    # ---- life cycle ------------------------------------------------------------------------------
+    def start(self) -> None:
+        """Creates dump_dir and the INDEX.txt FIFO, starts the renderer child and waits until it
+        holds the FIFO open. Start the streamer after this (or before: it waits in fopen)."""
+        if self._proc is not None:
+            raise RuntimeError("LiveKinect already started")
+        self.dir.mkdir(parents=True, exist_ok=True)
+        idx = self.dir / INDEX_NAME
+        if idx.exists() or idx.is_symlink():
+            if not stat.S_ISFIFO(idx.lstat().st_mode):
+                raise FileExistsError(f"{idx} is an offline dump's index, not a live FIFO")
+            idx.unlink()
+        os.mkfifo(idx)
+        (self.dir / RECORDS_NAME).write_text("")
+        import pickle
+        import select
+        import sys
+
+        env = dict(os.environ)
+        pkg_parent = str(Path(__file__).resolve().parents[1])
+        env["PYTHONPATH"] = pkg_parent + (
+            os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else ""
+        )
+        # A subprocess, not multiprocessing: no re-import of the caller's __main__, own GIL.
+        self._proc = subprocess.Popen(
+            [sys.executable, "-m", "kinect_emulator.live"],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            env=env,
+        )
+        blob = pickle.dumps((str(self.dir), self.options, self.room, self.keep_files))
+        try:
+            self._proc.stdin.write(struct.pack("<Q", len(blob)) + blob)
+            self._proc.stdin.flush()
+        except BrokenPipeError:
+            pass
+        self._tx = self._proc.stdin.fileno()
+        os.set_blocking(self._tx, False)  # submit() must never wait
+        ready, _, _ = select.select([self._proc.stdout], [], [], START_TIMEOUT_S)
+        line = self._proc.stdout.readline() if ready else b""
+        if line.strip() != b"ready":
+            code = self._proc.poll()
+            self.close()
+            raise RuntimeError(
+                "live Kinect renderer did not start "
+                + (f"(exit code {code})" if code is not None else f"within {START_TIMEOUT_S} s")
+            )
+
+    def streamer_command(self, streamer_bin, *args) -> list[str]:
+        """The `fakenect` wrapper form: ["fakenect", dump_dir, streamer_bin, "--source", "freenect",
+        "--freenect-disparity-depth", *args]. Note the wrapper is a bash script that does not exec:
+        stopping it by PID leaves the streamer running; prefer direct_streamer_command()."""
+        return ["fakenect", str(self.dir), *self.direct_streamer_command(streamer_bin, *args)]
+
+    def direct_streamer_command(self, streamer_bin, *args) -> list[str]:
+        """The streamer itself (its PID is the one to stop); run it with env=streamer_env()."""
+        return [str(streamer_bin), "--source", "freenect", "--freenect-disparity-depth",
+                *(str(a) for a in args)]
+
+    def streamer_env(self, base: dict | None = None) -> dict:
+        """What the fakenect wrapper sets: FAKENECT_PATH and the fakenect library first on
+        LD_LIBRARY_PATH. Raises FileNotFoundError when libfreenect-bin is not installed."""
+        lib = fakenect_lib_dir()
+        if lib is None:
+            raise FileNotFoundError("fakenect library not found (install libfreenect-bin)")
+        env = dict(os.environ if base is None else base)
+        env["FAKENECT_PATH"] = str(self.dir)
+        env["LD_LIBRARY_PATH"] = lib + (
+            ":" + env["LD_LIBRARY_PATH"] if env.get("LD_LIBRARY_PATH") else ""
+        )
+        return env
+
+    def close(self) -> None:
+        """Stops the child (stop request, join, then SIGTERM/SIGKILL to its PID), which closes the
+        FIFO (the streamer's libfreenect sees the end of the dump), and removes the FIFO. Records,
+        and with keep_files the frames, stay. Idempotent."""
+        with self._tx_lock:
+            proc, self._proc = self._proc, None
+            if proc is None:
+                return
+            try:
+                os.set_blocking(self._tx, True)
+                os.write(self._tx, _REQUEST.pack(_STOP_SEQ, 0.0, *([0.0] * 16)))
+            except OSError:
+                pass
+        try:
+            proc.wait(CLOSE_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            proc.terminate()  # this PID only
+            try:
+                proc.wait(CLOSE_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(CLOSE_TIMEOUT_S)
+        for f in (proc.stdin, proc.stdout):
+            try:
+                f.close()
+            except OSError:
+                pass
+        self.records()  # read the last lines
+        (self.dir / INDEX_NAME).unlink(missing_ok=True)
+
+    def __enter__(self) -> "LiveKinect":
+        self.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ---- per frame -------------------------------------------------------------------------------
+    def submit(self, t_mono_s: float, T_room_cam: np.ndarray) -> bool:
+        """Requests a frame exposed at monotonic time t_mono_s from pose T_room_cam (4x4, maps
+        camera points to room). Never blocks: if the child is busy the newest request replaces a
+        waiting one. False if the request could not be handed over (child gone / not started).
+        Raises ValueError for a non-finite time or a pose that is not a finite 4x4 matrix."""
+        T = np.asarray(T_room_cam, dtype=np.float64)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)) or not math.isfinite(t_mono_s):
+            raise ValueError("submit needs a finite time and a finite 4x4 T_room_cam")
+        with self._tx_lock:
+            seq = self._seq
+            self._seq += 1
+            if self._proc is None:
+                self._send_failed += 1
+                return False
+            try:
+                # One write below PIPE_BUF: the child gets whole requests or nothing.
+                os.write(self._tx, _REQUEST.pack(seq, float(t_mono_s), *T.ravel()))
+            except (BlockingIOError, BrokenPipeError, OSError):
+                self._send_failed += 1
+                return False
+        return True
+
+    # ---- results ---------------------------------------------------------------------------------
+    def records(self) -> list[LiveFrameRecord]:
+        """Delivered frames so far (INDEX order), read from the child's records file."""
+        with self._rec_lock:
+            path = self.dir / RECORDS_NAME
+            try:
+                with open(path, "rb") as f:
+                    f.seek(self._records_offset)
+                    data = f.read()
+            except FileNotFoundError:
+                return list(self._records)
+            self._records_offset += len(data)
+            data = self._partial + data
+            *lines, self._partial = data.split(b"\n")
+            for line in lines:
+                if not line:
+                    continue
+                d = json.loads(line)
+                if not d.get("delivered"):
+                    self._undelivered.append(d)
+                    continue
+                self._records.append(
+                    LiveFrameRecord(
+                        index=d["index"],
+                        request_seq=d["seq"],
+                        t_mono_s=d["t_mono_s"],
+                        T_room_cam=np.array(d["T_room_cam"]).reshape(4, 4),
+                        render_start_mono_s=d["render_start_mono_s"],
+                        render_end_mono_s=d["render_end_mono_s"],
+                        index_written_mono_s=d["index_written_mono_s"],
+                        delivered=True,
+                        superseded=d["superseded"],
+                        depth_file=d["depth_file"],
+                        rgb_file=d["rgb_file"],
+                    )
+                )
+            return list(self._records)
+
+    def stats(self) -> dict:
+        """submitted, rendered, delivered, dropped (= superseded + reader_behind + errors +
+        send_failed), render ms median/p95 (child, per rendered frame)."""
+        recs = self.records()
+        with self._rec_lock:
+            und = list(self._undelivered)
+        with self._tx_lock:
+            submitted, send_failed = self._seq, self._send_failed
+        superseded = sum(r.superseded for r in recs) + sum(d["superseded"] for d in und)
+        errors = sum(1 for d in und if "error" in d)
+        behind = len(und) - errors
+        ms = [1e3 * (r.render_end_mono_s - r.render_start_mono_s) for r in recs] + [
+            1e3 * (d["render_end_mono_s"] - d["render_start_mono_s"]) for d in und if "error" not in d
+        ]
+        return {
+            "submitted": submitted,
+            "rendered": len(recs) + behind,
+            "delivered": len(recs),
+            "superseded": superseded,
+            "reader_behind": behind,
+            "errors": errors,
+            "send_failed": send_failed,
+            "dropped": superseded + behind + errors + send_failed,
+            "render_ms_median": float(np.median(ms)) if ms else math.nan,
+            "render_ms_p95": float(np.percentile(ms, 95)) if ms else math.nan,
+        }
+
+    def error_messages(self) -> list[str]:
+        """Why frames were not rendered (e.g. a pose outside the room), in order."""
+        self.records()
+        with self._rec_lock:
+            return [d["error"] for d in self._undelivered if "error" in d]
+
+
+if __name__ == "__main__":
+    raise SystemExit(_child_main())
