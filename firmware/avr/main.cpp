@@ -50,7 +50,7 @@ class App {
   void init() {
     uint16_t out[fw::kChannelCount];
     uint16_t ticks[fw::kScheduleSlots];
-    controller_.outputs_us(0, out);
+    controller_.outputs_us(out);
     fw::make_pwm_schedule(out, ticks);
     drivers::pwm_init(ticks);
   }
@@ -59,6 +59,10 @@ class App {
     const uint32_t now_ms = drivers::millis();
     uint8_t b;
     while (drivers::telemetry_read(&b)) mavlink_.feed(b, now_ms, imu_);
+    // The rest of an over-long line was answered 414 on its first excess byte; drain it even while
+    // that reply is still being sent, so it cannot fill the RX ring and lose its own newline (which
+    // would swallow the next request). Stops right after the newline: the next line waits as usual.
+    while (assembler_.discarding() && drivers::bridge_read(&b)) assembler_.feed(b, now_ms);
     if (!drivers::bridge_tx_busy()) {
       size_t n = 0;
       while (n == 0 && drivers::bridge_read(&b)) {
@@ -82,7 +86,7 @@ class App {
     controller_.update(now_ms);
     uint16_t out[fw::kChannelCount];
     uint16_t ticks[fw::kScheduleSlots];
-    controller_.outputs_us(now_ms, out);
+    controller_.outputs_us(out);
     fw::make_pwm_schedule(out, ticks);
     drivers::pwm_set(ticks);
   }

@@ -133,11 +133,10 @@ void Controller::update(uint32_t now_ms) {
   if (static_cast<uint32_t>(now_ms - last_valid_ms_) >= kFailsafeTimeoutMs) {
     state_ = ArmState::kFailsafe;
     failsafe_start_ms_ = last_valid_ms_ + kFailsafeTimeoutMs;
-    failsafe_start_throttle_us_ = command_us_[kChThrottle];
   }
 }
 
-void Controller::outputs_us(uint32_t now_ms, uint16_t out_us[kChannelCount]) const {
+void Controller::outputs_us(uint16_t out_us[kChannelCount]) const {
   switch (state_) {
     case ArmState::kDisarmed:
       safe_outputs(out_us);
@@ -145,14 +144,9 @@ void Controller::outputs_us(uint32_t now_ms, uint16_t out_us[kChannelCount]) con
     case ArmState::kArmed:
       for (uint8_t ch = 0; ch < kChannelCount; ++ch) out_us[ch] = command_us_[ch];
       return;
-    case ArmState::kFailsafe: {
-      safe_outputs(out_us);
-      const uint32_t elapsed_ms = static_cast<uint32_t>(now_ms - failsafe_start_ms_);
-      // now_ms before the engage instant cannot happen in the main loop; treat it as 0 elapsed.
-      out_us[kChThrottle] = failsafe_throttle_us(failsafe_start_throttle_us_,
-                                                 elapsed_ms > 0x80000000UL ? 0 : elapsed_ms);
+    case ArmState::kFailsafe:
+      failsafe_outputs_us(out_us);
       return;
-    }
   }
 }
 
@@ -160,7 +154,7 @@ size_t Controller::write_reply(Status status, uint32_t now_ms, const ImuCache& i
                                size_t cap) const {
   TextWriter w(reply, cap);
   uint16_t out[kChannelCount];
-  outputs_us(now_ms, out);
+  outputs_us(out);
   w.u32(static_cast<uint16_t>(status));
   w.str(" {\"err\":\"");
   w.str(status_reason(status));

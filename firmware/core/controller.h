@@ -49,8 +49,9 @@ class Controller {
 
   /// Advances the failsafe state machine to now_ms (call every main-loop pass).
   void update(uint32_t now_ms);
-  /// Pulse widths (us) to output at now_ms, ArduPilot order (roll, pitch, throttle, yaw).
-  void outputs_us(uint32_t now_ms, uint16_t out_us[kChannelCount]) const;
+  /// Pulse widths (us) to output now, ArduPilot order (roll, pitch, throttle, yaw): a function of
+  /// the state only (call update() first so the failsafe deadline is applied).
+  void outputs_us(uint16_t out_us[kChannelCount]) const;
 
   ArmState state() const { return state_; }
   uint32_t last_seq() const { return last_seq_; }
@@ -74,7 +75,6 @@ class Controller {
   uint8_t clamped_mask_ = 0;
   uint32_t last_valid_ms_ = 0;
   uint32_t failsafe_start_ms_ = 0;
-  uint16_t failsafe_start_throttle_us_ = kThrottleLowUs;
 };
 
 }  // namespace fw

@@ -1,5 +1,7 @@
-// The failsafe throttle timeline as a pure function of time since failsafe engaged (see
-// docs/failsafe.md for the timeline with numbers). Integer arithmetic only (fits the ATmega).
+// The failsafe outputs (see docs/failsafe.md and the reasons in limits.h): neutral sticks and a
+// throttle pulse below ArduCopter's FS_THR_VALUE, from the engage instant on. The firmware does not
+// fly the landing itself: this hands the craft to the APM's own radio-failsafe LAND, which
+// ArduCopter enters after kApmFsCounterFrames low frames without ever flying the low pulse.
 #ifndef FIRMWARE_CORE_FAILSAFE_H_
 #define FIRMWARE_CORE_FAILSAFE_H_
 
@@ -9,26 +11,12 @@
 
 namespace fw {
 
-/// Throttle (us) `elapsed_ms` after failsafe engaged, starting from the throttle being output then.
-/// Phase 1: ramp at kFailsafeRampUsPerS down to kFailsafeDescentUs (skipped when already below);
-/// phase 2: hold kFailsafeDescentHoldMs (only after a phase 1);
-/// phase 3: ramp at the same rate down to kFailsafeFinalUs and stay there.
-inline uint16_t failsafe_throttle_us(uint16_t start_us, uint32_t elapsed_ms) {
-  const uint32_t rate = kFailsafeRampUsPerS;
-  uint32_t level = start_us;
-  if (level > kFailsafeDescentUs) {
-    const uint32_t drop = level - kFailsafeDescentUs;
-    const uint32_t ramp_ms = (drop * 1000UL + rate - 1) / rate;
-    if (elapsed_ms < ramp_ms) return static_cast<uint16_t>(level - elapsed_ms * rate / 1000UL);
-    elapsed_ms -= ramp_ms;
-    if (elapsed_ms < kFailsafeDescentHoldMs) return kFailsafeDescentUs;
-    elapsed_ms -= kFailsafeDescentHoldMs;
-    level = kFailsafeDescentUs;
-  }
-  if (level <= kFailsafeFinalUs) return kFailsafeFinalUs;
-  const uint32_t ramped = elapsed_ms * rate / 1000UL;
-  if (ramped >= level - kFailsafeFinalUs) return kFailsafeFinalUs;
-  return static_cast<uint16_t>(level - ramped);
+/// Writes the failsafe pulse widths (us) of the four channels (ArduPilot order).
+inline void failsafe_outputs_us(uint16_t out_us[kChannelCount]) {
+  out_us[kChRoll] = kNeutralUs;
+  out_us[kChPitch] = kNeutralUs;
+  out_us[kChThrottle] = kFailsafeThrottleUs;
+  out_us[kChYaw] = kNeutralUs;
 }
 
 }  // namespace fw

@@ -59,25 +59,36 @@ constexpr uint16_t kThrottleMinUs = 1000;
 constexpr uint16_t kArmThrottleMaxUs = kGroundThrottleMaxUs;
 
 // ---- failsafe -----------------------------------------------------------------------------------
+// Design (docs/failsafe.md): the firmware does not try to land the craft itself. It behaves like an
+// RC receiver with the "low throttle" failsafe ArduPilot recommends: neutral sticks and a throttle
+// pulse below FS_THR_VALUE, which hands the craft to ArduCopter's own barometer-controlled LAND
+// (FS_THR_ENABLE = 3, LAND_SPEED 50 cm/s) in every flight mode. Required APM parameters are listed
+// in docs/firmware.md.
 /// No valid command for this long -> failsafe. 250 ms = 12 missed commands at the thesis's ~50 Hz
 /// command rate: long enough to ride out WiFi jitter, short enough that the craft has not drifted far.
 constexpr uint32_t kFailsafeTimeoutMs = 250;
-/// Throttle ramp during failsafe. 200 us/s takes 1 s from a 1500 us hover to the descent level: a
-/// steady reduction (the thesis warns an instant drop tips the craft over and breaks props).
-constexpr uint32_t kFailsafeRampUsPerS = 200;
-/// Descent level: 200 us below the ~1500 us hover gives a clear but gentle sink in Stabilize mode
-/// (and "descend" in AltHold, whose dead band is +-10 % around mid-stick).
-constexpr uint16_t kFailsafeDescentUs = 1300;
-/// Time held at the descent level before ramping further, so the craft is already sinking slowly
-/// when the APM's own failsafe takes over.
-constexpr uint32_t kFailsafeDescentHoldMs = 2000;
-/// ArduCopter's radio failsafe threshold FS_THR_VALUE (default 975 us); configured to Land (FS_THR_ENABLE=3).
+/// ArduCopter's radio failsafe threshold FS_THR_VALUE (default 975 us, required setting).
 constexpr uint16_t kApmFsThrValueUs = 975;
-/// Final failsafe throttle: 25 us below FS_THR_VALUE (margin for the APM's input-capture jitter) and
-/// above 900 us, below which ArduPilot treats a pulse as invalid; the APM then lands under its own
-/// control (LAND mode, barometer-controlled descent rate).
-constexpr uint16_t kFailsafeFinalUs = 950;
-static_assert(kFailsafeFinalUs < kApmFsThrValueUs, "final failsafe throttle must trigger FS_THR");
+/// Consecutive RC reads below FS_THR_VALUE ArduCopter needs before its radio failsafe (radio.cpp
+/// FS_COUNTER = 3, one read per 20 ms frame = 60 ms). Until then set_throttle_and_failsafe() keeps
+/// the last throttle above the threshold and does not pass the low pulse on to the flight mode; then
+/// it switches to LAND. So the step to kFailsafeThrottleUs is never seen as a throttle cut by any
+/// flight mode (Stabilize or AltHold) while FS_THR_ENABLE != 0: it is the hand-over signal.
+constexpr uint8_t kApmFsCounterFrames = 3;
+/// The APM's LAND takes over this long after the failsafe throttle is first output.
+constexpr uint32_t kApmLandHandoverMs = kApmFsCounterFrames * (kPwmFramePeriodUs / 1000);
+/// ArduPilot treats a pulse shorter than 900 us as no signal (RC input validity floor).
+constexpr uint16_t kApmRcPulseMinValidUs = 900;
+/// Failsafe throttle, output from the engage instant on as a step (no ramp): 25 us below
+/// FS_THR_VALUE (margin for the APM's input-capture jitter), 50 us above the validity floor. Why a
+/// step: any throttle above FS_THR_VALUE on the way down IS flown by the APM - in AltHold every
+/// value below 1400 us commands a descent of up to 2.5 m/s (the old 1500 -> 1300 -> 950 us ramp
+/// touched down at 0.95 m/s in HIL), in Stabilize every value below hover is a fall (3 m/s). The
+/// step hands over to LAND 60 ms after engage, measured 0.49 m/s touchdown in both modes.
+constexpr uint16_t kFailsafeThrottleUs = 950;
+static_assert(kFailsafeThrottleUs < kApmFsThrValueUs, "failsafe throttle must trigger FS_THR");
+static_assert(kFailsafeThrottleUs > kApmRcPulseMinValidUs, "failsafe throttle must be a valid pulse");
+static_assert(kThrottleLowUs > kApmFsThrValueUs, "disarmed/ground throttle must not trigger FS_THR");
 
 // ---- serial request link --------------------------------------------------------------------------
 /// Longest request line (bytes, without the newline). The longest valid control request is 93

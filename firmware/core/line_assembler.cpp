@@ -9,35 +9,35 @@ LineEvent LineAssembler::feed(uint8_t byte, uint32_t now_ms) {
     fill_ = 0;
     len_ = 0;
   }
-  if (fill_ == 0 && !overflow_) first_byte_ms_ = now_ms;
+  last_byte_ms_ = now_ms;
+  if (discarding_) {
+    if (byte == '\n') discarding_ = false;  // end of the over-long line, already answered
+    return LineEvent::kNone;
+  }
   if (byte == '\n') {
-    if (overflow_) {
-      overflow_ = false;
-      fill_ = 0;
-      return LineEvent::kTooLong;
-    }
     len_ = fill_;
     if (len_ > 0 && buf_[len_ - 1] == '\r') --len_;
     complete_ = true;
     return LineEvent::kLine;
   }
-  if (overflow_) return LineEvent::kNone;
   if (fill_ >= sizeof(buf_)) {
-    overflow_ = true;  // discard until the newline
-    return LineEvent::kNone;
+    discarding_ = true;  // report now, then drop the rest up to the newline
+    fill_ = 0;
+    return LineEvent::kTooLong;
   }
   buf_[fill_++] = static_cast<char>(byte);
   return LineEvent::kNone;
 }
 
 LineEvent LineAssembler::poll(uint32_t now_ms) {
-  const bool partial = (!complete_ && fill_ > 0) || overflow_;
-  if (partial && static_cast<uint32_t>(now_ms - first_byte_ms_) >= kLineStallTimeoutMs) {
-    fill_ = 0;
-    overflow_ = false;
-    return LineEvent::kStalled;
+  const bool partial = discarding_ || (!complete_ && fill_ > 0);
+  if (!partial || static_cast<uint32_t>(now_ms - last_byte_ms_) < kLineStallTimeoutMs) {
+    return LineEvent::kNone;
   }
-  return LineEvent::kNone;
+  const bool was_discarding = discarding_;
+  discarding_ = false;
+  fill_ = 0;
+  return was_discarding ? LineEvent::kNone : LineEvent::kStalled;
 }
 
 }  // namespace fw

@@ -1,7 +1,11 @@
 // Assembles request lines from the bridge's byte stream with a fixed buffer: a line ends at '\n'
-// (a preceding '\r' is dropped). Over-long lines are discarded up to their newline and reported
-// once; a line left incomplete for kLineStallTimeoutMs is discarded and reported (a truncated
-// request). Time is passed in. Not thread-safe: feed from one context (the main loop).
+// (a preceding '\r' is dropped). A line that exceeds kMaxRequestBytes is reported (kTooLong, reply
+// 414) at once, on its first excess byte - not at its newline, which may never come - and the rest
+// of it is then discarded silently up to its newline. A line that gets no byte for
+// kLineStallTimeoutMs is discarded: reported (kStalled, reply 408) if it was a partial request,
+// silently if it was the rest of an over-long line (that line was already answered 414).
+// Exactly one event is reported per line. Time is passed in. Not thread-safe: feed from one
+// context (the main loop).
 #ifndef FIRMWARE_CORE_LINE_ASSEMBLER_H_
 #define FIRMWARE_CORE_LINE_ASSEMBLER_H_
 
@@ -15,8 +19,8 @@ namespace fw {
 enum class LineEvent : uint8_t {
   kNone,      ///< nothing complete yet
   kLine,      ///< a complete line is in line()/length()
-  kTooLong,   ///< a line exceeded kMaxRequestBytes and was discarded (reply 414)
-  kStalled,   ///< an incomplete line timed out and was discarded (reply 408)
+  kTooLong,   ///< the line exceeded kMaxRequestBytes; its rest is being discarded (reply 414)
+  kStalled,   ///< an incomplete line got no byte for kLineStallTimeoutMs and was discarded (reply 408)
 };
 
 class LineAssembler {
@@ -25,6 +29,10 @@ class LineAssembler {
   LineEvent feed(uint8_t byte, uint32_t now_ms);
   /// Checks for a stalled partial line at now_ms (call regularly).
   LineEvent poll(uint32_t now_ms);
+  /// True while the rest of an over-long line (already reported) is being discarded: feeding these
+  /// bytes never produces an event nor touches line(), so the caller may drain them at any time,
+  /// e.g. while the 414 reply is still being sent.
+  bool discarding() const { return discarding_; }
   /// The last complete line (valid after kLine until the next feed()).
   const char* line() const { return buf_; }
   size_t length() const { return len_; }
@@ -33,9 +41,9 @@ class LineAssembler {
   char buf_[kMaxRequestBytes];
   size_t len_ = 0;
   size_t fill_ = 0;
-  bool overflow_ = false;
+  bool discarding_ = false;
   bool complete_ = false;
-  uint32_t first_byte_ms_ = 0;
+  uint32_t last_byte_ms_ = 0;
 };
 
 }  // namespace fw

@@ -1,9 +1,10 @@
-// Table-driven unit tests of firmware/core: failsafe throttle timeline, hard-limit clamping, the
+// Table-driven unit tests of firmware/core: failsafe outputs, hard-limit clamping, the
 // line assembler, the EEPROM key record, the IMU cache and MAVLink reader, reply bounds and the PWM
 // schedule. GIVEN/WHEN/THEN in each table row's name; time is always passed in.
 #include <gtest/gtest.h>
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "controller.h"
@@ -49,54 +50,52 @@ int send(fw::Controller& c, const std::string& line, uint32_t now_ms) {
   return std::atoi(reply);
 }
 
-// ---- failsafe timeline ------------------------------------------------------------------------------
+// ---- failsafe outputs -------------------------------------------------------------------------------
 struct FailsafeRow {
   const char* name;
-  uint16_t start_us;
-  uint32_t elapsed_ms;
-  uint16_t want_us;
+  int roll, pitch, thr, yaw;  ///< last valid command before the link went silent
 };
 
-TEST(FailsafeThrottle, TimelineTable) {
+TEST(FailsafeOutputs, StepToNeutralAndBelowFsThrValueAtTheEngageInstantForEveryLastCommand) {
+  // GIVEN an armed craft whose last valid command (at 1000 ms) is any of these
   const FailsafeRow rows[] = {
-      {"hover, at engage: no step", 1500, 0, 1500},
-      {"hover, 1 ms: rate 0.2 us/ms floors to 0", 1500, 1, 1500},
-      {"hover, 5 ms: 1 us down", 1500, 5, 1499},
-      {"hover, 500 ms: 100 us down", 1500, 500, 1400},
-      {"hover, 999 ms", 1500, 999, 1301},
-      {"hover, 1000 ms: descent level reached", 1500, 1000, 1300},
-      {"hover, hold until 2999 ms", 1500, 2999, 1300},
-      {"hover, 3000 ms: hold ends", 1500, 3000, 1300},
-      {"hover, 3005 ms: second ramp", 1500, 3005, 1299},
-      {"hover, 4749 ms", 1500, 4749, 951},
-      {"hover, 4750 ms: final level", 1500, 4750, 950},
-      {"hover, one hour later", 1500, 3600000, 950},
-      {"max throttle 1750: 2250 ms ramp", 1750, 2250, 1300},
-      {"max throttle 1750: hold ends at 4250", 1750, 4250, 1300},
-      {"max throttle 1750: final at 6000", 1750, 6000, 950},
-      {"at descent level: no hold, ramps at once", 1300, 1750, 950},
-      {"below descent (1100): ramps straight down", 1100, 500, 1000},
-      {"below descent (1100): final at 750 ms", 1100, 750, 950},
-      {"on the ground (1000): final at 250 ms", 1000, 250, 950},
-      {"already below final", 900, 0, 950},
+      {"hover", 1500, 1500, 1500, 1500},
+      {"climbing at the throttle ceiling, leaning", 1750, 1250, 1750, 1250},
+      {"descending, AltHold dead band edge", 1500, 1500, 1399, 1500},
+      {"low throttle near the ground", 1500, 1500, 1100, 1500},
+      {"on the ground, throttle fully down", 1500, 1500, 1000, 1500},
   };
+  const uint16_t fs[4] = {1500, 1500, 950, 1500};
   for (const auto& r : rows) {
-    EXPECT_EQ(fw::failsafe_throttle_us(r.start_us, r.elapsed_ms), r.want_us) << r.name;
+    fw::Controller c(kKey);
+    ASSERT_EQ(send(c, cmd(1, 1, 1500, 1500, 1000, 1500), 990), 200) << r.name;
+    ASSERT_EQ(send(c, cmd(2, 1, r.roll, r.pitch, r.thr, r.yaw), 1000), 200) << r.name;
+    uint16_t out[4];
+    // WHEN time passes without a valid command
+    // THEN the last command is output until 1249 ms
+    c.update(1249);
+    c.outputs_us(out);
+    EXPECT_EQ(out[fw::kChThrottle], r.thr) << r.name;
+    EXPECT_EQ(out[fw::kChRoll], r.roll) << r.name;
+    // AND from the engage instant (1250 ms) on: neutral sticks and the failsafe throttle at once,
+    // no ramp (any throttle above FS_THR_VALUE on the way down would be flown by the APM)
+    for (uint32_t t : {1250u, 1251u, 1310u, 5000u, 3601250u}) {
+      c.update(t);
+      c.outputs_us(out);
+      for (int ch = 0; ch < 4; ++ch) EXPECT_EQ(out[ch], fs[ch]) << r.name << " @" << t << " ch" << ch + 1;
+    }
   }
 }
 
-TEST(FailsafeThrottle, NeverStepsMoreThanRatePerMillisecondAndNeverRises) {
-  for (uint16_t start = 1000; start <= 1750; start += 50) {
-    uint16_t prev = fw::failsafe_throttle_us(start, 0);
-    EXPECT_EQ(prev, start);
-    for (uint32_t t = 1; t < 10000; ++t) {
-      const uint16_t now = fw::failsafe_throttle_us(start, t);
-      ASSERT_LE(now, prev) << "start " << start << " t " << t;
-      ASSERT_LE(prev - now, 1) << "start " << start << " t " << t;  // 200 us/s = 0.2 us/ms
-      prev = now;
-    }
-    EXPECT_EQ(prev, fw::kFailsafeFinalUs);
-  }
+TEST(FailsafeOutputs, ThrottleIsBelowFsThrValueAndAValidPulseAndGroundThrottleIsNot) {
+  // The hand-over contract with ArduCopter's radio failsafe (limits.h, docs/failsafe.md).
+  uint16_t out[4];
+  fw::failsafe_outputs_us(out);
+  EXPECT_LT(out[fw::kChThrottle], fw::kApmFsThrValueUs);
+  EXPECT_GT(out[fw::kChThrottle], fw::kApmRcPulseMinValidUs);
+  EXPECT_GT(fw::kThrottleLowUs, fw::kApmFsThrValueUs);  // disarmed/on the ground: no failsafe
+  EXPECT_GT(fw::kThrottleMinUs, fw::kApmFsThrValueUs);  // no command can trigger it by accident
+  EXPECT_EQ(fw::kApmLandHandoverMs, 60u);
 }
 
 TEST(Failsafe, EngagesExactlyAtTimeoutAfterLastValidCommand) {
@@ -119,8 +118,9 @@ TEST(Failsafe, EngageTimeIsTheDeadlineEvenWhenUpdateRunsLate) {
   c.update(300);  // main loop was busy
   ASSERT_EQ(c.state(), fw::ArmState::kFailsafe);
   uint16_t out[4];
-  c.outputs_us(300, out);
-  EXPECT_EQ(out[fw::kChThrottle], 1492);  // 40 ms into the ramp (engaged at 260): 8 us down
+  c.outputs_us(out);
+  EXPECT_EQ(out[fw::kChThrottle], fw::kFailsafeThrottleUs);
+  EXPECT_EQ(c.failsafe_start_ms(), 260u);
 }
 
 TEST(Failsafe, SurvivesClockWrap) {
@@ -161,7 +161,7 @@ TEST(Limits, ClampTable) {
     ASSERT_EQ(send(c, cmd(1, 1, 1500, 1500, 1000, 1500), 0), 200) << r.name;
     ASSERT_EQ(send(c, cmd(2, 1, r.roll, r.pitch, r.thr, r.yaw), 1), 200) << r.name;
     uint16_t out[4];
-    c.outputs_us(1, out);
+    c.outputs_us(out);
     for (int ch = 0; ch < 4; ++ch) EXPECT_EQ(out[ch], r.want[ch]) << r.name << " ch" << ch + 1;
     EXPECT_EQ(c.clamped_mask(), r.want_mask) << r.name;
   }
@@ -206,7 +206,7 @@ TEST(Arming, TransitionTable) {
     EXPECT_EQ(send(c, cmd(seq, r.arm, 1500, 1500, r.thr, 1500), t), r.want_status) << r.name;
     EXPECT_EQ(c.state(), r.to) << r.name;
     uint16_t out[4];
-    c.outputs_us(t, out);
+    c.outputs_us(out);
     if (r.to == S::kDisarmed) {
       EXPECT_EQ(out[fw::kChThrottle], fw::kThrottleLowUs) << r.name;
       EXPECT_EQ(out[fw::kChRoll], fw::kNeutralUs) << r.name;
@@ -239,7 +239,7 @@ TEST(Auth, ReplayOldSeqForgedAndWrongKeyAreRejectedAndChangeNothing) {
     EXPECT_EQ(send(c, r.line, 100), r.want) << r.name;
     EXPECT_EQ(c.last_seq(), 11u) << r.name;
     uint16_t out[4];
-    c.outputs_us(100, out);
+    c.outputs_us(out);
     EXPECT_EQ(out[fw::kChRoll], 1600) << r.name;
     EXPECT_EQ(out[fw::kChThrottle], 1400) << r.name;
   }
@@ -286,17 +286,102 @@ TEST(LineAssembler, LinesOverlongAndStall) {
   EXPECT_EQ(std::string(a.line(), a.length()), "GET /status");
   // Exactly kMaxRequestBytes is accepted; one more is too long.
   for (size_t n : {size_t{fw::kMaxRequestBytes}, size_t{fw::kMaxRequestBytes} + 1, size_t{1000}}) {
-    for (size_t i = 0; i < n; ++i) EXPECT_EQ(a.feed('A', 1), fw::LineEvent::kNone);
+    std::vector<fw::LineEvent> events;
+    for (size_t i = 0; i < n; ++i) {
+      ev = a.feed('A', 1);
+      if (ev != fw::LineEvent::kNone) events.push_back(ev);
+    }
     ev = a.feed('\n', 1);
-    EXPECT_EQ(ev, n <= fw::kMaxRequestBytes ? fw::LineEvent::kLine : fw::LineEvent::kTooLong) << n;
+    if (ev != fw::LineEvent::kNone) events.push_back(ev);
+    ASSERT_EQ(events.size(), 1u) << n;
+    EXPECT_EQ(events[0], n <= fw::kMaxRequestBytes ? fw::LineEvent::kLine : fw::LineEvent::kTooLong) << n;
   }
-  // A partial line stalls after kLineStallTimeoutMs from its first byte.
+  // A partial line stalls kLineStallTimeoutMs after its last byte.
   a.feed('P', 100);
   a.feed('U', 150);
-  EXPECT_EQ(a.poll(199), fw::LineEvent::kNone);
-  EXPECT_EQ(a.poll(200), fw::LineEvent::kStalled);
-  EXPECT_EQ(a.poll(300), fw::LineEvent::kNone);  // reported once
-  for (char ch : l) ev = a.feed(static_cast<uint8_t>(ch), 301);
+  EXPECT_EQ(a.poll(249), fw::LineEvent::kNone);
+  EXPECT_EQ(a.poll(250), fw::LineEvent::kStalled);
+  EXPECT_EQ(a.poll(400), fw::LineEvent::kNone);  // reported once
+  for (char ch : l) ev = a.feed(static_cast<uint8_t>(ch), 401);
+  ASSERT_EQ(ev, fw::LineEvent::kLine);
+  EXPECT_EQ(std::string(a.line(), a.length()), "GET /status");
+}
+
+struct OverlongRow {
+  const char* name;
+  size_t bytes;          ///< line length without the newline
+  uint32_t byte_gap_us;  ///< time between bytes (20 us = 500 kbaud back to back)
+  bool newline;          ///< false: the newline was lost in transit
+};
+
+TEST(LineAssembler, OverlongLineIsAnswered414OnItsFirstExcessByteWhateverItsLengthOrPace) {
+  // Regression: the 414 used to wait for the newline, and the stall timer counted from the first
+  // byte, so a long or slow over-long line - or one whose newline was lost - got a 408 instead (and
+  // the rest of it then counted as a new line: two replies for one line).
+  const OverlongRow rows[] = {
+      {"132 B at line rate", 132, 20, true},
+      {"272 B at line rate", 272, 20, true},
+      {"312 B at line rate", 312, 20, true},
+      {"612 B at line rate", 612, 20, true},
+      {"272 B, newline lost", 272, 20, false},
+      {"20000 B: 400 ms of back-to-back bytes", 20000, 20, true},
+      {"300 B trickled over 1.5 s (5 ms apart)", 300, 5000, true},
+  };
+  for (const auto& r : rows) {
+    fw::LineAssembler a;
+    std::vector<std::pair<fw::LineEvent, size_t>> events;  // (event, byte index)
+    const uint32_t t0_us = 1000000;
+    uint32_t t_us = t0_us;
+    for (size_t i = 0; i <= r.bytes; ++i) {
+      if (i == r.bytes && !r.newline) break;
+      t_us = t0_us + static_cast<uint32_t>(i) * r.byte_gap_us;
+      const fw::LineEvent ev = a.feed(i == r.bytes ? '\n' : 'X', t_us / 1000);
+      if (ev != fw::LineEvent::kNone) events.push_back({ev, i});
+      const fw::LineEvent p = a.poll(t_us / 1000);
+      if (p != fw::LineEvent::kNone) events.push_back({p, i});
+    }
+    // WHEN the link then stays quiet for a while
+    for (uint32_t ms = t_us / 1000; ms < t_us / 1000 + 500; ++ms) {
+      const fw::LineEvent p = a.poll(ms);
+      if (p != fw::LineEvent::kNone) events.push_back({p, r.bytes + 1});
+    }
+    // THEN exactly one event: kTooLong, on the first byte past kMaxRequestBytes
+    ASSERT_EQ(events.size(), 1u) << r.name;
+    EXPECT_EQ(events[0].first, fw::LineEvent::kTooLong) << r.name;
+    EXPECT_EQ(events[0].second, size_t{fw::kMaxRequestBytes}) << r.name;
+    EXPECT_FALSE(a.discarding()) << r.name;
+    // AND the next line is assembled normally
+    fw::LineEvent ev = fw::LineEvent::kNone;
+    for (char ch : std::string("GET /status\n")) ev = a.feed(static_cast<uint8_t>(ch), t_us / 1000 + 600);
+    ASSERT_EQ(ev, fw::LineEvent::kLine) << r.name;
+    EXPECT_EQ(std::string(a.line(), a.length()), "GET /status") << r.name;
+  }
+}
+
+TEST(LineAssembler, DiscardingCoversExactlyTheRestOfTheOverlongLine) {
+  fw::LineAssembler a;
+  for (size_t i = 0; i < fw::kMaxRequestBytes; ++i) ASSERT_EQ(a.feed('X', 0), fw::LineEvent::kNone);
+  EXPECT_FALSE(a.discarding());
+  EXPECT_EQ(a.feed('X', 0), fw::LineEvent::kTooLong);
+  EXPECT_TRUE(a.discarding());
+  EXPECT_EQ(a.feed('\r', 0), fw::LineEvent::kNone);
+  EXPECT_EQ(a.feed('\n', 0), fw::LineEvent::kNone);
+  EXPECT_FALSE(a.discarding());  // a caller draining while discarding() stops right here
+}
+
+TEST(LineAssembler, SlowButSteadyLineIsNotStalled) {
+  // A valid line whose bytes come 50 ms apart (total > kLineStallTimeoutMs) is not cut: the stall
+  // timer measures silence, not line duration.
+  fw::LineAssembler a;
+  const std::string l = "GET /status\n";
+  fw::LineEvent ev = fw::LineEvent::kNone;
+  for (size_t i = 0; i < l.size(); ++i) {
+    const uint32_t t = static_cast<uint32_t>(i) * 50;
+    ev = a.feed(static_cast<uint8_t>(l[i]), t);
+    if (i + 1 < l.size()) {
+      ASSERT_EQ(a.poll(t + 49), fw::LineEvent::kNone) << i;
+    }
+  }
   ASSERT_EQ(ev, fw::LineEvent::kLine);
   EXPECT_EQ(std::string(a.line(), a.length()), "GET /status");
 }
@@ -508,7 +593,7 @@ TEST(Robustness, MutatedAndRandomStreamsNeverApplyAnythingOrOverflow) {
     c.update(t);  // time stands still: the failsafe must not engage, and nothing may change outputs
   }
   uint16_t out[4];
-  c.outputs_us(t, out);
+  c.outputs_us(out);
   EXPECT_EQ(c.state(), fw::ArmState::kArmed);
   EXPECT_EQ(c.last_seq(), 2u);
   EXPECT_EQ(out[fw::kChRoll], 1600);

@@ -139,7 +139,7 @@ TEST_P(ScenarioTest, Replays) {
     EXPECT_EQ(fw::arm_state_name(c.state()), st["state"].get<std::string>()) << where;
     if (st.contains("out_us")) {
       uint16_t out[4];
-      c.outputs_us(t, out);
+      c.outputs_us(out);
       for (int ch = 0; ch < 4; ++ch) EXPECT_EQ(out[ch], st["out_us"][ch].get<int>()) << where << " ch" << ch + 1;
     }
     if (st.contains("clamped")) {

@@ -162,8 +162,9 @@ def scenarios():
             ],
         }
     )
-    # Failsafe timeline from a 1500 us hover (docs/failsafe.md).
+    # Failsafe timeline from a 1500 us hover (docs/failsafe.md, firmware/core/limits.h).
     t0 = 100
+    FS = [1500, 1500, 950, 1500]
     fs = [
         step(0, line(req(1, arm=1, thr=1000)), 200, "armed"),
         step(
@@ -174,15 +175,16 @@ def scenarios():
             [1600, 1450, 1500, 1550],
         ),
         step(t0 + 249, "", None, "armed", [1600, 1450, 1500, 1550]),
-        step(t0 + 250, "", None, "failsafe", [1500, 1500, 1500, 1500]),
-        step(t0 + 250 + 500, "", None, "failsafe", [1500, 1500, 1400, 1500]),
-        step(t0 + 250 + 1000, "", None, "failsafe", [1500, 1500, 1300, 1500]),
-        step(t0 + 250 + 2999, "", None, "failsafe", [1500, 1500, 1300, 1500]),
-        step(t0 + 250 + 3005, "", None, "failsafe", [1500, 1500, 1299, 1500]),
-        step(t0 + 250 + 4000, "", None, "failsafe", [1500, 1500, 1100, 1500]),
-        step(t0 + 250 + 4749, "", None, "failsafe", [1500, 1500, 951, 1500]),
-        step(t0 + 250 + 4750, "", None, "failsafe", [1500, 1500, 950, 1500]),
-        step(t0 + 250 + 60000, "", None, "failsafe", [1500, 1500, 950, 1500]),
+        step(
+            t0 + 250,
+            "",
+            None,
+            "failsafe",
+            FS,
+            note="neutral sticks and throttle below FS_THR_VALUE at once: APM LAND takes over",
+        ),
+        step(t0 + 250 + 60, "", None, "failsafe", FS),
+        step(t0 + 250 + 60000, "", None, "failsafe", FS),
         step(
             t0 + 250 + 60010,
             line(req(3, arm=1, thr=1000)),
@@ -236,7 +238,7 @@ def scenarios():
                     240, line(raw_req(3, arm=1, roll=2001)), 422, "armed", [1500, 1500, 1400, 1500]
                 ),
                 step(259, "", None, "armed", [1500, 1500, 1400, 1500]),
-                step(260, "", None, "failsafe", [1500, 1500, 1400, 1500]),
+                step(260, "", None, "failsafe", [1500, 1500, 950, 1500]),
             ],
         }
     )
@@ -264,6 +266,15 @@ def scenarios():
             "key": "test",
             "steps": [
                 step(0, "X" * 300 + "\n", 414, "disarmed", SAFE),
+                step(
+                    1,
+                    "Y" * 200,
+                    414,
+                    "disarmed",
+                    SAFE,
+                    note="answered on the first byte past 128, before any newline",
+                ),
+                step(5, "Y" * 50 + "\n", None, "disarmed", note="rest of it discarded silently"),
                 step(10, "PUT /control?seq=1&ar", None, "disarmed"),
                 step(109, "", None, "disarmed"),
                 step(110, "", 408, "disarmed"),
