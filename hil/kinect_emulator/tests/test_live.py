@@ -1,0 +1,261 @@
+"""LiveKinect unit tests: the FIFO index protocol fakenect relies on, newest-request-wins, records,
+capture-stamp matching and per-frame reproducibility. A Python reader stands in for fakenect (one
+line at a time, the named files opened after their line). Only the renderer child is started; the
+frames are 160x120 so the whole file runs in a few seconds. Deterministic: seeded; no timing
+assertions.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from kinect_emulator import Box, Intrinsics, KinectEmulator, KinectOptions, Room, pose_matrix
+from kinect_emulator.live import (
+    INDEX_NAME,
+    KEEP_NEWEST_FRAMES,
+    RECORDS_NAME,
+    FakenectFifoIndex,
+    LiveFrameRecord,
+    LiveKinect,
+    match_capture_stamps,
+)
+from kinect_emulator.writers import depth_mm_to_freenect_raw
+
+SMALL = Intrinsics(width=160, height=120, fx=129.0, fy=129.0, cx=79.5, cy=59.5)
+WAIT_S = 30.0  # generous: the machine is shared; only a hang would reach it
+
+
+@pytest.fixture(scope="module")
+def room():
+    tex = np.random.default_rng(0).integers(0, 256, (3, 48, 64, 3), dtype=np.uint8)
+    return Room(bounds=Box((-4.0, -3.0, 0.0), (4.0, 3.0, 3.0)), textures=tex)
+
+
+def opts(seed: int = 5) -> KinectOptions:
+    return KinectOptions(intrinsics=SMALL, seed=seed)
+
+
+def level_pose(x: float) -> np.ndarray:
+    # Camera looking along room +x (camera z), image x to room -y, image y down (room -z).
+    R = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+    return pose_matrix(R, [x, 0.0, 1.5])
+
+
+def wait_for(pred, timeout_s: float = WAIT_S) -> bool:
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(0.01)
+    return pred()
+
+
+class FakeFakenect:
+    """Reads INDEX lines one at a time like fakenect's fgetc loop and opens each named file right
+    after its line; records (line, file bytes) until EOF."""
+
+    def __init__(self, dump: Path) -> None:
+        self.dump = dump
+        self.items: list[tuple[str, bytes]] = []
+        self.missing: list[str] = []
+        self.eof = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        with open(self.dump / INDEX_NAME, "rb") as f:  # blocks until the child opened the FIFO
+            for line in f:
+                name = line.decode().strip()
+                try:
+                    self.items.append((name, (self.dump / name).read_bytes()))
+                except FileNotFoundError:
+                    self.missing.append(name)
+        self.eof.set()
+
+
+def rec(i: int, written_s: float, delivered: bool = True) -> LiveFrameRecord:
+    return LiveFrameRecord(i, i, written_s - 0.03, np.eye(4), 0.0, 0.0, written_s, delivered, 0,
+                           f"d{i}", f"r{i}")  # fmt: skip
+
+
+# ---- capture-stamp matching -------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "stamp_us, want",
+    [
+        (999_000, None),  # before any line was written
+        (1_000_000, 0),  # at the write instant
+        (1_000_400, 0),
+        (1_033_310, 1),
+        (1_066_000, 1),  # frame 2 was not delivered: its stamp can only be frame 1's
+        (1_100_000, 3),
+        (1_250_001, None),  # more than max_delay after the last write
+    ],
+)
+def test_match_capture_stamps(stamp_us, want):
+    records = [rec(0, 1.0), rec(1, 1.0333), rec(2, 1.0666, delivered=False), rec(3, 1.1)]
+    got = match_capture_stamps(records, [stamp_us], max_delay_us=150_000)[0]
+    assert (got.index if got is not None else None) == want
+
+
+# ---- the FIFO index (what fakenect reads) ------------------------------------------------------
+def test_fifo_index_files_complete_before_lines_and_collected(tmp_path):
+    os.mkfifo(tmp_path / INDEX_NAME)
+    idx = FakenectFifoIndex(tmp_path)
+    idx.open()
+    reader = os.open(tmp_path / INDEX_NAME, os.O_RDONLY | os.O_NONBLOCK)
+    rng = np.random.default_rng(1)
+    names = []
+    try:
+        for k in range(6):
+            raw = rng.integers(0, 2048, (4, 5), dtype=np.uint16)
+            rgb = rng.integers(0, 256, (4, 5, 3), dtype=np.uint8)
+            assert not idx.reader_is_behind()
+            written, dname, rname = idx.write_frame(k, 12.5 + k, rgb, raw, lambda: 100.0 + k)
+            assert written == 100.0 + k
+            assert idx.reader_is_behind()  # lines are in the FIFO, unread
+            # The files are complete when their line can be read (fakenect opens them right then).
+            lines = os.read(reader, 4096).decode().splitlines()
+            assert lines == [dname, rname]
+            assert (tmp_path / dname).read_bytes() == b"P5 5 4 65535\n" + raw.astype("=u2").tobytes()
+            assert (tmp_path / rname).read_bytes() == b"P6 5 4 255\n" + rgb.tobytes()
+            # fakenect's sscanf("%c-%lf-%u-%*s"): no pacing time, 60 MHz exposure ticks.
+            typ, t, ticks, rest = dname.split("-", 3)
+            assert (typ, float(t), int(ticks), rest) == ("d", 0.0, int((12.5 + k) * 60e6), f"{k}.pgm")
+            names.append((dname, rname))
+        idx.collect()
+        on_disk = sorted(p.name for p in tmp_path.iterdir() if p.name[0] in "dr")
+        # Everything before the newest frames whose successor's lines were consumed is gone.
+        assert on_disk == sorted(n for pair in names[-KEEP_NEWEST_FRAMES:] for n in pair)
+        assert not any(p.name.endswith(".tmp") for p in tmp_path.iterdir())
+    finally:
+        idx.close()
+        os.close(reader)
+
+
+def test_fifo_index_keeps_unconsumed_frames(tmp_path):
+    """GIVEN nobody reads the FIFO WHEN frames are written THEN no frame file is deleted."""
+    os.mkfifo(tmp_path / INDEX_NAME)
+    idx = FakenectFifoIndex(tmp_path)
+    idx.open()
+    try:
+        for k in range(4):
+            idx.write_frame(k, 1.0, np.zeros((2, 2, 3), np.uint8), np.zeros((2, 2), np.uint16),
+                            lambda: 0.0)  # fmt: skip
+        assert len([p for p in tmp_path.iterdir() if p.suffix in (".pgm", ".ppm")]) == 8
+    finally:
+        idx.close()
+
+
+# ---- per-frame reproducibility -----------------------------------------------------------------
+def test_render_indexed_is_a_function_of_pose_and_index(room):
+    T = level_pose(-1.0)
+    a = KinectEmulator(room, opts()).render_indexed(T, 0, 7)
+    emu = KinectEmulator(room, opts())
+    seq_before = KinectEmulator(room, opts()).render(T, 0)
+    emu.render_indexed(level_pose(0.5), 0, 3)
+    b = emu.render_indexed(T, 0, 7)
+    c = emu.render_indexed(T, 0, 8)
+    seq_after = emu.render(T, 0)  # the sequential stream is untouched by render_indexed
+    assert np.array_equal(a.depth_mm, b.depth_mm) and np.array_equal(a.rgb, b.rgb)
+    assert not np.array_equal(a.depth_mm, c.depth_mm)  # different noise draw
+    assert np.array_equal(seq_before.depth_mm, seq_after.depth_mm)
+    assert np.array_equal(seq_before.rgb, seq_after.rgb)
+
+
+# ---- the live camera (renderer child) ----------------------------------------------------------
+def test_submit_validation_and_not_started(tmp_path, room):
+    cam = LiveKinect(tmp_path / "d", opts(), room)
+    with pytest.raises(ValueError):
+        cam.submit(0.0, np.eye(3))
+    with pytest.raises(ValueError):
+        cam.submit(float("nan"), np.eye(4))
+    bad = np.eye(4)
+    bad[0, 3] = np.inf
+    with pytest.raises(ValueError):
+        cam.submit(0.0, bad)
+    assert cam.submit(0.0, level_pose(0.0)) is False  # not started
+    assert cam.stats()["send_failed"] == 1
+
+
+def test_start_refuses_an_offline_dump(tmp_path, room):
+    (tmp_path / INDEX_NAME).write_text("d-1.0-1-0.pgm\n")
+    with pytest.raises(FileExistsError):
+        LiveKinect(tmp_path, opts(), room).start()
+    assert (tmp_path / INDEX_NAME).read_text() == "d-1.0-1-0.pgm\n"
+
+
+def test_live_frames_reach_a_reader_in_order_and_reproducibly(tmp_path, room):
+    dump = tmp_path / "live"
+    cam = LiveKinect(dump, opts(seed=9), room)  # frame files deleted once read: none may be missing
+    cam.start()
+    try:
+        reader = FakeFakenect(dump)
+        poses = [level_pose(-2.0 + 0.1 * k) for k in range(8)]
+        for k, T in enumerate(poses):
+            assert cam.submit(10.0 + k / 30, T)
+            # One at a time (wait for the record): nothing is superseded, nothing is behind.
+            assert wait_for(lambda: len(cam.records()) == k + 1 and len(reader.items) == 2 * k + 2)
+        # An out-of-room pose: an error record, no frame, the camera goes on.
+        assert cam.submit(20.0, level_pose(50.0))
+        assert wait_for(lambda: cam.error_messages())
+    finally:
+        cam.close()
+    assert reader.eof.wait(WAIT_S), "the reader never saw EOF after close()"
+    assert not reader.missing
+    assert not (dump / INDEX_NAME).exists()  # the FIFO is removed; the records stay
+    assert (dump / RECORDS_NAME).exists()
+    recs = cam.records()
+    assert [r.index for r in recs] == list(range(8))
+    assert [r.request_seq for r in recs] == list(range(8))
+    assert "outside the room" in cam.error_messages()[0]
+    st = cam.stats()
+    assert (st["submitted"], st["delivered"], st["errors"], st["dropped"]) == (9, 8, 1, 1)
+    emu = KinectEmulator(room, opts(seed=9))
+    for k, r in enumerate(recs):
+        assert np.array_equal(r.T_room_cam, poses[k])
+        assert r.t_mono_s == 10.0 + k / 30
+        assert r.render_start_mono_s <= r.render_end_mono_s <= r.index_written_mono_s
+        dname, dbytes = reader.items[2 * k]
+        rname, rbytes = reader.items[2 * k + 1]
+        assert (dname, rname) == (r.depth_file, r.rgb_file)
+        f = emu.render_indexed(poses[k], round(r.t_mono_s * 1e6), r.index)
+        h, w = f.depth_mm.shape
+        assert dbytes == f"P5 {w} {h} 65535\n".encode() + depth_mm_to_freenect_raw(
+            f.depth_mm
+        ).astype("=u2").tobytes()
+        assert rbytes == f"P6 {w} {h} 255\n".encode() + f.rgb.tobytes()
+
+
+def test_newest_request_wins_and_reader_behind_is_not_queued(tmp_path, room):
+    """GIVEN nobody reads the FIFO WHEN a burst of requests arrives THEN the first frame is written,
+    later frames are rendered but not written (the FIFO never holds more than one frame), requests
+    waiting while the child renders are superseded, and the newest request is always rendered."""
+    dump = tmp_path / "live"
+    cam = LiveKinect(dump, opts(), room)
+    cam.start()
+    try:
+        n = 40
+        for k in range(n):
+            assert cam.submit(float(k), level_pose(-2.0 + 0.01 * k))
+        assert wait_for(
+            lambda: any(
+                json.loads(line)["seq"] == n - 1
+                for line in (dump / RECORDS_NAME).read_text().splitlines()
+            )
+        )
+        st = cam.stats()
+    finally:
+        cam.close()
+    recs = cam.records()
+    assert [r.index for r in recs] == [0]  # the first frame rendered (for whichever request won)
+    assert st["delivered"] == 1
+    assert st["rendered"] + st["superseded"] == n
+    assert st["reader_behind"] == st["rendered"] - 1
+    assert len(list(dump.glob("d-*.pgm"))) == 1
