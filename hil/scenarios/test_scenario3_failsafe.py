@@ -10,7 +10,8 @@ its MAVLink bytes are fed back in pass 2, which must produce the same pulses (ou
 telemetry) and replies carrying the emulator's attitude.
 
 Reported (test-artifacts/hil/scenario3_failsafe.json): failsafe onset after the last command,
-time to the APM's radio failsafe, touchdown vertical speed, drift, time to disarm.
+time to the APM's radio failsafe, touchdown vertical speed, drift, time to disarm. The same failsafe
+pulses are also flown by an APM in Stabilize (scenario3_failsafe_stabilize.json).
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ BOOT_US = 200_000  # first command after the firmware has booted
 ARM_GESTURE_S = 2.4  # ArduCopter needs 2 s; 0.4 s margin for the PWM frame delay
 HOLD_ALT_M = 1.7
 FLY_S = 14.0  # take off (~4 s) + hold; the ground station dies at the end
-AFTER_KILL_S = 14.0  # firmware ramp (~4.75 s) + APM Land from 1.7 m at 0.5 m/s + 1 s
+AFTER_KILL_S = 14.0  # onset 0.25 s + APM Land from 1.7 m at 0.5 m/s (~4.6 s) + margin
 
 
 def _ground_station_commands() -> list[tuple[int, tuple[int, int, int, int], bool]]:
@@ -165,19 +166,92 @@ def test_scenario3_lands_safely(scenario):
     assert m["touchdowns"] == 1
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "firmware failsafe timeline (firmware/core/limits.h): after 2 s at 1300 us the ramp "
-        "to 950 us passes AltHold descent rates up to 2.5 m/s, so the craft touches down at "
-        "~0.95 m/s before the APM's FS_THR Land (0.5 m/s) takes over; dropping to "
-        "kFailsafeFinalUs sooner (or holding nearer the AltHold dead band) meets the target "
-        "- see docs/hil.md"
-    ),
-)
 def test_scenario3_touchdown_speed_within_target(scenario):
+    # The firmware steps to 950 us at the failsafe onset (firmware/core/limits.h): the APM's LAND
+    # takes over after FS_COUNTER low frames and flies the whole descent at LAND_SPEED.
     m = _metrics(scenario)
     assert m["touchdown_vertical_speed_mps"] <= LAND_SPEED_MPS + 0.01, m
+    assert m["apm_radio_failsafe_after_kill_ms"] <= 250 + 2 * 20 + 3 * 20 + 5  # onset + FS_COUNTER
+
+
+# Stabilize: the same firmware failsafe output (it does not know the APM's flight mode and needs not)
+# must land a craft hovering in Stabilize too, where the throttle is the collective: any throttle
+# below hover on the way down would be a fall, so only a prompt hand-over to LAND is safe.
+STAB_HOVER_P_US_PER_M = 120.0  # toy pilot holding altitude on the collective (Stabilize)
+STAB_HOVER_D_US_PER_MPS = 150.0
+STAB_HOVER_I_US_PER_M_S = 40.0
+
+
+def _stabilize_hover(fc, alt_m: float, duration_s: float) -> tuple[int, int, int, int]:
+    """Flies `fc` (armed, Stabilize) to `alt_m` on the collective with a PID pilot at 50 Hz;
+    returns the last stick frame sent."""
+    integ = 0.0
+    sticks = (1500, 1500, 1000, 1500)
+    for _ in range(int(duration_s * 1e6 / RC_READ_PERIOD_US)):
+        s = fc.snapshot()
+        err = alt_m - s.altitude_m
+        integ += err * RC_READ_PERIOD_US * 1e-6
+        thr = 1500 + STAB_HOVER_P_US_PER_M * err + STAB_HOVER_I_US_PER_M_S * integ
+        thr -= STAB_HOVER_D_US_PER_MPS * s.climb_rate_mps
+        sticks = (1500, 1500, int(min(1750, max(1000, thr))), 1500)
+        t = fc.t_us + RC_READ_PERIOD_US
+        fc.feed_rc(sticks, t)
+        fc.advance_to(t)
+    return sticks
+
+
+def test_scenario3_failsafe_output_also_lands_a_craft_in_stabilize(scenario):
+    from fc_emulator.emulator import FcOptions, FlightMode
+
+    # GIVEN a craft hovering at HOLD_ALT_M in Stabilize (armed by the same gesture)
+    fc = FlightControllerEmulator(start_us=BOOT_US, options=FcOptions(mode=FlightMode.STABILIZE))
+    t = BOOT_US
+    while t < BOOT_US + int(ARM_GESTURE_S * 1e6):
+        t += RC_READ_PERIOD_US
+        fc.feed_rc(ARM_STICKS_US, t)
+        fc.advance_to(t)
+    assert fc.armed
+    last = _stabilize_hover(fc, HOLD_ALT_M, FLY_S)
+    last_cmd_stab = fc.t_us
+    alt_at_kill = fc.snapshot().altitude_m
+    # WHEN its commands stop: the firmware repeats the last command until its failsafe onset, then
+    # outputs exactly what the real image output in pass 1 from its onset on (time-shifted)
+    cmds, p1 = scenario["cmds"], scenario["pass1"].pulses
+    last_cmd_us = max(t for t, _, _ in cmds if t < scenario["kill_us"])
+    last_thr = [c for tt, c, _ in cmds if tt < scenario["kill_us"]][-1][2]
+    thr = [p for p in p1 if p.channel == 2 and p.rise_us > last_cmd_us]
+    onset = next(p for p in thr if abs(p.width_us - last_thr) > 3)
+    # The roll and pitch pulses of the same frame precede it by < 4 ms; the previous frame ended
+    # > 10 ms before.
+    frame_start = onset.rise_us - 5000
+    shift = last_cmd_stab - last_cmd_us
+    t = last_cmd_stab
+    while t + RC_READ_PERIOD_US < frame_start + shift:
+        t += RC_READ_PERIOD_US
+        fc.feed_rc(last, t)
+        fc.advance_to(t)
+    for p in sorted((q for q in p1 if q.rise_us >= frame_start), key=lambda q: q.end_us):
+        tt = int(p.end_us + shift)
+        fc.advance_to(tt)
+        fc.feed_pulse(p.channel, p.width_us, tt)
+    fc.advance_to(int(scenario["end_us"] + shift))
+    kill = last_cmd_stab + RC_READ_PERIOD_US
+    fs = [tt for tt, e in fc.events if e.startswith("radio failsafe") and tt > kill]
+    disarm = [tt for tt, e in fc.events if e.startswith("disarmed") and tt > kill]
+    report = {
+        "altitude_at_kill_m": alt_at_kill,
+        "apm_radio_failsafe_after_kill_ms": (fs[0] - kill) / 1000 if fs else None,
+        "touchdown_vertical_speed_mps": fc.touchdowns_mps[-1] if fc.touchdowns_mps else None,
+        "touchdowns": len(fc.touchdowns_mps),
+        "disarmed_after_kill_s": (disarm[0] - kill) / 1e6 if disarm else None,
+    }
+    (artifacts_dir() / "scenario3_failsafe_stabilize.json").write_text(json.dumps(report, indent=2))
+    print("\nscenario 3 in Stabilize:", json.dumps(report))
+    # THEN the APM's LAND lands it at LAND_SPEED and disarms
+    assert alt_at_kill == pytest.approx(HOLD_ALT_M, abs=0.15)
+    assert report["touchdowns"] == 1
+    assert report["touchdown_vertical_speed_mps"] <= LAND_SPEED_MPS + 0.01, report
+    assert report["disarmed_after_kill_s"] is not None and not fc.armed
 
 
 # The soft-UART receiving telemetry (INT0 + Timer2 ISRs) delays the PWM sequencer's ISR by up to a
