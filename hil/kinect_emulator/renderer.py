@@ -36,6 +36,11 @@ IR_FOCAL_PX = 580.0  # IR camera focal length in pixels
 BASELINE_M = 0.075  # IR camera - IR projector baseline
 DISPARITY_SUBPIXELS = 8  # the v1 reports disparity in 1/8 pixel
 NOISE_COEFF_PER_M = 1.425e-3  # sigma_z = NOISE_COEFF_PER_M * z^2
+# Obstacle culling: a box with a corner closer than this in front of the camera (or behind it) is
+# tested over the whole image; otherwise over its projected rectangle grown by this margin (float32
+# ray directions vs float64 corner projection differ by far less than a pixel).
+SCREEN_RECT_MIN_Z_M = 1e-3
+SCREEN_RECT_MARGIN_PX = 2
 # Stream id (with the seed) of the RGB noise bank render_indexed uses: any value no frame index takes.
 RGB_NOISE_BANK_STREAM = 2**40
 # Each texture tile shows a 60 % window of its photograph (see _shade).
@@ -119,8 +124,17 @@ class KinectEmulator:
         self._rgb_noise_bank: np.ndarray | None = None
         self._indexed_bank: np.ndarray | None = None  # render_indexed's bank, built once
         tex = room.textures
-        self._tex_flat = tex.reshape(-1, 3)
+        flat = tex.reshape(-1, 3).astype(np.uint32)
+        self._tex_packed = flat[:, 0] | (flat[:, 1] << 8) | (flat[:, 2] << 16)
+        if not np.little_endian:
+            self._tex_packed = self._tex_packed.byteswap()  # the bytes must read R, G, B, 0
         self._tex_n, self._tex_h, self._tex_w = tex.shape[0], tex.shape[1], tex.shape[2]
+        n_faces = 6 + 6 * len(room.obstacles)
+        if n_faces > 256:
+            raise ValueError("at most 41 obstacles (face ids are uint8)")
+        faces = np.arange(256, dtype=np.uint32)
+        self._face_axis = ((faces % 6) // 2).astype(np.uint8)  # face id -> axis of its normal
+        self._face_hash = faces * np.uint32(73856093)  # face id -> its term of the tile hash
 
     # ---- geometry
     # -----------------------------------------------------------------------------------
@@ -129,8 +143,11 @@ class KinectEmulator:
         pixel.
 
         Face id: axis*2 + (1 on the max side) for the room's faces 0..5; 6 + 6*k + the same for
-        obstacle
-        k. Per-axis float32 arrays (not (N, 3)) keep every operation a contiguous vector op.
+        obstacle k (uint8). Per-axis float32 arrays (not (N, 3)) keep every operation a contiguous
+        vector op. Inside the room the ray leaves through the far plane of each axis, at
+        max((lo - o) / d, (hi - o) / d) (one is negative; d = +-0 gives +inf). An obstacle is only
+        tested over the image rectangle its corners project to (a box in front of the camera
+        projects inside the hull of its corners), or over the whole image when a corner is behind.
         """
         T = np.asarray(T_room_cam, dtype=np.float64)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
@@ -138,58 +155,93 @@ class KinectEmulator:
         R, o = T[:3, :3], T[:3, 3]
         if not self.room.contains(o):
             raise ValueError(f"camera position {o.tolist()} is outside the room's free space")
+        f32 = np.float32
         cx, cy = self._ray_x, self._ray_y  # camera-frame direction (cx, cy, 1)
-        d = [
-            np.float32(R[a, 0]) * cx + np.float32(R[a, 1]) * cy + np.float32(R[a, 2])
-            for a in range(3)
-        ]
+        d = []
+        for a in range(3):
+            da = cx * f32(R[a, 0])
+            da += cy * f32(R[a, 1])
+            da += f32(R[a, 2])
+            d.append(da)
         lo, hi = self.room.bounds.lo_m, self.room.bounds.hi_m
-        inf = np.float32(np.inf)
-        t = None
-        face = None
         with np.errstate(divide="ignore", invalid="ignore"):
-            inv = [np.float32(1.0) / d[a] for a in range(3)]
+            inv = [np.divide(f32(1.0), d[a], dtype=f32) for a in range(3)]
+            ts = []
             for a in range(3):
-                pos = d[a] > 0
-                ta = np.where(pos, np.float32(hi[a] - o[a]), np.float32(lo[a] - o[a])) * inv[a]
-                ta = np.where(np.isfinite(ta) & (ta > 0), ta, inf)
-                fa = (2 * a + pos).astype(np.int16)
-                if t is None:
-                    t, face = ta, fa
-                else:
-                    closer = ta < t
-                    t = np.where(closer, ta, t)
-                    face = np.where(closer, fa, face)
+                ta = inv[a] * f32(hi[a] - o[a])
+                np.maximum(ta, inv[a] * f32(lo[a] - o[a]), out=ta)
+                ts.append(ta)
+            # Nearest exit plane; ties go to the lower axis (strict <).
+            sel1 = ts[1] < ts[0]
+            t = np.minimum(ts[0], ts[1])
+            sel2 = ts[2] < t
+            np.minimum(t, ts[2], out=t)
+            pos = [(d[a] > 0).view(np.uint8) for a in range(3)]
+            face = np.where(sel1, pos[1] + np.uint8(2), pos[0])
+            np.copyto(face, pos[2] + np.uint8(4), where=sel2)
+            H, W = self.options.intrinsics.height, self.options.intrinsics.width
             for k, box in enumerate(self.room.obstacles):
-                tmin = np.full_like(t, -inf)
-                tmax = np.full_like(t, inf)
-                entry = np.zeros(t.shape, np.int16)
+                rect = self._screen_rect(box, R, o)
+                if rect is None:
+                    continue
+                r0, r1, c0, c1 = rect
+                sub = lambda arr: arr.reshape(H, W)[r0:r1, c0:c1]  # noqa: E731
+                t_s = sub(t)
+                tmin = np.full(t_s.shape, -np.inf, f32)
+                tmax = np.full(t_s.shape, np.inf, f32)
+                entry = np.zeros(t_s.shape, np.uint8)
                 for a in range(3):
-                    t1 = np.float32(box.lo_m[a] - o[a]) * inv[a]
-                    t2 = np.float32(box.hi_m[a] - o[a]) * inv[a]
+                    ia = sub(inv[a])
+                    t1 = ia * f32(box.lo_m[a] - o[a])
+                    t2 = ia * f32(box.hi_m[a] - o[a])
                     near = np.minimum(t1, t2)
                     far = np.maximum(t1, t2)
                     # Entering through the min side when moving +, the max side when moving -.
                     later = near > tmin
-                    entry = np.where(later, (2 * a + (d[a] < 0)).astype(np.int16), entry)
-                    tmin = np.where(later, near, tmin)
-                    tmax = np.minimum(tmax, far)
-                hit = (tmax >= tmin) & (tmin > 0) & (tmin < t)
-                t = np.where(hit, tmin, t)
-                face = np.where(hit, (6 + 6 * k + entry).astype(np.int16), face)
-        pts = tuple(np.float32(o[a]) + d[a] * t for a in range(3))
-        return t, pts, face
+                    np.copyto(entry, (sub(d[a]) < 0).view(np.uint8) + np.uint8(2 * a), where=later)
+                    np.copyto(tmin, near, where=later)
+                    np.minimum(tmax, far, out=tmax)
+                hit = (tmax >= tmin) & (tmin > 0) & (tmin < t_s)
+                np.copyto(t_s, tmin, where=hit)
+                np.copyto(sub(face), entry + np.uint8(6 + 6 * k), where=hit)
+        pts = []
+        for a in range(3):
+            p = d[a] * t
+            p += f32(o[a])
+            pts.append(p)
+        return t, tuple(pts), face
+
+    def _screen_rect(self, box, R: np.ndarray, o: np.ndarray) -> tuple[int, int, int, int] | None:
+        """Rows r0:r1, columns c0:c1 the box can cover; the whole image if a corner is behind the
+        camera; None if it covers no pixel."""
+        i = self.options.intrinsics
+        corners = np.array(
+            [[x, y, z] for x in (box.lo_m[0], box.hi_m[0]) for y in (box.lo_m[1], box.hi_m[1])
+             for z in (box.lo_m[2], box.hi_m[2])]  # fmt: skip
+        )
+        pc = (corners - o) @ R  # rows: R^T (p - o), camera frame
+        if np.any(pc[:, 2] <= SCREEN_RECT_MIN_Z_M):
+            return 0, i.height, 0, i.width
+        u = i.fx * pc[:, 0] / pc[:, 2] + i.cx
+        v = i.fy * pc[:, 1] / pc[:, 2] + i.cy
+        c0 = max(0, int(np.floor(u.min())) - SCREEN_RECT_MARGIN_PX)
+        c1 = min(i.width, int(np.ceil(u.max())) + SCREEN_RECT_MARGIN_PX + 1)
+        r0 = max(0, int(np.floor(v.min())) - SCREEN_RECT_MARGIN_PX)
+        r1 = min(i.height, int(np.ceil(v.max())) + SCREEN_RECT_MARGIN_PX + 1)
+        return (r0, r1, c0, c1) if r0 < r1 and c0 < c1 else None
 
     def _shade(self, pts: tuple, face: np.ndarray) -> np.ndarray:
-        """Texture lookup (nearest neighbour) for every hit point."""
-        axis = (face % 6) // 2
-        # In-plane coordinates (u horizontal-ish, v vertical-ish) for each face orientation.
+        """Texture lookup (nearest neighbour) for every hit point; (N, 3) uint8."""
+        f32, u32 = np.float32, np.uint32
         x, y, z = pts
+        axis = self._face_axis[face]
+        # In-plane coordinates (u horizontal-ish, v vertical-ish) for each face orientation.
         u = np.where(axis == 0, y, x)
         v = np.where(axis == 2, y, z)
-        tw, th = self.room.tile_w_m, self.room.tile_h_m
-        fu = u / np.float32(tw)
-        fv = v / np.float32(th)
+        fu = u
+        fu /= f32(self.room.tile_w_m)
+        fv = v
+        fv /= f32(self.room.tile_h_m)
         ti = np.floor(fu)
         tj = np.floor(fv)
         fu -= ti
@@ -198,20 +250,29 @@ class KinectEmulator:
         # neighbours differ, the same place always looks the same, and the few dozen shipped frames
         # (many nearly alike) give far more distinct texture than whole-image tiling. uint32
         # arithmetic (wrapping) is half the cost of int64 over 307 200 pixels.
-        h = face.astype(np.uint32) * np.uint32(73856093)
-        h ^= ti.astype(np.int32).view(np.uint32) * np.uint32(19349663)
-        h ^= tj.astype(np.int32).view(np.uint32) * np.uint32(83492791)
+        h = self._face_hash[face]
+        h ^= ti.astype(np.int32).view(u32) * u32(19349663)
+        h ^= tj.astype(np.int32).view(u32) * u32(83492791)
         win_w = int(self._tex_w * TILE_WINDOW_FRACTION)
         win_h = int(self._tex_h * TILE_WINDOW_FRACTION)
-        idx = (h % np.uint32(self._tex_n)).astype(np.int32)
-        off_x = ((h >> np.uint32(7)) % np.uint32(self._tex_w - win_w)).astype(np.int32)
-        off_y = ((h >> np.uint32(17)) % np.uint32(self._tex_h - win_h)).astype(np.int32)
-        mirrored = ((h >> np.uint32(27)) & np.uint32(1)).astype(bool)
-        fu = np.where(mirrored, np.float32(1.0) - fu, fu)
-        col = off_x + (fu * np.float32(win_w - 1)).astype(np.int32)
-        row = off_y + ((np.float32(1.0) - fv) * np.float32(win_h - 1)).astype(np.int32)  # rows go down
-        flat = (idx * np.int32(self._tex_h) + row) * np.int32(self._tex_w) + col
-        return self._tex_flat[flat]
+        idx = (h % u32(self._tex_n)).view(np.int32)
+        off_x = ((h >> u32(7)) % u32(self._tex_w - win_w)).view(np.int32)
+        off_y = ((h >> u32(17)) % u32(self._tex_h - win_h)).view(np.int32)
+        mirrored = ((h >> u32(27)) & u32(1)).view(np.int32).astype(bool)
+        np.subtract(f32(1.0), fu, out=fu, where=mirrored)
+        fu *= f32(win_w - 1)
+        col = fu.astype(np.int32)
+        col += off_x
+        fv = np.subtract(f32(1.0), fv, out=fv)  # rows go down
+        fv *= f32(win_h - 1)
+        row = fv.astype(np.int32)
+        row += off_y
+        idx *= np.int32(self._tex_h)
+        idx += row
+        idx *= np.int32(self._tex_w)
+        idx += col
+        # One uint32 (R | G << 8 | B << 16) per texel: a 4-byte gather, then the RGB bytes.
+        return self._tex_packed.take(idx).view(np.uint8).reshape(-1, 4)[:, :3]
 
     # ---- sensor
     # -------------------------------------------------------------------------------------
