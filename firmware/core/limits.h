@@ -94,8 +94,10 @@ static_assert(kThrottleLowUs > kApmFsThrValueUs, "disarmed/ground throttle must 
 /// Longest request line (bytes, without the newline). The longest valid control request is 93
 /// bytes (control_spec.json); 128 leaves margin and bounds the line buffer in the ATmega's 2 KB RAM.
 constexpr uint8_t kMaxRequestBytes = 128;
-/// A request line left incomplete this long is discarded with a 408 reply: the bridge forwards whole
-/// requests, and a 128-byte line takes 2.6 ms at 500 kbaud, so 100 ms only fires on a truncated request.
+/// A request line that gets no byte for this long before its newline is discarded with a 408 reply
+/// (silence, not line duration: a long line arriving steadily is never cut). The bridge forwards
+/// whole requests back to back (20 us per byte at 500 kbaud), so 100 ms of silence only happens to a
+/// truncated request.
 constexpr uint32_t kLineStallTimeoutMs = 100;
 
 }  // namespace fw

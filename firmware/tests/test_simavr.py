@@ -109,8 +109,8 @@ def test_failsafe_engages_within_timeout_and_steps_to_the_apm_handover_throttle(
     print(
         f"\nsimavr failsafe: still armed {still_armed / MS:.1f} ms after the last valid command, "
         f"failsafe seen by {engaged_by / MS:.1f} ms (10 ms status polling); first neutral roll "
-        f"pulse {(first_neutral.rise_us - t_last_valid) / MS:.1f} ms, first {first_low.width_us:.1f} us "
-        f"throttle pulse {(first_low.rise_us - t_last_valid) / MS:.1f} ms; "
+        f"pulse {(first_neutral.rise_us - t_last_valid) / MS:.1f} ms, first "
+        f"{first_low.width_us:.1f} us throttle pulse {(first_low.rise_us - t_last_valid) / MS:.1f} ms; "
         f"{len([p for p in thr if p.rise_us >= first_low.rise_us])} throttle pulses after it"
     )
     # THEN failsafe engages within 250 ms (+ one 10 ms poll interval of observation granularity)
@@ -198,7 +198,8 @@ def test_overlong_lines_of_any_length_get_414_promptly_and_one_reply_each():
         f"{min(lat):.1f}-{max(lat):.1f} ms after each line started"
     )
     # THEN every line got exactly one reply, 414, within a few ms of its first excess byte (before
-    # the fix, some got 408 after the 100 ms stall timeout), and the link recovered for the next read
+    # the fix, some got 408 after the 100 ms stall timeout), and the link recovered for the next
+    # read
     assert got == [414, 200] * len(OVERLONG_LINE_BYTES)
     assert max(lat) * MS <= OVERLONG_REPLY_DEADLINE_US
 

@@ -174,7 +174,7 @@ def test_scenario3_touchdown_speed_within_target(scenario):
     assert m["apm_radio_failsafe_after_kill_ms"] <= 250 + 2 * 20 + 3 * 20 + 5  # onset + FS_COUNTER
 
 
-# Stabilize: the same firmware failsafe output (it does not know the APM's flight mode and needs not)
+# Stabilize: the same firmware failsafe output (the firmware does not know the APM's flight mode)
 # must land a craft hovering in Stabilize too, where the throttle is the collective: any throttle
 # below hover on the way down would be a fall, so only a prompt hand-over to LAND is safe.
 STAB_HOVER_P_US_PER_M = 120.0  # toy pilot holding altitude on the collective (Stabilize)
