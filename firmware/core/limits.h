@@ -83,7 +83,7 @@ constexpr uint16_t kApmRcPulseMinValidUs = 900;
 /// FS_THR_VALUE (margin for the APM's input-capture jitter), 50 us above the validity floor. Why a
 /// step: any throttle above FS_THR_VALUE on the way down IS flown by the APM - in AltHold every
 /// value below 1400 us commands a descent of up to 2.5 m/s (the old 1500 -> 1300 -> 950 us ramp
-/// touched down at 0.95 m/s in HIL), in Stabilize every value below hover is a fall (3 m/s). The
+/// touched down at 0.95 m/s in HIL), in Stabilize every value below hover is a fall (3.35 m/s). The
 /// step hands over to LAND 60 ms after engage, measured 0.49 m/s touchdown in both modes.
 constexpr uint16_t kFailsafeThrottleUs = 950;
 static_assert(kFailsafeThrottleUs < kApmFsThrValueUs, "failsafe throttle must trigger FS_THR");
