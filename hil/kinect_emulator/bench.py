@@ -1,6 +1,9 @@
-"""Kinect emulator speed: render time per 640x480 RGB-D frame and TUM-folder write time.
+"""Kinect emulator speed: render time per 640x480 RGB-D frame and TUM-folder write time; with
+--live, the LiveKinect renderer child fed at --fps for --seconds with a reader that consumes the
+FIFO index like fakenect (line, then its files), and the cost of submit() in the calling thread.
 
     .venv/bin/python hil/kinect_emulator/bench.py [--frames N]
+    .venv/bin/python hil/kinect_emulator/bench.py --live [--fps 30] [--seconds 5]
 Prints figures only (no pass/fail): on a shared 2-core machine the numbers depend on the load.
 """
 
@@ -25,13 +28,76 @@ from kinect_emulator import (
 )
 
 
+def _pose(i: int, fps: float) -> np.ndarray:
+    s = i / fps
+    return camera_pose_from_ned(
+        [0.6 * s, 0.0, -1.7], 0.02, -0.03, 0.3 * s, 30.0, origin_room_m=(-1.5, 0.5, 0.2)
+    )
+
+
+def live(fps: float, seconds: float) -> int:
+    import os
+    import threading
+
+    from kinect_emulator.live import INDEX_NAME, LiveKinect
+
+    def reader(dump: Path) -> None:
+        with open(dump / INDEX_NAME, "rb") as f:
+            for line in f:
+                (dump / line.decode().strip()).read_bytes()
+
+    with tempfile.TemporaryDirectory() as d:
+        cam = LiveKinect(Path(d) / "live", KinectOptions(seed=1, fps=fps))
+        cam.start()
+        t = threading.Thread(target=reader, args=(Path(d) / "live",), daemon=True)
+        t.start()
+        submit_us = []
+        n = int(fps * seconds)
+        t0 = time.monotonic()
+        for i in range(n):
+            time.sleep(max(0.0, t0 + i / fps - time.monotonic()))
+            a = time.perf_counter()
+            cam.submit(time.monotonic(), _pose(i, fps))
+            submit_us.append((time.perf_counter() - a) * 1e6)
+        flown = time.monotonic() - t0
+        time.sleep(0.2)
+        cam.close()
+        t.join(5)
+        st = cam.stats()
+        recs = cam.records()
+    lat = np.array([(r.index_written_mono_s - r.t_mono_s) * 1e3 for r in recs])
+    print(f"live kinect: {n} requests at {fps:g} fps over {flown:.1f} s, load {os.getloadavg()}")
+    print(
+        f"  render (child) median {st['render_ms_median']:6.1f} ms  p95 {st['render_ms_p95']:6.1f}"
+        f" ms; delivered {st['delivered']} ({st['delivered'] / flown:.1f} fps), superseded"
+        f" {st['superseded']}, reader behind {st['reader_behind']}"
+    )
+    print(
+        f"  exposure -> INDEX written median {np.median(lat):6.1f} ms  p95"
+        f" {np.percentile(lat, 95):6.1f} ms"
+    )
+    print(
+        f"  submit() in the caller median {np.median(submit_us):6.0f} us  max"
+        f" {np.max(submit_us):6.0f} us"
+    )
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description="time the Kinect emulator (render + write)")
     ap.add_argument("--frames", type=int, default=60, help="frames to render (default 60)")
+    ap.add_argument("--live", action="store_true", help="time LiveKinect (renderer child)")
+    ap.add_argument("--fps", type=float, default=30.0, help="--live request rate (default 30)")
+    ap.add_argument("--seconds", type=float, default=5.0, help="--live duration (default 5)")
     args = ap.parse_args()
     if args.frames < 1:
         print("bench: --frames must be >= 1", file=sys.stderr)
         return 2
+    if args.live:
+        if not (0 < args.fps <= 120 and 0 < args.seconds <= 600):
+            print("bench: need 0 < --fps <= 120 and 0 < --seconds <= 600", file=sys.stderr)
+            return 2
+        return live(args.fps, args.seconds)
     emu = KinectEmulator(default_room(), KinectOptions(seed=1))
     render_ms, write_ms = [], []
     with tempfile.TemporaryDirectory() as d, TumFolderWriter(Path(d) / "seq") as w:

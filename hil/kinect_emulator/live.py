@@ -481,8 +481,9 @@ class LiveKinect:
             return list(self._records)
 
     def stats(self) -> dict:
-        """submitted, rendered, delivered, dropped (= superseded + reader_behind + errors +
-        send_failed), render ms median/p95 (child, per rendered frame)."""
+        """submitted, pending, rendered, delivered, dropped (= superseded + reader_behind + errors
+        + send_failed), render ms median/p95 (child, per rendered frame: ray cast, texture, noise;
+        not the file writes)."""
         recs = self.records()
         with self._rec_lock:
             und = list(self._undelivered)
@@ -494,8 +495,10 @@ class LiveKinect:
         ms = [1e3 * (r.render_end_mono_s - r.render_start_mono_s) for r in recs] + [
             1e3 * (d["render_end_mono_s"] - d["render_start_mono_s"]) for d in und if "error" not in d
         ]
+        served = len(recs) + len(und) + superseded + send_failed
         return {
             "submitted": submitted,
+            "pending": submitted - served,  # waiting, or discarded with the stop request
             "rendered": len(recs) + behind,
             "delivered": len(recs),
             "superseded": superseded,

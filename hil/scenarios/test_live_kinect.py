@@ -14,6 +14,7 @@ ms, latency exposure -> INDEX written -> streamer capture stamp -> received (med
 from __future__ import annotations
 
 import json
+import os
 import time
 
 import numpy as np
@@ -152,9 +153,11 @@ def test_live_kinect_through_fakenect_and_rgbd_streamer(setup, fps):
     exp_to_rx = [f.receive_monotonic_us / 1e3 - m.t_mono_s * 1e3 for f, m in zip(depth, d_match)]
     assert min(written_to_capture) >= 0 and min(capture_to_rx) >= 0
     report = {
+        "load_average_1_5_15min": list(os.getloadavg()),  # 2 shared cores: read figures with it
         "fps_submitted": fps,
         "flown_s": run["flown_s"],
         "submitted": st["submitted"],
+        "pending_at_close": st["pending"],
         "rendered": st["rendered"],
         "delivered_to_fakenect": st["delivered"],
         "dropped": st["dropped"],

@@ -256,6 +256,7 @@ def test_newest_request_wins_and_reader_behind_is_not_queued(tmp_path, room):
     recs = cam.records()
     assert [r.index for r in recs] == [0]  # the first frame rendered (for whichever request won)
     assert st["delivered"] == 1
-    assert st["rendered"] + st["superseded"] == n
+    assert st["rendered"] + st["superseded"] + st["pending"] == n
+    assert st["pending"] == 0  # the newest request was rendered before close()
     assert st["reader_behind"] == st["rendered"] - 1
     assert len(list(dump.glob("d-*.pgm"))) == 1
