@@ -4,12 +4,14 @@ Renders 640x480 RGB + 16-bit depth (mm) from a camera pose inside a box room who
 ceiling and obstacles are textured with real photographs (TUM RGB-D frames shipped in tests/data),
 with Kinect-like depth noise, disparity quantisation, range limits, projector shadows and dropouts,
 and writes the frames where the real rgbd-streamer's capture sources read them (TUM folder, fakenect
-dump).
+dump) - offline, or live from the craft's current pose (LiveKinect: a fakenect dump whose INDEX.txt
+is a FIFO, fed by a renderer child process).
 """
 
 from kinect_emulator.renderer import KinectFrame, KinectEmulator, KinectOptions, Intrinsics
 from kinect_emulator.room import Box, Room, default_room, load_textures
 from kinect_emulator.writers import FakenectDumpWriter, TumFolderWriter
+from kinect_emulator.live import LiveFrameRecord, LiveKinect, match_capture_stamps
 from kinect_emulator.poses import camera_pose_from_ned, pose_matrix
 
 __all__ = [
@@ -23,6 +25,9 @@ __all__ = [
     "Intrinsics",
     "FakenectDumpWriter",
     "TumFolderWriter",
+    "LiveKinect",
+    "LiveFrameRecord",
+    "match_capture_stamps",
     "camera_pose_from_ned",
     "pose_matrix",
 ]

@@ -1,5 +1,6 @@
-"""Live Kinect: renders frames from the craft's CURRENT pose and feeds them to the real rgbd-streamer
-through the real libfreenect API (Debian's fakenect replay library), for closed-loop HIL flights.
+"""Live Kinect: renders frames from the craft's CURRENT pose and feeds them to the real
+rgbd-streamer through the real libfreenect API (Debian's fakenect replay library), for closed-loop
+HIL flights.
 
 How it works
   * `dump_dir/INDEX.txt` is a FIFO (os.mkfifo). fakenect 0.5.3 reads INDEX.txt one line per
@@ -8,9 +9,9 @@ How it works
     buffer and calls the callback (where rgbd-streamer stamps `capture_timestamp_us` on
     CLOCK_MONOTONIC). Measured here: the callback runs < 1 ms after the line is written.
   * A renderer child process (`python -m kinect_emulator.live`: its own GIL; a subprocess rather
-    than multiprocessing, so the caller's __main__ is never re-imported) takes the newest pose request,
-    renders RGB + depth (KinectEmulator.render_indexed, Kinect noise model of docs/hil.md), writes
-    `d-*.pgm` (11-bit disparity, host byte order, as FakenectDumpWriter) and `r-*.ppm` under
+    than multiprocessing, so the caller's __main__ is never re-imported) takes the newest pose
+    request, renders RGB + depth (KinectEmulator.render_indexed, Kinect noise model of
+    docs/hil.md), writes `d-*.pgm` (11-bit disparity, host byte order, as FakenectDumpWriter) and `r-*.ppm` under
     temporary names, renames them, and only then writes their two INDEX lines (one write() below
     PIPE_BUF, so atomic).
   * A camera never queues: requests arriving while the child renders replace each other (the newest
@@ -161,7 +162,8 @@ class FakenectFifoIndex:
         self, index: int, t_mono_s: float, rgb: np.ndarray, raw_disparity: np.ndarray, clock
     ) -> tuple[float, str, str]:
         """Writes both files completely, then their INDEX lines. Returns (time just before the
-        lines were written, depth file name, rgb file name). The caller checks reader_is_behind()."""
+        lines were written, depth file name, rgb file name). The caller checks
+        reader_is_behind() first."""
         h, w = raw_disparity.shape
         ticks = int(t_mono_s * FAKENECT_TICKS_PER_S) & 0xFFFFFFFF
         dname = f"d-{FAKENECT_NO_PACING_TIME}-{ticks}-{index}.pgm"
@@ -358,6 +360,12 @@ class LiveKinect:
                 + (f"(exit code {code})" if code is not None else f"within {START_TIMEOUT_S} s")
             )
 
+    def alive(self) -> bool:
+        """True while the renderer child runs (it exits on close() or on an unexpected error,
+        which it prints on stderr; the streamer then sees the end of the dump)."""
+        proc = self._proc
+        return proc is not None and proc.poll() is None
+
     def streamer_command(self, streamer_bin, *args) -> list[str]:
         """The `fakenect` wrapper form: ["fakenect", dump_dir, streamer_bin, "--source", "freenect",
         "--freenect-disparity-depth", *args]. Note the wrapper is a bash script that does not exec:
@@ -492,8 +500,11 @@ class LiveKinect:
         superseded = sum(r.superseded for r in recs) + sum(d["superseded"] for d in und)
         errors = sum(1 for d in und if "error" in d)
         behind = len(und) - errors
-        ms = [1e3 * (r.render_end_mono_s - r.render_start_mono_s) for r in recs] + [
-            1e3 * (d["render_end_mono_s"] - d["render_start_mono_s"]) for d in und if "error" not in d
+        ms = [1e3 * (r.render_end_mono_s - r.render_start_mono_s) for r in recs]
+        ms += [
+            1e3 * (d["render_end_mono_s"] - d["render_start_mono_s"])
+            for d in und
+            if "error" not in d
         ]
         served = len(recs) + len(und) + superseded + send_failed
         return {

@@ -123,11 +123,13 @@ def test_fifo_index_files_complete_before_lines_and_collected(tmp_path):
             # The files are complete when their line can be read (fakenect opens them right then).
             lines = os.read(reader, 4096).decode().splitlines()
             assert lines == [dname, rname]
-            assert (tmp_path / dname).read_bytes() == b"P5 5 4 65535\n" + raw.astype("=u2").tobytes()
+            want_d = b"P5 5 4 65535\n" + raw.astype("=u2").tobytes()
+            assert (tmp_path / dname).read_bytes() == want_d
             assert (tmp_path / rname).read_bytes() == b"P6 5 4 255\n" + rgb.tobytes()
             # fakenect's sscanf("%c-%lf-%u-%*s"): no pacing time, 60 MHz exposure ticks.
             typ, t, ticks, rest = dname.split("-", 3)
-            assert (typ, float(t), int(ticks), rest) == ("d", 0.0, int((12.5 + k) * 60e6), f"{k}.pgm")
+            want_fields = ("d", 0.0, int((12.5 + k) * 60e6), f"{k}.pgm")
+            assert (typ, float(t), int(ticks), rest) == want_fields
             names.append((dname, rname))
         idx.collect()
         on_disk = sorted(p.name for p in tmp_path.iterdir() if p.name[0] in "dr")
@@ -205,8 +207,10 @@ def test_live_frames_reach_a_reader_in_order_and_reproducibly(tmp_path, room):
         # An out-of-room pose: an error record, no frame, the camera goes on.
         assert cam.submit(20.0, level_pose(50.0))
         assert wait_for(lambda: cam.error_messages())
+        assert cam.alive()
     finally:
         cam.close()
+    assert not cam.alive()
     assert reader.eof.wait(WAIT_S), "the reader never saw EOF after close()"
     assert not reader.missing
     assert not (dump / INDEX_NAME).exists()  # the FIFO is removed; the records stay
