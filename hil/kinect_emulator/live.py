@@ -11,9 +11,9 @@ How it works
   * A renderer child process (`python -m kinect_emulator.live`: its own GIL; a subprocess rather
     than multiprocessing, so the caller's __main__ is never re-imported) takes the newest pose
     request, renders RGB + depth (KinectEmulator.render_indexed, Kinect noise model of
-    docs/hil.md), writes `d-*.pgm` (11-bit disparity, host byte order, as FakenectDumpWriter) and `r-*.ppm` under
-    temporary names, renames them, and only then writes their two INDEX lines (one write() below
-    PIPE_BUF, so atomic).
+    docs/hil.md), writes `d-*.pgm` (11-bit disparity, host byte order, as FakenectDumpWriter)
+    and `r-*.ppm` under temporary names, renames them, and only then writes their two INDEX lines
+    (one write() below PIPE_BUF, so atomic).
   * A camera never queues: requests arriving while the child renders replace each other (the newest
     wins, the others are counted as `superseded`), and a frame is not written while the previous
     frame's lines are still unread in the FIFO (the streamer is behind or not started; counted as
@@ -35,13 +35,18 @@ flushed per frame; the parent reads it in `records()`). Time is time.monotonic()
 the clock rgbd-streamer stamps frames with on the same host; `match_capture_stamps` maps streamer
 capture stamps to records.
 
-Usage (the rig thread calls submit() at the frame rate; it never blocks):
+Usage (the rig thread calls submit() at the frame rate; it never waits for the renderer):
     cam = LiveKinect(tmp / "live", KinectOptions(seed=3))
     cam.start()
-    streamer = ManagedProcess(cam.streamer_command(bin, "--host", "127.0.0.1", ...),
-                              log, env=cam.streamer_env())
+    streamer = ManagedProcess(cam.direct_streamer_command(bin, "--host", "127.0.0.1", ...),
+                              log, env=cam.streamer_env())    # the streamer's own PID
     ... cam.submit(time.monotonic(), T_room_cam) every 1/fps s ...
-    cam.close(); streamer.stop()
+    cam.close(); streamer.wait(...) / streamer.stop()
+`streamer_command()` gives the `fakenect <dump> <streamer> ...` wrapper form instead (its PID is a
+bash that does not exec: stopping it leaves the streamer running until close()). Frames submitted
+before the streamer opens the FIFO: the first is kept (and read when it starts), the rest are
+`reader_behind`. Measured (hil/scenarios/test_live_kinect.py, 2 shared cores): render ~15 ms per
+640x480 frame in the child, 30 fps sustained, INDEX written -> streamer capture stamp ~0.35 ms.
 Thread safety: submit() may be called from one thread while another calls records()/stats();
 start() and close() from the owning thread.
 """
