@@ -320,7 +320,8 @@ class LiveKinect:
     # ---- life cycle ------------------------------------------------------------------------------
     def start(self) -> None:
         """Creates dump_dir and the INDEX.txt FIFO, starts the renderer child and waits until it
-        holds the FIFO open. Start the streamer after this (or before: it waits in fopen)."""
+        holds the FIFO open. Start the streamer after this: started before, fakenect finds no
+        INDEX.txt and exits ("Cannot open file")."""
         if self._proc is not None:
             raise RuntimeError("LiveKinect already started")
         self.dir.mkdir(parents=True, exist_ok=True)

@@ -5,8 +5,8 @@ GIVEN a LiveKinect and rgbd-streamer (freenect source, 11-bit disparity mode) st
 WHEN poses along a short path are submitted at 15 and then 30 fps for a few seconds (paced to the
 wall clock like the closed-loop rig), THEN depth and RGB frames arrive in INDEX order, every one
 matches a record by its capture stamp (match_capture_stamps), its depth equals the renderer's output
-for that record's pose after the 11-bit disparity round trip (re-rendered here), and its RGB equals
-the frame file bit for bit.
+for that record's pose after the 11-bit disparity round trip (re-rendered here) and its RGB equals
+the render bit for bit; frame files are deleted as fakenect finishes with them.
 Reported (printed and test-artifacts/hil/live_kinect.json): delivered fps, dropped frames, render
 ms, latency exposure -> INDEX written -> streamer capture stamp -> received (median/p95).
 """
@@ -24,7 +24,12 @@ from hilrig.paths import artifacts_dir, find_binary
 from hilrig.procs import ManagedProcess
 from hilrig.stream_rx import StreamReceiver
 from kinect_emulator import KinectEmulator, KinectOptions, camera_pose_from_ned, default_room
-from kinect_emulator.live import LiveKinect, fakenect_lib_dir, match_capture_stamps
+from kinect_emulator.live import (
+    KEEP_NEWEST_FRAMES,
+    LiveKinect,
+    fakenect_lib_dir,
+    match_capture_stamps,
+)
 from kinect_emulator.writers import depth_mm_to_freenect_raw, freenect_raw_to_depth_mm
 
 pytestmark = pytest.mark.hil
@@ -78,7 +83,9 @@ def _fly(setup, fps: float) -> dict:
         f"rgb_intrinsics: [{i.fx}, {i.fy}, {i.cx}, {i.cy}]\n"
         "t_rgb_depth_m: [0, 0, 0]\nstats_period_s: 0\nlog_level: warn\nexit_linger_ms: 1000\n"
     )
-    cam = LiveKinect(work / "dump", opts, room=setup["room"], keep_files=True)
+    # Frame files are deleted as fakenect finishes with them: a premature deletion would stop the
+    # streamer ("Cannot open file") and fail the frame counts below.
+    cam = LiveKinect(work / "dump", opts, room=setup["room"])
     with StreamReceiver() as rx:
         cam.start()
         try:
@@ -96,6 +103,7 @@ def _fly(setup, fps: float) -> dict:
                     due = t_start + k / fps
                     time.sleep(max(0.0, due - time.monotonic()))
                     assert cam.submit(time.monotonic(), _pose(k / fps))
+                time.sleep(max(0.0, t_start + n / fps - time.monotonic()))
                 flown_s = time.monotonic() - t_start
                 _wait(lambda: len(rx.frames("depth")) >= len(cam.records()), 2.0)
                 cam.close()  # EOF on the FIFO: the streamer's freenect source ends
@@ -128,21 +136,25 @@ def test_live_kinect_through_fakenect_and_rgbd_streamer(setup, fps):
     d_idx = [m.index for m in d_match]
     assert d_idx == sorted(set(d_idx)), "depth frames out of order or duplicated"
 
-    # Content: depth = the renderer's output for the record's pose (re-rendered here) after the
-    # 11-bit disparity round trip; the file fakenect read holds exactly that; RGB = the file.
+    # Content: the renderer's output for the record's pose (re-rendered here: a frame is a pure
+    # function of pose and index), depth after the 11-bit disparity round trip, RGB bit for bit.
     emu = KinectEmulator(setup["room"], run["opts"])
+    refs = {}
+
+    def ref(m):
+        if m.index not in refs:
+            refs[m.index] = emu.render_indexed(m.T_room_cam, int(round(m.t_mono_s * 1e6)), m.index)
+        return refs[m.index]
+
     for f, m in zip(depth, d_match):
         got = np.frombuffer(f.payload, dtype="<u2").reshape(f.height, f.width)
-        ref = emu.render_indexed(m.T_room_cam, int(round(m.t_mono_s * 1e6)), m.index)
-        want = freenect_raw_to_depth_mm(
-            np.fromfile(run["dump"] / m.depth_file, dtype="=u2", offset=len("P5 640 480 65535\n"))
-        ).reshape(f.height, f.width)
-        assert np.array_equal(got, want), f"depth of frame {m.index} differs from its file"
-        rt = freenect_raw_to_depth_mm(depth_mm_to_freenect_raw(ref.depth_mm))
-        assert np.array_equal(got, rt), f"depth of frame {m.index} is not the render of its pose"
+        want = freenect_raw_to_depth_mm(depth_mm_to_freenect_raw(ref(m).depth_mm))
+        assert np.array_equal(got, want), f"depth of frame {m.index} is not the render of its pose"
     for f, m in zip(rgb, r_match):
-        want = np.fromfile(run["dump"] / m.rgb_file, np.uint8, offset=len("P6 640 480 255\n"))
-        assert np.array_equal(np.frombuffer(f.payload, np.uint8), want)
+        got = np.frombuffer(f.payload, np.uint8).reshape(f.height, f.width, 3)
+        assert np.array_equal(got, ref(m).rgb), f"RGB of frame {m.index} is not the render"
+    # Files fakenect finished with were deleted during the flight.
+    assert len(list(run["dump"].glob("d-*.pgm"))) <= KEEP_NEWEST_FRAMES + 1
 
     # Latency chain (ms), over the depth frames received.
     exp_to_written = [(m.index_written_mono_s - m.t_mono_s) * 1e3 for m in d_match]
