@@ -264,3 +264,27 @@ def test_newest_request_wins_and_reader_behind_is_not_queued(tmp_path, room):
     assert st["pending"] == 0  # the newest request was rendered before close()
     assert st["reader_behind"] == st["rendered"] - 1
     assert len(list(dump.glob("d-*.pgm"))) == 1
+
+
+def test_streamer_command_and_env(tmp_path, room, monkeypatch):
+    import kinect_emulator.live as live
+
+    cam = LiveKinect(tmp_path / "d", opts(), room)
+    assert cam.streamer_command("/b/rgbd-streamer", "--host", "127.0.0.1", "--rgb-port", 5) == [
+        "fakenect", str(tmp_path / "d"), "/b/rgbd-streamer", "--source", "freenect",
+        "--freenect-disparity-depth", "--host", "127.0.0.1", "--rgb-port", "5",
+    ]  # fmt: skip
+    assert cam.direct_streamer_command("/b/s") == [
+        "/b/s", "--source", "freenect", "--freenect-disparity-depth"
+    ]  # fmt: skip
+    monkeypatch.setattr(live, "fakenect_lib_dir", lambda: "/lib/fk")
+    env = cam.streamer_env({"LD_LIBRARY_PATH": "/x", "HOME": "/h"})
+    assert env == {
+        "LD_LIBRARY_PATH": "/lib/fk:/x",
+        "HOME": "/h",
+        "FAKENECT_PATH": str(tmp_path / "d"),
+    }
+    assert cam.streamer_env({})["LD_LIBRARY_PATH"] == "/lib/fk"
+    monkeypatch.setattr(live, "fakenect_lib_dir", lambda: None)
+    with pytest.raises(FileNotFoundError):
+        cam.streamer_env({})
