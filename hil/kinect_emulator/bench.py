@@ -29,10 +29,12 @@ from kinect_emulator import (
 
 
 def _pose(i: int, fps: float) -> np.ndarray:
-    s = i / fps
+    """A 1.5 m circle at 0.5 rad/s, yawing with the heading (stays inside the default room)."""
+    a = 0.5 * i / fps
     return camera_pose_from_ned(
-        [0.6 * s, 0.0, -1.7], 0.02, -0.03, 0.3 * s, 30.0, origin_room_m=(-1.5, 0.5, 0.2)
-    )
+        [1.5 * np.sin(a), 1.5 - 1.5 * np.cos(a), -1.7], 0.02, -0.03, a, 30.0,
+        origin_room_m=(-0.5, 1.5, 0.2),
+    )  # fmt: skip
 
 
 def live(fps: float, seconds: float) -> int:
@@ -70,7 +72,7 @@ def live(fps: float, seconds: float) -> int:
     print(
         f"  render (child) median {st['render_ms_median']:6.1f} ms  p95 {st['render_ms_p95']:6.1f}"
         f" ms; delivered {st['delivered']} ({st['delivered'] / flown:.1f} fps), superseded"
-        f" {st['superseded']}, reader behind {st['reader_behind']}"
+        f" {st['superseded']}, reader behind {st['reader_behind']}, errors {st['errors']}"
     )
     print(
         f"  exposure -> INDEX written median {np.median(lat):6.1f} ms  p95"
@@ -102,9 +104,7 @@ def main() -> int:
     render_ms, write_ms = [], []
     with tempfile.TemporaryDirectory() as d, TumFolderWriter(Path(d) / "seq") as w:
         for i in range(args.frames):
-            T = camera_pose_from_ned(
-                [0.02 * i, 0.0, -1.7], 0.02, -0.03, 0.01 * i, 30.0, origin_room_m=(-1.5, 0.5, 0.2)
-            )
+            T = _pose(i, 30.0)
             t0 = time.perf_counter()
             f = emu.render(T, i * 33333)
             t1 = time.perf_counter()

@@ -8,9 +8,9 @@ How it works
     read() until the next line arrives, then opens the named PGM/PPM, copies it into the depth/video
     buffer and calls the callback (where rgbd-streamer stamps `capture_timestamp_us` on
     CLOCK_MONOTONIC). Measured here: the callback runs < 1 ms after the line is written.
-  * A renderer child process (`python -m kinect_emulator.live`: its own GIL; a subprocess rather
-    than multiprocessing, so the caller's __main__ is never re-imported) takes the newest pose
-    request, renders RGB + depth (KinectEmulator.render_indexed, Kinect noise model of
+  * A renderer child process (`python -m kinect_emulator.live_child`: its own GIL; a subprocess
+    rather than multiprocessing, so the caller's __main__ is never re-imported) takes the newest
+    pose request, renders RGB + depth (KinectEmulator.render_indexed, Kinect noise model of
     docs/hil.md), writes `d-*.pgm` (11-bit disparity, host byte order, as FakenectDumpWriter)
     and `r-*.ppm` under temporary names, renames them, and only then writes their two INDEX lines
     (one write() below PIPE_BUF, so atomic).
@@ -230,9 +230,10 @@ def _read_requests(fd: int, buf: bytearray, block: bool) -> list[tuple] | None:
 
 
 def _child_main() -> int:
-    """Renderer child (`python -m kinect_emulator.live`): stdin carries a length-prefixed pickle of
-    the configuration, then fixed-size requests; it answers "ready" on stdout once the FIFO is
-    open, then renders the newest request, writes it and records it, until the stop request."""
+    """Renderer child (`python -m kinect_emulator.live_child`): stdin carries a length-prefixed
+    pickle of the configuration, then fixed-size requests; it answers "ready" on stdout once the
+    FIFO is open, then renders the newest request, writes it and records it, until the stop
+    request."""
     import pickle
     import sys
 
@@ -343,7 +344,7 @@ class LiveKinect:
         )
         # A subprocess, not multiprocessing: no re-import of the caller's __main__, own GIL.
         self._proc = subprocess.Popen(
-            [sys.executable, "-m", "kinect_emulator.live"],
+            [sys.executable, "-m", "kinect_emulator.live_child"],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             env=env,
@@ -533,6 +534,3 @@ class LiveKinect:
         with self._rec_lock:
             return [d["error"] for d in self._undelivered if "error" in d]
 
-
-if __name__ == "__main__":
-    raise SystemExit(_child_main())
