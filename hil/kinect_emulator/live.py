@@ -15,9 +15,10 @@ How it works
     and `r-*.ppm` under temporary names, renames them, and only then writes their two INDEX lines
     (one write() below PIPE_BUF, so atomic).
   * A camera never queues: requests arriving while the child renders replace each other (the newest
-    wins, the others are counted as `superseded`), and a frame is not written while the previous
-    frame's lines are still unread in the FIFO (the streamer is behind or not started; counted as
-    `reader_behind`). The FIFO therefore never holds more than one frame.
+    wins, the others are counted as `superseded`), and a frame is not written (nor rendered, if that
+    is already so when the request is taken) while the previous frame's lines are still unread in
+    the FIFO (the streamer is behind or not started; counted as `reader_behind`). The FIFO
+    therefore never holds more than one frame.
   * fakenect sleeps by the difference of the time field of consecutive lines (only if positive;
     never when the previous value is 0). Live lines carry 0.000000 there: the writer paces, fakenect
     adds no delay. The %u field carries the exposure time in 60 MHz ticks, like real dumps.
@@ -271,6 +272,13 @@ def _child_main() -> int:
             start = time.monotonic()
             rec = {"index": n_rendered, "seq": seq, "t_mono_s": t_s, "T_room_cam": flat,
                    "superseded": len(reqs) - 1, "render_start_mono_s": start}
+            if index.reader_is_behind():
+                # The streamer has not read the previous frame (not started, stopped or stalled):
+                # a render now could not be written; save the CPU for the rig.
+                rec.update(index=None, delivered=False, skipped=True, render_end_mono_s=start)
+                records.write(json.dumps(rec) + "\n")
+                records.flush()
+                continue
             try:
                 frame = emu.render_indexed(
                     np.array(flat).reshape(4, 4), int(round(t_s * 1e6)), n_rendered
@@ -503,8 +511,8 @@ class LiveKinect:
 
     def stats(self) -> dict:
         """submitted, pending, rendered, delivered, dropped (= superseded + reader_behind + errors
-        + send_failed), render ms median/p95 (child, per rendered frame: ray cast, texture, noise;
-        not the file writes)."""
+        + send_failed; submitted = delivered + dropped + pending), render ms median/p95 (child, per
+        rendered frame: ray cast, texture, noise; not the file writes)."""
         recs = self.records()
         with self._rec_lock:
             und = list(self._undelivered)
@@ -512,18 +520,19 @@ class LiveKinect:
             submitted, send_failed = self._seq, self._send_failed
         superseded = sum(r.superseded for r in recs) + sum(d["superseded"] for d in und)
         errors = sum(1 for d in und if "error" in d)
-        behind = len(und) - errors
+        skipped = sum(1 for d in und if d.get("skipped"))
+        behind = len(und) - errors  # rendered but not written, or not rendered (skipped)
         ms = [1e3 * (r.render_end_mono_s - r.render_start_mono_s) for r in recs]
         ms += [
             1e3 * (d["render_end_mono_s"] - d["render_start_mono_s"])
             for d in und
-            if "error" not in d
+            if "error" not in d and not d.get("skipped")
         ]
         served = len(recs) + len(und) + superseded + send_failed
         return {
             "submitted": submitted,
             "pending": submitted - served,  # waiting, or discarded with the stop request
-            "rendered": len(recs) + behind,
+            "rendered": len(recs) + behind - skipped,
             "delivered": len(recs),
             "superseded": superseded,
             "reader_behind": behind,
