@@ -123,7 +123,7 @@ void GroundStation::control_loop() {
     const std::int64_t now = monotonic_now_us();
     std::lock_guard<std::mutex> lock(mutex_);
     last_stick_ = controller_.update(now);
-    last_pwm_ = to_pwm(last_stick_, spec_.pwm);
+    last_pwm_ = to_pwm(last_stick_, spec_.pwm, options_.controller.apm_stick_deadzone_us);
   }
 }
 
@@ -132,7 +132,7 @@ PwmCommand GroundStation::command_at(std::int64_t now_us, std::uint32_t seq) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     last_stick_ = controller_.update(now_us);
-    last_pwm_ = to_pwm(last_stick_, spec_.pwm);
+    last_pwm_ = to_pwm(last_stick_, spec_.pwm, options_.controller.apm_stick_deadzone_us);
     if (!log_) return last_pwm_;
     logged = LoggedCommand{seq, now_us, to_string(controller_.status().state), last_pwm_, pose_capture_us_, pose_us_};
   }

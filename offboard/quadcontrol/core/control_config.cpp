@@ -29,6 +29,7 @@ std::map<std::string, double*> scalar_fields(ControlConfig& c) {
       {"max_waypoint_distance_m", &c.max_waypoint_distance_m},
       {"arm_gesture_ms", &c.arm_gesture_ms},
       {"disarm_gesture_ms", &c.disarm_gesture_ms},
+      {"apm_stick_deadzone_us", &c.apm_stick_deadzone_us},
   };
 }
 
@@ -45,7 +46,11 @@ std::string ControlConfig::validate() const {
     if (!e.empty()) return "controller." + name + ": " + e;
   }
   for (auto& [name, value] : scalar_fields(copy)) {
+    if (name == "apm_stick_deadzone_us") continue;  // 0 is valid: no compensation
     if (!std::isfinite(*value) || *value <= 0.0) return "controller." + name + " must be finite and > 0";
+  }
+  if (!(apm_stick_deadzone_us >= 0.0 && apm_stick_deadzone_us <= 100.0)) {
+    return "controller.apm_stick_deadzone_us must be in [0, 100]";
   }
   if (hover_throttle_pct >= 100.0) return "controller.hover_throttle_pct must be < 100";
   if (land_min_throttle_pct >= hover_throttle_pct) {

@@ -41,6 +41,12 @@ struct ControlConfig {
   /// 2 s (docs/firmware.md); +1 s / +0.5 s margin for pre-arm checks and the PWM frame delay.
   double arm_gesture_ms = 3000.0;
   double disarm_gesture_ms = 2500.0;
+  /// The APM's roll/pitch/yaw stick dead zone (ArduCopter RC1_DZ/RC2_DZ/RC4_DZ, default 20 us):
+  /// ArduPilot ignores the first 20 us off centre and rescales the rest. A non-zero stick is sent
+  /// starting just outside it, so the APM's lean follows the PID output from 0 instead of ignoring
+  /// it below 5 % of stick (at Table 3.1 gains a 0.33 m position dead band: measured in the HIL rig
+  /// as a 0.7 m wander in 0.15 m/s^2 gusts). 0 = no compensation. Must match the APM's setting.
+  double apm_stick_deadzone_us = 20.0;
 
   std::string validate() const;
 };

@@ -64,6 +64,7 @@ void FlightController::reset_pids() {
   pitch_.reset();
   yaw_.reset();
   throttle_.reset();
+  pid_pose_us_.reset();
 }
 
 void FlightController::enter(FlightState state, std::int64_t now_us, const std::string& why) {
@@ -185,8 +186,14 @@ double FlightController::unwrap_yaw(double yaw_deg) {
   return *unwrapped_yaw_deg_;
 }
 
-StickCommand FlightController::position_control(std::int64_t now_us, const CraftPose& pose,
-                                                double height_setpoint_m) {
+StickCommand FlightController::position_control(const PoseSample& sample, double height_setpoint_m) {
+  // The PIDs run once per pose estimate, stamped with its arrival time. update() runs at the command
+  // rate (50 Hz) but estimates come at the camera's rate (6-30 Hz): re-running the PIDs on an
+  // unchanged measurement would turn the derivative into one spike per frame and zeros in between
+  // (and a spike clipped by the output limit loses damping), and would integrate a stale error.
+  if (pid_pose_us_ && *pid_pose_us_ == sample.received_us) return pid_cmd_;
+  const std::int64_t now_us = sample.received_us;
+  const CraftPose& pose = sample.pose;
   StickCommand cmd;
   cmd.armed = true;
   const BodyError e = world_to_body(status_.setpoint.x_m - pose.x_m, status_.setpoint.y_m - pose.y_m, pose.yaw_deg);
@@ -200,6 +207,8 @@ StickCommand FlightController::position_control(std::int64_t now_us, const Craft
   double throttle_out = 0.0;
   if (auto out = throttle_.update(now_us, height_setpoint_m * kMmPerM, pose.z_m * kMmPerM)) throttle_out = *out;
   cmd.throttle_pct = std::clamp(config_.hover_throttle_pct + throttle_out, 0.0, 100.0);
+  pid_pose_us_ = sample.received_us;
+  pid_cmd_ = cmd;
   return cmd;
 }
 
@@ -209,13 +218,21 @@ StickCommand FlightController::update(std::int64_t now_us) {
   FlightState s = status_.state;
 
   if ((s == FlightState::kTakeOff || s == FlightState::kHold || s == FlightState::kGoToWaypoint) && !fresh) {
+    interrupted_takeoff_ = s == FlightState::kTakeOff;
     enter(FlightState::kLostHold, now_us, "tracking lost, holding neutral");
     s = status_.state;
   }
   if (s == FlightState::kLostHold) {
     if (fresh) {
       reset_pids();
-      enter(FlightState::kHold, now_us, "tracking back");
+      if (interrupted_takeoff_) {
+        // A take-off interrupted (e.g. while the floor is still inside the Kinect's 0.5 m minimum
+        // range) climbs on from the setpoint it had reached rather than holding half-way up.
+        takeoff_start_height_m_ = status_.setpoint.z_m;
+        enter(FlightState::kTakeOff, now_us, "tracking back, climbing on");
+      } else {
+        enter(FlightState::kHold, now_us, "tracking back");
+      }
       s = status_.state;
     } else if (static_cast<double>(now_us - state_entered_us_) >= config_.lost_hold_ms * kUsPerMs) {
       enter(FlightState::kLand, now_us, "tracking not back in time, landing blind");
@@ -244,7 +261,7 @@ StickCommand FlightController::update(std::int64_t now_us) {
       const double elapsed_s = static_cast<double>(now_us - state_entered_us_) / kUsPerS;
       const double ramp_m = takeoff_start_height_m_ + config_.takeoff_climb_rate_m_per_s * elapsed_s;
       status_.setpoint.z_m = std::min(ramp_m, config_.hold_height_m);
-      cmd = position_control(now_us, pose_->pose, status_.setpoint.z_m);
+      cmd = position_control(*pose_, status_.setpoint.z_m);
       if (status_.setpoint.z_m >= config_.hold_height_m &&
           std::abs(pose_->pose.z_m - config_.hold_height_m) <= config_.takeoff_reached_tolerance_m) {
         enter(FlightState::kHold, now_us, "reached hold height");
@@ -252,7 +269,7 @@ StickCommand FlightController::update(std::int64_t now_us) {
       break;
     }
     case FlightState::kHold:
-      cmd = position_control(now_us, pose_->pose, status_.setpoint.z_m);
+      cmd = position_control(*pose_, status_.setpoint.z_m);
       break;
     case FlightState::kGoToWaypoint: {
       const CraftPose& p = pose_->pose;
@@ -263,7 +280,7 @@ StickCommand FlightController::update(std::int64_t now_us) {
         status_.setpoint.x_m = w.x_m;
         status_.setpoint.y_m = w.y_m;
       }
-      cmd = position_control(now_us, p, status_.setpoint.z_m);
+      cmd = position_control(*pose_, status_.setpoint.z_m);
       if (status_.facing_waypoint && std::hypot(w.x_m - p.x_m, w.y_m - p.y_m) <= config_.waypoint_reached_m) {
         enter(FlightState::kHold, now_us, "waypoint reached");
       }
@@ -274,7 +291,7 @@ StickCommand FlightController::update(std::int64_t now_us) {
       const double throttle = std::max(config_.land_min_throttle_pct,
                                        land_start_throttle_pct_ - config_.land_throttle_ramp_pct_per_s * elapsed_s);
       if (fresh) {
-        cmd = position_control(now_us, pose_->pose, status_.setpoint.z_m);
+        cmd = position_control(*pose_, status_.setpoint.z_m);
       }
       cmd.armed = true;
       cmd.throttle_pct = throttle;

@@ -104,7 +104,8 @@ class FlightController {
   bool has_fresh_pose(std::int64_t now_us) const;
   void enter(FlightState state, std::int64_t now_us, const std::string& why);
   void reset_pids();
-  StickCommand position_control(std::int64_t now_us, const CraftPose& pose, double height_setpoint_m);
+  /// Roll/pitch/yaw/throttle from the PIDs, run once per pose sample (see the .cpp).
+  StickCommand position_control(const PoseSample& sample, double height_setpoint_m);
   double unwrap_yaw(double yaw_deg);
 
   ControlConfig config_;
@@ -122,6 +123,9 @@ class FlightController {
   std::optional<double> unwrapped_yaw_deg_;
   double last_raw_yaw_deg_ = 0.0;
   bool disarm_gesture_pending_ = false;
+  bool interrupted_takeoff_ = false;  ///< lost-hold was entered from take-off: resume it
+  std::optional<std::int64_t> pid_pose_us_;  ///< received_us of the pose the PIDs last ran on
+  StickCommand pid_cmd_;                     ///< their output, held until the next pose
 };
 
 }  // namespace rgbdquad::quadcontrol

@@ -33,12 +33,16 @@ struct PwmCommand {
   bool armed = false;
 };
 
-/// Centred channel: -100 % -> min_us, 0 -> neutral_us, +100 % -> max_us (clamped).
-inline std::uint16_t centred_to_us(double pct, const PwmRange& r) {
+/// Centred channel: -100 % -> min_us, 0 -> neutral_us, +100 % -> max_us (clamped). With a dead
+/// zone (the APM's RCx_DZ, which ArduPilot subtracts before rescaling), a non-zero stick starts at
+/// neutral +- deadzone_us, so what the APM acts on is proportional to pct (see ControlConfig).
+inline std::uint16_t centred_to_us(double pct, const PwmRange& r, double deadzone_us = 0.0) {
   if (!std::isfinite(pct)) return r.neutral_us;
   const double p = std::clamp(pct, -100.0, 100.0) / 100.0;
   const double span = p >= 0.0 ? r.max_us - r.neutral_us : r.neutral_us - r.min_us;
-  return static_cast<std::uint16_t>(std::lround(r.neutral_us + p * span));
+  const double dz = std::clamp(deadzone_us, 0.0, span);
+  const double offset = p == 0.0 ? 0.0 : std::copysign(dz, p) + p * (span - dz);
+  return static_cast<std::uint16_t>(std::lround(r.neutral_us + offset));
 }
 
 /// Throttle: 0 % -> min_us, 100 % -> max_us (clamped).
@@ -48,11 +52,16 @@ inline std::uint16_t throttle_to_us(double pct, const PwmRange& r) {
   return static_cast<std::uint16_t>(std::lround(r.min_us + p * (r.max_us - r.min_us)));
 }
 
-inline PwmCommand to_pwm(const StickCommand& s, const PwmRanges& ranges) {
+/// Stick percent -> RC pulse widths in ArduCopter's conventions: roll + (right) -> RC1 above
+/// neutral; pitch + (forward, nose down) -> RC2 BELOW neutral (ArduCopter pitches nose up for a high
+/// RC2, as a mode-2 transmitter whose stick pushed forward lowers the pulse); yaw + (clockwise) ->
+/// RC4 above neutral; throttle 0..100 % -> RC3 min..max.
+/// deadzone_us: the APM's roll/pitch/yaw stick dead zone to step over (0 = none).
+inline PwmCommand to_pwm(const StickCommand& s, const PwmRanges& ranges, double deadzone_us = 0.0) {
   PwmCommand c;
-  c.roll_us = centred_to_us(s.roll_pct, ranges.roll);
-  c.pitch_us = centred_to_us(s.pitch_pct, ranges.pitch);
-  c.yaw_us = centred_to_us(s.yaw_pct, ranges.yaw);
+  c.roll_us = centred_to_us(s.roll_pct, ranges.roll, deadzone_us);
+  c.pitch_us = centred_to_us(-s.pitch_pct, ranges.pitch, deadzone_us);
+  c.yaw_us = centred_to_us(s.yaw_pct, ranges.yaw, deadzone_us);
   c.throttle_us = throttle_to_us(s.throttle_pct, ranges.throttle);
   c.armed = s.armed;
   return c;

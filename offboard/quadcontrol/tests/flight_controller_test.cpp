@@ -284,6 +284,54 @@ TEST_F(Flight, TrackingBackResumesHold) {
   EXPECT_EQ(fc.status().state, FlightState::kHold);
 }
 
+TEST_F(Flight, TrackingBackDuringTakeoffClimbsOn) {
+  step();
+  arm_and_wait_gesture();
+  ASSERT_EQ(fc.command(now_us, OperatorCommand::kTakeOff), "");
+  for (int i = 0; i < 40; ++i) {
+    pose.z_m = fc.status().setpoint.z_m;
+    step();
+  }
+  const double reached_m = fc.status().setpoint.z_m;
+  ASSERT_LT(reached_m, 1.0);
+  // GIVEN tracking is lost half-way up WHEN it comes back THEN the climb goes on from there
+  for (int i = 0; i < 5; ++i) step(false);
+  ASSERT_EQ(fc.status().state, FlightState::kLostHold);
+  step(true);
+  EXPECT_EQ(fc.status().state, FlightState::kTakeOff);
+  EXPECT_NEAR(fc.status().setpoint.z_m, reached_m, 0.02);
+  for (int i = 0; i < 500 && fc.status().state == FlightState::kTakeOff; ++i) {
+    pose.z_m = fc.status().setpoint.z_m;
+    step();
+  }
+  EXPECT_EQ(fc.status().state, FlightState::kHold);
+  EXPECT_NEAR(pose.z_m, 1.7, 0.1);
+}
+
+// Commands go out at 50 Hz, poses come at the camera's rate: the PIDs run once per pose, so the
+// command between two poses is held (no derivative spike per frame, no zeros in between).
+TEST_F(Flight, PidsRunOncePerPoseSample) {
+  to_hold();
+  pose.x_m = -0.2;  // 20 cm behind: pitch forward
+  now_us += kStepUs;
+  fc.on_pose(PoseSample{now_us, true, pose});
+  const StickCommand first = fc.update(now_us);
+  ASSERT_NE(first.pitch_pct, 0.0);
+  for (int i = 0; i < 2; ++i) {  // two more ticks, no new pose (15 fps camera)
+    now_us += kStepUs;
+    const StickCommand again = fc.update(now_us);
+    EXPECT_EQ(again.pitch_pct, first.pitch_pct);
+    EXPECT_EQ(again.throttle_pct, first.throttle_pct);
+  }
+  // The next pose (unchanged position) gives the derivative over the pose interval (60 ms),
+  // not over one 20 ms tick: the D term relaxes towards P alone instead of spiking.
+  now_us += kStepUs;
+  fc.on_pose(PoseSample{now_us, true, pose});
+  const StickCommand next = fc.update(now_us);
+  EXPECT_GT(next.pitch_pct, 0.0);
+  EXPECT_LT(std::abs(next.pitch_pct), 20.0);
+}
+
 TEST_F(Flight, StalePoseCountsAsLost) {
   to_hold();
   // No pose arrives for more than pose_timeout_ms.

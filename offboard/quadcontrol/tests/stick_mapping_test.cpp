@@ -27,5 +27,39 @@ TEST(StickMapping, CentredAndThrottleChannels) {
   }
 }
 
+// ArduCopter reads a high RC2 as "nose up" (pitch back): forward (+pitch %) must go out below
+// neutral, or the position loop pushes the craft away from its setpoint (found by the HIL rig's
+// closed-loop flight: the craft ran off backwards). Roll right, yaw clockwise: above neutral.
+TEST(StickMapping, ArduCopterChannelDirections) {
+  const PwmRange centred{1100, 1500, 1900};
+  const PwmRanges ranges{centred, centred, centred, PwmRange{1000, 1000, 2000}};
+  StickCommand s;
+  s.roll_pct = 50.0;
+  s.pitch_pct = 50.0;
+  s.yaw_pct = 50.0;
+  s.throttle_pct = 50.0;
+  const PwmCommand c = to_pwm(s, ranges);
+  EXPECT_EQ(c.roll_us, 1700);      // roll right
+  EXPECT_EQ(c.pitch_us, 1300);     // forward = nose down = RC2 low
+  EXPECT_EQ(c.yaw_us, 1700);       // clockwise
+  EXPECT_EQ(c.throttle_us, 1500);
+}
+
+// With the APM's 20 us dead zone, a small stick lands just outside it; after ArduPilot removes the
+// dead zone and rescales, the lean it commands is proportional to the stick (no dead band).
+TEST(StickMapping, DeadZoneIsSteppedOverAndProportionalAfterTheApmRemovesIt) {
+  const PwmRange r{1100, 1500, 1900};
+  const double dz = 20.0;
+  EXPECT_EQ(centred_to_us(0.0, r, dz), 1500);
+  EXPECT_EQ(centred_to_us(100.0, r, dz), 1900);
+  EXPECT_EQ(centred_to_us(-100.0, r, dz), 1100);
+  EXPECT_EQ(centred_to_us(10.0, r, dz), 1558);   // 20 + 0.1 * 380
+  EXPECT_EQ(centred_to_us(-10.0, r, dz), 1442);
+  for (double pct : {1.0, 5.0, 25.0, 60.0}) {
+    const double apm = (centred_to_us(pct, r, dz) - 1500 - dz) / (400.0 - dz);  // ArduPilot's view
+    EXPECT_NEAR(apm, pct / 100.0, 1.0 / 380.0) << pct;
+  }
+}
+
 }  // namespace
 }  // namespace rgbdquad::quadcontrol
