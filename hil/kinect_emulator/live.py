@@ -15,10 +15,14 @@ How it works
     and `r-*.ppm` under temporary names, renames them, and only then writes their two INDEX lines
     (one write() below PIPE_BUF, so atomic).
   * A camera never queues: requests arriving while the child renders replace each other (the newest
-    wins, the others are counted as `superseded`), and a frame is not written (nor rendered, if that
-    is already so when the request is taken) while the previous frame's lines are still unread in
-    the FIFO (the streamer is behind or not started; counted as `reader_behind`). The FIFO
-    therefore never holds more than one frame.
+    wins, the others are counted as `superseded`). Before writing a frame's lines the child writes
+    a sync line (`s-...-sync`, a 5-byte file fakenect opens and ignores) and waits until fakenect
+    has read it, which it does only after the previous frame's callbacks returned (stdio reads the
+    FIFO again only when it has used up what it read). So the FIFO never holds more than one frame,
+    and every capture stamp of frame k lies between frame k's and frame k+1's write times
+    (`match_capture_stamps` is exact). A frame whose sync is not read within FAKENECT_WAIT_S is
+    dropped (`reader_behind`: the streamer is slow, stalled or not started); once lines have stayed
+    unread for READER_STALLED_S, requests are not even rendered.
   * fakenect sleeps by the difference of the time field of consecutive lines (only if positive;
     never when the previous value is 0). Live lines carry 0.000000 there: the writer paces, fakenect
     adds no delay. The %u field carries the exposure time in 60 MHz ticks, like real dumps.
@@ -27,9 +31,9 @@ How it works
     prints "No more lines", freenect_process_events returns -1 and rgbd-streamer ends its freenect
     source (exit code 3 after --exit-linger-ms). Close the LiveKinect BEFORE stopping the streamer:
     a streamer stopped by SIGTERM joins its event thread, which only returns at the next line / EOF.
-  * Frame files are deleted once the streamer has certainly read them (the FIFO shows the NEXT
-    frame's lines consumed: fakenect reads the FIFO again only after finishing the previous line's
-    file), so a long flight keeps ~3 frames (~4.6 MB) on disk; `keep_files=True` keeps all.
+  * A frame's files are deleted once the sync line after it has been read (fakenect is done with
+    them), so a long flight keeps one or two frames (~1.5 MB each) on disk; `keep_files=True` keeps
+    all.
 
 Records: one JSON line per rendered frame in `dump_dir/live_frames.jsonl` (written by the child,
 flushed per frame; the parent reads it in `records()`). Time is time.monotonic() (CLOCK_MONOTONIC),
@@ -45,9 +49,9 @@ Usage (the rig thread calls submit() at the frame rate; it never waits for the r
     cam.close(); streamer.wait(...) / streamer.stop()
 `streamer_command()` gives the `fakenect <dump> <streamer> ...` wrapper form instead (its PID is a
 bash that does not exec: stopping it leaves the streamer running until close()). Frames submitted
-before the streamer opens the FIFO: the first is kept (and read when it starts), the rest are
-`reader_behind`. Measured (hil/scenarios/test_live_kinect.py, 2 shared cores): render ~15 ms per
-640x480 frame in the child, 30 fps sustained, INDEX written -> streamer capture stamp ~0.35 ms.
+before the streamer opens the FIFO are dropped (`reader_behind`); none is queued for it.
+Measured (hil/scenarios/test_live_kinect.py, 2 shared cores): render ~15 ms per 640x480 frame in
+the child, 30 fps sustained, INDEX written -> streamer capture stamp ~0.35 ms.
 Thread safety: submit() may be called from one thread while another calls records()/stats();
 start() and close() from the owning thread.
 """
@@ -89,8 +93,21 @@ _STOP_SEQ = -1
 # The child starts in ~1 s (numpy import, texture loading); allow for a loaded 2-core machine.
 START_TIMEOUT_S = 60.0
 CLOSE_TIMEOUT_S = 10.0
-# Frame files kept at least (the newest ones), whatever the FIFO shows.
-KEEP_NEWEST_FRAMES = 2
+# fakenect reads a line < 1 ms after it is written (p95 < 5 ms on the loaded 2-core machine); lines
+# unread this long after the last frame was written mean the streamer is not reading (not started,
+# stopped, stalled): new requests are then not even rendered. Several frame periods, so mere jitter
+# never skips a render.
+READER_STALLED_S = 0.1
+# Sync line: type 's' is neither depth, video nor accelerometer, so fakenect reads the file and
+# calls nothing. The file must not be empty: fakenect takes a failed 0-byte fread as the end.
+SYNC_NAME = "s-0.000000-0-sync"
+SYNC_LINE = (SYNC_NAME + "\n").encode()
+SYNC_CONTENT = b"sync\n"
+# How long the child waits for fakenect to finish the previous frame before it drops a rendered one
+# (fakenect reads the sync line < 1 ms after it is written when idle; the streamer's depth callback,
+# 11-bit -> mm for 307 200 pixels, takes a few ms): 1.5 frame periods at 30 fps.
+FAKENECT_WAIT_S = 0.05
+SYNC_POLL_S = 0.0002  # 0.2 ms: well below the wait, a few hundred polls at most per frame
 
 
 @dataclass(frozen=True)
@@ -114,9 +131,10 @@ def match_capture_stamps(
     records: list[LiveFrameRecord], stamps_us, max_delay_us: int = 100_000
 ) -> list[LiveFrameRecord | None]:
     """For each streamer capture stamp (us, CLOCK_MONOTONIC), the delivered record whose INDEX lines
-    were written last before it, or None when there is none within max_delay_us (a stamp taken
-    more than that after the write cannot be a callback of that line: fakenect calls back within
-    a few ms). Order-preserving: the streamer's frames come in INDEX order."""
+    were written last before it, or None when there is none within max_delay_us. Exact for
+    LiveKinect's records: frame k+1 is written only after fakenect finished frame k's callbacks (the
+    sync line), so frame k's stamps lie in [written_k, written_k+1). max_delay_us is a sanity bound
+    (fakenect calls back within a few ms of the write)."""
     rs = sorted((r for r in records if r.delivered), key=lambda r: r.index_written_mono_s)
     written_us = [r.index_written_mono_s * 1e6 for r in rs]
     out: list[LiveFrameRecord | None] = []
@@ -143,17 +161,27 @@ class FakenectFifoIndex:
     """Writes live frames into a fakenect dump whose INDEX.txt is a FIFO (used in the child).
 
     `open()` opens the FIFO read-write and non-blocking: it never waits for a reader, and the FIFO
-    stays open (no EOF for the reader) until `close()`. Not thread-safe. The clock is passed in.
+    stays open (no EOF for the reader) until `close()`. Before a frame's lines, `wait_reader_done()`
+    writes a sync line (a tiny file of a type fakenect reads and ignores) and waits until it leaves
+    the FIFO: fakenect reads the FIFO only once it has processed every line it read before (the
+    previous frame's callbacks have returned). So the streamer's capture stamps of frame k all lie
+    between frame k's and frame k+1's write times, and frame k's files can then be deleted.
+    Not thread-safe. Clock and sleep are passed in.
     """
 
     def __init__(self, dump_dir, keep_files: bool = False) -> None:
         self.dir = Path(dump_dir)
         self.keep_files = keep_files
         self._fd: int | None = None
+        self.last_written_s = -math.inf  # clock time of the last frame's INDEX write
         self._bytes_written = 0
-        self._on_disk: list[tuple[int, list[Path]]] = []  # (end offset of the lines, files)
+        self._on_disk: list[list] = []  # [files, offset after which fakenect is done with them]
 
     def open(self) -> None:
+        sync = self.dir / SYNC_NAME
+        tmp = self.dir / f".{SYNC_NAME}.tmp"
+        tmp.write_bytes(SYNC_CONTENT)
+        os.replace(tmp, sync)
         self._fd = os.open(self.dir / INDEX_NAME, os.O_RDWR | os.O_NONBLOCK)
 
     def unread_bytes(self) -> int:
@@ -161,15 +189,41 @@ class FakenectFifoIndex:
         return struct.unpack("i", buf)[0]
 
     def reader_is_behind(self) -> bool:
-        """True while the previous frame's lines are still in the FIFO."""
+        """True while lines are unread in the FIFO."""
         return self.unread_bytes() > 0
+
+    def _write(self, data: bytes) -> None:
+        n = os.write(self._fd, data)  # < PIPE_BUF: whole and atomic
+        if n != len(data):
+            raise OSError(f"short write to the fakenect INDEX FIFO ({n} of {len(data)} bytes)")
+        self._bytes_written += n
+
+    def wait_reader_done(self, clock, sleep, timeout_s: float) -> bool:
+        """True once the reader has processed every line written so far (see the class); False
+        if that has not happened within timeout_s (the streamer is not reading, or is slow)."""
+        deadline = clock() + timeout_s
+        synced = False
+        while True:
+            if self.unread_bytes() == 0:
+                if synced:
+                    for entry in self._on_disk:
+                        if entry[1] is None:
+                            entry[1] = self._bytes_written
+                    self.collect()
+                    return True
+                self._write(SYNC_LINE)
+                synced = True
+                continue
+            if clock() >= deadline:
+                return False
+            sleep(SYNC_POLL_S)
 
     def write_frame(
         self, index: int, t_mono_s: float, rgb: np.ndarray, raw_disparity: np.ndarray, clock
     ) -> tuple[float, str, str]:
         """Writes both files completely, then their INDEX lines. Returns (time just before the
-        lines were written, depth file name, rgb file name). The caller checks
-        reader_is_behind() first."""
+        lines were written, depth file name, rgb file name). Call only after wait_reader_done()
+        returned True (else the FIFO could queue frames and the stamps would be ambiguous)."""
         h, w = raw_disparity.shape
         ticks = int(t_mono_s * FAKENECT_TICKS_PER_S) & 0xFFFFFFFF
         dname = f"d-{FAKENECT_NO_PACING_TIME}-{ticks}-{index}.pgm"
@@ -183,24 +237,19 @@ class FakenectFifoIndex:
                 f.write(header.encode())
                 f.write(np.ascontiguousarray(data).data)
             os.replace(tmp, self.dir / name)
-        lines = f"{dname}\n{rname}\n".encode()
         written_s = clock()
-        n = os.write(self._fd, lines)  # < PIPE_BUF into an empty FIFO: whole and atomic
-        if n != len(lines):
-            raise OSError(f"short write to the fakenect INDEX FIFO ({n} of {len(lines)} bytes)")
-        self._bytes_written += n
-        self._on_disk.append((self._bytes_written, [self.dir / dname, self.dir / rname]))
-        self.collect()
+        self.last_written_s = written_s
+        self._write(f"{dname}\n{rname}\n".encode())
+        self._on_disk.append([[self.dir / dname, self.dir / rname], None])
         return written_s, dname, rname
 
     def collect(self) -> None:
-        """Deletes frame files fakenect has finished with: frame k is done once frame k+1's lines
-        have left the FIFO (fakenect reads the FIFO again only after it read frame k's files)."""
+        """Deletes the files of frames fakenect is done with (a sync line after them was read)."""
         if self.keep_files or self._fd is None:
             return
         consumed = self._bytes_written - self.unread_bytes()
-        while len(self._on_disk) > KEEP_NEWEST_FRAMES and self._on_disk[1][0] <= consumed:
-            for p in self._on_disk.pop(0)[1]:
+        while self._on_disk and self._on_disk[0][1] is not None and self._on_disk[0][1] <= consumed:
+            for p in self._on_disk.pop(0)[0]:
                 p.unlink(missing_ok=True)
 
     def close(self) -> None:
@@ -272,9 +321,9 @@ def _child_main() -> int:
             start = time.monotonic()
             rec = {"index": n_rendered, "seq": seq, "t_mono_s": t_s, "T_room_cam": flat,
                    "superseded": len(reqs) - 1, "render_start_mono_s": start}
-            if index.reader_is_behind():
-                # The streamer has not read the previous frame (not started, stopped or stalled):
-                # a render now could not be written; save the CPU for the rig.
+            if index.reader_is_behind() and start - index.last_written_s > READER_STALLED_S:
+                # The streamer has not read the previous frame for a while (not started, stopped or
+                # stalled): a render now could not be written; save the CPU for the rig.
                 rec.update(index=None, delivered=False, skipped=True, render_end_mono_s=start)
                 records.write(json.dumps(rec) + "\n")
                 records.flush()
@@ -287,7 +336,7 @@ def _child_main() -> int:
                 rec.update(error=str(e), delivered=False, render_end_mono_s=time.monotonic())
             else:
                 rec["render_end_mono_s"] = time.monotonic()
-                if index.reader_is_behind():
+                if not index.wait_reader_done(time.monotonic, time.sleep, FAKENECT_WAIT_S):
                     rec["delivered"] = False
                 else:
                     written, dname, rname = index.write_frame(

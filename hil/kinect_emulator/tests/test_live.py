@@ -19,8 +19,11 @@ import pytest
 from kinect_emulator import Box, Intrinsics, KinectEmulator, KinectOptions, Room, pose_matrix
 from kinect_emulator.live import (
     INDEX_NAME,
-    KEEP_NEWEST_FRAMES,
+    READER_STALLED_S,
     RECORDS_NAME,
+    SYNC_CONTENT,
+    SYNC_NAME,
+    SYNC_POLL_S,
     FakenectFifoIndex,
     LiveFrameRecord,
     LiveKinect,
@@ -105,52 +108,71 @@ def test_match_capture_stamps(stamp_us, want):
 
 
 # ---- the FIFO index (what fakenect reads) ------------------------------------------------------
-def test_fifo_index_files_complete_before_lines_and_collected(tmp_path):
+def test_fifo_index_sync_protocol_files_complete_and_collected(tmp_path):
+    """GIVEN a fakenect-like reader WHEN frames are written after wait_reader_done THEN the reader
+    sees sync, d, r, sync, d, r, ... with every file complete when its line is read, the %c-%lf-%u
+    name fields fakenect parses, and the files of every frame followed by a read sync deleted."""
     os.mkfifo(tmp_path / INDEX_NAME)
     idx = FakenectFifoIndex(tmp_path)
     idx.open()
-    reader = os.open(tmp_path / INDEX_NAME, os.O_RDONLY | os.O_NONBLOCK)
+    reader = FakeFakenect(tmp_path)
     rng = np.random.default_rng(1)
-    names = []
+    frames = []
     try:
-        for k in range(6):
+        for k in range(5):
             raw = rng.integers(0, 2048, (4, 5), dtype=np.uint16)
             rgb = rng.integers(0, 256, (4, 5, 3), dtype=np.uint8)
-            assert not idx.reader_is_behind()
+            assert idx.wait_reader_done(time.monotonic, time.sleep, WAIT_S)
             written, dname, rname = idx.write_frame(k, 12.5 + k, rgb, raw, lambda: 100.0 + k)
-            assert written == 100.0 + k
-            assert idx.reader_is_behind()  # lines are in the FIFO, unread
-            # The files are complete when their line can be read (fakenect opens them right then).
-            lines = os.read(reader, 4096).decode().splitlines()
-            assert lines == [dname, rname]
-            want_d = b"P5 5 4 65535\n" + raw.astype("=u2").tobytes()
-            assert (tmp_path / dname).read_bytes() == want_d
-            assert (tmp_path / rname).read_bytes() == b"P6 5 4 255\n" + rgb.tobytes()
-            # fakenect's sscanf("%c-%lf-%u-%*s"): no pacing time, 60 MHz exposure ticks.
-            typ, t, ticks, rest = dname.split("-", 3)
-            want_fields = ("d", 0.0, int((12.5 + k) * 60e6), f"{k}.pgm")
-            assert (typ, float(t), int(ticks), rest) == want_fields
-            names.append((dname, rname))
-        idx.collect()
-        on_disk = sorted(p.name for p in tmp_path.iterdir() if p.name[0] in "dr")
-        # Everything before the newest frames whose successor's lines were consumed is gone.
-        assert on_disk == sorted(n for pair in names[-KEEP_NEWEST_FRAMES:] for n in pair)
-        assert not any(p.name.endswith(".tmp") for p in tmp_path.iterdir())
+            assert written == 100.0 + k == idx.last_written_s
+            frames.append((dname, rname, raw, rgb))
+        assert idx.wait_reader_done(time.monotonic, time.sleep, WAIT_S)  # the reader is done
+        assert not idx.reader_is_behind()
+        assert not [p for p in tmp_path.iterdir() if p.suffix in (".pgm", ".ppm", ".tmp")]
     finally:
         idx.close()
-        os.close(reader)
+    assert reader.eof.wait(WAIT_S) and not reader.missing
+    want = []
+    for dname, rname, raw, rgb in frames:
+        want += [
+            (SYNC_NAME, SYNC_CONTENT),
+            (dname, b"P5 5 4 65535\n" + raw.astype("=u2").tobytes()),
+            (rname, b"P6 5 4 255\n" + rgb.tobytes()),
+        ]
+    assert reader.items == want + [(SYNC_NAME, SYNC_CONTENT)]
+    for k, (dname, rname, _, _) in enumerate(frames):
+        # fakenect's sscanf("%c-%lf-%u-%*s"): no pacing time, 60 MHz exposure ticks.
+        for name, typ, ext in ((dname, "d", "pgm"), (rname, "r", "ppm")):
+            c, t, ticks, rest = name.split("-", 3)
+            want = (typ, 0.0, int((12.5 + k) * 60e6), f"{k}.{ext}")
+            assert (c, float(t), int(ticks), rest) == want
+    assert SYNC_CONTENT  # fakenect ends the dump on a 0-byte file
 
 
-def test_fifo_index_keeps_unconsumed_frames(tmp_path):
-    """GIVEN nobody reads the FIFO WHEN frames are written THEN no frame file is deleted."""
+def test_fifo_index_without_reader_times_out_and_keeps_files(tmp_path):
+    """GIVEN nobody reads the FIFO WHEN waiting for the reader THEN it gives up at the deadline
+    (clock passed in) with only the sync line queued, and no frame file is ever deleted."""
     os.mkfifo(tmp_path / INDEX_NAME)
     idx = FakenectFifoIndex(tmp_path)
     idx.open()
+    now = [0.0]
+    sleeps = []
+
+    def sleep(s):
+        sleeps.append(s)
+        now[0] += s
+
     try:
-        for k in range(4):
+        assert not idx.wait_reader_done(lambda: now[0], sleep, 0.01)
+        assert now[0] >= 0.01 and len(sleeps) == pytest.approx(0.01 / SYNC_POLL_S, abs=2)
+        assert idx.unread_bytes() == len(SYNC_NAME) + 1
+        assert not idx.wait_reader_done(lambda: now[0], sleep, 0.01)
+        assert idx.unread_bytes() == len(SYNC_NAME) + 1  # no second sync while one is unread
+        for k in range(3):
             idx.write_frame(k, 1.0, np.zeros((2, 2, 3), np.uint8), np.zeros((2, 2), np.uint16),
                             lambda: 0.0)  # fmt: skip
-        assert len([p for p in tmp_path.iterdir() if p.suffix in (".pgm", ".ppm")]) == 8
+        idx.collect()
+        assert len([p for p in tmp_path.iterdir() if p.suffix in (".pgm", ".ppm")]) == 6
     finally:
         idx.close()
 
@@ -199,11 +221,15 @@ def test_live_frames_reach_a_reader_in_order_and_reproducibly(tmp_path, room):
     cam.start()
     try:
         reader = FakeFakenect(dump)
+
+        def frames_read():
+            return [item for item in reader.items if item[0] != SYNC_NAME]
+
         poses = [level_pose(-2.0 + 0.1 * k) for k in range(8)]
         for k, T in enumerate(poses):
             assert cam.submit(10.0 + k / 30, T)
             # One at a time (wait for the record): nothing is superseded, nothing is behind.
-            assert wait_for(lambda: len(cam.records()) == k + 1 and len(reader.items) == 2 * k + 2)
+            assert wait_for(lambda: len(cam.records()) == k + 1 and len(frames_read()) == 2 * k + 2)
         # An out-of-room pose: an error record, no frame, the camera goes on.
         assert cam.submit(20.0, level_pose(50.0))
         assert wait_for(lambda: cam.error_messages())
@@ -213,6 +239,10 @@ def test_live_frames_reach_a_reader_in_order_and_reproducibly(tmp_path, room):
     assert not cam.alive()
     assert reader.eof.wait(WAIT_S), "the reader never saw EOF after close()"
     assert not reader.missing
+    # A sync line before every frame: the reader finished the previous frame before the next.
+    names = [item[0] for item in reader.items]
+    assert names[:4] == [SYNC_NAME, recs_first_d := names[1], names[2], SYNC_NAME]
+    assert recs_first_d.startswith("d-") and names[2].startswith("r-")
     assert not (dump / INDEX_NAME).exists()  # the FIFO is removed; the records stay
     assert (dump / RECORDS_NAME).exists()
     recs = cam.records()
@@ -226,8 +256,8 @@ def test_live_frames_reach_a_reader_in_order_and_reproducibly(tmp_path, room):
         assert np.array_equal(r.T_room_cam, poses[k])
         assert r.t_mono_s == 10.0 + k / 30
         assert r.render_start_mono_s <= r.render_end_mono_s <= r.index_written_mono_s
-        dname, dbytes = reader.items[2 * k]
-        rname, rbytes = reader.items[2 * k + 1]
+        dname, dbytes = frames_read()[2 * k]
+        rname, rbytes = frames_read()[2 * k + 1]
         assert (dname, rname) == (r.depth_file, r.rgb_file)
         f = emu.render_indexed(poses[k], round(r.t_mono_s * 1e6), r.index)
         h, w = f.depth_mm.shape
@@ -237,10 +267,11 @@ def test_live_frames_reach_a_reader_in_order_and_reproducibly(tmp_path, room):
         assert rbytes == f"P6 {w} {h} 255\n".encode() + f.rgb.tobytes()
 
 
-def test_newest_request_wins_and_reader_behind_is_not_queued(tmp_path, room):
-    """GIVEN nobody reads the FIFO WHEN a burst of requests arrives THEN the first frame is written,
-    later requests are neither rendered nor written (the FIFO never holds more than one frame),
-    requests waiting while the child works are superseded, and the newest request is served."""
+def test_newest_request_wins_and_nothing_queues_without_a_reader(tmp_path, room):
+    """GIVEN nobody reads the FIFO WHEN a burst of requests arrives THEN the first is rendered but
+    dropped once its sync line goes unread for FAKENECT_WAIT_S, later ones are not even rendered,
+    nothing is queued in the FIFO but that sync line, requests waiting while the child works are
+    superseded, and the newest request is served."""
     dump = tmp_path / "live"
     cam = LiveKinect(dump, opts(), room)
     cam.start()
@@ -255,15 +286,17 @@ def test_newest_request_wins_and_reader_behind_is_not_queued(tmp_path, room):
             )
         )
         st = cam.stats()
+        time.sleep(READER_STALLED_S + 0.2)
+        assert cam.submit(float(n), level_pose(-1.0))
+        assert wait_for(lambda: cam.stats()["reader_behind"] == st["reader_behind"] + 1)
+        st_late = cam.stats()
     finally:
         cam.close()
-    recs = cam.records()
-    assert [r.index for r in recs] == [0]  # the first frame rendered (for whichever request won)
-    assert st["delivered"] == st["rendered"] == 1
-    assert st["delivered"] + st["reader_behind"] + st["superseded"] == n
-    assert st["delivered"] + st["dropped"] == n
-    assert st["pending"] == 0  # the newest request was served before close()
-    assert len(list(dump.glob("d-*.pgm"))) == 1
+    assert cam.records() == []
+    assert (st["delivered"], st["rendered"], st["pending"]) == (0, 1, 0)
+    assert st["reader_behind"] + st["superseded"] == n == st["dropped"]
+    assert st_late["rendered"] == 1
+    assert not list(dump.glob("d-*.pgm"))
 
 
 def test_streamer_command_and_env(tmp_path, room, monkeypatch):
