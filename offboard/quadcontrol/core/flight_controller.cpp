@@ -224,7 +224,10 @@ StickCommand FlightController::update(std::int64_t now_us) {
   }
   if (s == FlightState::kLostHold) {
     if (fresh) {
-      reset_pids();
+      // Keep the integrators (the throttle one holds the learned hover offset); a derivative
+      // across the gap would be meaningless.
+      for (Pid* pid : {&roll_, &pitch_, &yaw_, &throttle_}) pid->restart();
+      pid_pose_us_.reset();
       if (interrupted_takeoff_) {
         // A take-off interrupted (e.g. while the floor is still inside the Kinect's 0.5 m minimum
         // range) climbs on from the setpoint it had reached rather than holding half-way up.
@@ -255,7 +258,8 @@ StickCommand FlightController::update(std::int64_t now_us) {
       break;
     case FlightState::kLostHold:
       cmd.armed = true;
-      cmd.throttle_pct = config_.hover_throttle_pct;
+      // Hover as learned so far: the feed-forward plus the throttle integrator (battery sag, weight).
+      cmd.throttle_pct = std::clamp(config_.hover_throttle_pct + throttle_.integral(), 0.0, 100.0);
       break;
     case FlightState::kTakeOff: {
       const double elapsed_s = static_cast<double>(now_us - state_entered_us_) / kUsPerS;

@@ -20,6 +20,11 @@ std::string PidGains::validate() const {
   return {};
 }
 
+void Pid::restart() {
+  last_measurement_.reset();
+  last_time_us_.reset();
+}
+
 void Pid::reset() {
   integral_ = 0.0;
   last_measurement_.reset();

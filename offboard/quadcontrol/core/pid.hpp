@@ -43,6 +43,9 @@ class Pid {
 
   /// Forget integrator and derivative history (e.g. on a mode change).
   void reset();
+  /// Forget only the derivative history (after a gap in the measurements, e.g. tracking lost and
+  /// back): the integrator keeps what it learned (the hover throttle offset).
+  void restart();
 
   const PidTerms& last_terms() const { return terms_; }
   double integral() const { return integral_; }
