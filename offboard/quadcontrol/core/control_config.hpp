@@ -30,7 +30,10 @@ struct ControlConfig {
   double turn_skip_distance_m = 0.3;      ///< closer goals are reached without turning
   double pose_timeout_ms = 300.0;         ///< 9 frames at 30 Hz without a tracked pose = lost
   double lost_hold_ms = 2000.0;           ///< neutral hover this long waiting for tracking, then land
-  double land_throttle_ramp_pct_per_s = 5.0;  ///< steady reduction (thesis: never an instant cut)
+  /// Tracked landing: the height setpoint sinks this fast (ArduCopter's LAND_SPEED is 0.5 m/s;
+  /// 0.3 m/s leaves margin for ~80 ms of camera-to-motor latency at touchdown).
+  double land_descent_rate_m_per_s = 0.3;
+  double land_throttle_ramp_pct_per_s = 5.0;  ///< blind landing: steady reduction (thesis: never an instant cut)
   double land_min_throttle_pct = 20.0;    ///< ramp floor: below hover, craft descends slowly
   double motor_stop_height_m = 0.15;      ///< camera height at which the motors are stopped
   double land_floor_hold_ms = 3000.0;     ///< blind landing: stop after this long at the floor

@@ -76,7 +76,7 @@ void FlightController::enter(FlightState state, std::int64_t now_us, const std::
     status_.facing_waypoint = false;
   }
   if (state == FlightState::kLand) {
-    land_start_throttle_pct_ = std::max(last_throttle_pct_, config_.land_min_throttle_pct);
+    land_start_height_m_ = pose_ && pose_->tracking ? pose_->pose.z_m : status_.setpoint.z_m;
     land_floor_reached_us_.reset();
     // Land where the craft is: an unfinished go-to or manual step is abandoned.
     if (pose_ && pose_->tracking) {
@@ -291,15 +291,26 @@ StickCommand FlightController::update(std::int64_t now_us) {
       break;
     }
     case FlightState::kLand: {
-      const double elapsed_s = static_cast<double>(now_us - state_entered_us_) / kUsPerS;
-      const double throttle = std::max(config_.land_min_throttle_pct,
-                                       land_start_throttle_pct_ - config_.land_throttle_ramp_pct_per_s * elapsed_s);
-      if (fresh) {
-        cmd = position_control(*pose_, status_.setpoint.z_m);
-      }
       cmd.armed = true;
-      cmd.throttle_pct = throttle;
-      if (throttle <= config_.land_min_throttle_pct && !land_floor_reached_us_) land_floor_reached_us_ = now_us;
+      bool at_floor_now = false;
+      if (fresh) {
+        // Tracked: the height setpoint sinks at land_descent_rate_m_per_s and the height PID holds
+        // that sink rate. (A thrust ramp alone accelerates the descent when the APM flies thrust,
+        // i.e. Stabilize: measured 1.8 m/s touchdowns in the HIL rig.) Below the ground the PID
+        // keeps pushing down, so the craft stays put until the motors stop.
+        const double elapsed_s = static_cast<double>(now_us - state_entered_us_) / kUsPerS;
+        status_.setpoint.z_m = std::max(0.0, land_start_height_m_ - config_.land_descent_rate_m_per_s * elapsed_s);
+        cmd = position_control(*pose_, status_.setpoint.z_m);
+        cmd.armed = true;
+        at_floor_now = status_.setpoint.z_m <= config_.motor_stop_height_m;
+      } else {
+        // Blind: a steady throttle reduction from the last output (never an instant cut).
+        const double dt_s = static_cast<double>(now_us - last_update_us_) / kUsPerS;
+        cmd.throttle_pct = std::max(config_.land_min_throttle_pct,
+                                    last_throttle_pct_ - config_.land_throttle_ramp_pct_per_s * std::max(0.0, dt_s));
+        at_floor_now = cmd.throttle_pct <= config_.land_min_throttle_pct;
+      }
+      if (at_floor_now && !land_floor_reached_us_) land_floor_reached_us_ = now_us;
       const bool near_ground = fresh && pose_->pose.z_m <= config_.motor_stop_height_m;
       const bool floor_long_enough =
           land_floor_reached_us_ &&
@@ -314,6 +325,7 @@ StickCommand FlightController::update(std::int64_t now_us) {
     }
   }
   last_throttle_pct_ = cmd.throttle_pct;
+  last_update_us_ = now_us;
   return cmd;
 }
 

@@ -117,7 +117,8 @@ class FlightController {
   std::optional<PoseSample> pose_;
   std::int64_t state_entered_us_ = 0;
   double takeoff_start_height_m_ = 0.0;
-  double land_start_throttle_pct_ = 0.0;
+  double land_start_height_m_ = 0.0;  ///< tracked landing: the height the setpoint sinks from
+  std::int64_t last_update_us_ = 0;
   std::optional<std::int64_t> land_floor_reached_us_;
   double last_throttle_pct_ = 0.0;
   std::optional<double> unwrapped_yaw_deg_;

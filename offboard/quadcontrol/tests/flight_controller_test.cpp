@@ -367,29 +367,45 @@ TEST_F(Flight, NonFinitePoseCountsAsLost) {
   EXPECT_TRUE(std::isfinite(s.roll_pct));
 }
 
-TEST_F(Flight, LandingIsASteadyRampThenMotorsStop) {
+TEST_F(Flight, TrackedLandingSinksTheHeightSetpointThenMotorsStop) {
   to_hold();
-  StickCommand s = step();
+  step();
   ASSERT_EQ(fc.command(now_us, OperatorCommand::kLand), "");
-  double previous = s.throttle_pct;
-  const double max_drop_per_step = fc.config().land_throttle_ramp_pct_per_s * kStepUs / 1e6 + 1e-9;
-  // GIVEN the craft descends 2 cm per step WHEN landing THEN throttle never drops faster than the ramp
+  const double max_sink_per_step = fc.config().land_descent_rate_m_per_s * kStepUs / 1e6 + 1e-9;
+  double previous = fc.status().setpoint.z_m;
+  // GIVEN the craft follows the height setpoint WHEN landing THEN the setpoint sinks at the descent
+  // rate, never faster, and the craft stays armed until near the ground
+  StickCommand s;
   int steps = 0;
   while (fc.status().state == FlightState::kLand && steps < 2000) {
     s = step();
     if (fc.status().state != FlightState::kLand) break;
-    EXPECT_LE(previous - s.throttle_pct, max_drop_per_step);
-    EXPECT_GE(s.throttle_pct, fc.config().land_min_throttle_pct);
+    EXPECT_LE(previous - fc.status().setpoint.z_m, max_sink_per_step);
+    EXPECT_LE(fc.status().setpoint.z_m, previous + 1e-12);
     EXPECT_TRUE(s.armed);
-    previous = s.throttle_pct;
-    pose.z_m = std::max(0.0, pose.z_m - 0.02);
+    previous = fc.status().setpoint.z_m;
+    pose.z_m = fc.status().setpoint.z_m;
     ++steps;
   }
+  // 1.7 m at 0.3 m/s: ~5.2 s to the motor-stop height
+  EXPECT_NEAR(steps * kStepUs / 1e6, (1.7 - fc.config().motor_stop_height_m) / 0.3, 0.1);
   // THEN the motors stop once the craft is near the ground, with the disarm gesture
   EXPECT_EQ(fc.status().state, FlightState::kDisarmed);
   EXPECT_EQ(s.throttle_pct, 0.0);
   EXPECT_EQ(s.yaw_pct, -100.0);
   EXPECT_LE(pose.z_m, fc.config().motor_stop_height_m + 0.02);
+}
+
+TEST_F(Flight, TrackedLandingOnALowFloorStopsAfterFloorHold) {
+  to_hold();
+  ASSERT_EQ(fc.command(now_us, OperatorCommand::kLand), "");
+  // GIVEN the camera cannot get below 0.25 m (landing gear higher than motor_stop_height_m)
+  while (fc.status().state == FlightState::kLand) {
+    step();
+    pose.z_m = std::max(0.25, fc.status().setpoint.z_m);
+  }
+  // THEN it still stops: land_floor_hold_ms after the setpoint reached the stop height
+  EXPECT_EQ(fc.status().state, FlightState::kDisarmed);
 }
 
 TEST_F(Flight, LandingAbandonsTheWaypointAndLandsInPlace) {
