@@ -239,6 +239,7 @@ nlohmann::json GroundStation::state_json() {
   j["state"] = to_string(st.state);
   j["last_event"] = st.last_event;
   j["tracking"] = st.tracking;
+  j["rejected_poses"] = st.rejected_poses;
   j["facing_waypoint"] = st.facing_waypoint;
   j["pose"] = pose_ ? pose_json(*pose_) : nlohmann::json(nullptr);
   j["setpoint"] = pose_json(st.setpoint);

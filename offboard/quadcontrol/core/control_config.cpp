@@ -20,6 +20,7 @@ std::map<std::string, double*> scalar_fields(ControlConfig& c) {
       {"turn_skip_distance_m", &c.turn_skip_distance_m},
       {"pose_timeout_ms", &c.pose_timeout_ms},
       {"lost_hold_ms", &c.lost_hold_ms},
+      {"max_pose_jump_m", &c.max_pose_jump_m},
       {"land_descent_rate_m_per_s", &c.land_descent_rate_m_per_s},
       {"land_throttle_ramp_pct_per_s", &c.land_throttle_ramp_pct_per_s},
       {"land_min_throttle_pct", &c.land_min_throttle_pct},

@@ -30,6 +30,11 @@ struct ControlConfig {
   double turn_skip_distance_m = 0.3;      ///< closer goals are reached without turning
   double pose_timeout_ms = 300.0;         ///< 9 frames at 30 Hz without a tracked pose = lost
   double lost_hold_ms = 2000.0;           ///< neutral hover this long waiting for tracking, then land
+  /// A pose estimate further than this from the last accepted one is rejected as a SLAM failure.
+  /// Motion between two estimates is a few cm (1 m/s at 30 fps: 3 cm); measured in the HIL rig: a
+  /// false loop closure jumped the estimate 1.5 m down to the take-off height and the height loop
+  /// climbed at full throttle to 16 m. 0.5 m also passes a lost-hold's blind drift (~0.2 m in 2 s).
+  double max_pose_jump_m = 0.5;
   /// Tracked landing: the height setpoint sinks this fast (ArduCopter's LAND_SPEED is 0.5 m/s;
   /// 0.3 m/s leaves margin for ~80 ms of camera-to-motor latency at touchdown).
   double land_descent_rate_m_per_s = 0.3;

@@ -173,6 +173,23 @@ std::string FlightController::nudge(std::int64_t, double forward_m, double left_
 void FlightController::on_pose(const PoseSample& sample) {
   PoseSample s = sample;
   if (!finite_pose(s.pose)) s.tracking = false;
+  if (s.tracking && last_accepted_pose_) {
+    // Jump gate: an estimate far from the last accepted one is a SLAM failure (e.g. a false loop
+    // closure), not motion. It counts as lost until the estimate comes back near the last accepted
+    // pose; if it never does, lost-hold lands blind. No time-based relaxation: a wrong estimate
+    // that stays wrong must never be flown on.
+    const CraftPose& a = *last_accepted_pose_;
+    const double jump_m = std::sqrt((s.pose.x_m - a.x_m) * (s.pose.x_m - a.x_m) +
+                                    (s.pose.y_m - a.y_m) * (s.pose.y_m - a.y_m) +
+                                    (s.pose.z_m - a.z_m) * (s.pose.z_m - a.z_m));
+    if (jump_m > config_.max_pose_jump_m) {
+      s.tracking = false;
+      ++status_.rejected_poses;
+      status_.last_event = std::string(to_string(status_.state)) + ": pose rejected, jumped " +
+                           std::to_string(jump_m).substr(0, 4) + " m (SLAM failure?)";
+    }
+  }
+  if (s.tracking) last_accepted_pose_ = s.pose;
   pose_ = s;
 }
 

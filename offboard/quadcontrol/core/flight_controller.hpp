@@ -77,6 +77,7 @@ struct ControllerStatus {
   CraftPose setpoint;            ///< target x, y, z (z = height setpoint) and yaw
   bool tracking = false;
   std::string last_event;        ///< human-readable reason of the last transition
+  std::uint64_t rejected_poses = 0;  ///< estimates that jumped beyond max_pose_jump_m (SLAM failures)
 };
 
 class FlightController {
@@ -115,6 +116,7 @@ class FlightController {
   Pid throttle_;
   ControllerStatus status_;
   std::optional<PoseSample> pose_;
+  std::optional<CraftPose> last_accepted_pose_;  ///< the jump gate's reference
   std::int64_t state_entered_us_ = 0;
   double takeoff_start_height_m_ = 0.0;
   double land_start_height_m_ = 0.0;  ///< tracked landing: the height the setpoint sinks from

@@ -176,10 +176,10 @@ TEST_F(Flight, PositionNeverDrivesYaw) {
     int pitch_sign, roll_sign;
   };
   const Row table[] = {
-      {"goal behind", 0.5, 0.0, -1, 0},
-      {"goal ahead", -0.5, 0.0, +1, 0},
-      {"goal to the left", 0.0, -0.5, 0, -1},
-      {"goal to the right", 0.0, 0.5, 0, +1},
+      {"goal behind", 0.4, 0.0, -1, 0},  // within the 0.5 m pose-jump gate
+      {"goal ahead", -0.4, 0.0, +1, 0},
+      {"goal to the left", 0.0, -0.4, 0, -1},
+      {"goal to the right", 0.0, 0.4, 0, +1},
   };
   for (const auto& row : table) {
     SCOPED_TRACE(row.name);
@@ -232,9 +232,12 @@ TEST_F(Flight, WaypointTurnsToFaceThenMoves) {
   EXPECT_TRUE(fc.status().facing_waypoint);
   s = step();
   EXPECT_GT(s.pitch_pct, 0.0);
-  // WHEN it arrives THEN hold at the waypoint, heading kept
-  pose.x_m = -1.9;
-  step();
+  // WHEN it arrives (flying there: estimates move a little per frame) THEN hold at the waypoint,
+  // heading kept
+  for (int i = 1; i <= 19 && fc.status().state == FlightState::kGoToWaypoint; ++i) {
+    pose.x_m = -0.1 * i;
+    step();
+  }
   EXPECT_EQ(fc.status().state, FlightState::kHold);
   EXPECT_DOUBLE_EQ(fc.status().setpoint.x_m, -2.0);
   EXPECT_NEAR(std::abs(fc.status().setpoint.yaw_deg), 180.0, 1e-9);
@@ -349,6 +352,30 @@ TEST_F(Flight, LostHoldHoversWithTheLearnedThrottleAndKeepsIt) {
   s = step(true);
   EXPECT_EQ(fc.status().state, FlightState::kHold);
   EXPECT_NEAR(s.throttle_pct, hover + learned, 1.0);
+}
+
+TEST_F(Flight, PoseJumpIsRejectedUntilTheEstimateComesBackElseLandsBlind) {
+  to_hold();
+  // GIVEN SLAM jumps 1.5 m down (a false loop closure) WHEN it stays there THEN never flown on:
+  // lost-hold (hover), then a blind landing - not a full-throttle climb
+  pose.z_m = 0.2;
+  StickCommand s;
+  for (int i = 0; i < 20; ++i) s = step();
+  EXPECT_EQ(fc.status().state, FlightState::kLostHold);
+  EXPECT_GE(fc.status().rejected_poses, 15u);
+  EXPECT_LE(s.throttle_pct, fc.config().hover_throttle_pct + 1.0);
+  // AND WHEN the estimate comes back near the last accepted pose THEN hold again
+  pose.z_m = 1.68;
+  step();
+  EXPECT_EQ(fc.status().state, FlightState::kHold);
+  // AND a jump that persists ends in the blind landing
+  pose.z_m = 0.2;
+  while (fc.status().state != FlightState::kLand) s = step();
+  for (int i = 0; i < 10; ++i) {
+    const double before = s.throttle_pct;
+    s = step();
+    EXPECT_LE(s.throttle_pct, before);  // a throttle ramp down, whatever the (wrong) estimate says
+  }
 }
 
 TEST_F(Flight, StalePoseCountsAsLost) {

@@ -1,0 +1,115 @@
+"""Operator scripts for closed-loop flights (hilrig.slam_flight): what a user does on the dashboard,
+step by step, with the figures each step is scored by. Shared by the scenario tests and `make demo`.
+
+Every wait has a deadline; a step that does not happen raises TimeoutError naming it and the last
+state quad-control reported. Times in reports are seconds of the rig's simulated clock.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from hilrig.slam_flight import SlamFlight, camera_room_position, goal_in_room, hold_error
+
+HOLD_HEIGHT_M = 1.7  # thesis: hold height after take-off (quad-control's controller.hold_height_m)
+SETTLE_S = 5.0  # after quad-control reports "hold": the PID settles before the hold is scored
+ARRIVAL_SETTLE_S = 6.0  # after arriving at a waypoint: settle, then score the last second
+
+
+def _say(progress, text: str) -> None:
+    if progress is not None:
+        progress(text)
+
+
+def take_off(flight: SlamFlight, progress=None) -> dict:
+    """Waits for tracking and the floor, arms (ArduCopter's stick gesture through the real
+    firmware), takes off to the hold height. Returns the start position (room frame) and times."""
+    _say(progress, "waiting for SLAM tracking and the floor plane")
+    flight.wait_until(
+        lambda s: s.get("tracking") and (s["floor"]["found"] or s["floor"]["fallback"]),
+        timeout_s=90,
+        what="tracking + floor",
+    )
+    start = camera_room_position(flight.rig.snapshot(), flight.options.mount)
+    _say(progress, "arm (stick gesture)")
+    flight.command("arm")
+    # quad-control holds the gesture (throttle 0, yaw right) for controller.arm_gesture_ms, then
+    # centres yaw: take-off is accepted from then on.
+    flight.wait_until(
+        lambda s: s["state"] == "armed" and s["command"]["yaw_pct"] == 0.0 and flight.rig.snapshot().armed,
+        timeout_s=20,
+        what="armed (gesture finished)",
+    )
+    _say(progress, f"take off to {HOLD_HEIGHT_M} m")
+    t_takeoff = flight.rig.sim_us
+    flight.command("takeoff")
+    flight.wait_until(lambda s: s["state"] == "hold", timeout_s=60, what="take-off -> hold")
+    return {"start_room_m": start, "takeoff_sim_s": t_takeoff / 1e6, "hold_reached_sim_s": flight.rig.sim_us / 1e6}
+
+
+def hold(flight: SlamFlight, start_room: np.ndarray, seconds: float, progress=None) -> dict:
+    """Holds where take-off left the craft; scores the true camera position after SETTLE_S."""
+    goal = goal_in_room(start_room, (0.0, 0.0, HOLD_HEIGHT_M))
+    _say(progress, f"hold {seconds:.0f} s")
+    flight.hold_for(SETTLE_S)
+    t0 = flight.rig.sim_us
+    flight.hold_for(seconds)
+    return hold_error(flight.rig.history(), goal, flight.options.mount, t0, flight.rig.sim_us)
+
+
+def go_to(flight: SlamFlight, start_room: np.ndarray, x_m: float, y_m: float, progress=None) -> dict:
+    """Clicks a waypoint (floor frame); waits for arrival (quad-control back in hold), settles, and
+    scores the true position against the waypoint."""
+    _say(progress, f"waypoint ({x_m:.1f}, {y_m:.1f}) m")
+    flight.waypoint(x_m, y_m)
+    flight.wait_until(lambda s: s["state"] == "go-to-waypoint", timeout_s=5, what="go-to-waypoint")
+    t_start = flight.rig.sim_us
+    flight.wait_until(lambda s: s["state"] == "hold", timeout_s=60, what=f"arrival at ({x_m}, {y_m})")
+    t_arrived = flight.rig.sim_us
+    flight.hold_for(ARRIVAL_SETTLE_S)
+    goal = goal_in_room(start_room, (x_m, y_m, HOLD_HEIGHT_M))
+    t_end = flight.rig.sim_us
+    err = hold_error(flight.rig.history(), goal, flight.options.mount, t_end - 1e6, t_end)
+    return {"leg_s": round((t_arrived - t_start) / 1e6, 1), **err}
+
+
+def land(flight: SlamFlight, progress=None) -> dict:
+    """Lands with quad-control's own landing (throttle ramp) and waits for the disarm."""
+    _say(progress, "land")
+    flight.command("land")
+    flight.wait_until(
+        lambda s: s["state"] == "disarmed" and not flight.rig.snapshot().armed,
+        timeout_s=90,
+        what="landed and disarmed",
+    )
+    touchdowns = list(flight.rig.fc.touchdowns_mps)
+    return {
+        "touchdown_vertical_speed_mps": round(touchdowns[-1], 3) if touchdowns else None,
+        "touchdowns": len(touchdowns),
+    }
+
+
+def scenario2(flight: SlamFlight, waypoints=((1.0, 0.0), (1.0, 0.8)), hold_s: float = 10.0, progress=None) -> dict:
+    """Take off, hold, fly to two waypoints (floor frame, m), land. The figures of the flight."""
+    t0 = time.monotonic()
+    to = take_off(flight, progress)
+    start = to["start_room_m"]
+    report: dict = {"hold": hold(flight, start, hold_s, progress)}
+    report["waypoints"] = [go_to(flight, start, x, y, progress) for x, y in waypoints]
+    report["landing"] = land(flight, progress)
+    flight.hold_for(1.0)
+    report["final_distance_to_last_waypoint_m"] = round(
+        float(
+            np.hypot(
+                *(camera_room_position(flight.rig.snapshot(), flight.options.mount)[:2]
+                  - goal_in_room(start, (*waypoints[-1], 0.0))[:2])
+            )
+        ),
+        3,
+    )
+    report["failsafe_events"] = [e for _, e in flight.rig.fc.events if "failsafe" in e]
+    report["wall_s"] = round(time.monotonic() - t0, 1)
+    report["realtime_factor"] = round(flight.rig.realtime_factor, 3)
+    return report
