@@ -3,6 +3,8 @@
 // SlamHello exchange, then one PoseUpdate per RgbdFrame. A new connection starts a new map.
 // SIGINT/SIGTERM end it cleanly (signalfd; the current pipeline is finished and summarised).
 // Wiring only: sockets + codec here, the logic is SlamLinkSession.
+#include <cerrno>
+#include <cstring>
 #include <CLI/CLI.hpp>
 #include <arpa/inet.h>
 #include <csignal>
@@ -24,7 +26,11 @@ bool write_all(int fd, const std::vector<std::uint8_t>& bytes) {
   std::size_t off = 0;
   while (off < bytes.size()) {
     const ssize_t n = ::send(fd, bytes.data() + off, bytes.size() - off, MSG_NOSIGNAL);
-    if (n <= 0) return false;
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      std::cerr << "slam-server: send failed: " << std::strerror(errno) << "\n";
+      return false;
+    }
     off += static_cast<std::size_t>(n);
   }
   return true;
@@ -41,6 +47,8 @@ bool serve(int conn, int sigfd, const slam::PipelineOptions& options) {
     if (::poll(fds, 2, -1) < 0) continue;
     if (fds[1].revents & POLLIN) { keep_running = false; break; }
     const ssize_t n = ::recv(conn, buf.data(), buf.size(), 0);
+    if (n < 0 && (errno == EINTR || errno == EAGAIN)) continue;
+    if (n < 0) std::cerr << "slam-server: receive failed: " << std::strerror(errno) << "\n";
     if (n <= 0) break;
     decoder.feed(buf.data(), static_cast<std::size_t>(n));
     bool close_now = false;

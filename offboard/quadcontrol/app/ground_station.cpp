@@ -186,14 +186,23 @@ void GroundStation::on_slam(const SlamResult& result, const CameraFrame& frame) 
       floor_fallback_ = true;
     }
   }
+  if (!T_floor_world_) {
+    slam_session_ = result.session;
+  } else if (result.session != slam_session_ && result.tracking && last_T_floor_cam_) {
+    // A new SLAM session (slam-server reconnected) has a new world frame, its first camera.
+    // Re-anchor it on the last known camera pose: the craft hovered in lost-hold meanwhile.
+    T_floor_world_ = *last_T_floor_cam_ * result.T_world_cam.inverse();
+    slam_session_ = result.session;
+  }
   const std::int64_t now = monotonic_now_us();
-  if (!T_floor_world_ || !result.tracking) {
+  if (!T_floor_world_ || !result.tracking || result.session != slam_session_) {
     controller_.on_pose(PoseSample{now, false, pose_.value_or(CraftPose{})});
     if (log_) log_->pose(LoggedPose{frame.sequence, frame.capture_us, frame.received_us, now, false});
     return;
   }
   const Eigen::Isometry3d T_floor_cam = *T_floor_world_ * result.T_world_cam;
   pose_ = craft_pose(T_floor_cam);
+  last_T_floor_cam_ = T_floor_cam;
   pose_capture_us_ = frame.capture_us;
   pose_us_ = now;
   controller_.on_pose(PoseSample{now, true, *pose_});

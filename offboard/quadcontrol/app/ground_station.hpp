@@ -103,6 +103,8 @@ class GroundStation {
   std::int64_t pose_capture_us_ = -1;  ///< capture stamp of the frame behind pose_ (flight log)
   std::int64_t pose_us_ = -1;          ///< when pose_ became available
   std::optional<Eigen::Isometry3d> T_floor_world_;
+  std::optional<Eigen::Isometry3d> last_T_floor_cam_;  ///< re-anchors a new SLAM session
+  std::uint64_t slam_session_ = 0;                      ///< session T_floor_world_ belongs to
   std::optional<FloorPlane> floor_;
   bool floor_fallback_ = false;
   int floor_attempts_ = 0;

@@ -28,6 +28,9 @@ struct SlamResult {
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< world = first camera frame
   std::size_t inliers = 0;
   double latency_ms = 0.0;  ///< hand-over to result
+  /// +1 each time the link starts a new SLAM session (slam-server reconnected): poses of a new
+  /// session are in a new world frame (its first camera).
+  std::uint64_t session = 0;
 };
 
 class SlamLink {

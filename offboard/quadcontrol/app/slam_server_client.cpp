@@ -1,6 +1,8 @@
 // slam-server client: see slam_server_client.hpp.
 #include "app/slam_server_client.hpp"
 
+#include <iostream>
+
 #include <sys/socket.h>
 #include <sys/time.h>
 
@@ -160,6 +162,7 @@ bool SlamServerClient::connect(std::string* error) {
     return false;
   }
   connected_ = true;
+  ++session_;
   return true;
 }
 
@@ -222,11 +225,17 @@ void SlamServerClient::run() {
     }
     if (connected_) {
       result = exchange(frame, &error);
-      if (!result) disconnect();
+      if (!result) {
+        std::cerr << "quad-control: SLAM link: " << error << "; reconnecting (a new SLAM session)" << std::endl;
+        disconnect();
+      }
     } else if (error.empty()) {
       error = "not connected (retrying every " + std::to_string(options_.reconnect_interval_ms) + " ms)";
     }
-    if (result) result->latency_ms = static_cast<double>(monotonic_now_us() - frame.received_us) / 1000.0;
+    if (result) {
+      result->latency_ms = static_cast<double>(monotonic_now_us() - frame.received_us) / 1000.0;
+      result->session = session_;
+    }
     mailbox_.finish(result.has_value(), result ? result->latency_ms : 0.0, error);
     if (result && callback_) callback_(*result, frame);
   }

@@ -51,6 +51,7 @@ class SlamServerClient : public SlamLink {
   boost::asio::ip::tcp::socket socket_;
   std::atomic<int> socket_fd_{-1};  ///< for shutdown() from the destructor
   bool connected_ = false;
+  std::uint64_t session_ = 0;  ///< connections made (SlamResult::session)
   std::int64_t last_attempt_us_ = 0;
   protocol::StreamDecoder decoder_;
   FrameMailbox mailbox_;

@@ -46,9 +46,11 @@ struct ControlConfig {
   double manual_yaw_step_deg = 10.0;      ///< one manual key press turns the setpoint 10 deg
   double max_waypoint_distance_m = 10.0;  ///< a click further than this is a mistake, rejected
   /// ArduCopter arms on throttle low + yaw full right held for 2 s, disarms on yaw full left for
-  /// 2 s (docs/firmware.md); +1 s / +0.5 s margin for pre-arm checks and the PWM frame delay.
+  /// 2 s (docs/firmware.md); arming +1 s margin for pre-arm checks and the PWM frame delay;
+  /// disarming +1.5 s: ArduCopter counts the 2 s only once its land detector says landed (~1 s at
+  /// minimum output after touchdown; the HIL rig's APM stayed armed with a 2.5 s gesture).
   double arm_gesture_ms = 3000.0;
-  double disarm_gesture_ms = 2500.0;
+  double disarm_gesture_ms = 3500.0;
   /// The APM's roll/pitch/yaw stick dead zone (ArduCopter RC1_DZ/RC2_DZ/RC4_DZ, default 20 us):
   /// ArduPilot ignores the first 20 us off centre and rescales the rest. A non-zero stick is sent
   /// starting just outside it, so the APM's lean follows the PID output from 0 instead of ignoring
