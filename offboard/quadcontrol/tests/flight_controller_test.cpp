@@ -128,7 +128,10 @@ TEST_F(Flight, ArmingAndDisarmingGestures) {
   EXPECT_TRUE(s.armed);
   EXPECT_EQ(s.yaw_pct, -100.0);
   EXPECT_EQ(s.throttle_pct, 0.0);
-  while (now_us - disarmed_at < 2520 * kMsUs) s = step();
+  const auto gesture_us = static_cast<std::int64_t>(fc.config().disarm_gesture_ms) * kMsUs;
+  while (now_us - disarmed_at < gesture_us - 20 * kMsUs) s = step();
+  EXPECT_EQ(s.yaw_pct, -100.0);  // still held just before the end
+  while (now_us - disarmed_at < gesture_us + 20 * kMsUs) s = step();
   EXPECT_FALSE(s.armed);
   EXPECT_EQ(s.yaw_pct, 0.0);
 }
