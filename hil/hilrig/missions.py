@@ -66,7 +66,11 @@ def go_to(flight: SlamFlight, start_room: np.ndarray, x_m: float, y_m: float, pr
     flight.waypoint(x_m, y_m)
     flight.wait_until(lambda s: s["state"] == "go-to-waypoint", timeout_s=5, what="go-to-waypoint")
     t_start = flight.rig.sim_us
-    flight.wait_until(lambda s: s["state"] == "hold", timeout_s=60, what=f"arrival at ({x_m}, {y_m})")
+    flight.wait_until(
+        lambda s: s["state"] == "hold" and "waypoint reached" in s["last_event"],
+        timeout_s=60,
+        what=f"arrival at ({x_m}, {y_m})",
+    )
     t_arrived = flight.rig.sim_us
     flight.hold_for(ARRIVAL_SETTLE_S)
     goal = goal_in_room(start_room, (x_m, y_m, HOLD_HEIGHT_M))
@@ -110,6 +114,7 @@ def scenario2(flight: SlamFlight, waypoints=((1.0, 0.0), (1.0, 0.8)), hold_s: fl
         3,
     )
     report["failsafe_events"] = [e for _, e in flight.rig.fc.events if "failsafe" in e]
+    report["rejected_pose_jumps"] = flight.state().get("rejected_poses")
     report["wall_s"] = round(time.monotonic() - t0, 1)
     report["realtime_factor"] = round(flight.rig.realtime_factor, 3)
     return report

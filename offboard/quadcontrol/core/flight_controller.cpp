@@ -236,6 +236,7 @@ StickCommand FlightController::update(std::int64_t now_us) {
 
   if ((s == FlightState::kTakeOff || s == FlightState::kHold || s == FlightState::kGoToWaypoint) && !fresh) {
     interrupted_takeoff_ = s == FlightState::kTakeOff;
+    interrupted_waypoint_ = s == FlightState::kGoToWaypoint ? status_.waypoint : std::nullopt;
     enter(FlightState::kLostHold, now_us, "tracking lost, holding neutral");
     s = status_.state;
   }
@@ -252,7 +253,14 @@ StickCommand FlightController::update(std::int64_t now_us) {
         enter(FlightState::kTakeOff, now_us, "tracking back, climbing on");
       } else {
         enter(FlightState::kHold, now_us, "tracking back");
+        if (interrupted_waypoint_) {
+          // The operator's waypoint survives a short loss of tracking: turn (if needed) and go on.
+          const Waypoint w = *interrupted_waypoint_;
+          set_waypoint(now_us, w.x_m, w.y_m);
+          status_.last_event = "go-to-waypoint: tracking back, going on";
+        }
       }
+      interrupted_waypoint_.reset();
       s = status_.state;
     } else if (static_cast<double>(now_us - state_entered_us_) >= config_.lost_hold_ms * kUsPerMs) {
       enter(FlightState::kLand, now_us, "tracking not back in time, landing blind");

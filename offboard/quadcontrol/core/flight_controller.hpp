@@ -127,6 +127,7 @@ class FlightController {
   double last_raw_yaw_deg_ = 0.0;
   bool disarm_gesture_pending_ = false;
   bool interrupted_takeoff_ = false;  ///< lost-hold was entered from take-off: resume it
+  std::optional<Waypoint> interrupted_waypoint_;  ///< lost-hold was entered from go-to: resume it
   std::optional<std::int64_t> pid_pose_us_;  ///< received_us of the pose the PIDs last ran on
   StickCommand pid_cmd_;                     ///< their output, held until the next pose
 };

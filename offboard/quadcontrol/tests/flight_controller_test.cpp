@@ -381,6 +381,18 @@ TEST_F(Flight, PoseJumpIsRejectedUntilTheEstimateComesBackElseLandsBlind) {
   }
 }
 
+TEST_F(Flight, TrackingBackDuringGoToGoesOnToTheWaypoint) {
+  to_hold();
+  ASSERT_EQ(fc.set_waypoint(now_us, 0.0, 2.0), "");  // to the left: turn first
+  step();
+  for (int i = 0; i < 5; ++i) step(false);
+  ASSERT_EQ(fc.status().state, FlightState::kLostHold);
+  step(true);
+  EXPECT_EQ(fc.status().state, FlightState::kGoToWaypoint);
+  ASSERT_TRUE(fc.status().waypoint.has_value());
+  EXPECT_DOUBLE_EQ(fc.status().waypoint->y_m, 2.0);
+}
+
 TEST_F(Flight, StalePoseCountsAsLost) {
   to_hold();
   // No pose arrives for more than pose_timeout_ms.
