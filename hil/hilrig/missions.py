@@ -44,7 +44,16 @@ def take_off(flight: SlamFlight, progress=None) -> dict:
     )
     _say(progress, f"take off to {HOLD_HEIGHT_M} m")
     t_takeoff = flight.rig.sim_us
-    flight.command("takeoff")
+    # Refused while no pose is fresh (e.g. a stalled stream): an operator clicks again.
+    end = time.monotonic() + 20.0
+    while True:
+        try:
+            flight.command("takeoff")
+            break
+        except RuntimeError as e:
+            if "no tracked pose" not in str(e) or time.monotonic() > end:
+                raise
+            time.sleep(0.2)
     flight.wait_until(lambda s: s["state"] == "hold", timeout_s=60, what="take-off -> hold")
     return {"start_room_m": start, "takeoff_sim_s": t_takeoff / 1e6, "hold_reached_sim_s": flight.rig.sim_us / 1e6}
 
@@ -88,9 +97,11 @@ def land(flight: SlamFlight, progress=None) -> dict:
         timeout_s=90,
         what="landed and disarmed",
     )
-    touchdowns = list(flight.rig.fc.touchdowns_mps)
+    touchdowns = [round(v, 3) for v in flight.rig.fc.touchdowns_mps]
     return {
-        "touchdown_vertical_speed_mps": round(touchdowns[-1], 3) if touchdowns else None,
+        # The hardest ground contact of the flight (a take-off hop or a bounce counts too).
+        "touchdown_vertical_speed_mps": max(touchdowns) if touchdowns else None,
+        "touchdowns_mps": touchdowns,
         "touchdowns": len(touchdowns),
     }
 

@@ -38,6 +38,7 @@ import numpy as np
 
 from fc_emulator import FcOptions, FlightMode, QuadParams
 from hilrig.flight import CameraMount
+from hilrig.link_proxy import LinkImpairment, LinkProxy
 from hilrig.paths import REPO_ROOT, find_binary
 from hilrig.procs import ManagedProcess
 from kinect_emulator.poses import camera_pose_from_ned
@@ -105,6 +106,11 @@ class SlamFlightOptions:
     kinect_seed: int = 11
     key: bytes = bytes(range(0x11, 0x21))
     controller_overrides: dict = field(default_factory=lambda: dict(HIL_CONTROLLER_GAINS))
+    # Faults: the WiFi link of the two stream sockets (rgbd-streamer -> quad-control) goes through
+    # a LinkProxy each (hilrig.link_proxy: delay, jitter, loss stalls, sever/restore); None = direct.
+    stream_impairment: LinkImpairment | None = None
+    # Render indices the Kinect emulator delivers all-zero (the streamer must drop them).
+    blank_frames: frozenset = frozenset()
 
     def validate(self) -> None:
         if not 1.0 <= self.fps <= 30.0:
@@ -132,6 +138,7 @@ class SlamFlight:
         self.bridge = None
         self.kinect = None
         self._procs: list[ManagedProcess] = []
+        self.stream_proxies: list[LinkProxy] = []
         self._pump_stop = threading.Event()
         self._pump: threading.Thread | None = None
         self._pump_error: BaseException | None = None
@@ -186,8 +193,11 @@ class SlamFlight:
             self.dashboard_port = self._wait_dashboard_port(qc)
             self.kinect = LiveKinect(
                 self.workdir / "kinect-dump",
-                KinectOptions(fps=o.fps, seed=o.kinect_seed),
+                KinectOptions(fps=o.fps, seed=o.kinect_seed, blank_frames=frozenset(o.blank_frames)),
             )
+            if o.stream_impairment is not None:
+                self.stream_proxies = [LinkProxy(p, o.stream_impairment) for p in (rgb_port, depth_port)]
+                rgb_port, depth_port = (p.port for p in self.stream_proxies)
             self.kinect.start()
             self._pump = threading.Thread(target=self._pump_frames, name="kinect-pump", daemon=True)
             self._pump.start()
@@ -227,6 +237,8 @@ class SlamFlight:
             self.kinect.close()
         for p in reversed(self._procs):
             p.stop()
+        for proxy in self.stream_proxies:
+            proxy.close()
         if self.bridge is not None:
             self.bridge.close()
         if self.rig is not None:
@@ -245,6 +257,17 @@ class SlamFlight:
             if Path(p.argv[0]).name == "quad-control" and p.alive():
                 p.proc.kill()
                 p.proc.wait(timeout=5)
+
+    def sever_stream(self) -> None:
+        """Scenario 4: the stream link drops (both sockets; the streamer reconnects with backoff)."""
+        if not self.stream_proxies:
+            raise RuntimeError("no stream proxies: set SlamFlightOptions.stream_impairment")
+        for proxy in self.stream_proxies:
+            proxy.sever()
+
+    def restore_stream(self) -> None:
+        for proxy in self.stream_proxies:
+            proxy.restore()
 
     def _start(self, name: str, argv, env=None) -> ManagedProcess:
         p = ManagedProcess([str(a) for a in argv], self.workdir / f"{name}.log", env=env)

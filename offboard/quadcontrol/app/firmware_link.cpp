@@ -81,13 +81,17 @@ void FirmwareLink::start(Client& c) {
   std::string target;
   // Only this thread changes seq_known_ and the sequence: read them, then compute the command
   // without holding the link's lock (the provider takes the ground station's).
-  std::optional<PwmCommand> command;
+  bool wants_command = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (seq_known_ && stats_.seq < spec_.seq_max) command = PwmCommand{};
+    wants_command = seq_known_ && stats_.seq < spec_.seq_max;
   }
   const std::uint32_t next_seq = stats().seq + 1;
-  if (command) *command = provider_(monotonic_now_us(), next_seq);
+  std::optional<PwmCommand> command;
+  if (wants_command) {
+    command = provider_(monotonic_now_us(), next_seq);
+    if (!command) return;  // nothing to send this period
+  }
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!seq_known_) {

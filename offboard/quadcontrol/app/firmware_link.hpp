@@ -53,8 +53,9 @@ class FirmwareLink {
  public:
   using ReplyCallback = std::function<void(std::int64_t received_us, const ControlReply& reply)>;
   /// Called on the link's thread just before each command is sent: the command for `now_us`, which
-  /// will carry sequence number `seq`. Must not call back into the link.
-  using CommandProvider = std::function<PwmCommand(std::int64_t now_us, std::uint32_t seq)>;
+  /// will carry sequence number `seq`, or nullopt to send nothing this period (a blind landing hands
+  /// the craft to its own failsafe). Must not call back into the link.
+  using CommandProvider = std::function<std::optional<PwmCommand>(std::int64_t now_us, std::uint32_t seq)>;
 
   /// Resolves host:port (numeric addresses never block); throws std::runtime_error on failure.
   FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, ControlKey key, CommandProvider provider,

@@ -127,12 +127,13 @@ void GroundStation::control_loop() {
   }
 }
 
-PwmCommand GroundStation::command_at(std::int64_t now_us, std::uint32_t seq) {
+std::optional<PwmCommand> GroundStation::command_at(std::int64_t now_us, std::uint32_t seq) {
   LoggedCommand logged;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     last_stick_ = controller_.update(now_us);
     last_pwm_ = to_pwm(last_stick_, spec_.pwm, options_.controller.apm_stick_deadzone_us);
+    if (last_stick_.hand_over_to_failsafe) return std::nullopt;
     if (!log_) return last_pwm_;
     logged = LoggedCommand{seq, now_us, to_string(controller_.status().state), last_pwm_, pose_capture_us_, pose_us_};
   }

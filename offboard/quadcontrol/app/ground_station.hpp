@@ -74,8 +74,9 @@ class GroundStation {
  private:
   void frame_loop();
   void control_loop();
-  /// The firmware link's command provider: runs the controller at `now_us` on the newest pose.
-  PwmCommand command_at(std::int64_t now_us, std::uint32_t seq);
+  /// The firmware link's command provider: runs the controller at `now_us` on the newest pose;
+  /// nullopt while the controller hands the craft over to its failsafe (nothing is sent).
+  std::optional<PwmCommand> command_at(std::int64_t now_us, std::uint32_t seq);
   void on_slam(const SlamResult& result, const CameraFrame& frame);
   void on_reply(std::int64_t received_us, const ControlReply& reply);
   std::vector<Eigen::Vector3d> depth_points(const CameraFrame& frame, int step) const;

@@ -22,10 +22,9 @@ std::map<std::string, double*> scalar_fields(ControlConfig& c) {
       {"lost_hold_ms", &c.lost_hold_ms},
       {"max_pose_jump_m", &c.max_pose_jump_m},
       {"land_descent_rate_m_per_s", &c.land_descent_rate_m_per_s},
-      {"land_throttle_ramp_pct_per_s", &c.land_throttle_ramp_pct_per_s},
-      {"land_min_throttle_pct", &c.land_min_throttle_pct},
       {"motor_stop_height_m", &c.motor_stop_height_m},
       {"land_floor_hold_ms", &c.land_floor_hold_ms},
+      {"failsafe_landing_ms", &c.failsafe_landing_ms},
       {"manual_step_m", &c.manual_step_m},
       {"manual_yaw_step_deg", &c.manual_yaw_step_deg},
       {"max_waypoint_distance_m", &c.max_waypoint_distance_m},
@@ -55,9 +54,6 @@ std::string ControlConfig::validate() const {
     return "controller.apm_stick_deadzone_us must be in [0, 100]";
   }
   if (hover_throttle_pct >= 100.0) return "controller.hover_throttle_pct must be < 100";
-  if (land_min_throttle_pct >= hover_throttle_pct) {
-    return "controller.land_min_throttle_pct must be below hover_throttle_pct (else it never descends)";
-  }
   if (motor_stop_height_m >= hold_height_m) return "controller.motor_stop_height_m must be below hold_height_m";
   return {};
 }

@@ -38,10 +38,12 @@ struct ControlConfig {
   /// Tracked landing: the height setpoint sinks this fast (ArduCopter's LAND_SPEED is 0.5 m/s;
   /// 0.3 m/s leaves margin for ~80 ms of camera-to-motor latency at touchdown).
   double land_descent_rate_m_per_s = 0.3;
-  double land_throttle_ramp_pct_per_s = 5.0;  ///< blind landing: steady reduction (thesis: never an instant cut)
-  double land_min_throttle_pct = 20.0;    ///< ramp floor: below hover, craft descends slowly
   double motor_stop_height_m = 0.15;      ///< camera height at which the motors are stopped
-  double land_floor_hold_ms = 3000.0;     ///< blind landing: stop after this long at the floor
+  double land_floor_hold_ms = 3000.0;     ///< tracked landing: stop this long after the setpoint reached the floor
+  /// Blind landing (no pose): commands stop, the firmware's failsafe (250 ms) hands over to the
+  /// APM's LAND at 0.5 m/s, which disarms ~1 s after touchdown: from 1.7 m ~5 s (measured 4.9 s
+  /// in the HIL rig); 8 s leaves margin for 3 m. Then quad-control sends arm=0 (clears the latch).
+  double failsafe_landing_ms = 8000.0;
   double manual_step_m = 0.1;             ///< one manual key press moves the setpoint 10 cm
   double manual_yaw_step_deg = 10.0;      ///< one manual key press turns the setpoint 10 deg
   double max_waypoint_distance_m = 10.0;  ///< a click further than this is a mistake, rejected

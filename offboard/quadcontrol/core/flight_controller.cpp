@@ -78,6 +78,7 @@ void FlightController::enter(FlightState state, std::int64_t now_us, const std::
   if (state == FlightState::kLand) {
     land_start_height_m_ = pose_ && pose_->tracking ? pose_->pose.z_m : status_.setpoint.z_m;
     land_floor_reached_us_.reset();
+    handed_over_us_.reset();
     // Land where the craft is: an unfinished go-to or manual step is abandoned.
     if (pose_ && pose_->tracking) {
       status_.setpoint.x_m = pose_->pose.x_m;
@@ -317,8 +318,7 @@ StickCommand FlightController::update(std::int64_t now_us) {
     }
     case FlightState::kLand: {
       cmd.armed = true;
-      bool at_floor_now = false;
-      if (fresh) {
+      if (fresh && !handed_over_us_) {
         // Tracked: the height setpoint sinks at land_descent_rate_m_per_s and the height PID holds
         // that sink rate. (A thrust ramp alone accelerates the descent when the APM flies thrust,
         // i.e. Stabilize: measured 1.8 m/s touchdowns in the HIL rig.) Below the ground the PID
@@ -327,21 +327,35 @@ StickCommand FlightController::update(std::int64_t now_us) {
         status_.setpoint.z_m = std::max(0.0, land_start_height_m_ - config_.land_descent_rate_m_per_s * elapsed_s);
         cmd = position_control(*pose_, status_.setpoint.z_m);
         cmd.armed = true;
-        at_floor_now = status_.setpoint.z_m <= config_.motor_stop_height_m;
+        if (status_.setpoint.z_m <= config_.motor_stop_height_m && !land_floor_reached_us_) {
+          land_floor_reached_us_ = now_us;
+        }
       } else {
-        // Blind: a steady throttle reduction from the last output (never an instant cut).
-        const double dt_s = static_cast<double>(now_us - last_update_us_) / kUsPerS;
-        cmd.throttle_pct = std::max(config_.land_min_throttle_pct,
-                                    last_throttle_pct_ - config_.land_throttle_ramp_pct_per_s * std::max(0.0, dt_s));
-        at_floor_now = cmd.throttle_pct <= config_.land_min_throttle_pct;
+        // Blind (no height feedback): hand the craft to the APM's own LAND (barometer, LAND_SPEED)
+        // by sending no command: the firmware's failsafe does the hand-over 250 ms later. Latched:
+        // the firmware's failsafe refuses arm=1 until disarmed, and the APM is landing anyway.
+        // (A blind thrust ramp is a fall in Stabilize: measured 6.6 m/s in the HIL rig.)
+        if (!handed_over_us_) {
+          handed_over_us_ = now_us;
+          status_.last_event = "land: blind, handed over to the craft's failsafe (APM LAND)";
+        }
+        cmd = StickCommand{};
+        cmd.hand_over_to_failsafe = true;
       }
-      if (at_floor_now && !land_floor_reached_us_) land_floor_reached_us_ = now_us;
-      const bool near_ground = fresh && pose_->pose.z_m <= config_.motor_stop_height_m;
+      const bool near_ground = fresh && !handed_over_us_ && pose_->pose.z_m <= config_.motor_stop_height_m;
       const bool floor_long_enough =
           land_floor_reached_us_ &&
           static_cast<double>(now_us - *land_floor_reached_us_) >= config_.land_floor_hold_ms * kUsPerMs;
-      if (near_ground || floor_long_enough) {
-        enter(FlightState::kDisarmed, now_us, near_ground ? "landed, motors stopped" : "landed blind, motors stopped");
+      const bool failsafe_landed =
+          handed_over_us_ &&
+          static_cast<double>(now_us - *handed_over_us_) >= config_.failsafe_landing_ms * kUsPerMs;
+      if (failsafe_landed) {
+        // The APM landed and disarmed itself; arm=0 clears the firmware's failsafe latch.
+        enter(FlightState::kDisarmed, now_us, "failsafe landing over, firmware disarmed");
+        disarm_gesture_pending_ = false;
+        cmd = StickCommand{};
+      } else if (near_ground || floor_long_enough) {
+        enter(FlightState::kDisarmed, now_us, near_ground ? "landed, motors stopped" : "landed at the floor, motors stopped");
         cmd = StickCommand{};
         cmd.armed = true;  // disarm gesture starts now (see kDisarmed)
         cmd.yaw_pct = -100.0;
@@ -350,7 +364,6 @@ StickCommand FlightController::update(std::int64_t now_us) {
     }
   }
   last_throttle_pct_ = cmd.throttle_pct;
-  last_update_us_ = now_us;
   return cmd;
 }
 

@@ -62,6 +62,9 @@ struct StickCommand {
   double yaw_pct = 0.0;
   double throttle_pct = 0.0;
   bool armed = false;  ///< false: the firmware keeps its outputs at safe values
+  /// Blind landing: send NO command. 250 ms later the firmware's failsafe puts the throttle below
+  /// the APM's FS_THR_VALUE and the APM lands by itself (docs/failsafe.md).
+  bool hand_over_to_failsafe = false;
 };
 
 struct Waypoint {
@@ -120,8 +123,8 @@ class FlightController {
   std::int64_t state_entered_us_ = 0;
   double takeoff_start_height_m_ = 0.0;
   double land_start_height_m_ = 0.0;  ///< tracked landing: the height the setpoint sinks from
-  std::int64_t last_update_us_ = 0;
   std::optional<std::int64_t> land_floor_reached_us_;
+  std::optional<std::int64_t> handed_over_us_;  ///< blind landing: when commands stopped
   double last_throttle_pct_ = 0.0;
   std::optional<double> unwrapped_yaw_deg_;
   double last_raw_yaw_deg_ = 0.0;

@@ -371,14 +371,11 @@ TEST_F(Flight, PoseJumpIsRejectedUntilTheEstimateComesBackElseLandsBlind) {
   pose.z_m = 1.68;
   step();
   EXPECT_EQ(fc.status().state, FlightState::kHold);
-  // AND a jump that persists ends in the blind landing
+  // AND a jump that persists ends in the blind landing: handed over to the craft's failsafe,
+  // whatever the (wrong) estimate says
   pose.z_m = 0.2;
   while (fc.status().state != FlightState::kLand) s = step();
-  for (int i = 0; i < 10; ++i) {
-    const double before = s.throttle_pct;
-    s = step();
-    EXPECT_LE(s.throttle_pct, before);  // a throttle ramp down, whatever the (wrong) estimate says
-  }
+  for (int i = 0; i < 10; ++i) EXPECT_TRUE(step().hand_over_to_failsafe);
 }
 
 TEST_F(Flight, TrackingBackDuringGoToGoesOnToTheWaypoint) {
@@ -463,21 +460,28 @@ TEST_F(Flight, LandingAbandonsTheWaypointAndLandsInPlace) {
   EXPECT_NEAR(s.pitch_pct, 0.0, 1e-9);
 }
 
-TEST_F(Flight, BlindLandingStopsAfterFloorHold) {
+TEST_F(Flight, BlindLandingHandsOverToTheFailsafeThenDisarmsTheFirmware) {
   to_hold();
   ASSERT_EQ(fc.command(now_us, OperatorCommand::kLand), "");
   const std::int64_t start = now_us;
+  // GIVEN no pose WHEN landing THEN no command is sent (the firmware's failsafe hands the craft
+  // to the APM's LAND), and it stays so even if a pose comes back (the firmware is latched)
   StickCommand s = step(false);
-  const double start_throttle = s.throttle_pct + fc.config().land_throttle_ramp_pct_per_s * kStepUs / 1e6;
+  EXPECT_TRUE(s.hand_over_to_failsafe);
+  s = step(true);
+  EXPECT_TRUE(s.hand_over_to_failsafe);
+  EXPECT_EQ(fc.status().state, FlightState::kLand);
   while (fc.status().state == FlightState::kLand) s = step(false);
-  // ramp from the hold throttle to the floor at 5 %/s, then land_floor_hold_ms at the floor
-  const double expected_s = (start_throttle - fc.config().land_min_throttle_pct) /
-                                fc.config().land_throttle_ramp_pct_per_s +
-                            fc.config().land_floor_hold_ms / 1000.0;
-  const double elapsed_s = static_cast<double>(now_us - start) / 1e6;
-  EXPECT_NEAR(elapsed_s, expected_s, 2.0 * kStepUs / 1e6);
+  // THEN after failsafe_landing_ms: disarmed, commanding arm=0 (clears the firmware's latch), no
+  // disarm gesture (the APM disarmed itself after its LAND)
+  const double elapsed_ms = static_cast<double>(now_us - start) / 1e3;
+  EXPECT_NEAR(elapsed_ms, fc.config().failsafe_landing_ms + kStepUs / 1e3, 2.0 * kStepUs / 1e3);
   EXPECT_EQ(fc.status().state, FlightState::kDisarmed);
-  EXPECT_EQ(s.throttle_pct, 0.0);
+  EXPECT_FALSE(s.hand_over_to_failsafe);
+  EXPECT_FALSE(s.armed);
+  s = step(true);
+  EXPECT_FALSE(s.armed);
+  EXPECT_EQ(s.yaw_pct, 0.0);
 }
 
 TEST_F(Flight, ManualNudgeMovesSetpointInBodyFrame) {

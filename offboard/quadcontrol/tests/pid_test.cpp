@@ -166,8 +166,8 @@ TEST(ControlConfig, ValidateNamesTheBadField) {
   c.throttle.ki = -1.0;
   EXPECT_NE(c.validate().find("throttle"), std::string::npos);
   c = ControlConfig{};
-  c.land_min_throttle_pct = 60.0;
-  EXPECT_NE(c.validate().find("land_min_throttle_pct"), std::string::npos);
+  c.failsafe_landing_ms = 0.0;
+  EXPECT_NE(c.validate().find("failsafe_landing_ms"), std::string::npos);
   c = ControlConfig{};
   c.hold_height_m = std::numeric_limits<double>::quiet_NaN();
   EXPECT_NE(c.validate().find("hold_height_m"), std::string::npos);

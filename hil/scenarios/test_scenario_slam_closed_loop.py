@@ -1,0 +1,224 @@
+"""Closed-loop flights with SLAM in the loop (hilrig.slam_flight): the real rgbd-streamer (fed by the
+live Kinect emulator through fakenect), slam-server and quad-control fly the real firmware in simavr
+and the FC emulator. The operator uses quad-control's dashboard API; emulator truth only scores.
+
+  scenario 1  take off, hold 1.7 m for 30 s          -> hold error (truth), ATE, latency per stage
+  scenario 2  take off, hold, two waypoints, land    -> waypoint errors, touchdown speed, ATE, latency
+  scenario 3  (SLAM loop) quad-control killed in the hover -> firmware failsafe -> APM LAND
+  scenario 4  the stream link (both sockets) drops for 1 s mid-hover and comes back
+  scenario 5  degraded stream link (20 +- 10 ms, 2 % loss stalls of 200 ms) during a hover
+  scenario 6  blank frames from the Kinect mid-hover (the streamer drops them)
+Each fault scenario must end holding or landed, never flying away.
+Reports: test-artifacts/hil/slam_loop_scenario{1..6}.json (printed by make hil).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+
+import pytest
+
+from fc_emulator import QuadParams
+from hilrig import missions
+from hilrig.link_proxy import LinkImpairment
+from hilrig.paths import artifacts_dir
+from hilrig.slam_flight import SlamFlight, SlamFlightOptions, camera_room_position, missing_parts
+
+pytestmark = pytest.mark.hil
+
+HOLD_TOLERANCE_M = 0.15  # issue target: within +-0.15 m of the goal after settling
+WAYPOINT_TOLERANCE_M = 0.25  # quad-control arrives within 0.15 m of its SLAM estimate + SLAM drift
+TOUCHDOWN_LIMIT_MPS = 0.5
+# "Never flying away": within 2 m of where the fault hit, inside the 8 x 6 m room. The APM's LAND
+# has no position hold without GPS or optical flow: its 0.5 deg trim error and the gusts drift the
+# craft 0.6-1.5 m during the ~5 s failsafe descent (measured), and nothing on board can know.
+FLYAWAY_RADIUS_M = 2.0
+# Indoor disturbances (as the truth-piloted scenarios): 0.15 m/s^2 air currents, APM trim error.
+DISTURBED = QuadParams(gust_accel_std_mss=0.15, gust_tau_s=2.0, trim_error_deg=(0.5, -0.3), disturbance_seed=7)
+
+
+def _flight(tmp_path, **options):
+    missing = missing_parts()
+    if missing:
+        pytest.skip("not built / not installed: " + ", ".join(missing))
+    return SlamFlight(tmp_path, SlamFlightOptions(quad_params=DISTURBED, **options))
+
+
+@pytest.fixture
+def flight(tmp_path):
+    with _flight(tmp_path) as f:
+        yield f
+
+
+def _fault_outcome(flight, start_room, fault_sim_us) -> dict:
+    """Where the fault left the craft: still holding (quad-control's state, truth error against the
+    hold point) or landed, and the largest truth distance from the hold point since the fault."""
+    from hilrig.slam_flight import goal_in_room, hold_error
+
+    goal = goal_in_room(start_room, (0.0, 0.0, missions.HOLD_HEIGHT_M))
+    hist = [h for h in flight.rig.history() if h.t_us >= fault_sim_us]
+    worst = max(
+        float(np.linalg.norm(camera_room_position(h, flight.options.mount)[:2] - goal[:2])) for h in hist
+    )
+    st = flight.state()
+    return {
+        "state_after": st["state"],
+        "last_event": st["last_event"],
+        "landed": flight.rig.snapshot().landed,
+        "max_horizontal_from_hold_point_m": round(worst, 3),
+        "final_hold_error": hold_error(flight.rig.history(), goal, flight.options.mount,
+                                       flight.rig.sim_us - 3e6, flight.rig.sim_us),
+        "rejected_pose_jumps": st.get("rejected_poses"),
+        "failsafe_events": [e for _, e in flight.rig.fc.events if "failsafe" in e],
+    }
+
+
+def _holding_or_landed(outcome) -> bool:
+    holding = outcome["state_after"] == "hold" and outcome["final_hold_error"]["max_m"] <= 2 * HOLD_TOLERANCE_M
+    return holding or outcome["landed"]
+
+
+def _finish(flight, name: str, report: dict) -> dict:
+    report["ate"] = flight.ate()
+    report["latency_ms"] = flight.latency()
+    report["stream"] = flight.stream_stats()
+    report["position_source"] = "SLAM (slam-server) through quad-control"
+    (artifacts_dir() / f"{name}.json").write_text(json.dumps(report, indent=2, default=str))
+    print(f"\n{name}:", json.dumps(report, default=str))
+    return report
+
+
+def test_slam_loop_scenario1_hold_30s(flight):
+    to = missions.take_off(flight, progress=print)
+    err = missions.hold(flight, to["start_room_m"], 30.0, progress=print)
+    report = _finish(flight, "slam_loop_scenario1", {"hold": err, "realtime_factor": flight.rig.realtime_factor})
+    assert not [e for _, e in flight.rig.fc.events if "failsafe" in e]
+    assert report["ate"].get("ate_rmse_m") is not None
+    assert err["max_m"] <= HOLD_TOLERANCE_M, err
+
+
+def test_slam_loop_scenario2_waypoints_and_land(flight):
+    report = missions.scenario2(flight, progress=print)
+    report = _finish(flight, "slam_loop_scenario2", report)
+    assert not report["failsafe_events"]
+    assert report["hold"]["max_m"] <= HOLD_TOLERANCE_M, report["hold"]
+    for wp in report["waypoints"]:
+        assert wp["max_m"] <= WAYPOINT_TOLERANCE_M, wp
+    assert report["landing"]["touchdowns"] >= 1
+    assert report["landing"]["touchdown_vertical_speed_mps"] <= TOUCHDOWN_LIMIT_MPS
+    assert report["ate"].get("ate_rmse_m") is not None
+
+
+def test_slam_loop_scenario3_ground_station_killed(flight):
+    to = missions.take_off(flight, progress=print)
+    flight.hold_for(missions.SETTLE_S)
+    at_kill = camera_room_position(flight.rig.snapshot(), flight.options.mount)
+    kill_sim_us = flight.rig.sim_us
+    flight.kill_ground_station()
+    end = time.monotonic() + 60
+    while time.monotonic() < end and flight.rig.snapshot().armed:
+        flight.hold_for(0.5)
+    hist = [s for s in flight.rig.history() if s.t_us >= kill_sim_us]
+    drift = max(
+        float(((camera_room_position(s, flight.options.mount)[:2] - at_kill[:2]) ** 2).sum() ** 0.5) for s in hist
+    )
+    touchdowns = list(flight.rig.fc.touchdowns_mps)
+    report = _finish(
+        flight,
+        "slam_loop_scenario3",
+        {
+            "height_at_kill_m": round(float(at_kill[2]), 3),
+            "disarmed": not flight.rig.snapshot().armed,
+            "landed_after_kill_s": round((hist[-1].t_us - kill_sim_us) / 1e6, 1),
+            "max_horizontal_drift_m": round(drift, 3),
+            "touchdown_vertical_speed_mps": touchdowns[-1] if touchdowns else None,
+            "events": [e for _, e in flight.rig.fc.events],
+            "start_room_m": list(to["start_room_m"]),
+        },
+    )
+    assert report["disarmed"] and flight.rig.snapshot().landed
+    assert drift < FLYAWAY_RADIUS_M
+    assert touchdowns and max(touchdowns) <= TOUCHDOWN_LIMIT_MPS + 0.01
+
+
+def _settle_outcome(flight, timeout_s: float = 40.0) -> None:
+    """Waits until the craft holds with tracking or is on the ground disarmed (either is a safe end
+    of a fault; quad-control's pose-jump gate may have chosen the blind landing)."""
+    flight.wait_until(
+        lambda s: (s["state"] == "hold" and s["tracking"])
+        or (s["state"] == "disarmed" and not flight.rig.snapshot().armed),
+        timeout_s=timeout_s,
+        what="holding with tracking, or landed and disarmed",
+    )
+
+
+def test_slam_loop_scenario4_stream_link_dropped_and_restored(tmp_path):
+    with _flight(tmp_path, stream_impairment=LinkImpairment()) as flight:
+        to = missions.take_off(flight, progress=print)
+        flight.hold_for(missions.SETTLE_S)
+        t_fault = flight.rig.sim_us
+        flight.sever_stream()
+        flight.hold_for(1.0)
+        flight.restore_stream()
+        t_back = time.monotonic()
+        _settle_outcome(flight)
+        settled_s = round(time.monotonic() - t_back, 2)
+        if flight.state()["state"] == "hold":
+            flight.hold_for(8.0)
+        out = _fault_outcome(flight, to["start_room_m"], t_fault)
+        touchdowns = list(flight.rig.fc.touchdowns_mps)
+        report = _finish(flight, "slam_loop_scenario4", {
+            "outage_s": 1.0, "settled_after_restore_s": settled_s,
+            "touchdown_vertical_speed_mps": max(touchdowns) if touchdowns else None, **out})
+    assert not out["failsafe_events"]
+    assert out["max_horizontal_from_hold_point_m"] < FLYAWAY_RADIUS_M
+    assert _holding_or_landed(out), report
+
+
+def test_slam_loop_scenario5_degraded_stream_link(tmp_path):
+    bad = LinkImpairment(delay_ms=20.0, jitter_ms=10.0, loss=0.02, seed=5)
+    with _flight(tmp_path, stream_impairment=bad) as flight:
+        report: dict = {"impairment": bad.__dict__}
+        t0 = flight.rig.sim_us
+        start = None
+        try:
+            to = missions.take_off(flight, progress=print)
+            start = to["start_room_m"]
+            report["hold"] = missions.hold(flight, start, 20.0, progress=print)
+        except (TimeoutError, RuntimeError) as e:  # the mission could not go on: how did it end?
+            report["mission_aborted"] = str(e)[:300]
+        _settle_outcome(flight)
+        if start is None:
+            start = camera_room_position(flight.rig.history()[0], flight.options.mount)
+        out = _fault_outcome(flight, start, t0)
+        touchdowns = list(flight.rig.fc.touchdowns_mps)
+        report = _finish(flight, "slam_loop_scenario5", {
+            **report, "touchdown_vertical_speed_mps": max(touchdowns) if touchdowns else None, **out})
+    assert out["max_horizontal_from_hold_point_m"] < FLYAWAY_RADIUS_M
+    assert _holding_or_landed(out), report
+
+
+def test_slam_loop_scenario6_blank_frames(tmp_path):
+    # Render indices ~13 s into the flight at 30 fps (during the hold): 3 blank frames in a row, then
+    # 2 single ones.
+    blanks = frozenset({390, 391, 392, 450, 510})
+    with _flight(tmp_path, blank_frames=blanks) as flight:
+        to = missions.take_off(flight, progress=print)
+        t0 = flight.rig.sim_us
+        err = missions.hold(flight, to["start_room_m"], 15.0, progress=print)
+        out = _fault_outcome(flight, to["start_room_m"], t0)
+        from kinect_emulator.live import match_capture_stamps
+
+        records = flight.kinect.records()
+        received = match_capture_stamps(records, [int(f["capture_us"]) for f in flight.frames()])
+        report = _finish(flight, "slam_loop_scenario6", {
+            "blank_frames_rendered": sorted(r.index for r in records if r.index in blanks),
+            "blank_frames_received": sorted(r.index for r in received if r is not None and r.index in blanks),
+            "hold": err, **out})
+    assert len(report["blank_frames_rendered"]) >= 3, "the blank frames were not reached during the hold"
+    assert report["blank_frames_received"] == [], "blank frames reached the ground station"
+    assert out["state_after"] == "hold" and not out["failsafe_events"]
+    assert err["max_m"] <= 2 * HOLD_TOLERANCE_M
