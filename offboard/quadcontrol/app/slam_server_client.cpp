@@ -221,7 +221,7 @@ void SlamServerClient::run() {
     const std::int64_t now = monotonic_now_us();
     if (!connected_ && now - last_attempt_us_ >= options_.reconnect_interval_ms * 1000LL) {
       last_attempt_us_ = now;
-      connect(&error);
+      if (!connect(&error)) last_connect_error_ = error;
     }
     if (connected_) {
       result = exchange(frame, &error);
@@ -230,7 +230,9 @@ void SlamServerClient::run() {
         disconnect();
       }
     } else if (error.empty()) {
-      error = "not connected (retrying every " + std::to_string(options_.reconnect_interval_ms) + " ms)";
+      // Between attempts the last attempt's reason stays visible (dashboard, tests).
+      error = "not connected (retrying every " + std::to_string(options_.reconnect_interval_ms) +
+              " ms): " + last_connect_error_;
     }
     if (result) {
       result->latency_ms = static_cast<double>(monotonic_now_us() - frame.received_us) / 1000.0;

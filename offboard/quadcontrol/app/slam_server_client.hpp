@@ -52,6 +52,7 @@ class SlamServerClient : public SlamLink {
   std::atomic<int> socket_fd_{-1};  ///< for shutdown() from the destructor
   bool connected_ = false;
   std::uint64_t session_ = 0;  ///< connections made (SlamResult::session)
+  std::string last_connect_error_;
   std::int64_t last_attempt_us_ = 0;
   protocol::StreamDecoder decoder_;
   FrameMailbox mailbox_;
