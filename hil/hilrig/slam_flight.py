@@ -332,16 +332,7 @@ class SlamFlight:
                     self._pump_stop.wait(delay)
                 else:
                     next_t = time.monotonic()  # behind: restart the grid, do not burst
-                snap = self.rig.snapshot()
-                T = camera_pose_from_ned(
-                    snap.pos_ned_m,
-                    snap.roll_rad,
-                    snap.pitch_rad,
-                    snap.yaw_rad,
-                    mount_pitch_down_deg=mount.mount_pitch_down_deg,
-                    origin_room_m=mount.origin_room_m,
-                )
-                self.kinect.submit(time.monotonic(), T)
+                self.kinect.submit(time.monotonic(), camera_room_pose(self.rig.snapshot(), mount))
         except BaseException as e:  # reported by check()
             self._pump_error = e
 
@@ -523,9 +514,10 @@ def _seq_of(line: str) -> int | None:
     return int(m.group(1)) if m else None
 
 
-def camera_room_position(snap, mount: CameraMount) -> np.ndarray:
-    """The camera's true position in the room frame (x north, y west, z up from the floor)."""
-    T = camera_pose_from_ned(
+def camera_room_pose(snap, mount: CameraMount) -> np.ndarray:
+    """T_room_cam of the craft in FC-emulator snapshot `snap` (room: x north, y west, z up from
+    the floor)."""
+    return camera_pose_from_ned(
         snap.pos_ned_m,
         snap.roll_rad,
         snap.pitch_rad,
@@ -533,7 +525,11 @@ def camera_room_position(snap, mount: CameraMount) -> np.ndarray:
         mount_pitch_down_deg=mount.mount_pitch_down_deg,
         origin_room_m=mount.origin_room_m,
     )
-    return T[:3, 3]
+
+
+def camera_room_position(snap, mount: CameraMount) -> np.ndarray:
+    """The camera's true position in the room frame."""
+    return camera_room_pose(snap, mount)[:3, 3]
 
 
 def goal_in_room(start_cam_room: np.ndarray, floor_goal: tuple[float, float, float]) -> np.ndarray:
