@@ -23,6 +23,7 @@ std::map<std::string, double*> scalar_fields(ControlConfig& c) {
       {"max_pose_jump_m", &c.max_pose_jump_m},
       {"land_descent_rate_m_per_s", &c.land_descent_rate_m_per_s},
       {"motor_stop_height_m", &c.motor_stop_height_m},
+      {"land_ground_settle_ms", &c.land_ground_settle_ms},
       {"land_floor_hold_ms", &c.land_floor_hold_ms},
       {"failsafe_landing_ms", &c.failsafe_landing_ms},
       {"manual_step_m", &c.manual_step_m},

@@ -39,6 +39,7 @@ struct ControlConfig {
   /// 0.3 m/s leaves margin for ~80 ms of camera-to-motor latency at touchdown).
   double land_descent_rate_m_per_s = 0.3;
   double motor_stop_height_m = 0.15;      ///< camera height at which the motors are stopped
+  double land_ground_settle_ms = 500.0;   ///< ... once the estimate has stayed there this long
   double land_floor_hold_ms = 3000.0;     ///< tracked landing: stop this long after the setpoint reached the floor
   /// Blind landing (no pose): commands stop, the firmware's failsafe (250 ms) hands over to the
   /// APM's LAND at 0.5 m/s, which disarms ~1 s after touchdown: from 1.7 m ~5 s (measured 4.9 s

@@ -125,6 +125,7 @@ class FlightController {
   double land_start_height_m_ = 0.0;  ///< tracked landing: the height the setpoint sinks from
   std::optional<std::int64_t> land_floor_reached_us_;
   std::optional<std::int64_t> handed_over_us_;  ///< blind landing: when commands stopped
+  std::optional<std::int64_t> low_since_us_;    ///< tracked landing: first at motor-stop height
   double last_throttle_pct_ = 0.0;
   std::optional<double> unwrapped_yaw_deg_;
   double last_raw_yaw_deg_ = 0.0;

@@ -426,8 +426,9 @@ TEST_F(Flight, TrackedLandingSinksTheHeightSetpointThenMotorsStop) {
     pose.z_m = fc.status().setpoint.z_m;
     ++steps;
   }
-  // 1.7 m at 0.3 m/s: ~5.2 s to the motor-stop height
-  EXPECT_NEAR(steps * kStepUs / 1e6, (1.7 - fc.config().motor_stop_height_m) / 0.3, 0.1);
+  // 1.7 m at 0.3 m/s: ~5.2 s to the motor-stop height, then land_ground_settle_ms there
+  EXPECT_NEAR(steps * kStepUs / 1e6,
+              (1.7 - fc.config().motor_stop_height_m) / 0.3 + fc.config().land_ground_settle_ms / 1e3, 0.1);
   // THEN the motors stop once the craft is near the ground, with the disarm gesture
   EXPECT_EQ(fc.status().state, FlightState::kDisarmed);
   EXPECT_EQ(s.throttle_pct, 0.0);
