@@ -14,8 +14,14 @@
 //                    the next inputs. Inputs must not be timed before the current simulated time.
 // Script (stdin), one command per line, times in simulated microseconds:
 //   req  T TEXT   send TEXT + '\n' on the bridge UART at T, or as soon as the previous request's
-//                 reply line has arrived (the bridge forwards one request at a time)
+//                 reply line has arrived (the bridge forwards one request at a time); a reply that
+//                 arrives while the line is still going out (a 414) counts as its reply
 //   raw  T HEX    send raw bytes on the bridge UART at T (no reply awaited)
+//                 Bridge bytes go out one per kBridgeByteCycles, and only while simavr's UART takes
+//                 them: not before the firmware has enabled its receiver (simavr drops bytes sent
+//                 to a disabled receiver; the real bridge chip is not forwarding requests within
+//                 the ~1 ms the ATmega takes to boot either), and never into a full input FIFO
+//                 (flow control: simavr's XOFF, lifted when the FIFO has drained).
 //   mav  T HEX    send bytes to the MAVLink telemetry pin (PD2) as 57600-baud 8N1 serial from T,
 //                 or right after the previous burst if that one is still on the wire (one UART)
 //   run  T        (interactive only) simulate up to T, then print "at T"
@@ -83,7 +89,19 @@ struct Sim {
   std::string reply;
   uint64_t reply_start = 0;
   bool awaiting_reply = false;
+  // Bridge TX (harness -> firmware) flow control: simavr raises XOFF when its UART input FIFO is
+  // full and lowers it once the FIFO has drained (and when the receiver is enabled).
+  bool uart_xoff = false;
 };
+
+/// ATmega328P UCSR0B (data-space address) and its receiver-enable bit: bytes sent to a disabled
+/// receiver are dropped by simavr, so the harness holds them until the firmware enables it.
+constexpr uint16_t kUcsr0bAddr = 0xC1;
+constexpr uint8_t kRxen0Bit = 4;
+
+bool bridge_rx_ready(const Sim& sim) {
+  return !sim.uart_xoff && (sim.avr->data[kUcsr0bAddr] & (1u << kRxen0Bit)) != 0;
+}
 
 double us(uint64_t cycle) { return static_cast<double>(cycle) / kCyclesPerUs; }
 
@@ -105,6 +123,10 @@ void on_pwm_pin(avr_irq_t* irq, uint32_t value, void* param) {
   }
 }
 
+void on_uart_xoff(avr_irq_t*, uint32_t value, void* param) {
+  static_cast<Sim*>(param)->uart_xoff = value != 0;
+}
+
 void on_uart_out(avr_irq_t*, uint32_t value, void* param) {
   Sim* sim = static_cast<Sim*>(param);
   const char c = static_cast<char>(value & 0xFF);
@@ -112,7 +134,7 @@ void on_uart_out(avr_irq_t*, uint32_t value, void* param) {
   if (c == '\n') {
     std::printf("reply %.3f %.3f %s\n", us(sim->reply_start), us(sim->avr->cycle), sim->reply.c_str());
     sim->reply.clear();
-    sim->awaiting_reply = false;
+    sim->awaiting_reply = false;  // also when the line is still going out (a 414 on a long line)
   } else if (sim->reply.size() < 4096) {
     sim->reply += c;
   }
@@ -216,12 +238,15 @@ int run_until(Sim* sim, Feeder* f, avr_irq_t* uart_in, avr_irq_t* mav_pin, uint6
       ++f->mav_idx;
     }
     if (f->tx_pos < f->tx.size()) {
-      if (now >= f->tx_next) {
+      if (now >= f->tx_next && bridge_rx_ready(*sim)) {
+        // On schedule, bytes keep the exact byte time; the first byte and the first one after a
+        // flow-control pause restart the schedule, so the rest of a line never goes out in a burst.
+        if (f->tx_pos == 0) f->tx_start = now;
+        if (f->tx_pos == 0 || now - f->tx_next > kBridgeByteCycles) f->tx_next = now;
         avr_raise_irq(uart_in, static_cast<uint8_t>(f->tx[f->tx_pos++]));
         f->tx_next += kBridgeByteCycles;
         if (f->tx_pos == f->tx.size() && f->tx_is_request) {
           std::printf("sent %.3f %.3f\n", us(f->tx_start), us(f->tx_next));
-          sim->awaiting_reply = true;
         }
       }
       continue;
@@ -234,6 +259,9 @@ int run_until(Sim* sim, Feeder* f, avr_irq_t* uart_in, avr_irq_t* mav_pin, uint6
       f->tx = f->requests.front().bytes;
       f->requests.pop_front();
       f->tx_is_request = true;
+      // Waiting for the reply from the start: it may arrive before the last byte has gone out (a
+      // 414 on an over-long line), and must then not be waited for again after that byte.
+      sim->awaiting_reply = true;
     } else {
       continue;
     }
@@ -342,6 +370,7 @@ int main(int argc, char** argv) {
     avr_irq_register_notify(avr_io_getirq(sim.avr, AVR_IOCTL_IOPORT_GETIRQ('B'), pin), on_pwm_pin, &sim);
   }
   avr_irq_register_notify(avr_io_getirq(sim.avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), on_uart_out, &sim);
+  avr_irq_register_notify(avr_io_getirq(sim.avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XOFF), on_uart_xoff, &sim);
   avr_irq_t* uart_in = avr_io_getirq(sim.avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
   avr_irq_t* mav_pin = avr_io_getirq(sim.avr, AVR_IOCTL_IOPORT_GETIRQ('D'), 2);
   avr_raise_irq(mav_pin, 1);  // idle line high
