@@ -26,8 +26,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import csv
 import json
-import math
 from pathlib import Path
+import re
+import shutil
 import socket
 import threading
 import time
@@ -39,7 +40,7 @@ import numpy as np
 from fc_emulator import FcOptions, FlightMode, QuadParams
 from hilrig.flight import CameraMount
 from hilrig.link_proxy import LinkImpairment, LinkProxy
-from hilrig.paths import REPO_ROOT, find_binary
+from hilrig.paths import find_binary
 from hilrig.procs import ManagedProcess
 from kinect_emulator.poses import camera_pose_from_ned
 
@@ -49,8 +50,6 @@ REQUIRED_BINARIES = ("fw_sim", "rgbd-streamer", "quad-control", "slam-server", "
 
 def missing_parts() -> list[str]:
     """Names of what is not built or installed (empty: a closed-loop flight can run)."""
-    import shutil
-
     from hilrig.fw_sim import firmware_elf
 
     missing = [b for b in REQUIRED_BINARIES if find_binary(b) is None]
@@ -304,8 +303,6 @@ class SlamFlight:
         return path
 
     def _wait_dashboard_port(self, qc: ManagedProcess, timeout_s: float = 20.0) -> int:
-        import re
-
         end = time.monotonic() + timeout_s
         while time.monotonic() < end:
             m = re.search(r"dashboard on http://127\.0\.0\.1:(\d+)/", qc.log_text())
@@ -508,8 +505,6 @@ def _read_csv(path: Path) -> list[dict]:
 
 
 def _seq_of(line: str) -> int | None:
-    import re
-
     m = re.search(r"[?&]seq=(\d+)", line)
     return int(m.group(1)) if m else None
 
