@@ -66,26 +66,30 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-# The position gains the closed loop flies with (quad-control "controller" keys). Table 3.1's roll/
-# pitch gains in our assumed unit (percent of stick per mm; docs/control.md) give a ~1 rad/s loop
-# with 0.36 damping: in the rig's 0.15 m/s^2 gusts the craft wandered 0.3-0.7 m. Measured in this
-# rig (30 fps, ~80 ms camera->PWM): kp 0.05 / kd 0.035 oscillates (2 s period, +-0.25 m), kp 0.03 /
-# kd 0.03 (~1.5 rad/s, damping ~0.75) holds 0.15-0.16 m. Yaw: Table 3.1's kp 0.06 %/deg turns
-# with an 8 s time constant (a 90 deg turn towards a waypoint took 19 s); 0.15 gives ~3 s and a
-# peak rate near fr1/desk's 23 deg/s, which the SLAM front end tracks. Throttle keeps Table 3.1.
+# How the closed loop flies (quad-control "controller" keys), each measured in this rig:
+#  * APM in AltHold, quad-control's height PID output read as a climb-rate stick: the APM's own
+#    barometer/accelerometer loop holds the hover, so a pose gap or a lost-hold does not move the
+#    craft vertically. Throttle kp 0.025 (Table 3.1) with ki = kd = 0 and AltHold's 100 us THR_DZ
+#    stepped over: max height error 0.016 m in a 20 s gusty hover. Flown in Stabilize (throttle =
+#    thrust, Table 3.1 PID) it was 0.03-0.13 m, and with 200-400 ms pose gaps (scenario 5) the
+#    thrust loop oscillated into a fly-away; without the dead band stepped over, AltHold's 10 %
+#    band left a 0.3-0.4 m height error.
+#  * Roll/pitch: Table 3.1's gains in our assumed unit (percent of stick per mm; docs/control.md)
+#    give a ~1 rad/s loop with 0.36 damping: the craft wandered 0.3-0.7 m in 0.15 m/s^2 gusts;
+#    kp 0.05 / kd 0.035 oscillated (2 s period); kp 0.03 / kd 0.03 holds ~0.15 m.
+#  * Yaw: Table 3.1's kp 0.06 %/deg turns with an 8 s time constant (a 90 deg turn took 19 s);
+#    0.15 gives ~3 s and a peak rate near fr1/desk's 23 deg/s, which the front end tracks.
 HIL_CONTROLLER_GAINS = {
     "roll": {"kp": 0.03, "kd": 0.03},
     "pitch": {"kp": 0.03, "kd": 0.03},
     "yaw": {"kp": 0.15},
+    "throttle": {"kp": 0.025, "ki": 0.0, "kd": 0.0},
+    "apm_throttle_deadband_us": 100.0,
 }
 
 
-def _stabilize() -> FcOptions:
-    # quad-control's height loop commands thrust around a hover feed-forward (hover_throttle_pct):
-    # the APM flies it in Stabilize. In AltHold the stick is a climb-rate command with a 10 % dead
-    # band, which fought the height PID (measured: 0.3-0.4 m height error). The firmware's failsafe
-    # hand-over lands from either mode (docs/failsafe.md).
-    return FcOptions(mode=FlightMode.STABILIZE)
+def _alt_hold() -> FcOptions:
+    return FcOptions(mode=FlightMode.ALT_HOLD)
 
 
 @dataclass(frozen=True)
@@ -98,7 +102,7 @@ class SlamFlightOptions:
     # became the hold error), same front-end latency; GLC 4.9 mm but +14 ms per pose.
     backend: str = "llc"  # slam-server back end: vo | llc | glc
     quad_params: QuadParams = field(default_factory=QuadParams)
-    fc_options: FcOptions = field(default_factory=_stabilize)
+    fc_options: FcOptions = field(default_factory=_alt_hold)
     mount: CameraMount = field(default_factory=CameraMount)
     depth_encoding: str = "rvl"  # lossless and cheap on loopback
     rgb_encoding: str = "raw"

@@ -123,7 +123,7 @@ void GroundStation::control_loop() {
     const std::int64_t now = monotonic_now_us();
     std::lock_guard<std::mutex> lock(mutex_);
     last_stick_ = controller_.update(now);
-    last_pwm_ = to_pwm(last_stick_, spec_.pwm, options_.controller.apm_stick_deadzone_us);
+    last_pwm_ = to_pwm(last_stick_, spec_.pwm, apm_input());
   }
 }
 
@@ -132,7 +132,7 @@ std::optional<PwmCommand> GroundStation::command_at(std::int64_t now_us, std::ui
   {
     std::lock_guard<std::mutex> lock(mutex_);
     last_stick_ = controller_.update(now_us);
-    last_pwm_ = to_pwm(last_stick_, spec_.pwm, options_.controller.apm_stick_deadzone_us);
+    last_pwm_ = to_pwm(last_stick_, spec_.pwm, apm_input());
     if (last_stick_.hand_over_to_failsafe) return std::nullopt;
     if (!log_) return last_pwm_;
     logged = LoggedCommand{seq, now_us, to_string(controller_.status().state), last_pwm_, pose_capture_us_, pose_us_};
@@ -309,6 +309,11 @@ nlohmann::json GroundStation::state_json() {
   for (std::size_t i = 0; i < trajectory_.size(); i += stride) traj.push_back(trajectory_[i]);
   j["trajectory"] = traj;
   return j;
+}
+
+ApmStickInput GroundStation::apm_input() const {
+  const ControlConfig& c = options_.controller;
+  return ApmStickInput{c.apm_stick_deadzone_us, c.apm_throttle_deadband_us, c.hover_throttle_pct};
 }
 
 void GroundStation::invalidate_image_caches_if_new_frame() {

@@ -80,6 +80,8 @@ class GroundStation {
   void on_slam(const SlamResult& result, const CameraFrame& frame);
   void on_reply(std::int64_t received_us, const ControlReply& reply);
   std::vector<Eigen::Vector3d> depth_points(const CameraFrame& frame, int step) const;
+  /// How the APM reads the sticks (dead zones from the controller config).
+  ApmStickInput apm_input() const;
   /// Drops the encoded RGB/depth images when latest_frame_ changed. Caller holds mutex_ and has a frame.
   void invalidate_image_caches_if_new_frame();
 

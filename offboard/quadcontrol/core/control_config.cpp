@@ -32,6 +32,7 @@ std::map<std::string, double*> scalar_fields(ControlConfig& c) {
       {"arm_gesture_ms", &c.arm_gesture_ms},
       {"disarm_gesture_ms", &c.disarm_gesture_ms},
       {"apm_stick_deadzone_us", &c.apm_stick_deadzone_us},
+      {"apm_throttle_deadband_us", &c.apm_throttle_deadband_us},
   };
 }
 
@@ -48,11 +49,14 @@ std::string ControlConfig::validate() const {
     if (!e.empty()) return "controller." + name + ": " + e;
   }
   for (auto& [name, value] : scalar_fields(copy)) {
-    if (name == "apm_stick_deadzone_us") continue;  // 0 is valid: no compensation
+    if (name == "apm_stick_deadzone_us" || name == "apm_throttle_deadband_us") continue;  // 0: none
     if (!std::isfinite(*value) || *value <= 0.0) return "controller." + name + " must be finite and > 0";
   }
   if (!(apm_stick_deadzone_us >= 0.0 && apm_stick_deadzone_us <= 100.0)) {
     return "controller.apm_stick_deadzone_us must be in [0, 100]";
+  }
+  if (!(apm_throttle_deadband_us >= 0.0 && apm_throttle_deadband_us <= 300.0)) {
+    return "controller.apm_throttle_deadband_us must be in [0, 300]";
   }
   if (hover_throttle_pct >= 100.0) return "controller.hover_throttle_pct must be < 100";
   if (motor_stop_height_m >= hold_height_m) return "controller.motor_stop_height_m must be below hold_height_m";

@@ -60,6 +60,11 @@ struct ControlConfig {
   /// it below 5 % of stick (at Table 3.1 gains a 0.33 m position dead band: measured in the HIL rig
   /// as a 0.7 m wander in 0.15 m/s^2 gusts). 0 = no compensation. Must match the APM's setting.
   double apm_stick_deadzone_us = 20.0;
+  /// The APM's throttle dead band around hover_throttle_pct (ArduCopter AltHold's THR_DZ, default
+  /// 100 us of 1000), stepped over the same way; 0 (default) for Stabilize, where throttle is
+  /// thrust. With the APM in AltHold the height PID's output is a climb-rate command (use ki = 0:
+  /// the APM holds the hover itself) and hover_throttle_pct must be 50 (mid-stick = no climb).
+  double apm_throttle_deadband_us = 0.0;
 
   std::string validate() const;
 };

@@ -61,5 +61,21 @@ TEST(StickMapping, DeadZoneIsSteppedOverAndProportionalAfterTheApmRemovesIt) {
   }
 }
 
+// AltHold: around hover (mid-stick) the APM ignores +-THR_DZ and rescales the rest into a climb
+// rate; an offset from hover is sent just outside the band, 0 % / 100 % still reach the ends.
+TEST(StickMapping, ThrottleDeadBandAroundHoverIsSteppedOver) {
+  const PwmRange r{1000, 1000, 2000};
+  EXPECT_EQ(throttle_to_us(50.0, r, 50.0, 100.0), 1500);
+  EXPECT_EQ(throttle_to_us(0.0, r, 50.0, 100.0), 1000);   // arming gesture still at the bottom
+  EXPECT_EQ(throttle_to_us(100.0, r, 50.0, 100.0), 2000);
+  EXPECT_EQ(throttle_to_us(60.0, r, 50.0, 100.0), 1680);  // 1500 + 100 + 0.2 * 400
+  EXPECT_EQ(throttle_to_us(40.0, r, 50.0, 100.0), 1320);
+  for (double pct : {51.0, 55.0, 75.0}) {
+    const double climb_fraction = (throttle_to_us(pct, r, 50.0, 100.0) - 1600) / 400.0;  // the APM's view
+    EXPECT_NEAR(climb_fraction, (pct - 50.0) / 50.0, 1.0 / 400.0) << pct;
+  }
+  EXPECT_EQ(throttle_to_us(60.0, r, 50.0, 0.0), 1600);  // no band: linear
+}
+
 }  // namespace
 }  // namespace rgbdquad::quadcontrol
