@@ -53,9 +53,7 @@ def main(argv=None) -> int:
             report = {"aborted": str(e), "armed_at_end": snap.armed, "landed_at_end": snap.landed,
                       "touchdowns_mps": list(flight.rig.fc.touchdowns_mps),
                       "fc_events": [e for _, e in flight.rig.fc.events]}
-        report["ate"] = flight.ate()
-        report["latency_ms"] = flight.latency()
-        report["stream"] = flight.stream_stats()
+        report.update(flight.scores())
         if args.linger_s > 0:
             progress(f"landed; everything stays up {args.linger_s:.0f} s more")
             flight.hold_for(args.linger_s)

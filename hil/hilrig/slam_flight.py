@@ -278,12 +278,8 @@ class SlamFlight:
         return p
 
     def _write_streamer_config(self) -> Path:
-        """The emulated Kinect renders depth already registered to its RGB camera, with the
-        renderer's intrinsics: the streamer must advertise those and register with identity."""
-        i = self.kinect.options.intrinsics
-        k = f"[{i.fx}, {i.fy}, {i.cx}, {i.cy}]"
         path = self.workdir / "rgbd-streamer.yaml"
-        path.write_text(f"rgb_intrinsics: {k}\ndepth_intrinsics: {k}\nt_rgb_depth_m: [0, 0, 0]\n")
+        path.write_text(self.kinect.streamer_config_yaml())
         return path
 
     def _write_quad_control_config(self, slam_port: int, rgb_port: int, depth_port: int) -> Path:
@@ -460,15 +456,16 @@ class SlamFlight:
             seq = _seq_of(t.line)
             if seq is not None and t.first_pulse_after_us is not None:
                 by_seq[seq] = t
-        caps = sorted(first_cmd)
+        caps = [cap for cap in sorted(first_cmd) if int(first_cmd[cap]["seq"]) in by_seq]
         recs = match_capture_stamps(self.kinect.records(), caps)
+        timings = [by_seq[int(first_cmd[cap]["seq"])] for cap in caps]
+        # One interpolation over the whole flight (the rig's step table is copied once).
+        walls = self.rig.sim_to_wall(
+            [[t.injected_us, t.reply_end_us, t.first_pulse_after_us] for t in timings]
+        ) if timings else []
         rows = []
-        for cap, rec in zip(caps, recs):
+        for cap, rec, (inj, rep, pwm) in zip(caps, recs, walls):
             c, p = first_cmd[cap], poses[cap]
-            t = by_seq.get(int(c["seq"]))
-            if t is None:
-                continue
-            inj, rep, pwm = self.rig.sim_to_wall([t.injected_us, t.reply_end_us, t.first_pulse_after_us])
             row = {
                 "capture_to_received": (int(p["received_us"]) - cap) / 1e3,
                 "received_to_pose": (int(p["pose_us"]) - int(p["received_us"])) / 1e3,
@@ -487,6 +484,10 @@ class SlamFlight:
             v = np.array([r[key] for r in rows if key in r])
             out[key] = {"median_ms": round(float(np.median(v)), 1), "p95_ms": round(float(np.percentile(v, 95)), 1)}
         return out
+
+    def scores(self) -> dict:
+        """The figures every flight reports: ATE, latency per stage, stream/SLAM counts."""
+        return {"ate": self.ate(), "latency_ms": self.latency(), "stream": self.stream_stats()}
 
     def stream_stats(self) -> dict:
         frames = self.frames()

@@ -444,6 +444,14 @@ class LiveKinect:
         return [str(streamer_bin), "--source", "freenect", "--freenect-disparity-depth",
                 *(str(a) for a in args)]
 
+    def streamer_config_yaml(self, extra: str = "") -> str:
+        """rgbd-streamer settings for this camera: the renderer draws depth already registered to
+        its RGB camera, so both intrinsics are the renderer's and the registration is identity.
+        `extra`: more YAML lines appended as they are."""
+        i = self.options.intrinsics
+        k = f"[{i.fx}, {i.fy}, {i.cx}, {i.cy}]"
+        return f"rgb_intrinsics: {k}\ndepth_intrinsics: {k}\nt_rgb_depth_m: [0, 0, 0]\n" + extra
+
     def streamer_env(self, base: dict | None = None) -> dict:
         """What the fakenect wrapper sets: FAKENECT_PATH and the fakenect library first on
         LD_LIBRARY_PATH. Raises FileNotFoundError when libfreenect-bin is not installed."""

@@ -70,17 +70,11 @@ def _fly(setup, fps: float) -> dict:
     work = setup["work"] / f"fps{int(fps)}"
     work.mkdir()
     opts = KinectOptions(fps=fps, seed=SEED)
-    i = opts.intrinsics
-    cfg = work / "streamer.yaml"
-    # The emulator renders depth registered to RGB already: identity registration.
-    cfg.write_text(
-        f"depth_intrinsics: [{i.fx}, {i.fy}, {i.cx}, {i.cy}]\n"
-        f"rgb_intrinsics: [{i.fx}, {i.fy}, {i.cx}, {i.cy}]\n"
-        "t_rgb_depth_m: [0, 0, 0]\nstats_period_s: 0\nlog_level: warn\nexit_linger_ms: 1000\n"
-    )
     # Frame files are deleted as fakenect finishes with them: a premature deletion would stop the
     # streamer ("Cannot open file") and fail the frame counts below.
     cam = LiveKinect(work / "dump", opts, room=setup["room"])
+    cfg = work / "streamer.yaml"
+    cfg.write_text(cam.streamer_config_yaml("stats_period_s: 0\nlog_level: warn\nexit_linger_ms: 1000\n"))
     with StreamReceiver() as rx:
         cam.start()
         try:

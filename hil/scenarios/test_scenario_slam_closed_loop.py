@@ -25,7 +25,15 @@ from fc_emulator import QuadParams
 from hilrig import missions
 from hilrig.link_proxy import LinkImpairment
 from hilrig.paths import artifacts_dir
-from hilrig.slam_flight import SlamFlight, SlamFlightOptions, camera_room_position, missing_parts
+from hilrig.slam_flight import (
+    SlamFlight,
+    SlamFlightOptions,
+    camera_room_position,
+    goal_in_room,
+    hold_error,
+    missing_parts,
+)
+from kinect_emulator.live import match_capture_stamps
 
 pytestmark = pytest.mark.hil
 
@@ -56,8 +64,6 @@ def flight(tmp_path):
 def _fault_outcome(flight, start_room, fault_sim_us) -> dict:
     """Where the fault left the craft: still holding (quad-control's state, truth error against the
     hold point) or landed, and the largest truth distance from the hold point since the fault."""
-    from hilrig.slam_flight import goal_in_room, hold_error
-
     goal = goal_in_room(start_room, (0.0, 0.0, missions.HOLD_HEIGHT_M))
     hist = [h for h in flight.rig.history() if h.t_us >= fault_sim_us]
     worst = max(
@@ -82,9 +88,7 @@ def _holding_or_landed(outcome) -> bool:
 
 
 def _finish(flight, name: str, report: dict) -> dict:
-    report["ate"] = flight.ate()
-    report["latency_ms"] = flight.latency()
-    report["stream"] = flight.stream_stats()
+    report.update(flight.scores())
     report["position_source"] = "SLAM (slam-server) through quad-control"
     (artifacts_dir() / f"{name}.json").write_text(json.dumps(report, indent=2, default=str))
     print(f"\n{name}:", json.dumps(report, default=str))
@@ -221,8 +225,6 @@ def test_slam_loop_scenario6_blank_frames(tmp_path):
         t0 = flight.rig.sim_us
         err = missions.hold(flight, to["start_room_m"], 15.0, progress=print)
         out = _fault_outcome(flight, to["start_room_m"], t0)
-        from kinect_emulator.live import match_capture_stamps
-
         records = flight.kinect.records()
         received = match_capture_stamps(records, [int(f["capture_us"]) for f in flight.frames()])
         report = _finish(flight, "slam_loop_scenario6", {
