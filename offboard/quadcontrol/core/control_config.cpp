@@ -29,6 +29,10 @@ std::map<std::string, double*> scalar_fields(ControlConfig& c) {
       {"manual_step_m", &c.manual_step_m},
       {"manual_yaw_step_deg", &c.manual_yaw_step_deg},
       {"max_waypoint_distance_m", &c.max_waypoint_distance_m},
+      {"max_distance_from_home_m", &c.max_distance_from_home_m},
+      {"max_height_m", &c.max_height_m},
+      {"max_manual_step_m", &c.max_manual_step_m},
+      {"max_manual_yaw_step_deg", &c.max_manual_yaw_step_deg},
       {"arm_gesture_ms", &c.arm_gesture_ms},
       {"disarm_gesture_ms", &c.disarm_gesture_ms},
       {"apm_stick_deadzone_us", &c.apm_stick_deadzone_us},
@@ -60,6 +64,17 @@ std::string ControlConfig::validate() const {
   }
   if (hover_throttle_pct >= 100.0) return "controller.hover_throttle_pct must be < 100";
   if (motor_stop_height_m >= hold_height_m) return "controller.motor_stop_height_m must be below hold_height_m";
+  if (hold_height_m > max_height_m) return "controller.hold_height_m must not exceed max_height_m";
+  // Sanity bounds on the envelope itself: 120 m is the usual legal ceiling for small drones; 1 km
+  // is far beyond the WiFi link's range. Larger values are typos, not envelopes.
+  if (max_height_m > 120.0) return "controller.max_height_m must be <= 120";
+  if (max_distance_from_home_m > 1000.0) return "controller.max_distance_from_home_m must be <= 1000";
+  if (max_manual_step_m > max_distance_from_home_m) return "controller.max_manual_step_m must not exceed max_distance_from_home_m";
+  if (2.0 * motor_stop_height_m >= max_height_m) return "controller.max_height_m must exceed 2 x motor_stop_height_m";
+  if (manual_step_m > max_manual_step_m) return "controller.manual_step_m must not exceed max_manual_step_m";
+  if (manual_yaw_step_deg > max_manual_yaw_step_deg || max_manual_yaw_step_deg > 180.0) {
+    return "controller.max_manual_yaw_step_deg must be in [manual_yaw_step_deg, 180]";
+  }
   return {};
 }
 

@@ -48,6 +48,14 @@ struct ControlConfig {
   double manual_step_m = 0.1;             ///< one manual key press moves the setpoint 10 cm
   double manual_yaw_step_deg = 10.0;      ///< one manual key press turns the setpoint 10 deg
   double max_waypoint_distance_m = 10.0;  ///< a click further than this is a mistake, rejected
+  // The flight envelope (core/flight_envelope.hpp): every setpoint, whatever API path set it, is
+  // refused or clamped against these. Indoor defaults: the floor map is 10 m x 10 m around the
+  // start (map.size_m), rooms are below 3 m; one manual key press is manual_step_m (0.1 m) /
+  // manual_yaw_step_deg (10 deg), so a larger single step is not a key press and is refused.
+  double max_distance_from_home_m = 5.0;  ///< horizontal radius around the take-off point
+  double max_height_m = 3.0;              ///< height ceiling of every setpoint (hold_height_m below it)
+  double max_manual_step_m = 1.0;         ///< one manual step per axis, at most (10 key presses)
+  double max_manual_yaw_step_deg = 90.0;  ///< one manual turn, at most
   /// ArduCopter arms on throttle low + yaw full right held for 2 s, disarms on yaw full left for
   /// 2 s (docs/firmware.md); arming +1 s margin for pre-arm checks and the PWM frame delay;
   /// disarming +1.5 s: ArduCopter counts the 2 s only once its land detector says landed (~1 s at

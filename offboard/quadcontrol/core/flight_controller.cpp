@@ -47,8 +47,18 @@ const char* to_string(OperatorCommand command) {
   return "?";
 }
 
+static EnvelopeLimits envelope_limits(const ControlConfig& c) {
+  EnvelopeLimits limits;
+  limits.max_distance_from_home_m = c.max_distance_from_home_m;
+  // Manual steps never took the setpoint below twice the motor-stop height (a hold that low would
+  // stop the motors as soon as the estimate dips); that is the envelope's floor.
+  limits.min_height_m = 2.0 * c.motor_stop_height_m;
+  limits.max_height_m = c.max_height_m;
+  return limits;
+}
+
 FlightController::FlightController(ControlConfig config)
-    : config_(config), roll_(config.roll), pitch_(config.pitch), yaw_(config.yaw), throttle_(config.throttle) {
+    : config_(config), envelope_(envelope_limits(config)), roll_(config.roll), pitch_(config.pitch), yaw_(config.yaw), throttle_(config.throttle) {
   const std::string error = config_.validate();
   if (!error.empty()) throw std::invalid_argument(error);
   status_.last_event = "start-up";
@@ -57,6 +67,17 @@ FlightController::FlightController(ControlConfig config)
 bool FlightController::has_fresh_pose(std::int64_t now_us) const {
   if (!pose_ || !pose_->tracking) return false;
   return static_cast<double>(now_us - pose_->received_us) <= config_.pose_timeout_ms * kUsPerMs;
+}
+
+bool FlightController::set_setpoint_position(double x_m, double y_m, double z_m, SetpointKind kind,
+                                             bool* clamped) {
+  const auto c = envelope_.contain(SetpointPosition{x_m, y_m, z_m}, kind);
+  if (!c) return false;
+  status_.setpoint.x_m = c->position.x_m;
+  status_.setpoint.y_m = c->position.y_m;
+  status_.setpoint.z_m = c->position.z_m;
+  if (clamped) *clamped = c->clamped;
+  return true;
 }
 
 void FlightController::reset_pids() {
@@ -76,7 +97,10 @@ void FlightController::enter(FlightState state, std::int64_t now_us, const std::
     status_.facing_waypoint = false;
   }
   if (state == FlightState::kLand) {
-    land_start_height_m_ = pose_ && pose_->tracking ? pose_->pose.z_m : status_.setpoint.z_m;
+    // The landing starts at most at the ceiling (a craft above it sinks at once).
+    const double start_m = pose_ && pose_->tracking ? pose_->pose.z_m : status_.setpoint.z_m;
+    const auto c = envelope_.contain(SetpointPosition{0.0, 0.0, start_m}, SetpointKind::kLanding);
+    land_start_height_m_ = c ? c->position.z_m : envelope_.limits().max_height_m;
     land_floor_reached_us_.reset();
     handed_over_us_.reset();
     low_since_us_.reset();
@@ -110,9 +134,12 @@ std::string FlightController::command(std::int64_t now_us, OperatorCommand cmd) 
       }
       if (!has_fresh_pose(now_us)) return "takeoff: no tracked pose";
       reset_pids();
-      const CraftPose& p = pose_->pose;
-      status_.setpoint = CraftPose{p.x_m, p.y_m, p.z_m, p.yaw_deg};
-      takeoff_start_height_m_ = p.z_m;
+      const CraftPose& p = pose_->pose;  // finite: on_pose() counts non-finite poses as lost
+      envelope_.set_home(p.x_m, p.y_m);
+      status_.setpoint.yaw_deg = p.yaw_deg;
+      // The ramp starts where the craft is, kept inside [min, max] height of the envelope.
+      if (!set_setpoint_position(p.x_m, p.y_m, p.z_m, SetpointKind::kTakeOff)) return "takeoff: non-finite pose";
+      takeoff_start_height_m_ = status_.setpoint.z_m;
       enter(FlightState::kTakeOff, now_us, "operator take-off");
       return {};
     }
@@ -134,16 +161,16 @@ std::string FlightController::set_waypoint(std::int64_t now_us, double x_m, doub
   const CraftPose& p = pose_->pose;
   const double distance_m = std::hypot(x_m - p.x_m, y_m - p.y_m);
   if (distance_m > config_.max_waypoint_distance_m) return "waypoint: further than max_waypoint_distance_m";
+  if (std::string why = envelope_.check_waypoint(x_m, y_m); !why.empty()) return why;
   status_.waypoint = Waypoint{x_m, y_m};
   if (distance_m < config_.turn_skip_distance_m) {
     // Close goal: keep the heading (position never drives yaw), move at once.
     status_.facing_waypoint = true;
-    status_.setpoint.x_m = x_m;
-    status_.setpoint.y_m = y_m;
+    set_setpoint_position(x_m, y_m, status_.setpoint.z_m, SetpointKind::kHold);
   } else {
     status_.facing_waypoint = false;
-    status_.setpoint.x_m = p.x_m;
-    status_.setpoint.y_m = p.y_m;
+    // Turn where the craft is (a craft that drifted outside the fence is held at its edge).
+    set_setpoint_position(p.x_m, p.y_m, status_.setpoint.z_m, SetpointKind::kHold);
     status_.setpoint.yaw_deg = bearing_deg(p.x_m, p.y_m, x_m, y_m);
   }
   status_.state = FlightState::kGoToWaypoint;
@@ -157,18 +184,25 @@ std::string FlightController::nudge(std::int64_t, double forward_m, double left_
   for (double v : {forward_m, left_m, up_m, yaw_ccw_deg}) {
     if (!std::isfinite(v)) return "manual: non-finite step";
   }
+  for (double v : {forward_m, left_m, up_m}) {
+    if (std::abs(v) > config_.max_manual_step_m) return "manual: step larger than max_manual_step_m";
+  }
+  if (std::abs(yaw_ccw_deg) > config_.max_manual_yaw_step_deg) return "manual: turn larger than max_manual_yaw_step_deg";
   const FlightState s = status_.state;
   if (s != FlightState::kHold && s != FlightState::kGoToWaypoint) return "manual: only in hold or go-to";
   const double c = std::cos(status_.setpoint.yaw_deg / kDegPerRad);
   const double sn = std::sin(status_.setpoint.yaw_deg / kDegPerRad);
-  status_.setpoint.x_m += c * forward_m - sn * left_m;
-  status_.setpoint.y_m += sn * forward_m + c * left_m;
-  status_.setpoint.z_m = std::max(config_.motor_stop_height_m * 2.0, status_.setpoint.z_m + up_m);
+  bool clamped = false;
+  if (!set_setpoint_position(status_.setpoint.x_m + c * forward_m - sn * left_m,
+                             status_.setpoint.y_m + sn * forward_m + c * left_m, status_.setpoint.z_m + up_m,
+                             SetpointKind::kHold, &clamped)) {
+    return "manual: step leads to a non-finite setpoint";
+  }
   status_.setpoint.yaw_deg = wrap_deg(status_.setpoint.yaw_deg + yaw_ccw_deg);
   status_.state = FlightState::kHold;
   status_.waypoint.reset();
   status_.facing_waypoint = false;
-  status_.last_event = "hold: manual step";
+  status_.last_event = clamped ? "hold: manual step, clamped to the flight envelope" : "hold: manual step";
   return {};
 }
 
@@ -291,7 +325,8 @@ StickCommand FlightController::update(std::int64_t now_us) {
     case FlightState::kTakeOff: {
       const double elapsed_s = static_cast<double>(now_us - state_entered_us_) / kUsPerS;
       const double ramp_m = takeoff_start_height_m_ + config_.takeoff_climb_rate_m_per_s * elapsed_s;
-      status_.setpoint.z_m = std::min(ramp_m, config_.hold_height_m);
+      set_setpoint_position(status_.setpoint.x_m, status_.setpoint.y_m, std::min(ramp_m, config_.hold_height_m),
+                            SetpointKind::kTakeOff);
       cmd = position_control(*pose_, status_.setpoint.z_m);
       if (status_.setpoint.z_m >= config_.hold_height_m &&
           std::abs(pose_->pose.z_m - config_.hold_height_m) <= config_.takeoff_reached_tolerance_m) {
@@ -308,8 +343,7 @@ StickCommand FlightController::update(std::int64_t now_us) {
       if (!status_.facing_waypoint &&
           std::abs(wrap_deg(status_.setpoint.yaw_deg - p.yaw_deg)) <= config_.face_waypoint_tolerance_deg) {
         status_.facing_waypoint = true;  // turned: now move, heading stays fixed
-        status_.setpoint.x_m = w.x_m;
-        status_.setpoint.y_m = w.y_m;
+        set_setpoint_position(w.x_m, w.y_m, status_.setpoint.z_m, SetpointKind::kHold);
       }
       cmd = position_control(*pose_, status_.setpoint.z_m);
       if (status_.facing_waypoint && std::hypot(w.x_m - p.x_m, w.y_m - p.y_m) <= config_.waypoint_reached_m) {

@@ -22,6 +22,10 @@
 // (right stick); throttle_pct is absolute, 0..100. Conversion to the firmware's PWM units is
 // stick_mapping.hpp's job.
 //
+// Flight envelope: every setpoint this class writes goes through FlightEnvelope (non-finite refused,
+// distance from home and height clamped, waypoints outside refused); home is set at take-off.
+// Manual steps larger than max_manual_step_m / max_manual_yaw_step_deg are refused.
+//
 // Time is passed in (monotonic microseconds, same clock for poses and update()). Not thread-safe:
 // the app owns one instance behind a mutex.
 #pragma once
@@ -31,6 +35,7 @@
 #include <string>
 
 #include "core/control_config.hpp"
+#include "core/flight_envelope.hpp"
 #include "core/pid.hpp"
 
 namespace rgbdquad::quadcontrol {
@@ -90,9 +95,12 @@ class FlightController {
 
   /// Operator buttons. Returns empty when accepted, else why not (state unchanged).
   std::string command(std::int64_t now_us, OperatorCommand command);
-  /// Click on the map. Accepted in hold / go-to with tracking; replaces any previous waypoint.
+  /// Click on the map. Accepted in hold / go-to with tracking, inside the envelope and within
+  /// max_waypoint_distance_m of the craft; replaces any previous waypoint.
   std::string set_waypoint(std::int64_t now_us, double x_m, double y_m);
-  /// Manual keys: move the setpoint by the given steps (forward/left in the body frame).
+  /// Manual keys: move the setpoint by the given steps (forward/left in the body frame). Steps must
+  /// be finite and within max_manual_step_m / max_manual_yaw_step_deg; the moved setpoint is
+  /// clamped into the envelope (last_event says so).
   std::string nudge(std::int64_t now_us, double forward_m, double left_m, double up_m, double yaw_ccw_deg);
 
   /// Newest pose estimate. Non-finite poses count as tracking lost.
@@ -103,6 +111,7 @@ class FlightController {
 
   const ControllerStatus& status() const { return status_; }
   const ControlConfig& config() const { return config_; }
+  const FlightEnvelope& envelope() const { return envelope_; }
 
  private:
   bool has_fresh_pose(std::int64_t now_us) const;
@@ -111,8 +120,12 @@ class FlightController {
   /// Roll/pitch/yaw/throttle from the PIDs, run once per pose sample (see the .cpp).
   StickCommand position_control(const PoseSample& sample, double height_setpoint_m);
   double unwrap_yaw(double yaw_deg);
+  /// Writes the setpoint's position through the envelope; false (setpoint unchanged) when refused.
+  /// `clamped` (optional) tells whether it was moved in.
+  bool set_setpoint_position(double x_m, double y_m, double z_m, SetpointKind kind, bool* clamped = nullptr);
 
   ControlConfig config_;
+  FlightEnvelope envelope_;
   Pid roll_;
   Pid pitch_;
   Pid yaw_;
