@@ -120,19 +120,48 @@ def build_parser() -> argparse.ArgumentParser:
                      help="rates listed in the Table 3.4 dataset tables (default %(default)s)")
     add_reference(rep)
 
-    gd = sub.add_parser("guide", help="predict frame-to-frame error at candidate frame rates")
+    gd = sub.add_parser(
+        "guide", help="predict frame-to-frame error at candidate frame rates",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="For a platform moving at --trans-vel and --rot-vel, the per-frame motion at "
+                    "30/k fps (k = 1..8) and the error measured for that motion: a cell of the "
+                    "study's grid, its pairs per sequence, mean with a 95 %% confidence interval "
+                    "and 90th percentile. Motion beyond what was measured, or a cell with < 5 "
+                    "pairs, gets no prediction. Reads the table shipped in the repository "
+                    "(offboard/python/slam_study/data/guide_pairs.csv, made by `make study`) "
+                    "unless --report names a sweep's report folder.",
+        epilog="examples:\n"
+               "  slam-study guide --trans-vel 0.25 --rot-vel 20 --target-rpe-mm 8\n"
+               "      thesis-typical hand-held motion (fr1/desk: 0.41 m/s, 23 deg/s): per rate the\n"
+               "      cell, n per sequence, mean [95 % CI], p90, and the lowest rate whose CI\n"
+               "      stays within 8 mm per frame\n"
+               "  slam-study guide --trans-vel 0.1 --rot-vel 3 --source sift-vo\n"
+               "  slam-study guide --trans-vel 0.3 --rot-vel 15 --report build/study\n"
+               "      from your own sweep (slam-study run ... --out build/study)")
     gd.add_argument("--trans-vel", type=_non_negative, required=True, metavar="M_PER_S",
                     help="platform translational speed, m/s")
     gd.add_argument("--rot-vel", type=_non_negative, required=True, metavar="DEG_PER_S",
                     help="platform rotational speed, deg/s")
     gd.add_argument("--target-rpe-mm", type=_positive, metavar="X",
                     help="translational error per frame the platform can accept, mm: prints the "
-                         "lowest candidate frame rate predicted to meet it")
-    gd.add_argument("--report", type=Path, default=kRepoRoot / "build" / "study",
-                    metavar="REPORT_DIR", help="report folder holding pairs.csv (default "
-                                               "<repo>/build/study, where `make study` writes)")
-    gd.add_argument("--source", help="which source's pairs to use, as named in pairs.csv (default: the one "
-                         "with the most pairs)")
+                         "lowest candidate frame rate whose 95 %% interval stays within it")
+    gd.add_argument("--report", type=Path, metavar="REPORT_DIR",
+                    help="use REPORT_DIR/pairs.csv from a sweep instead of the shipped table")
+    gd.add_argument("--table", type=Path, default=None, metavar="CSV",
+                    help="shipped-table file (default offboard/python/slam_study/data/"
+                         "guide_pairs.csv)")
+    gd.add_argument("--source", help="which source's pairs to use (default: the one with the most "
+                                     "pairs; shipped: sift-vo, surf-vo, orb-vo)")
+
+    tb = sub.add_parser("table", help="write the guide's shipped table from a sweep, or --check it")
+    tb.add_argument("--report", type=Path, metavar="REPORT_DIR",
+                    help="sweep folder (REPORT_DIR/runs) to build the table from")
+    tb.add_argument("--out", type=Path, default=None, metavar="CSV",
+                    help="table file (default: the shipped one)")
+    tb.add_argument("--check", action="store_true",
+                    help="exit 1 if the table is stale: rows edited, engine or study code changed "
+                         "since it was measured, or its ground-truth motion disagrees with the TUM "
+                         "excerpts in tests/data")
     return parser
 
 
@@ -150,10 +179,21 @@ def main(argv: list[str] | None = None) -> int:
             path = report.build(args.out, [tuple(r) for r in args.reference], args.k, warn)
             print(f"report: {path}")
             return 0
+        if args.command == "table":
+            return _table(args, warn)
         return _guide(args)
     except (ValueError, OSError) as err:  # TumFormatError is a ValueError
         warn(f"error: {err}")
         return 2
+
+
+def _engine_sha256(slam_eval: str) -> str:
+    """The engine sources' sha256 when slam-eval is built in this repository (recorded per run, so
+    a changed engine is re-measured); "" (not tracked) for a binary from elsewhere."""
+    from slam_study import shipped
+
+    resolved = Path(shutil.which(slam_eval) or slam_eval).resolve()
+    return shipped.engine_sources_sha256() if resolved.is_relative_to(kRepoRoot) else ""
 
 
 def _run(args, warn) -> int:
@@ -174,7 +214,7 @@ def _run(args, warn) -> int:
     for d in datasets:
         tum.Dataset.load(d)  # fail early, with the file and line, on a malformed dataset
     jobs = sweep.make_jobs(datasets, args.features, args.backends, args.k, args.mode,
-                           tuple(shlex.split(args.slam_eval_args)))
+                           tuple(shlex.split(args.slam_eval_args)), _engine_sha256(slam_eval))
     todo = [j for j in jobs if not sweep.is_finished(j, args.out, args.retry_failed)]
     todo = sweep.longest_first(todo, {str(d.resolve()): tum.Dataset.load(d).rgb_stamps_s.size
                                       for d in datasets})
@@ -207,15 +247,55 @@ def _run(args, warn) -> int:
 
 
 def _guide(args) -> int:
-    from slam_study import guide, report
+    from slam_study import guide, report, shipped
 
-    pairs_csv = args.report / "pairs.csv"
-    if not pairs_csv.is_file():
-        print(f"slam-study: error: {pairs_csv} not found: run `slam-study run` or `slam-study "
-              "report` first, or pass --report", file=sys.stderr)
-        return 2
-    pairs, source, _ = report.read_pairs_csv(pairs_csv, args.source)
-    preds = guide.predict(pairs, args.trans_vel, args.rot_vel)
+    if args.report is not None:
+        pairs_csv = args.report / "pairs.csv"
+        if not pairs_csv.is_file():
+            print(f"slam-study: error: {pairs_csv} not found: run `slam-study run` or "
+                  "`slam-study report` first, or leave out --report for the shipped table",
+                  file=sys.stderr)
+            return 2
+        pairs, source, _ = report.read_pairs_csv(pairs_csv, args.source)
+        datasets = report.read_pairs_datasets(pairs_csv, source)
+        provenance = f"sweep {args.report}"
+    else:
+        path = args.table or shipped.kTablePath
+        table = shipped.read(path)
+        source = args.source or table.default_source()
+        pairs, datasets, _ = table.pairs(source)
+        try:
+            shown = path.resolve().relative_to(kRepoRoot)
+        except ValueError:
+            shown = path
+        provenance = f"{table.describe()} (table {shown})"
+        source = f"slam-eval {source}"
+    preds = guide.predict(pairs, args.trans_vel, args.rot_vel, datasets=datasets)
     sys.stdout.write(guide.guide_text(preds, args.trans_vel, args.rot_vel, args.target_rpe_mm,
-                                      source))
+                                      source, pairs, provenance))
+    return 0
+
+
+def _table(args, warn) -> int:
+    from slam_study import shipped
+
+    out = args.out or shipped.kTablePath
+    if args.check:
+        excerpts = {name: kRepoRoot / rel for name, rel in shipped.kRepoExcerpts.items()}
+        problems, checked = shipped.check(shipped.read(out), excerpts)
+        for line in checked:
+            print(f"checked: {line}")
+        if problems:
+            for line in problems:
+                warn(f"stale: {line}")
+            warn(f"{out} is stale: {shipped.regenerate_hint()}")
+            return 1
+        print(f"{out}: up to date")
+        return 0
+    if args.report is None:
+        warn("error: --report REPORT_DIR (a sweep folder) or --check is needed")
+        return 2
+    table = shipped.write(args.report, out, warn)
+    print(f"guide table: {out} ({len(table.rows)} pairs, sources {', '.join(table.sources())}, "
+          f"datasets {', '.join(table.datasets)})")
     return 0

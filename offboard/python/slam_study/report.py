@@ -370,6 +370,12 @@ def read_pairs_csv(path: str | Path,
     return pairs, source, names
 
 
+def read_pairs_datasets(path: str | Path, source: str) -> np.ndarray:
+    """The dataset name of each pair of `source` in pairs.csv, in read_pairs_csv's order."""
+    with Path(path).open(newline="") as fh:
+        return np.array([r["dataset"] for r in csv.DictReader(fh) if r["source"] == source])
+
+
 def default_source(rows: list[dict]) -> str:
     """The slam-eval source with the most pairs (its runs cover the reduced frame rates), else the
     source with the most pairs; ties by name."""

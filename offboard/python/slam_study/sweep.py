@@ -2,7 +2,8 @@
 
 Runs in parallel on local cores (threads, each waiting on one slam-eval process) or on an existing
 Ray cluster. Resumable: a run whose `result.json` exists is not redone (failed runs too, unless
-retry_failed). Layout under the report folder:
+retry_failed) - unless it was made with other engine sources than the job's (each job carries the
+sha256 of the engine's sources, shipped.engine_sources_sha256, and its result.json records it). Layout under the report folder:
     runs/<dataset>/<features>-<backend>-k<k>/{trajectory.tum, metrics.json, result.json, stderr.txt}
 Time is passed in (`clock_s`), for the progress line and the recorded wall time only.
 """
@@ -36,6 +37,7 @@ class Job:
     k: int
     mode: str = "wait"
     extra_args: tuple[str, ...] = ()   # passed to slam-eval after the standard options
+    engine_sources_sha256: str = ""    # of the tree slam-eval was built from ("" = not tracked)
 
     @property
     def name(self) -> str:
@@ -46,11 +48,12 @@ class Job:
 
 
 def make_jobs(datasets: list[Path], features: list[str], backends: list[str], ks: list[int],
-              mode: str = "wait", extra_args: tuple[str, ...] = ()) -> list[Job]:
+              mode: str = "wait", extra_args: tuple[str, ...] = (),
+              engine_sources_sha256: str = "") -> list[Job]:
     names = [d.name for d in datasets]
     if len(set(names)) != len(names):
         raise ValueError(f"dataset folder names must be unique (they name the run folders): {names}")
-    return [Job(str(d.resolve()), f, b, k, mode, tuple(extra_args))
+    return [Job(str(d.resolve()), f, b, k, mode, tuple(extra_args), engine_sources_sha256)
             for d in datasets for f in features for b in backends for k in ks]
 
 
@@ -73,9 +76,13 @@ def is_finished(job: Job, out: Path, retry_failed: bool) -> bool:
     if not result.is_file():
         return False
     try:
-        status = json.loads(result.read_text()).get("status")
+        meta = json.loads(result.read_text())
     except (OSError, ValueError):
         return False
+    recorded_engine = meta.get("job", {}).get("engine_sources_sha256", "")
+    if job.engine_sources_sha256 and recorded_engine != job.engine_sources_sha256:
+        return False  # measured with other engine sources: stale
+    status = meta.get("status")
     return status == "ok" or (status == "failed" and not retry_failed)
 
 

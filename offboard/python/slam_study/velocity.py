@@ -41,13 +41,15 @@ class RateStats:
     window_s: float
 
 
-def windowed_velocity(gt: Trajectory, start_s: float, end_s: float,
-                      window_s: float = kVelocityWindowS) -> tuple[float, float, float]:
-    """(m/s, deg/s, window used): mean motion over `window` seconds of the ground truth inside
-    [start_s, end_s], per second. The window shrinks to the span when the span is shorter."""
+def window_velocities(gt: Trajectory, start_s: float, end_s: float,
+                      window_s: float = kVelocityWindowS
+                      ) -> tuple[np.ndarray, np.ndarray, float]:
+    """(m/s per window, deg/s per window, window used): the motion over the `window` seconds that
+    follow each ground-truth sample inside [start_s, end_s], per second. The window shrinks to the
+    span when the span is shorter; empty arrays with fewer than 2 samples."""
     inside = np.where((gt.stamps_s >= start_s) & (gt.stamps_s <= end_s))[0]
     if inside.size < 2:
-        return float("nan"), float("nan"), 0.0
+        return np.zeros(0), np.zeros(0), 0.0
     stamps = gt.stamps_s[inside]
     window = min(window_s, float(stamps[-1] - stamps[0]))
     j = np.searchsorted(stamps, stamps + window - 1e-9)
@@ -55,8 +57,18 @@ def windowed_velocity(gt: Trajectory, start_s: float, end_s: float,
     i, j = np.where(valid)[0], j[valid]
     rel = se3.relative(gt.poses[inside[i]], gt.poses[inside[j]])
     dt = stamps[j] - stamps[i]
-    return (float(np.mean(np.linalg.norm(rel[:, :3, 3], axis=1) / dt)),
-            float(np.mean(se3.rotation_angle_deg(rel[:, :3, :3]) / dt)), window)
+    return (np.linalg.norm(rel[:, :3, 3], axis=1) / dt,
+            se3.rotation_angle_deg(rel[:, :3, :3]) / dt, window)
+
+
+def windowed_velocity(gt: Trajectory, start_s: float, end_s: float,
+                      window_s: float = kVelocityWindowS) -> tuple[float, float, float]:
+    """(m/s, deg/s, window used): mean motion over `window` seconds of the ground truth inside
+    [start_s, end_s], per second. The window shrinks to the span when the span is shorter."""
+    v, w, window = window_velocities(gt, start_s, end_s, window_s)
+    if v.size == 0:
+        return float("nan"), float("nan"), window
+    return float(np.mean(v)), float(np.mean(w)), window
 
 
 def rate_stats(dataset: Dataset, k: int) -> RateStats | None:

@@ -23,7 +23,7 @@ def test_prediction_uses_the_cell_of_the_per_frame_motion():
     preds = guide.predict(_dense_pairs(), 0.27, 15.0, fps_list=(30.0, 15.0, 16.0, 54.0, 2.0))
     at30, at15, at16, at54, at2 = preds
     assert at30.enough and at30.cell.trans_mean_mm == pytest.approx(3.0)
-    assert at15.cell.n == 0 and not at15.enough            # 18 mm: a cell with no pairs
+    assert at15.cell is None and not at15.enough           # 18 mm: above the 17 mm measured
     assert at2.cell is None                                # 135 mm is beyond the grid
     assert at16.enough and at16.cell.trans_mean_mm == pytest.approx(9.0)
     assert at54.cell.n == 2 and not at54.enough             # thin cell: not enough data
@@ -55,7 +55,8 @@ def test_guide_cli_reads_pairs_csv(tmp_path, capsys):
                      "--report", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "Lowest frame rate meeting 5 mm per frame: 30.00 fps" in out
-    assert "not enough data" in out                    # lower candidate rates are beyond the grid
+    assert "outside the measured motion: no prediction" in out   # 2 fps: 135 mm per frame
+    assert "outside what was measured at 15.00, 10.00" in out
     assert cli.main(["guide", "--trans-vel", "0.27", "--rot-vel", "15",
                      "--report", str(tmp_path / "none")]) == 2
     with pytest.raises(SystemExit):
