@@ -1,0 +1,82 @@
+"""`make demo`'s verdict (hilrig.verdict): every target passes or misses with a reason, session
+resets are counted from what the processes logged and reported, a rig that fell behind says so."""
+
+from hilrig.verdict import judge, session_resets
+
+GOOD = {
+    "hold": {"max_m": 0.12, "max_horizontal_m": 0.11, "max_vertical_m": 0.02},
+    "waypoints": [{"max_m": 0.05}, {"max_m": 0.14}],
+    "landing": {"touchdown_vertical_speed_mps": 0.29},
+    "ate": {"ate_rmse_m": 0.012, "ate_max_m": 0.03},
+    "stream": {"received_fps": 29.5, "kinect": {"submitted": 1000, "delivered": 980, "superseded": 20,
+                                                "render_ms_median": 14.0}},
+    "realtime_factor": 0.99,
+}
+SERVER_LOG_ONE_SESSION = (
+    "slam-server: client #1 connected from 127.0.0.1:5555\n"
+    "slam-server: session 00000000000000ab started (a new map)\n"
+)
+QC_LOG_ONE_SESSION = "quad-control: SLAM link: connected to slam-server at x: session 00000000000000ab started (a new map)\n"
+
+
+def by_target(checks):
+    return {c.target: c for c in checks}
+
+
+def test_given_a_good_flight_when_judged_then_every_target_passes():
+    resets = session_resets(SERVER_LOG_ONE_SESSION, QC_LOG_ONE_SESSION, {"slam": {"sessions_started": 1}})
+    assert resets["resets"] == 0
+    checks = judge(GOOD, resets, 30.0)
+    assert all(c.passed for c in checks), [c.line() for c in checks if not c.passed]
+    assert set(by_target(checks)) == {"rig real-time", "hold", "waypoint 1", "waypoint 2", "touchdown",
+                                      "SLAM ATE", "SLAM session resets"}
+
+
+def test_given_misses_when_judged_then_each_says_which_and_why():
+    bad = dict(GOOD, hold={"max_m": 0.2, "max_horizontal_m": 0.2, "max_vertical_m": 0.01},
+               ate={"ate_rmse_m": 0.0792, "ate_max_m": 0.2}, landing={"touchdown_vertical_speed_mps": 0.6})
+    checks = by_target(judge(bad, {"resets": 0}, 30.0))
+    assert not checks["hold"].passed and "0.200 m from its hold point" in checks["hold"].why
+    assert not checks["SLAM ATE"].passed and "79.2 mm" in checks["SLAM ATE"].why
+    assert not checks["touchdown"].passed and "0.60 m/s" in checks["touchdown"].why
+    assert checks["waypoint 2"].passed
+
+
+def test_given_resets_in_the_old_log_format_then_they_are_counted():
+    qc_log = "\n".join(["quad-control: SLAM link: receive: End of file; reconnecting (a new SLAM session)"] * 3)
+    server_log = "slam-server: client connected\n" * 4
+    resets = session_resets(server_log, qc_log, None)
+    assert resets["resets"] == 3
+    check = by_target(judge(GOOD, resets, 30.0))["SLAM session resets"]
+    assert not check.passed and "3 new map(s)" in check.why
+
+
+def test_given_resumed_link_breaks_then_no_reset_is_counted():
+    server_log = SERVER_LOG_ONE_SESSION + (
+        "slam-server: client #1 (127.0.0.1:5555) closed: peer closed the connection (end of file); 10 frames\n"
+        "slam-server: session 00000000000000ab resumed (map and world frame kept, 10 frames, parked 3 ms)\n")
+    qc_log = QC_LOG_ONE_SESSION + (
+        "quad-control: SLAM link: disconnected: no PoseUpdate for frame 9 within 5000 ms; reconnecting with session ab\n"
+        "quad-control: SLAM link: connected to x: session 00000000000000ab resumed (map and world frame kept, 10 frames)\n")
+    resets = session_resets(server_log, qc_log, {"slam": {"sessions_started": 1}})
+    assert resets["resets"] == 0 and resets["link_breaks"] == 1 and resets["resumes"] == 1
+
+
+def test_given_no_observation_then_resets_miss():
+    check = by_target(judge(GOOD, session_resets(None, None, None), 30.0))["SLAM session resets"]
+    assert not check.passed and "no log or state" in check.why
+
+
+def test_given_an_overloaded_rig_then_it_says_so():
+    slow = dict(GOOD, stream={"received_fps": 14, "kinect": {"submitted": 1000, "delivered": 500,
+                                                             "superseded": 500, "render_ms_median": 45}})
+    check = by_target(judge(slow, {"resets": 0}, 30.0))["rig real-time"]
+    assert not check.passed and "rig overloaded" in check.why and "500 superseded" in check.why
+
+
+def test_given_an_aborted_flight_then_unmeasured_targets_miss():
+    aborted = {"aborted": "arrival at (1.0, 0.0): not within 60 s", "ate": {"error": "only 2 tracked frames"}}
+    checks = by_target(judge(aborted, {"resets": 0}, 30.0))
+    assert not checks["flight completed"].passed
+    assert not checks["hold"].passed and not checks["waypoint 1"].passed and not checks["touchdown"].passed
+    assert "only 2 tracked frames" in checks["SLAM ATE"].why
