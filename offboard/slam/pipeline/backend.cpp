@@ -10,7 +10,8 @@ bool parse_backend_kind(const std::string& name, BackendKind* out, std::string* 
   if (name == "vo") { *out = BackendKind::kVo; return true; }
   if (name == "llc") { *out = BackendKind::kLlc; return true; }
   if (name == "glc") { *out = BackendKind::kGlc; return true; }
-  if (error) *error = "unknown backend '" + name + "' (expected vo, llc or glc)";
+  if (name == "localmap") { *out = BackendKind::kLocalMap; return true; }
+  if (error) *error = "unknown backend '" + name + "' (expected localmap, vo, llc or glc)";
   return false;
 }
 
@@ -19,6 +20,7 @@ const char* to_string(BackendKind k) {
     case BackendKind::kVo: return "vo";
     case BackendKind::kLlc: return "llc";
     case BackendKind::kGlc: return "glc";
+    case BackendKind::kLocalMap: return "localmap";
   }
   return "?";
 }

@@ -27,7 +27,9 @@
 
 namespace slam {
 
-enum class BackendKind { kVo, kLlc, kGlc };
+/// kVo/kLlc/kGlc: the thesis back-ends (frame-to-frame front-end). kLocalMap: tracking against a
+/// local map with local mapping (`slam/localmap/`), the system that flies.
+enum class BackendKind { kVo, kLlc, kGlc, kLocalMap };
 bool parse_backend_kind(const std::string& name, BackendKind* out, std::string* error);
 const char* to_string(BackendKind kind);
 

@@ -16,6 +16,34 @@ void put_f32(std::vector<char>* buf, float v) {
   std::memcpy(&u, &v, 4);
   for (int i = 0; i < 4; ++i) buf->push_back(static_cast<char>((u >> (8 * i)) & 0xFF));
 }
+
+void put_point(std::vector<char>* buf, const Eigen::Vector3d& p, const cv::Vec3b& bgr) {
+  put_f32(buf, static_cast<float>(p.x()));
+  put_f32(buf, static_cast<float>(p.y()));
+  put_f32(buf, static_cast<float>(p.z()));
+  buf->push_back(static_cast<char>(bgr[2]));
+  buf->push_back(static_cast<char>(bgr[1]));
+  buf->push_back(static_cast<char>(bgr[0]));
+}
+
+/// Binary little-endian PLY with x y z (float) and red green blue (uchar) per vertex.
+long write_ply(const std::string& path, const std::vector<char>& body, long count,
+               const std::string& comment, std::string* error) {
+  std::ofstream out(path, std::ios::binary);
+  if (!out) {
+    if (error) *error = "cannot write '" + path + "'";
+    return -1;
+  }
+  out << "ply\nformat binary_little_endian 1.0\ncomment " << comment << "\n"
+      << "element vertex " << count << "\nproperty float x\nproperty float y\nproperty float z\n"
+      << "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n";
+  out.write(body.data(), static_cast<std::streamsize>(body.size()));
+  if (!out) {
+    if (error) *error = "write failed for '" + path + "'";
+    return -1;
+  }
+  return count;
+}
 }  // namespace
 
 long write_keyframe_map_ply(const std::string& path, const BackEnd& backend, const Intrinsics& k,
@@ -35,31 +63,33 @@ long write_keyframe_map_ply(const std::string& path, const BackEnd& backend, con
         const double z = raw / k.depth_units_per_m;
         if (z > o.max_depth_m) continue;
         const Eigen::Vector3d p = T * back_project(k, u, v, z);
-        const cv::Vec3b c = rgb.at<cv::Vec3b>(v, u);
-        put_f32(&body, static_cast<float>(p.x()));
-        put_f32(&body, static_cast<float>(p.y()));
-        put_f32(&body, static_cast<float>(p.z()));
-        body.push_back(static_cast<char>(c[2]));
-        body.push_back(static_cast<char>(c[1]));
-        body.push_back(static_cast<char>(c[0]));
+        put_point(&body, p, rgb.at<cv::Vec3b>(v, u));
         ++count;
       }
     }
   }
-  std::ofstream out(path, std::ios::binary);
-  if (!out) {
-    if (error) *error = "cannot write '" + path + "'";
-    return -1;
+  return write_ply(path, body, count, "RGB-D SLAM keyframe map (world frame, m)", error);
+}
+
+long write_map_points_ply(const std::string& path, SharedMap& shared, std::string* error) {
+  std::vector<char> body;
+  long count = 0;
+  {
+    std::lock_guard<std::mutex> lock(shared.mutex);
+    for (const auto& [id, p] : shared.map.points()) {
+      cv::Vec3b c(128, 128, 128);
+      for (const auto& [kf_id, kp] : p.observations) {
+        const MapKeyframe* kf = shared.map.keyframe(kf_id);
+        if (kf && static_cast<std::size_t>(kp) < kf->features.features->colours_bgr.size()) {
+          c = kf->features.features->colours_bgr[static_cast<std::size_t>(kp)];
+          break;
+        }
+      }
+      put_point(&body, p.p_world_m, c);
+      ++count;
+    }
   }
-  out << "ply\nformat binary_little_endian 1.0\ncomment RGB-D SLAM keyframe map (world frame, m)\n"
-      << "element vertex " << count << "\nproperty float x\nproperty float y\nproperty float z\n"
-      << "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n";
-  out.write(body.data(), static_cast<std::streamsize>(body.size()));
-  if (!out) {
-    if (error) *error = "write failed for '" + path + "'";
-    return -1;
-  }
-  return count;
+  return write_ply(path, body, count, "RGB-D SLAM local-map points (world frame, m)", error);
 }
 
 bool write_text_file(const std::string& path, const std::string& text, std::string* error) {

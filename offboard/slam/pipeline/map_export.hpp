@@ -5,6 +5,7 @@
 #include <string>
 
 #include "slam/core/types.hpp"
+#include "slam/localmap/tracker.hpp"
 #include "slam/pipeline/backend.hpp"
 
 namespace slam {
@@ -20,6 +21,10 @@ struct MapExportOptions {
 long write_keyframe_map_ply(const std::string& path, const BackEnd& backend,
                             const Intrinsics& intrinsics, const MapExportOptions& options,
                             std::string* error);
+
+/// Writes the local map's points (world frame), coloured from the keypoint of their first living
+/// observation. Locks `map.mutex`. Returns the point count, or -1 with `error` on I/O failure.
+long write_map_points_ply(const std::string& path, SharedMap& map, std::string* error);
 
 /// Writes `text` to `path`; false with `error` on failure.
 bool write_text_file(const std::string& path, const std::string& text, std::string* error);

@@ -27,7 +27,9 @@ const char* to_string(PipelineMode m) {
 }
 
 bool PipelineOptions::is_valid(std::string* error) const {
-  return frontend.is_valid(error) && backend.is_valid(error);
+  if (!frontend.is_valid(error) || !backend.is_valid(error)) return false;
+  if (backend.kind == BackendKind::kLocalMap) return tracker.is_valid(error) && mapper.is_valid(error);
+  return true;
 }
 
 std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intrinsics& k,
@@ -44,9 +46,25 @@ std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intri
   auto be = BackEnd::create(opts.backend, error);
   if (!be) return nullptr;
   std::unique_ptr<Pipeline> p(new Pipeline(opts, std::move(*fe), std::move(*be)));
+  const bool local_map = o.backend.kind == BackendKind::kLocalMap;
+  if (local_map) {
+    // Relocalisation matches descriptors and runs RANSAC with the front-end's (thesis) settings.
+    TrackerOptions to = opts.tracker;
+    to.matching = opts.frontend.matching;
+    to.ransac = opts.frontend.ransac;
+    CameraModel cam = CameraModel::from(k);
+    p->extractor_ = FeatureExtractor::create(opts.frontend.features, k, error);
+    if (!p->extractor_) return nullptr;
+    p->map_ = std::make_shared<SharedMap>();
+    p->tracker_ = Tracker::create(to, cam, p->map_, error);
+    if (!p->tracker_) return nullptr;
+    p->mapper_ = LocalMapper::create(opts.mapper, cam, p->map_, error);
+    if (!p->mapper_) return nullptr;
+  }
   if (o.mode != PipelineMode::kSequential) {
     p->frontend_thread_ = std::thread([q = p.get()] { q->frontend_loop(); });
-    p->backend_thread_ = std::thread([q = p.get()] { q->backend_loop(); });
+    if (local_map) p->backend_thread_ = std::thread([q = p.get()] { q->mapper_loop(); });
+    else p->backend_thread_ = std::thread([q = p.get()] { q->backend_loop(); });
   }
   return p;
 }
@@ -89,14 +107,22 @@ void Pipeline::finish() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     handover_closed_ = true;
+    keyframes_closed_ = true;
   }
   cv_.notify_all();
   if (backend_thread_.joinable()) backend_thread_.join();
   std::sort(records_.begin(), records_.end(),
             [](const FrameRecord& a, const FrameRecord& b) { return a.index < b.index; });
-  summary_.keyframes = backend_->keyframes().size();
-  summary_.loop_closures = backend_->loop_closures();
-  summary_.optimisations = backend_->optimisations();
+  if (is_local_map()) {
+    std::lock_guard<std::mutex> lock(map_->mutex);
+    summary_.keyframes = map_->map.keyframes().size();
+    summary_.map_points = map_->map.points().size();
+    summary_.keyframes_culled = map_->map.culled().size();
+  } else {
+    summary_.keyframes = backend_->keyframes().size();
+    summary_.loop_closures = backend_->loop_closures();
+    summary_.optimisations = backend_->optimisations();
+  }
   for (const auto& r : records_) if (!r.ok) ++summary_.frames_failed;
 }
 
@@ -139,6 +165,10 @@ void Pipeline::backend_loop() {
 }
 
 void Pipeline::run_frontend(const RgbdFrame& frame) {
+  if (is_local_map()) {
+    run_tracker(frame);
+    return;
+  }
   std::string error;
   std::optional<FrontendOutput> out;
   try {
@@ -234,9 +264,128 @@ PipelineSummary Pipeline::summary() const {
   return summary_;
 }
 
+std::vector<MapperStats> Pipeline::mapper_stats() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return mapper_stats_;
+}
+
+void Pipeline::run_tracker(const RgbdFrame& frame) {
+  const std::int64_t t0 = steady_now_ns();
+  const std::int64_t c0 = thread_cpu_now_ns();
+  FrameRecord rec;
+  rec.index = frame.index;
+  rec.stamp_s = frame.stamp_s;
+  std::string error;
+  std::optional<FrameFeatures> feats;
+  try {
+    feats = extractor_->extract(frame, &error);
+  } catch (const std::exception& e) {  // nothing escapes a thread
+    error = std::string("features: exception: ") + e.what();
+  }
+  if (!feats) {
+    rec.ok = false;
+    rec.error = error;
+    std::lock_guard<std::mutex> lock(mutex_);
+    records_.push_back(rec);
+    return;
+  }
+  rec.features_ms = ms_since(t0);
+  rec.features = feats->points_cam_m.size();
+  bool keyframe_allowed = true;
+  if (options_.mode == PipelineMode::kRealtime) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    keyframe_allowed = keyframe_queue_.size() + (mapper_busy_ ? 1 : 0) < kMaxQueuedKeyframes;
+  }
+  TrackResult tr;
+  try {
+    tr = tracker_->track(frame, std::make_shared<const FrameFeatures>(std::move(*feats)),
+                         extractor_->options(), keyframe_allowed);
+  } catch (const std::exception& e) {
+    tr.state = TrackingState::kLost;
+    error = std::string("tracker: exception: ") + e.what();
+  }
+  rec.ok = true;
+  rec.error = error;
+  rec.state = tr.state;
+  rec.backend_processed = tr.state == TrackingState::kTracking;
+  rec.keyframe = tr.keyframe;
+  rec.reference_keyframe = tr.reference_keyframe;
+  rec.T_world_cam = tr.T_world_cam;
+  rec.T_kf_cam = tr.T_kf_cam;
+  rec.matches = tr.matches;
+  rec.inliers = tr.inliers;
+  rec.matching_ms = tr.local_map_ms + tr.search_ms;
+  rec.ransac_ms = tr.relocalise_ms;
+  rec.frontend_ms = ms_since(t0);
+  rec.frontend_cpu_ms = (thread_cpu_now_ns() - c0) * 1e-6;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (tr.relocalised) ++summary_.relocalisations;
+    if (tr.state == TrackingState::kLost) ++summary_.frames_lost;
+    records_.push_back(rec);
+  }
+  if (!tr.keyframe) return;
+  if (options_.mode == PipelineMode::kSequential) {
+    const MapperStats st = mapper_->process(frame.index);
+    std::lock_guard<std::mutex> lock(mutex_);
+    mapper_stats_.push_back(st);
+    return;
+  }
+  std::unique_lock<std::mutex> lock(mutex_);
+  keyframe_queue_.push_back(frame.index);
+  cv_.notify_all();
+  if (options_.mode == PipelineMode::kWait)
+    cv_.wait(lock, [&] { return keyframe_queue_.empty() && !mapper_busy_; });
+}
+
+void Pipeline::mapper_loop() {
+  if (options_.mode == PipelineMode::kRealtime) {
+    // Mapping is off the camera-to-command path: it yields the CPU to tracking.
+    constexpr int kMapperNiceRealtime = 10;
+    if (setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), kMapperNiceRealtime) != 0) {
+      // Not fatal: without it mapping competes for the CPU as an equal.
+    }
+  }
+  for (;;) {
+    std::int64_t kf;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait(lock, [&] { return !keyframe_queue_.empty() || keyframes_closed_; });
+      if (keyframe_queue_.empty()) return;
+      kf = keyframe_queue_.front();
+      keyframe_queue_.pop_front();
+      mapper_busy_ = true;
+    }
+    MapperStats st;
+    try {
+      st = mapper_->process(kf);
+    } catch (const std::exception&) {  // nothing escapes a thread; the keyframe stays as tracked
+      st.keyframe = kf;
+    }
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      mapper_stats_.push_back(st);
+      mapper_busy_ = false;
+    }
+    cv_.notify_all();
+  }
+}
+
 std::vector<std::pair<double, Eigen::Isometry3d>> Pipeline::final_trajectory() const {
   std::lock_guard<std::mutex> lock(mutex_);
   std::vector<std::pair<double, Eigen::Isometry3d>> out;
+  if (is_local_map()) {
+    // Each tracked frame re-anchored to the final pose of its reference keyframe.
+    std::lock_guard<std::mutex> map_lock(map_->mutex);
+    for (const auto& r : records_) {
+      if (!r.ok) continue;
+      const auto T_kf = r.reference_keyframe >= 0 ? map_->map.resolve_pose(r.reference_keyframe)
+                                                  : std::nullopt;
+      out.emplace_back(r.stamp_s, T_kf && r.state == TrackingState::kTracking ? *T_kf * r.T_kf_cam
+                                                                              : r.T_world_cam);
+    }
+    return out;
+  }
   for (const auto& r : records_) {
     if (!r.ok) continue;
     if (r.backend_processed && r.reference_keyframe >= 0 &&

@@ -11,6 +11,12 @@
 //    the latest front-end output and skips the rest (counted). Poses of skipped frames are the
 //    front-end's odometry mapped through the latest back-end correction.
 //
+// With BackendKind::kLocalMap the front-end thread runs feature extraction and the Tracker (pose
+// against the local map, the camera-to-command path) and the back-end thread runs the LocalMapper
+// on keyframes. wait: the tracker waits for each keyframe to be mapped (deterministic, equals
+// sequential); realtime: keyframes queue for the mapper (at most kMaxQueuedKeyframes, beyond which
+// the tracker defers its keyframe), tracking never waits for mapping.
+//
 // Thread safety: submit()/finish() from one producer thread; results after finish().
 #pragma once
 
@@ -24,6 +30,8 @@
 #include <thread>
 #include <vector>
 
+#include "slam/localmap/local_mapper.hpp"
+#include "slam/localmap/tracker.hpp"
 #include "slam/pipeline/backend.hpp"
 #include "slam/pipeline/frontend.hpp"
 
@@ -40,6 +48,8 @@ struct PipelineOptions {
   /// Refine every RANSAC estimate on the reprojection error (RansacOptions::reprojection_camera is
   /// filled from the intrinsics when true).
   bool reprojection_refine = true;
+  TrackerOptions tracker;          ///< BackendKind::kLocalMap only
+  LocalMapperOptions mapper;       ///< BackendKind::kLocalMap only
   bool is_valid(std::string* error) const;
 };
 
@@ -72,6 +82,11 @@ struct PipelineSummary {
   std::size_t keyframes = 0;
   std::size_t loop_closures = 0;
   std::size_t optimisations = 0;
+  // Local-map system only:
+  std::size_t map_points = 0;
+  std::size_t keyframes_culled = 0;
+  std::size_t relocalisations = 0;   ///< frames whose pose came from the keyframe database
+  std::size_t frames_lost = 0;
 };
 
 class Pipeline {
@@ -95,6 +110,12 @@ class Pipeline {
   /// Record of frame `index` as it stands now (sequential mode: final once submit() returned).
   std::optional<FrameRecord> record(std::int64_t index) const;
   const BackEnd& backend() const { return *backend_; }
+  /// Local-map system: the map (lock `mutex` to read while running), and per-keyframe mapping stats.
+  std::shared_ptr<SharedMap> local_map() const { return map_; }
+  std::vector<MapperStats> mapper_stats() const;
+  bool is_local_map() const { return options_.backend.kind == BackendKind::kLocalMap; }
+  /// Keyframes the mapper may have queued before the tracker defers new ones (realtime).
+  static constexpr std::size_t kMaxQueuedKeyframes = 2;
 
  private:
   Pipeline(PipelineOptions options, FrontEnd frontend, BackEnd backend);
@@ -102,6 +123,8 @@ class Pipeline {
   void backend_loop();
   void run_frontend(const RgbdFrame& frame);
   void run_backend(const FrontendOutput& out);
+  void run_tracker(const RgbdFrame& frame);
+  void mapper_loop();
 
   PipelineOptions options_;
   std::optional<FrontEnd> frontend_;
@@ -118,6 +141,15 @@ class Pipeline {
   // Latest back-end correction C = T_world_cam * T_odom_cam^-1 (used for skipped frames).
   Eigen::Isometry3d correction_ = Eigen::Isometry3d::Identity();
   PipelineSummary summary_;
+  // Local-map system (BackendKind::kLocalMap).
+  std::optional<FeatureExtractor> extractor_;
+  std::shared_ptr<SharedMap> map_;
+  std::optional<Tracker> tracker_;
+  std::optional<LocalMapper> mapper_;
+  std::deque<std::int64_t> keyframe_queue_;
+  bool mapper_busy_ = false;
+  bool keyframes_closed_ = false;
+  std::vector<MapperStats> mapper_stats_;
   std::thread frontend_thread_;
   std::thread backend_thread_;
 };

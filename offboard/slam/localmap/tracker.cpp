@@ -1,0 +1,418 @@
+// Tracking against the local map; see tracker.hpp.
+#include "slam/localmap/tracker.hpp"
+
+#include <algorithm>
+#include <numeric>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "slam/localmap/place_index.hpp"
+
+namespace slam {
+
+namespace {
+
+/// The motion T scaled to a fraction s of itself (rotation angle and translation scaled).
+Eigen::Isometry3d scale_motion(const Eigen::Isometry3d& T, double s) {
+  const Eigen::AngleAxisd aa(T.rotation());
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  out.linear() = Eigen::AngleAxisd(aa.angle() * s, aa.axis()).toRotationMatrix();
+  out.translation() = T.translation() * s;
+  return out;
+}
+
+}  // namespace
+
+bool TrackerOptions::is_valid(std::string* error) const {
+  auto fail = [&](const char* m) {
+    if (error) *error = std::string("tracker: ") + m;
+    return false;
+  };
+  if (!(search.radius_px > 0) || !(refine_radius_px > 0) || !(wide_radius_factor >= 1))
+    return fail("search radii must be positive");
+  if (!(search.ratio > 0 && search.ratio <= 1)) return fail("ratio must be in (0, 1]");
+  if (min_inliers_tracking < 6 || min_inliers_relocalised < min_inliers_tracking)
+    return fail("min_inliers_tracking must be >= 6 and <= min_inliers_relocalised");
+  if (max_local_keyframes < 1 || covisible_per_keyframe < 0) return fail("local map sizes must be positive");
+  if (!(keyframe_tracked_ratio > 0 && keyframe_tracked_ratio < 1)) return fail("keyframe_tracked_ratio must be in (0, 1)");
+  if (!(near_depth_m > 0)) return fail("near_depth_m must be positive");
+  if (pose.rounds < 1 || pose.iterations_per_round < 1) return fail("pose optimiser needs >= 1 round and iteration");
+  if (!(max_velocity_scale >= 1)) return fail("max_velocity_scale must be >= 1");
+  return matching.is_valid(error) && ransac.is_valid(error);
+}
+
+std::optional<Tracker> Tracker::create(const TrackerOptions& options, const CameraModel& camera,
+                                       std::shared_ptr<SharedMap> map, std::string* error) {
+  if (!options.is_valid(error)) return std::nullopt;
+  if (!map) {
+    if (error) *error = "tracker: no map";
+    return std::nullopt;
+  }
+  return Tracker(options, camera, std::move(map));
+}
+
+Tracker::LocalMap Tracker::build_local_map(const std::vector<std::int64_t>& seed_points,
+                                           std::int64_t fallback_kf) const {
+  LocalMap local;
+  const SlamMap& map = map_->map;
+  // Keyframes that see the seed points, by how many they see.
+  std::unordered_map<std::int64_t, int> votes;
+  for (std::int64_t pid : seed_points)
+    if (const MapPoint* p = map.point(pid))
+      for (const auto& [kf, kp] : p->observations) ++votes[kf];
+  std::vector<std::pair<int, std::int64_t>> ranked;
+  for (const auto& [kf, n] : votes) ranked.emplace_back(n, kf);
+  std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first > b.first : a.second > b.second;
+  });
+  std::unordered_set<std::int64_t> chosen;
+  const auto cap = static_cast<std::size_t>(options_.max_local_keyframes);
+  auto take = [&](std::int64_t kf) {
+    if (local.keyframes.size() >= cap || !map.has_keyframe(kf) || !chosen.insert(kf).second) return;
+    local.keyframes.push_back(kf);
+  };
+  if (ranked.empty() && fallback_kf >= 0) take(fallback_kf);
+  for (const auto& [n, kf] : ranked) take(kf);
+  // Neighbours of the best ones, while there is room.
+  const std::vector<std::int64_t> firsts = local.keyframes;
+  for (std::int64_t kf : firsts) {
+    if (local.keyframes.size() >= cap) break;
+    const auto cov = map.covisible(kf, 1);
+    for (std::size_t i = 0; i < cov.size() && static_cast<int>(i) < options_.covisible_per_keyframe; ++i)
+      take(cov[i].first);
+  }
+  std::unordered_set<std::int64_t> seen;
+  for (std::int64_t kf_id : local.keyframes) {
+    const MapKeyframe* kf = map.keyframe(kf_id);
+    for (std::int64_t pid : kf->point_ids) {
+      if (pid < 0 || !seen.insert(pid).second) continue;
+      const MapPoint* p = map.point(pid);
+      if (p) local.points.push_back(LocalPoint{pid, p->p_world_m, p->descriptor});
+    }
+  }
+  return local;
+}
+
+Tracker::Fit Tracker::fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
+                                    const Eigen::Isometry3d& T_guess, double first_radius_px) const {
+  Fit fit;
+  ProjectionSearchOptions so = options_.search;
+  so.radius_px = first_radius_px;
+  ProjectionMatches m = search_by_projection(local.points, T_guess, frame, camera_, so);
+  if (m.matches < options_.min_matches_first_pass) {
+    so.radius_px = first_radius_px * options_.wide_radius_factor;
+    m = search_by_projection(local.points, T_guess, frame, camera_, so);
+  }
+  if (m.matches < 6) return fit;
+  auto optimise = [&](const std::vector<int>& pok, std::vector<int>* kept) {
+    std::vector<PoseObservation> obs;
+    std::vector<int> kp_of_obs;
+    for (std::size_t k = 0; k < pok.size(); ++k) {
+      if (pok[k] < 0) continue;
+      obs.push_back(PoseObservation{local.points[static_cast<std::size_t>(pok[k])].p_world_m,
+                                    frame.measurement(k, camera_), frame.sigma_px[k]});
+      kp_of_obs.push_back(static_cast<int>(k));
+    }
+    const PoseOptimizerResult r = optimize_pose(T_guess, obs, camera_, options_.pose);
+    kept->assign(pok.size(), -1);
+    if (!r.ok) return r;
+    for (std::size_t i = 0; i < obs.size(); ++i)
+      if (r.inlier[i]) (*kept)[static_cast<std::size_t>(kp_of_obs[i])] = pok[static_cast<std::size_t>(kp_of_obs[i])];
+    return r;
+  };
+  std::vector<int> kept;
+  const PoseOptimizerResult first = optimise(m.point_of_keypoint, &kept);
+  if (!first.ok || first.inliers < 6) return fit;
+  // Second pass: keep the inliers, look for more points around the refined projections.
+  so.radius_px = options_.refine_radius_px;
+  const ProjectionMatches m2 =
+      search_by_projection(local.points, first.T_cam_world, frame, camera_, so, &kept);
+  std::vector<int> kept2;
+  std::vector<PoseObservation> unused;
+  PoseOptimizerResult second;
+  {
+    std::vector<PoseObservation> obs;
+    std::vector<int> kp_of_obs;
+    for (std::size_t k = 0; k < m2.point_of_keypoint.size(); ++k) {
+      if (m2.point_of_keypoint[k] < 0) continue;
+      obs.push_back(PoseObservation{local.points[static_cast<std::size_t>(m2.point_of_keypoint[k])].p_world_m,
+                                    frame.measurement(k, camera_), frame.sigma_px[k]});
+      kp_of_obs.push_back(static_cast<int>(k));
+    }
+    second = optimize_pose(first.T_cam_world, obs, camera_, options_.pose);
+    kept2.assign(m2.point_of_keypoint.size(), -1);
+    if (second.ok)
+      for (std::size_t i = 0; i < obs.size(); ++i)
+        if (second.inlier[i])
+          kept2[static_cast<std::size_t>(kp_of_obs[i])] = m2.point_of_keypoint[static_cast<std::size_t>(kp_of_obs[i])];
+  }
+  if (!second.ok) return fit;
+  fit.ok = true;
+  fit.T_cam_world = second.T_cam_world;
+  fit.point_of_keypoint = std::move(kept2);
+  fit.matches = static_cast<std::size_t>(m2.matches);
+  fit.inliers = static_cast<std::size_t>(second.inliers);
+  return fit;
+}
+
+std::optional<Eigen::Isometry3d> Tracker::pose_from_keyframes(const TrackedFeatures& frame,
+                                                              const std::vector<std::int64_t>& candidates,
+                                                              std::uint64_t seed) const {
+  std::optional<Eigen::Isometry3d> best;
+  std::size_t best_inliers = 0;
+  for (std::int64_t kf_id : candidates) {
+    std::vector<Eigen::Vector3d> world;
+    cv::Mat desc;
+    {
+      std::lock_guard<std::mutex> lock(map_->mutex);
+      const MapKeyframe* kf = map_->map.keyframe(kf_id);
+      if (!kf) continue;
+      std::vector<int> rows;
+      for (std::size_t k = 0; k < kf->point_ids.size(); ++k) {
+        const MapPoint* p = kf->point_ids[k] >= 0 ? map_->map.point(kf->point_ids[k]) : nullptr;
+        if (!p) continue;
+        world.push_back(p->p_world_m);
+        rows.push_back(static_cast<int>(k));
+      }
+      if (rows.size() < options_.ransac.min_pairs) continue;
+      const cv::Mat& all = kf->features.features->descriptors;
+      desc.create(static_cast<int>(rows.size()), all.cols, all.type());
+      for (std::size_t r = 0; r < rows.size(); ++r) all.row(rows[r]).copyTo(desc.row(static_cast<int>(r)));
+    }
+    const std::vector<Match> m = match_descriptors(frame.features->descriptors, desc, options_.matching);
+    if (m.size() < options_.ransac.min_pairs) continue;
+    std::vector<Eigen::Vector3d> src, dst;
+    std::vector<int> order(m.size());
+    for (const Match& x : m) {
+      src.push_back(frame.features->points_cam_m[static_cast<std::size_t>(x.query)]);
+      dst.push_back(world[static_cast<std::size_t>(x.train)]);
+    }
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+      return m[static_cast<std::size_t>(a)].distance < m[static_cast<std::size_t>(b)].distance;
+    });
+    auto est = estimate_motion_ransac(src, dst, order, options_.ransac, seed ^ static_cast<std::uint64_t>(kf_id), nullptr);
+    if (!est || est->inliers.size() < static_cast<std::size_t>(options_.min_matches_first_pass)) continue;
+    if (est->inliers.size() > best_inliers) {
+      best_inliers = est->inliers.size();
+      best = est->T_dst_src;  // T_world_cam
+    }
+  }
+  return best;
+}
+
+void Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf, const cv::Mat& thumbnail,
+                              const Eigen::Isometry3d& T_world_cam, const LocalMap& local,
+                              const std::vector<int>& point_of_keypoint) {
+  MapKeyframe kf;
+  kf.id = frame.index;
+  kf.stamp_s = frame.stamp_s;
+  kf.T_world_cam = T_world_cam;
+  kf.features = tf;
+  kf.thumbnail = thumbnail;
+  // Near features without a map point become points, nearest first; at least min_new_points.
+  std::vector<int> fresh;
+  for (std::size_t k = 0; k < tf.size(); ++k)
+    if (point_of_keypoint.empty() || point_of_keypoint[k] < 0) fresh.push_back(static_cast<int>(k));
+  std::stable_sort(fresh.begin(), fresh.end(), [&](int a, int b) {
+    return tf.depth_m[static_cast<std::size_t>(a)] < tf.depth_m[static_cast<std::size_t>(b)];
+  });
+  std::lock_guard<std::mutex> lock(map_->mutex);
+  SlamMap& map = map_->map;
+  map.add_keyframe(std::move(kf));
+  for (std::size_t k = 0; k < point_of_keypoint.size(); ++k) {
+    if (point_of_keypoint[k] < 0) continue;
+    const std::int64_t pid = local.points[static_cast<std::size_t>(point_of_keypoint[k])].id;
+    if (map.has_point(pid)) map.add_observation(pid, frame.index, static_cast<int>(k));
+  }
+  int created = 0;
+  for (int k : fresh) {
+    const auto ks = static_cast<std::size_t>(k);
+    if (tf.depth_m[ks] > options_.near_depth_m && created >= options_.min_new_points) break;
+    map.add_point(T_world_cam * tf.features->points_cam_m[ks], tf.features->descriptors.row(k),
+                  frame.index, k);
+    ++created;
+  }
+  reference_kf_ = frame.index;
+}
+
+TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFeatures> features,
+                           const FeatureOptions& feature_options, bool keyframe_allowed,
+                           const std::optional<Eigen::Quaterniond>& R_prior) {
+  TrackResult out;
+  const TrackedFeatures tf = TrackedFeatures::from(std::move(features), camera_, feature_options);
+  const cv::Mat thumbnail = make_thumbnail(frame.rgb);
+  const std::uint64_t seed = options_.ransac.max_iterations * 0x9E3779B97F4A7C15ull ^
+                             static_cast<std::uint64_t>(frame.index);
+
+  bool map_empty;
+  {
+    std::lock_guard<std::mutex> lock(map_->mutex);
+    map_empty = map_->map.keyframes().empty();
+  }
+  if (map_empty) {
+    out.state = TrackingState::kInitialising;
+    if (static_cast<int>(tf.size()) < options_.min_init_features) return out;
+    const Eigen::Isometry3d T_world_cam =
+        R_prior ? Eigen::Isometry3d(R_prior->normalized().toRotationMatrix()) : Eigen::Isometry3d::Identity();
+    insert_keyframe(frame, tf, thumbnail, T_world_cam, LocalMap{}, {});
+    state_ = TrackingState::kTracking;
+    T_world_last_ = T_world_cam;
+    last_stamp_s_ = frame.stamp_s;
+    have_velocity_ = false;
+    last_points_.clear();
+    out.state = TrackingState::kTracking;
+    out.T_world_cam = T_world_cam;
+    out.reference_keyframe = frame.index;
+    out.keyframe = true;
+    return out;
+  }
+
+  // 1. Prediction.
+  Eigen::Isometry3d T_world_pred = T_world_last_;
+  if (state_ == TrackingState::kTracking && have_velocity_ && last_interval_s_ > 0) {
+    const double s = std::clamp((frame.stamp_s - last_stamp_s_) / last_interval_s_, 0.0,
+                                options_.max_velocity_scale);
+    T_world_pred = T_world_last_ * scale_motion(T_last_cur_velocity_, s);
+  }
+  if (R_prior) T_world_pred.linear() = R_prior->normalized().toRotationMatrix();
+
+  // 2-3. Local map and projection tracking.
+  std::int64_t t0 = steady_now_ns();
+  LocalMap local;
+  {
+    std::lock_guard<std::mutex> lock(map_->mutex);
+    if (!map_->map.has_keyframe(reference_kf_) && !map_->map.keyframes().empty())
+      reference_kf_ = map_->map.keyframes().rbegin()->first;
+    local = build_local_map(last_points_, reference_kf_);
+  }
+  out.local_map_ms = ms_since(t0);
+  out.local_points = local.points.size();
+  t0 = steady_now_ns();
+  Fit fit;
+  if (state_ == TrackingState::kTracking)
+    fit = fit_local_map(local, tf, T_world_pred.inverse(), options_.search.radius_px);
+  out.search_ms = ms_since(t0);
+  int needed = options_.min_inliers_tracking;
+
+  // 4. Recovery from the keyframe database (lost, or the prediction found too little).
+  if (!fit.ok || static_cast<int>(fit.inliers) < options_.min_inliers_tracking) {
+    t0 = steady_now_ns();
+    std::vector<std::int64_t> candidates;
+    {
+      std::lock_guard<std::mutex> lock(map_->mutex);
+      candidates = rank_keyframes_by_appearance(map_->map, thumbnail, options_.relocalisation_candidates);
+      if (state_ == TrackingState::kTracking && map_->map.has_keyframe(reference_kf_) &&
+          std::find(candidates.begin(), candidates.end(), reference_kf_) == candidates.end())
+        candidates.insert(candidates.begin(), reference_kf_);
+    }
+    const auto guess = pose_from_keyframes(tf, candidates, seed);
+    if (guess) {
+      LocalMap around;
+      {
+        std::lock_guard<std::mutex> lock(map_->mutex);
+        // Local map around the best candidate keyframe.
+        around = build_local_map({}, candidates.front());
+      }
+      Fit refit = fit_local_map(around, tf, guess->inverse(), options_.search.radius_px);
+      if (refit.ok && refit.inliers > fit.inliers) {
+        fit = std::move(refit);
+        local = std::move(around);
+        out.local_points = local.points.size();
+        out.relocalised = true;
+        if (state_ != TrackingState::kTracking) needed = options_.min_inliers_relocalised;
+      }
+    }
+    out.relocalise_ms = ms_since(t0);
+  }
+
+  out.matches = fit.matches;
+  out.inliers = fit.inliers;
+  if (!fit.ok || static_cast<int>(fit.inliers) < needed || !fit.T_cam_world.matrix().allFinite()) {
+    // Lost: hold the last pose; the next frames go straight to relocalisation.
+    state_ = TrackingState::kLost;
+    have_velocity_ = false;
+    out.state = TrackingState::kLost;
+    out.T_world_cam = T_world_last_;
+    out.reference_keyframe = reference_kf_;
+    std::lock_guard<std::mutex> lock(map_->mutex);
+    if (auto T_kf = map_->map.resolve_pose(reference_kf_)) out.T_kf_cam = T_kf->inverse() * T_world_last_;
+    return out;
+  }
+
+  const Eigen::Isometry3d T_world_cam = fit.T_cam_world.inverse();
+  // Statistics, reference keyframe, keyframe decision.
+  std::vector<std::int64_t> matched_ids;
+  int near_tracked = 0, near_untracked = 0;
+  for (std::size_t k = 0; k < fit.point_of_keypoint.size(); ++k) {
+    const bool near = tf.depth_m[k] <= options_.near_depth_m;
+    if (fit.point_of_keypoint[k] >= 0) {
+      matched_ids.push_back(local.points[static_cast<std::size_t>(fit.point_of_keypoint[k])].id);
+      near_tracked += near ? 1 : 0;
+    } else {
+      near_untracked += near ? 1 : 0;
+    }
+  }
+  bool make_keyframe = false;
+  {
+    std::lock_guard<std::mutex> lock(map_->mutex);
+    SlamMap& map = map_->map;
+    // Visibility statistics at the refined pose (for the mapper's point culling).
+    for (const LocalPoint& lp : local.points) {
+      MapPoint* p = map.point(lp.id);
+      if (!p) continue;
+      const Eigen::Vector3d pc = fit.T_cam_world * lp.p_world_m;
+      if (pc.z() < options_.search.min_depth_m) continue;
+      const Eigen::Vector3d uvd = camera_.project(pc);
+      if (camera_.in_image(uvd.x(), uvd.y())) ++p->visible;
+    }
+    std::unordered_map<std::int64_t, int> votes;
+    for (std::int64_t pid : matched_ids) {
+      MapPoint* p = map.point(pid);
+      if (!p) continue;
+      ++p->found;
+      for (const auto& [kf, kp] : p->observations) ++votes[kf];
+    }
+    std::int64_t best_kf = reference_kf_;
+    int best_votes = -1;
+    for (const auto& [kf, n] : votes)
+      if (n > best_votes || (n == best_votes && kf > best_kf)) {
+        best_votes = n;
+        best_kf = kf;
+      }
+    if (map.has_keyframe(best_kf)) reference_kf_ = best_kf;
+    const int min_obs = map.keyframes().size() > 2 ? 3 : 2;  // ORB-SLAM2 nMinObs
+    const int ref_tracked = map.tracked_points(reference_kf_, min_obs);
+    const int tracked = static_cast<int>(fit.inliers);
+    const bool view_changed = tracked < options_.keyframe_tracked_ratio * ref_tracked;
+    const bool need_near = near_tracked < options_.near_tracked_min && near_untracked > options_.near_untracked_min;
+    make_keyframe = keyframe_allowed && (view_changed || need_near) && tracked > 15;
+    out.reference_keyframe = reference_kf_;
+    if (auto T_kf = map.resolve_pose(reference_kf_)) out.T_kf_cam = T_kf->inverse() * T_world_cam;
+  }
+  if (make_keyframe) {
+    insert_keyframe(frame, tf, thumbnail, T_world_cam, local, fit.point_of_keypoint);
+    out.keyframe = true;
+    out.reference_keyframe = frame.index;
+    out.T_kf_cam = Eigen::Isometry3d::Identity();
+  }
+
+  // Motion model over the last interval (not across a relocalisation).
+  const double dt = frame.stamp_s - last_stamp_s_;
+  if (state_ == TrackingState::kTracking && !out.relocalised && dt > 0) {
+    T_last_cur_velocity_ = T_world_last_.inverse() * T_world_cam;
+    last_interval_s_ = dt;
+    have_velocity_ = true;
+  } else {
+    have_velocity_ = false;
+  }
+  state_ = TrackingState::kTracking;
+  T_world_last_ = T_world_cam;
+  last_stamp_s_ = frame.stamp_s;
+  last_points_ = std::move(matched_ids);
+  out.state = TrackingState::kTracking;
+  out.T_world_cam = T_world_cam;
+  return out;
+}
+
+}  // namespace slam

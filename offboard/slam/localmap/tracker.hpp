@@ -1,0 +1,136 @@
+// Tracking against the local map (the only stage on the camera-to-command path). Per frame:
+//  1. predict the pose with a constant-velocity model scaled to the frame interval (a gap of
+//     dropped frames is extrapolated, not mistaken for a stop), optionally with a rotation prior
+//     (e.g. the craft's IMU attitude) replacing the predicted rotation;
+//  2. build the local map: the keyframes that observed the last frame's points (most first) and
+//     their covisible neighbours, bounded in count, and the points they see;
+//  3. match those points by projection (wide radius), optimise the pose, match again with a narrow
+//     radius around the refined projection, optimise again (motion-only, RGB-D residual);
+//  4. when projection finds too little (a long gap, fast rotation) or tracking was lost: recover the
+//     pose from descriptor matches against keyframes ranked by appearance (thumbnails) with 3D-3D
+//     RANSAC, then refine against the local map (relocalisation, same map and world frame);
+//  5. decide a keyframe by view change (tracked points fall below a fraction of the reference
+//     keyframe's, or too few near points are tracked), never by the clock; insert it and its new
+//     near points into the map for the mapper to refine.
+// Thresholds follow ORB-SLAM2's RGB-D tracking (cited per field).
+//
+// Thread safety: one Tracker per camera stream; it locks the shared map only for short copies and
+// insertions (`SharedMap::mutex`), never while extracting features or optimising.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "slam/features/features.hpp"
+#include "slam/localmap/map.hpp"
+#include "slam/localmap/pose_optimizer.hpp"
+#include "slam/localmap/projection_search.hpp"
+#include "slam/matching/matching.hpp"
+#include "slam/motion/motion.hpp"
+#include "slam/pipeline/frontend.hpp"
+
+namespace slam {
+
+/// The map with the mutex that guards it; shared by the tracker and the mapper.
+struct SharedMap {
+  std::mutex mutex;
+  SlamMap map;
+};
+
+struct TrackerOptions {
+  ProjectionSearchOptions search;              ///< first pass: radius 15 px (ORB-SLAM2 motion model)
+  double refine_radius_px = 3.0;               ///< second pass around the refined pose (ORB-SLAM2: 3 after relocalisation, 1 otherwise; 3 tolerates our coarser ORB levels)
+  double wide_radius_factor = 3.0;             ///< when the first pass finds too little (gaps)
+  PoseOptimizerOptions pose;
+  int min_matches_first_pass = 20;             ///< ORB-SLAM2 TrackWithMotionModel: < 20 -> wider search
+  int min_inliers_tracking = 30;               ///< ORB-SLAM2 TrackLocalMap: >= 30 inliers
+  int min_inliers_relocalised = 50;            ///< ORB-SLAM2 Relocalization / after it: >= 50
+  int max_local_keyframes = 30;                ///< bounds the per-frame cost (ORB-SLAM2: 80)
+  int covisible_per_keyframe = 10;             ///< ORB-SLAM2 UpdateLocalKeyFrames: best 10 neighbours
+  double keyframe_tracked_ratio = 0.75;        ///< ORB-SLAM2 RGB-D thRefRatio
+  double near_depth_m = 3.1;                   ///< ORB-SLAM2 ThDepth: 40 baselines of the Kinect (bf 40 / fx 517)
+  int near_tracked_min = 100;                  ///< ORB-SLAM2 bNeedToInsertClose: < 100 near tracked...
+  int near_untracked_min = 70;                 ///< ...and > 70 near untracked -> keyframe
+  int min_new_points = 100;                    ///< ORB-SLAM2 CreateNewKeyFrame: at least the 100 nearest
+  int min_init_features = 100;                 ///< a first keyframe needs this many features with depth
+  std::size_t relocalisation_candidates = 4;   ///< keyframes tried, by appearance
+  MatchOptions matching;                       ///< descriptor matching for relocalisation (thesis S-NNMMT)
+  RansacOptions ransac;                        ///< 3D-3D RANSAC for relocalisation (thesis values)
+  double max_velocity_scale = 5.0;             ///< a gap of more than 5 frame intervals is not extrapolated further
+  bool is_valid(std::string* error) const;
+};
+
+struct TrackResult {
+  TrackingState state = TrackingState::kInitialising;
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+  std::int64_t reference_keyframe = -1;
+  Eigen::Isometry3d T_kf_cam = Eigen::Isometry3d::Identity();
+  bool keyframe = false;          ///< this frame became a keyframe (id = frame index)
+  bool relocalised = false;       ///< the pose came from the keyframe database, not the prediction
+  std::size_t local_points = 0;   ///< points in the local map this frame was matched against
+  std::size_t matches = 0;        ///< projection matches before the final optimisation
+  std::size_t inliers = 0;
+  double local_map_ms = 0, search_ms = 0, optimise_ms = 0, relocalise_ms = 0;
+};
+
+class Tracker {
+ public:
+  static std::optional<Tracker> create(const TrackerOptions& options, const CameraModel& camera,
+                                       std::shared_ptr<SharedMap> map, std::string* error);
+
+  /// Tracks one frame whose features are extracted. `keyframe_allowed`: the mapper can take a
+  /// keyframe now (bounded queue). `R_world_cam_prior`: optional rotation prior.
+  TrackResult track(const RgbdFrame& frame, std::shared_ptr<const FrameFeatures> features,
+                    const FeatureOptions& feature_options, bool keyframe_allowed,
+                    const std::optional<Eigen::Quaterniond>& R_world_cam_prior = std::nullopt);
+
+  /// Forget the motion model and start from relocalisation (after a map load, or a reset).
+  void set_lost() { state_ = TrackingState::kLost; }
+  TrackingState state() const { return state_; }
+
+ private:
+  Tracker(TrackerOptions options, CameraModel camera, std::shared_ptr<SharedMap> map)
+      : options_(std::move(options)), camera_(camera), map_(std::move(map)) {}
+
+  struct LocalMap {
+    std::vector<LocalPoint> points;
+    std::vector<std::int64_t> keyframes;
+  };
+  /// Local keyframes and their points (locks the map). `seed_points`: points of the last frame.
+  LocalMap build_local_map(const std::vector<std::int64_t>& seed_points, std::int64_t fallback_kf) const;
+  struct Fit {
+    bool ok = false;
+    Eigen::Isometry3d T_cam_world = Eigen::Isometry3d::Identity();
+    std::vector<int> point_of_keypoint;  ///< inlier matches only
+    std::size_t matches = 0, inliers = 0;
+  };
+  /// Two-pass projection matching and pose optimisation from a pose guess.
+  Fit fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
+                    const Eigen::Isometry3d& T_cam_world_guess, double first_radius_px) const;
+  /// Pose from descriptor matches against the candidate keyframes' map points (3D-3D RANSAC).
+  std::optional<Eigen::Isometry3d> pose_from_keyframes(const TrackedFeatures& frame,
+                                                       const std::vector<std::int64_t>& candidates,
+                                                       std::uint64_t seed) const;
+  void insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf, const cv::Mat& thumbnail,
+                       const Eigen::Isometry3d& T_world_cam, const LocalMap& local,
+                       const std::vector<int>& point_of_keypoint);
+
+  TrackerOptions options_;
+  CameraModel camera_;
+  std::shared_ptr<SharedMap> map_;
+  TrackingState state_ = TrackingState::kInitialising;
+  Eigen::Isometry3d T_world_last_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_last_cur_velocity_ = Eigen::Isometry3d::Identity();  ///< motion over one interval
+  double last_stamp_s_ = 0, last_interval_s_ = 0;
+  bool have_velocity_ = false;
+  std::vector<std::int64_t> last_points_;  ///< map points matched in the last tracked frame
+  std::int64_t reference_kf_ = -1;
+};
+
+}  // namespace slam
