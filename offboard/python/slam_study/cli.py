@@ -158,6 +158,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="sweep folder (REPORT_DIR/runs) to build the table from")
     tb.add_argument("--out", type=Path, default=None, metavar="CSV",
                     help="table file (default: the shipped one)")
+    tb.add_argument("--engine-commit", metavar="SHA",
+                    help="commit to record for the engine (default: git HEAD, '+uncommitted' when "
+                         "the engine's sources differ from it); for a tree exported by git archive")
     tb.add_argument("--check", action="store_true",
                     help="exit 1 if the table is stale: rows edited, engine or study code changed "
                          "since it was measured, or its ground-truth motion disagrees with the TUM "
@@ -259,6 +262,7 @@ def _guide(args) -> int:
         pairs, source, _ = report.read_pairs_csv(pairs_csv, args.source)
         datasets = report.read_pairs_datasets(pairs_csv, source)
         provenance = f"sweep {args.report}"
+        recorded_speed = None
     else:
         path = args.table or shipped.kTablePath
         table = shipped.read(path)
@@ -268,11 +272,12 @@ def _guide(args) -> int:
             shown = path.resolve().relative_to(kRepoRoot)
         except ValueError:
             shown = path
-        provenance = f"{table.describe()} (table {shown})"
+        provenance = f"table {shown},\n      {table.describe()}"
+        recorded_speed = table.recorded_speed()
         source = f"slam-eval {source}"
     preds = guide.predict(pairs, args.trans_vel, args.rot_vel, datasets=datasets)
     sys.stdout.write(guide.guide_text(preds, args.trans_vel, args.rot_vel, args.target_rpe_mm,
-                                      source, pairs, provenance))
+                                      source, pairs, provenance, recorded_speed))
     return 0
 
 
@@ -295,7 +300,7 @@ def _table(args, warn) -> int:
     if args.report is None:
         warn("error: --report REPORT_DIR (a sweep folder) or --check is needed")
         return 2
-    table = shipped.write(args.report, out, warn)
+    table = shipped.write(args.report, out, warn, engine_commit=args.engine_commit)
     print(f"guide table: {out} ({len(table.rows)} pairs, sources {', '.join(table.sources())}, "
           f"datasets {', '.join(table.datasets)})")
     return 0

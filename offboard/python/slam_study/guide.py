@@ -143,18 +143,26 @@ def _datasets_text(p: Prediction) -> str:
 
 def guide_text(preds: list[Prediction], trans_m_per_s: float, rot_deg_per_s: float,
                target_rpe_mm: float | None, source: str, pairs: PairTable | None = None,
-               provenance: str = "") -> str:
+               provenance: str = "", recorded_speed: tuple[float, float] | None = None) -> str:
+    """The guide's answer. recorded_speed: (m/s, deg/s) of the fastest second of the recordings
+    the pairs come from; a faster request is said to be so."""
     lines = [f"Frame-to-frame error predicted for {trans_m_per_s:g} m/s and {rot_deg_per_s:g} "
              "deg/s at 30/k fps",
              f"Data: {source}" + (f", {len(pairs)} frame pairs" if pairs is not None else "")
              + (f"; {provenance}" if provenance else "")]
     if pairs is not None and len(pairs):
-        lines.append(f"Measured per-frame motion: up to {pairs.gt_trans_mm.max():.1f} mm and "
-                     f"{pairs.gt_rot_deg.max():.2f} deg; beyond that the guide does not "
-                     "extrapolate.")
+        lines.append(f"Measured per-frame motion reaches {pairs.gt_trans_mm.max():.1f} mm and "
+                     f"{pairs.gt_rot_deg.max():.2f} deg; the guide answers within its cells (up to "
+                     f"{kGuideTransEdgesMm[-1]:g} mm, {kGuideRotEdgesDeg[-1]:g} deg)")
+        lines.append("and never beyond the last cell holding a measured pair.")
+    if recorded_speed is not None:
+        lines.append(f"The recordings moved at up to {recorded_speed[0]:.2f} m/s and "
+                     f"{recorded_speed[1]:.1f} deg/s (fastest 1 s); larger per-frame motion comes "
+                     "from dropping frames.")
     lines += [f"A cell needs >= {tables.kMinSamplesPerCell} pairs. Interval: 95 % confidence "
-              "interval of the cell's mean (Student t; consecutive pairs are correlated, so it is",
-              "optimistic). p90: 90 % of the cell's pairs had less error.", "",
+              "interval of the cell's mean (Student t;",
+              "optimistic, as consecutive pairs are correlated). p90: 90 % of the cell's pairs "
+              "had less error.", "",
               (f"{'fps':>6} {'mm/frame':>9} {'deg/frame':>9}  {'cell mm x deg':>17}  {'n':>4}  "
                f"{'trans mm: mean [95 % CI]':>25}  {'p90':>6}  {'rot deg':>7}  pairs per sequence")]
     for p in preds:
@@ -171,6 +179,11 @@ def guide_text(preds: list[Prediction], trans_m_per_s: float, rot_deg_per_s: flo
                          f"{interval:>25}  {p.trans_p90_mm:6.2f}  {p.cell.rot_mean_deg:7.3f}  "
                          f"{_datasets_text(p)}")
     lines.append("")
+    if recorded_speed is not None and (trans_m_per_s > recorded_speed[0]
+                                       or rot_deg_per_s > recorded_speed[1]):
+        lines.append(f"{trans_m_per_s:g} m/s, {rot_deg_per_s:g} deg/s is faster than any recording "
+                     "the data rest on: the per-frame motion may be measured (frames dropped), the "
+                     "motion blur of that speed is not.")
     outside = [p for p in preds if p.cell is None]
     if outside and len(outside) == len(preds):
         lines.append("The requested velocity lies outside what was measured at every candidate "

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from slam_study import velocity
 from slam_study.pairs import PairTable, motion_pairs
 from slam_study.tum import Dataset, Trajectory, TumFormatError, read_trajectory
 
@@ -51,7 +52,7 @@ kEngineSources = ("offboard/slam", "offboard/surf", "offboard/apps/slam_eval_mai
 kEngineSuffixes = (".cpp", ".cc", ".h", ".hpp", ".txt")
 kEngineExcludedDirs = ("tests",)
 # The study code that turns trajectories into rows (the test recomputes the motion columns too).
-kStudyCode = ("pairs.py", "se3.py", "tum.py", "shipped.py")
+kStudyCode = ("pairs.py", "se3.py", "tum.py", "velocity.py", "shipped.py")
 # Ground-truth motion recomputed by the check agrees with the table to its printed digits.
 kMotionTolMm = 2e-3
 kMotionTolDeg = 2e-4
@@ -126,12 +127,22 @@ class ShippedTable:
         return (pairs, np.array([r["dataset"] for r in sel]),
                 np.array([int(r["k"]) for r in sel]))
 
+    def recorded_speed(self) -> tuple[float, float] | None:
+        """(m/s, deg/s): the fastest 1 s of any recording the table rests on."""
+        v = [d.get("max_trans_m_per_s") for d in self.datasets.values()]
+        w = [d.get("max_rot_deg_per_s") for d in self.datasets.values()]
+        if not v or None in v or None in w:
+            return None
+        return max(v), max(w)
+
     def describe(self) -> str:
         """One line of provenance for the guide's output."""
         ds = ", ".join(self.datasets)
-        return (f"measured {self.meta.get('generated_utc', '?')} on {ds} (TUM RGB-D excerpts), "
-                f"k = {self.meta.get('k', '?')}, engine at commit "
-                f"{self.meta.get('engine_commit', '?')[:12]}")
+        commit = self.meta.get("engine_commit", "?")
+        short = commit[:12] + ("+uncommitted" if commit.endswith("+uncommitted") else "")
+        return (f"measured {self.meta.get('generated_utc', '?')} with the engine at {short}\n"
+                f"      on {ds} (TUM RGB-D excerpts),\n      every k-th frame, k = "
+                f"{self.meta.get('k', '?')}")
 
 
 def _rows_text(rows: list[dict[str, str]]) -> str:
@@ -185,8 +196,14 @@ def collect(report_dir: Path, warn) -> tuple[list[dict[str, str]], dict[str, dic
         name = Path(ds_path).name
         if name not in cache:
             cache[name] = Dataset.load(ds_path)
+            stamps = cache[name].rgb_stamps_s
+            v, w, _ = velocity.window_velocities(cache[name].groundtruth, stamps[0], stamps[-1])
             datasets[name] = {"groundtruth_sha256": file_sha256(Path(ds_path) / "groundtruth.txt"),
-                              "frames": int(cache[name].rgb_stamps_s.size)}
+                              "frames": int(stamps.size),
+                              # the recording's own speed (1 s windows, velocity.py): faster
+                              # motion is in the table only as frames dropped, without its blur
+                              "max_trans_m_per_s": round(float(v.max()), 3) if v.size else 0.0,
+                              "max_rot_deg_per_s": round(float(w.max()), 2) if w.size else 0.0}
         est = read_trajectory(result_path.parent / "trajectory.tum")
         p = motion_pairs(cache[name].groundtruth, est)
         rows += format_rows(f"{job['features']}-{kBackend}", name, int(job["k"]), p)
@@ -196,9 +213,12 @@ def collect(report_dir: Path, warn) -> tuple[list[dict[str, str]], dict[str, dic
     return rows, dict(sorted(datasets.items())), engine_hashes, sorted(ks)
 
 
-def write(report_dir: Path, out: Path, warn, root: Path = kRepoRoot) -> ShippedTable:
+def write(report_dir: Path, out: Path, warn, root: Path = kRepoRoot,
+          engine_commit: str | None = None) -> ShippedTable:
     """Writes the table from a sweep's runs. Refuses runs whose recorded engine sources differ
-    from the tree's (they were measured with another engine; `make study` redoes them)."""
+    from the tree's (they were measured with another engine; `make study` redoes them).
+    engine_commit: what to record as the engine's commit (default: git HEAD of root, marked
+    "+uncommitted" when the engine's sources differ from it; for a tree exported with git archive)."""
     rows, datasets, engine_hashes, ks = collect(report_dir, warn)
     if not rows:
         raise TumFormatError(f"{report_dir}/runs holds no successful {kBackend} run: run the sweep")
@@ -210,7 +230,7 @@ def write(report_dir: Path, out: Path, warn, root: Path = kRepoRoot) -> ShippedT
     meta = {
         "generated_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "generated_by": "slam-study table --report <sweep> (make study); do not edit by hand",
-        "engine_commit": _git_commit(root),
+        "engine_commit": engine_commit or _git_commit(root),
         "engine_sources_sha256": engine,
         "study_code_sha256": study_code_sha256(),
         "k": ",".join(map(str, ks)),
@@ -313,5 +333,5 @@ def check(table: ShippedTable, excerpts: dict[str, Path], root: Path = kRepoRoot
 
 
 def regenerate_hint() -> str:
-    return ("regenerate: `make study` (needs ../shared/data or DATA=..., ~4 min for the vo runs "
-            "on 2 cores), or `slam-study table --report build/study` after a sweep")
+    return ("regenerate: `make study` (needs ../shared/data or DATA=..., the vo runs: ~6 min "
+            "of CPU, 11 min wall on the shared 2 cores), or `slam-study table --report build/study` after a sweep")
