@@ -26,6 +26,17 @@ from hilrig.slam_flight import SlamFlight, SlamFlightOptions, missing_parts
 from hilrig.verdict import judge, session_resets
 
 
+def frame_rate_guide(out: Path, fps: float) -> str:
+    """The study's frame-rate guide for the flight just flown: the camera's measured velocities
+    (emulator truth, out/groundtruth.tum) -> the guide's predicted error at the rate flown and its
+    recommended rate (slam_study.guide.flight_summary, docs/study.md). Informational only."""
+    try:
+        from slam_study.guide import flight_summary
+        return flight_summary(out / "groundtruth.tum", fps)
+    except Exception as e:  # noqa: BLE001 - one summary line must not fail the demo
+        return f"frame-rate guide not available: {e}"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, default=REPO_ROOT / "out" / "demo-hil", help="output folder (replaced)")
@@ -116,6 +127,7 @@ def print_figures(report: dict, args) -> None:
               f"(p95 {lat['capture_to_pwm']['p95_ms']}) over {lat['frames']} frames at {args.fps:g} fps")
     s = report["stream"]
     print(f"demo: stream {s['received_fps']} fps received, {s['slam_tracked']}/{s['slam_results']} SLAM results tracked")
+    print(f"demo: {frame_rate_guide(args.out, args.fps)}")
     link = report["slam_link"]
     print(f"demo: SLAM link: {link['link_breaks']} break(s), {link['resumes']} resumed, "
           f"resets {link['resets']} (counted from {', '.join(link['sources']) or 'nothing'})")
