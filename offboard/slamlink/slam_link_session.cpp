@@ -1,8 +1,10 @@
-// SLAM-link session: SlamHello / RgbdFrame -> PoseUpdate.
+// SLAM-link session: RgbdFrame -> exactly one PoseUpdate.
 #include "slam_link_session.hpp"
 
-#include <cstring>
+#include <algorithm>
+#include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 
 #include "rgbdquad/protocol/codec.hpp"
 
@@ -11,13 +13,9 @@ namespace slam {
 namespace proto = rgbdquad::protocol;
 
 namespace {
-proto::Pose3 to_pose3(const Eigen::Isometry3d& T) {
-  proto::Pose3 p;
-  const Eigen::Quaterniond q(T.rotation());
-  p.t_m = {T.translation().x(), T.translation().y(), T.translation().z()};
-  p.q_xyzw = {q.x(), q.y(), q.z(), q.w()};
-  return p;
-}
+// A rotation matrix gives |q| = 1 to ~1e-15; 1e-3 means the matrix is not a rotation at all
+// (scaled or sheared), which re-normalising would hide.
+constexpr double kMaxQuaternionNormError = 1e-3;
 
 proto::TrackingState to_wire(TrackingState s) {
   switch (s) {
@@ -27,10 +25,33 @@ proto::TrackingState to_wire(TrackingState s) {
   }
   return proto::TrackingState::kLost;
 }
+// The conversion slam-server used before pose_to_wire, kept to recognise the poses it could not send.
+proto::Pose3 raw_pose(const Eigen::Isometry3d& T) {
+  proto::Pose3 p;
+  const Eigen::Quaterniond q(T.rotation());
+  p.t_m = {T.translation().x(), T.translation().y(), T.translation().z()};
+  p.q_xyzw = {q.x(), q.y(), q.z(), q.w()};
+  return p;
+}
 }  // namespace
 
-SlamLinkSession::SlamLinkSession(PipelineOptions options, std::string server_name)
-    : options_(std::move(options)), server_name_(std::move(server_name)) {
+std::optional<proto::Pose3> pose_to_wire(const Eigen::Isometry3d& T) {
+  if (!T.matrix().allFinite()) return std::nullopt;
+  Eigen::Quaterniond q(T.linear());
+  const double norm = q.norm();
+  if (!(std::fabs(norm - 1.0) <= kMaxQuaternionNormError)) return std::nullopt;
+  q.coeffs() /= norm;
+  proto::Pose3 p;
+  p.t_m = {T.translation().x(), T.translation().y(), T.translation().z()};
+  p.q_xyzw = {q.x(), q.y(), q.z(), q.w()};
+  for (double& c : p.q_xyzw) c = std::clamp(c, -1.0, 1.0);
+  const proto::FieldRange range = proto::field_range::kPose3TM;
+  for (double t : p.t_m)
+    if (!(t >= range.lo && t <= range.hi)) return std::nullopt;
+  return p;
+}
+
+SlamLinkSession::SlamLinkSession(PipelineOptions options) : options_(std::move(options)) {
   options_.mode = PipelineMode::kSequential;
 }
 
@@ -63,68 +84,100 @@ std::optional<RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame& m, st
   return f;
 }
 
-std::vector<proto::Message> SlamLinkSession::on_message(const proto::Message& message,
-                                                        std::string* error, bool* fatal) {
-  std::vector<proto::Message> out;
-  if (fatal) *fatal = false;
-  if (const auto* hello = std::get_if<proto::SlamHello>(&message)) {
-    const std::string why = proto::hello_incompatibility(*hello);
-    if (!why.empty()) {
-      if (error) *error = "slam-link: incompatible peer '" + hello->peer_name + "': " + why;
-      if (fatal) *fatal = true;
-      return out;
-    }
-    hello_received_ = true;
-    proto::SlamHello reply;
-    reply.peer_name = server_name_;
-    out.emplace_back(reply);
-    return out;
-  }
-  const auto* frame = std::get_if<proto::RgbdFrame>(&message);
-  if (!frame) {
-    if (error) *error = "slam-link: unexpected message type for slam-server (ignored)";
-    return out;
-  }
-  if (!hello_received_) {
-    if (error) *error = "slam-link: RgbdFrame before SlamHello (ignored)";
-    return out;
-  }
+proto::PoseUpdate SlamLinkSession::lost_update(const proto::RgbdFrame& frame, std::string reason,
+                                               std::string* error) {
+  ++faulted_;
+  if (error) *error = std::move(reason);
+  proto::PoseUpdate u;
+  u.pair_sequence = frame.pair_sequence;
+  u.timestamp_us = frame.rgb.header.capture_timestamp_us;
+  u.tracking_state = proto::TrackingState::kLost;
+  u.T_world_cam = last_good_;
+  u.T_prev_cur = proto::Pose3{};  // identity: motion unknown
+  u.is_keyframe = false;
+  u.inlier_count = 0;
+  return u;
+}
+
+proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::string* error) {
+  if (error) error->clear();
   if (!pipeline_) {
     Intrinsics k;
-    k.fx_px = frame->intrinsics.fx_px;
-    k.fy_px = frame->intrinsics.fy_px;
-    k.cx_px = frame->intrinsics.cx_px;
-    k.cy_px = frame->intrinsics.cy_px;
-    k.distortion = frame->intrinsics.distortion;
-    k.depth_units_per_m = frame->depth_scale_units_per_m;
+    k.fx_px = frame.intrinsics.fx_px;
+    k.fy_px = frame.intrinsics.fy_px;
+    k.cx_px = frame.intrinsics.cx_px;
+    k.cy_px = frame.intrinsics.cy_px;
+    k.distortion = frame.intrinsics.distortion;
+    k.depth_units_per_m = frame.depth_scale_units_per_m;
     std::string err;
     pipeline_ = Pipeline::create(options_, k, &err);
-    if (!pipeline_) {
-      if (error) *error = "slam-link: cannot start the pipeline: " + err;
-      return out;
-    }
-    intrinsics_ = k;
+    if (!pipeline_) return lost_update(frame, "slam-link: cannot start the pipeline: " + err, error);
   }
-  auto f = to_frame(*frame, error);
-  if (!f) return out;
+  std::string why;
+  auto f = to_frame(frame, &why);
+  if (!f) return lost_update(frame, why, error);
   const std::int64_t index = f->index;
-  pipeline_->submit(std::move(*f));
+  try {
+    pipeline_->submit(std::move(*f));
+  } catch (const std::exception& e) {  // one bad frame must not end the flight's map
+    return lost_update(frame, std::string("slam-link: pipeline threw: ") + e.what(), error);
+  }
   ++frames_;
   auto rec = pipeline_->record(index);
-  if (!rec || !rec->ok) {
-    if (error) *error = "slam-link: frame rejected: " + (rec ? rec->error : std::string("no record"));
-    return out;
+  if (!rec || !rec->ok)
+    return lost_update(frame, "slam-link: frame rejected: " + (rec ? rec->error : std::string("no record")), error);
+  const auto T_world_cam = pose_to_wire(rec->T_world_cam);
+  const auto T_prev_cur = pose_to_wire(rec->T_prev_cur);
+  // The pose as put on the wire before pose_to_wire (quaternion straight from the matrix): when
+  // the codec refuses it, the old server failed to encode its reply and closed the connection.
+  std::string raw_refusal;
+  {
+    proto::PoseUpdate raw;
+    raw.T_world_cam = raw_pose(rec->T_world_cam);
+    raw.T_prev_cur = raw_pose(rec->T_prev_cur);
+    raw_refusal = proto::validate(proto::Message{raw});
+  }
+  if (!T_world_cam || !T_prev_cur) {
+    std::ostringstream m;
+    m << "slam-link: pose of frame " << index << " cannot be sent (non-finite or not a rotation): T_world_cam\n"
+      << rec->T_world_cam.matrix() << "\nT_prev_cur\n" << rec->T_prev_cur.matrix();
+    return lost_update(frame, m.str(), error);
   }
   proto::PoseUpdate u;
-  u.pair_sequence = frame->pair_sequence;
-  u.timestamp_us = frame->rgb.header.capture_timestamp_us;
+  u.pair_sequence = frame.pair_sequence;
+  u.timestamp_us = frame.rgb.header.capture_timestamp_us;
   u.tracking_state = to_wire(rec->state);
-  u.T_world_cam = to_pose3(rec->T_world_cam);
-  u.T_prev_cur = to_pose3(rec->T_prev_cur);
+  u.T_world_cam = *T_world_cam;
+  u.T_prev_cur = *T_prev_cur;
   u.is_keyframe = rec->keyframe;
   u.inlier_count = static_cast<std::uint32_t>(rec->inliers);
-  out.emplace_back(u);
-  return out;
+  if (rec->state == TrackingState::kTracking) last_good_ = *T_world_cam;
+  if (!raw_refusal.empty()) {
+    ++repaired_;
+    if (error) {
+      std::ostringstream m;
+      m.precision(17);
+      m << "slam-link: pose of frame " << index << " re-normalised for the wire (as computed the codec refuses it: "
+        << raw_refusal << "; T_world_cam q_xyzw " << raw_pose(rec->T_world_cam).q_xyzw[0] << " "
+        << raw_pose(rec->T_world_cam).q_xyzw[1] << " " << raw_pose(rec->T_world_cam).q_xyzw[2] << " "
+        << raw_pose(rec->T_world_cam).q_xyzw[3] << ", T_prev_cur q_xyzw " << raw_pose(rec->T_prev_cur).q_xyzw[0]
+        << " " << raw_pose(rec->T_prev_cur).q_xyzw[1] << " " << raw_pose(rec->T_prev_cur).q_xyzw[2] << " "
+        << raw_pose(rec->T_prev_cur).q_xyzw[3] << ")";
+      *error = m.str();
+    }
+  }
+  return u;
+}
+
+std::string SlamLinkSession::finish_summary() {
+  std::ostringstream m;
+  m << frames_ << " frames (" << faulted_ << " answered LOST for a fault)";
+  if (pipeline_) {
+    pipeline_->finish();
+    const auto s = pipeline_->summary();
+    m << ", " << s.keyframes << " keyframes, " << s.loop_closures << " loop closures";
+  }
+  return m.str();
 }
 
 }  // namespace slam

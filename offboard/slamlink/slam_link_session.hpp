@@ -1,47 +1,65 @@
-// SLAM-link session (protocol/spec/messages.json, link "slam"): the socket-free half of
-// slam-server. It answers SlamHello with its own SlamHello (refusing an incompatible peer), and
-// every RgbdFrame with exactly one PoseUpdate computed by the SLAM pipeline (sequential mode, so
-// the answer belongs to that very frame). The pipeline is created on the first frame from the
-// intrinsics and depth scale the frame carries.
+// SLAM-link session (protocol/spec/messages.json, link "slam"): one flight's map, socket-free.
+// It answers every RgbdFrame with exactly one PoseUpdate (the spec's rule): the pose computed by
+// the SLAM pipeline (sequential mode, so the answer belongs to that very frame), or - when the
+// frame cannot be used (unsupported encoding, inconsistent sizes, the front end rejected it) or
+// the estimate cannot be put on the wire (non-finite, not a rotation) - a LOST update carrying the
+// last good pose, with the reason in `error`. The pipeline is created on the first frame from the
+// intrinsics and depth scale the frame carries. The SlamHello exchange and the choice of session
+// belong to the connection (slam_connection.hpp) and the registry (slam_sessions.hpp): a session
+// outlives a connection, so a client that reconnects continues the same map and world frame.
 //
-// Not thread-safe: one session per connection, used by that connection's thread.
+// Not thread-safe: used by slam-server's single loop.
 #pragma once
 
 #include <memory>
 #include <optional>
 #include <string>
-#include <vector>
+
+#include <Eigen/Geometry>
 
 #include "rgbdquad/protocol/messages.hpp"
 #include "slam/pipeline/pipeline.hpp"
 
 namespace slam {
 
+/// `T` on the wire: translation in metres, unit quaternion (x, y, z, w) re-normalised and each
+/// component clamped to [-1, 1] (a rotation matrix that is orthonormal only to rounding can give
+/// |w| = 1 + 2e-16, which the codec's range check refuses). nullopt when `T` is non-finite or its
+/// rotation is not one (|q| away from 1 by more than 1e-3 before normalisation) or the translation
+/// exceeds the spec's range.
+std::optional<rgbdquad::protocol::Pose3> pose_to_wire(const Eigen::Isometry3d& T);
+
 class SlamLinkSession {
  public:
   /// `options.mode` is forced to kSequential (one reply per frame).
-  SlamLinkSession(PipelineOptions options, std::string server_name);
+  explicit SlamLinkSession(PipelineOptions options);
 
-  /// Handles one decoded message. Returns the replies to send (possibly none). A message that
-  /// cannot be used (wrong type for this direction, incompatible peer, frame without hello,
-  /// unsupported encoding, inconsistent sizes) gives no reply and an explanation in `error`;
-  /// `fatal` is set when the connection should be closed (incompatible peer).
-  std::vector<rgbdquad::protocol::Message> on_message(const rgbdquad::protocol::Message& message,
-                                                      std::string* error, bool* fatal);
+  /// Handles one RgbdFrame; always returns its PoseUpdate (see the file comment). `error` is set
+  /// (else cleared) when the update is LOST because of a fault rather than the tracking itself,
+  /// or when the pose as computed had to be re-normalised to pass the codec's checks (counted).
+  rgbdquad::protocol::PoseUpdate on_frame(const rgbdquad::protocol::RgbdFrame& frame, std::string* error);
 
   std::size_t frames_processed() const { return frames_; }
+  /// Frames answered LOST because of a fault (bad frame, pipeline error, unencodable pose).
+  std::size_t frames_faulted() const { return faulted_; }
+  /// Poses the codec refused as computed and that were re-normalised (see pose_to_wire).
+  std::size_t poses_repaired() const { return repaired_; }
   /// The pipeline (null before the first frame); finish() it before reading results.
   Pipeline* pipeline() { return pipeline_.get(); }
+  /// One line for the log: frames, keyframes, loop closures (finishes the pipeline).
+  std::string finish_summary();
 
  private:
   std::optional<RgbdFrame> to_frame(const rgbdquad::protocol::RgbdFrame& m, std::string* error) const;
+  rgbdquad::protocol::PoseUpdate lost_update(const rgbdquad::protocol::RgbdFrame& frame, std::string reason,
+                                             std::string* error);
 
   PipelineOptions options_;
-  std::string server_name_;
-  bool hello_received_ = false;
   std::unique_ptr<Pipeline> pipeline_;
-  Intrinsics intrinsics_;
   std::size_t frames_ = 0;
+  std::size_t faulted_ = 0;
+  std::size_t repaired_ = 0;
+  rgbdquad::protocol::Pose3 last_good_;  ///< last pose sent while tracking (identity at start)
 };
 
 }  // namespace slam

@@ -1,87 +1,239 @@
 // slam-server: the SLAM engine on the live SLAM link (protocol/spec/messages.json, link "slam").
-// Listens on TCP (default 127.0.0.1:5700), one client (quad-control) at a time; per connection:
-// SlamHello exchange, then one PoseUpdate per RgbdFrame. A new connection starts a new map.
-// SIGINT/SIGTERM end it cleanly (signalfd; the current pipeline is finished and summarised).
-// Wiring only: sockets + codec here, the logic is SlamLinkSession.
-#include <cerrno>
-#include <cstring>
-#include <CLI/CLI.hpp>
+// Listens on TCP (default 127.0.0.1:5700) and serves up to --max-clients connections from one
+// poll loop (no client can hold another up for longer than one frame's SLAM). Per connection:
+// SlamHello exchange naming a session (a flight's map), then one PoseUpdate per RgbdFrame. A
+// broken connection parks its session for --resume-grace-ms: the same client reconnecting with the
+// same session id continues the same map and world frame. Every connection that ends logs why.
+// SIGINT/SIGTERM end it cleanly (signalfd; every session is finished and summarised).
+// Wiring only: sockets here; the logic is SlamConnection, SessionRegistry and SlamLinkSession.
 #include <arpa/inet.h>
-#include <csignal>
-#include <iostream>
+#include <fcntl.h>
 #include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/signalfd.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
-#include "rgbdquad/protocol/codec.hpp"
-#include "slam_link_session.hpp"
+#include <CLI/CLI.hpp>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstring>
+#include <iostream>
+#include <map>
+#include <memory>
+
+#include "slam_connection.hpp"
+#include "slam_sessions.hpp"
 
 namespace {
 
-namespace proto = rgbdquad::protocol;
+// Bytes read from one connection per loop turn: a whole RAW 640x480 frame (1.5 MB) in a few
+// turns without letting one client starve the others' timers.
+constexpr std::size_t kMaxReadPerTurnBytes = 4u << 20;
+constexpr std::size_t kReadChunkBytes = 1u << 16;
+// When every slot is taken, a newcomer may replace the connection idle the longest if it has
+// been idle this long (quad-control sends a frame at least every ~100 ms while it streams).
+constexpr std::int64_t kEvictIdleMs = 2000;
 
-bool write_all(int fd, const std::vector<std::uint8_t>& bytes) {
-  std::size_t off = 0;
-  while (off < bytes.size()) {
-    const ssize_t n = ::send(fd, bytes.data() + off, bytes.size() - off, MSG_NOSIGNAL);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      std::cerr << "slam-server: send failed: " << std::strerror(errno) << "\n";
-      return false;
-    }
-    off += static_cast<std::size_t>(n);
-  }
-  return true;
+std::int64_t now_ms() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
 }
 
-// Serves one connection; returns false when a signal asked to stop.
-bool serve(int conn, int sigfd, const slam::PipelineOptions& options) {
-  slam::SlamLinkSession session(options, "slam-server");
-  proto::StreamDecoder decoder;
-  std::vector<std::uint8_t> buf(1 << 16);
-  bool keep_running = true;
-  for (;;) {
-    pollfd fds[2] = {{conn, POLLIN, 0}, {sigfd, POLLIN, 0}};
-    if (::poll(fds, 2, -1) < 0) continue;
-    if (fds[1].revents & POLLIN) { keep_running = false; break; }
-    const ssize_t n = ::recv(conn, buf.data(), buf.size(), 0);
-    if (n < 0 && (errno == EINTR || errno == EAGAIN)) continue;
-    if (n < 0) std::cerr << "slam-server: receive failed: " << std::strerror(errno) << "\n";
-    if (n <= 0) break;
-    decoder.feed(buf.data(), static_cast<std::size_t>(n));
-    bool close_now = false;
+void log_line(const std::string& s) { std::cerr << "slam-server: " << s << std::endl; }
+
+struct Client {
+  int fd = -1;
+  std::unique_ptr<slam::SlamConnection> conn;
+  bool closing_after_flush = false;
+  std::string close_cause;
+};
+
+class Server {
+ public:
+  Server(int listen_fd, int sig_fd, std::size_t max_clients, slam::ConnectionOptions copt,
+         slam::SessionRegistry registry)
+      : lfd_(listen_fd), sigfd_(sig_fd), max_clients_(max_clients), copt_(copt), registry_(std::move(registry)) {}
+
+  void run() {
     for (;;) {
-      proto::DecodeResult r = decoder.next();
-      if (r.status == proto::DecodeStatus::kNeedMoreBytes) break;
-      if (r.status == proto::DecodeStatus::kError) {
-        std::cerr << "slam-server: dropped bytes: " << proto::to_string(r.error) << " " << r.detail << "\n";
+      std::vector<pollfd> fds = {{lfd_, POLLIN, 0}, {sigfd_, POLLIN, 0}};
+      std::vector<int> ids;
+      for (auto& [id, c] : clients_) {
+        short ev = POLLIN;
+        if (!c.conn->output().empty()) ev |= POLLOUT;
+        fds.push_back({c.fd, ev, 0});
+        ids.push_back(id);
+      }
+      const int timeout = poll_timeout_ms();
+      if (::poll(fds.data(), fds.size(), timeout) < 0) {
+        if (errno != EINTR) log_line(std::string("poll failed: ") + std::strerror(errno));
         continue;
       }
-      std::string err;
-      bool fatal = false;
-      for (const auto& reply : session.on_message(*r.message, &err, &fatal)) {
-        const proto::EncodeResult e = proto::encode(reply);
-        if (!e.ok() || !write_all(conn, e.bytes)) { close_now = true; break; }
+      if (fds[1].revents & POLLIN) break;
+      const std::int64_t t = now_ms();
+      for (std::size_t i = 0; i < ids.size(); ++i) {
+        auto it = clients_.find(ids[i]);
+        if (it == clients_.end()) continue;
+        if (fds[2 + i].revents & (POLLIN | POLLHUP | POLLERR)) read_from(it->second, t);
       }
-      if (!err.empty()) std::cerr << "slam-server: " << err << "\n";
-      if (fatal) close_now = true;
-      if (close_now) break;
-      if (session.frames_processed() % 100 == 0 && session.frames_processed() > 0 &&
-          std::holds_alternative<proto::RgbdFrame>(*r.message))
-        std::cerr << "slam-server: " << session.frames_processed() << " frames\n";
+      if (fds[0].revents & POLLIN) accept_one(t);
+      // Deadlines right after reading (before SLAM runs), so time spent on one client's frame is
+      // never charged to another whose bytes are waiting in the kernel.
+      for (auto& [id, c] : clients_)
+        if (c.close_cause.empty())
+          if (auto cause = c.conn->timed_out(t)) c.close_cause = *cause;
+      for (auto& [id, c] : clients_) {
+        if (!c.close_cause.empty()) continue;
+        std::vector<int> displaced;
+        std::vector<std::string> log;
+        bool flush_first = false;
+        auto cause = c.conn->process(registry_, now_ms(), &displaced, &log, &flush_first);
+        for (const auto& l : log) log_line(l);
+        for (int d : displaced) {
+          auto dit = clients_.find(d);
+          if (dit != clients_.end() && dit->second.close_cause.empty())
+            dit->second.close_cause = "session taken over by client #" + std::to_string(id) +
+                                      " (the same flight reconnected)";
+        }
+        if (cause) {
+          c.close_cause = *cause;
+          c.closing_after_flush = flush_first;
+        }
+      }
+      for (auto& [id, c] : clients_) flush(c, now_ms());
+      close_finished();
+      for (const auto& l : registry_.expire(now_ms())) log_line(l);
     }
-    if (close_now) break;
+    for (auto& [id, c] : clients_) close_client(c, "slam-server stopping");
+    clients_.clear();
+    for (const auto& l : registry_.finish_all()) log_line(l);
   }
-  if (auto* p = session.pipeline()) {
-    p->finish();
-    const auto s = p->summary();
-    std::cerr << "slam-server: connection closed after " << session.frames_processed() << " frames, "
-              << s.keyframes << " keyframes, " << s.loop_closures << " loop closures\n";
+
+ private:
+  int poll_timeout_ms() const {
+    const std::int64_t t = now_ms();
+    std::int64_t next = t + 1000;
+    for (const auto& [id, c] : clients_) next = std::min(next, c.conn->next_deadline_ms());
+    if (auto e = registry_.next_expiry_ms()) next = std::min(next, *e);
+    return static_cast<int>(std::max<std::int64_t>(0, next - t));
   }
-  return keep_running;
-}
+
+  void read_from(Client& c, std::int64_t t) {
+    if (!c.close_cause.empty()) return;
+    std::uint8_t buf[kReadChunkBytes];
+    std::size_t total = 0;
+    while (total < kMaxReadPerTurnBytes) {
+      const ssize_t n = ::recv(c.fd, buf, sizeof buf, MSG_DONTWAIT);
+      if (n > 0) {
+        c.conn->on_bytes(buf, static_cast<std::size_t>(n), t);
+        total += static_cast<std::size_t>(n);
+        continue;
+      }
+      if (n == 0) {
+        c.close_cause = "peer closed the connection (end of file)";
+      } else if (errno == EINTR) {
+        continue;
+      } else if (errno != EAGAIN && errno != EWOULDBLOCK) {
+        c.close_cause = std::string("receive failed: ") + std::strerror(errno);
+      }
+      break;
+    }
+  }
+
+  void accept_one(std::int64_t t) {
+    sockaddr_in addr{};
+    socklen_t len = sizeof addr;
+    const int fd = ::accept4(lfd_, reinterpret_cast<sockaddr*>(&addr), &len, SOCK_CLOEXEC | SOCK_NONBLOCK);
+    if (fd < 0) {
+      if (errno != EAGAIN && errno != EINTR) log_line(std::string("accept failed: ") + std::strerror(errno));
+      return;
+    }
+    char ip[INET_ADDRSTRLEN] = "?";
+    ::inet_ntop(AF_INET, &addr.sin_addr, ip, sizeof ip);
+    const std::string peer = std::string(ip) + ":" + std::to_string(ntohs(addr.sin_port));
+    const int one = 1;
+    ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    const int id = next_id_++;
+    if (clients_.size() >= max_clients_) {
+      // Full: make room by closing the connection idle the longest, if it is idle at all.
+      Client* idlest = nullptr;
+      for (auto& [cid, c] : clients_)
+        if (!idlest || c.conn->last_byte_ms() < idlest->conn->last_byte_ms()) idlest = &c;
+      if (idlest && t - idlest->conn->last_byte_ms() >= kEvictIdleMs) {
+        close_client(*idlest, "evicted to admit client #" + std::to_string(id) + " (all " +
+                                  std::to_string(max_clients_) + " slots taken, this one idle " +
+                                  std::to_string(t - idlest->conn->last_byte_ms()) + " ms)");
+        clients_.erase(idlest->conn->id());
+      } else {
+        log_line("client #" + std::to_string(id) + " from " + peer + " refused: all " + std::to_string(max_clients_) +
+                 " slots busy");
+        rgbdquad::protocol::SlamHello refusal;
+        refusal.peer_name = "slam-server";
+        refusal.refusal = "slam-server busy: all " + std::to_string(max_clients_) + " client slots in use";
+        const auto e = rgbdquad::protocol::encode(refusal);
+        if (e.ok()) (void)::send(fd, e.bytes.data(), e.bytes.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+        ::close(fd);
+        return;
+      }
+    }
+    log_line("client #" + std::to_string(id) + " connected from " + peer);
+    Client c;
+    c.fd = fd;
+    c.conn = std::make_unique<slam::SlamConnection>(id, peer, copt_, t);
+    clients_.emplace(id, std::move(c));
+  }
+
+  void flush(Client& c, std::int64_t t) {
+    if (!c.close_cause.empty() && !c.closing_after_flush) return;
+    while (!c.conn->output().empty()) {
+      const auto& out = c.conn->output();
+      const ssize_t n = ::send(c.fd, out.data(), out.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+      if (n > 0) {
+        c.conn->consumed_output(static_cast<std::size_t>(n), t);
+        continue;
+      }
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) break;  // POLLOUT next turn
+      if (c.close_cause.empty()) c.close_cause = std::string("send failed: ") + std::strerror(errno);
+      c.closing_after_flush = false;
+      break;
+    }
+    if (c.closing_after_flush && c.conn->output().empty()) c.closing_after_flush = false;
+  }
+
+  void close_finished() {
+    for (auto it = clients_.begin(); it != clients_.end();) {
+      Client& c = it->second;
+      if (!c.close_cause.empty() && !c.closing_after_flush) {
+        close_client(c, c.close_cause);
+        it = clients_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+
+  void close_client(Client& c, const std::string& cause) {
+    const bool had_session = c.conn->hello_done() && registry_.session_of(c.conn->id()) != nullptr;
+    registry_.detach(c.conn->id(), now_ms());
+    log_line("client #" + std::to_string(c.conn->id()) + " (" + c.conn->peer() + ") closed: " + cause + "; " +
+             c.conn->summary() +
+             (had_session ? "; its session is kept for a reconnect" : ""));
+    ::close(c.fd);
+    c.fd = -1;
+  }
+
+  int lfd_;
+  int sigfd_;
+  std::size_t max_clients_;
+  slam::ConnectionOptions copt_;
+  slam::SessionRegistry registry_;
+  std::map<int, Client> clients_;
+  int next_id_ = 1;
+};
 
 }  // namespace
 
@@ -89,16 +241,30 @@ int main(int argc, char** argv) {
   CLI::App app{"slam-server: RGB-D SLAM on the SLAM link (SlamHello, RgbdFrame -> PoseUpdate)"};
   std::string bind = "127.0.0.1", features = "orb", backend = "glc";
   int port = 5700;
+  std::size_t max_clients = 4;
+  slam::ConnectionOptions copt;
+  slam::SessionRegistryOptions ropt;
   app.add_option("--bind", bind, "IPv4 address to listen on")->capture_default_str();
   app.add_option("--port", port, "TCP port")->check(CLI::Range(1, 65535))->capture_default_str();
   app.add_option("--features", features, "sift | surf | orb")->check(CLI::IsMember({"sift", "surf", "orb"}))->capture_default_str();
   app.add_option("--backend", backend, "vo | llc | glc")->check(CLI::IsMember({"vo", "llc", "glc"}))->capture_default_str();
+  app.add_option("--max-clients", max_clients, "connections served at once")->check(CLI::Range(1, 64))->capture_default_str();
+  app.add_option("--hello-timeout-ms", copt.hello_timeout_ms, "SlamHello due within this of connecting")->capture_default_str();
+  app.add_option("--idle-timeout-ms", copt.idle_timeout_ms, "close a connection silent this long")->capture_default_str();
+  app.add_option("--message-timeout-ms", copt.message_timeout_ms, "a begun message must be complete within this")->capture_default_str();
+  app.add_option("--write-timeout-ms", copt.write_timeout_ms, "the peer must take reply bytes within this")->capture_default_str();
+  app.add_option("--resume-grace-ms", ropt.resume_grace_ms, "a session without its client is kept this long")->capture_default_str();
+  app.add_option("--max-sessions", ropt.max_sessions, "maps held at once (attached + parked)")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   slam::PipelineOptions options;
   std::string err;
   if (!slam::parse_detector_kind(features, &options.frontend.features.kind, &err) ||
       !slam::parse_backend_kind(backend, &options.backend.kind, &err)) {
-    std::cerr << "slam-server: " << err << "\n";
+    log_line(err);
+    return 2;
+  }
+  if (std::string e = copt.validate() + ropt.validate(); !e.empty()) {
+    log_line(e);
     return 2;
   }
   sigset_t mask;
@@ -106,10 +272,11 @@ int main(int argc, char** argv) {
   sigaddset(&mask, SIGINT);
   sigaddset(&mask, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &mask, nullptr);
+  std::signal(SIGPIPE, SIG_IGN);
   const int sigfd = ::signalfd(-1, &mask, SFD_CLOEXEC);
-  const int lfd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  const int lfd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
   if (sigfd < 0 || lfd < 0) {
-    std::cerr << "slam-server: cannot create sockets\n";
+    log_line("cannot create sockets");
     return 1;
   }
   const int one = 1;
@@ -118,27 +285,21 @@ int main(int argc, char** argv) {
   addr.sin_family = AF_INET;
   addr.sin_port = htons(static_cast<std::uint16_t>(port));
   if (::inet_pton(AF_INET, bind.c_str(), &addr.sin_addr) != 1) {
-    std::cerr << "slam-server: bad --bind address '" << bind << "'\n";
+    log_line("bad --bind address '" + bind + "'");
     return 2;
   }
-  if (::bind(lfd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 || ::listen(lfd, 1) != 0) {
-    std::cerr << "slam-server: cannot listen on " << bind << ":" << port << "\n";
+  if (::bind(lfd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 || ::listen(lfd, 8) != 0) {
+    log_line("cannot listen on " + bind + ":" + std::to_string(port) + ": " + std::strerror(errno));
     return 1;
   }
-  std::cerr << "slam-server: listening on " << bind << ":" << port << " (features " << features
-            << ", backend " << backend << ")\n";
-  for (bool running = true; running;) {
-    pollfd fds[2] = {{lfd, POLLIN, 0}, {sigfd, POLLIN, 0}};
-    if (::poll(fds, 2, -1) < 0) continue;
-    if (fds[1].revents & POLLIN) break;
-    const int conn = ::accept4(lfd, nullptr, nullptr, SOCK_CLOEXEC);
-    if (conn < 0) continue;
-    std::cerr << "slam-server: client connected\n";
-    running = serve(conn, sigfd, options);
-    ::close(conn);
-  }
+  std::cerr << "slam-server: listening on " << bind << ":" << port << " (features " << features << ", backend "
+            << backend << ", max " << max_clients << " clients, hello/idle/message/write timeouts "
+            << copt.hello_timeout_ms << "/" << copt.idle_timeout_ms << "/" << copt.message_timeout_ms << "/"
+            << copt.write_timeout_ms << " ms, resume grace " << ropt.resume_grace_ms << " ms)" << std::endl;
+  slam::SessionRegistry registry(ropt, [options] { return std::make_unique<slam::SlamLinkSession>(options); });
+  Server(lfd, sigfd, max_clients, copt, std::move(registry)).run();
   ::close(lfd);
   ::close(sigfd);
-  std::cerr << "slam-server: stopped\n";
+  log_line("stopped");
   return 0;
 }

@@ -181,9 +181,19 @@ class Builder:
                    {"credits": 2, "last_received_sequence": 41})
         self.valid("frame_request_first", "first request, nothing received yet", "FrameRequest",
                    {"credits": 1, "last_received_sequence": 0xFFFFFFFF})
-        self.valid("slam_hello", "SLAM link hello", "SlamHello",
+        self.valid("slam_hello", "SLAM link hello (client, new flight)", "SlamHello",
                    {"protocol_version": 1, "schema_hash": c.spec.schema_hash,
-                    "peer_name": "quad-control"})
+                    "peer_name": "quad-control", "session_id": 0x1F2E3D4C5B6A7988,
+                    "resumed": False, "session_frames": 0, "refusal": ""})
+        self.valid("slam_hello_resumed", "SLAM link hello (server): the session's map continues",
+                   "SlamHello",
+                   {"protocol_version": 1, "schema_hash": c.spec.schema_hash,
+                    "peer_name": "slam-server", "session_id": 0x1F2E3D4C5B6A7988,
+                    "resumed": True, "session_frames": 205, "refusal": ""})
+        self.valid("slam_hello_refused", "SLAM link hello (server): connection refused", "SlamHello",
+                   {"protocol_version": 1, "schema_hash": c.spec.schema_hash,
+                    "peer_name": "slam-server", "session_id": 0, "resumed": False,
+                    "session_frames": 0, "refusal": "slam-server busy: all 4 client slots in use"})
         self.valid("rgbd_frame", "2x2 RGB-D pair for the SLAM server", "RgbdFrame", rgbd_frame())
         self.valid("pose_update", "tracking pose with egomotion, keyframe", "PoseUpdate",
                    pose_update())
@@ -216,7 +226,8 @@ class Builder:
                    "Handshake", handshake("RGB", protocol_version=2),
                    refused="protocol version mismatch")
         self.valid("slam_hello_wrong_schema_hash", "SLAM hello from another spec", "SlamHello",
-                   {"protocol_version": 1, "schema_hash": 1, "peer_name": "old-build"},
+                   {"protocol_version": 1, "schema_hash": 1, "peer_name": "old-build",
+                    "session_id": 0, "resumed": False, "session_frames": 0, "refusal": ""},
                    refused="schema hash mismatch")
 
         # Truncation.

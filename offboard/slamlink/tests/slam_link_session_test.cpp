@@ -1,11 +1,13 @@
-// SLAM-link session on real frames from tests/data, through the real protocol codec:
-// SlamHello is answered; each RgbdFrame gets exactly one PoseUpdate for that pair_sequence; bad
-// input is refused with a reason, never a crash.
+// SLAM-link session on real frames from tests/data, through the real protocol codec: each
+// RgbdFrame gets exactly one PoseUpdate for that pair_sequence - LOST with a reason for a frame
+// that cannot be used - and every pose put on the wire passes the codec's checks (pose_to_wire).
 #include <gtest/gtest.h>
 
 #include "rgbdquad/protocol/codec.hpp"
 #include "slam/dataset/tum_dataset.hpp"
 #include "slam_link_session.hpp"
+
+#include <cmath>
 
 namespace slam {
 namespace {
@@ -48,68 +50,110 @@ proto::RgbdFrame to_wire(const RgbdFrame& f, std::uint32_t seq) {
 }
 
 // Encodes, decodes through the stream decoder (as the server does), and hands to the session.
-std::vector<proto::Message> roundtrip(SlamLinkSession* s, const proto::Message& m, std::string* err) {
+proto::PoseUpdate roundtrip(SlamLinkSession* s, const proto::RgbdFrame& m, std::string* err) {
   const proto::EncodeResult e = proto::encode(m);
   EXPECT_TRUE(e.ok()) << e.error;
   proto::StreamDecoder dec;
   dec.feed(e.bytes);
   proto::DecodeResult r = dec.next();
   EXPECT_EQ(r.status, proto::DecodeStatus::kMessage) << r.detail;
-  if (!r.message) return {};
-  bool fatal = false;
-  return s->on_message(*r.message, err, &fatal);
+  const auto* f = r.message ? std::get_if<proto::RgbdFrame>(&*r.message) : nullptr;
+  EXPECT_NE(f, nullptr);
+  return s->on_frame(f ? *f : m, err);
 }
 
-TEST(SlamLinkSession, GivenHelloThenFramesWhenProcessedThenOnePoseUpdatePerFrame) {
+TEST(SlamLinkSession, GivenFramesWhenProcessedThenOnePoseUpdatePerFrame) {
   PipelineOptions o;
   o.frontend.features.kind = DetectorKind::kOrb;
-  SlamLinkSession s(o, "test-server");
+  SlamLinkSession s(o);
   std::string err;
-  auto hello = roundtrip(&s, proto::SlamHello{proto::kProtocolVersion, proto::kSchemaHash, "quad-control"}, &err);
-  ASSERT_EQ(hello.size(), 1u) << err;
-  EXPECT_TRUE(std::holds_alternative<proto::SlamHello>(hello[0]));
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
   for (std::uint32_t i = 0; i < 5; ++i) {
     auto f = ds->load(i, &err);
     ASSERT_TRUE(f) << err;
-    auto replies = roundtrip(&s, to_wire(*f, 100 + i), &err);
-    ASSERT_EQ(replies.size(), 1u) << err;
-    const auto* u = std::get_if<proto::PoseUpdate>(&replies[0]);
-    ASSERT_NE(u, nullptr);
-    EXPECT_EQ(u->pair_sequence, 100 + i);
-    EXPECT_EQ(u->tracking_state, i == 0 ? proto::TrackingState::kInitializing : proto::TrackingState::kTracking);
+    const proto::PoseUpdate u = roundtrip(&s, to_wire(*f, 100 + i), &err);
+    EXPECT_TRUE(err.empty()) << err;
+    EXPECT_EQ(u.pair_sequence, 100 + i);
+    EXPECT_EQ(u.tracking_state, i == 0 ? proto::TrackingState::kInitializing : proto::TrackingState::kTracking);
     if (i > 0) {
-      EXPECT_GT(u->inlier_count, 50u);
+      EXPECT_GT(u.inlier_count, 50u);
     }
-    EXPECT_TRUE(proto::validate(replies[0]).empty());
+    EXPECT_TRUE(proto::validate(proto::Message{u}).empty());
   }
   EXPECT_EQ(s.frames_processed(), 5u);
+  EXPECT_EQ(s.frames_faulted(), 0u);
 }
 
-TEST(SlamLinkSession, GivenBadInputThenRefusedWithReason) {
-  SlamLinkSession s(PipelineOptions{}, "test-server");
+TEST(SlamLinkSession, GivenUnusableFramesThenEachStillGetsALostPoseUpdateWithAReason) {
+  SlamLinkSession s(PipelineOptions{});
   std::string err;
-  bool fatal = false;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds);
   auto f = ds->load(0, &err);
   ASSERT_TRUE(f);
-  proto::RgbdFrame frame = to_wire(*f, 1);
-  EXPECT_TRUE(s.on_message(frame, &err, &fatal).empty());  // no hello yet
-  EXPECT_NE(err.find("before SlamHello"), std::string::npos);
-  proto::SlamHello wrong{proto::kProtocolVersion, proto::kSchemaHash ^ 1u, "old-build"};
-  EXPECT_TRUE(s.on_message(wrong, &err, &fatal).empty());
-  EXPECT_TRUE(fatal);
-  ASSERT_EQ(s.on_message(proto::SlamHello{proto::kProtocolVersion, proto::kSchemaHash, "ok"}, &err, &fatal).size(), 1u);
-  proto::RgbdFrame truncated = frame;
-  truncated.depth.payload.resize(100);
-  EXPECT_TRUE(s.on_message(truncated, &err, &fatal).empty());
-  EXPECT_NE(err.find("payload size"), std::string::npos);
-  proto::RgbdFrame jpeg = frame;
-  jpeg.rgb.header.encoding = proto::Encoding::kRgbJpeg;
-  EXPECT_TRUE(s.on_message(jpeg, &err, &fatal).empty());
-  EXPECT_NE(err.find("RAW"), std::string::npos);
+  const proto::RgbdFrame frame = to_wire(*f, 1);
+  struct Case {
+    const char* name;
+    proto::RgbdFrame frame;
+    const char* reason;
+  };
+  std::vector<Case> cases;
+  cases.push_back({"truncated depth", frame, "payload size"});
+  cases.back().frame.depth.payload.resize(100);
+  cases.push_back({"JPEG", frame, "RAW"});
+  cases.back().frame.rgb.header.encoding = proto::Encoding::kRgbJpeg;
+  std::uint32_t seq = 7;
+  for (Case& c : cases) {
+    c.frame.pair_sequence = seq;
+    const proto::PoseUpdate u = s.on_frame(c.frame, &err);
+    EXPECT_EQ(u.pair_sequence, seq) << c.name;
+    EXPECT_EQ(u.tracking_state, proto::TrackingState::kLost) << c.name;
+    EXPECT_EQ(u.inlier_count, 0u) << c.name;
+    EXPECT_NE(err.find(c.reason), std::string::npos) << c.name << ": " << err;
+    EXPECT_TRUE(proto::validate(proto::Message{u}).empty()) << c.name;
+    ++seq;
+  }
+  EXPECT_EQ(s.frames_faulted(), cases.size());
+}
+
+// A rotation matrix orthonormal only to rounding can give |w| = 1 + 2e-16, which the codec's
+// range check refuses: before pose_to_wire, slam-server then failed to encode the PoseUpdate and
+// closed the connection without a word (the SLAM-link resets of issue 13).
+TEST(PoseToWire, GivenRotationsAtTheEdgeOfTheCodecsChecksThenTheWirePoseIsValid) {
+  struct Case {
+    const char* name;
+    Eigen::Matrix3d R;
+  };
+  Eigen::Matrix3d scaled_identity = Eigen::Matrix3d::Identity() * (1.0 + 1e-15);
+  Eigen::Matrix3d drifted = Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix() * (1.0 + 5e-6);
+  Eigen::Matrix3d half_turn = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  half_turn(1, 1) += 4e-16;
+  const std::vector<Case> cases = {{"identity + rounding", scaled_identity},
+                                   {"rotation with 5e-6 scale drift", drifted},
+                                   {"half turn + rounding", half_turn}};
+  for (const Case& c : cases) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = c.R;
+    T.translation() = Eigen::Vector3d(0.1, -0.2, 1.7);
+    const auto p = pose_to_wire(T);
+    ASSERT_TRUE(p) << c.name;
+    proto::PoseUpdate u;
+    u.T_world_cam = *p;
+    EXPECT_TRUE(proto::validate(proto::Message{u}).empty()) << c.name << ": " << proto::validate(proto::Message{u});
+  }
+}
+
+TEST(PoseToWire, GivenNoRotationOrNonFiniteValuesThenRefused) {
+  Eigen::Isometry3d nan = Eigen::Isometry3d::Identity();
+  nan.translation().x() = std::nan("");
+  Eigen::Isometry3d scaled = Eigen::Isometry3d::Identity();
+  scaled.linear() *= 1.5;
+  Eigen::Isometry3d far = Eigen::Isometry3d::Identity();
+  far.translation().z() = 1e9;
+  EXPECT_FALSE(pose_to_wire(nan));
+  EXPECT_FALSE(pose_to_wire(scaled));
+  EXPECT_FALSE(pose_to_wire(far));
 }
 
 }  // namespace

@@ -69,7 +69,9 @@ def test_slam_server_answers_each_frame_with_one_pose_update():
         dec = StreamDecoder(codec)
         sock.sendall(codec.encode("SlamHello", {"protocol_version": codec.spec.version,
                                                 "schema_hash": codec.spec.schema_hash,
-                                                "peer_name": "pytest"}))
+                                                "peer_name": "pytest", "session_id": 0,
+                                                "resumed": False, "session_frames": 0,
+                                                "refusal": ""}))
         for seq in range(3):
             sock.sendall(codec.encode("RgbdFrame", frame_fields(seq, texture)))
         messages = []

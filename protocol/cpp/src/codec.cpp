@@ -156,7 +156,10 @@ std::string validate_one(const FrameRequest& m) {
   return check_int_range(m.credits, field_range::kFrameRequestCredits, "credits");
 }
 
-std::string validate_one(const SlamHello& m) { return check_string(m.peer_name, "peer_name"); }
+std::string validate_one(const SlamHello& m) {
+  RGBD_CHECK(check_string(m.peer_name, "peer_name"));
+  return check_string(m.refusal, "refusal");
+}
 
 std::string validate_one(const RgbdFrame& m) {
   RGBD_CHECK(check_intrinsics(m.intrinsics));
@@ -263,6 +266,10 @@ void put_body(Writer& w, const SlamHello& m) {
   w.u16(m.protocol_version);
   w.u64(m.schema_hash);
   put_string(w, m.peer_name);
+  w.u64(m.session_id);
+  w.u8(m.resumed ? 1 : 0);
+  w.u32(m.session_frames);
+  put_string(w, m.refusal);
 }
 void put_body(Writer& w, const RgbdFrame& m) {
   w.u32(m.pair_sequence);
@@ -401,6 +408,10 @@ void get_body(Parse& p, SlamHello& m) {
   m.protocol_version = p.r.u16();
   m.schema_hash = p.r.u64();
   m.peer_name = get_string(p, "peer_name");
+  m.session_id = p.r.u64();
+  m.resumed = get_bool(p, "resumed");
+  m.session_frames = p.r.u32();
+  m.refusal = get_string(p, "refusal");
 }
 void get_body(Parse& p, RgbdFrame& m) {
   m.pair_sequence = p.r.u32();

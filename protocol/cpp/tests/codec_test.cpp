@@ -70,7 +70,7 @@ std::vector<Message> all_message_kinds() {
   out.emplace_back(HandshakeAck{false, "schema hash mismatch"});
   out.emplace_back(make_rgb_frame(4, 3, 7));
   out.emplace_back(FrameRequest{2, 41});
-  out.emplace_back(SlamHello{kProtocolVersion, kSchemaHash, "slam-server"});
+  out.emplace_back(SlamHello{kProtocolVersion, kSchemaHash, "slam-server", 0x1234, true, 205, ""});
   RgbdFrame pair;
   pair.pair_sequence = 9;
   pair.intrinsics = make_handshake().intrinsics;
@@ -354,7 +354,7 @@ TEST(Compatibility, MismatchedHashOrVersionIsRefusedLoudly) {
   h = make_handshake();
   h.protocol_version = 2;
   EXPECT_NE(handshake_incompatibility(h).find("version"), std::string::npos);
-  SlamHello hello{kProtocolVersion, kSchemaHash + 1, "x"};
+  SlamHello hello{kProtocolVersion, kSchemaHash + 1, "x", 0, false, 0, ""};
   EXPECT_NE(hello_incompatibility(hello), "");
 }
 

@@ -151,7 +151,11 @@ json fields_of(const FrameRequest& m) {
 json fields_of(const SlamHello& m) {
   return {{"protocol_version", m.protocol_version},
           {"schema_hash", m.schema_hash},
-          {"peer_name", m.peer_name}};
+          {"peer_name", m.peer_name},
+          {"session_id", m.session_id},
+          {"resumed", m.resumed},
+          {"session_frames", m.session_frames},
+          {"refusal", m.refusal}};
 }
 json fields_of(const RgbdFrame& m) {
   return {{"pair_sequence", m.pair_sequence},
@@ -238,6 +242,10 @@ Message from_fields(const std::string& type, const json& f) {
     m.protocol_version = num<std::uint16_t>(f, "protocol_version");
     m.schema_hash = num<std::uint64_t>(f, "schema_hash");
     m.peer_name = str(f, "peer_name");
+    m.session_id = num<std::uint64_t>(f, "session_id");
+    m.resumed = boolean(f, "resumed");
+    m.session_frames = num<std::uint32_t>(f, "session_frames");
+    m.refusal = str(f, "refusal");
     return m;
   }
   if (type == "RgbdFrame") {

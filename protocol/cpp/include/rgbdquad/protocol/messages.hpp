@@ -82,6 +82,12 @@ struct SlamHello {
   std::uint16_t protocol_version = kProtocolVersion;
   std::uint64_t schema_hash = kSchemaHash;
   std::string peer_name;
+  /// Client: the flight's map (random per flight; 0 = a new map the server names). Server: the
+  /// session it serves. Reconnecting with a held session's id continues its map and world frame.
+  std::uint64_t session_id = 0;
+  bool resumed = false;              ///< server: an existing session continues
+  std::uint32_t session_frames = 0;  ///< server: frames already in the session's map
+  std::string refusal;               ///< server: non-empty = refused (then closed), with the reason
 };
 
 /// SLAM link, quad-control -> slam-server: a registered RGB-D pair.

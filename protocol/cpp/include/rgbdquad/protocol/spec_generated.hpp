@@ -11,7 +11,7 @@ namespace rgbdquad::protocol {
 /// Protocol major version carried in every envelope; peers with another version refuse.
 inline constexpr std::uint8_t kProtocolVersion = 1;
 /// First 8 bytes (little-endian) of SHA-256 of the canonical spec (see docs/protocol.md).
-inline constexpr std::uint64_t kSchemaHash = 0xd7970a05e05ff67aULL;
+inline constexpr std::uint64_t kSchemaHash = 0xbe1fc2e7dc9d9960ULL;
 /// Envelope magic, resynchronisation marker.
 inline constexpr std::uint8_t kMagic[4] = {0x52, 0x47, 0x42, 0x51};
 inline constexpr std::size_t kEnvelopeHeaderBytes = 16;
@@ -313,7 +313,7 @@ constexpr std::size_t max_body_bytes(std::uint8_t message_type) {
     case 4:  // FrameRequest
       return 6;
     case 16:  // SlamHello
-      return 267;
+      return 537;
     case 17:  // RgbdFrame
       return 2097296;
     case 18:  // PoseUpdate

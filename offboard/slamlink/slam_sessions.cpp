@@ -1,0 +1,130 @@
+// slam-server's sessions: see slam_sessions.hpp.
+#include "slam_sessions.hpp"
+
+#include <cstdio>
+
+namespace slam {
+
+namespace {
+// Ids the registry gives itself (client asked with 0): a fixed prefix in the top bits keeps them
+// apart from a client's random ids in practice, and they are never resumed.
+constexpr std::uint64_t kOwnIdPrefix = 0x5E55000000000000ull;
+}  // namespace
+
+std::string SessionRegistryOptions::validate() const {
+  if (resume_grace_ms < 0) return "resume grace must be >= 0 ms";
+  if (max_sessions < 1) return "max sessions must be >= 1";
+  return {};
+}
+
+SessionRegistry::SessionRegistry(SessionRegistryOptions options, Factory factory)
+    : options_(options), factory_(std::move(factory)) {}
+
+std::string SessionRegistry::id_text(std::uint64_t session_id) {
+  char buf[24];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(session_id));
+  return buf;
+}
+
+std::string SessionRegistry::end_line(std::uint64_t id, Entry& e, const std::string& why) {
+  return "session " + id_text(id) + " ended (" + why + "): " + e.session->finish_summary();
+}
+
+AttachResult SessionRegistry::attach(std::uint64_t session_id, int connection, std::int64_t now_ms,
+                                     std::vector<std::string>* log) {
+  AttachResult r;
+  detach(connection, now_ms);  // a second hello on the same connection re-attaches
+  if (session_id != 0) {
+    auto it = sessions_.find(session_id);
+    if (it != sessions_.end()) {
+      Entry& e = it->second;
+      r.displaced_connection = e.connection;
+      e.connection = connection;
+      r.session = e.session.get();
+      r.session_id = session_id;
+      r.resumed = true;
+      if (log)
+        log->push_back("session " + id_text(session_id) + " resumed (map and world frame kept, " +
+                       std::to_string(e.session->frames_processed()) + " frames" +
+                       (r.displaced_connection ? ", taken over from client #" + std::to_string(*r.displaced_connection)
+                                               : ", parked " + std::to_string(now_ms - e.parked_since_ms) + " ms") +
+                       ")");
+      return r;
+    }
+  }
+  if (sessions_.size() >= options_.max_sessions) {
+    // Room for a new map: drop the map parked the longest; refuse if every map has its client.
+    auto victim = sessions_.end();
+    for (auto it = sessions_.begin(); it != sessions_.end(); ++it)
+      if (!it->second.connection && (victim == sessions_.end() || it->second.parked_since_ms < victim->second.parked_since_ms))
+        victim = it;
+    if (victim == sessions_.end()) {
+      r.refusal = "slam-server busy: " + std::to_string(sessions_.size()) + " sessions with a client each (max " +
+                  std::to_string(options_.max_sessions) + ")";
+      return r;
+    }
+    if (log) log->push_back(end_line(victim->first, victim->second, "dropped to make room for a new session"));
+    sessions_.erase(victim);
+  }
+  if (session_id == 0) {
+    do session_id = kOwnIdPrefix | next_own_id_++;
+    while (sessions_.count(session_id) != 0);
+  }
+  Entry e;
+  e.session = factory_();
+  e.connection = connection;
+  e.started_ms = now_ms;
+  r.session = e.session.get();
+  r.session_id = session_id;
+  sessions_.emplace(session_id, std::move(e));
+  if (log) log->push_back("session " + id_text(session_id) + " started (a new map)");
+  return r;
+}
+
+void SessionRegistry::detach(int connection, std::int64_t now_ms) {
+  for (auto& [id, e] : sessions_) {
+    if (e.connection == connection) {
+      e.connection.reset();
+      e.parked_since_ms = now_ms;
+    }
+  }
+}
+
+std::vector<std::string> SessionRegistry::expire(std::int64_t now_ms) {
+  std::vector<std::string> lines;
+  for (auto it = sessions_.begin(); it != sessions_.end();) {
+    Entry& e = it->second;
+    if (!e.connection && now_ms - e.parked_since_ms >= options_.resume_grace_ms) {
+      lines.push_back(end_line(it->first, e, "no client for " + std::to_string(options_.resume_grace_ms) + " ms"));
+      it = sessions_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  return lines;
+}
+
+std::vector<std::string> SessionRegistry::finish_all() {
+  std::vector<std::string> lines;
+  for (auto& [id, e] : sessions_) lines.push_back(end_line(id, e, "slam-server stopping"));
+  sessions_.clear();
+  return lines;
+}
+
+std::optional<std::int64_t> SessionRegistry::next_expiry_ms() const {
+  std::optional<std::int64_t> next;
+  for (const auto& [id, e] : sessions_)
+    if (!e.connection) {
+      const std::int64_t t = e.parked_since_ms + options_.resume_grace_ms;
+      if (!next || t < *next) next = t;
+    }
+  return next;
+}
+
+SlamLinkSession* SessionRegistry::session_of(int connection) {
+  for (auto& [id, e] : sessions_)
+    if (e.connection == connection) return e.session.get();
+  return nullptr;
+}
+
+}  // namespace slam

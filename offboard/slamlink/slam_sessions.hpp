@@ -1,0 +1,82 @@
+// slam-server's sessions, socket-free. A session is one flight's map and world frame (a
+// SlamLinkSession), named by the session_id the client sends in its SlamHello. A connection
+// attaches to a session; when the connection breaks, the session is parked for `resume_grace_ms`
+// so that a reconnecting client of the same flight continues the same map and world frame (a broken
+// link must not discard the map); after that it is finished and dropped. A connection that
+// presents the id of a session another connection still holds takes it over (the caller closes the
+// old connection): a client that timed out reconnects before the server noticed the old socket died.
+// session_id 0 asks for a new map that cannot be resumed; the registry then names it itself.
+//
+// Time is passed in (now_ms, any monotonic origin). Not thread-safe (slam-server's single loop).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "slam_link_session.hpp"
+
+namespace slam {
+
+struct SessionRegistryOptions {
+  /// How long a map waits for its client to come back: longer than quad-control's reply timeout
+  /// (5 s) plus a reconnect (<= 1 s) several times over, short enough that a finished flight's map
+  /// does not hold memory for long.
+  std::int64_t resume_grace_ms = 30000;
+  /// Maps held at once (attached + parked). A map holds keyframes (images + features): a few
+  /// hundred MB for a long flight. Beyond it the oldest parked map is dropped.
+  std::size_t max_sessions = 4;
+  std::string validate() const;
+};
+
+struct AttachResult {
+  SlamLinkSession* session = nullptr;  ///< null: refused (see refusal)
+  std::uint64_t session_id = 0;        ///< the id served (the registry's own when 0 was asked)
+  bool resumed = false;                ///< an existing map continues
+  std::optional<int> displaced_connection;  ///< held the session until now: close it
+  std::string refusal;
+};
+
+class SessionRegistry {
+ public:
+  using Factory = std::function<std::unique_ptr<SlamLinkSession>()>;
+  SessionRegistry(SessionRegistryOptions options, Factory factory);
+
+  /// Attaches `connection` to session `session_id` (new or resumed). Log lines (a session started,
+  /// resumed, a parked map dropped to make room) are appended to `log`.
+  AttachResult attach(std::uint64_t session_id, int connection, std::int64_t now_ms,
+                      std::vector<std::string>* log);
+  /// The connection is gone: its session (if any) is parked until now_ms + resume_grace_ms.
+  void detach(int connection, std::int64_t now_ms);
+  /// Finishes and drops sessions parked past their grace period; one log line each.
+  std::vector<std::string> expire(std::int64_t now_ms);
+  /// Finishes every session (shutdown); one log line each.
+  std::vector<std::string> finish_all();
+  /// Earliest expiry among parked sessions (for the poll timeout).
+  std::optional<std::int64_t> next_expiry_ms() const;
+  /// The session a connection holds (null if none).
+  SlamLinkSession* session_of(int connection);
+  std::size_t size() const { return sessions_.size(); }
+
+  static std::string id_text(std::uint64_t session_id);
+
+ private:
+  struct Entry {
+    std::unique_ptr<SlamLinkSession> session;
+    std::optional<int> connection;   ///< attached connection
+    std::int64_t parked_since_ms = 0;
+    std::int64_t started_ms = 0;
+  };
+  std::string end_line(std::uint64_t id, Entry& e, const std::string& why);
+
+  SessionRegistryOptions options_;
+  Factory factory_;
+  std::map<std::uint64_t, Entry> sessions_;
+  std::uint64_t next_own_id_ = 1;  ///< ids for clients that ask with 0 (high bit set, see .cpp)
+};
+
+}  // namespace slam
