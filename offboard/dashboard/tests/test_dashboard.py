@@ -8,6 +8,7 @@ on timing.
 
 from __future__ import annotations
 
+import http.client
 import json
 import subprocess
 import time
@@ -22,6 +23,33 @@ STATE_WAIT_MS = 60_000  # SLAM on a busy 2-core machine can take seconds per fra
 def api_state(url: str) -> dict:
     with urllib.request.urlopen(url + "api/state", timeout=5) as r:
         return json.load(r)
+
+
+def api_post(url: str, path: str, body, headers: dict | None = None) -> tuple[int, dict]:
+    """POSTs JSON (a dict, or raw bytes) as the dashboard page does; returns (status, reply)."""
+    data = body if isinstance(body, bytes) else json.dumps(body).encode()
+    req = urllib.request.Request(url + path, data=data, method="POST",
+                                 headers={"Content-Type": "application/json", **(headers or {})})
+    try:
+        with urllib.request.urlopen(req, timeout=5) as r:
+            return r.status, json.load(r)
+    except urllib.error.HTTPError as e:
+        return e.code, json.load(e)
+
+
+def raw_request(url: str, method: str, path: str, headers: dict, body: bytes = b"") -> tuple[int, bytes]:
+    """One request with exactly these headers (Host included): what a foreign page's browser sends."""
+    port = int(url.rstrip("/").rsplit(":", 1)[1])
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
+    try:
+        conn.putrequest(method, path, skip_host=True, skip_accept_encoding=True)
+        for k, v in {**headers, "Content-Length": str(len(body))}.items():
+            conn.putheader(k, v)
+        conn.endheaders(body)
+        r = conn.getresponse()
+        return r.status, r.read()
+    finally:
+        conn.close()
 
 
 def wait_for(predicate, timeout_s: float, what: str):
@@ -92,6 +120,22 @@ def test_dashboard_end_to_end(quad_control, firmware, browser, artifacts):
     page.keyboard.press("r")
     page.wait_for_function("document.getElementById('state').textContent === 'hold'", timeout=10_000)
 
+    # WHEN hostile manual steps arrive through the API (issue 17 #3: 50 m -> setpoint x 50.1,
+    # 1e308 twice -> x = inf, up 1e308 -> the height loop stopped) THEN each is refused and the
+    # setpoint stays finite, inside the flight envelope
+    before = api_state(quad_control.url)["setpoint"]
+    for body, status in [({"forward_m": 50}, 409), ({"up_m": 100}, 409), ({"forward_m": 1e308}, 409),
+                         ({"forward_m": 1e308}, 409), ({"up_m": 1e308}, 409), ({"left_m": -1e308}, 409),
+                         ({"yaw_ccw_deg": 1e308}, 409)]:
+        code, reply = api_post(quad_control.url, "api/manual", body)
+        assert (code, reply["ok"]) == (status, False), (body, code, reply)
+    code, _ = api_post(quad_control.url, "api/manual", b'{"forward_m": 1e400}')  # overflows to inf
+    assert code == 400
+    code, _ = api_post(quad_control.url, "api/waypoint", {"x_m": 1e308, "y_m": 0})
+    assert code == 409
+    s = api_state(quad_control.url)
+    assert s["state"] == "hold" and s["setpoint"] == before, (before, s["setpoint"])
+
     # WHEN Disarm is clicked in flight THEN it is refused and said so
     page.click("#btn-disarm")
     page.wait_for_function("document.getElementById('message').textContent.includes('refused')", timeout=10_000)
@@ -113,12 +157,7 @@ def test_dashboard_end_to_end(quad_control, firmware, browser, artifacts):
 
 def test_api_rejects_bad_requests(quad_control):
     def post(path: str, body: bytes) -> tuple[int, dict]:
-        req = urllib.request.Request(quad_control.url + path, data=body, method="POST")
-        try:
-            with urllib.request.urlopen(req, timeout=5) as r:
-                return r.status, json.load(r)
-        except urllib.error.HTTPError as e:
-            return e.code, json.load(e)
+        return api_post(quad_control.url, path, body)
 
     cases = [
         ("api/command", b"not json", 400),
@@ -152,3 +191,52 @@ def test_token_required_off_loopback_and_enforced(binary):
             assert json.load(r)["state"] == "disarmed"
     finally:
         qc.stop()
+
+
+def test_cross_site_requests_cannot_command_the_craft(binary):
+    """Issue 17 #5: on loopback without a token, a POST from a foreign page (Origin evil.example,
+    a DNS-rebinding Host, a text/plain "simple request") armed the craft. Each probe must now be
+    refused and leave the craft disarmed; the dashboard page's own request must still work."""
+    qc = QuadControl(binary, ["--no-firmware", "--port", "0"])
+    port = qc.url.rstrip("/").rsplit(":", 1)[1]
+    arm = json.dumps({"command": "arm"}).encode()
+    same = f"127.0.0.1:{port}"
+    probes = [
+        ("issue probe: text/plain, Origin and Host evil.example",
+         {"Host": "evil.example:8080", "Origin": "http://evil.example", "Content-Type": "text/plain"}, 403),
+        ("Origin evil.example", {"Host": same, "Origin": "http://evil.example", "Content-Type": "application/json"}, 403),
+        ("DNS rebinding: Host evil.example, same-origin to the browser",
+         {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}", "Content-Type": "application/json"}, 403),
+        ("text/plain without Origin", {"Host": same, "Content-Type": "text/plain"}, 415),
+        ("form post", {"Host": same, "Content-Type": "application/x-www-form-urlencoded"}, 415),
+        ("Sec-Fetch-Site cross-site", {"Host": same, "Sec-Fetch-Site": "cross-site", "Content-Type": "application/json"}, 403),
+        ("Origin null", {"Host": same, "Origin": "null", "Content-Type": "application/json"}, 403),
+    ]
+    try:
+        for name, headers, status in probes:
+            code, body = raw_request(qc.url, "POST", "/api/command", headers, arm)
+            assert code == status, (name, code, body)
+            assert api_state(qc.url)["state"] == "disarmed", name
+        # a rebinding page cannot read the state either
+        code, _ = raw_request(qc.url, "GET", "/api/state", {"Host": f"evil.example:{port}"})
+        assert code == 403
+        # the dashboard page's own request (same origin, JSON) still arms
+        code, body = raw_request(qc.url, "POST", "/api/command",
+                                 {"Host": same, "Origin": f"http://{same}", "Sec-Fetch-Site": "same-origin",
+                                  "Content-Type": "application/json"}, arm)
+        assert (code, json.loads(body)["ok"]) == (200, True)
+        assert api_state(qc.url)["state"] == "armed"
+        assert api_post(qc.url, "api/command", {"command": "disarm"})[0] == 200
+    finally:
+        qc.stop()
+
+
+def test_public_bind_needs_a_strong_token(binary):
+    # Issue 17 #5: a 1-character token was accepted for a public bind.
+    for token, ok in [("x", False), ("s3cret", False), ("aaaaaaaaaaaaaaaaaaaa", False),
+                      ("9f86d081884c7d659a2feaa0c55ad015", True)]:
+        r = subprocess.run([str(binary), "--no-firmware", "--bind", "0.0.0.0", "--token", token, "--print-config"],
+                           capture_output=True, text=True, timeout=30)
+        assert (r.returncode == 0) == ok, (token, r.returncode, r.stderr)
+        if not ok:
+            assert "token" in r.stderr

@@ -5,6 +5,7 @@
 #include <set>
 
 #include "app/http_server.hpp"
+#include "app/request_guard.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -51,9 +52,12 @@ AppConfig default_app_config(const std::string& repo_dir) {
 
 std::string AppConfig::validate() const {
   if (dashboard_port == 0) return "dashboard.port must be > 0";
-  if (!is_loopback_address(dashboard_bind_address) && dashboard_token.empty()) {
-    return "dashboard.bind_address " + dashboard_bind_address +
-           " is not loopback: set dashboard.token (or --token) to expose the dashboard";
+  if (!is_loopback_address(dashboard_bind_address)) {
+    if (dashboard_token.empty()) {
+      return "dashboard.bind_address " + dashboard_bind_address +
+             " is not loopback: set dashboard.token (or --token) to expose the dashboard";
+    }
+    if (const std::string e = check_token_strength(dashboard_token); !e.empty()) return "dashboard.token: " + e;
   }
   if (stream_source != "tum" && stream_source != "receiver") {
     return "stream.source must be 'tum' or 'receiver', not '" + stream_source + "'";
@@ -71,7 +75,8 @@ std::string AppConfig::validate() const {
 
 nlohmann::json AppConfig::to_json_redacted() const {
   return {{"dashboard", {{"bind_address", dashboard_bind_address}, {"port", dashboard_port},
-                         {"token", dashboard_token.empty() ? "" : "<set>"}, {"static_dir", dashboard_static_dir}}},
+                         {"token", dashboard_token.empty() ? "" : "<set>"}, {"static_dir", dashboard_static_dir},
+                         {"allowed_hosts", dashboard_allowed_hosts}}},
           {"stream", {{"source", stream_source}, {"tum_folder", replay.folder}, {"speed", replay.speed},
                       {"camera", replay.camera}, {"bind_address", receiver.bind_address},
                       {"rgb_port", receiver.rgb_port}, {"depth_port", receiver.depth_port}}},
@@ -109,7 +114,8 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
   const json& fl = j.value("floor", empty);
   const json& m = j.value("map", empty);
   std::string loop = "bounce";
-  if (!check_keys(d, "dashboard", {"bind_address", "port", "token", "static_dir"}, error) ||
+  if (!check_keys(d, "dashboard", {"bind_address", "port", "token", "static_dir", "allowed_hosts"}, error) ||
+      !read(d, "dashboard", "allowed_hosts", c.dashboard_allowed_hosts, error) ||
       !read(d, "dashboard", "bind_address", c.dashboard_bind_address, error) ||
       !read(d, "dashboard", "port", c.dashboard_port, error) || !read(d, "dashboard", "token", c.dashboard_token, error) ||
       !read(d, "dashboard", "static_dir", c.dashboard_static_dir, error) ||

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -20,7 +21,9 @@ struct AppConfig {
   // dashboard
   std::string dashboard_bind_address = "127.0.0.1";  ///< loopback: only this machine sees the UI
   std::uint16_t dashboard_port = 8080;
-  std::string dashboard_token;   ///< required (non-empty) to bind a non-loopback address
+  std::string dashboard_token;   ///< required, and strong (check_token_strength), to bind a non-loopback address
+  /// Host names the dashboard answers to besides IP literals and "localhost" (DNS-rebinding guard).
+  std::vector<std::string> dashboard_allowed_hosts;
   std::string dashboard_static_dir;  ///< default: the repo's offboard/dashboard/static
   // stream
   std::string stream_source = "tum";  ///< "tum" (dataset replay) or "receiver" (rgbd-streamer, live)

@@ -65,8 +65,8 @@ bool number(const nlohmann::json& j, const char* key, double* out) {
 }
 }  // namespace
 
-DashboardApi::DashboardApi(GroundStation& station, const std::string& static_dir, std::string token)
-    : station_(station), token_(std::move(token)) {
+DashboardApi::DashboardApi(GroundStation& station, const std::string& static_dir, AccessPolicy policy)
+    : station_(station), policy_(std::move(policy)) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (!fs::is_directory(static_dir, ec)) throw std::runtime_error("dashboard static dir not found: " + static_dir);
@@ -93,10 +93,8 @@ HttpResponse DashboardApi::handle(const HttpRequest& req) {
     if (it == files_.end()) return make(req, http::status::not_found, "text/plain", "not found\n");
     return make(req, http::status::ok, it->second.first, it->second.second);
   }
-  if (!token_.empty()) {
-    const auto header = req.find("X-Dashboard-Token");
-    const std::string given = header != req.end() ? std::string(header->value()) : query_param(target, "token");
-    if (given != token_) return json_reply(req, {{"ok", false}, {"error", "missing or wrong token"}}, http::status::unauthorized);
+  if (const auto refusal = check_api_request(req, policy_)) {
+    return json_reply(req, {{"ok", false}, {"error", refusal->reason}}, refusal->status);
   }
   const bool get = req.method() == http::verb::get;
   const bool post = req.method() == http::verb::post;

@@ -8,7 +8,8 @@
 //   POST /api/command        {"command": "arm" | "disarm" | "takeoff" | "land"}
 //   POST /api/waypoint       {"x_m": .., "y_m": ..}   (floor-aligned world frame)
 //   POST /api/manual         {"forward_m", "left_m", "up_m", "yaw_ccw_deg"} (setpoint steps)
-// With a token configured every /api/ request must carry it (header X-Dashboard-Token or ?token=).
+// Every /api/ request passes check_api_request() first (request_guard.hpp: Host, Origin,
+// Sec-Fetch-Site, a JSON Content-Type for POST, and the token when one is configured).
 #pragma once
 
 #include <map>
@@ -16,6 +17,7 @@
 
 #include "app/ground_station.hpp"
 #include "app/http_server.hpp"
+#include "app/request_guard.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -23,13 +25,13 @@ class DashboardApi {
  public:
   /// Loads the static assets of `static_dir` (regular files, top level only); throws
   /// std::runtime_error when the folder or its index.html is missing.
-  DashboardApi(GroundStation& station, const std::string& static_dir, std::string token);
+  DashboardApi(GroundStation& station, const std::string& static_dir, AccessPolicy policy);
   HttpResponse handle(const HttpRequest& request);
 
  private:
   GroundStation& station_;
   std::map<std::string, std::pair<std::string, std::string>> files_;  // path -> (content type, bytes)
-  std::string token_;
+  AccessPolicy policy_;
 };
 
 }  // namespace rgbdquad::quadcontrol

@@ -138,7 +138,8 @@ int main(int argc, char** argv) {
 
   try {
     GroundStation station(config->station, std::move(source), firmware, *spec, key, std::move(flight_log));
-    DashboardApi api(station, config->dashboard_static_dir, config->dashboard_token);
+    DashboardApi api(station, config->dashboard_static_dir,
+                     AccessPolicy{config->dashboard_token, config->dashboard_allowed_hosts});
     HttpServer server(config->dashboard_bind_address, config->dashboard_port,
                       [&api](const HttpRequest& r) { return api.handle(r); });
     std::cout << "quad-control: dashboard on http://" << config->dashboard_bind_address << ":" << server.port()

@@ -1,6 +1,9 @@
 // Live frame source over offboard/receiver: see receiver_source.hpp.
 #include "app/receiver_source.hpp"
 
+#include <spdlog/sinks/stdout_sinks.h>
+#include <spdlog/spdlog.h>
+
 #include <cstring>
 #include <opencv2/imgproc.hpp>
 
@@ -8,11 +11,19 @@ namespace rgbdquad::quadcontrol {
 
 namespace {
 constexpr int kWaitSliceMs = 100;  // how often next() checks the stop flag while no frame comes
+
+// The receiver's connection events and (rate-limited) errors on quad-control's stderr: who
+// connected, why a connection was dropped or refused.
+std::shared_ptr<spdlog::logger> receiver_logger() {
+  auto log = std::make_shared<spdlog::logger>("receiver", std::make_shared<spdlog::sinks::stderr_sink_mt>());
+  log->set_pattern("quad-control: receiver: %v");
+  return log;
+}
 }
 
 ReceiverSource::ReceiverSource(const receiver::ReceiverOptions& options)
     : options_(options),
-      receiver_(std::make_unique<receiver::StreamReceiver>(options, [] { return monotonic_now_us(); }, nullptr)) {}
+      receiver_(std::make_unique<receiver::StreamReceiver>(options, [] { return monotonic_now_us(); }, receiver_logger())) {}
 
 std::string ReceiverSource::describe() const {
   return "rgbd-streamer via receiver on " + options_.bind_address + ":" + std::to_string(receiver_->rgb_port()) +
