@@ -190,7 +190,8 @@ void GroundStation::on_slam(const SlamResult& result, const CameraFrame& frame) 
   if (!T_floor_world_) {
     slam_session_ = result.session;
   } else if (result.session != slam_session_ && result.tracking && last_T_floor_cam_) {
-    // A new SLAM session (slam-server reconnected) has a new world frame, its first camera.
+    // A new SLAM session (a new map: slam-server restarted or its grace period passed; a resumed
+    // reconnect keeps the session number) has a new world frame, its first camera.
     // Re-anchor it on the last known camera pose: the craft hovered in lost-hold meanwhile.
     T_floor_world_ = *last_T_floor_cam_ * result.T_world_cam.inverse();
     slam_session_ = result.session;
@@ -241,6 +242,7 @@ void GroundStation::on_reply(std::int64_t received_us, const ControlReply& reply
 nlohmann::json GroundStation::state_json() {
   const bool slam_ready = slam_ready_.load();
   const SlamStats slam_stats = slam_ready ? slam_->stats() : SlamStats{};
+  const SlamLinkStatus slam_link = slam_ready ? slam_->link_status() : SlamLinkStatus{};
   std::optional<FirmwareLinkStats> fw;
   if (firmware_) fw = firmware_->stats();
   std::lock_guard<std::mutex> lock(mutex_);
@@ -272,7 +274,13 @@ nlohmann::json GroundStation::state_json() {
                {"processed", slam_stats.processed},
                {"dropped_busy", slam_stats.dropped_busy},
                {"latency_ms", slam_stats.last_latency_ms},
-               {"error", slam_stats.last_error}};
+               {"error", slam_stats.last_error},
+               // New maps (1 in a healthy flight), resumed reconnects, broken connections.
+               {"session_id", slam_link.session_id},
+               {"sessions_started", slam_link.sessions_started},
+               {"resumes", slam_link.resumes},
+               {"disconnects", slam_link.disconnects},
+               {"last_disconnect", slam_link.last_disconnect}};
   nlohmann::json fwj = {{"enabled", fw.has_value()}};
   if (fw) {
     const bool connected = fw->last_reply_us > 0 && monotonic_now_us() - fw->last_reply_us < 1000 * kUsPerMs;

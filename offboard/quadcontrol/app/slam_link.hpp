@@ -1,7 +1,6 @@
-// quad-control's link to SLAM. The design target is slam-server (a separate process reached over
-// protocol/'s SLAM link on a local socket); it does not exist yet, so the available implementation
-// runs the SLAM engine's front-end (offboard/slam, FrontEnd: features, matching, RANSAC egomotion)
-// in-process on its own thread, behind the same interface.
+// quad-control's link to SLAM: slam-server over protocol/'s SLAM link (SlamServerClient,
+// slam_server_client.hpp), or the SLAM engine's front-end (offboard/slam, FrontEnd: features,
+// matching, RANSAC egomotion) in-process on its own thread (InProcessSlam), behind one interface.
 // Semantics of both (thesis): the newest frame is handed over; a frame arriving while SLAM is busy
 // is dropped (counted). Results are delivered through the callback on the SLAM thread.
 #pragma once
@@ -28,9 +27,18 @@ struct SlamResult {
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< world = first camera frame
   std::size_t inliers = 0;
   double latency_ms = 0.0;  ///< hand-over to result
-  /// +1 each time the link starts a new SLAM session (slam-server reconnected): poses of a new
-  /// session are in a new world frame (its first camera).
+  /// +1 each time the link starts a new SLAM session (a new map): poses of a new session are in a
+  /// new world frame (its first camera). A reconnect that resumes the map keeps the number.
   std::uint64_t session = 0;
+};
+
+/// The link's own health, for the dashboard and the demo's verdict (thread-safe copy).
+struct SlamLinkStatus {
+  std::uint64_t sessions_started = 0;  ///< new maps (1 in a healthy flight; more = SLAM session resets)
+  std::uint64_t resumes = 0;           ///< reconnects that continued the same map and world frame
+  std::uint64_t disconnects = 0;       ///< connections that broke (each logged with its cause)
+  std::string session_id;              ///< hex; "" for the in-process link
+  std::string last_disconnect;         ///< cause of the last one
 };
 
 class SlamLink {
@@ -41,6 +49,7 @@ class SlamLink {
   virtual bool submit(const CameraFrame& frame) = 0;
   virtual SlamStats stats() const = 0;
   virtual std::string name() const = 0;
+  virtual SlamLinkStatus link_status() const { return SlamLinkStatus{1, 0, 0, "", ""}; }
 };
 
 class InProcessSlam : public SlamLink {

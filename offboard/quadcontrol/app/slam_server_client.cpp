@@ -1,23 +1,34 @@
 // slam-server client: see slam_server_client.hpp.
 #include "app/slam_server_client.hpp"
 
+#include <cstdio>
 #include <iostream>
-
-#include <sys/socket.h>
-#include <sys/time.h>
+#include <random>
 
 #include <Eigen/Geometry>
-#include <boost/asio/connect.hpp>
-#include <boost/asio/write.hpp>
 
 namespace rgbdquad::quadcontrol {
 
-namespace asio = boost::asio;
 namespace proto = rgbdquad::protocol;
 
 namespace {
 constexpr const char* kPeerName = "quad-control";
 constexpr std::size_t kReadChunkBytes = 64 * 1024;
+
+std::string hex_id(std::uint64_t id) {
+  char buf[24];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(id));
+  return buf;
+}
+
+void log_line(const std::string& s) { std::cerr << "quad-control: SLAM link: " << s << std::endl; }
+
+std::uint64_t random_session_id() {
+  std::random_device rd;
+  std::uint64_t id = 0;
+  while (id == 0) id = (static_cast<std::uint64_t>(rd()) << 32) ^ rd();
+  return id;
+}
 
 Eigen::Isometry3d to_isometry(const proto::Pose3& p) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
@@ -58,15 +69,16 @@ std::string SlamServerOptions::validate() const {
 }
 
 SlamServerClient::SlamServerClient(SlamServerOptions options, Callback callback)
-    : options_(std::move(options)), callback_(std::move(callback)), socket_(io_) {
+    : options_(std::move(options)), callback_(std::move(callback)) {
+  if (options_.session_id == 0) options_.session_id = random_session_id();
+  status_.session_id = hex_id(options_.session_id);
   thread_ = std::thread([this] { run(); });
 }
 
 SlamServerClient::~SlamServerClient() {
   stop_ = true;
   mailbox_.close();
-  const int fd = socket_fd_.load();
-  if (fd >= 0) ::shutdown(fd, SHUT_RDWR);  // unblocks a read in progress
+  socket_.wake_up();  // a wait in progress returns at once
   if (thread_.joinable()) thread_.join();
 }
 
@@ -78,74 +90,77 @@ bool SlamServerClient::submit(const CameraFrame& frame) { return mailbox_.offer(
 
 SlamStats SlamServerClient::stats() const { return mailbox_.stats(); }
 
+SlamLinkStatus SlamServerClient::link_status() const {
+  std::lock_guard<std::mutex> lock(status_mutex_);
+  return status_;
+}
+
 void SlamServerClient::disconnect() {
-  socket_fd_ = -1;
-  boost::system::error_code ignored;
-  socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
-  socket_.close(ignored);
+  socket_.close();
   connected_ = false;
   decoder_ = proto::StreamDecoder{};
 }
 
-bool SlamServerClient::send(const proto::Message& message, std::string* error) {
+bool SlamServerClient::send(const proto::Message& message, Clock::time_point deadline, std::string* error) {
   const auto encoded = proto::encode(message);
   if (!encoded.ok()) {
     *error = "encode: " + encoded.error;
     return false;
   }
-  boost::system::error_code ec;
-  asio::write(socket_, asio::buffer(encoded.bytes), ec);
-  if (ec) {
-    *error = "send: " + ec.message();
-    return false;
-  }
-  return true;
+  return socket_.write_all(encoded.bytes.data(), encoded.bytes.size(), deadline, error);
 }
 
-std::optional<proto::Message> SlamServerClient::receive(std::string* error) {
+std::optional<proto::Message> SlamServerClient::receive(Clock::time_point deadline, const std::string& what,
+                                                        std::string* error) {
   std::vector<std::uint8_t> buf(kReadChunkBytes);
   while (!stop_) {
     auto r = decoder_.next();
     if (r.status == proto::DecodeStatus::kMessage) return r.message;
     if (r.status == proto::DecodeStatus::kError) {
-      mailbox_.note_error(std::string("dropped bytes: ") + proto::to_string(r.error) + " " + r.detail);
+      const std::string e = std::string("dropped bytes: ") + proto::to_string(r.error) + " " + r.detail;
+      if (decode_errors_++ == 0) log_line(e + " (further ones counted)");
+      mailbox_.note_error(e);
       continue;
     }
-    boost::system::error_code ec;
-    const std::size_t n = socket_.read_some(asio::buffer(buf), ec);  // SO_RCVTIMEO bounds the wait
-    if (ec) {
-      *error = ec == asio::error::would_block || ec == asio::error::try_again
-                   ? "no reply within " + std::to_string(options_.reply_timeout_ms) + " ms"
-                   : "receive: " + ec.message();
-      return std::nullopt;
+    std::size_t n = 0;
+    std::string read_error;
+    switch (socket_.read_some(buf.data(), buf.size(), deadline, &n, &read_error)) {
+      case SlamLinkSocket::ReadStatus::kData:
+        decoder_.feed(buf.data(), n);
+        continue;
+      case SlamLinkSocket::ReadStatus::kTimeout:
+        *error = "no " + what + " within " + std::to_string(options_.reply_timeout_ms) + " ms (" +
+                 std::to_string(decoder_.buffered_bytes()) + " bytes of a message received)";
+        return std::nullopt;
+      case SlamLinkSocket::ReadStatus::kClosed:
+        *error = stop_ ? "stopping"
+                       : "slam-server closed the connection (end of file) while quad-control waited for " + what;
+        return std::nullopt;
+      case SlamLinkSocket::ReadStatus::kError:
+        *error = read_error;
+        return std::nullopt;
     }
-    decoder_.feed(buf.data(), n);
   }
   *error = "stopping";
   return std::nullopt;
 }
 
 bool SlamServerClient::connect(std::string* error) {
-  asio::ip::tcp::resolver resolver(io_);
-  boost::system::error_code ec;
-  const auto endpoints = resolver.resolve(options_.host, std::to_string(options_.port), ec);
-  if (!ec) asio::connect(socket_, endpoints, ec);
-  if (ec) {
-    *error = "cannot connect to " + name() + ": " + ec.message();
+  const auto deadline = Clock::now() + std::chrono::milliseconds(options_.reply_timeout_ms);
+  std::string why;
+  if (!socket_.connect(options_.host, options_.port, deadline, &why)) {
+    *error = "cannot connect to " + name() + ": " + why;
     disconnect();
     return false;
   }
-  socket_fd_ = socket_.native_handle();
-  timeval tv{options_.reply_timeout_ms / 1000, (options_.reply_timeout_ms % 1000) * 1000};
-  ::setsockopt(socket_.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  socket_.set_option(asio::ip::tcp::no_delay(true), ec);
   proto::SlamHello hello;
   hello.peer_name = kPeerName;
-  if (!send(hello, error)) {
+  hello.session_id = options_.session_id;
+  if (!send(hello, deadline, error)) {
     disconnect();
     return false;
   }
-  auto reply = receive(error);
+  auto reply = receive(deadline, "SlamHello answer", error);
   if (!reply) {
     disconnect();
     return false;
@@ -156,13 +171,32 @@ bool SlamServerClient::connect(std::string* error) {
     disconnect();
     return false;
   }
-  if (const std::string why = proto::hello_incompatibility(*peer); !why.empty()) {
-    *error = "slam-server is incompatible: " + why;
+  if (const std::string incompatible = proto::hello_incompatibility(*peer); !incompatible.empty()) {
+    *error = "slam-server is incompatible: " + incompatible;
+    disconnect();
+    return false;
+  }
+  if (!peer->refusal.empty()) {
+    *error = "slam-server refused the connection: " + peer->refusal;
     disconnect();
     return false;
   }
   connected_ = true;
-  ++session_;
+  {
+    std::lock_guard<std::mutex> lock(status_mutex_);
+    if (peer->resumed && session_ > 0) {
+      ++status_.resumes;
+    } else {
+      ++status_.sessions_started;
+      session_ = status_.sessions_started;
+    }
+  }
+  if (peer->resumed && session_ > 0)
+    log_line("connected to " + name() + ": session " + hex_id(peer->session_id) + " resumed (map and world frame kept, " +
+             std::to_string(peer->session_frames) + " frames)");
+  else
+    log_line("connected to " + name() + ": session " + hex_id(peer->session_id) + " started (a new map" +
+             (session_ > 1 ? ", new world frame: SLAM session reset #" + std::to_string(session_ - 1) : "") + ")");
   return true;
 }
 
@@ -195,9 +229,12 @@ std::optional<SlamResult> SlamServerClient::exchange(const CameraFrame& f, std::
   m.depth_scale_units_per_m = f.intrinsics.depth_units_per_m;
   m.rgb = image(f, proto::PixelFormat::kRgb8, std::move(rgb));
   m.depth = image(f, proto::PixelFormat::kDepth16, std::move(depth));
-  if (!send(m, error)) return std::nullopt;
+  // One deadline for the whole exchange: sending, SLAM on the server, the reply.
+  const auto deadline = Clock::now() + std::chrono::milliseconds(options_.reply_timeout_ms);
+  if (!send(m, deadline, error)) return std::nullopt;
+  const std::string what = "PoseUpdate for frame " + std::to_string(m.pair_sequence);
   while (true) {
-    auto reply = receive(error);
+    auto reply = receive(deadline, what, error);
     if (!reply) return std::nullopt;
     const auto* pose = std::get_if<proto::PoseUpdate>(&*reply);
     if (pose == nullptr || pose->pair_sequence != m.pair_sequence) continue;  // not ours: skip
@@ -219,15 +256,29 @@ void SlamServerClient::run() {
     std::string error;
     std::optional<SlamResult> result;
     const std::int64_t now = monotonic_now_us();
-    if (!connected_ && now - last_attempt_us_ >= options_.reconnect_interval_ms * 1000LL) {
+    if (!connected_ && (reconnect_now_ || now - last_attempt_us_ >= options_.reconnect_interval_ms * 1000LL)) {
+      reconnect_now_ = false;
       last_attempt_us_ = now;
-      if (!connect(&error)) last_connect_error_ = error;
+      if (!connect(&error)) {
+        if (error != last_connect_error_) log_line(error + " (retrying every " +
+                                                   std::to_string(options_.reconnect_interval_ms) + " ms)");
+        last_connect_error_ = error;
+      } else {
+        last_connect_error_.clear();
+      }
     }
     if (connected_) {
       result = exchange(frame, &error);
-      if (!result) {
-        std::cerr << "quad-control: SLAM link: " << error << "; reconnecting (a new SLAM session)" << std::endl;
+      if (!result && !stop_) {
+        log_line("disconnected: " + error + "; reconnecting with session " + hex_id(options_.session_id) +
+                 " (slam-server keeps its map for a resume)");
+        {
+          std::lock_guard<std::mutex> lock(status_mutex_);
+          ++status_.disconnects;
+          status_.last_disconnect = error;
+        }
         disconnect();
+        reconnect_now_ = true;
       }
     } else if (error.empty()) {
       // Between attempts the last attempt's reason stays visible (dashboard, tests).

@@ -1,22 +1,33 @@
-// SLAM link to slam-server (offboard/slamlink): protocol/'s SLAM messages over loopback TCP
-// (default 127.0.0.1:5700, so SLAM can also run on a bigger machine). SlamHello both ways (a peer
-// with another protocol version or schema hash is refused loudly), then one RgbdFrame (RAW RGB8 +
+// SLAM link to slam-server (offboard/slamlink): protocol/'s SLAM messages over TCP (default
+// 127.0.0.1:5700, so SLAM can also run on a bigger machine). SlamHello both ways (a peer with
+// another protocol version or schema hash is refused loudly), then one RgbdFrame (RAW RGB8 +
 // DEPTH16) per PoseUpdate. Same semantics as the in-process link: the newest frame is handed over
-// and a frame arriving while the server is busy is dropped. Connects lazily on the worker thread
-// and reconnects (at most once per reconnect_interval) after any error, so frames keep flowing to
-// the dashboard while slam-server is down. The worker thread is joined in the destructor.
+// and a frame arriving while the server is busy is dropped.
+//
+// Deadlines: connecting, the SlamHello answer and each frame's PoseUpdate (sending included) must
+// complete within reply_timeout_ms, else the connection is dropped with the cause logged
+// (slam_link_socket.hpp: every wait is a poll() with the time left). Frames keep flowing to the
+// dashboard while slam-server is down.
+//
+// Sessions: the client names its flight's map with a session id (random per client, i.e. per
+// quad-control run, unless configured). After a broken connection it reconnects at once (then at
+// most once per reconnect_interval_ms) presenting the same id; slam-server keeps a session without
+// its client for a grace period (30 s by default), so the reconnect continues the same map and
+// world frame (SlamHello.resumed). Only a new map increments SlamResult::session, which is what
+// makes the ground station re-anchor its floor frame. Every connect, resume, new session and
+// disconnect is logged on stderr ("quad-control: SLAM link: ..."). The worker thread is joined in
+// the destructor.
 #pragma once
 
 #include <atomic>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
 
-#include <boost/asio/io_context.hpp>
-#include <boost/asio/ip/tcp.hpp>
-
 #include "app/slam_link.hpp"
+#include "app/slam_link_socket.hpp"
 #include "rgbdquad/protocol/codec.hpp"
 
 namespace rgbdquad::quadcontrol {
@@ -26,6 +37,7 @@ struct SlamServerOptions {
   std::uint16_t port = 5700;       ///< slam-server's default
   int reply_timeout_ms = 5000;     ///< one frame's SLAM, generous for a loaded machine
   int reconnect_interval_ms = 1000;
+  std::uint64_t session_id = 0;    ///< 0: a random id per client (one flight per quad-control run)
   std::string validate() const;
 };
 
@@ -36,25 +48,29 @@ class SlamServerClient : public SlamLink {
   bool submit(const CameraFrame& frame) override;
   SlamStats stats() const override;
   std::string name() const override;
+  SlamLinkStatus link_status() const override;
 
  private:
+  using Clock = SlamLinkSocket::Clock;
   void run();
   bool connect(std::string* error);
-  bool send(const protocol::Message& message, std::string* error);
-  std::optional<protocol::Message> receive(std::string* error);
+  bool send(const protocol::Message& message, Clock::time_point deadline, std::string* error);
+  std::optional<protocol::Message> receive(Clock::time_point deadline, const std::string& what, std::string* error);
   std::optional<SlamResult> exchange(const CameraFrame& frame, std::string* error);
   void disconnect();
 
   SlamServerOptions options_;
   Callback callback_;
-  boost::asio::io_context io_;
-  boost::asio::ip::tcp::socket socket_;
-  std::atomic<int> socket_fd_{-1};  ///< for shutdown() from the destructor
+  SlamLinkSocket socket_;
   bool connected_ = false;
-  std::uint64_t session_ = 0;  ///< connections made (SlamResult::session)
+  bool reconnect_now_ = false;  ///< a connection just broke: retry at once (resume)
+  std::uint64_t session_ = 0;   ///< SlamResult::session: new maps started
   std::string last_connect_error_;
   std::int64_t last_attempt_us_ = 0;
   protocol::StreamDecoder decoder_;
+  std::size_t decode_errors_ = 0;
+  mutable std::mutex status_mutex_;
+  SlamLinkStatus status_;
   FrameMailbox mailbox_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
