@@ -294,22 +294,29 @@ def _recompute_motion(table: ShippedTable, name: str, ds: Dataset) -> tuple[int,
     return len(rows), problems
 
 
-def check(table: ShippedTable, excerpts: dict[str, Path], root: Path = kRepoRoot
-          ) -> tuple[list[str], list[str]]:
+def engine_problem(table: ShippedTable, root: Path = kRepoRoot) -> str | None:
+    """Why the table does not describe the engine in `root`, or None."""
+    engine = engine_sources_sha256(root)
+    if table.meta.get("engine_sources_sha256") == engine:
+        return None
+    return ("the engine's sources changed since the table was measured "
+            f"({', '.join(kEngineSources)}: {table.meta.get('engine_sources_sha256')} -> {engine})")
+
+
+def check(table: ShippedTable, excerpts: dict[str, Path], root: Path = kRepoRoot,
+          include_engine: bool = True) -> tuple[list[str], list[str]]:
     """(problems, checked): every way the table is found stale, and what was checked.
     `excerpts` maps a dataset name of the table to a TUM folder holding (part of) it; the rows in
     that folder's span get their ground-truth motion recomputed, and an identical ground-truth file
-    is reported as such."""
+    is reported as such. include_engine=False leaves out the engine's sources (engine_problem)."""
     problems, checked = [], []
     if table.meta.get("rows_sha256") != rows_sha256(table.rows):
         problems.append("rows differ from rows_sha256 (edited by hand, or a bad merge)")
     checked.append(f"{len(table.rows)} rows against rows_sha256")
-    engine = engine_sources_sha256(root)
-    if table.meta.get("engine_sources_sha256") != engine:
-        problems.append("the engine's sources changed since the table was measured "
-                        f"({', '.join(kEngineSources)}: {table.meta.get('engine_sources_sha256')}"
-                        f" -> {engine})")
-    checked.append(f"engine sources sha256 ({', '.join(kEngineSources)})")
+    if include_engine:
+        found = engine_problem(table, root)
+        problems += [found] if found else []
+        checked.append(f"engine sources sha256 ({', '.join(kEngineSources)})")
     code = study_code_sha256()
     if table.meta.get("study_code_sha256") != code:
         problems.append(f"the study code that makes the rows changed ({', '.join(kStudyCode)}: "
