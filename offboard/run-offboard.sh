@@ -7,7 +7,8 @@
 #                                                   firmware.key_hex set)
 # Addresses and ports (from that config; docs/control.md):
 #   dashboard     http://127.0.0.1:8080/          (loopback; another bind address needs a token)
-#   RGB-D stream  0.0.0.0:5600 (RGB), :5601 (depth) - rgbd-streamer on the craft connects here
+#   RGB-D stream  stream.bind_address:5600 (RGB), :5601 (depth) - rgbd-streamer on the craft connects
+#                 here (this machine's WiFi address, the streamer's `host`; built-in default 127.0.0.1)
 #   SLAM link     127.0.0.1:5700                   - slam-server (SLAM_SERVER_ARGS adds options)
 #   firmware      http://192.168.240.1:80/control - Arduino Uno WiFi bridge (its own access point)
 # Without slam-server, set slam.mode to "in-process" in the config. Stop with Ctrl-C: quad-control

@@ -17,7 +17,7 @@ int main(int argc, char** argv) {
   double period_s = 1.0;
   double seconds = 0;
   CLI::App app{"rgbd-receiver: accept rgbd-streamer's RGB and depth streams and print what arrives"};
-  app.add_option("--bind", options.bind_address, "listen address (default 0.0.0.0)");
+  app.add_option("--bind", options.bind_address, "listen address (default 127.0.0.1; the ground station's WiFi address for the craft)");
   app.add_option("--rgb-port", options.rgb_port, "RGB stream port (default 5600)");
   app.add_option("--depth-port", options.depth_port, "depth stream port (default 5601)");
   app.add_option("--credits", options.credits_in_flight, "frames in flight per stream, 1..8 (default 2)");

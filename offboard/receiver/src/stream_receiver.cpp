@@ -12,6 +12,7 @@
 #include "rgbdquad/encodings/depth_codec.h"
 #include "rgbdquad/encodings/jpeg_codec.h"
 #include "rgbdquad/protocol/codec.hpp"
+#include "rgbdquad/receiver/log_throttle.h"
 
 namespace rgbdquad::receiver {
 namespace {
@@ -23,6 +24,18 @@ using protocol::StreamKind;
 constexpr std::size_t kReadChunkBytes = 256 * 1024;
 // A FrameRequest must leave within 1 s or the link is considered dead.
 constexpr int kSendTimeoutMs = 1000;
+// A new connection is a candidate until its handshake is accepted: only then may it replace the
+// live streamer (a raw connect, or random bytes, used to drop the real streamer at once). The
+// streamer sends its handshake as soon as it connects; 2 s is an absolute deadline from the
+// connect (not restarted per byte, so a dripping peer cannot hold a slot).
+constexpr std::int64_t kHandshakeDeadlineUs = 2'000'000;
+// Candidates at once: the streamer reconnecting plus a few stray peers; more evicts the oldest.
+constexpr std::size_t kMaxCandidates = 4;
+// Poll slice while candidates wait, so their deadlines fire on time.
+constexpr int kCandidatePollMs = 100;
+// A failed accept (EMFILE at the descriptor limit) leaves the connection in the backlog, so the
+// listener stays readable: it is left out of poll() this long instead of spinning a core.
+constexpr std::int64_t kAcceptBackoffUs = 100'000;
 
 struct Session {
   net::UniqueFd fd;
@@ -31,6 +44,7 @@ struct Session {
       protocol::max_body_bytes(static_cast<std::uint8_t>(protocol::MessageType::kFrame))}};
   std::optional<protocol::Handshake> handshake;
   std::int64_t last_activity_us = 0;
+  std::int64_t connected_us = 0;
 };
 
 std::string check_handshake(const protocol::Handshake& h, StreamKind expected,
@@ -91,17 +105,64 @@ void StreamReceiver::serve(int index) {
   const StreamKind kind = index == 0 ? StreamKind::kRgb : StreamKind::kDepth;
   const char* name = index == 0 ? "rgb" : "depth";
   auto counter = [this, index]() -> ChannelCounters& { return index == 0 ? counters_.rgb : counters_.depth; };
-  std::optional<Session> session;
+  std::optional<Session> session;  // the live streamer (its handshake accepted)
+  std::vector<Session> candidates;  // connected, handshake not (yet) accepted
+  bool drain_pending = false;       // a promoted candidate may hold buffered messages
+  std::int64_t accept_paused_until_us = 0;
   std::vector<std::uint8_t> buffer(kReadChunkBytes);
   encodings::JpegDecoder jpeg;
+  // Every line a peer's input can cause goes through one throttle per stream: garbage used to
+  // give one line per malformed envelope (every 16 bytes).
+  LogThrottle throttle;
+  auto peer_log = [&](spdlog::level::level_enum level, const std::string& line) {
+    std::uint64_t suppressed = 0;
+    if (!throttle.allow(now_us_(), &suppressed)) return;
+    if (suppressed > 0) {
+      log_->log(level, "{} (and {} similar lines suppressed)", line, suppressed);
+    } else {
+      log_->log(level, "{}", line);
+    }
+  };
 
   auto drop = [&](const char* why) {
     if (!session) return;
-    log_->warn("{} stream: {} from {}", name, why, session->peer);
+    peer_log(spdlog::level::warn, fmt::format("{} stream: {} from {}", name, why, session->peer));
     session.reset();
     connected_[index] = false;
     std::lock_guard<std::mutex> lock(mutex_);
     ++counter().disconnects;
+  };
+  auto drop_candidate = [&](std::size_t i, const std::string& why) {
+    peer_log(spdlog::level::warn, fmt::format("{} stream: {} from {} (not a live connection: nothing displaced)",
+                                              name, why, candidates[i].peer));
+    candidates.erase(candidates.begin() + static_cast<std::ptrdiff_t>(i));
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++counter().dropped_before_handshake;
+  };
+  // Sends the ack; an accepted handshake makes `peer` the live session (replacing the previous
+  // one). Returns false when the connection is to be dropped.
+  auto answer_handshake = [&](Session& peer, const protocol::Handshake& hello) {
+    const std::string why = check_handshake(hello, kind, options_.accepted_encodings);
+    protocol::HandshakeAck ack;
+    ack.accepted = why.empty();
+    ack.reason = why;
+    if (!why.empty()) {
+      peer_log(spdlog::level::err, fmt::format("{} stream: refused handshake from {}: {}", name, peer.peer, why));
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++counter().handshakes_refused;
+    }
+    const auto bytes = protocol::encode_handshake_ack(ack);
+    const bool sent = net::send_all(peer.fd.get(), bytes.bytes.data(), bytes.bytes.size(), stop_waker_,
+                                    kSendTimeoutMs) == net::IoStatus::kOk;
+    if (!why.empty() || !sent) return false;
+    peer.handshake = hello;
+    if (kind == StreamKind::kRgb) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      rgb_intrinsics_ = hello.intrinsics;
+    }
+    log_->info("{} stream: {} connected ({}x{}, {}, device '{}')", name, peer.peer, hello.width, hello.height,
+               protocol::to_string(hello.encoding).data(), hello.device_id);
+    return true;
   };
   auto grant = [&](std::uint16_t credits) {
     protocol::FrameRequest request;
@@ -112,40 +173,122 @@ void StreamReceiver::serve(int index) {
   };
 
   while (true) {
-    pollfd fds[3] = {{stop_waker_.fd(), POLLIN, 0}, {listeners_[index].get(), POLLIN, 0},
-                     {session ? session->fd.get() : -1, POLLIN, 0}};
-    const int n = poll(fds, 3, options_.idle_timeout_ms);
+    const bool accept_paused = now_us_() < accept_paused_until_us;
+    std::vector<pollfd> fds = {{stop_waker_.fd(), POLLIN, 0},
+                               {accept_paused ? -1 : listeners_[index].get(), POLLIN, 0},
+                               {session ? session->fd.get() : -1, POLLIN, 0}};
+    for (const Session& c : candidates) fds.push_back({c.fd.get(), POLLIN, 0});
+    int timeout_ms = options_.idle_timeout_ms;
+    if (!candidates.empty() || accept_paused) timeout_ms = std::min(timeout_ms, kCandidatePollMs);
+    if (drain_pending) timeout_ms = 0;
+    const int n = poll(fds.data(), fds.size(), timeout_ms);
     if (n < 0 && errno != EINTR) break;
     if (fds[0].revents & POLLIN) break;
+
+    // Candidates: the first message must be an acceptable handshake, within the deadline.
+    bool promoted = false;
+    for (std::size_t i = candidates.size(); i-- > 0;) {
+      Session& c = candidates[i];
+      if (!(fds[3 + i].revents & (POLLIN | POLLHUP | POLLERR))) {
+        if (now_us_() - c.connected_us > kHandshakeDeadlineUs) drop_candidate(i, "no handshake within 2 s");
+        continue;
+      }
+      std::size_t got = 0;
+      const net::IoStatus s = net::read_some(c.fd.get(), buffer.data(), buffer.size(), &got, stop_waker_, 0);
+      if (s == net::IoStatus::kTimeout) continue;
+      if (s != net::IoStatus::kOk) {
+        drop_candidate(i, std::string("closed before its handshake: ") + net::to_string(s));
+        continue;
+      }
+      c.decoder.feed(buffer.data(), got);
+      const auto r = c.decoder.next();
+      if (r.status == protocol::DecodeStatus::kNeedMoreBytes) {
+        if (now_us_() - c.connected_us > kHandshakeDeadlineUs) drop_candidate(i, "no handshake within 2 s");
+        continue;
+      }
+      if (r.status == protocol::DecodeStatus::kError) {
+        {
+          std::lock_guard<std::mutex> lock(mutex_);
+          ++counter().protocol_errors;
+        }
+        drop_candidate(i, std::string("bytes before a handshake: ") + protocol::to_string(r.error));
+        continue;
+      }
+      const auto* hello = std::get_if<protocol::Handshake>(&*r.message);
+      if (hello == nullptr) {
+        {
+          std::lock_guard<std::mutex> lock(mutex_);
+          ++counter().protocol_errors;
+        }
+        drop_candidate(i, "first message is not a handshake");
+        continue;
+      }
+      if (!answer_handshake(c, *hello)) {
+        drop_candidate(i, "handshake not accepted");
+        continue;
+      }
+      // Authenticated as far as this protocol can (valid handshake): now it replaces the live one.
+      Session next = std::move(c);
+      candidates.erase(candidates.begin() + static_cast<std::ptrdiff_t>(i));
+      if (session) {
+        peer_log(spdlog::level::warn, fmt::format("{} stream: {} replaced by {} (its handshake accepted)", name,
+                                                  session->peer, next.peer));
+        std::lock_guard<std::mutex> lock(mutex_);
+        ++counter().replaced;
+        ++counter().disconnects;
+      }
+      session = std::move(next);
+      session->last_activity_us = now_us_();
+      connected_[index] = true;
+      if (!grant(options_.credits_in_flight)) {
+        drop("connection closed");
+        continue;
+      }
+      promoted = true;
+      drain_pending = true;
+      break;  // fds no longer match the candidates: poll again
+    }
+    if (promoted) continue;
+
     if (fds[1].revents & POLLIN) {
       std::string peer;
       if (auto fd = net::accept_tcp(listeners_[index], &peer)) {
+        if (candidates.size() >= kMaxCandidates) drop_candidate(0, "too many connections awaiting a handshake");
+        Session c;
+        c.fd = std::move(*fd);
+        c.peer = peer;
+        c.connected_us = c.last_activity_us = now_us_();
+        candidates.push_back(std::move(c));
         std::lock_guard<std::mutex> lock(mutex_);
-        if (session) ++counter().replaced;
         ++counter().connections;
-        session.emplace();
-        session->fd = std::move(*fd);
-        session->peer = peer;
-        session->last_activity_us = now_us_();
+      } else {
+        accept_paused_until_us = now_us_() + kAcceptBackoffUs;
       }
       continue;  // poll again with the new socket
     }
-    if (!session) continue;
-    if (!(fds[2].revents & (POLLIN | POLLHUP | POLLERR))) {
+    if (!session) {
+      drain_pending = false;
+      continue;
+    }
+    const bool readable = fds[2].revents & (POLLIN | POLLHUP | POLLERR);
+    if (!readable && !drain_pending) {
       if (now_us_() - session->last_activity_us > std::int64_t{options_.idle_timeout_ms} * 1000) {
         drop("idle timeout");
       }
       continue;
     }
-    std::size_t got = 0;
-    const net::IoStatus s = net::read_some(session->fd.get(), buffer.data(), buffer.size(), &got, stop_waker_, 0);
-    if (s == net::IoStatus::kTimeout) continue;
-    if (s != net::IoStatus::kOk) {
-      drop(net::to_string(s));
-      continue;
+    drain_pending = false;
+    if (readable) {
+      std::size_t got = 0;
+      const net::IoStatus s = net::read_some(session->fd.get(), buffer.data(), buffer.size(), &got, stop_waker_, 0);
+      if (s == net::IoStatus::kTimeout) continue;
+      if (s != net::IoStatus::kOk) {
+        drop(net::to_string(s));
+        continue;
+      }
+      session->last_activity_us = now_us_();
+      session->decoder.feed(buffer.data(), got);
     }
-    session->last_activity_us = now_us_();
-    session->decoder.feed(buffer.data(), got);
     bool alive = true;
     for (auto r = session->decoder.next(); alive && r.status != protocol::DecodeStatus::kNeedMoreBytes;
          r = session->decoder.next()) {
@@ -155,36 +298,18 @@ void StreamReceiver::serve(int index) {
           std::lock_guard<std::mutex> lock(mutex_);
           ++(crc ? counter().crc_errors : counter().protocol_errors);
         }
-        log_->warn("{} stream: dropped bytes: {} ({})", name, protocol::to_string(r.error), r.detail);
+        peer_log(spdlog::level::warn, fmt::format("{} stream: dropped bytes from {}: {} ({})", name, session->peer,
+                                                  protocol::to_string(r.error), r.detail));
         // The dropped bytes were most likely a frame we granted a credit for: grant it again.
         if (session->handshake && r.error != protocol::DecodeError::kGarbageSkipped) alive = grant(1);
         continue;
       }
       if (const auto* hello = std::get_if<protocol::Handshake>(&*r.message)) {
-        const std::string why = check_handshake(*hello, kind, options_.accepted_encodings);
-        protocol::HandshakeAck ack;
-        ack.accepted = why.empty();
-        ack.reason = why;
-        if (!why.empty()) {
-          log_->error("{} stream: refused handshake from {}: {}", name, session->peer, why);
-          std::lock_guard<std::mutex> lock(mutex_);
-          ++counter().handshakes_refused;
-        }
-        const auto bytes = protocol::encode_handshake_ack(ack);
-        alive = net::send_all(session->fd.get(), bytes.bytes.data(), bytes.bytes.size(), stop_waker_, kSendTimeoutMs) == net::IoStatus::kOk;
-        if (!why.empty()) {
-          alive = false;
-          continue;
-        }
-        session->handshake = *hello;
-        if (kind == StreamKind::kRgb) {
-          std::lock_guard<std::mutex> lock(mutex_);
-          rgb_intrinsics_ = hello->intrinsics;
-        }
-        log_->info("{} stream: {} connected ({}x{}, {}, device '{}')", name, session->peer,
-                   hello->width, hello->height, protocol::to_string(hello->encoding).data(), hello->device_id);
+        // A new handshake on the live connection (the streamer changed its encoding).
+        alive = answer_handshake(*session, *hello);
+        if (!alive) continue;
         connected_[index] = true;
-        alive = alive && grant(options_.credits_in_flight);
+        alive = grant(options_.credits_in_flight);
         continue;
       }
       const auto* frame = std::get_if<protocol::Frame>(&*r.message);
@@ -247,7 +372,7 @@ void StreamReceiver::serve(int index) {
           ++counter().invalid_frames;
         }
       }
-      if (!ok) log_->warn("{} stream: frame {} rejected: {}", name, h.sequence, error);
+      if (!ok) peer_log(spdlog::level::warn, fmt::format("{} stream: frame {} rejected: {}", name, h.sequence, error));
       alive = grant(1);
     }
     if (!alive) drop("connection closed");

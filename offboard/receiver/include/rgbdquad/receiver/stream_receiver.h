@@ -1,10 +1,15 @@
 // Ground-station side of the two RGB-D stream links: listens on the RGB and depth ports, accepts
-// rgbd-streamer's connections (a new connection on a port replaces the old one, so the streamer
-// may reconnect at any moment), checks the Handshake (protocol version, schema hash, stream kind,
+// rgbd-streamer's connections, checks the Handshake (protocol version, schema hash, stream kind,
 // size, encoding), grants frame credits, validates every Frame (envelope CRCs by the protocol
 // StreamDecoder; size, format and encoding against the handshake; payload decodes), and pairs
 // RGB with depth by nearest capture timestamp. Consumers (SLAM server, control loop) read the
 // newest pair.
+//
+// Hostile peers (issue 17): a new connection is only a candidate until its handshake is accepted
+// (within 2 s of the connect, first message); only then does it replace the live streamer, so the
+// streamer may reconnect at any moment but a raw connect or garbage displaces nothing. Up to 4
+// candidates wait at once. Log lines caused by a peer's input are rate-limited (log_throttle.h).
+// A failed accept (descriptor limit) pauses the listener 100 ms instead of spinning.
 //
 // Thread safety: all public members may be called from any thread. Two I/O threads (one per
 // port) are owned by the receiver, started in the constructor and joined in the destructor.
@@ -67,7 +72,9 @@ struct RgbdPair {
 };
 
 struct ReceiverOptions {
-  std::string bind_address = "0.0.0.0";
+  // Loopback by default: the streams are unauthenticated, so listening on every interface is an
+  // explicit choice; on the craft's WiFi bind the ground station's address on that network.
+  std::string bind_address = "127.0.0.1";
   std::uint16_t rgb_port = 5600;    // 0 = any free port (tests)
   std::uint16_t depth_port = 5601;
   // Frames in flight per stream: 2 hides one round trip (so the link stays busy) while keeping at
@@ -91,7 +98,9 @@ struct ReceiverOptions {
 
 struct ChannelCounters {
   std::uint64_t connections = 0;
-  std::uint64_t replaced = 0;            // connection dropped because a new one arrived
+  std::uint64_t replaced = 0;            // live connection replaced by a new one whose handshake was accepted
+  std::uint64_t dropped_before_handshake = 0;  // new connections that never became live (garbage,
+                                               // refused or no handshake within 2 s): nothing displaced
   std::uint64_t disconnects = 0;
   std::uint64_t handshakes_refused = 0;
   std::uint64_t frames = 0;              // valid frames stored

@@ -1,0 +1,42 @@
+// Rate limit for log lines caused by a peer's input (issue 17, finding 7: a peer sending garbage
+// got one log line per malformed envelope, i.e. per 16 bytes: a few KiB/s of input became MB/s of
+// log). At most `burst` lines per `window_us`; the rest are counted and the count is reported
+// with the next line let through, so nothing is hidden, only summarised.
+// Time is passed in (monotonic microseconds). Not thread-safe: one per serving thread.
+#pragma once
+
+#include <cstdint>
+
+namespace rgbdquad::receiver {
+
+class LogThrottle {
+ public:
+  /// Defaults: 5 lines per second, enough to see what a misbehaving streamer sends.
+  explicit LogThrottle(int burst = 5, std::int64_t window_us = 1'000'000) : burst_(burst), window_us_(window_us) {}
+
+  /// True when a line may be logged at `now_us`; then `*suppressed` is the number of lines
+  /// dropped since the last one let through (to be mentioned in that line).
+  bool allow(std::int64_t now_us, std::uint64_t* suppressed) {
+    if (now_us - window_start_us_ >= window_us_ || now_us < window_start_us_) {
+      window_start_us_ = now_us;
+      lines_in_window_ = 0;
+    }
+    if (lines_in_window_ >= burst_) {
+      ++suppressed_;
+      return false;
+    }
+    ++lines_in_window_;
+    *suppressed = suppressed_;
+    suppressed_ = 0;
+    return true;
+  }
+
+ private:
+  int burst_;
+  std::int64_t window_us_;
+  std::int64_t window_start_us_ = INT64_MIN / 2;
+  int lines_in_window_ = 0;
+  std::uint64_t suppressed_ = 0;
+};
+
+}  // namespace rgbdquad::receiver

@@ -1,0 +1,245 @@
+// The receiver under a hostile peer (issue 17): garbage on a stream port is counted but logged at
+// a bounded rate (finding 7: one line per malformed envelope), and a new connection displaces the
+// live streamer only once its handshake is accepted (finding 6: a raw connect, even random bytes,
+// dropped the real streamer). Loopback only.
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+#include <spdlog/sinks/base_sink.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <mutex>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "rgbdquad/protocol/codec.hpp"
+#include "rgbdquad/receiver/log_throttle.h"
+#include "rgbdquad/receiver/stream_receiver.h"
+
+namespace rgbdquad {
+namespace {
+
+std::int64_t now_us() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+TEST(LogThrottle, BurstThenSuppressedThenReported) {
+  receiver::LogThrottle t(3, 1'000'000);
+  std::uint64_t suppressed = 99;
+  // GIVEN 3 lines per second WHEN 10 arrive at once THEN 3 pass
+  int passed = 0;
+  for (int i = 0; i < 10; ++i) passed += t.allow(1'000'000 + i, &suppressed) ? 1 : 0;
+  EXPECT_EQ(passed, 3);
+  // WHEN the next window opens THEN the first line carries the 7 suppressed
+  ASSERT_TRUE(t.allow(2'000'100, &suppressed));
+  EXPECT_EQ(suppressed, 7u);
+  ASSERT_TRUE(t.allow(2'000'200, &suppressed));
+  EXPECT_EQ(suppressed, 0u);
+  // AND a clock that steps back does not block logging
+  EXPECT_TRUE(t.allow(5, &suppressed));
+}
+
+int connect_loopback(std::uint16_t port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(port);
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+void send_bytes(int fd, const std::vector<std::uint8_t>& bytes) {
+  ASSERT_EQ(::send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL), static_cast<ssize_t>(bytes.size()));
+}
+
+/// True when the peer closed `fd` within `timeout_ms` (EOF or reset); data that arrives is skipped.
+bool closed_by_peer(int fd, int timeout_ms) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+  while (std::chrono::steady_clock::now() < deadline) {
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 50) <= 0) continue;
+    char buf[4096];
+    if (::recv(fd, buf, sizeof buf, 0) <= 0) return true;
+  }
+  return false;
+}
+
+protocol::Handshake rgb_handshake(const char* device) {
+  protocol::Handshake h;
+  h.stream_kind = protocol::StreamKind::kRgb;
+  h.width = 640;
+  h.height = 480;
+  h.pixel_format = protocol::PixelFormat::kRgb8;
+  h.encoding = protocol::Encoding::kRaw;
+  h.intrinsics = {517.3, 516.5, 318.6, 255.3, {}};
+  h.device_id = device;
+  return h;
+}
+
+template <typename Pred>
+bool eventually(Pred pred, int timeout_ms = 5000) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (pred()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return pred();
+}
+
+/// Collects log lines; safe to read while the receiver's threads log.
+class CaptureSink : public spdlog::sinks::base_sink<std::mutex> {
+ public:
+  std::vector<std::string> lines() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return lines_;
+  }
+
+ protected:
+  void sink_it_(const spdlog::details::log_msg& msg) override { lines_.emplace_back(msg.payload.data(), msg.payload.size()); }
+  void flush_() override {}
+
+ private:
+  std::vector<std::string> lines_;
+};
+
+bool any_line_has(const std::vector<std::string>& lines, const char* text) {
+  return std::any_of(lines.begin(), lines.end(), [&](const std::string& l) { return l.find(text) != std::string::npos; });
+}
+
+TEST(ReceiverHostileInput, GarbageIsLoggedAtABoundedRate) {
+  // An envelope with a broken header CRC: one decode error (and, before, one log line) each.
+  auto bad = protocol::encode_frame_request(protocol::FrameRequest{}).bytes;
+  ASSERT_GT(bad.size(), 16u);
+  bad[12] ^= 0xFF;
+  std::vector<std::uint8_t> garbage;
+  constexpr int kEnvelopes = 4000;
+  for (int i = 0; i < kEnvelopes; ++i) garbage.insert(garbage.end(), bad.begin(), bad.end());
+  constexpr int kReconnects = 200;
+
+  for (const bool reconnect_flood : {false, true}) {
+    SCOPED_TRACE(reconnect_flood ? "200 connections, each sending garbage" : "the live connection sends garbage");
+    auto sink = std::make_shared<CaptureSink>();
+    auto logger = std::make_shared<spdlog::logger>("receiver-test", sink);
+    receiver::ReceiverOptions o;
+    o.bind_address = "127.0.0.1";
+    o.rgb_port = 0;
+    o.depth_port = 0;
+    o.idle_timeout_ms = 60000;
+    receiver::StreamReceiver rx(o, now_us, logger);
+    std::vector<int> fds;
+    auto errors = [&] { return rx.counters().rgb.crc_errors + rx.counters().rgb.protocol_errors; };
+    std::uint64_t expected = 0;
+    if (!reconnect_flood) {
+      // GIVEN a live streamer WHEN it sends 4000 envelopes with a broken header CRC
+      const int fd = connect_loopback(rx.rgb_port());
+      ASSERT_GE(fd, 0);
+      fds.push_back(fd);
+      send_bytes(fd, protocol::encode_handshake(rgb_handshake("craft")).bytes);
+      ASSERT_TRUE(eventually([&] { return rx.connected(protocol::StreamKind::kRgb); }));
+      send_bytes(fd, garbage);
+      expected = kEnvelopes;
+    } else {
+      // GIVEN nothing WHEN 200 peers connect and each sends a broken envelope
+      for (int i = 0; i < kReconnects; ++i) {
+        const int fd = connect_loopback(rx.rgb_port());
+        ASSERT_GE(fd, 0);
+        send_bytes(fd, bad);
+        fds.push_back(fd);
+        // one at a time: the listen backlog is 4, and an overflowing SYN waits a 1 s retransmit
+        ASSERT_TRUE(eventually([&] { return rx.counters().rgb.dropped_before_handshake >= fds.size(); }));
+      }
+      expected = kReconnects;
+    }
+    // THEN every one is counted (the credits re-granted per error are read and discarded here;
+    // a connection evicted before it was read counts as dropped)
+    EXPECT_TRUE(eventually(
+        [&] {
+          char buf[65536];
+          for (int fd : fds) (void)::recv(fd, buf, sizeof buf, MSG_DONTWAIT);
+          return reconnect_flood ? rx.counters().rgb.dropped_before_handshake >= expected : errors() >= expected;
+        },
+        15000))
+        << errors() << " errors, " << rx.counters().rgb.dropped_before_handshake << " dropped, of " << expected;
+    // AND the log holds a handful of lines, not one per error
+    const auto lines = sink->lines();
+    EXPECT_LE(lines.size(), 30u) << lines.size() << " lines, first: " << (lines.empty() ? "" : lines.front());
+    EXPECT_GE(lines.size(), 1u);
+    // AND WHEN the peers go away a second later THEN a line reports what was suppressed
+    std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+    for (int fd : fds) ::close(fd);
+    EXPECT_TRUE(eventually([&] { return any_line_has(sink->lines(), "similar lines suppressed"); }))
+        << sink->lines().back();
+  }
+}
+
+TEST(ReceiverHostileInput, ANewConnectionDisplacesTheLiveStreamerOnlyAfterItsHandshake) {
+  receiver::ReceiverOptions o;
+  o.bind_address = "127.0.0.1";
+  o.rgb_port = 0;
+  o.depth_port = 0;
+  o.idle_timeout_ms = 60000;  // the fake streamer sends no frames
+  receiver::StreamReceiver rx(o, now_us, nullptr);
+  // GIVEN a live streamer on the RGB port (handshake accepted)
+  const int live = connect_loopback(rx.rgb_port());
+  ASSERT_GE(live, 0);
+  send_bytes(live, protocol::encode_handshake(rgb_handshake("craft")).bytes);
+  ASSERT_TRUE(eventually([&] { return rx.connected(protocol::StreamKind::kRgb); }));
+
+  struct Probe {
+    const char* name;
+    std::vector<std::uint8_t> bytes;  // sent right after the connect; empty = a raw connect, silent
+  };
+  std::mt19937 rng(17);
+  std::vector<std::uint8_t> random_bytes(4096);
+  for (auto& b : random_bytes) b = static_cast<std::uint8_t>(rng());
+  auto wrong_kind = rgb_handshake("intruder");
+  wrong_kind.stream_kind = protocol::StreamKind::kDepth;
+  const Probe probes[] = {
+      {"raw connect, silent", {}},
+      {"4 KiB of random bytes", random_bytes},
+      {"a frame request instead of a handshake", protocol::encode_frame_request(protocol::FrameRequest{}).bytes},
+      {"a refused handshake (depth on the RGB port)", protocol::encode_handshake(wrong_kind).bytes},
+  };
+  for (const auto& probe : probes) {
+    SCOPED_TRACE(probe.name);
+    // WHEN a peer connects and sends the probe
+    const int intruder = connect_loopback(rx.rgb_port());
+    ASSERT_GE(intruder, 0);
+    if (!probe.bytes.empty()) send_bytes(intruder, probe.bytes);
+    // THEN the intruder is dropped (at the latest at the 2 s handshake deadline) ...
+    EXPECT_TRUE(closed_by_peer(intruder, 4000));
+    ::close(intruder);
+    // ... AND the live streamer was never displaced
+    EXPECT_FALSE(closed_by_peer(live, 100));
+    EXPECT_TRUE(rx.connected(protocol::StreamKind::kRgb));
+    EXPECT_EQ(rx.counters().rgb.replaced, 0u);
+  }
+  EXPECT_EQ(rx.counters().rgb.dropped_before_handshake, std::size(probes));
+
+  // WHEN the streamer reconnects (a new connection with an acceptable handshake)
+  const int again = connect_loopback(rx.rgb_port());
+  ASSERT_GE(again, 0);
+  send_bytes(again, protocol::encode_handshake(rgb_handshake("craft")).bytes);
+  // THEN it replaces the old connection, which is closed
+  EXPECT_TRUE(eventually([&] { return rx.counters().rgb.replaced == 1; }));
+  EXPECT_TRUE(closed_by_peer(live, 2000));
+  EXPECT_FALSE(closed_by_peer(again, 100));
+  ::close(live);
+  ::close(again);
+}
+
+}  // namespace
+}  // namespace rgbdquad
