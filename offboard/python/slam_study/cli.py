@@ -131,7 +131,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "(offboard/python/slam_study/data/guide_pairs.csv, made by `make study`) "
                     "unless --report names a sweep's report folder.",
         epilog="examples:\n"
-               "  slam-study guide --trans-vel 0.25 --rot-vel 20 --target-rpe-mm 8\n"
+               "  slam-study guide --trans-vel 0.41 --rot-vel 23 --target-rpe-mm 8\n"
                "      thesis-typical hand-held motion (fr1/desk: 0.41 m/s, 23 deg/s): per rate the\n"
                "      cell, n per sequence, mean [95 % CI], p90, and the lowest rate whose CI\n"
                "      stays within 8 mm per frame\n"

@@ -163,7 +163,7 @@ def test_guide_on_a_fresh_clone_states_data_interval_and_range(capsys):
 def test_guide_help_shows_an_example(capsys):
     with pytest.raises(SystemExit):
         cli.main(["guide", "--help"])
-    assert "slam-study guide --trans-vel 0.25 --rot-vel 20 --target-rpe-mm 8" in \
+    assert "slam-study guide --trans-vel 0.41 --rot-vel 23 --target-rpe-mm 8" in \
         capsys.readouterr().out
 
 
