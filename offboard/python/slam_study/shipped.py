@@ -340,5 +340,7 @@ def check(table: ShippedTable, excerpts: dict[str, Path], root: Path = kRepoRoot
 
 
 def regenerate_hint() -> str:
-    return ("regenerate: `make study` (needs ../shared/data or DATA=..., the vo runs: ~6 min "
-            "of CPU, 11 min wall on the shared 2 cores), or `slam-study table --report build/study` after a sweep")
+    return ("regenerate: `STUDY_BACKENDS=vo make study` (the vo runs only; needs ../shared/data "
+            "or DATA=...: ~6 min of slam-eval CPU, 11 min wall on the shared 2 cores; a full "
+            "`make study` regenerates it too), or `slam-study table --report build/study` when "
+            "the sweep's runs are already there")
