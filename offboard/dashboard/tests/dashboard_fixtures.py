@@ -36,9 +36,9 @@ def quad_control_binary() -> pathlib.Path | None:
 class QuadControl:
     """A running quad-control process; `url` is its dashboard."""
 
-    def __init__(self, binary: pathlib.Path, args: list[str]) -> None:
+    def __init__(self, binary: pathlib.Path, args: list[str], preexec_fn=None) -> None:
         self.proc = subprocess.Popen([str(binary), *args], stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True)
+                                     stderr=subprocess.STDOUT, text=True, preexec_fn=preexec_fn)
         self.lines: queue.Queue[str] = queue.Queue()
         self.log: list[str] = []
         threading.Thread(target=self._pump, daemon=True).start()
