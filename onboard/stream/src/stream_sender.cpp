@@ -5,6 +5,7 @@
 #include <spdlog/sinks/null_sink.h>
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <stdexcept>
 
 #include "rgbdquad/protocol/codec.hpp"
@@ -160,9 +161,15 @@ bool StreamSender::handshake(int fd, protocol::StreamDecoder* decoder, std::stri
     return false;
   }
   std::uint8_t buffer[kReadChunkBytes];
+  // One deadline for the whole ack, not per read: a peer dripping a byte at a time used to
+  // restart the timeout on every byte (issue 17: a dripped ack held the streamer 6.9 s).
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(options_.handshake_timeout_ms);
   while (true) {
     std::size_t got = 0;
-    s = net::read_some(fd, buffer, sizeof buffer, &got, stop_waker_, options_.handshake_timeout_ms);
+    const auto left_ms =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()).count();
+    s = left_ms > 0 ? net::read_some(fd, buffer, sizeof buffer, &got, stop_waker_, static_cast<int>(left_ms))
+                    : net::IoStatus::kTimeout;
     if (s != net::IoStatus::kOk) {
       *why = std::string("waiting for handshake ack: ") + net::to_string(s);
       return false;

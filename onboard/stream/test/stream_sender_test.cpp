@@ -1,7 +1,14 @@
-// Sender pieces without sockets: the pair-aware frame choice and the payload encoder's contract.
+// Sender pieces without sockets: the pair-aware frame choice and the payload encoder's contract;
+// and, on loopback, the handshake deadline against a receiver that drips its answer.
+#include <sys/socket.h>
+
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <thread>
+
 #include "rgbdquad/encodings/depth_codec.h"
+#include "rgbdquad/net/socket.h"
 #include "rgbdquad/stream/payload_encoder.h"
 #include "rgbdquad/stream/stream_sender.h"
 
@@ -49,6 +56,43 @@ TEST(PayloadEncoder, EncodesOnlyItsKindInItsEncoding) {
   EXPECT_THROW(PayloadEncoder(protocol::StreamKind::kRgb, protocol::Encoding::kDepthRvl, 90, 1), std::invalid_argument);
   EXPECT_EQ(depth_encoding_from_string("zstd-delta"), protocol::Encoding::kDepthZstdDelta);
   EXPECT_FALSE(rgb_encoding_from_string("rvl").has_value());
+}
+
+TEST(StreamSender, HandshakeDeadlineIsNotRestartedByADrippingReceiver) {
+  // GIVEN a "receiver" that accepts and then drips one byte every 50 ms instead of an ack
+  net::UniqueFd listener = net::listen_tcp("127.0.0.1", 0);
+  StreamSenderOptions o;
+  o.host = "127.0.0.1";
+  o.port = net::local_port(listener);
+  o.kind = protocol::StreamKind::kDepth;
+  o.encoding = protocol::Encoding::kRaw;
+  o.intrinsics = {517.3, 516.5, 318.6, 255.3, {}};
+  o.depth_units_per_m = 5000;
+  o.handshake_timeout_ms = 300;
+  o.backoff_first_ms = 5;
+  o.backoff_max_ms = 100;
+  capture::SteadyClock clock;
+  StreamSender sender(o, &clock, nullptr);
+  net::Waker waker;
+  ASSERT_EQ(net::wait_readable(listener.get(), waker, 5000), net::IoStatus::kOk);
+  auto first = net::accept_tcp(listener, nullptr);
+  ASSERT_TRUE(first);
+  const auto t0 = std::chrono::steady_clock::now();
+  // WHEN the drip goes on THEN the streamer gives up after its 300 ms deadline and reconnects
+  // (it used to wait as long as bytes kept coming)
+  bool reconnected = false;
+  while (std::chrono::steady_clock::now() - t0 < std::chrono::seconds(3)) {
+    const std::uint8_t zero = 0;
+    (void)::send(first->get(), &zero, 1, MSG_NOSIGNAL);
+    if (net::wait_readable(listener.get(), waker, 50) == net::IoStatus::kOk) {
+      reconnected = true;
+      break;
+    }
+  }
+  const auto waited_ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_TRUE(reconnected) << "still waiting for the ack after " << waited_ms << " ms";
+  EXPECT_LT(waited_ms, 1500);
 }
 
 }  // namespace
