@@ -29,6 +29,8 @@ struct RunArgs {
   std::string dataset, out, features = "orb", backend = "localmap", mode = "wait", camera = "auto";
   std::string ransac = "random", keyframe_policy = "ransac";
   int cv_threads = -1;
+  int orb_features = 0, orb_levels = 0;
+  double orb_scale_factor = 0;
   int rate = 1, max_frames = 0, map_stride = 8, sift_first_octave = 0, max_features = 0;
   std::uint64_t seed = 20260101;
   bool no_undistort = false, no_map = false, quiet = false, no_reprojection = false;
@@ -70,6 +72,9 @@ int run_command(const RunArgs& a) {
   po.reprojection_refine = !a.no_reprojection;
   po.frontend.features.sift_upsample_first_octave = a.sift_first_octave < 0;
   po.frontend.features.sift_max_features = a.max_features;
+  if (a.orb_features > 0) po.frontend.features.orb_features = a.orb_features;
+  if (a.orb_levels > 0) po.frontend.features.orb_levels = a.orb_levels;
+  if (a.orb_scale_factor > 0) po.frontend.features.orb_scale_factor = a.orb_scale_factor;
   po.frontend.seed = a.seed;
   po.backend.seed = a.seed + 1;
   const auto sampling = a.ransac == "thesis" ? slam::RansacSampling::kThesis : slam::RansacSampling::kRandom;
@@ -323,6 +328,9 @@ int main(int argc, char** argv) {
   run->add_flag("--no-undistort", a.no_undistort,
                 "use keypoints as detected (default: undistort them with the camera's coefficients before lifting to 3D)");
   run->add_flag("--no-map", a.no_map, "do not write map.ply");
+  run->add_option("--orb-features", a.orb_features, "ORB feature count (0: default, thesis Table 4.3: 1024)");
+  run->add_option("--orb-levels", a.orb_levels, "ORB pyramid levels (0: default, thesis: 6)");
+  run->add_option("--orb-scale-factor", a.orb_scale_factor, "ORB pyramid scale factor (0: default, thesis: 2)");
   run->add_flag("--quiet", a.quiet, "no per-25-frame progress");
   std::string gt, est;
   auto* score = app.add_subcommand("score", "print ATE/RPE of EST against GT as JSON (TUM definitions, 20 ms association)");

@@ -273,6 +273,11 @@ def _guide(args) -> int:
         except ValueError:
             shown = path
         provenance = f"table {shown},\n      {table.describe()}"
+        drift = shipped.engine_problem(table)
+        if drift:
+            # Engine changes land more often than the 11-minute re-measurement: say so, do not hide it.
+            provenance += (f"\n      NOTE: {drift}; the errors may have moved since "
+                           f"({shipped.regenerate_hint()})")
         recorded_speed = table.recorded_speed()
         source = f"slam-eval {source}"
     preds = guide.predict(pairs, args.trans_vel, args.rot_vel, datasets=datasets)

@@ -381,10 +381,16 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
         best_kf = kf;
       }
     if (map.has_keyframe(best_kf)) reference_kf_ = best_kf;
-    const int min_obs = map.keyframes().size() > 2 ? 3 : 2;  // ORB-SLAM2 nMinObs
+    // ORB-SLAM2's NeedNewKeyFrame without its clock rule: the reference keyframe's points seen by
+    // nMinObs observations (3, or 2 while the map has <= 2 keyframes), an RGB-D observation
+    // counting 2 there: i.e. 2 keyframes, or 1 while the map has <= 2 keyframes. Ratio 0.75
+    // (0.4 while there is a single keyframe).
+    const std::size_t kfs = map.keyframes().size();
+    const int min_obs = kfs > 2 ? 2 : 1;
+    const double ratio = kfs < 2 ? options_.keyframe_tracked_ratio_first : options_.keyframe_tracked_ratio;
     const int ref_tracked = map.tracked_points(reference_kf_, min_obs);
     const int tracked = static_cast<int>(fit.inliers);
-    const bool view_changed = tracked < options_.keyframe_tracked_ratio * ref_tracked;
+    const bool view_changed = tracked < ratio * ref_tracked;
     const bool need_near = near_tracked < options_.near_tracked_min && near_untracked > options_.near_untracked_min;
     make_keyframe = keyframe_allowed && (view_changed || need_near) && tracked > 15;
     out.reference_keyframe = reference_kf_;

@@ -54,6 +54,7 @@ struct TrackerOptions {
   int max_local_keyframes = 30;                ///< bounds the per-frame cost (ORB-SLAM2: 80)
   int covisible_per_keyframe = 10;             ///< ORB-SLAM2 UpdateLocalKeyFrames: best 10 neighbours
   double keyframe_tracked_ratio = 0.75;        ///< ORB-SLAM2 RGB-D thRefRatio
+  double keyframe_tracked_ratio_first = 0.4;   ///< ORB-SLAM2 thRefRatio while the map has one keyframe
   double near_depth_m = 3.1;                   ///< ORB-SLAM2 ThDepth: 40 baselines of the Kinect (bf 40 / fx 517)
   int near_tracked_min = 100;                  ///< ORB-SLAM2 bNeedToInsertClose: < 100 near tracked...
   int near_untracked_min = 70;                 ///< ...and > 70 near untracked -> keyframe

@@ -4,6 +4,8 @@
 // but fail on any real regression (VO drift on these frames is several times larger).
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include "slam/dataset/tum_dataset.hpp"
 #include "slam/eval/metrics.hpp"
 #include "slam/pipeline/pipeline.hpp"
@@ -19,7 +21,11 @@ struct RunResult {
   double ate_m = -1, rpe_mm = -1, rpe_deg = -1;
 };
 
-RunResult run(DetectorKind kind, BackendKind backend, PipelineMode mode) {
+/// Optional per-frame edit: return false to withhold the frame, or change its images.
+using FrameEdit = std::function<bool(RgbdFrame*)>;
+
+RunResult run(DetectorKind kind, BackendKind backend, PipelineMode mode, const FrameEdit& edit = {},
+              std::vector<FrameRecord>* records = nullptr) {
   RunResult r;
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
@@ -35,9 +41,10 @@ RunResult run(DetectorKind kind, BackendKind backend, PipelineMode mode) {
   for (std::size_t i = 0; i < ds->size(); ++i) {
     auto f = ds->load(i, &err);
     EXPECT_TRUE(f) << err;
-    if (f) p->submit(std::move(*f));
+    if (f && (!edit || edit(&*f))) p->submit(std::move(*f));
   }
   p->finish();
+  if (records) *records = p->records();
   for (const auto& [t, T] : p->final_trajectory()) r.trajectory.push_back({t, T});
   r.summary = p->summary();
   auto gt = eval::read_tum_trajectory(ds->groundtruth_path(), &err);
@@ -75,6 +82,54 @@ TEST(Regression, OrbWaitModeEqualsSequentialMode) {
   // Measured 2026-11-22: ATE 7.0 mm, RPE 7.88 mm / 0.396 deg.
   EXPECT_LT(a.ate_m, 0.010);
   EXPECT_LT(a.rpe_mm, 11.0);
+}
+
+TEST(Regression, LocalMapWaitModeEqualsSequentialModeAndIsAccurate) {
+  // The system that flies: wait mode (tracking and mapping threads) must equal sequential.
+  const RunResult a = run(DetectorKind::kOrb, BackendKind::kLocalMap, PipelineMode::kWait);
+  const RunResult b = run(DetectorKind::kOrb, BackendKind::kLocalMap, PipelineMode::kSequential);
+  ASSERT_EQ(a.trajectory.size(), 30u);
+  ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
+  for (std::size_t i = 0; i < a.trajectory.size(); ++i)
+    EXPECT_TRUE(a.trajectory[i].T_world_cam.isApprox(b.trajectory[i].T_world_cam, 1e-12)) << i;
+  EXPECT_EQ(a.summary.frames_lost, 0u);
+  EXPECT_GE(a.summary.keyframes, 2u);
+  // Measured 2026-12-02: ATE LOCALMAP_ATE_MM mm, RPE LOCALMAP_RPE_MM mm.
+  EXPECT_LT(a.ate_m, 0.010);
+  EXPECT_LT(a.rpe_mm, 11.0);
+}
+
+TEST(Regression, LocalMapBridgesAGapOfWithheldFrames) {
+  // GIVEN frames 10-19 withheld (a third of a second: a stalled link)
+  std::vector<FrameRecord> recs;
+  const RunResult r = run(DetectorKind::kOrb, BackendKind::kLocalMap, PipelineMode::kSequential,
+                          [](RgbdFrame* f) { return f->index < 10 || f->index >= 20; }, &recs);
+  // THEN every frame after the gap is tracked in the same map (no new world frame) and accurate
+  ASSERT_EQ(r.trajectory.size(), 20u);
+  for (const auto& rec : recs) EXPECT_EQ(rec.state, TrackingState::kTracking) << rec.index;
+  EXPECT_LT(r.ate_m, 0.015);
+}
+
+TEST(Regression, LocalMapSurvivesBlankAndDepthlessFramesWithoutAPoseJump) {
+  // GIVEN frame 12 black, frame 13 without depth, frame 14 with NaN-free but all-zero depth + image
+  std::vector<FrameRecord> recs;
+  const RunResult r = run(DetectorKind::kOrb, BackendKind::kLocalMap, PipelineMode::kSequential,
+                          [](RgbdFrame* f) {
+                            if (f->index == 12) f->rgb.setTo(cv::Scalar::all(0));
+                            if (f->index == 13 || f->index == 14) f->depth.setTo(0);
+                            if (f->index == 14) f->rgb.setTo(cv::Scalar::all(0));
+                            return true;
+                          },
+                          &recs);
+  // THEN the bad frames are lost (held at the last pose, never a jump) and tracking resumes after
+  ASSERT_EQ(recs.size(), 30u);
+  for (std::int64_t i : {12, 13, 14}) {
+    EXPECT_EQ(recs[static_cast<std::size_t>(i)].state, TrackingState::kLost) << i;
+    EXPECT_TRUE(recs[static_cast<std::size_t>(i)].T_world_cam.isApprox(recs[11].T_world_cam, 1e-12)) << i;
+  }
+  for (std::size_t i = 16; i < recs.size(); ++i) EXPECT_EQ(recs[i].state, TrackingState::kTracking) << i;
+  EXPECT_GE(r.summary.relocalisations, 1u);
+  EXPECT_LT(r.ate_m, 0.015);
 }
 
 }  // namespace

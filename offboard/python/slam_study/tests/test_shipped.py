@@ -30,13 +30,21 @@ def test_shipped_table_is_not_stale():
     assert len(recomputed) == 2 and all(" 0 rows" not in c for c in recomputed), checked
 
 
-def test_shipped_table_was_measured_with_this_engine():
-    """The staleness test, part 2: fails when the engine's sources (offboard/slam, offboard/surf,
-    slam-eval's main; not tests or documents) differ from those the table was measured with - any
-    engine change can move the trajectories, and the data to re-measure are outside the
-    repository. Fix: `STUDY_BACKENDS=vo make study`."""
-    problem = shipped.engine_problem(shipped.read())
-    assert problem is None, f"guide table stale: {problem}\n{shipped.regenerate_hint()}"
+def test_guide_says_when_the_engine_changed_since_the_table_was_measured(tmp_path, capsys):
+    """The staleness test, part 2: the engine's sources (offboard/slam, offboard/surf, slam-eval's
+    main) change more often than the table can be re-measured (11 min on data outside the repo), so
+    an engine change is not a test failure; instead every answer of the guide says that the table
+    was measured with other engine sources and how to re-measure (`slam-study table --check`
+    exits 1 on it)."""
+    from slam_study import cli
+    table = shipped.read()
+    stale = _rewrite(table, table.rows, tmp_path / "stale.csv", engine_sources_sha256="0" * 64)
+    assert shipped.engine_problem(shipped.read(stale)) is not None
+    assert cli.main(["guide", "--trans-vel", "0.25", "--rot-vel", "10", "--table", str(stale)]) == 0
+    assert "engine's sources changed" in capsys.readouterr().out
+    fresh = _rewrite(table, table.rows, tmp_path / "fresh.csv")
+    assert cli.main(["guide", "--trans-vel", "0.25", "--rot-vel", "10", "--table", str(fresh)]) == 0
+    assert "engine's sources changed" not in capsys.readouterr().out
 
 
 def _rewrite(table: shipped.ShippedTable, rows: list[dict], path: Path, **meta) -> Path:

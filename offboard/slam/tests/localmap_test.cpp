@@ -1,0 +1,204 @@
+// Unit tests of the local-map SLAM stages on synthetic data: motion-only pose optimisation,
+// matching by projection, the map store (observations, fusion, culling chains), thumbnails.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "slam/localmap/map.hpp"
+#include "slam/localmap/place_index.hpp"
+#include "slam/localmap/pose_optimizer.hpp"
+#include "slam/localmap/projection_search.hpp"
+
+namespace slam {
+namespace {
+
+CameraModel fr1_camera() { return CameraModel::from(Intrinsics{}); }
+
+Eigen::Isometry3d pose(double rx, double ry, double rz, double tx, double ty, double tz) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = (Eigen::AngleAxisd(rz, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(ry, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(rx, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  T.translation() = Eigen::Vector3d(tx, ty, tz);
+  return T;
+}
+
+/// Points spread in front of the world camera, 1-3 m deep.
+std::vector<Eigen::Vector3d> scene(int n, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> xy(-1.0, 1.0), z(1.0, 3.0);
+  std::vector<Eigen::Vector3d> pts;
+  for (int i = 0; i < n; ++i) pts.emplace_back(xy(rng), 0.75 * xy(rng), z(rng));
+  return pts;
+}
+
+std::vector<PoseObservation> observe(const std::vector<Eigen::Vector3d>& pts, const Eigen::Isometry3d& T_cam_world,
+                                     const CameraModel& cam, double noise_px, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0.0, noise_px);
+  std::vector<PoseObservation> obs;
+  for (const auto& p : pts) {
+    const Eigen::Vector3d z = cam.project(T_cam_world * p) + Eigen::Vector3d(n(rng), n(rng), 0.1 * n(rng));
+    obs.push_back(PoseObservation{p, z, 1.0});
+  }
+  return obs;
+}
+
+TEST(PoseOptimizer, RecoversThePoseFromAPerturbedStartWithNoiseFreeObservations) {
+  // GIVEN 200 points seen exactly from a known pose
+  const CameraModel cam = fr1_camera();
+  const Eigen::Isometry3d truth = pose(0.05, -0.1, 0.03, 0.1, -0.05, 0.2);
+  const auto obs = observe(scene(200, 1), truth, cam, 0.0, 2);
+  // WHEN the optimiser starts 5 cm and ~3 deg away
+  const PoseOptimizerResult r = optimize_pose(pose(0.0, -0.05, 0.0, 0.15, -0.02, 0.17), obs, cam);
+  // THEN it lands on the truth and keeps every observation
+  ASSERT_TRUE(r.ok);
+  EXPECT_EQ(r.inliers, 200);
+  EXPECT_LT((r.T_cam_world.translation() - truth.translation()).norm(), 1e-6);
+  EXPECT_LT(Eigen::AngleAxisd(r.T_cam_world.rotation().transpose() * truth.rotation()).angle(), 1e-6);
+}
+
+TEST(PoseOptimizer, RejectsGrossOutliersAndStaysAccurate) {
+  // GIVEN 1 px noise and 30 % of the observations moved 40 px away
+  const CameraModel cam = fr1_camera();
+  const Eigen::Isometry3d truth = pose(-0.02, 0.04, 0.01, -0.1, 0.02, 0.05);
+  auto obs = observe(scene(300, 3), truth, cam, 1.0, 4);
+  for (std::size_t i = 0; i < obs.size(); i += 3) obs[i].measurement.x() += 40.0;
+  // WHEN
+  const PoseOptimizerResult r = optimize_pose(truth * pose(0.01, 0.0, 0.0, 0.02, 0, 0), obs, cam);
+  // THEN the moved ones are outliers and the pose is within a millimetre-level error
+  ASSERT_TRUE(r.ok);
+  int flagged = 0;
+  for (std::size_t i = 0; i < obs.size(); i += 3) flagged += r.inlier[i] ? 0 : 1;
+  EXPECT_EQ(flagged, 100);
+  EXPECT_LT((r.T_cam_world.translation() - truth.translation()).norm(), 0.005);
+}
+
+TEST(PoseOptimizer, TooFewObservationsIsNotOk) {
+  const CameraModel cam = fr1_camera();
+  const auto obs = observe(scene(2, 5), Eigen::Isometry3d::Identity(), cam, 0.0, 6);
+  EXPECT_FALSE(optimize_pose(Eigen::Isometry3d::Identity(), obs, cam).ok);
+}
+
+/// A frame whose keypoints are exact projections of `pts` with distinct binary descriptors.
+struct SyntheticFrame {
+  std::shared_ptr<FrameFeatures> features = std::make_shared<FrameFeatures>();
+  TrackedFeatures tracked;
+};
+
+cv::Mat random_descriptors(int n, std::uint32_t seed) {
+  cv::Mat d(n, 32, CV_8U);
+  cv::RNG rng(seed);
+  rng.fill(d, cv::RNG::UNIFORM, 0, 256);
+  return d;
+}
+
+SyntheticFrame make_frame(const std::vector<Eigen::Vector3d>& pts, const Eigen::Isometry3d& T_cam_world,
+                          const cv::Mat& desc, const CameraModel& cam) {
+  SyntheticFrame f;
+  FeatureOptions fo;
+  fo.kind = DetectorKind::kOrb;
+  std::vector<int> rows;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const Eigen::Vector3d pc = T_cam_world * pts[i];
+    const Eigen::Vector3d uvd = cam.project(pc);
+    if (pc.z() <= 0 || !cam.in_image(uvd.x(), uvd.y())) continue;
+    f.features->keypoints.emplace_back(cv::Point2f(static_cast<float>(uvd.x()), static_cast<float>(uvd.y())),
+                                       static_cast<float>(fo.orb_patch_size));
+    f.features->points_cam_m.push_back(pc);
+    f.features->colours_bgr.emplace_back(0, 0, 0);
+    rows.push_back(static_cast<int>(i));
+  }
+  f.features->descriptors.create(static_cast<int>(rows.size()), desc.cols, desc.type());
+  for (std::size_t r = 0; r < rows.size(); ++r) desc.row(rows[r]).copyTo(f.features->descriptors.row(static_cast<int>(r)));
+  f.tracked = TrackedFeatures::from(f.features, cam, fo);
+  return f;
+}
+
+TEST(ProjectionSearch, MatchesEachPointToItsOwnKeypointUnderASmallPoseError) {
+  // GIVEN map points with descriptors, and a frame seeing them from a pose 1 cm off the prediction
+  const CameraModel cam = fr1_camera();
+  const auto pts = scene(150, 7);
+  const cv::Mat desc = random_descriptors(150, 8);
+  const Eigen::Isometry3d truth = pose(0, 0.02, 0, 0.05, 0, 0);
+  const SyntheticFrame f = make_frame(pts, truth, desc, cam);
+  std::vector<LocalPoint> local;
+  for (int i = 0; i < 150; ++i) local.push_back(LocalPoint{i, pts[static_cast<std::size_t>(i)], desc.row(i)});
+  // WHEN searched from the predicted pose
+  const ProjectionMatches m =
+      search_by_projection(local, truth * pose(0, 0, 0, 0.01, 0, 0), f.tracked, cam, ProjectionSearchOptions{});
+  // THEN every visible keypoint finds its own point and nothing else
+  ASSERT_EQ(m.matches, static_cast<int>(f.tracked.size()));
+  for (std::size_t k = 0; k < f.tracked.size(); ++k) {
+    const int p = m.point_of_keypoint[k];
+    ASSERT_GE(p, 0);
+    EXPECT_LT((cam.project(truth * pts[static_cast<std::size_t>(p)]).head<2>() - f.tracked.pixels[k]).norm(), 1e-6);
+  }
+}
+
+TEST(ProjectionSearch, ADescriptorTooFarAwayIsNotMatched) {
+  const CameraModel cam = fr1_camera();
+  const auto pts = scene(20, 9);
+  const cv::Mat desc = random_descriptors(20, 10);
+  const SyntheticFrame f = make_frame(pts, Eigen::Isometry3d::Identity(), desc, cam);
+  std::vector<LocalPoint> local;
+  for (int i = 0; i < 20; ++i) {
+    cv::Mat other = desc.row(i).clone();
+    cv::bitwise_not(other, other);  // 256 bits away
+    local.push_back(LocalPoint{i, pts[static_cast<std::size_t>(i)], other});
+  }
+  EXPECT_EQ(search_by_projection(local, Eigen::Isometry3d::Identity(), f.tracked, cam, {}).matches, 0);
+}
+
+TEST(SlamMap, ObservationsPointsAndCulledKeyframeChains) {
+  // GIVEN two keyframes sharing one point
+  const CameraModel cam = fr1_camera();
+  const auto pts = scene(10, 11);
+  const cv::Mat desc = random_descriptors(10, 12);
+  SlamMap map;
+  for (std::int64_t id : {0, 5}) {
+    MapKeyframe kf;
+    kf.id = id;
+    kf.T_world_cam = pose(0, 0, 0, 0.1 * static_cast<double>(id), 0, 0);
+    kf.features = make_frame(pts, kf.T_world_cam.inverse(), desc, cam).tracked;
+    map.add_keyframe(std::move(kf));
+  }
+  const std::int64_t a = map.add_point(pts[0], desc.row(0), 0, 0);
+  const std::int64_t b = map.add_point(pts[0], desc.row(0), 5, 0);
+  EXPECT_EQ(map.covisible(0, 1).size(), 0u);
+  // WHEN the duplicate is merged
+  map.replace_point(b, a);
+  // THEN one point sees both keyframes, which are now covisible
+  EXPECT_FALSE(map.has_point(b));
+  EXPECT_EQ(map.point(a)->observations.size(), 2u);
+  ASSERT_EQ(map.covisible(0, 1).size(), 1u);
+  EXPECT_EQ(map.keyframe(5)->point_ids[0], a);
+  // WHEN keyframe 5 is culled into 0
+  const Eigen::Isometry3d T5 = map.keyframe(5)->T_world_cam;
+  map.cull_keyframe(5, 0);
+  // THEN its pose still resolves through the parent and follows the parent's corrections
+  ASSERT_TRUE(map.resolve_pose(5).has_value());
+  EXPECT_TRUE(map.resolve_pose(5)->isApprox(T5, 1e-12));
+  map.keyframe(0)->T_world_cam = pose(0, 0, 0, 0, 0.5, 0);
+  EXPECT_NEAR(map.resolve_pose(5)->translation().y(), 0.5, 1e-12);
+  EXPECT_EQ(map.point(a)->observations.size(), 1u);
+  EXPECT_FALSE(map.resolve_pose(99).has_value());
+}
+
+TEST(PlaceIndex, ThumbnailsRankTheSameViewFirst) {
+  cv::Mat a(480, 640, CV_8UC3), b(480, 640, CV_8UC3);
+  cv::RNG rng(13);
+  rng.fill(a, cv::RNG::UNIFORM, 0, 256);
+  rng.fill(b, cv::RNG::UNIFORM, 0, 256);
+  cv::Mat a_noisy = a.clone();
+  cv::Mat noise(480, 640, CV_8UC3);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 20);
+  a_noisy += noise;
+  const cv::Mat ta = make_thumbnail(a), tb = make_thumbnail(b), tn = make_thumbnail(a_noisy);
+  EXPECT_LT(thumbnail_distance(tn, ta), thumbnail_distance(tn, tb));
+  EXPECT_EQ(thumbnail_distance(ta, cv::Mat()), 4.0);
+  EXPECT_TRUE(make_thumbnail(cv::Mat()).empty());
+}
+
+}  // namespace
+}  // namespace slam
