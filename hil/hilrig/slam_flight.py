@@ -100,7 +100,7 @@ class SlamFlightOptions:
     features: str = "orb"  # ORB: the front end that fits a 30 fps budget on a CPU (docs/slam.md)
     # VO + local loop closure: measured in a 20 s gusty hover ATE 5.8 mm (VO alone 20-47 mm: its drift
     # became the hold error), same front-end latency; GLC 4.9 mm but +14 ms per pose.
-    backend: str = "llc"  # slam-server back end: vo | llc | glc
+    backend: str = "localmap"  # slam-server back end: localmap | vo | llc | glc
     quad_params: QuadParams = field(default_factory=QuadParams)
     fc_options: FcOptions = field(default_factory=_alt_hold)
     mount: CameraMount = field(default_factory=CameraMount)
@@ -118,8 +118,8 @@ class SlamFlightOptions:
     def validate(self) -> None:
         if not 1.0 <= self.fps <= 30.0:
             raise ValueError("fps must be in [1, 30] (a Kinect v1 delivers at most 30)")
-        if self.features not in ("orb", "sift", "surf") or self.backend not in ("vo", "llc", "glc"):
-            raise ValueError("features must be orb|sift|surf and backend vo|llc|glc")
+        if self.features not in ("orb", "sift", "surf") or self.backend not in ("localmap", "vo", "llc", "glc"):
+            raise ValueError("features must be orb|sift|surf and backend localmap|vo|llc|glc")
         if len(self.key) != 16:
             raise ValueError("key must be 16 bytes")
 

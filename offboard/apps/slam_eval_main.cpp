@@ -128,7 +128,7 @@ int run_command(const RunArgs& a) {
       }
       continue;
     }
-    if (po.mode == slam::PipelineMode::kRealtime) {
+    if (po.mode == slam::PipelineMode::kRealtime || po.mode == slam::PipelineMode::kLive) {
       // Real-time replay: frame i is due i * period after the start (application boundary: the
       // only place that reads the clock).
       std::this_thread::sleep_until(wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -303,7 +303,7 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"localmap", "vo", "llc", "glc"}))->capture_default_str();
   run->add_option("--rate", a.rate, "keep every K-th frame (frame-rate reduction 1/K)")->check(CLI::PositiveNumber)->capture_default_str();
   run->add_option("--mode", a.mode, "wait (deterministic) | realtime (paced, back-end skips) | sequential (one thread)")
-      ->check(CLI::IsMember({"wait", "realtime", "sequential"}))->capture_default_str();
+      ->check(CLI::IsMember({"wait", "realtime", "live", "sequential"}))->capture_default_str();
   run->add_option("--camera", a.camera, "intrinsics: auto (from folder name) | fr1 | fr2 | fr3")
       ->check(CLI::IsMember({"auto", "fr1", "fr2", "fr3"}))->capture_default_str();
   run->add_option("--ransac", a.ransac, "random (seeded, adaptive) | thesis (4 best pairs, 10 tries)")

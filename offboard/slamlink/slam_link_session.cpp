@@ -52,7 +52,8 @@ std::optional<proto::Pose3> pose_to_wire(const Eigen::Isometry3d& T) {
 }
 
 SlamLinkSession::SlamLinkSession(PipelineOptions options) : options_(std::move(options)) {
-  options_.mode = PipelineMode::kSequential;
+  // Tracking answers each frame on the caller's thread; local mapping runs on its own thread.
+  options_.mode = PipelineMode::kLive;
 }
 
 std::optional<RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame& m, std::string* error) const {

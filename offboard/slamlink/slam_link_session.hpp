@@ -1,6 +1,6 @@
 // SLAM-link session (protocol/spec/messages.json, link "slam"): one flight's map, socket-free.
 // It answers every RgbdFrame with exactly one PoseUpdate (the spec's rule): the pose computed by
-// the SLAM pipeline (sequential mode, so the answer belongs to that very frame), or - when the
+// the SLAM pipeline (live mode: tracked on this thread, so the answer belongs to that very frame; mapping on its own thread), or - when the
 // frame cannot be used (unsupported encoding, inconsistent sizes, the front end rejected it) or
 // the estimate cannot be put on the wire (non-finite, not a rotation) - a LOST update carrying the
 // last good pose, with the reason in `error`. The pipeline is created on the first frame from the

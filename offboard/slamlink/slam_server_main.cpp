@@ -239,7 +239,7 @@ class Server {
 
 int main(int argc, char** argv) {
   CLI::App app{"slam-server: RGB-D SLAM on the SLAM link (SlamHello, RgbdFrame -> PoseUpdate)"};
-  std::string bind = "127.0.0.1", features = "orb", backend = "glc";
+  std::string bind = "127.0.0.1", features = "orb", backend = "localmap";
   int port = 5700;
   std::size_t max_clients = 4;
   slam::ConnectionOptions copt;
@@ -247,7 +247,7 @@ int main(int argc, char** argv) {
   app.add_option("--bind", bind, "IPv4 address to listen on")->capture_default_str();
   app.add_option("--port", port, "TCP port")->check(CLI::Range(1, 65535))->capture_default_str();
   app.add_option("--features", features, "sift | surf | orb")->check(CLI::IsMember({"sift", "surf", "orb"}))->capture_default_str();
-  app.add_option("--backend", backend, "vo | llc | glc")->check(CLI::IsMember({"vo", "llc", "glc"}))->capture_default_str();
+  app.add_option("--backend", backend, "localmap (tracking against a local map, the default) | vo | llc | glc (thesis)")->check(CLI::IsMember({"localmap", "vo", "llc", "glc"}))->capture_default_str();
   app.add_option("--max-clients", max_clients, "connections served at once")->check(CLI::Range(1, 64))->capture_default_str();
   app.add_option("--hello-timeout-ms", copt.hello_timeout_ms, "SlamHello due within this of connecting")->capture_default_str();
   app.add_option("--idle-timeout-ms", copt.idle_timeout_ms, "close a connection silent this long")->capture_default_str();

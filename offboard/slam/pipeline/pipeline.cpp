@@ -13,7 +13,8 @@ bool parse_pipeline_mode(const std::string& name, PipelineMode* out, std::string
   if (name == "sequential") { *out = PipelineMode::kSequential; return true; }
   if (name == "wait") { *out = PipelineMode::kWait; return true; }
   if (name == "realtime") { *out = PipelineMode::kRealtime; return true; }
-  if (error) *error = "unknown mode '" + name + "' (expected wait, realtime or sequential)";
+  if (name == "live") { *out = PipelineMode::kLive; return true; }
+  if (error) *error = "unknown mode '" + name + "' (expected wait, realtime, live or sequential)";
   return false;
 }
 
@@ -22,6 +23,7 @@ const char* to_string(PipelineMode m) {
     case PipelineMode::kSequential: return "sequential";
     case PipelineMode::kWait: return "wait";
     case PipelineMode::kRealtime: return "realtime";
+    case PipelineMode::kLive: return "live";
   }
   return "?";
 }
@@ -36,6 +38,8 @@ std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intri
                                            std::string* error) {
   if (!o.is_valid(error)) return nullptr;
   PipelineOptions opts = o;
+  const bool local_map = o.backend.kind == BackendKind::kLocalMap;
+  if (opts.mode == PipelineMode::kLive && !local_map) opts.mode = PipelineMode::kSequential;
   if (o.reprojection_refine) {
     const RansacOptions::Pinhole cam{k.fx_px, k.fy_px, k.cx_px, k.cy_px};
     opts.frontend.ransac.reprojection_camera = cam;
@@ -46,7 +50,6 @@ std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intri
   auto be = BackEnd::create(opts.backend, error);
   if (!be) return nullptr;
   std::unique_ptr<Pipeline> p(new Pipeline(opts, std::move(*fe), std::move(*be)));
-  const bool local_map = o.backend.kind == BackendKind::kLocalMap;
   if (local_map) {
     // Relocalisation matches descriptors and runs RANSAC with the front-end's (thesis) settings.
     TrackerOptions to = opts.tracker;
@@ -61,7 +64,9 @@ std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intri
     p->mapper_ = LocalMapper::create(opts.mapper, cam, p->map_, error);
     if (!p->mapper_) return nullptr;
   }
-  if (o.mode != PipelineMode::kSequential) {
+  if (opts.mode == PipelineMode::kLive) {
+    p->backend_thread_ = std::thread([q = p.get()] { q->mapper_loop(); });
+  } else if (opts.mode != PipelineMode::kSequential) {
     p->frontend_thread_ = std::thread([q = p.get()] { q->frontend_loop(); });
     if (local_map) p->backend_thread_ = std::thread([q = p.get()] { q->mapper_loop(); });
     else p->backend_thread_ = std::thread([q = p.get()] { q->backend_loop(); });
@@ -76,8 +81,11 @@ Pipeline::~Pipeline() { finish(); }
 
 bool Pipeline::submit(RgbdFrame frame) {
   if (finished_) return false;
-  if (options_.mode == PipelineMode::kSequential) {
-    ++summary_.frames_submitted;
+  if (options_.mode == PipelineMode::kSequential || options_.mode == PipelineMode::kLive) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++summary_.frames_submitted;
+    }
     run_frontend(frame);
     return true;
   }
@@ -292,7 +300,7 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   rec.features_ms = ms_since(t0);
   rec.features = feats->points_cam_m.size();
   bool keyframe_allowed = true;
-  if (options_.mode == PipelineMode::kRealtime) {
+  if (options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive) {
     std::lock_guard<std::mutex> lock(mutex_);
     keyframe_allowed = keyframe_queue_.size() + (mapper_busy_ ? 1 : 0) < kMaxQueuedKeyframes;
   }
@@ -339,7 +347,7 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
 }
 
 void Pipeline::mapper_loop() {
-  if (options_.mode == PipelineMode::kRealtime) {
+  if (options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive) {
     // Mapping is off the camera-to-command path: it yields the CPU to tracking.
     constexpr int kMapperNiceRealtime = 10;
     if (setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), kMapperNiceRealtime) != 0) {

@@ -37,7 +37,10 @@
 
 namespace slam {
 
-enum class PipelineMode { kSequential, kWait, kRealtime };
+/// kLive: submit() tracks on the caller's thread (the frame's pose is final when it returns) while
+/// the local map is refined on the mapping thread - for servers that answer every frame
+/// (slam-server). For the thesis back-ends kLive behaves as kSequential.
+enum class PipelineMode { kSequential, kWait, kRealtime, kLive };
 bool parse_pipeline_mode(const std::string& name, PipelineMode* out, std::string* error);
 const char* to_string(PipelineMode m);
 
