@@ -174,20 +174,25 @@ void GroundStation::on_slam(const SlamResult& result, const CameraFrame& frame) 
 
   std::lock_guard<std::mutex> lock(mutex_);
   last_slam_ = result;
+  bool floor_set_now = false;
   if (need_floor && !T_floor_world_) {
     ++floor_attempts_;
     if (found) {
       floor_ = found;
       // World = first SLAM camera; T_floor_world = T_floor_cam * T_world_cam^-1.
       T_floor_world_ = floor_frame_from_plane(*found) * result.T_world_cam.inverse();
+      floor_set_now = true;
     } else if (floor_attempts_ >= options_.floor_search_frames) {
       // No floor in view: gravity from the mount angle, height counted from the start (0 m).
       FloorPlane assumed{expected_up_in_camera(options_.mount_pitch_down_deg), 0.0, 0, 0.0};
       T_floor_world_ = floor_frame_from_plane(assumed) * result.T_world_cam.inverse();
       floor_fallback_ = true;
+      floor_set_now = true;
     }
   }
-  if (!T_floor_world_) {
+  if (!T_floor_world_ || floor_set_now) {
+    // The floor frame belongs to the session it was found in (also when the very first result is
+    // already tracking: without this the session never matched and no pose was ever used).
     slam_session_ = result.session;
   } else if (result.session != slam_session_ && result.tracking && last_T_floor_cam_) {
     // A new SLAM session (a new map: slam-server restarted or its grace period passed; a resumed
