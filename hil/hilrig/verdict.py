@@ -125,7 +125,7 @@ def judge(report: dict, resets: dict, fps: float) -> list[Check]:
     h = report.get("hold") or {}
     hv = h.get("max_m")
     checks.append(Check("hold", hv is not None and hv <= HOLD_MAX_M, _fmt(hv, "m"), f"<= {HOLD_MAX_M} m",
-                        "not measured (the flight did not reach the hold)" if hv is None else
+                        "not measured (the mission stopped before the hold was scored)" if hv is None else
                         f"the craft was {hv:.3f} m from its hold point (horizontal {h.get('max_horizontal_m')} m, "
                         f"vertical {h.get('max_vertical_m')} m)"))
     wps = report.get("waypoints") or []
