@@ -11,6 +11,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <thread>
@@ -35,6 +36,7 @@ struct RunArgs {
   std::uint64_t seed = 20260101;
   bool no_undistort = false, no_map = false, quiet = false, no_reprojection = false;
   std::string stamp = "depth";
+  std::string save_map, load_map;
 };
 
 json stage_stats(std::vector<double> v) {
@@ -48,6 +50,15 @@ json stage_stats(std::vector<double> v) {
   j["median_ms"] = v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
   j["p95_ms"] = v[std::min(v.size() - 1, static_cast<std::size_t>(0.95 * static_cast<double>(v.size())))];
   return j;
+}
+
+/// Resident set size of this process, MiB (Linux /proc; -1 when unavailable). Instrumentation.
+double rss_mib() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line))
+    if (line.rfind("VmRSS:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
+  return -1;
 }
 
 std::string guess_camera(const std::string& folder) {
@@ -109,6 +120,10 @@ int run_command(const RunArgs& a) {
     std::cerr << "slam-eval: " << err << "\n";
     return 2;
   }
+  if (!a.load_map.empty() && !pipeline->load_map(a.load_map, &err)) {
+    std::cerr << "slam-eval: " << err << "\n";
+    return 2;
+  }
   std::cerr << "slam-eval: " << ds->size() << " frames from " << a.dataset << " (camera " << camera
             << ", features " << a.features << ", backend " << a.backend << ", mode " << a.mode
             << ", rate 1/" << a.rate << ", ransac " << a.ransac << ", keyframes "
@@ -116,6 +131,7 @@ int run_command(const RunArgs& a) {
   const auto wall0 = std::chrono::steady_clock::now();
   const double period_s = ds->frame_period_s();
   std::size_t load_failures = 0;
+  std::vector<std::pair<double, double>> rss_samples;  // (frame stamp s, RSS MiB), every 30 frames
   for (std::size_t i = 0; i < ds->size(); ++i) {
     auto frame = ds->load(i, &err);
     if (!frame) {
@@ -134,7 +150,9 @@ int run_command(const RunArgs& a) {
       std::this_thread::sleep_until(wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                                 std::chrono::duration<double>(period_s * static_cast<double>(i))));
     }
+    const double stamp_s = frame->stamp_s;
     pipeline->submit(std::move(*frame));
+    if (i % 30 == 0) rss_samples.emplace_back(stamp_s, rss_mib());
     if (!a.quiet && ((i + 1) % 25 == 0 || i + 1 == ds->size()))
       std::cerr << "slam-eval: submitted " << (i + 1) << "/" << ds->size() << "\n";
   }
@@ -170,6 +188,32 @@ int run_command(const RunArgs& a) {
       std::cerr << "slam-eval: " << err << "\n";
       return 1;
     }
+  }
+
+  if (!a.save_map.empty()) {
+    if (!pipeline->save_map(a.save_map, &err)) {
+      std::cerr << "slam-eval: " << err << "\n";
+      return 1;
+    }
+    std::cerr << "slam-eval: map saved to " << a.save_map << "\n";
+  }
+  // Per-frame and per-keyframe tables for long-run analysis (offboard/tools/longrun.py).
+  {
+    std::ofstream frames_csv(fs::path(a.out) / "frames.csv");
+    frames_csv << "index,stamp_s,state,keyframe,frontend_ms,frontend_cpu_ms,map_keyframes,map_points\n";
+    for (const auto& r : records)
+      frames_csv << r.index << "," << std::fixed << std::setprecision(6) << r.stamp_s << ","
+                 << slam::to_string(r.state) << "," << (r.keyframe ? 1 : 0) << "," << std::setprecision(3)
+                 << r.frontend_ms << "," << r.frontend_cpu_ms << "," << r.map_keyframes << "," << r.map_points << "\n";
+    std::ofstream mapping_csv(fs::path(a.out) / "mapping.csv");
+    mapping_csv << "keyframe,mapping_ms,mapping_cpu_ms,ba_ms,ba_points,points_culled,points_fused,keyframes_culled\n";
+    for (const auto& st : pipeline->mapper_stats())
+      mapping_csv << st.keyframe << "," << std::fixed << std::setprecision(3) << st.total_ms << ","
+                  << st.total_cpu_ms << "," << st.ba_ms << "," << st.ba_points << "," << st.points_culled << ","
+                  << st.points_fused << "," << st.keyframes_culled << "\n";
+    std::ofstream rss_csv(fs::path(a.out) / "rss.csv");
+    rss_csv << "stamp_s,rss_mib\n";
+    for (const auto& [t, mib] : rss_samples) rss_csv << std::fixed << std::setprecision(6) << t << "," << mib << "\n";
   }
 
   json m;
@@ -328,6 +372,9 @@ int main(int argc, char** argv) {
   run->add_flag("--no-undistort", a.no_undistort,
                 "use keypoints as detected (default: undistort them with the camera's coefficients before lifting to 3D)");
   run->add_flag("--no-map", a.no_map, "do not write map.ply");
+  run->add_option("--save-map", a.save_map, "localmap: write the final map to this file");
+  run->add_option("--load-map", a.load_map,
+                  "localmap: start from this saved map (relocalise in it; poses in its world frame)");
   run->add_option("--orb-features", a.orb_features, "ORB feature count (0: default, thesis Table 4.3: 1024)");
   run->add_option("--orb-levels", a.orb_levels, "ORB pyramid levels (0: default, thesis: 6)");
   run->add_option("--orb-scale-factor", a.orb_scale_factor, "ORB pyramid scale factor (0: default, thesis: 2)");

@@ -1,15 +1,18 @@
 // Matching by projection; see projection_search.hpp.
 #include "slam/localmap/projection_search.hpp"
 
+#include <cmath>
 #include <limits>
+#include <opencv2/core/hal/hal.hpp>
 
 #include "slam/matching/matching.hpp"
 
 namespace slam {
 
 double descriptor_distance(const cv::Mat& a, const cv::Mat& b) {
-  if (a.type() == CV_8U) return cv::norm(a, b, cv::NORM_HAMMING);
-  return cv::norm(a, b, cv::NORM_L2);
+  // Raw-pointer kernels: this runs tens of thousands of times per frame.
+  if (a.type() == CV_8U) return cv::hal::normHamming(a.ptr<std::uint8_t>(), b.ptr<std::uint8_t>(), a.cols);
+  return std::sqrt(static_cast<double>(cv::hal::normL2Sqr_(a.ptr<float>(), b.ptr<float>(), a.cols)));
 }
 
 ProjectionMatches search_by_projection(const std::vector<LocalPoint>& points,
@@ -31,6 +34,12 @@ ProjectionMatches search_by_projection(const std::vector<LocalPoint>& points,
       if ((*preset)[k] >= 0) already[static_cast<std::size_t>((*preset)[k])] = true;
   const cv::Mat& desc = frame.features->descriptors;
   const bool binary = desc.type() == CV_8U;
+  std::vector<cv::Mat> rows(nk);  // row headers made once per frame, not once per candidate
+  for (std::size_t k = 0; k < nk; ++k) rows[k] = desc.row(static_cast<int>(k));
+  // Grid query radius: the search radius of the coarsest keypoint in this frame.
+  double max_sigma = 1.0;
+  for (double sg : frame.sigma_px) max_sigma = std::max(max_sigma, sg);
+  const double query_radius_px = o.radius_px * std::min(max_sigma, 4.0);
   std::vector<int> cand;
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector3d pc = T_cam_world * points[i].p_world_m;
@@ -41,7 +50,7 @@ ProjectionMatches search_by_projection(const std::vector<LocalPoint>& points,
     if (already[i]) continue;
     // The search radius grows with the coarsest level a match may come from; candidates are
     // checked against their own sigma below.
-    frame.grid.query(uvd.x(), uvd.y(), o.radius_px * 4.0, &cand);
+    frame.grid.query(uvd.x(), uvd.y(), query_radius_px, &cand);
     double best = std::numeric_limits<double>::infinity(), second = best;
     int best_k = -1;
     for (int k : cand) {
@@ -49,7 +58,7 @@ ProjectionMatches search_by_projection(const std::vector<LocalPoint>& points,
       if (locked[ks]) continue;
       const double r = o.radius_px * frame.sigma_px[ks];
       if ((frame.pixels[ks] - uvd.head<2>()).squaredNorm() > r * r) continue;
-      const double d = descriptor_distance(points[i].descriptor, desc.row(k));
+      const double d = descriptor_distance(points[i].descriptor, rows[ks]);
       if (d < best) {
         second = best;
         best = d;
@@ -59,7 +68,7 @@ ProjectionMatches search_by_projection(const std::vector<LocalPoint>& points,
       }
     }
     if (best_k < 0) continue;
-    const double gate = binary ? o.max_hamming : o.nnmmt_fraction * distance_to_origin(desc.row(best_k));
+    const double gate = binary ? o.max_hamming : o.nnmmt_fraction * distance_to_origin(rows[static_cast<std::size_t>(best_k)]);
     if (best > gate) continue;
     if (second < std::numeric_limits<double>::infinity() && best > o.ratio * second) continue;
     const auto bk = static_cast<std::size_t>(best_k);

@@ -73,8 +73,11 @@ Tracker::LocalMap Tracker::build_local_map(const std::vector<std::int64_t>& seed
   };
   if (ranked.empty() && fallback_kf >= 0) take(fallback_kf);
   for (const auto& [n, kf] : ranked) take(kf);
-  // Neighbours of the best ones, while there is room.
-  const std::vector<std::int64_t> firsts = local.keyframes;
+  // Neighbours of the best few, while there is room (covisibility is computed on demand, so the
+  // expansion is limited to the kMaxExpanded best keyframes to bound the per-frame cost).
+  constexpr std::size_t kMaxExpanded = 3;
+  const std::vector<std::int64_t> firsts(local.keyframes.begin(),
+                                         local.keyframes.begin() + std::min(kMaxExpanded, local.keyframes.size()));
   for (std::int64_t kf : firsts) {
     if (local.keyframes.size() >= cap) break;
     const auto cov = map.covisible(kf, 1);
@@ -201,11 +204,17 @@ std::optional<Eigen::Isometry3d> Tracker::pose_from_keyframes(const TrackedFeatu
   return best;
 }
 
-void Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf, const cv::Mat& thumbnail,
+std::int64_t Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf, const cv::Mat& thumbnail,
                               const Eigen::Isometry3d& T_world_cam, const LocalMap& local,
                               const std::vector<int>& point_of_keypoint) {
   MapKeyframe kf;
-  kf.id = frame.index;
+  std::lock_guard<std::mutex> lock(map_->mutex);
+  SlamMap& map = map_->map;
+  // Keyframe ids follow the frame index, but never reuse an id of a loaded (or culled) keyframe.
+  std::int64_t id = frame.index;
+  if (!map.keyframes().empty()) id = std::max(id, map.keyframes().rbegin()->first + 1);
+  if (!map.culled().empty()) id = std::max(id, map.culled().rbegin()->first + 1);
+  kf.id = id;
   kf.stamp_s = frame.stamp_s;
   kf.T_world_cam = T_world_cam;
   kf.features = tf;
@@ -217,23 +226,21 @@ void Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf,
   std::stable_sort(fresh.begin(), fresh.end(), [&](int a, int b) {
     return tf.depth_m[static_cast<std::size_t>(a)] < tf.depth_m[static_cast<std::size_t>(b)];
   });
-  std::lock_guard<std::mutex> lock(map_->mutex);
-  SlamMap& map = map_->map;
   map.add_keyframe(std::move(kf));
   for (std::size_t k = 0; k < point_of_keypoint.size(); ++k) {
     if (point_of_keypoint[k] < 0) continue;
     const std::int64_t pid = local.points[static_cast<std::size_t>(point_of_keypoint[k])].id;
-    if (map.has_point(pid)) map.add_observation(pid, frame.index, static_cast<int>(k));
+    if (map.has_point(pid)) map.add_observation(pid, id, static_cast<int>(k));
   }
   int created = 0;
   for (int k : fresh) {
     const auto ks = static_cast<std::size_t>(k);
     if (tf.depth_m[ks] > options_.near_depth_m && created >= options_.min_new_points) break;
-    map.add_point(T_world_cam * tf.features->points_cam_m[ks], tf.features->descriptors.row(k),
-                  frame.index, k);
+    map.add_point(T_world_cam * tf.features->points_cam_m[ks], tf.features->descriptors.row(k), id, k);
     ++created;
   }
-  reference_kf_ = frame.index;
+  reference_kf_ = id;
+  return id;
 }
 
 TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFeatures> features,
@@ -255,7 +262,7 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     if (static_cast<int>(tf.size()) < options_.min_init_features) return out;
     const Eigen::Isometry3d T_world_cam =
         R_prior ? Eigen::Isometry3d(R_prior->normalized().toRotationMatrix()) : Eigen::Isometry3d::Identity();
-    insert_keyframe(frame, tf, thumbnail, T_world_cam, LocalMap{}, {});
+    out.keyframe_id = insert_keyframe(frame, tf, thumbnail, T_world_cam, LocalMap{}, {});
     state_ = TrackingState::kTracking;
     T_world_last_ = T_world_cam;
     last_stamp_s_ = frame.stamp_s;
@@ -263,7 +270,7 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     last_points_.clear();
     out.state = TrackingState::kTracking;
     out.T_world_cam = T_world_cam;
-    out.reference_keyframe = frame.index;
+    out.reference_keyframe = out.keyframe_id;
     out.keyframe = true;
     return out;
   }
@@ -337,6 +344,8 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     out.reference_keyframe = reference_kf_;
     std::lock_guard<std::mutex> lock(map_->mutex);
     if (auto T_kf = map_->map.resolve_pose(reference_kf_)) out.T_kf_cam = T_kf->inverse() * T_world_last_;
+    out.map_keyframes = map_->map.keyframes().size();
+    out.map_points = map_->map.points().size();
     return out;
   }
 
@@ -397,9 +406,9 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     if (auto T_kf = map.resolve_pose(reference_kf_)) out.T_kf_cam = T_kf->inverse() * T_world_cam;
   }
   if (make_keyframe) {
-    insert_keyframe(frame, tf, thumbnail, T_world_cam, local, fit.point_of_keypoint);
+    out.keyframe_id = insert_keyframe(frame, tf, thumbnail, T_world_cam, local, fit.point_of_keypoint);
     out.keyframe = true;
-    out.reference_keyframe = frame.index;
+    out.reference_keyframe = out.keyframe_id;
     out.T_kf_cam = Eigen::Isometry3d::Identity();
   }
 
@@ -418,6 +427,9 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
   last_points_ = std::move(matched_ids);
   out.state = TrackingState::kTracking;
   out.T_world_cam = T_world_cam;
+  std::lock_guard<std::mutex> lock(map_->mutex);
+  out.map_keyframes = map_->map.keyframes().size();
+  out.map_points = map_->map.points().size();
   return out;
 }
 

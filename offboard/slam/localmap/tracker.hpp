@@ -72,12 +72,14 @@ struct TrackResult {
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
   std::int64_t reference_keyframe = -1;
   Eigen::Isometry3d T_kf_cam = Eigen::Isometry3d::Identity();
-  bool keyframe = false;          ///< this frame became a keyframe (id = frame index)
+  bool keyframe = false;          ///< this frame became a keyframe `keyframe_id`
+  std::int64_t keyframe_id = -1;  ///< the frame index, unless a loaded map already uses it
   bool relocalised = false;       ///< the pose came from the keyframe database, not the prediction
   std::size_t local_points = 0;   ///< points in the local map this frame was matched against
   std::size_t matches = 0;        ///< projection matches before the final optimisation
   std::size_t inliers = 0;
   double local_map_ms = 0, search_ms = 0, optimise_ms = 0, relocalise_ms = 0;
+  std::size_t map_keyframes = 0, map_points = 0;  ///< map size after this frame
 };
 
 class Tracker {
@@ -118,7 +120,8 @@ class Tracker {
   std::optional<Eigen::Isometry3d> pose_from_keyframes(const TrackedFeatures& frame,
                                                        const std::vector<std::int64_t>& candidates,
                                                        std::uint64_t seed) const;
-  void insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf, const cv::Mat& thumbnail,
+  /// Inserts the keyframe and its new points; returns its id.
+  std::int64_t insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf, const cv::Mat& thumbnail,
                        const Eigen::Isometry3d& T_world_cam, const LocalMap& local,
                        const std::vector<int>& point_of_keypoint);
 

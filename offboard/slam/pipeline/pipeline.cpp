@@ -1,6 +1,8 @@
 // Pipeline threads and hand-over slots; see pipeline.hpp.
 #include "slam/pipeline/pipeline.hpp"
 
+#include "slam/localmap/map_io.hpp"
+
 #include <algorithm>
 
 #include <sys/resource.h>
@@ -55,7 +57,8 @@ std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intri
     TrackerOptions to = opts.tracker;
     to.matching = opts.frontend.matching;
     to.ransac = opts.frontend.ransac;
-    CameraModel cam = CameraModel::from(k);
+    const CameraModel cam = CameraModel::from(k);
+    p->camera_ = cam;
     p->extractor_ = FeatureExtractor::create(opts.frontend.features, k, error);
     if (!p->extractor_) return nullptr;
     p->map_ = std::make_shared<SharedMap>();
@@ -272,6 +275,34 @@ PipelineSummary Pipeline::summary() const {
   return summary_;
 }
 
+bool Pipeline::load_map(const std::string& path, std::string* error) {
+  if (!is_local_map()) {
+    if (error) *error = "maps are saved and loaded by the localmap back-end only";
+    return false;
+  }
+  auto loaded = slam::load_map(path, MapFileContext{camera_, options_.frontend.features}, error);
+  if (!loaded) return false;
+  {
+    std::lock_guard<std::mutex> lock(map_->mutex);
+    if (!map_->map.keyframes().empty()) {
+      if (error) *error = "load_map: the pipeline has already started a map";
+      return false;
+    }
+    map_->map = std::move(*loaded);
+  }
+  tracker_->set_lost();  // the first frames relocalise in the loaded map
+  return true;
+}
+
+bool Pipeline::save_map(const std::string& path, std::string* error) const {
+  if (!is_local_map()) {
+    if (error) *error = "maps are saved and loaded by the localmap back-end only";
+    return false;
+  }
+  std::lock_guard<std::mutex> lock(map_->mutex);
+  return slam::save_map(path, map_->map, MapFileContext{camera_, options_.frontend.features}, error);
+}
+
 std::vector<MapperStats> Pipeline::mapper_stats() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return mapper_stats_;
@@ -322,6 +353,8 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   rec.T_kf_cam = tr.T_kf_cam;
   rec.matches = tr.matches;
   rec.inliers = tr.inliers;
+  rec.map_keyframes = tr.map_keyframes;
+  rec.map_points = tr.map_points;
   rec.matching_ms = tr.local_map_ms + tr.search_ms;
   rec.ransac_ms = tr.relocalise_ms;
   rec.frontend_ms = ms_since(t0);
@@ -334,13 +367,13 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   }
   if (!tr.keyframe) return;
   if (options_.mode == PipelineMode::kSequential) {
-    const MapperStats st = mapper_->process(frame.index);
+    const MapperStats st = mapper_->process(tr.keyframe_id);
     std::lock_guard<std::mutex> lock(mutex_);
     mapper_stats_.push_back(st);
     return;
   }
   std::unique_lock<std::mutex> lock(mutex_);
-  keyframe_queue_.push_back(frame.index);
+  keyframe_queue_.push_back(tr.keyframe_id);
   cv_.notify_all();
   if (options_.mode == PipelineMode::kWait)
     cv_.wait(lock, [&] { return keyframe_queue_.empty() && !mapper_busy_; });

@@ -75,6 +75,7 @@ struct FrameRecord {
   double features_ms = 0, matching_ms = 0, ransac_ms = 0, frontend_ms = 0;
   double keyframe_ms = 0, llc_ms = 0, glc_ms = 0, posegraph_ms = 0, backend_ms = 0;
   double frontend_cpu_ms = 0, backend_cpu_ms = 0;
+  std::size_t map_keyframes = 0, map_points = 0;  ///< local-map system: map size after this frame
 };
 
 struct PipelineSummary {
@@ -116,6 +117,12 @@ class Pipeline {
   /// Local-map system: the map (lock `mutex` to read while running), and per-keyframe mapping stats.
   std::shared_ptr<SharedMap> local_map() const { return map_; }
   std::vector<MapperStats> mapper_stats() const;
+  /// Local-map system: starts from the map in `path` (before the first frame; the first frames
+  /// relocalise in it, poses are in its world frame). False with `error`: wrong version, camera,
+  /// detector, corrupt file, or frames already submitted.
+  bool load_map(const std::string& path, std::string* error);
+  /// Local-map system: writes the current map (call after finish() for the final one).
+  bool save_map(const std::string& path, std::string* error) const;
   bool is_local_map() const { return options_.backend.kind == BackendKind::kLocalMap; }
   /// Keyframes the mapper may have queued before the tracker defers new ones (realtime).
   static constexpr std::size_t kMaxQueuedKeyframes = 2;
@@ -146,6 +153,7 @@ class Pipeline {
   PipelineSummary summary_;
   // Local-map system (BackendKind::kLocalMap).
   std::optional<FeatureExtractor> extractor_;
+  CameraModel camera_;
   std::shared_ptr<SharedMap> map_;
   std::optional<Tracker> tracker_;
   std::optional<LocalMapper> mapper_;

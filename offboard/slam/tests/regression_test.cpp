@@ -4,7 +4,9 @@
 // but fail on any real regression (VO drift on these frames is several times larger).
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <functional>
+#include <iterator>
 
 #include "slam/dataset/tum_dataset.hpp"
 #include "slam/eval/metrics.hpp"
@@ -130,6 +132,103 @@ TEST(Regression, LocalMapSurvivesBlankAndDepthlessFramesWithoutAPoseJump) {
   for (std::size_t i = 16; i < recs.size(); ++i) EXPECT_EQ(recs[i].state, TrackingState::kTracking) << i;
   EXPECT_GE(r.summary.relocalisations, 1u);
   EXPECT_LT(r.ate_m, 0.015);
+}
+
+TEST(Regression, LocalMapSavedThenReloadedRelocalisesInTheSameWorldFrame) {
+  // GIVEN a map saved after the first 20 frames
+  const std::string path = ::testing::TempDir() + "/localmap_test.map";
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  PipelineOptions o;
+  o.frontend.features.kind = DetectorKind::kOrb;
+  o.backend.kind = BackendKind::kLocalMap;
+  o.mode = PipelineMode::kSequential;
+  std::vector<FrameRecord> first;
+  {
+    auto p = Pipeline::create(o, Intrinsics{}, &err);
+    ASSERT_TRUE(p) << err;
+    for (std::size_t i = 0; i < 20; ++i) p->submit(std::move(*ds->load(i, &err)));
+    p->finish();
+    first = p->records();
+    ASSERT_TRUE(p->save_map(path, &err)) << err;
+  }
+  // WHEN a new run loads it and sees frames 20-29 (indices restart at 0, as in a new process)
+  auto p = Pipeline::create(o, Intrinsics{}, &err);
+  ASSERT_TRUE(p) << err;
+  ASSERT_TRUE(p->load_map(path, &err)) << err;
+  for (std::size_t i = 20; i < 30; ++i) {
+    auto f = ds->load(i, &err);
+    f->index -= 20;
+    p->submit(std::move(*f));
+  }
+  p->finish();
+  const auto recs = p->records();
+  // THEN it relocalises at once and continues the first run's trajectory (same world frame)
+  ASSERT_EQ(recs.size(), 10u);
+  EXPECT_EQ(recs[0].state, TrackingState::kTracking);
+  EXPECT_GE(p->summary().relocalisations, 1u);
+  const double step_m = (recs[0].T_world_cam.translation() - first.back().T_world_cam.translation()).norm();
+  EXPECT_LT(step_m, 0.05) << "frame 20 lies " << step_m << " m from frame 19: another world frame?";
+  for (const auto& r : recs) EXPECT_EQ(r.state, TrackingState::kTracking) << r.index;
+}
+
+TEST(Regression, MapFilesThatDoNotFitAreRefusedWithAReason) {
+  const std::string path = ::testing::TempDir() + "/localmap_bad.map";
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  PipelineOptions o;
+  o.frontend.features.kind = DetectorKind::kOrb;
+  o.backend.kind = BackendKind::kLocalMap;
+  o.mode = PipelineMode::kSequential;
+  {
+    auto p = Pipeline::create(o, Intrinsics{}, &err);
+    for (std::size_t i = 0; i < 3; ++i) p->submit(std::move(*ds->load(i, &err)));
+    p->finish();
+    ASSERT_TRUE(p->save_map(path, &err)) << err;
+  }
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  auto write = [&](const std::string& b) {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out.write(b.data(), static_cast<std::streamsize>(b.size()));
+  };
+  auto refused = [&](const PipelineOptions& opts, const Intrinsics& k, const char* expect) {
+    auto p = Pipeline::create(opts, k, &err);
+    err.clear();
+    EXPECT_FALSE(p->load_map(path, &err));
+    EXPECT_NE(err.find(expect), std::string::npos) << err;
+  };
+  // another camera
+  Intrinsics fr2;
+  ASSERT_TRUE(Intrinsics::from_name("fr2", &fr2, &err));
+  refused(o, fr2, "another camera");
+  // another detector
+  PipelineOptions sift = o;
+  sift.frontend.features.kind = DetectorKind::kSift;
+  refused(sift, Intrinsics{}, "another feature detector");
+  // a future version
+  std::string v = bytes;
+  v[8] = 2;
+  write(v);
+  refused(o, Intrinsics{}, "format version 2");
+  // one flipped byte in the middle, and a truncated file
+  std::string c = bytes;
+  c[c.size() / 2] = static_cast<char>(c[c.size() / 2] ^ 0x5A);
+  write(c);
+  refused(o, Intrinsics{}, "checksum");
+  write(bytes.substr(0, bytes.size() / 3));
+  refused(o, Intrinsics{}, "checksum");
+  write("hello");
+  refused(o, Intrinsics{}, "bad magic");
+  // the thesis back-ends have no map to load
+  PipelineOptions glc = o;
+  glc.backend.kind = BackendKind::kGlc;
+  refused(glc, Intrinsics{}, "localmap");
 }
 
 }  // namespace
