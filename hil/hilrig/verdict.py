@@ -136,6 +136,8 @@ def judge(report: dict, resets: dict, fps: float) -> list[Check]:
                             f"<= {WAYPOINT_MAX_M} m",
                             "not reached" if v is None else f"ended {v:.3f} m from the waypoint"))
     td = (report.get("landing") or {}).get("touchdown_vertical_speed_mps")
+    if td is None and report.get("touchdowns_mps"):  # an aborted flight that still came down
+        td = max(report["touchdowns_mps"])
     checks.append(Check("touchdown", td is not None and td <= TOUCHDOWN_MAX_MPS, _fmt(td, "m/s", digits=2),
                         f"<= {TOUCHDOWN_MAX_MPS} m/s",
                         "no landing recorded" if td is None else f"hit the floor at {td:.2f} m/s"))

@@ -80,3 +80,5 @@ def test_given_an_aborted_flight_then_unmeasured_targets_miss():
     assert not checks["flight completed"].passed
     assert not checks["hold"].passed and not checks["waypoint 1"].passed and not checks["touchdown"].passed
     assert "only 2 tracked frames" in checks["SLAM ATE"].why
+    landed = by_target(judge(dict(aborted, touchdowns_mps=[0.2, 0.48]), {"resets": 0}, 30.0))
+    assert landed["touchdown"].passed and landed["touchdown"].measured == "0.48 m/s"
