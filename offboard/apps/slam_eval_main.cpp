@@ -14,6 +14,7 @@
 #include <iomanip>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <thread>
 
 #include "slam/dataset/tum_dataset.hpp"
@@ -37,6 +38,7 @@ struct RunArgs {
   bool no_undistort = false, no_map = false, quiet = false, no_reprojection = false;
   std::string stamp = "depth";
   std::string save_map, load_map;
+  double withhold_from_s = -1, withhold_s = 0;
 };
 
 json stage_stats(std::vector<double> v) {
@@ -131,7 +133,9 @@ int run_command(const RunArgs& a) {
   const auto wall0 = std::chrono::steady_clock::now();
   const double period_s = ds->frame_period_s();
   std::size_t load_failures = 0;
-  std::vector<std::pair<double, double>> rss_samples;  // (frame stamp s, RSS MiB), every 30 frames
+  std::vector<std::pair<double, double>> rss_samples;
+  double first_stamp_s = -1;
+  std::size_t withheld = 0;  // (frame stamp s, RSS MiB), every 30 frames
   for (std::size_t i = 0; i < ds->size(); ++i) {
     auto frame = ds->load(i, &err);
     if (!frame) {
@@ -151,6 +155,12 @@ int run_command(const RunArgs& a) {
                                                 std::chrono::duration<double>(period_s * static_cast<double>(i))));
     }
     const double stamp_s = frame->stamp_s;
+    if (first_stamp_s < 0) first_stamp_s = stamp_s;
+    if (a.withhold_s > 0 && stamp_s - first_stamp_s >= a.withhold_from_s &&
+        stamp_s - first_stamp_s < a.withhold_from_s + a.withhold_s) {
+      ++withheld;  // a stalled link: the frame never reaches SLAM
+      continue;
+    }
     pipeline->submit(std::move(*frame));
     if (i % 30 == 0) rss_samples.emplace_back(stamp_s, rss_mib());
     if (!a.quiet && ((i + 1) % 25 == 0 || i + 1 == ds->size()))
@@ -200,10 +210,10 @@ int run_command(const RunArgs& a) {
   // Per-frame and per-keyframe tables for long-run analysis (offboard/tools/longrun.py).
   {
     std::ofstream frames_csv(fs::path(a.out) / "frames.csv");
-    frames_csv << "index,stamp_s,state,keyframe,frontend_ms,frontend_cpu_ms,map_keyframes,map_points\n";
+    frames_csv << "index,stamp_s,state,keyframe,matches,inliers,frontend_ms,frontend_cpu_ms,map_keyframes,map_points\n";
     for (const auto& r : records)
       frames_csv << r.index << "," << std::fixed << std::setprecision(6) << r.stamp_s << ","
-                 << slam::to_string(r.state) << "," << (r.keyframe ? 1 : 0) << "," << std::setprecision(3)
+                 << slam::to_string(r.state) << "," << (r.keyframe ? 1 : 0) << "," << r.matches << "," << r.inliers << "," << std::setprecision(3)
                  << r.frontend_ms << "," << r.frontend_cpu_ms << "," << r.map_keyframes << "," << r.map_points << "\n";
     std::ofstream mapping_csv(fs::path(a.out) / "mapping.csv");
     mapping_csv << "keyframe,mapping_ms,mapping_cpu_ms,ba_ms,ba_points,points_culled,points_fused,keyframes_culled\n";
@@ -254,6 +264,19 @@ int run_command(const RunArgs& a) {
                     {"mapping_cpu", stage_stats(map_cpu)}, {"bundle_adjustment", stage_stats(ba_ms)}};
   }
   m["wall_s"] = wall_s;
+  m["frames_withheld"] = withheld;
+  {
+    // Frames until the pose is tracked: from the start (a loaded map) and after the withheld gap.
+    std::optional<std::size_t> first, after_gap, gap_start;
+    for (std::size_t i = 0; i < records.size(); ++i) {
+      const auto& r = records[i];
+      if (!first && r.ok && r.state == slam::TrackingState::kTracking) first = i;
+      if (a.withhold_s > 0 && !gap_start && r.stamp_s - first_stamp_s >= a.withhold_from_s) gap_start = i;
+      if (gap_start && !after_gap && r.ok && r.state == slam::TrackingState::kTracking) after_gap = i - *gap_start;
+    }
+    m["frames_until_first_tracked"] = first ? json(*first) : json(nullptr);
+    if (a.withhold_s > 0) m["frames_until_tracking_after_gap"] = after_gap ? json(*after_gap) : json(nullptr);
+  }
   std::size_t lost = 0, llc = 0;
   std::vector<double> feat, match, ransac, fe, kf, llc_ms, glc, pg, bend, nfeat, fe_cpu, be_cpu;
   for (const auto& r : records) {
@@ -372,6 +395,8 @@ int main(int argc, char** argv) {
   run->add_flag("--no-undistort", a.no_undistort,
                 "use keypoints as detected (default: undistort them with the camera's coefficients before lifting to 3D)");
   run->add_flag("--no-map", a.no_map, "do not write map.ply");
+  run->add_option("--withhold", a.withhold_s, "seconds of frames withheld (a stalled link), see --withhold-from");
+  run->add_option("--withhold-from", a.withhold_from_s, "start of the withheld span, seconds after the first frame");
   run->add_option("--save-map", a.save_map, "localmap: write the final map to this file");
   run->add_option("--load-map", a.load_map,
                   "localmap: start from this saved map (relocalise in it; poses in its world frame)");

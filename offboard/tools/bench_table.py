@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 DETECTORS = ["sift", "surf", "orb"]
-BACKENDS = [("vo", "VO"), ("llc", "VO+LLC"), ("glc", "VO+GLC")]
+BACKENDS = [("localmap", "local map"), ("vo", "VO"), ("llc", "VO+LLC"), ("glc", "VO+GLC")]
 
 
 def load(path: Path):
@@ -36,7 +36,8 @@ def stage(m, name, key="median_ms"):
 
 def main(out_dir: str) -> int:
     out = Path(out_dir)
-    seqs = sorted(p.name for p in out.iterdir() if p.is_dir() and p.name != "realtime_orb")
+    special = ("realtime_", "longrun", "reloc")
+    seqs = sorted(p.name for p in out.iterdir() if p.is_dir() and not p.name.startswith(special))
     for seq in seqs:
         runs = {(d, b): load(out / seq / f"{d}_{b}" / "metrics.json") for d in DETECTORS for b, _ in BACKENDS}
         peer = load(out / seq / "peer" / "metrics.json")
@@ -74,8 +75,8 @@ def main(out_dir: str) -> int:
                   f"RPE {cell(peer, 'rpe_trans_rmse_mm', '{:.2f}')} mm / {cell(peer, 'rpe_rot_rmse_deg', '{:.3f}')} deg, "
                   f"{cell(peer, 'ms_per_frame_median', '{:.1f}')} ms/frame median wall, "
                   f"{cell(peer, 'cpu_ms_per_frame_median', '{:.1f}')} ms CPU")
-            for d in DETECTORS:
-                m = runs[d, "glc"]
+            for d, b in [(d, b) for d in DETECTORS for b in ("localmap", "glc")]:
+                m = runs[d, b]
                 if m is None or "ate_rmse_m" not in m or "ate_rmse_m" not in peer:
                     continue
                 fe = stage(m, "frontend")
@@ -84,14 +85,31 @@ def main(out_dir: str) -> int:
                 pc = peer.get("cpu_ms_per_frame_median")
                 ratio_t = f"{fe / pm:.2f}" if fe and pm else "n/a"
                 ratio_c = f"{fc / pc:.2f}" if fc and pc else "n/a"
-                print(f"  {d.upper()} VO+GLC vs peer: ATE ratio {m['ate_rmse_m'] / peer['ate_rmse_m']:.2f}, "
+                print(f"  {d.upper()} {dict(BACKENDS)[b]} vs peer: ATE ratio {m['ate_rmse_m'] / peer['ate_rmse_m']:.2f}, "
                       f"front-end ms ratio {ratio_t} (wall), {ratio_c} (CPU)")
-    rt = load(out / "realtime_orb" / "metrics.json")
-    if rt is not None:
-        print("\n### Real-time replay (ORB, VO+GLC, 30 fps pacing, fr1_xyz_first300)")
-        print(f"frames {rt.get('frames_submitted')}, dropped front-end frames {rt.get('frontend_dropped')}, "
-              f"back-end skipped {rt.get('backend_skipped')}, ATE {cell(rt, 'ate_rmse_m', '{:.4f}')} m, "
-              f"front-end median {stage(rt, 'frontend') or float('nan'):.1f} ms")
+    rts = sorted(p for p in out.iterdir() if p.is_dir() and p.name.startswith("realtime_"))
+    if rts:
+        print("\n### Real-time replay (30 fps pacing, fr1_xyz_first300; wall ms depend on the machine's load)")
+        print("| run | frames | front-end dropped | back-end skipped | ATE m | RPE mm | tracking CPU median / p95 ms | front-end wall median / p95 ms | mapping CPU p95 ms |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        for p in rts:
+            rt = load(p / "metrics.json")
+            if rt is None:
+                continue
+            mp = (rt.get("mapping") or {}).get("mapping_cpu") or {}
+            print(f"| {p.name[len('realtime_'):]} | {rt.get('frames_submitted')} | {rt.get('frontend_dropped')} | "
+                  f"{rt.get('backend_skipped')} | {cell(rt, 'ate_rmse_m', '{:.4f}')} | {cell(rt, 'rpe_trans_rmse_mm', '{:.2f}')} | "
+                  f"{stage(rt, 'frontend_cpu') or float('nan'):.1f} / {stage(rt, 'frontend_cpu', 'p95_ms') or float('nan'):.1f} | "
+                  f"{stage(rt, 'frontend') or float('nan'):.1f} / {stage(rt, 'frontend', 'p95_ms') or float('nan'):.1f} | "
+                  f"{mp.get('p95_ms', float('nan')):.1f} |")
+    for name, title in (("reloc_gap", "1 s of frames withheld mid-sequence"),
+                        ("reloc_reload", "second run started from the reloaded map")):
+        m = load(out / name / "metrics.json")
+        if m is not None:
+            print(f"\nRelocalisation, {title}: frames until tracking after the gap/start "
+                  f"{m.get('frames_until_tracking_after_gap', m.get('frames_until_first_tracked'))}, "
+                  f"relocalisations {m.get('relocalisations')}, lost frames {m.get('tracking_lost_frames')}, "
+                  f"ATE {cell(m, 'ate_rmse_m', '{:.4f}')} m")
     return 0
 
 

@@ -195,7 +195,7 @@ std::optional<Eigen::Isometry3d> Tracker::pose_from_keyframes(const TrackedFeatu
       return m[static_cast<std::size_t>(a)].distance < m[static_cast<std::size_t>(b)].distance;
     });
     auto est = estimate_motion_ransac(src, dst, order, options_.ransac, seed ^ static_cast<std::uint64_t>(kf_id), nullptr);
-    if (!est || est->inliers.size() < static_cast<std::size_t>(options_.min_matches_first_pass)) continue;
+    if (!est || est->inliers.size() < static_cast<std::size_t>(options_.min_relocalisation_ransac_inliers)) continue;
     if (est->inliers.size() > best_inliers) {
       best_inliers = est->inliers.size();
       best = est->T_dst_src;  // T_world_cam

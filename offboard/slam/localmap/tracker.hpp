@@ -61,7 +61,9 @@ struct TrackerOptions {
   int min_new_points = 100;                    ///< ORB-SLAM2 CreateNewKeyFrame: at least the 100 nearest
   int min_init_features = 100;                 ///< a first keyframe needs this many features with depth
   std::size_t relocalisation_candidates = 4;   ///< keyframes tried, by appearance
-  MatchOptions matching;                       ///< descriptor matching for relocalisation (thesis S-NNMMT)
+  MatchOptions matching;                       ///< descriptor matching for relocalisation (thesis NNMMT...
+  double relocalisation_ratio = 0.75;          ///< ...with ORB-SLAM2's Relocalization ratio: views far apart match fewer pairs than consecutive frames)
+  int min_relocalisation_ransac_inliers = 10;  ///< a guess only (ORB-SLAM2: 10 PnP inliers); the local-map refit needs min_inliers_relocalised
   RansacOptions ransac;                        ///< 3D-3D RANSAC for relocalisation (thesis values)
   double max_velocity_scale = 5.0;             ///< a gap of more than 5 frame intervals is not extrapolated further
   bool is_valid(std::string* error) const;

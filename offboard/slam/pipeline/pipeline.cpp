@@ -56,6 +56,7 @@ std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intri
     // Relocalisation matches descriptors and runs RANSAC with the front-end's (thesis) settings.
     TrackerOptions to = opts.tracker;
     to.matching = opts.frontend.matching;
+    to.matching.lowe_ratio = to.relocalisation_ratio;
     to.ransac = opts.frontend.ransac;
     const CameraModel cam = CameraModel::from(k);
     p->camera_ = cam;
