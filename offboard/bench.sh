@@ -1,11 +1,15 @@
 #!/usr/bin/env bash
 # `make bench` (via scripts/bench.sh): SLAM accuracy and speed on the shared TUM sequences.
 #   For fr1_xyz_first300, fr2_desk_first50, fr1_desk_9frames: slam-eval (wait mode) for
-#   SIFT/SURF/ORB x VO/LLC/GLC, plus cv::rgbd::RgbdOdometry (rgbd-odometry-peer) on the same frames;
-#   then a real-time ORB replay at 30 fps counting dropped front-end frames. Prints tables shaped
-#   like thesis Tables 4.8 (RPE) and 4.10 (ATE) and per-stage median ms.
+#   SIFT/SURF/ORB x local map/VO/LLC/GLC, plus cv::rgbd::RgbdOdometry (rgbd-odometry-peer) on the
+#   same frames; then real-time replays at 30 fps (local map ORB and SIFT, the thesis ORB VO+LLC and
+#   VO+GLC) counting dropped front-end frames; relocalisation (1 s withheld mid-sequence; a second
+#   run from the saved map); and the long run (fr1_xyz_first300 forward/backward LONGRUN_PASSES
+#   times, real time, per-minute table). Prints tables shaped like thesis Tables 4.8 (RPE) and 4.10
+#   (ATE), per-stage median ms, and the verdicts.
 # Env: DATA (default ../shared/data), SLAM_BIN (default build/bin), BENCH_OUT (default out/bench),
-#      BENCH_SEQUENCES (space-separated subset), BENCH_DETECTORS, BENCH_BACKENDS.
+#      BENCH_SEQUENCES (space-separated subset), BENCH_DETECTORS, BENCH_BACKENDS,
+#      LONGRUN_PASSES (default 20: 5960 frames, 200 s of data; 0 skips the long run).
 # OpenCV runs single-threaded (--cv-threads 1) so the *_cpu timings are complete; the two pipeline
 # threads still overlap. Takes ~10-20 min on 2 cores.
 set -uo pipefail
@@ -16,7 +20,8 @@ BIN=${SLAM_BIN:-build/bin}
 OUT=${BENCH_OUT:-out/bench}
 SEQS=${BENCH_SEQUENCES:-fr1_xyz_first300 fr2_desk_first50 fr1_desk_9frames}
 DETS=${BENCH_DETECTORS:-sift surf orb}
-BACKS=${BENCH_BACKENDS:-vo llc glc}
+BACKS=${BENCH_BACKENDS:-localmap vo llc glc}
+LONGRUN_PASSES=${LONGRUN_PASSES:-20}
 for tool in slam-eval rgbd-odometry-peer; do
   [ -x "$BIN/$tool" ] || { echo "bench: $BIN/$tool not built (run make build, or set SLAM_BIN)"; exit 1; }
 done
@@ -45,10 +50,32 @@ for seq in $SEQS; do
     2> "$OUT/$seq/peer.log" || { echo "bench:   peer failed"; status=1; }
 done
 if [ -d "$DATA/fr1_xyz_first300" ]; then
-  echo "bench: [$(( $(date +%s) - start ))s] real-time ORB replay at 30 fps"
-  "$BIN/slam-eval" run --dataset "$DATA/fr1_xyz_first300" --features orb --backend glc --mode realtime \
-    --no-map --quiet --out "$OUT/realtime_orb" 2> "$OUT/realtime_orb.log" || status=1
+  xyz="$DATA/fr1_xyz_first300"
+  # Real time, default OpenCV threads (as slam-server runs): local map ORB (the system that flies)
+  # and SIFT, and the thesis configurations that flew before it.
+  for run in "orb localmap" "sift localmap" "orb llc" "orb glc"; do
+    set -- $run
+    echo "bench: [$(( $(date +%s) - start ))s] real-time replay at 30 fps: $1 $2"
+    "$BIN/slam-eval" run --dataset "$xyz" --features "$1" --backend "$2" --mode realtime \
+      --no-map --quiet --out "$OUT/realtime_${1}_$2" 2> "$OUT/realtime_${1}_$2.log" || status=1
+  done
+  echo "bench: [$(( $(date +%s) - start ))s] relocalisation: 1 s withheld at 5 s; a run from the saved map"
+  "$BIN/slam-eval" run --dataset "$xyz" --withhold 1 --withhold-from 5 --mode wait --no-map --quiet \
+    --save-map "$OUT/fr1_xyz_first300.map" --out "$OUT/reloc_gap" 2> "$OUT/reloc_gap.log" || status=1
+  "$BIN/slam-eval" run --dataset "$xyz" --load-map "$OUT/fr1_xyz_first300.map" --mode wait --no-map \
+    --quiet --out "$OUT/reloc_reload" 2> "$OUT/reloc_reload.log" || status=1
+  if [ "$LONGRUN_PASSES" -gt 0 ]; then
+    echo "bench: [$(( $(date +%s) - start ))s] long run: $LONGRUN_PASSES forward/backward passes, real time"
+    rm -rf "$OUT/longrun_data"
+    python3 offboard/tools/longrun.py make --src "$xyz" --out "$OUT/longrun_data" --passes "$LONGRUN_PASSES" &&
+      "$BIN/slam-eval" run --dataset "$OUT/longrun_data" --camera fr1 --mode realtime --no-map --quiet \
+        --out "$OUT/longrun" 2> "$OUT/longrun.log" || status=1
+  fi
 fi
 python3 offboard/tools/bench_table.py "$OUT"
+if [ -f "$OUT/longrun/metrics.json" ]; then
+  echo; echo "### Long run (real time), per minute of data"
+  python3 offboard/tools/longrun.py table "$OUT/longrun" || status=1
+fi
 echo "bench: done in $(( $(date +%s) - start )) s; metrics under $OUT/"
 exit $status
