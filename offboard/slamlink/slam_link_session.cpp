@@ -51,7 +51,8 @@ std::optional<proto::Pose3> pose_to_wire(const Eigen::Isometry3d& T) {
   return p;
 }
 
-SlamLinkSession::SlamLinkSession(PipelineOptions options) : options_(std::move(options)) {
+SlamLinkSession::SlamLinkSession(PipelineOptions options, SessionMapFiles map_files)
+    : options_(std::move(options)), map_files_(std::move(map_files)) {
   // Tracking answers each frame on the caller's thread; local mapping runs on its own thread.
   options_.mode = PipelineMode::kLive;
 }
@@ -113,7 +114,12 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
     std::string err;
     pipeline_ = Pipeline::create(options_, k, &err);
     if (!pipeline_) return lost_update(frame, "slam-link: cannot start the pipeline: " + err, error);
+    if (!map_files_.load_path.empty() && !pipeline_->load_map(map_files_.load_path, &err)) {
+      // The flight goes on in a new map: say so on every frame's first answer, never silently.
+      map_load_error_ = "slam-link: map not loaded, starting a new map: " + err;
+    }
   }
+  if (!map_load_error_.empty() && frames_ == 0 && error) *error = map_load_error_;
   std::string why;
   auto f = to_frame(frame, &why);
   if (!f) return lost_update(frame, why, error);
@@ -177,6 +183,12 @@ std::string SlamLinkSession::finish_summary() {
     pipeline_->finish();
     const auto s = pipeline_->summary();
     m << ", " << s.keyframes << " keyframes, " << s.loop_closures << " loop closures";
+    if (!map_load_error_.empty()) m << "; " << map_load_error_;
+    if (!map_files_.save_path.empty()) {
+      std::string err;
+      if (pipeline_->save_map(map_files_.save_path, &err)) m << "; map saved to " << map_files_.save_path;
+      else m << "; map NOT saved: " << err;
+    }
   }
   return m.str();
 }

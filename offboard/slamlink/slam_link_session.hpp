@@ -29,10 +29,17 @@ namespace slam {
 /// exceeds the spec's range.
 std::optional<rgbdquad::protocol::Pose3> pose_to_wire(const Eigen::Isometry3d& T);
 
+/// Map files of a session (local-map back-end only): a map to start from (the flight relocalises
+/// in it and reports poses in its world frame) and where to save the map when the session ends.
+struct SessionMapFiles {
+  std::string load_path;
+  std::string save_path;
+};
+
 class SlamLinkSession {
  public:
-  /// `options.mode` is forced to kSequential (one reply per frame).
-  explicit SlamLinkSession(PipelineOptions options);
+  /// `options.mode` is forced to kLive (one reply per frame, computed on the caller's thread).
+  explicit SlamLinkSession(PipelineOptions options, SessionMapFiles map_files = {});
 
   /// Handles one RgbdFrame; always returns its PoseUpdate (see the file comment). `error` is set
   /// (else cleared) when the update is LOST because of a fault rather than the tracking itself,
@@ -55,6 +62,8 @@ class SlamLinkSession {
                                              std::string* error);
 
   PipelineOptions options_;
+  SessionMapFiles map_files_;
+  std::string map_load_error_;  ///< why the configured map could not be loaded ("" = loaded or none)
   std::unique_ptr<Pipeline> pipeline_;
   std::size_t frames_ = 0;
   std::size_t faulted_ = 0;

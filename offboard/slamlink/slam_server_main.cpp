@@ -240,6 +240,7 @@ class Server {
 int main(int argc, char** argv) {
   CLI::App app{"slam-server: RGB-D SLAM on the SLAM link (SlamHello, RgbdFrame -> PoseUpdate)"};
   std::string bind = "127.0.0.1", features = "orb", backend = "localmap";
+  std::string load_map, save_map;
   int port = 5700;
   std::size_t max_clients = 4;
   slam::ConnectionOptions copt;
@@ -247,6 +248,11 @@ int main(int argc, char** argv) {
   app.add_option("--bind", bind, "IPv4 address to listen on")->capture_default_str();
   app.add_option("--port", port, "TCP port")->check(CLI::Range(1, 65535))->capture_default_str();
   app.add_option("--features", features, "sift | surf | orb")->check(CLI::IsMember({"sift", "surf", "orb"}))->capture_default_str();
+  app.add_option("--load-map", load_map,
+                 "localmap: every new session starts from this saved map (relocalises in it, poses in its "
+                 "world frame); a map of another camera/detector/version is refused and logged")
+      ->check(CLI::ExistingFile);
+  app.add_option("--save-map", save_map, "localmap: write each session's map here when it ends");
   app.add_option("--backend", backend, "localmap (tracking against a local map, the default) | vo | llc | glc (thesis)")->check(CLI::IsMember({"localmap", "vo", "llc", "glc"}))->capture_default_str();
   app.add_option("--max-clients", max_clients, "connections served at once")->check(CLI::Range(1, 64))->capture_default_str();
   app.add_option("--hello-timeout-ms", copt.hello_timeout_ms, "SlamHello due within this of connecting")->capture_default_str();
@@ -296,7 +302,9 @@ int main(int argc, char** argv) {
             << backend << ", max " << max_clients << " clients, hello/idle/message/write timeouts "
             << copt.hello_timeout_ms << "/" << copt.idle_timeout_ms << "/" << copt.message_timeout_ms << "/"
             << copt.write_timeout_ms << " ms, resume grace " << ropt.resume_grace_ms << " ms)" << std::endl;
-  slam::SessionRegistry registry(ropt, [options] { return std::make_unique<slam::SlamLinkSession>(options); });
+  const slam::SessionMapFiles map_files{load_map, save_map};
+  slam::SessionRegistry registry(
+      ropt, [options, map_files] { return std::make_unique<slam::SlamLinkSession>(options, map_files); });
   Server(lfd, sigfd, max_clients, copt, std::move(registry)).run();
   ::close(lfd);
   ::close(sigfd);

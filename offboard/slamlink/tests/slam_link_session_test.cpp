@@ -3,6 +3,8 @@
 // that cannot be used - and every pose put on the wire passes the codec's checks (pose_to_wire).
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include "rgbdquad/protocol/codec.hpp"
 #include "slam/dataset/tum_dataset.hpp"
 #include "slam_link_session.hpp"
@@ -83,6 +85,36 @@ TEST(SlamLinkSession, GivenFramesWhenProcessedThenOnePoseUpdatePerFrame) {
   }
   EXPECT_EQ(s.frames_processed(), 5u);
   EXPECT_EQ(s.frames_faulted(), 0u);
+}
+
+TEST(SlamLinkSession, GivenMapFilesThenASessionSavesItsMapAndTheNextStartsInIt) {
+  PipelineOptions o;
+  o.frontend.features.kind = DetectorKind::kOrb;
+  o.backend.kind = BackendKind::kLocalMap;
+  const std::string map_path = ::testing::TempDir() + "/session.map";
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  {
+    // GIVEN a session that saves its map
+    SlamLinkSession first(o, SessionMapFiles{"", map_path});
+    for (std::uint32_t i = 0; i < 10; ++i) roundtrip(&first, to_wire(*ds->load(i, &err), i), &err);
+    EXPECT_NE(first.finish_summary().find("map saved to"), std::string::npos);
+  }
+  // WHEN a new session starts from it, on later frames
+  SlamLinkSession second(o, SessionMapFiles{map_path, ""});
+  const proto::PoseUpdate u = roundtrip(&second, to_wire(*ds->load(12, &err), 0), &err);
+  // THEN its first frame is tracked in the saved map's world frame (relocalised, not a new map)
+  EXPECT_TRUE(err.empty()) << err;
+  EXPECT_EQ(u.tracking_state, proto::TrackingState::kTracking);
+  EXPECT_EQ(second.pipeline()->summary().relocalisations, 1u);
+  // AND a session given a file that is no map says so on its first answer and goes on in a new map
+  const std::string junk = ::testing::TempDir() + "/junk.map";
+  { std::ofstream(junk) << "not a map"; }
+  SlamLinkSession third(o, SessionMapFiles{junk, ""});
+  roundtrip(&third, to_wire(*ds->load(0, &err), 0), &err);
+  EXPECT_NE(err.find("map not loaded"), std::string::npos) << err;
+  EXPECT_NE(third.finish_summary().find("bad magic"), std::string::npos);
 }
 
 TEST(SlamLinkSession, GivenUnusableFramesThenEachStillGetsALostPoseUpdateWithAReason) {
