@@ -62,6 +62,7 @@ from bisect import bisect_right
 from dataclasses import dataclass
 import fcntl
 import json
+import logging
 import math
 import os
 from pathlib import Path
@@ -79,6 +80,8 @@ import numpy as np
 from kinect_emulator.renderer import KinectEmulator, KinectOptions
 from kinect_emulator.room import Room, default_room
 from kinect_emulator.writers import depth_mm_to_freenect_raw
+
+_log = logging.getLogger(__name__)
 
 INDEX_NAME = "INDEX.txt"
 RECORDS_NAME = "live_frames.jsonl"
@@ -311,7 +314,7 @@ def _child_main() -> int:
     index = FakenectFifoIndex(dump_dir, keep_files)
     index.open()
     records = open(Path(dump_dir) / RECORDS_NAME, "a", encoding="utf-8")
-    sys.stdout.write("ready\n")
+    sys.stdout.write(f"ready {emu.renderer}\n")  # which back end renders (cpp | numpy)
     sys.stdout.flush()
     buf = bytearray()
     n_rendered = 0
@@ -368,6 +371,7 @@ class LiveKinect:
         self.room = room
         self.keep_files = keep_files
         self._proc = None
+        self.renderer = "numpy"  # the child's back end, "cpp" | "numpy", known after start()
         self._tx = None
         self._tx_lock = threading.Lock()  # submit(): never held for more than a pipe write
         self._rec_lock = threading.Lock()  # records(), stats()
@@ -419,13 +423,16 @@ class LiveKinect:
         os.set_blocking(self._tx, False)  # submit() must never wait
         ready, _, _ = select.select([self._proc.stdout], [], [], START_TIMEOUT_S)
         line = self._proc.stdout.readline() if ready else b""
-        if line.strip() != b"ready":
+        words = line.split()
+        if not words or words[0] != b"ready":
             code = self._proc.poll()
             self.close()
             raise RuntimeError(
                 "live Kinect renderer did not start "
                 + (f"(exit code {code})" if code is not None else f"within {START_TIMEOUT_S} s")
             )
+        self.renderer = words[1].decode() if len(words) > 1 else "numpy"
+        _log.info("live Kinect: %s renderer in the child (pid %d)", self.renderer, self._proc.pid)
 
     def alive(self) -> bool:
         """True while the renderer child runs (it exits on close() or on an unexpected error,
@@ -570,7 +577,8 @@ class LiveKinect:
             return list(self._records)
 
     def stats(self) -> dict:
-        """submitted, pending, rendered, delivered, dropped (= superseded + reader_behind + errors
+        """renderer (back end), submitted, pending, rendered, delivered, dropped (= superseded +
+        reader_behind + errors
         + send_failed; submitted = delivered + dropped + pending), render ms median/p95 (child, per
         rendered frame: ray cast, texture, noise; not the file writes)."""
         recs = self.records()
@@ -601,6 +609,7 @@ class LiveKinect:
             "dropped": superseded + behind + errors + send_failed,
             "render_ms_median": float(np.median(ms)) if ms else math.nan,
             "render_ms_p95": float(np.percentile(ms, 95)) if ms else math.nan,
+            "renderer": self.renderer,  # back end of the child: "cpp" | "numpy"
         }
 
     def error_messages(self) -> list[str]:

@@ -23,14 +23,19 @@ Gaussian depth and RGB noise are read at a random offset from banks of NOISE_BAN
 draws (independent per pixel within a frame; a frame's field is a shifted copy of the bank).
 `render_indexed` makes a frame a pure function of (pose, index). Not thread-safe.
 
-Speed (640x480, one core, numpy float32): ~14 ms per frame on an idle core of this machine
-(`bench.py`): ray cast ~4 ms, texture ~6 ms, depth model ~3 ms.
+Back ends (options.renderer): the C++ library (cpp/kinect_render.cpp via native.py, built by
+`make build`) does the per-pixel work with the random draws made here, and gives the same images
+bit for bit (tests/test_native.py); this file's numpy code is the reference and the fallback.
+Speed (640x480, one core, `bench.py`): numpy ~14 ms per frame on an idle core of this machine (ray
+cast ~4 ms, texture ~6 ms, depth model ~3 ms); the figures of both back ends are in docs/hil.md.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import logging
 import math
+import os
 
 import numpy as np
 
@@ -53,6 +58,12 @@ NOISE_BANK_STREAM = 2**40
 NOISE_BANK_FRAMES = 4
 # Each texture tile shows a 60 % window of its photograph (see _shade).
 TILE_WINDOW_FRACTION = 0.6
+# Back ends: "cpp" = libkinect_render.so (native.py; built by `make build`), "numpy" = this file,
+# "auto" = cpp when built, else numpy (logged). Default from RGBD_KINECT_RENDERER, else "auto".
+RENDERERS = ("auto", "cpp", "numpy")
+RENDERER_ENV = "RGBD_KINECT_RENDERER"
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -82,6 +93,8 @@ class KinectOptions:
     rgb_noise_std: float = 2.0  # 8-bit levels of sensor noise
     blank_frames: frozenset[int] = frozenset()  # frame indices delivered all-zero
     seed: int = 1
+    # Which back end renders (RENDERERS); both give the same images (tests/test_native.py).
+    renderer: str = field(default_factory=lambda: os.environ.get(RENDERER_ENV, "auto"))
 
     def validate(self) -> None:
         i = self.intrinsics
@@ -97,6 +110,10 @@ class KinectOptions:
             raise ValueError("KinectOptions.dropout_fraction must be in [0, 1)")
         if not self.rgb_noise_std >= 0:
             raise ValueError("KinectOptions.rgb_noise_std must be >= 0")
+        if self.renderer not in RENDERERS:
+            raise ValueError(
+                f"KinectOptions.renderer must be one of {RENDERERS}, got {self.renderer!r}"
+            )
 
     @property
     def frame_period_us(self) -> int:
@@ -133,6 +150,8 @@ class KinectEmulator:
         tex = room.textures
         flat = tex.reshape(-1, 3).astype(np.uint32)
         self._tex_packed = flat[:, 0] | (flat[:, 1] << 8) | (flat[:, 2] << 16)
+        # Before the byte swap: the library takes values, not bytes.
+        self._native = self._make_native(self._tex_packed)
         if not np.little_endian:
             self._tex_packed = self._tex_packed.byteswap()  # the bytes must read R, G, B, 0
         self._tex_n, self._tex_h, self._tex_w = tex.shape[0], tex.shape[1], tex.shape[2]
@@ -142,6 +161,31 @@ class KinectEmulator:
         faces = np.arange(256, dtype=np.uint32)
         self._face_axis = ((faces % 6) // 2).astype(np.uint8)  # face id -> axis of its normal
         self._face_hash = faces * np.uint32(73856093)  # face id -> its term of the tile hash
+
+    def _make_native(self, tex_packed: np.ndarray):
+        """The C++ back end per options.renderer, or None (numpy). "cpp" raises OSError when the
+        library is missing; "auto" falls back to numpy with a warning. The choice is logged and kept
+        in self.renderer ("cpp" | "numpy")."""
+        want = self.options.renderer
+        native = None
+        if want != "numpy":
+            from kinect_emulator.native import NativeRenderer, library_path
+
+            tex = self.room.textures
+            try:
+                native = NativeRenderer(
+                    self.room, self.options.intrinsics, tex_packed, tex.shape[:3]
+                )
+            except OSError as e:
+                if want == "cpp":
+                    raise
+                log.warning("Kinect emulator: C++ renderer not available (%s); using numpy", e)
+            else:
+                log.info("Kinect emulator: C++ renderer (%s)", library_path())
+        if native is None:
+            log.info("Kinect emulator: numpy renderer")
+        self.renderer = "cpp" if native is not None else "numpy"
+        return native
 
     # ---- geometry
     # -----------------------------------------------------------------------------------
@@ -156,12 +200,7 @@ class KinectEmulator:
         tested over the image rectangle its corners project to (a box in front of the camera
         projects inside the hull of its corners), or over the whole image when a corner is behind.
         """
-        T = np.asarray(T_room_cam, dtype=np.float64)
-        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-            raise ValueError("T_room_cam must be a finite 4x4 matrix")
-        R, o = T[:3, :3], T[:3, 3]
-        if not self.room.contains(o):
-            raise ValueError(f"camera position {o.tolist()} is outside the room's free space")
+        T, R, o = self._checked_pose(T_room_cam)
         f32 = np.float32
         cx, cy = self._ray_x, self._ray_y  # camera-frame direction (cx, cy, 1)
         d = []
@@ -217,6 +256,17 @@ class KinectEmulator:
             p += f32(o[a])
             pts.append(p)
         return t, tuple(pts), face
+
+    def _checked_pose(self, T_room_cam) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(T, R, o) of a finite 4x4 pose whose origin is in the room's free space; ValueError
+        otherwise."""
+        T = np.asarray(T_room_cam, dtype=np.float64)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise ValueError("T_room_cam must be a finite 4x4 matrix")
+        R, o = T[:3, :3], T[:3, 3]
+        if not self.room.contains(o):
+            raise ValueError(f"camera position {o.tolist()} is outside the room's free space")
+        return T, R, o
 
     def _screen_rect(self, box, R: np.ndarray, o: np.ndarray) -> tuple[int, int, int, int] | None:
         """Rows r0:r1, columns c0:c1 the box can cover; the whole image if a corner is behind the
@@ -300,6 +350,11 @@ class KinectEmulator:
                 np.array(T_room_cam, float),
                 True,
             )
+        if self._native is not None:
+            rgb, depth_mm = self._render_native(T_room_cam)
+            return KinectFrame(
+                index, capture_us, available, rgb, depth_mm, np.array(T_room_cam, float), False
+            )
         z, pts, face = self.raycast(T_room_cam)
         rgb = self._shade(pts, face)  # (N, 3) view of (N, 4) texels
         if opt.rgb_noise_std > 0:
@@ -323,6 +378,25 @@ class KinectEmulator:
             np.array(T_room_cam, float),
             False,
         )
+
+    def _render_native(self, T_room_cam) -> tuple[np.ndarray, np.ndarray]:
+        """The C++ back end's (rgb, depth_mm), drawing from self._rng exactly what the numpy path
+        draws, in its order (RGB noise offset, depth noise offset, dropout uniforms)."""
+        opt = self.options
+        i = opt.intrinsics
+        T, R, o = self._checked_pose(T_room_cam)
+        rects = np.zeros((len(self.room.obstacles), 4), np.int32)  # r0 == r1: not visible
+        for k, box in enumerate(self.room.obstacles):
+            rect = self._screen_rect(box, R, o)
+            if rect is not None:
+                rects[k] = rect
+        n = i.width * i.height
+        rgb_noise = self._bank_slice(self._rgb_bank(), 3 * n) if opt.rgb_noise_std > 0 else None
+        depth_noise = self._bank_slice(self._depth_bank(), n) if opt.depth_noise else None
+        dropout_u = None
+        if opt.dropout_fraction > 0:
+            dropout_u = self._rng.random((i.height, i.width), dtype=np.float32)
+        return self._native.render(T, rects, opt, rgb_noise, depth_noise, dropout_u)
 
     def render_indexed(self, T_room_cam: np.ndarray, capture_us: int, index: int) -> KinectFrame:
         """Frame number `index` as a pure function of (room, options, pose, index), whatever was
