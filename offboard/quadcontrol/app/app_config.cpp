@@ -84,6 +84,8 @@ nlohmann::json AppConfig::to_json_redacted() const {
                     {"timeout_ms", station.slam_server.reply_timeout_ms}}},
           {"firmware", {{"enabled", firmware_enabled}, {"host", firmware.host}, {"port", firmware.port},
                         {"timeout_ms", firmware.timeout_ms}, {"period_ms", firmware.period_ms},
+                        {"send_on_pose", firmware.send_on_pose}, {"min_interval_ms", firmware.min_interval_ms},
+                        {"keep_alive_ms", firmware.keep_alive_ms},
                         {"key_hex", firmware_key_hex.empty() ? "" : "<redacted>"},
                         {"control_spec", control_spec_path}}},
           {"camera", {{"mount_pitch_down_deg", station.mount_pitch_down_deg}}},
@@ -130,11 +132,15 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
       !read(sl, "slam", "mode", c.station.slam_mode, error) || !read(sl, "slam", "host", c.station.slam_server.host, error) ||
       !read(sl, "slam", "port", c.station.slam_server.port, error) ||
       !read(sl, "slam", "timeout_ms", c.station.slam_server.reply_timeout_ms, error) ||
-      !check_keys(f, "firmware", {"enabled", "host", "port", "timeout_ms", "period_ms", "key_hex", "control_spec"}, error) ||
+      !check_keys(f, "firmware", {"enabled", "host", "port", "timeout_ms", "period_ms", "send_on_pose", "min_interval_ms",
+                                  "keep_alive_ms", "key_hex", "control_spec"}, error) ||
       !read(f, "firmware", "enabled", c.firmware_enabled, error) || !read(f, "firmware", "host", c.firmware.host, error) ||
       !read(f, "firmware", "port", c.firmware.port, error) ||
       !read(f, "firmware", "timeout_ms", c.firmware.timeout_ms, error) ||
       !read(f, "firmware", "period_ms", c.firmware.period_ms, error) ||
+      !read(f, "firmware", "send_on_pose", c.firmware.send_on_pose, error) ||
+      !read(f, "firmware", "min_interval_ms", c.firmware.min_interval_ms, error) ||
+      !read(f, "firmware", "keep_alive_ms", c.firmware.keep_alive_ms, error) ||
       !read(f, "firmware", "key_hex", c.firmware_key_hex, error) ||
       !read(f, "firmware", "control_spec", c.control_spec_path, error) ||
       !check_keys(cam, "camera", {"mount_pitch_down_deg"}, error) ||

@@ -3,6 +3,8 @@
 
 #include <stdexcept>
 
+#include <boost/asio/post.hpp>
+
 #include "app/frame_source.hpp"
 
 namespace rgbdquad::quadcontrol {
@@ -20,6 +22,9 @@ std::string FirmwareLinkOptions::validate() const {
   if (port == 0) return "firmware.port must be > 0";
   if (timeout_ms < 1 || timeout_ms > 10000) return "firmware.timeout_ms must be in [1, 10000]";
   if (period_ms < 5 || period_ms > 1000) return "firmware.period_ms must be in [5, 1000]";
+  if (send_on_pose) {
+    if (auto e = schedule().validate(); !e.empty()) return e;
+  }
   return {};
 }
 
@@ -30,14 +35,19 @@ FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, Contro
       key_(key),
       provider_(std::move(provider)),
       callback_(std::move(callback)),
-      timer_(io_) {
+      timer_(io_),
+      scheduler_(options_.schedule()) {
   const std::string error = options_.validate();
   if (!error.empty()) throw std::runtime_error(error);
   asio::ip::tcp::resolver resolver(io_);
   beast::error_code ec;
   endpoints_ = resolver.resolve(options_.host, std::to_string(options_.port), ec);
   if (ec) throw std::runtime_error("firmware: cannot resolve " + options_.host + ": " + ec.message());
-  schedule();
+  if (options_.send_on_pose) {
+    asio::post(io_, [this] { arm_scheduled(); });
+  } else {
+    schedule();
+  }
   thread_ = std::thread([this] { io_.run(); });
 }
 
@@ -65,16 +75,55 @@ void FirmwareLink::schedule() {
   });
 }
 
-void FirmwareLink::tick() {
+void FirmwareLink::tick() { start_on_idle_client(); }
+
+bool FirmwareLink::start_on_idle_client() {
   // Round robin over idle clients: a client still waiting for its reply is skipped.
   for (std::size_t i = 0; i < clients_.size(); ++i) {
     Client& c = clients_[(next_client_ + i) % clients_.size()];
     if (!c.busy) {
       next_client_ = (next_client_ + i + 1) % clients_.size();
       start(c);
-      return;
+      return true;
     }
   }
+  return false;
+}
+
+void FirmwareLink::notify_pose() {
+  if (!options_.send_on_pose) return;
+  asio::post(io_, [this] {
+    scheduler_.on_pose(monotonic_now_us());
+    if (!waiting_for_client_) arm_scheduled();  // else the next reply sends it
+  });
+}
+
+void FirmwareLink::arm_scheduled() {
+  const std::int64_t now = monotonic_now_us();
+  if (scheduler_.due(now)) return on_scheduled();
+  // Re-arming cancels an earlier wait (its handler sees operation_aborted): one wait at a time.
+  timer_.expires_after(std::chrono::microseconds(*scheduler_.next_send_us() - now));
+  timer_.async_wait([this](beast::error_code ec) {
+    if (ec) return;
+    on_scheduled();
+  });
+}
+
+void FirmwareLink::on_scheduled() {
+  const std::int64_t now = monotonic_now_us();
+  if (!scheduler_.due(now)) return arm_scheduled();
+  if (!start_on_idle_client()) {
+    // Both requests still in flight: the firmware has no capacity now; the first reply (or
+    // timeout) frees a client and sends the newest command then.
+    waiting_for_client_ = true;
+    return;
+  }
+  const bool pose_driven = scheduler_.on_sent(now);  // also when the provider withheld the command
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++(pose_driven ? stats_.pose_driven : stats_.keep_alives);
+  }
+  arm_scheduled();
 }
 
 void FirmwareLink::start(Client& c) {
@@ -143,6 +192,11 @@ void FirmwareLink::finish(Client& c, beast::error_code ec) {
   c.busy = false;
   beast::error_code ignored;
   c.stream->socket().shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
+  if (waiting_for_client_) {
+    // A command became due while both clients were busy: send it after this reply is handled.
+    waiting_for_client_ = false;
+    asio::post(io_, [this] { on_scheduled(); });
+  }
   std::optional<ControlReply> reply;
   {
     std::lock_guard<std::mutex> lock(mutex_);

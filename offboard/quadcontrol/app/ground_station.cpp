@@ -158,6 +158,11 @@ std::vector<Eigen::Vector3d> GroundStation::depth_points(const CameraFrame& f, i
 }
 
 void GroundStation::on_slam(const SlamResult& result, const CameraFrame& frame) {
+  // The command is computed and sent on the link's thread, after this one released the lock.
+  if (apply_slam_result(result, frame) && firmware_) firmware_->notify_pose();
+}
+
+bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFrame& frame) {
   // Floor plane search on the first frames (outside the lock: RANSAC takes a few ms).
   std::optional<FloorPlane> found;
   bool need_floor;
@@ -205,7 +210,7 @@ void GroundStation::on_slam(const SlamResult& result, const CameraFrame& frame) 
   if (!T_floor_world_ || !result.tracking || result.session != slam_session_) {
     controller_.on_pose(PoseSample{now, false, pose_.value_or(CraftPose{})});
     if (log_) log_->pose(LoggedPose{frame.sequence, frame.capture_us, frame.received_us, now, false});
-    return;
+    return false;
   }
   const Eigen::Isometry3d T_floor_cam = *T_floor_world_ * result.T_world_cam;
   pose_ = craft_pose(T_floor_cam);
@@ -237,6 +242,7 @@ void GroundStation::on_slam(const SlamResult& result, const CameraFrame& frame) 
   }
   map_.add_points(world);
   ++map_revision_;
+  return true;
 }
 
 void GroundStation::on_reply(std::int64_t received_us, const ControlReply& reply) {
@@ -299,6 +305,8 @@ nlohmann::json GroundStation::state_json() {
                 {"stale", fw->stale},
                 {"connect_errors", fw->connect_errors},
                 {"seq", fw->seq},
+                {"pose_driven", fw->pose_driven},
+                {"keep_alives", fw->keep_alives},
                 {"last_error", fw->last_error}});
     if (fw->last_reply) {
       const auto& r = *fw->last_reply;

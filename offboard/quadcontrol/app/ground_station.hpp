@@ -4,7 +4,8 @@
 // Threads (all owned here, joined in the destructor): the frame thread (source -> latest frame ->
 // SLAM hand-over), the SLAM thread (inside SlamLink; its results update pose, floor frame and map),
 // and either the firmware link's I/O thread, which runs controller.update(now) just before each
-// command it sends (every firmware.period_ms), or, with no firmware, the
+// command it sends (every firmware.period_ms, or with firmware.send_on_pose on each fresh tracked
+// pose, rate-limited, plus keep-alives), or, with no firmware, the
 // control thread (controller.update(now) every control_period_ms, for the dashboard). The SLAM link is created on the first frame (it needs the intrinsics). Shared state is guarded by one mutex; the controller is only touched
 // under it. This is the only place that reads the clock and passes it into the logic.
 #pragma once
@@ -44,7 +45,7 @@ struct GroundStationOptions {
   int control_period_ms = 20;          ///< 50 Hz, the firmware command rate
   std::size_t trajectory_max_points = 5000;
   std::int64_t imu_match_window_us = 20000;  ///< TUM's association rule: nearest within 20 ms
-  std::string slam_mode = "server";  ///< "server": slam-server over the SLAM link; "in-process": front-end here
+  std::string slam_mode = "server";  ///< "server": slam-server over the SLAM link; "in-process": local-map SLAM here
   SlamServerOptions slam_server;
   std::string validate() const;
 };
@@ -78,6 +79,9 @@ class GroundStation {
   /// nullopt while the controller hands the craft over to its failsafe (nothing is sent).
   std::optional<PwmCommand> command_at(std::int64_t now_us, std::uint32_t seq);
   void on_slam(const SlamResult& result, const CameraFrame& frame);
+  /// Takes a SLAM result into pose, floor frame and map; true when it gave the controller a fresh
+  /// tracked pose (then the firmware link is told, outside the lock).
+  bool apply_slam_result(const SlamResult& result, const CameraFrame& frame);
   void on_reply(std::int64_t received_us, const ControlReply& reply);
   std::vector<Eigen::Vector3d> depth_points(const CameraFrame& frame, int step) const;
   /// How the APM reads the sticks (dead zones from the controller config).
