@@ -342,6 +342,11 @@ def _child_main() -> int:
                 rec.update(error=str(e), delivered=False, render_end_mono_s=time.monotonic())
             else:
                 rec["render_end_mono_s"] = time.monotonic()
+                # The sensor's exposure -> USB delay (options.latency_ms): a real frame reaches the
+                # host no earlier than that after its exposure (the request time t_s).
+                hold_s = t_s + options.latency_ms / 1e3 - time.monotonic()
+                if hold_s > 0:
+                    time.sleep(hold_s)
                 if not index.wait_reader_done(time.monotonic, time.sleep, FAKENECT_WAIT_S):
                     rec["delivered"] = False
                 else:

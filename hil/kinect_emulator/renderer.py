@@ -58,6 +58,18 @@ NOISE_BANK_STREAM = 2**40
 NOISE_BANK_FRAMES = 4
 # Each texture tile shows a 60 % window of its photograph (see _shade).
 TILE_WINDOW_FRACTION = 0.6
+# Kinect v1 exposure -> frame complete on the host (USB), ms. NO PUBLISHED MEASUREMENT of this
+# delay for the v1 was found: the figures in print are end-to-end game/skeleton latencies (e.g. the
+# 150 ms Rare quoted for Kinect Sports, Digital Foundry 2010), which include tracking and display.
+# The value is a LOWER BOUND derived from how a frame travels: libfreenect receives the 11-bit
+# 640x480 depth frame (422 400 bytes) in isochronous packets of 1760 bytes with a 12-byte header
+# (cameras.c: DEPTH_PKTSIZE), i.e. 242 packets; at one packet per 125 us USB 2.0 microframe the
+# frame streams for 30.2 ms, so its last byte reaches the host ~30 ms after readout begins. The
+# PS1080's own depth computation and the exposure itself would add to it. Used by the latency
+# budget (exposure -> PWM = this + capture -> PWM) and, when KinectOptions.latency_ms is set to it,
+# by LiveKinect, which then holds each frame until exposure + latency_ms.
+KINECT_V1_EXPOSURE_TO_USB_MS = 30.0
+
 # Back ends: "cpp" = libkinect_render.so (native.py; built by `make build`), "numpy" = this file,
 # "auto" = cpp when built, else numpy (logged). Default from RGBD_KINECT_RENDERER, else "auto".
 RENDERERS = ("auto", "cpp", "numpy")
@@ -83,7 +95,9 @@ class Intrinsics:
 class KinectOptions:
     intrinsics: Intrinsics = field(default_factory=Intrinsics)
     fps: float = 30.0  # Kinect v1 streams at 30 Hz
-    latency_ms: float = 0.0  # capture -> available to the capture source
+    # capture -> available to the capture source; LiveKinect holds each frame until exposure + this
+    # (0: as soon as rendered). The Kinect v1's own delay: KINECT_V1_EXPOSURE_TO_USB_MS.
+    latency_ms: float = 0.0
     min_range_m: float = 0.5  # v1 near limit
     max_range_m: float = 4.5  # v1 usable far limit
     depth_noise: bool = True

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 from hilrig import latency_budget
+from kinect_emulator.renderer import KINECT_V1_EXPOSURE_TO_USB_MS
 
 
 def _stage(median, p95):
@@ -20,6 +21,9 @@ def test_closed_loop_figures_are_printed_and_judged(tmp_path, capsys, monkeypatc
     out = capsys.readouterr().out
     assert any(line.split()[-1] == "60.0" for line in out.splitlines() if "sum of the stage medians" in line)
     assert "58.0 /   90.0   over 42 frames (slam_loop_scenario2.json); target <= 60: met" in out
+    k = KINECT_V1_EXPOSURE_TO_USB_MS
+    modelled = [line for line in out.splitlines() if "exposure -> PWM, Kinect v1 modelled" in line]
+    assert modelled and f"{58.0 + k:6.1f} / {90.0 + k:6.1f}" in modelled[0]
     lat["capture_to_pwm"] = _stage(61.0, 90.0)
     (tmp_path / "slam_loop_scenario2.json").write_text(json.dumps({"latency_ms": lat}))
     latency_budget.main()

@@ -253,28 +253,51 @@ extern "C" int kr_render(const KrRenderer* r, const double T_room_cam[16], const
     const int r1 = rc[1] > H ? H : rc[1];
     const int c0 = rc[2] < 0 ? 0 : rc[2];
     const int c1 = rc[3] > W ? W : rc[3];
+    const float bl0 = box_lo_o[3 * k], bl1 = box_lo_o[3 * k + 1], bl2 = box_lo_o[3 * k + 2];
+    const float bh0 = box_hi_o[3 * k], bh1 = box_hi_o[3 * k + 1], bh2 = box_hi_o[3 * k + 2];
+    const int32_t face_base = 6 + 6 * k;
     for (int row = r0; row < r1; ++row) {
       for (int col = c0; col < c1; ++col) {
+        // Axes written out (as in pass 1a) so that the loop vectorises.
         const size_t p = static_cast<size_t>(row) * W + col;
-        float tmin = -inf;
-        float tmax = inf;
-        uint8_t entry = 0;
-        for (int a = 0; a < 3; ++a) {
-          const float da = dir(p, a);
-          const float inv = 1.0f / da;
-          const float t1 = inv * box_lo_o[3 * k + a];
-          const float t2 = inv * box_hi_o[3 * k + a];
-          const float near = np_min(t1, t2);
-          const float far = np_max(t1, t2);
-          // Entering through the min side when moving +, the max side when moving -.
-          const bool later = near > tmin;
-          entry = later ? static_cast<uint8_t>((da < 0) + 2 * a) : entry;
-          tmin = later ? near : tmin;
-          tmax = np_min(tmax, far);
-        }
-        const bool hit = (tmax >= tmin) & (tmin > 0) & (tmin < zs[p]);
-        zs[p] = hit ? tmin : zs[p];
-        face_at[p] = hit ? static_cast<uint8_t>(entry + 6 + 6 * k) : face_at[p];
+        const float rx = ray_x[p];
+        const float ry = ray_y[p];
+        float d0 = rx * R00;
+        d0 += ry * R01;
+        d0 += R02;
+        float d1 = rx * R10;
+        d1 += ry * R11;
+        d1 += R12;
+        float d2 = rx * R20;
+        d2 += ry * R21;
+        d2 += R22;
+        const float i0 = 1.0f / d0;
+        const float i1 = 1.0f / d1;
+        const float i2 = 1.0f / d2;
+        // Slab test; entering through the min side when moving +, the max side when moving -.
+        // tmin starts at -inf, so axis 0 always sets it (numpy: near > -inf, or NaN stays -inf).
+        const float a0 = i0 * bl0, b0 = i0 * bh0;
+        const float near0 = np_min(a0, b0);
+        const bool later0 = near0 > -inf;
+        int32_t entry = later0 ? static_cast<int32_t>(d0 < 0) : 0;
+        float tmin = later0 ? near0 : -inf;
+        float tmax = np_min(inf, np_max(a0, b0));
+        const float a1 = i1 * bl1, b1 = i1 * bh1;
+        const float near1 = np_min(a1, b1);
+        const bool later1 = near1 > tmin;
+        entry = later1 ? static_cast<int32_t>(d1 < 0) + 2 : entry;
+        tmin = later1 ? near1 : tmin;
+        tmax = np_min(tmax, np_max(a1, b1));
+        const float a2 = i2 * bl2, b2 = i2 * bh2;
+        const float near2 = np_min(a2, b2);
+        const bool later2 = near2 > tmin;
+        entry = later2 ? static_cast<int32_t>(d2 < 0) + 4 : entry;
+        tmin = later2 ? near2 : tmin;
+        tmax = np_min(tmax, np_max(a2, b2));
+        const float t_room = zs[p];
+        const bool hit = (tmax >= tmin) & (tmin > 0) & (tmin < t_room);
+        zs[p] = hit ? tmin : t_room;
+        face_at[p] = hit ? static_cast<uint8_t>(entry + face_base) : face_at[p];
       }
     }
   }

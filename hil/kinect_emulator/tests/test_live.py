@@ -7,6 +7,7 @@ assertions.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from pathlib import Path
@@ -321,3 +322,21 @@ def test_streamer_command_and_env(tmp_path, room, monkeypatch):
     monkeypatch.setattr(live, "fakenect_lib_dir", lambda: None)
     with pytest.raises(FileNotFoundError):
         cam.streamer_env({})
+
+
+def test_given_a_sensor_latency_then_each_frame_is_held_until_exposure_plus_latency(tmp_path, room):
+    """KinectOptions.latency_ms (the Kinect's exposure -> USB delay) delays the INDEX line."""
+    dump = tmp_path / "live"
+    latency_ms = 150.0  # well above a render of this small image, so the hold is what is measured
+    cam = LiveKinect(dump, dataclasses.replace(opts(), latency_ms=latency_ms), room)
+    cam.start()
+    try:
+        FakeFakenect(dump)
+        t_exposure = time.monotonic()
+        assert cam.submit(t_exposure, level_pose(0.0))
+        assert wait_for(lambda: len(cam.records()) == 1)
+    finally:
+        cam.close()
+    r = cam.records()[0]
+    assert r.index_written_mono_s - r.t_mono_s >= latency_ms / 1e3
+    assert cam.stats()["renderer"] in ("cpp", "numpy")
