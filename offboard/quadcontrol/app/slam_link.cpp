@@ -5,19 +5,26 @@ namespace rgbdquad::quadcontrol {
 
 std::unique_ptr<InProcessSlam> InProcessSlam::create(const slam::Intrinsics& intrinsics, Callback callback,
                                                      std::string* error) {
-  auto frontend = slam::FrontEnd::create(slam::FrontendOptions{}, intrinsics, error);
-  if (!frontend) return nullptr;
-  return std::unique_ptr<InProcessSlam>(new InProcessSlam(std::move(*frontend), std::move(callback)));
+  // The system that flies (as slam-server's default): ORB, tracking against a local map on this
+  // link's thread, local mapping on the pipeline's own thread.
+  slam::PipelineOptions options;
+  options.frontend.features.kind = slam::DetectorKind::kOrb;
+  options.backend.kind = slam::BackendKind::kLocalMap;
+  options.mode = slam::PipelineMode::kLive;
+  auto pipeline = slam::Pipeline::create(options, intrinsics, error);
+  if (!pipeline) return nullptr;
+  return std::unique_ptr<InProcessSlam>(new InProcessSlam(std::move(pipeline), std::move(callback)));
 }
 
-InProcessSlam::InProcessSlam(slam::FrontEnd frontend, Callback callback)
-    : frontend_(std::move(frontend)), callback_(std::move(callback)) {
+InProcessSlam::InProcessSlam(std::unique_ptr<slam::Pipeline> pipeline, Callback callback)
+    : pipeline_(std::move(pipeline)), callback_(std::move(callback)) {
   thread_ = std::thread([this] { run(); });
 }
 
 InProcessSlam::~InProcessSlam() {
   mailbox_.close();
   if (thread_.joinable()) thread_.join();
+  pipeline_->finish();
 }
 
 bool InProcessSlam::submit(const CameraFrame& frame) { return mailbox_.offer(frame); }
@@ -33,25 +40,28 @@ void InProcessSlam::run() {
     input.rgb = frame.rgb;
     input.depth = frame.depth;
     std::string error;
-    std::optional<slam::FrontendOutput> out;
+    std::optional<slam::FrameRecord> rec;
     try {
-      out = frontend_.process(input, &error);
+      pipeline_->submit(std::move(input));
+      rec = pipeline_->record(frame.sequence);
+      if (rec && !rec->ok) error = rec->error;
     } catch (const std::exception& e) {  // nothing escapes the thread
-      error = std::string("front-end threw: ") + e.what();
+      error = std::string("SLAM threw: ") + e.what();
     }
+    const bool ok = rec && rec->ok;
     SlamResult result;
     result.frame_sequence = frame.sequence;
     result.capture_us = frame.capture_us;
     result.latency_ms = static_cast<double>(monotonic_now_us() - frame.received_us) / 1000.0;
-    if (out) {
-      result.state = slam::to_string(out->state);
-      result.tracking = out->state == slam::TrackingState::kTracking;
-      result.T_world_cam = out->T_odom_cam;
-      result.inliers = out->inliers;
+    if (ok) {
+      result.state = slam::to_string(rec->state);
+      result.tracking = rec->state == slam::TrackingState::kTracking;
+      result.T_world_cam = rec->T_world_cam;
+      result.inliers = rec->inliers;
     } else {
       result.state = "lost";
     }
-    mailbox_.finish(out.has_value(), result.latency_ms, error);
+    mailbox_.finish(ok, result.latency_ms, error);
     if (callback_) callback_(result, frame);
   }
 }

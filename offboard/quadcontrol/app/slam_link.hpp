@@ -1,6 +1,7 @@
 // quad-control's link to SLAM: slam-server over protocol/'s SLAM link (SlamServerClient,
-// slam_server_client.hpp), or the SLAM engine's front-end (offboard/slam, FrontEnd: features,
-// matching, RANSAC egomotion) in-process on its own thread (InProcessSlam), behind one interface.
+// slam_server_client.hpp), or the SLAM engine's local-map system (offboard/slam, Pipeline in live
+// mode: tracking on the link's thread, mapping on its own) in-process (InProcessSlam), behind one
+// interface.
 // Semantics of both (thesis): the newest frame is handed over; a frame arriving while SLAM is busy
 // is dropped (counted). Results are delivered through the callback on the SLAM thread.
 #pragma once
@@ -15,7 +16,7 @@
 
 #include "app/frame_mailbox.hpp"
 #include "app/frame_source.hpp"
-#include "slam/pipeline/frontend.hpp"
+#include "slam/pipeline/pipeline.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -59,13 +60,13 @@ class InProcessSlam : public SlamLink {
   ~InProcessSlam() override;
   bool submit(const CameraFrame& frame) override;
   SlamStats stats() const override;
-  std::string name() const override { return "in-process front-end (offboard/slam)"; }
+  std::string name() const override { return "in-process local-map SLAM (offboard/slam)"; }
 
  private:
-  InProcessSlam(slam::FrontEnd frontend, Callback callback);
+  InProcessSlam(std::unique_ptr<slam::Pipeline> pipeline, Callback callback);
   void run();
 
-  slam::FrontEnd frontend_;
+  std::unique_ptr<slam::Pipeline> pipeline_;
   Callback callback_;
   FrameMailbox mailbox_;
   std::thread thread_;
