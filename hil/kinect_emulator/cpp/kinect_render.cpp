@@ -25,9 +25,17 @@ constexpr float kShadowTolerancePx = 0.1f;
 constexpr int kMaxObstacles = 41;  // 6 + 6 * 41 face ids fit a uint8
 
 // numpy's minimum/maximum propagate NaN (std::min/max do not).
-// Written without short-circuit branches so that loops using them vectorise.
-inline float np_min(float a, float b) { return ((a < b) | (a != a)) ? a : b; }
-inline float np_max(float a, float b) { return ((a > b) | (a != a)) ? a : b; }
+// One compare per select: GCC 12 vectorises these, not a select on (a < b) | isnan(a).
+inline float np_min(float a, float b) {
+  float r = (a < b) ? a : b;
+  r = (b != b) ? b : r;
+  return (a != a) ? a : r;
+}
+inline float np_max(float a, float b) {
+  float r = (a > b) ? a : b;
+  r = (b != b) ? b : r;
+  return (a != a) ? a : r;
+}
 
 // np.round / rint (round half to even) without a libm call: adding and removing 1.5 * 2^23 leaves
 // the nearest integer in the default rounding mode for |x| < 2^22; larger values, inf and NaN are
@@ -247,6 +255,12 @@ extern "C" int kr_render(const KrRenderer* r, const double T_room_cam[16], const
     face_at[p] = static_cast<uint8_t>(face);
   }
   // ---- pass 1b: obstacles, each over its screen rectangle (slab test), in order.
+  thread_local std::vector<float> row_t_buf;
+  thread_local std::vector<int32_t> row_face_buf;
+  row_t_buf.resize(W);
+  row_face_buf.resize(W);
+  float* const row_t = row_t_buf.data();
+  int32_t* const row_face = row_face_buf.data();
   for (int k = 0; k < n_obst; ++k) {
     const int32_t* rc = rects + 4 * k;
     const int r0 = rc[0] < 0 ? 0 : rc[0];
@@ -257,6 +271,8 @@ extern "C" int kr_render(const KrRenderer* r, const double T_room_cam[16], const
     const float bh0 = box_hi_o[3 * k], bh1 = box_hi_o[3 * k + 1], bh2 = box_hi_o[3 * k + 2];
     const int32_t face_base = 6 + 6 * k;
     for (int row = r0; row < r1; ++row) {
+      // Results go to row buffers written unconditionally, then are copied back: a select that
+      // may keep zs[p] is otherwise turned into a conditional store, which stops vectorisation.
       for (int col = c0; col < c1; ++col) {
         // Axes written out (as in pass 1a) so that the loop vectorises.
         const size_t p = static_cast<size_t>(row) * W + col;
@@ -295,9 +311,22 @@ extern "C" int kr_render(const KrRenderer* r, const double T_room_cam[16], const
         tmin = later2 ? near2 : tmin;
         tmax = np_min(tmax, np_max(a2, b2));
         const float t_room = zs[p];
-        const bool hit = (tmax >= tmin) & (tmin > 0) & (tmin < t_room);
-        zs[p] = hit ? tmin : t_room;
-        face_at[p] = hit ? static_cast<uint8_t>(entry + face_base) : face_at[p];
+        // hit = tmax >= tmin and tmin > 0 and tmin < t_room, as one select per compare (a select
+        // on the conjunction is not vectorised).
+        const int32_t face_room = face_at[p];
+        float t_new = (tmax >= tmin) ? tmin : t_room;
+        int32_t face_new = (tmax >= tmin) ? entry + face_base : face_room;
+        t_new = (tmin > 0) ? t_new : t_room;
+        face_new = (tmin > 0) ? face_new : face_room;
+        t_new = (tmin < t_room) ? t_new : t_room;
+        face_new = (tmin < t_room) ? face_new : face_room;
+        row_t[col] = t_new;
+        row_face[col] = face_new;
+      }
+      const size_t base = static_cast<size_t>(row) * W;
+      for (int col = c0; col < c1; ++col) {
+        zs[base + col] = row_t[col];
+        face_at[base + col] = static_cast<uint8_t>(row_face[col]);
       }
     }
   }
