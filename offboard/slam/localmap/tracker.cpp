@@ -107,7 +107,8 @@ Tracker::Fit Tracker::fit_local_map(const LocalMap& local, const TrackedFeatures
     m = search_by_projection(local.points, T_guess, frame, camera_, so);
   }
   if (m.matches < 6) return fit;
-  auto optimise = [&](const std::vector<int>& pok, std::vector<int>* kept) {
+  // Optimises from `T_start` on the matches in `pok`; `kept` receives the inlier matches only.
+  auto optimise = [&](const std::vector<int>& pok, const Eigen::Isometry3d& T_start, std::vector<int>* kept) {
     std::vector<PoseObservation> obs;
     std::vector<int> kp_of_obs;
     for (std::size_t k = 0; k < pok.size(); ++k) {
@@ -116,39 +117,24 @@ Tracker::Fit Tracker::fit_local_map(const LocalMap& local, const TrackedFeatures
                                     frame.measurement(k, camera_), frame.sigma_px[k]});
       kp_of_obs.push_back(static_cast<int>(k));
     }
-    const PoseOptimizerResult r = optimize_pose(T_guess, obs, camera_, options_.pose);
+    const PoseOptimizerResult r = optimize_pose(T_start, obs, camera_, options_.pose);
     kept->assign(pok.size(), -1);
     if (!r.ok) return r;
-    for (std::size_t i = 0; i < obs.size(); ++i)
-      if (r.inlier[i]) (*kept)[static_cast<std::size_t>(kp_of_obs[i])] = pok[static_cast<std::size_t>(kp_of_obs[i])];
+    for (std::size_t i = 0; i < obs.size(); ++i) {
+      const auto k = static_cast<std::size_t>(kp_of_obs[i]);
+      if (r.inlier[i]) (*kept)[k] = pok[k];
+    }
     return r;
   };
   std::vector<int> kept;
-  const PoseOptimizerResult first = optimise(m.point_of_keypoint, &kept);
+  const PoseOptimizerResult first = optimise(m.point_of_keypoint, T_guess, &kept);
   if (!first.ok || first.inliers < 6) return fit;
   // Second pass: keep the inliers, look for more points around the refined projections.
   so.radius_px = options_.refine_radius_px;
   const ProjectionMatches m2 =
       search_by_projection(local.points, first.T_cam_world, frame, camera_, so, &kept);
   std::vector<int> kept2;
-  std::vector<PoseObservation> unused;
-  PoseOptimizerResult second;
-  {
-    std::vector<PoseObservation> obs;
-    std::vector<int> kp_of_obs;
-    for (std::size_t k = 0; k < m2.point_of_keypoint.size(); ++k) {
-      if (m2.point_of_keypoint[k] < 0) continue;
-      obs.push_back(PoseObservation{local.points[static_cast<std::size_t>(m2.point_of_keypoint[k])].p_world_m,
-                                    frame.measurement(k, camera_), frame.sigma_px[k]});
-      kp_of_obs.push_back(static_cast<int>(k));
-    }
-    second = optimize_pose(first.T_cam_world, obs, camera_, options_.pose);
-    kept2.assign(m2.point_of_keypoint.size(), -1);
-    if (second.ok)
-      for (std::size_t i = 0; i < obs.size(); ++i)
-        if (second.inlier[i])
-          kept2[static_cast<std::size_t>(kp_of_obs[i])] = m2.point_of_keypoint[static_cast<std::size_t>(kp_of_obs[i])];
-  }
+  const PoseOptimizerResult second = optimise(m2.point_of_keypoint, first.T_cam_world, &kept2);
   if (!second.ok) return fit;
   fit.ok = true;
   fit.T_cam_world = second.T_cam_world;

@@ -134,16 +134,21 @@ TEST(Regression, LocalMapSurvivesBlankAndDepthlessFramesWithoutAPoseJump) {
   EXPECT_LT(r.ate_m, 0.015);
 }
 
+PipelineOptions local_map_options() {
+  PipelineOptions o;
+  o.frontend.features.kind = DetectorKind::kOrb;
+  o.backend.kind = BackendKind::kLocalMap;
+  o.mode = PipelineMode::kSequential;
+  return o;
+}
+
 TEST(Regression, LocalMapSavedThenReloadedRelocalisesInTheSameWorldFrame) {
   // GIVEN a map saved after the first 20 frames
   const std::string path = ::testing::TempDir() + "/localmap_test.map";
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
-  PipelineOptions o;
-  o.frontend.features.kind = DetectorKind::kOrb;
-  o.backend.kind = BackendKind::kLocalMap;
-  o.mode = PipelineMode::kSequential;
+  const PipelineOptions o = local_map_options();
   std::vector<FrameRecord> first;
   {
     auto p = Pipeline::create(o, Intrinsics{}, &err);
@@ -178,10 +183,7 @@ TEST(Regression, MapFilesThatDoNotFitAreRefusedWithAReason) {
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
-  PipelineOptions o;
-  o.frontend.features.kind = DetectorKind::kOrb;
-  o.backend.kind = BackendKind::kLocalMap;
-  o.mode = PipelineMode::kSequential;
+  const PipelineOptions o = local_map_options();
   {
     auto p = Pipeline::create(o, Intrinsics{}, &err);
     for (std::size_t i = 0; i < 3; ++i) p->submit(std::move(*ds->load(i, &err)));
