@@ -63,6 +63,54 @@ struct Box {
   double hi[3];
 };
 
+// Per pixel of a row: the hit point's in-plane coordinates on its face, divided into tile numbers
+// (ti, tj) and the fraction within the tile (fu, fv) - renderer.py _shade up to the tile hash.
+// A function of its own so that __restrict tells the vectoriser the rows do not overlap.
+void tile_coords_row(int W, const float* __restrict zr, const uint8_t* __restrict fr,
+                     const float* __restrict rxr, const float* __restrict ryr,
+                     const float (&Rf)[3][3], const float (&of)[3], float tile_w, float tile_h,
+                     float* __restrict fu_out, float* __restrict fv_out,
+                     int32_t* __restrict ti_out, int32_t* __restrict tj_out) {
+  const float R00 = Rf[0][0], R01 = Rf[0][1], R02 = Rf[0][2];
+  const float R10 = Rf[1][0], R11 = Rf[1][1], R12 = Rf[1][2];
+  const float R20 = Rf[2][0], R21 = Rf[2][1], R22 = Rf[2][2];
+  const float o0 = of[0], o1 = of[1], o2 = of[2];
+  for (int col = 0; col < W; ++col) {
+    const float t = zr[col];
+    const float rx = rxr[col];
+    const float ry = ryr[col];
+    float d0 = rx * R00;
+    d0 += ry * R01;
+    d0 += R02;
+    float d1 = rx * R10;
+    d1 += ry * R11;
+    d1 += R12;
+    float d2 = rx * R20;
+    d2 += ry * R21;
+    d2 += R22;
+    float p0 = d0 * t;
+    p0 += o0;
+    float p1 = d1 * t;
+    p1 += o1;
+    float p2 = d2 * t;
+    p2 += o2;
+    // (face % 6) / 2 in float arithmetic (exact for face < 256; SSE2 has no 32-bit vector divide):
+    // side = face % 6; axis 0 for side 0..1, 1 for 2..3, 2 for 4..5.
+    const float face_f = static_cast<float>(fr[col]);
+    const float side = face_f - 6.0f * floor_small(face_f * (1.0f / 6.0f) + 1e-3f);
+    float fu = (side < 2.0f ? p1 : p0) / tile_w;
+    float fv = (side >= 4.0f ? p1 : p2) / tile_h;
+    const float ti = floor_small(fu);
+    const float tj = floor_small(fv);
+    fu -= ti;
+    fv -= tj;
+    fu_out[col] = fu;
+    fv_out[col] = fv;
+    ti_out[col] = static_cast<int32_t>(ti);
+    tj_out[col] = static_cast<int32_t>(tj);
+  }
+}
+
 }  // namespace
 
 struct KrRenderer {
@@ -215,12 +263,6 @@ extern "C" int kr_render(const KrRenderer* r, const double T_room_cam[16], const
   const float* const ray_x = r->ray_x.data();
   const float* const ray_y = r->ray_y.data();
   // Camera ray (ray_x, ray_y, 1) in the room: da = cx * R[a,0]; da += cy * R[a,1]; da += R[a,2].
-  auto dir = [&](size_t p, int a) {
-    float da = ray_x[p] * Rf[a][0];
-    da += ray_y[p] * Rf[a][1];
-    da += Rf[a][2];
-    return da;
-  };
 
   // ---- pass 1a: room exit (renderer.py raycast). Branch-free, so the compiler vectorises it.
   const float R00 = Rf[0][0], R01 = Rf[0][1], R02 = Rf[0][2];
@@ -336,31 +378,37 @@ extern "C" int kr_render(const KrRenderer* r, const double T_room_cam[16], const
   uint32_t last_face = 0xffffffffu;
   int32_t last_ti = 0;
   int32_t last_tj = 0;
-  uint32_t tile_h = 0;
+  uint32_t tile_hash = 0;
   int32_t idx = 0;
   int32_t off_x = 0;
   int32_t off_y = 0;
+  thread_local std::vector<float> row_fu_buf;
+  thread_local std::vector<float> row_fv_buf;
+  thread_local std::vector<int32_t> row_ti_buf;
+  thread_local std::vector<int32_t> row_tj_buf;
+  row_fu_buf.resize(W);
+  row_fv_buf.resize(W);
+  row_ti_buf.resize(W);
+  row_tj_buf.resize(W);
+  float* const row_fu = row_fu_buf.data();
+  float* const row_fv = row_fv_buf.data();
+  int32_t* const row_ti = row_ti_buf.data();
+  int32_t* const row_tj = row_tj_buf.data();
+  const float tile_w = r->tile_w_m;
+  const float tile_h = r->tile_h_m;
   for (int row = 0; row < H; ++row) {
   const size_t row_begin = static_cast<size_t>(row) * W;
   const size_t row_end = row_begin + W;
-  for (size_t p = row_begin; p < row_end; ++p) {
-    const float t = zs[p];
+  // In-plane coordinates and tile numbers: branch-free, vectorised.
+  tile_coords_row(W, zs + row_begin, face_at + row_begin, ray_x + row_begin, ray_y + row_begin, Rf,
+                  of, tile_w, tile_h, row_fu, row_fv, row_ti, row_tj);
+  for (int col = 0; col < W; ++col) {
+    const size_t p = row_begin + col;
     const uint32_t face = face_at[p];
-    float pt[3];
-    for (int a = 0; a < 3; ++a) {
-      float pa = dir(p, a) * t;
-      pa += of[a];
-      pt[a] = pa;
-    }
-    const uint32_t axis = (face % 6u) / 2u;
-    float fu = (axis == 0 ? pt[1] : pt[0]) / r->tile_w_m;
-    float fv = (axis == 2 ? pt[1] : pt[2]) / r->tile_h_m;
-    const float ti = floor_small(fu);
-    const float tj = floor_small(fv);
-    fu -= ti;
-    fv -= tj;
-    const int32_t ti_i = static_cast<int32_t>(ti);
-    const int32_t tj_i = static_cast<int32_t>(tj);
+    const int32_t ti_i = row_ti[col];
+    const int32_t tj_i = row_tj[col];
+    float fu = row_fu[col];
+    float fv = row_fv[col];
     if (face != last_face || ti_i != last_ti || tj_i != last_tj) {
       uint32_t h = face * 73856093u;
       h ^= static_cast<uint32_t>(ti_i) * 19349663u;
@@ -368,12 +416,12 @@ extern "C" int kr_render(const KrRenderer* r, const double T_room_cam[16], const
       idx = static_cast<int32_t>(h % tex_n);
       off_x = static_cast<int32_t>((h >> 7) % span_x);
       off_y = static_cast<int32_t>((h >> 17) % span_y);
-      tile_h = h;
+      tile_hash = h;
       last_face = face;
       last_ti = ti_i;
       last_tj = tj_i;
     }
-    if ((tile_h >> 27) & 1u) fu = 1.0f - fu;
+    if ((tile_hash >> 27) & 1u) fu = 1.0f - fu;
     fu *= win_w1;
     const int32_t tcol = static_cast<int32_t>(fu) + off_x;
     fv = 1.0f - fv;  // rows go down
