@@ -38,6 +38,8 @@ bool TrackerOptions::is_valid(std::string* error) const {
   if (!(near_depth_m > 0)) return fail("near_depth_m must be positive");
   if (pose.rounds < 1 || pose.iterations_per_round < 1) return fail("pose optimiser needs >= 1 round and iteration");
   if (!(max_velocity_scale >= 1)) return fail("max_velocity_scale must be >= 1");
+  if (!(max_speed_m_per_s > 0) || !(max_rate_rad_per_s > 0) || !(motion_margin_m >= 0) || !(motion_margin_rad >= 0))
+    return fail("motion bounds must be positive");
   return matching.is_valid(error) && ransac.is_valid(error);
 }
 
@@ -313,7 +315,10 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
         local = std::move(around);
         out.local_points = local.points.size();
         out.relocalised = true;
-        if (state_ != TrackingState::kTracking) needed = options_.min_inliers_relocalised;
+        // A pose from the keyframe database, not from the motion prior, must meet the
+        // relocalisation bar whether or not tracking was lost just before: in a room of repeated
+        // texture a wrong place can reach the tracking bar (seen in a HIL flight: a 1.5 m jump).
+        needed = options_.min_inliers_relocalised;
       }
     }
     out.relocalise_ms = ms_since(t0);
@@ -321,7 +326,16 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
 
   out.matches = fit.matches;
   out.inliers = fit.inliers;
-  if (!fit.ok || static_cast<int>(fit.inliers) < needed || !fit.T_cam_world.matrix().allFinite()) {
+  // While tracking, the camera cannot have moved faster than the plausible motion bounds since the
+  // last tracked frame: a larger step is a wrong fit, never handed on as a pose.
+  bool implausible = false;
+  if (fit.ok && state_ == TrackingState::kTracking) {
+    const Eigen::Isometry3d step = T_world_last_.inverse() * fit.T_cam_world.inverse();
+    const double dt = std::max(0.0, frame.stamp_s - last_stamp_s_);
+    implausible = step.translation().norm() > options_.max_speed_m_per_s * dt + options_.motion_margin_m ||
+                  rotation_angle_rad(step) > options_.max_rate_rad_per_s * dt + options_.motion_margin_rad;
+  }
+  if (!fit.ok || implausible || static_cast<int>(fit.inliers) < needed || !fit.T_cam_world.matrix().allFinite()) {
     // Lost: hold the last pose; the next frames go straight to relocalisation.
     state_ = TrackingState::kLost;
     have_velocity_ = false;

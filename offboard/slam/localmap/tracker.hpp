@@ -65,6 +65,13 @@ struct TrackerOptions {
   double relocalisation_ratio = 0.75;          ///< ...with ORB-SLAM2's Relocalization ratio: views far apart match fewer pairs than consecutive frames)
   int min_relocalisation_ransac_inliers = 10;  ///< a guess only (ORB-SLAM2: 10 PnP inliers); the local-map refit needs min_inliers_relocalised
   RansacOptions ransac;                        ///< 3D-3D RANSAC for relocalisation (thesis values)
+  /// Motion bounds between two tracked frames: an indoor quadcopter (and a hand-held Kinect in the
+  /// TUM sequences, 0.4 m/s and 40 deg/s on average) stays well below 2 m/s and 180 deg/s; a pose
+  /// step beyond them plus a margin for estimation noise is a wrong fit (tracking is declared lost).
+  double max_speed_m_per_s = 2.0;
+  double max_rate_rad_per_s = 3.14159;
+  double motion_margin_m = 0.05;
+  double motion_margin_rad = 0.0873;  ///< 5 deg
   double max_velocity_scale = 5.0;             ///< a gap of more than 5 frame intervals is not extrapolated further
   bool is_valid(std::string* error) const;
 };

@@ -134,6 +134,36 @@ TEST(Regression, LocalMapSurvivesBlankAndDepthlessFramesWithoutAPoseJump) {
   EXPECT_LT(r.ate_m, 0.015);
 }
 
+TEST(Regression, LocalMapNeverHandsOnAStepFasterThanTheCameraCanMove) {
+  // GIVEN frames 0-9, then frame 25's images stamped one frame interval after frame 9 (a camera
+  // that would have moved ~0.2 m in 33 ms, 6 m/s)
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  PipelineOptions o;
+  o.frontend.features.kind = DetectorKind::kOrb;
+  o.backend.kind = BackendKind::kLocalMap;
+  o.mode = PipelineMode::kSequential;
+  auto p = Pipeline::create(o, Intrinsics{}, &err);
+  ASSERT_TRUE(p) << err;
+  double last_stamp = 0;
+  for (std::size_t i = 0; i < 10; ++i) {
+    auto f = ds->load(i, &err);
+    last_stamp = f->stamp_s;
+    p->submit(std::move(*f));
+  }
+  auto far = ds->load(25, &err);
+  far->index = 10;
+  far->stamp_s = last_stamp + 0.033;
+  p->submit(std::move(*far));
+  p->finish();
+  const auto recs = p->records();
+  // THEN that frame is lost, holding frame 9's pose, instead of jumping
+  ASSERT_EQ(recs.size(), 11u);
+  EXPECT_EQ(recs[10].state, TrackingState::kLost);
+  EXPECT_TRUE(recs[10].T_world_cam.isApprox(recs[9].T_world_cam, 1e-12));
+}
+
 PipelineOptions local_map_options() {
   PipelineOptions o;
   o.frontend.features.kind = DetectorKind::kOrb;
