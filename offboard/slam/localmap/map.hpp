@@ -109,7 +109,6 @@ struct MapKeyframe {
   TrackedFeatures features;
   std::vector<std::int64_t> point_ids;  ///< per keypoint: map point or -1
   cv::Mat thumbnail;                    ///< place-recognition thumbnail (CV_32F), see place_index
-  RgbdFrame frame;                      ///< images, for the PLY export (may be empty after load)
 };
 
 /// Where a culled keyframe went: frames anchored to it follow T_parent_kf to a living keyframe.
