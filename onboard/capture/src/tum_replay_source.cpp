@@ -1,11 +1,11 @@
 // TUM RGB-D folder replay.
 #include "rgbdquad/capture/tum_replay_source.h"
 
+#include "rgbdquad/capture/png_file.h"
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
 
@@ -99,32 +99,32 @@ std::string TumReplaySource::describe() const {
 
 std::optional<SourceFrame> TumReplaySource::load(const Entry& entry, std::int64_t timestamp_us) {
   if (entry.is_depth) {
-    cv::Mat m = cv::imread(entry.path, cv::IMREAD_UNCHANGED);
-    if (m.empty() || m.type() != CV_16UC1) {
-      error_ = "cannot read 16-bit depth PNG " + entry.path;
+    std::string why;
+    auto png = read_png_gray16(entry.path, &why);
+    if (!png) {
+      error_ = "cannot read 16-bit depth PNG " + why;
       return std::nullopt;
     }
     DepthFrame f;
     f.capture_timestamp_us = timestamp_us;
-    f.width = m.cols;
-    f.height = m.rows;
+    f.width = png->width;
+    f.height = png->height;
     f.units_per_m = kTumDepthUnitsPerM;
     f.registered_to_rgb = true;  // the benchmark's depth is registered to the colour camera
-    f.depth.assign(m.begin<std::uint16_t>(), m.end<std::uint16_t>());
+    f.depth = std::move(png->pixels);
     return SourceFrame(std::move(f));
   }
-  cv::Mat bgr = cv::imread(entry.path, cv::IMREAD_COLOR);
-  if (bgr.empty()) {
-    error_ = "cannot read RGB PNG " + entry.path;
+  std::string why;
+  auto png = read_png_rgb8(entry.path, &why);
+  if (!png) {
+    error_ = "cannot read RGB PNG " + why;
     return std::nullopt;
   }
-  cv::Mat rgb;
-  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
   RgbFrame f;
   f.capture_timestamp_us = timestamp_us;
-  f.width = rgb.cols;
-  f.height = rgb.rows;
-  f.rgb.assign(rgb.data, rgb.data + rgb.total() * 3);
+  f.width = png->width;
+  f.height = png->height;
+  f.rgb = std::move(png->pixels);
   return SourceFrame(std::move(f));
 }
 
