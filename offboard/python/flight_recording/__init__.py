@@ -1,0 +1,1 @@
+"""quad-control's MCAP flight recordings (docs/recording.md): tolerant reading, summaries, SLAM replay."""

@@ -1,0 +1,169 @@
+// quad-control's MCAP flight recorder (issue 15): what the ground station saw and did, in the
+// container ROS 2 bags and Foxglove use, readable by any MCAP tool (docs/recording.md lists the
+// channels, units and frames).
+//
+// Off the camera-to-command path: the hooks (frame, pose, command, reply, event, map) only copy a
+// small value (images are shared cv::Mat headers, taken for every n-th frame only) into a bounded
+// queue under a short mutex and return; one writer thread encodes (JPEG, JSON, base64), writes and
+// flushes. A full queue drops the event and counts it; nothing ever waits for the disk.
+// Crash safety: the writer closes its chunk about once a second (flush_period_ms), so a
+// quad-control killed by SIGKILL leaves a file a streaming reader reads up to its last second.
+// Budget: a file is rotated at max_file_mb; when this run's files exceed max_total_mb the oldest of
+// them is deleted (a flight recorder keeps the end of the flight). A write error (disk full, file
+// size limit) stops recording with one logged line; the flight goes on.
+// Thread safety: every public method may be called from any thread.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <variant>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include "core/flight_controller.hpp"
+#include "core/stick_mapping.hpp"
+#include "link/control_codec.hpp"
+#include "map/floor_map.hpp"
+#include "slam/core/types.hpp"
+
+namespace rgbdquad::quadcontrol {
+
+struct RecorderOptions {
+  bool enabled = false;   ///< built-in default off (tests, tools); the shipped config turns it on
+  std::string dir;        ///< output folder, created if missing
+  /// RGB (JPEG) and depth (16UC1) of every n-th frame. 6: 5 Hz from the Kinect's 30 fps, enough to
+  /// see what the camera saw and to replay SLAM on a slow indoor flight, at ~13 MB/min (measured,
+  /// docs/recording.md) instead of ~80 at 30 Hz.
+  int image_every_n_frames = 6;
+  int jpeg_quality = 90;          ///< 90: JPEG artefacts too small to move ORB corners much (replay)
+  int map_period_ms = 10000;      ///< the whole coloured cloud every 10 s (it grows to ~10^5 points)
+  std::size_t map_max_points = 20000;  ///< decimated to this (20000 x 15 B ~ 0.3 MB per message)
+  int flush_period_ms = 1000;     ///< chunk closed at least this often: the loss on a SIGKILL
+  double max_file_mb = 512.0;     ///< rotate: ~40 min per file at the default rate
+  double max_total_mb = 4096.0;   ///< this run's budget; oldest files of the run deleted beyond it
+  std::size_t queue_max_events = 1024;  ///< ~10 s of telemetry at ~100 events/s
+  std::size_t queue_max_frames = 4;     ///< frames with images waiting (each ~1.2 MB of pixels)
+  bool zstd = true;
+  std::string validate() const;
+  nlohmann::json to_json() const;
+};
+
+// Value types handed to the recorder (copies; nothing refers back into the ground station).
+struct FrameRecord {
+  std::int64_t sequence = 0, capture_us = 0, received_us = 0;
+  double link_latency_ms = 0.0;
+  double fps = 0.0;
+  cv::Mat rgb, depth;  ///< BGR8 / 16UC1, shared headers (the frame is never written after delivery)
+  slam::Intrinsics intrinsics;
+};
+struct PoseRecord {
+  std::int64_t sequence = 0, capture_us = 0, received_us = 0, pose_us = 0;
+  bool tracking = false;
+  std::string slam_state;
+  std::size_t inliers = 0;
+  double slam_latency_ms = 0.0;
+  std::uint64_t session = 0;
+  Eigen::Isometry3d T_floor_cam = Eigen::Isometry3d::Identity();
+  CraftPose pose, setpoint;
+  std::string flight_state;
+};
+struct CommandRecord {
+  std::uint32_t seq = 0;
+  std::int64_t send_us = 0;
+  std::string flight_state;
+  StickCommand stick;
+  PwmCommand pwm;
+  std::int64_t pose_capture_us = -1, pose_us = -1;
+};
+struct ReplyRecord {
+  std::int64_t received_us = 0;
+  ControlReply reply;
+};
+struct EventRecord {
+  std::int64_t t_us = 0;
+  int level = 2;          ///< foxglove.Log levels: 1 debug, 2 info, 3 warning, 4 error, 5 fatal
+  std::string source;     ///< "state", "failsafe", "slam", "stream", "recorder"
+  std::string text;
+};
+struct MapRecord {
+  std::int64_t t_us = 0;
+  std::vector<ColouredPoint> points;
+};
+
+struct RecorderStats {
+  bool enabled = false, failed = false;
+  std::string error, file;
+  std::uint64_t messages = 0, bytes = 0, files = 0, deleted_files = 0;
+  std::uint64_t dropped_queue_full = 0, dropped_after_failure = 0;
+  std::uint64_t frames_recorded = 0;
+  double encode_ms_per_frame = 0.0;  ///< writer thread CPU per recorded frame (JPEG + depth + JSON)
+  double writer_cpu_ms = 0.0;        ///< writer thread CPU since start (everything it encoded and wrote)
+  // Live figures for the dashboard's history plots (from the recorded stream).
+  std::optional<double> capture_to_command_ms, pose_to_command_ms;
+};
+
+class FlightRecorder {
+ public:
+  using Logger = std::function<void(const std::string&)>;
+  /// Opens `<dir>/<stem>-000.mcap` and starts the writer thread; nullptr with `error` on failure.
+  /// `logger` gets the recorder's own events (rotation, deletion, failure), one line each.
+  static std::unique_ptr<FlightRecorder> open(const RecorderOptions& options, const std::string& stem,
+                                              Logger logger, std::string* error);
+  ~FlightRecorder();  ///< drains the queue, writes the summary, joins the thread
+  FlightRecorder(const FlightRecorder&) = delete;
+  FlightRecorder& operator=(const FlightRecorder&) = delete;
+
+  void frame(std::int64_t sequence, std::int64_t capture_us, std::int64_t received_us, double link_latency_ms,
+             double fps, const cv::Mat& rgb, const cv::Mat& depth, const slam::Intrinsics& intrinsics);
+  void pose(PoseRecord record);
+  void command(CommandRecord record);
+  void reply(std::int64_t received_us, const ControlReply& reply);
+  /// Logs a transition once: called with the controller's state and last event on every command,
+  /// records an event only when either changed.
+  void status(std::int64_t now_us, const std::string& state, const std::string& last_event);
+  void event(EventRecord record);
+  /// True when a map snapshot is due (then call map()); cheap, for the caller to skip the copy.
+  bool map_due(std::int64_t now_us);
+  void map(MapRecord record);
+  RecorderStats stats() const;
+
+ private:
+  using Event = std::variant<FrameRecord, PoseRecord, CommandRecord, ReplyRecord, EventRecord, MapRecord>;
+  class Writer;
+  FlightRecorder(RecorderOptions options, std::unique_ptr<Writer> writer, Logger logger);
+  void push(Event e, bool is_frame);
+  void run();
+
+  RecorderOptions options_;
+  Logger logger_;
+  std::unique_ptr<Writer> writer_;  ///< touched by the writer thread only (after construction)
+
+  mutable std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<Event> queue_;
+  std::size_t frames_queued_ = 0;
+  bool stop_ = false;
+  std::int64_t frames_seen_ = 0;
+  std::int64_t last_map_us_ = -1;
+  std::string last_state_, last_event_;
+  std::int64_t last_commanded_capture_us_ = -1;
+  RecorderStats stats_;
+  std::thread thread_;
+};
+
+/// RFC 4648 base64 (JSON-encoded MCAP messages carry bytes fields as base64, Foxglove's rule).
+std::string base64_encode(const std::string& bytes);
+std::string base64_encode(const std::uint8_t* data, std::size_t size);
+
+}  // namespace rgbdquad::quadcontrol
