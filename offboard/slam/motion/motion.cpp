@@ -227,30 +227,58 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
   return m;
 }
 
-// Adds one reprojection residual: point q (camera coords, already transformed) against pixel uv,
-// with dq/ddelta = J_q (3x6). Returns the robust cost contribution.
-double accumulate(const Eigen::Vector3d& q, const Eigen::Vector2d& uv,
-                  const Eigen::Matrix<double, 3, 6>& J_q, const RansacOptions::Pinhole& c,
-                  double huber_px, Eigen::Matrix<double, 6, 6>* H, Eigen::Matrix<double, 6, 1>* g) {
-  constexpr double kMinDepthM = 0.1;  // points behind or at the camera give no information
-  if (q.z() < kMinDepthM) return 0.0;
-  const double iz = 1.0 / q.z();
-  const Eigen::Vector2d r(c.fx_px * q.x() * iz + c.cx_px - uv.x(), c.fy_px * q.y() * iz + c.cy_px - uv.y());
-  Eigen::Matrix<double, 2, 3> Jp;
-  Jp << c.fx_px * iz, 0, -c.fx_px * q.x() * iz * iz, 0, c.fy_px * iz, -c.fy_px * q.y() * iz * iz;
-  const Eigen::Matrix<double, 2, 6> J = Jp * J_q;
-  const double n = r.norm();
-  const double w = n <= huber_px ? 1.0 : huber_px / n;
-  *H += w * J.transpose() * J;
-  *g += w * J.transpose() * r;
-  return n <= huber_px ? 0.5 * n * n : huber_px * (n - 0.5 * huber_px);
-}
-
 Eigen::Vector2d project(const Eigen::Vector3d& p, const RansacOptions::Pinhole& c) {
   return {c.fx_px * p.x() / p.z() + c.cx_px, c.fy_px * p.y() / p.z() + c.cy_px};
 }
 
+// Residual of point q (camera coords, already transformed) against pixel uv, with dq/ddelta = J_q.
+ReprojectionTerm make_term(const Eigen::Vector3d& q, const Eigen::Vector2d& uv,
+                           const Eigen::Matrix<double, 3, 6>& J_q, const RansacOptions::Pinhole& c) {
+  constexpr double kMinDepthM = 0.1;  // points behind or at the camera give no information
+  ReprojectionTerm t;
+  if (q.z() < kMinDepthM) return t;
+  const double iz = 1.0 / q.z();
+  t.residual_px = {c.fx_px * q.x() * iz + c.cx_px - uv.x(), c.fy_px * q.y() * iz + c.cy_px - uv.y()};
+  Eigen::Matrix<double, 2, 3> Jp;
+  Jp << c.fx_px * iz, 0, -c.fx_px * q.x() * iz * iz, 0, c.fy_px * iz, -c.fy_px * q.y() * iz * iz;
+  t.jacobian = Jp * J_q;
+  t.valid = true;
+  return t;
+}
+
+// Adds one term to the Gauss-Newton system with a Huber weight; returns its robust cost.
+double accumulate(const ReprojectionTerm& t, double huber_px, Eigen::Matrix<double, 6, 6>* H,
+                  Eigen::Matrix<double, 6, 1>* g) {
+  if (!t.valid) return 0.0;
+  const double n = t.residual_px.norm();
+  const double w = n <= huber_px ? 1.0 : huber_px / n;
+  *H += w * t.jacobian.transpose() * t.jacobian;
+  *g += w * t.jacobian.transpose() * t.residual_px;
+  return n <= huber_px ? 0.5 * n * n : huber_px * (n - 0.5 * huber_px);
+}
+
 }  // namespace
+
+ReprojectionTerm forward_reprojection_term(const Eigen::Isometry3d& T, const Eigen::Vector3d& s,
+                                           const Eigen::Vector3d& d,
+                                           const RansacOptions::Pinhole& c) {
+  // q = exp(delta) T s  ->  dq/ddelta = [I, -[q]x]
+  const Eigen::Vector3d q = T * s;
+  Eigen::Matrix<double, 3, 6> J;
+  J << Eigen::Matrix3d::Identity(), -skew(q);
+  return make_term(q, project(d, c), J, c);
+}
+
+ReprojectionTerm backward_reprojection_term(const Eigen::Isometry3d& T, const Eigen::Vector3d& s,
+                                            const Eigen::Vector3d& d,
+                                            const RansacOptions::Pinhole& c) {
+  // b = T^-1 exp(-delta) d  ->  db/ddelta = R^T [-I, [d]x]
+  const Eigen::Matrix3d Rt = T.rotation().transpose();
+  const Eigen::Vector3d b = T.inverse() * d;
+  Eigen::Matrix<double, 3, 6> J;
+  J << -Rt, Rt * skew(d);
+  return make_term(b, project(s, c), J, c);
+}
 
 Eigen::Isometry3d refine_reprojection(const Eigen::Isometry3d& T0,
                                       const std::vector<Eigen::Vector3d>& src,
@@ -264,22 +292,12 @@ Eigen::Isometry3d refine_reprojection(const Eigen::Isometry3d& T0,
     H->setZero();
     g->setZero();
     double cost = 0;
-    const Eigen::Isometry3d Ti = T.inverse();
-    const Eigen::Matrix3d Rt = T.rotation().transpose();
     for (int i : pairs) {
       const Eigen::Vector3d& s = src[static_cast<std::size_t>(i)];
       const Eigen::Vector3d& d = dst[static_cast<std::size_t>(i)];
       if (s.z() <= 0 || d.z() <= 0) continue;
-      // Forward: q = exp(delta) T s  ->  dq/ddelta = [I, -[q]x]
-      const Eigen::Vector3d q = T * s;
-      Eigen::Matrix<double, 3, 6> Jf;
-      Jf << Eigen::Matrix3d::Identity(), -skew(q);
-      cost += accumulate(q, project(d, c), Jf, c, huber_px, H, g);
-      // Backward: b = T^-1 exp(-delta) d  ->  db/ddelta = R^T [-I, [d]x]
-      const Eigen::Vector3d b = Ti * d;
-      Eigen::Matrix<double, 3, 6> Jb;
-      Jb << -Rt, Rt * skew(d);
-      cost += accumulate(b, project(s, c), Jb, c, huber_px, H, g);
+      cost += accumulate(forward_reprojection_term(T, s, d, c), huber_px, H, g);
+      cost += accumulate(backward_reprojection_term(T, s, d, c), huber_px, H, g);
     }
     return cost;
   };

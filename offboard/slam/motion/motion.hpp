@@ -56,6 +56,24 @@ struct RansacOptions {
   bool is_valid(std::string* error) const;
 };
 
+/// One residual of refine_reprojection with its analytic Jacobian, exposed so tests can check the
+/// Jacobian against numeric derivatives. `jacobian` is d(residual)/d(delta) for the left increment
+/// T' = exp(delta) * T, delta = (translation m, rotation vector rad), the update the solver applies.
+struct ReprojectionTerm {
+  Eigen::Vector2d residual_px = Eigen::Vector2d::Zero();
+  Eigen::Matrix<double, 2, 6> jacobian = Eigen::Matrix<double, 2, 6>::Zero();
+  bool valid = false;  ///< false when the transformed point is closer than 0.1 m (no information)
+};
+
+/// Forward term: pi(T src) against pi(dst).
+ReprojectionTerm forward_reprojection_term(const Eigen::Isometry3d& T_dst_src,
+                                           const Eigen::Vector3d& src, const Eigen::Vector3d& dst,
+                                           const RansacOptions::Pinhole& camera);
+/// Backward term: pi(T^-1 dst) against pi(src).
+ReprojectionTerm backward_reprojection_term(const Eigen::Isometry3d& T_dst_src,
+                                            const Eigen::Vector3d& src, const Eigen::Vector3d& dst,
+                                            const RansacOptions::Pinhole& camera);
+
 /// Refines T_dst_src by minimising sum_i rho(|pi(T src_i) - pi(dst_i)|^2) +
 /// rho(|pi(T^-1 dst_i) - pi(src_i)|^2) over the given pairs (Gauss-Newton, Huber weights).
 /// Returns the input unchanged when the problem is degenerate or the cost does not decrease.

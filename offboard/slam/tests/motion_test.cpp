@@ -139,5 +139,63 @@ TEST(ReprojectionRefine, GivenExactPixelsAndNoisyDepthThenRefinedPoseBeatsUmeyam
   EXPECT_TRUE(refine_reprojection(*ls, src, dst, all, RansacOptions::Pinhole{}, 10, 2.0).isApprox(*ls));
 }
 
+// The analytic Jacobians of the reprojection refinement against central differences of the
+// residual under the solver's own update T' = exp(delta) * T (delta = translation, rotation vector).
+Eigen::Isometry3d left_increment(const Eigen::Matrix<double, 6, 1>& delta, const Eigen::Isometry3d& T) {
+  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+  const double angle = delta.tail<3>().norm();
+  if (angle > 0) step.linear() = Eigen::AngleAxisd(angle, delta.tail<3>() / angle).toRotationMatrix();
+  step.translation() = delta.head<3>();
+  return step * T;
+}
+
+template <typename TermFn>
+double worst_jacobian_error(TermFn term, const Eigen::Isometry3d& T, const Eigen::Vector3d& s,
+                            const Eigen::Vector3d& d, const RansacOptions::Pinhole& c) {
+  const ReprojectionTerm analytic = term(T, s, d, c);
+  EXPECT_TRUE(analytic.valid);
+  constexpr double kStep = 1e-6;  // metres / radians: central differences, O(h^2) truncation
+  double worst = 0;
+  for (int k = 0; k < 6; ++k) {
+    Eigen::Matrix<double, 6, 1> delta = Eigen::Matrix<double, 6, 1>::Zero();
+    delta[k] = kStep;
+    const Eigen::Vector2d plus = term(left_increment(delta, T), s, d, c).residual_px;
+    const Eigen::Vector2d minus = term(left_increment(-delta, T), s, d, c).residual_px;
+    const Eigen::Vector2d numeric = (plus - minus) / (2 * kStep);
+    const double scale = std::max(1.0, numeric.cwiseAbs().maxCoeff());
+    worst = std::max(worst, (analytic.jacobian.col(k) - numeric).cwiseAbs().maxCoeff() / scale);
+  }
+  return worst;
+}
+
+TEST(ReprojectionRefine, GivenRandomPosesAndPointsThenAnalyticJacobiansMatchNumericDerivatives) {
+  const RansacOptions::Pinhole c{517.3, 516.5, 318.6, 255.3};
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> angle(-0.5, 0.5), shift(-0.3, 0.3);
+  const auto src = random_points(20, 3);
+  for (int trial = 0; trial < 10; ++trial) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = (Eigen::AngleAxisd(angle(rng), Eigen::Vector3d::UnitX()) *
+                  Eigen::AngleAxisd(angle(rng), Eigen::Vector3d::UnitY()) *
+                  Eigen::AngleAxisd(angle(rng), Eigen::Vector3d::UnitZ())).toRotationMatrix();
+    T.translation() = Eigen::Vector3d(shift(rng), shift(rng), shift(rng));
+    for (const auto& s : src) {
+      // A destination near T*s (not equal: residuals must be non-zero to exercise every term).
+      const Eigen::Vector3d d = T * s + Eigen::Vector3d(shift(rng), shift(rng), shift(rng)) * 0.1;
+      if ((T * s).z() < 0.3 || (T.inverse() * d).z() < 0.3) continue;
+      EXPECT_LT(worst_jacobian_error(forward_reprojection_term, T, s, d, c), 1e-5);
+      EXPECT_LT(worst_jacobian_error(backward_reprojection_term, T, s, d, c), 1e-5);
+    }
+  }
+}
+
+TEST(ReprojectionRefine, GivenAPointBehindTheCameraThenTheTermCarriesNoInformation) {
+  const RansacOptions::Pinhole c{517.3, 516.5, 318.6, 255.3};
+  const Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  EXPECT_FALSE(forward_reprojection_term(T, {0, 0, 0.05}, {0, 0, 1.0}, c).valid);
+  EXPECT_FALSE(backward_reprojection_term(T, {0, 0, 1.0}, {0, 0, -1.0}, c).valid);
+  EXPECT_TRUE(forward_reprojection_term(T, {0, 0, 1.0}, {0, 0, 1.0}, c).valid);
+}
+
 }  // namespace
 }  // namespace slam
