@@ -16,7 +16,7 @@ import sys
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1] / "python"))
-from rgbd_protocol import control
+from rgbd_protocol import control  # noqa: E402  (path set up above: run as a script)
 
 OUT = HERE.parent / "vectors" / "control_vectors.json"
 KEY = bytes(range(16))  # the SipHash paper's key 00..0f

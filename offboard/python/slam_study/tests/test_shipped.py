@@ -3,7 +3,6 @@ sweep, read by `slam-study guide` on a fresh clone (no sweep, no ../shared)."""
 
 from __future__ import annotations
 
-import json
 import shutil
 from pathlib import Path
 
