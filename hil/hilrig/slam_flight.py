@@ -114,6 +114,8 @@ class SlamFlightOptions:
     stream_impairment: LinkImpairment | None = None
     # Render indices the Kinect emulator delivers all-zero (the streamer must drop them).
     blank_frames: frozenset = frozenset()
+    # quad-control records the flight as MCAP in <workdir>/recording (docs/recording.md); False: off.
+    record: bool = True
 
     def validate(self) -> None:
         if not 1.0 <= self.fps <= 30.0:
@@ -136,6 +138,7 @@ class SlamFlight:
         self.workdir = Path(workdir)
         self.workdir.mkdir(parents=True, exist_ok=True)
         self.log_dir = self.workdir / "flight-log"
+        self.recording_dir = self.workdir / "recording"
         self.dashboard_port = 0
         self.rig = None
         self.bridge = None
@@ -295,6 +298,7 @@ class SlamFlight:
             "slam": {"mode": "server", "host": "127.0.0.1", "port": slam_port},
             "firmware": {"enabled": True, "host": "127.0.0.1", "port": self.bridge.port, "key_hex": o.key.hex()},
             "camera": {"mount_pitch_down_deg": o.mount.mount_pitch_down_deg},
+            "recording": {"enabled": o.record, "dir": str(self.recording_dir)},
         }
         if o.controller_overrides:
             cfg["controller"] = dict(o.controller_overrides)

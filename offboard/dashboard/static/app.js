@@ -1,6 +1,6 @@
 // quad-control dashboard logic: polls /api/state (JSON) and the image endpoints, draws the floor
 // map with trajectory/pose/waypoint, sends operator commands, and renders the point cloud on a
-// plain 2D canvas (no external libraries: the ground station has no internet).
+// plain 2D canvas. History plots and the recording viewer are in history.js (uPlot, served locally).
 "use strict";
 
 const STATE_PERIOD_MS = 200;   // 5 Hz status: enough for a human, cheap for the server
@@ -48,6 +48,7 @@ async function pollState() {
     if (!res.ok) { message("state: HTTP " + res.status, false); return; }
     state = await res.json();
   } catch (e) { return; }
+  window.dispatchEvent(new CustomEvent("qc-state", { detail: state }));  // history plots (history.js)
   const s = state;
   $("state").textContent = s.state;
   $("state").className = "pill " + (s.state === "disarmed" ? "" : (s.state === "lost-hold" ? "bad" : "ok"));

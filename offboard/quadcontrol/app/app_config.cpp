@@ -1,6 +1,7 @@
 // quad-control configuration loading: see app_config.hpp.
 #include "app/app_config.hpp"
 
+#include <cstdlib>
 #include <fstream>
 #include <set>
 
@@ -40,6 +41,28 @@ bool read(const json& obj, const std::string& section, const char* key, T& out, 
   }
 }
 
+bool read_recording(const json& r, RecorderOptions& o, std::string* error) {
+  const char* s = "recording";
+  if (!check_keys(r, s, {"enabled", "dir", "image_every_n_frames", "jpeg_quality", "map_period_ms", "map_max_points",
+                         "flush_period_ms", "max_file_mb", "max_total_mb", "queue_max_events", "queue_max_frames", "zstd"},
+                  error) ||
+      !read(r, s, "enabled", o.enabled, error) || !read(r, s, "dir", o.dir, error) ||
+      !read(r, s, "image_every_n_frames", o.image_every_n_frames, error) ||
+      !read(r, s, "jpeg_quality", o.jpeg_quality, error) || !read(r, s, "map_period_ms", o.map_period_ms, error) ||
+      !read(r, s, "map_max_points", o.map_max_points, error) ||
+      !read(r, s, "flush_period_ms", o.flush_period_ms, error) || !read(r, s, "max_file_mb", o.max_file_mb, error) ||
+      !read(r, s, "max_total_mb", o.max_total_mb, error) ||
+      !read(r, s, "queue_max_events", o.queue_max_events, error) ||
+      !read(r, s, "queue_max_frames", o.queue_max_frames, error) || !read(r, s, "zstd", o.zstd, error)) {
+    return false;
+  }
+  if (o.dir.rfind("~/", 0) == 0) {
+    const char* home = std::getenv("HOME");
+    if (home != nullptr) o.dir = std::string(home) + o.dir.substr(1);
+  }
+  return true;
+}
+
 }  // namespace
 
 AppConfig default_app_config(const std::string& repo_dir) {
@@ -70,6 +93,7 @@ std::string AppConfig::validate() const {
     if (auto e = firmware.validate(); !e.empty()) return e;
     if (firmware_key_hex.empty()) return "firmware.key_hex is empty: set the craft's 32-hex-digit key (or disable the firmware link)";
   }
+  if (auto e = recording.validate(); !e.empty()) return e;
   return station.validate();
 }
 
@@ -89,7 +113,8 @@ nlohmann::json AppConfig::to_json_redacted() const {
                         {"key_hex", firmware_key_hex.empty() ? "" : "<redacted>"},
                         {"control_spec", control_spec_path}}},
           {"camera", {{"mount_pitch_down_deg", station.mount_pitch_down_deg}}},
-          {"controller", to_json(station.controller)}};
+          {"controller", to_json(station.controller)},
+          {"recording", recording.to_json()}};
 }
 
 std::optional<AppConfig> load_app_config(const std::string& path, const std::string& repo_dir, std::string* error) {
@@ -104,7 +129,8 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
     *error = "config file " + path + " is not valid JSON";
     return std::nullopt;
   }
-  if (!check_keys(j, "config", {"about", "dashboard", "stream", "slam", "firmware", "camera", "floor", "map", "controller"}, error)) {
+  if (!check_keys(j, "config", {"about", "dashboard", "stream", "slam", "firmware", "camera", "floor", "map", "controller",
+                           "recording"}, error)) {
     return std::nullopt;
   }
   const json empty = json::object();
@@ -163,6 +189,7 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
   if (c.dashboard_static_dir.empty()) c.dashboard_static_dir = defaults.dashboard_static_dir;
   if (c.replay.folder.empty()) c.replay.folder = defaults.replay.folder;
   if (c.control_spec_path.empty()) c.control_spec_path = defaults.control_spec_path;
+  if (!read_recording(j.value("recording", empty), c.recording, error)) return std::nullopt;
   if (!parse_replay_loop(loop, &c.replay.loop)) {
     *error = "stream.loop must be once, wrap or bounce";
     return std::nullopt;

@@ -13,6 +13,7 @@
 #include "app/firmware_link.hpp"
 #include "app/frame_source.hpp"
 #include "app/ground_station.hpp"
+#include "record/flight_recorder.hpp"
 #include "rgbdquad/receiver/stream_receiver.h"
 
 namespace rgbdquad::quadcontrol {
@@ -29,6 +30,9 @@ struct AppConfig {
   std::string stream_source = "tum";  ///< "tum" (dataset replay) or "receiver" (rgbd-streamer, live)
   TumReplayOptions replay;
   receiver::ReceiverOptions receiver;  ///< bind address and RGB/depth ports (offboard/receiver defaults)
+  /// The craft's stream key file (stream.key_file; mode 0600, the streamer's stream_key_file):
+  /// read when the config is loaded into receiver.key; required for stream.source "receiver".
+  std::string stream_key_file;
   // SLAM link: station.slam_mode / station.slam_server
   // firmware
   bool firmware_enabled = true;
@@ -37,6 +41,8 @@ struct AppConfig {
   std::string control_spec_path;  ///< default: the repo's protocol/control/control_spec.json
   // control + map
   GroundStationOptions station;
+  // MCAP flight recorder (section "recording"; docs/recording.md). "~/" in dir = $HOME.
+  RecorderOptions recording;
 
   std::string validate() const;
   nlohmann::json to_json_redacted() const;

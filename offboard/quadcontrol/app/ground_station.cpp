@@ -42,13 +42,14 @@ std::string GroundStationOptions::validate() const {
 
 GroundStation::GroundStation(GroundStationOptions options, std::unique_ptr<FrameSource> source,
                              std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, ControlKey key,
-                             std::unique_ptr<FlightLog> log)
+                             std::unique_ptr<FlightLog> log, std::unique_ptr<FlightRecorder> recorder)
     : options_(options),
       spec_(spec),
       source_(std::move(source)),
       controller_(options.controller),
       map_(options.map),
-      log_(std::move(log)) {
+      log_(std::move(log)),
+      recorder_(std::move(recorder)) {
   last_pwm_ = to_pwm(StickCommand{}, spec_.pwm);
   if (firmware) {
     firmware_ = std::make_unique<FirmwareLink>(
@@ -105,6 +106,10 @@ void GroundStation::frame_loop() {
       stream_latency_ms_ = frame->link_latency_ms;
       latest_frame_ = *frame;
       if (log_) log_->frame(frame->sequence, frame->capture_us, frame->received_us, frame->link_latency_ms);
+      if (recorder_) {
+        recorder_->frame(frame->sequence, frame->capture_us, frame->received_us, frame->link_latency_ms, fps_,
+                         frame->rgb, frame->depth, frame->intrinsics);
+      }
       if (auto imu = imu_replies_.nearest(frame->received_us, options_.imu_match_window_us)) {
         imu_match_dt_ms_ = static_cast<double>(imu->first - frame->received_us) / kUsPerMs;
       } else {
@@ -124,6 +129,7 @@ void GroundStation::control_loop() {
     std::lock_guard<std::mutex> lock(mutex_);
     last_stick_ = controller_.update(now);
     last_pwm_ = to_pwm(last_stick_, spec_.pwm, apm_input());
+    if (recorder_) record_command(now, 0, false);  // no craft: state events only, nothing is sent
   }
 }
 
@@ -133,12 +139,28 @@ std::optional<PwmCommand> GroundStation::command_at(std::int64_t now_us, std::ui
     std::lock_guard<std::mutex> lock(mutex_);
     last_stick_ = controller_.update(now_us);
     last_pwm_ = to_pwm(last_stick_, spec_.pwm, apm_input());
+    if (recorder_) record_command(now_us, seq, !last_stick_.hand_over_to_failsafe);
     if (last_stick_.hand_over_to_failsafe) return std::nullopt;
     if (!log_) return last_pwm_;
     logged = LoggedCommand{seq, now_us, to_string(controller_.status().state), last_pwm_, pose_capture_us_, pose_us_};
   }
   log_->command(logged);
   return logged.pwm;
+}
+
+void GroundStation::record_command(std::int64_t now_us, std::uint32_t seq, bool sent) {
+  const ControllerStatus& st = controller_.status();
+  const std::string state = to_string(st.state);
+  recorder_->status(now_us, state, st.last_event);
+  if (sent) recorder_->command(CommandRecord{seq, now_us, state, last_stick_, last_pwm_, pose_capture_us_, pose_us_});
+}
+
+void GroundStation::record_pose(const SlamResult& result, const CameraFrame& frame, std::int64_t now_us, bool tracking,
+                                const Eigen::Isometry3d& T_floor_cam) {
+  const ControllerStatus& st = controller_.status();
+  recorder_->pose(PoseRecord{frame.sequence, frame.capture_us, frame.received_us, now_us, tracking, result.state,
+                             result.inliers, result.latency_ms, result.session, T_floor_cam,
+                             pose_.value_or(CraftPose{}), st.setpoint, to_string(st.state)});
 }
 
 std::vector<Eigen::Vector3d> GroundStation::depth_points(const CameraFrame& f, int step) const {
@@ -210,6 +232,7 @@ bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFram
   if (!T_floor_world_ || !result.tracking || result.session != slam_session_) {
     controller_.on_pose(PoseSample{now, false, pose_.value_or(CraftPose{})});
     if (log_) log_->pose(LoggedPose{frame.sequence, frame.capture_us, frame.received_us, now, false});
+    if (recorder_) record_pose(result, frame, now, false, Eigen::Isometry3d::Identity());
     return false;
   }
   const Eigen::Isometry3d T_floor_cam = *T_floor_world_ * result.T_world_cam;
@@ -221,6 +244,7 @@ bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFram
   if (log_) {
     log_->pose(LoggedPose{frame.sequence, frame.capture_us, frame.received_us, now, true, T_floor_cam, pose_->yaw_deg});
   }
+  if (recorder_) record_pose(result, frame, now, true, T_floor_cam);
   if (trajectory_.size() >= options_.trajectory_max_points) trajectory_.erase(trajectory_.begin());
   trajectory_.push_back({pose_->x_m, pose_->y_m});
 
@@ -241,11 +265,13 @@ bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFram
     world.push_back(cp);
   }
   map_.add_points(world);
+  if (recorder_ && recorder_->map_due(now)) recorder_->map(MapRecord{now, map_.cloud()});
   ++map_revision_;
   return true;
 }
 
 void GroundStation::on_reply(std::int64_t received_us, const ControlReply& reply) {
+  if (recorder_) recorder_->reply(received_us, reply);
   std::lock_guard<std::mutex> lock(mutex_);
   imu_replies_.push(received_us, reply);
 }
@@ -317,6 +343,7 @@ nlohmann::json GroundStation::state_json() {
     fwj["imu_match_dt_ms"] = imu_match_dt_ms_ ? nlohmann::json(*imu_match_dt_ms_) : nlohmann::json(nullptr);
   }
   j["firmware"] = fwj;
+  j["recording"] = recorder_ ? to_json(recorder_->stats()) : nlohmann::json{{"enabled", false}};
   j["floor"] = {{"found", floor_.has_value()},
                 {"fallback", floor_fallback_},
                 {"height_m", floor_ ? floor_->d_m : 0.0},

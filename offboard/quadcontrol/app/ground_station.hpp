@@ -30,6 +30,7 @@
 #include "core/timestamp_buffer.hpp"
 #include "map/floor_map.hpp"
 #include "map/floor_plane.hpp"
+#include "record/flight_recorder.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -56,7 +57,7 @@ class GroundStation {
   /// `log` may be null (no flight recorder).
   GroundStation(GroundStationOptions options, std::unique_ptr<FrameSource> source,
                 std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, ControlKey key,
-                std::unique_ptr<FlightLog> log = nullptr);
+                std::unique_ptr<FlightLog> log = nullptr, std::unique_ptr<FlightRecorder> recorder = nullptr);
   ~GroundStation();
   GroundStation(const GroundStation&) = delete;
   GroundStation& operator=(const GroundStation&) = delete;
@@ -83,6 +84,11 @@ class GroundStation {
   /// tracked pose (then the firmware link is told, outside the lock).
   bool apply_slam_result(const SlamResult& result, const CameraFrame& frame);
   void on_reply(std::int64_t received_us, const ControlReply& reply);
+  /// MCAP recorder hooks (caller holds mutex_; recorder_ set): the controller's status, and the
+  /// command when one is sent; a SLAM result as a PoseRecord.
+  void record_command(std::int64_t now_us, std::uint32_t seq, bool sent);
+  void record_pose(const SlamResult& result, const CameraFrame& frame, std::int64_t now_us, bool tracking,
+                   const Eigen::Isometry3d& T_floor_cam);
   std::vector<Eigen::Vector3d> depth_points(const CameraFrame& frame, int step) const;
   /// How the APM reads the sticks (dead zones from the controller config).
   ApmStickInput apm_input() const;
@@ -125,6 +131,7 @@ class GroundStation {
   std::unique_ptr<SlamLink> slam_;  ///< set once by the frame thread, then slam_ready_
   std::atomic<bool> slam_ready_{false};
   std::unique_ptr<FlightLog> log_;  ///< null: no flight recorder
+  std::unique_ptr<FlightRecorder> recorder_;  ///< null: not recording MCAP (never blocks: bounded queue)
   std::unique_ptr<FirmwareLink> firmware_;
   std::thread frame_thread_;
   std::thread control_thread_;

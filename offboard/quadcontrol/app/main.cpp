@@ -2,6 +2,7 @@
 // the control loop and the web dashboard; the logic lives in core/, map/ and link/.
 #include <csignal>
 #include <cstdio>
+#include <ctime>
 #include <iostream>
 #include <memory>
 
@@ -47,6 +48,11 @@ int main(int argc, char** argv) {
   cli.add_option("--flight-log", flight_log_dir,
                  "record frames.csv, poses.csv, trajectory.tum and commands.csv in this folder "
                  "(monotonic us stamps; created if missing)");
+  std::string record_dir;
+  bool no_record = false;
+  cli.add_option("--record", record_dir,
+                 "record the flight as MCAP in this folder (sets recording.enabled; docs/recording.md)");
+  cli.add_flag("--no-record", no_record, "do not record MCAP (overrides recording.enabled in the config)");
   CLI11_PARSE(cli, argc, argv);
 
   const std::string repo_dir = QC_REPO_DIR;
@@ -76,6 +82,11 @@ int main(int argc, char** argv) {
   if (!key_hex.empty()) config->firmware_key_hex = key_hex;
   if (no_firmware) config->firmware_enabled = false;
   if (!slam_mode.empty()) config->station.slam_mode = slam_mode;
+  if (!record_dir.empty()) {
+    config->recording.enabled = true;
+    config->recording.dir = record_dir;
+  }
+  if (no_record) config->recording.enabled = false;
   // Port 0 is accepted on the command line (tests): validate with a placeholder.
   const std::uint16_t wanted_port = config->dashboard_port;
   if (wanted_port == 0) config->dashboard_port = 1;
@@ -129,6 +140,25 @@ int main(int argc, char** argv) {
     std::cout << "quad-control: flight log in " << flight_log_dir << std::endl;
   }
 
+  std::unique_ptr<FlightRecorder> recorder;
+  if (config->recording.enabled) {
+    // A file-size limit (RLIMIT_FSIZE) must fail the write (EFBIG), as a full disk does, not kill the flight.
+    std::signal(SIGXFSZ, SIG_IGN);
+    char stem[64];
+    const std::time_t now = std::time(nullptr);
+    std::tm utc{};
+    gmtime_r(&now, &utc);
+    std::strftime(stem, sizeof stem, "flight-%Y%m%d-%H%M%S", &utc);
+    recorder = FlightRecorder::open(
+        config->recording, stem, [](const std::string& line) { std::cerr << "quad-control: " << line << std::endl; },
+        &error);
+    if (!recorder) {
+      std::cerr << "quad-control: " << error << "\n";
+      return 2;
+    }
+    std::cout << "quad-control: recording MCAP to " << recorder->stats().file << std::endl;
+  }
+
   // Block the stop signals before any thread starts so only sigwait below receives them.
   sigset_t signals;
   sigemptyset(&signals);
@@ -137,7 +167,8 @@ int main(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   try {
-    GroundStation station(config->station, std::move(source), firmware, *spec, key, std::move(flight_log));
+    GroundStation station(config->station, std::move(source), firmware, *spec, key, std::move(flight_log),
+                          std::move(recorder));
     DashboardApi api(station, config->dashboard_static_dir,
                      AccessPolicy{config->dashboard_token, config->dashboard_allowed_hosts});
     HttpServer server(config->dashboard_bind_address, config->dashboard_port,

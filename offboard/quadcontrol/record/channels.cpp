@@ -20,9 +20,13 @@ json object(const std::string& title, json properties) {
 }
 json timestamp() { return object("time", {{"sec", integer()}, {"nsec", integer()}}); }
 json vector3() { return object("Vector3", {{"x", num()}, {"y", num()}, {"z", num()}}); }
-json quaternion() { return object("Quaternion", {{"x", num()}, {"y", num()}, {"z", num()}, {"w", num()}}); }
+json quaternion() {
+  return object("Quaternion", {{"x", num()}, {"y", num()}, {"z", num()}, {"w", num()}});
+}
 json pose() { return object("Pose", {{"position", vector3()}, {"orientation", quaternion()}}); }
-json xyzyaw() { return object("CraftPose", {{"x_m", num()}, {"y_m", num()}, {"z_m", num()}, {"yaw_deg", num()}}); }
+json xyzyaw() {
+  return object("CraftPose", {{"x_m", num()}, {"y_m", num()}, {"z_m", num()}, {"yaw_deg", num()}});
+}
 
 ChannelSpec spec(const char* topic, const std::string& name, json schema) {
   schema["$schema"] = "https://json-schema.org/draft/2020-12/schema";
@@ -32,8 +36,10 @@ ChannelSpec spec(const char* topic, const std::string& name, json schema) {
 std::vector<ChannelSpec> make_specs() {
   std::vector<ChannelSpec> s;
   s.push_back(spec(kTopicRgb, "foxglove.CompressedImage",
-                   object("foxglove.CompressedImage",
-                          {{"timestamp", timestamp()}, {"frame_id", str()}, {"data", bytes()}, {"format", str()}})));
+                   object("foxglove.CompressedImage", {{"timestamp", timestamp()},
+                                                       {"frame_id", str()},
+                                                       {"data", bytes()},
+                                                       {"format", str()}})));
   s.push_back(spec(kTopicDepth, "foxglove.RawImage",
                    object("foxglove.RawImage", {{"timestamp", timestamp()},
                                                 {"frame_id", str()},
@@ -58,11 +64,12 @@ std::vector<ChannelSpec> make_specs() {
                                                       {"child_frame_id", str()},
                                                       {"translation", vector3()},
                                                       {"rotation", quaternion()}})));
-  const json pose_in_frame =
-      object("foxglove.PoseInFrame", {{"timestamp", timestamp()}, {"frame_id", str()}, {"pose", pose()}});
+  const json pose_in_frame = object(
+      "foxglove.PoseInFrame", {{"timestamp", timestamp()}, {"frame_id", str()}, {"pose", pose()}});
   s.push_back(spec(kTopicPose, "foxglove.PoseInFrame", pose_in_frame));
   s.push_back(spec(kTopicSetpoint, "foxglove.PoseInFrame", pose_in_frame));
-  const json field = object("foxglove.PackedElementField", {{"name", str()}, {"offset", integer()}, {"type", integer()}});
+  const json field = object("foxglove.PackedElementField",
+                            {{"name", str()}, {"offset", integer()}, {"type", integer()}});
   s.push_back(spec(kTopicMap, "foxglove.PointCloud",
                    object("foxglove.PointCloud", {{"timestamp", timestamp()},
                                                   {"frame_id", str()},
@@ -104,18 +111,24 @@ std::vector<ChannelSpec> make_specs() {
                                                     {"capture_to_received_ms", num()},
                                                     {"received_to_pose_ms", num()},
                                                     {"slam_ms", num()}})));
-  s.push_back(spec(kTopicCommand, "rgbdquad.Command",
-                   object("rgbdquad.Command",
-                          {{"seq", integer()},
-                           {"send_us", integer()},
-                           {"flight_state", str()},
-                           {"armed", boolean()},
-                           {"stick_pct", object("Sticks", {{"roll", num()}, {"pitch", num()}, {"yaw", num()}, {"throttle", num()}})},
-                           {"pwm_us", object("Pwm", {{"roll", integer()}, {"pitch", integer()}, {"throttle", integer()}, {"yaw", integer()}})},
-                           {"pose_capture_us", integer()},
-                           {"pose_us", integer()},
-                           {"capture_to_command_ms", num()},
-                           {"pose_to_command_ms", num()}})));
+  s.push_back(spec(
+      kTopicCommand, "rgbdquad.Command",
+      object("rgbdquad.Command",
+             {{"seq", integer()},
+              {"send_us", integer()},
+              {"flight_state", str()},
+              {"armed", boolean()},
+              {"stick_pct",
+               object("Sticks",
+                      {{"roll", num()}, {"pitch", num()}, {"yaw", num()}, {"throttle", num()}})},
+              {"pwm_us", object("Pwm", {{"roll", integer()},
+                                        {"pitch", integer()},
+                                        {"throttle", integer()},
+                                        {"yaw", integer()}})},
+              {"pose_capture_us", integer()},
+              {"pose_us", integer()},
+              {"capture_to_command_ms", num()},
+              {"pose_to_command_ms", num()}})));
   s.push_back(spec(kTopicReply, "rgbdquad.FirmwareReply",
                    object("rgbdquad.FirmwareReply", {{"received_us", integer()},
                                                      {"status", integer()},
@@ -128,8 +141,10 @@ std::vector<ChannelSpec> make_specs() {
                                                      {"att_age_ms", integer()},
                                                      {"imu_raw", num_array()},
                                                      {"imu_age_ms", integer()}})));
-  s.push_back(spec(kTopicEvent, "rgbdquad.Event",
-                   object("rgbdquad.Event", {{"t_us", integer()}, {"level", integer()}, {"source", str()}, {"text", str()}})));
+  s.push_back(spec(
+      kTopicEvent, "rgbdquad.Event",
+      object("rgbdquad.Event",
+             {{"t_us", integer()}, {"level", integer()}, {"source", str()}, {"text", str()}})));
   s.push_back(spec(kTopicRecorder, "rgbdquad.RecorderStats",
                    object("rgbdquad.RecorderStats", {{"messages", integer()},
                                                      {"bytes", integer()},

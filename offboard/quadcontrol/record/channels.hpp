@@ -17,21 +17,23 @@ struct ChannelSpec {
 };
 
 // Topics (docs/recording.md).
-inline constexpr const char* kTopicRgb = "/camera/rgb/compressed";   // foxglove.CompressedImage (jpeg)
-inline constexpr const char* kTopicDepth = "/camera/depth/raw";      // foxglove.RawImage (16UC1)
-inline constexpr const char* kTopicCalibration = "/camera/calibration";  // foxglove.CameraCalibration
-inline constexpr const char* kTopicTf = "/tf";                       // foxglove.FrameTransform floor->camera
-inline constexpr const char* kTopicPose = "/slam/pose";              // foxglove.PoseInFrame (floor)
-inline constexpr const char* kTopicSetpoint = "/control/setpoint";    // foxglove.PoseInFrame (floor)
-inline constexpr const char* kTopicMap = "/map/cloud";               // foxglove.PointCloud (floor)
-inline constexpr const char* kTopicLog = "/log";                     // foxglove.Log
-inline constexpr const char* kTopicFrame = "/stream/frame";          // rgbdquad.StreamFrame
-inline constexpr const char* kTopicTracking = "/slam/tracking";      // rgbdquad.Tracking
-inline constexpr const char* kTopicLatency = "/latency";             // rgbdquad.StageLatency
-inline constexpr const char* kTopicCommand = "/control/command";     // rgbdquad.Command
-inline constexpr const char* kTopicReply = "/firmware/reply";        // rgbdquad.FirmwareReply
-inline constexpr const char* kTopicEvent = "/events";                // rgbdquad.Event
-inline constexpr const char* kTopicRecorder = "/recorder/stats";     // rgbdquad.RecorderStats
+inline constexpr const char* kTopicRgb =
+    "/camera/rgb/compressed";                                    // foxglove.CompressedImage (jpeg)
+inline constexpr const char* kTopicDepth = "/camera/depth/raw";  // foxglove.RawImage (16UC1)
+inline constexpr const char* kTopicCalibration =
+    "/camera/calibration";                               // foxglove.CameraCalibration
+inline constexpr const char* kTopicTf = "/tf";           // foxglove.FrameTransform floor->camera
+inline constexpr const char* kTopicPose = "/slam/pose";  // foxglove.PoseInFrame (floor)
+inline constexpr const char* kTopicSetpoint = "/control/setpoint";  // foxglove.PoseInFrame (floor)
+inline constexpr const char* kTopicMap = "/map/cloud";              // foxglove.PointCloud (floor)
+inline constexpr const char* kTopicLog = "/log";                    // foxglove.Log
+inline constexpr const char* kTopicFrame = "/stream/frame";         // rgbdquad.StreamFrame
+inline constexpr const char* kTopicTracking = "/slam/tracking";     // rgbdquad.Tracking
+inline constexpr const char* kTopicLatency = "/latency";            // rgbdquad.StageLatency
+inline constexpr const char* kTopicCommand = "/control/command";    // rgbdquad.Command
+inline constexpr const char* kTopicReply = "/firmware/reply";       // rgbdquad.FirmwareReply
+inline constexpr const char* kTopicEvent = "/events";               // rgbdquad.Event
+inline constexpr const char* kTopicRecorder = "/recorder/stats";    // rgbdquad.RecorderStats
 
 /// Every channel, in the order they are registered (channel id = index + 1).
 const std::vector<ChannelSpec>& channel_specs();

@@ -36,7 +36,9 @@ json pose_json(const Eigen::Isometry3d& T) {
   return {{"position", {{"x", t.x()}, {"y", t.y()}, {"z", t.z()}}},
           {"orientation", {{"x", q.x()}, {"y", q.y()}, {"z", q.z()}, {"w", q.w()}}}};
 }
-json craft_json(const CraftPose& p) { return {{"x_m", p.x_m}, {"y_m", p.y_m}, {"z_m", p.z_m}, {"yaw_deg", p.yaw_deg}}; }
+json craft_json(const CraftPose& p) {
+  return {{"x_m", p.x_m}, {"y_m", p.y_m}, {"z_m", p.z_m}, {"yaw_deg", p.yaw_deg}};
+}
 /// A camera-frame pose from the craft's x/y/z/yaw (setpoint): camera axes as SLAM reports them for
 /// a level camera heading yaw (optical axis +z along the heading, x right, y down).
 Eigen::Isometry3d setpoint_T_floor_cam(const CraftPose& p) {
@@ -60,7 +62,8 @@ double thread_cpu_ms() {
 }  // namespace
 
 std::string base64_encode(const std::uint8_t* data, std::size_t size) {
-  static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  static constexpr char kAlphabet[] =
+      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::string out;
   out.reserve((size + 2) / 3 * 4);
   std::size_t i = 0;
@@ -91,9 +94,12 @@ std::string RecorderOptions::validate() const {
   if (image_every_n_frames < 0) return "recording.image_every_n_frames must be >= 0 (0: no images)";
   if (jpeg_quality < 1 || jpeg_quality > 100) return "recording.jpeg_quality must be in [1, 100]";
   if (map_period_ms < 0) return "recording.map_period_ms must be >= 0 (0: no map)";
-  if (flush_period_ms < 50 || flush_period_ms > 10000) return "recording.flush_period_ms must be in [50, 10000]";
-  if (!(max_file_mb >= 1.0) || !(max_total_mb >= max_file_mb)) return "recording: need 1 <= max_file_mb <= max_total_mb";
-  if (queue_max_events < 16 || queue_max_frames < 1) return "recording: queue too small (events >= 16, frames >= 1)";
+  if (flush_period_ms < 50 || flush_period_ms > 10000)
+    return "recording.flush_period_ms must be in [50, 10000]";
+  if (!(max_file_mb >= 1.0) || !(max_total_mb >= max_file_mb))
+    return "recording: need 1 <= max_file_mb <= max_total_mb";
+  if (queue_max_events < 16 || queue_max_frames < 1)
+    return "recording: queue too small (events >= 16, frames >= 1)";
   return {};
 }
 
@@ -112,6 +118,25 @@ json RecorderOptions::to_json() const {
           {"zstd", zstd}};
 }
 
+json to_json(const RecorderStats& s) {
+  auto opt = [](const std::optional<double>& v) { return v ? json(*v) : json(nullptr); };
+  return {{"enabled", s.enabled},
+          {"failed", s.failed},
+          {"error", s.error},
+          {"file", s.file},
+          {"messages", s.messages},
+          {"bytes", s.bytes},
+          {"files", s.files},
+          {"deleted_files", s.deleted_files},
+          {"dropped_queue_full", s.dropped_queue_full},
+          {"dropped_after_failure", s.dropped_after_failure},
+          {"frames_recorded", s.frames_recorded},
+          {"encode_ms_per_frame", s.encode_ms_per_frame},
+          {"writer_cpu_ms", s.writer_cpu_ms},
+          {"capture_to_command_ms", opt(s.capture_to_command_ms)},
+          {"pose_to_command_ms", opt(s.pose_to_command_ms)}};
+}
+
 // ---- the writer thread's side: channels, files, rotation, budget --------------------------------
 class FlightRecorder::Writer {
  public:
@@ -119,7 +144,8 @@ class FlightRecorder::Writer {
       : options_(std::move(options)), stem_(std::move(stem)), logger_(std::move(logger)) {}
 
   bool open_next(std::string* error) {
-    const fs::path path = fs::path(options_.dir) / (stem_ + "-" + index_string(file_index_++) + ".mcap");
+    const fs::path path =
+        fs::path(options_.dir) / (stem_ + "-" + index_string(file_index_++) + ".mcap");
     recorder::McapWriterOptions o;
     o.zstd = options_.zstd;
     mcap_ = recorder::McapWriter::open(path.string(), o, error);
@@ -127,7 +153,8 @@ class FlightRecorder::Writer {
     channel_ids_.clear();
     for (const auto& c : record::channel_specs()) {
       const std::uint16_t schema = mcap_->add_schema(c.schema_name, "jsonschema", c.schema_json);
-      channel_ids_.push_back(schema ? mcap_->add_channel(schema, c.topic, "json", {{"clock", "CLOCK_MONOTONIC"}}) : 0);
+      channel_ids_.push_back(
+          schema ? mcap_->add_channel(schema, c.topic, "json", {{"clock", "CLOCK_MONOTONIC"}}) : 0);
     }
     if (mcap_->failed()) {
       *error = mcap_->error();
@@ -144,10 +171,13 @@ class FlightRecorder::Writer {
   bool write_raw(const char* topic, std::int64_t t_us, const std::string& data) {
     if (!mcap_ || mcap_->failed()) return false;
     const std::size_t index = topic_index(topic);
-    const std::uint64_t t_ns = static_cast<std::uint64_t>(std::max<std::int64_t>(0, t_us)) * kNsPerUs;
-    if (!mcap_->write_message(channel_ids_[index], sequence_[index]++, t_ns, t_ns, data)) return false;
+    const std::uint64_t t_ns =
+        static_cast<std::uint64_t>(std::max<std::int64_t>(0, t_us)) * kNsPerUs;
+    if (!mcap_->write_message(channel_ids_[index], sequence_[index]++, t_ns, t_ns, data))
+      return false;
     ++messages_;
-    if (static_cast<double>(mcap_->size_bytes()) >= options_.max_file_mb * kBytesPerMb) return rotate();
+    if (static_cast<double>(mcap_->size_bytes()) >= options_.max_file_mb * kBytesPerMb)
+      return rotate();
     return true;
   }
 
@@ -198,11 +228,12 @@ class FlightRecorder::Writer {
       for (const auto& f : files_) sum += fs::exists(f, ec) ? fs::file_size(f, ec) : 0;
       return sum;
     };
-    while (files_.size() > 1 && static_cast<double>(total()) > options_.max_total_mb * kBytesPerMb) {
+    while (files_.size() > 1 &&
+           static_cast<double>(total()) > options_.max_total_mb * kBytesPerMb) {
       std::error_code ec;
       fs::remove(files_.front(), ec);
-      logger_("recording: budget " + std::to_string(options_.max_total_mb) + " MB reached, deleted " +
-              files_.front().string());
+      logger_("recording: budget " + std::to_string(options_.max_total_mb) +
+              " MB reached, deleted " + files_.front().string());
       files_.erase(files_.begin());
       ++deleted_;
     }
@@ -213,15 +244,18 @@ class FlightRecorder::Writer {
   Logger logger_;
   std::unique_ptr<recorder::McapWriter> mcap_;
   std::vector<std::uint16_t> channel_ids_;
-  std::vector<std::uint32_t> sequence_ = std::vector<std::uint32_t>(record::channel_specs().size(), 0);
+  std::vector<std::uint32_t> sequence_ =
+      std::vector<std::uint32_t>(record::channel_specs().size(), 0);
   std::vector<fs::path> files_;
   int file_index_ = 0;
   std::uint64_t closed_bytes_ = 0, messages_ = 0, deleted_ = 0;
 };
 
-// ---- producer side -------------------------------------------------------------------------------
-std::unique_ptr<FlightRecorder> FlightRecorder::open(const RecorderOptions& options, const std::string& stem,
-                                                     Logger logger, std::string* error) {
+// ---- producer side
+// -------------------------------------------------------------------------------
+std::unique_ptr<FlightRecorder> FlightRecorder::open(const RecorderOptions& options,
+                                                     const std::string& stem, Logger logger,
+                                                     std::string* error) {
   if (auto e = options.validate(); !e.empty()) {
     *error = e;
     return nullptr;
@@ -237,10 +271,12 @@ std::unique_ptr<FlightRecorder> FlightRecorder::open(const RecorderOptions& opti
     *error = "recording: " + *error;
     return nullptr;
   }
-  return std::unique_ptr<FlightRecorder>(new FlightRecorder(options, std::move(writer), std::move(logger)));
+  return std::unique_ptr<FlightRecorder>(
+      new FlightRecorder(options, std::move(writer), std::move(logger)));
 }
 
-FlightRecorder::FlightRecorder(RecorderOptions options, std::unique_ptr<Writer> writer, Logger logger)
+FlightRecorder::FlightRecorder(RecorderOptions options, std::unique_ptr<Writer> writer,
+                               Logger logger)
     : options_(std::move(options)), logger_(std::move(logger)), writer_(std::move(writer)) {
   stats_.enabled = true;
   stats_.file = writer_->file();
@@ -264,7 +300,8 @@ void FlightRecorder::push(Event e, bool is_frame) {
       ++stats_.dropped_after_failure;
       return;
     }
-    if (queue_.size() >= options_.queue_max_events || (is_frame && frames_queued_ >= options_.queue_max_frames)) {
+    if (queue_.size() >= options_.queue_max_events ||
+        (is_frame && frames_queued_ >= options_.queue_max_frames)) {
       ++stats_.dropped_queue_full;
       return;
     }
@@ -275,13 +312,14 @@ void FlightRecorder::push(Event e, bool is_frame) {
 }
 
 void FlightRecorder::frame(std::int64_t sequence, std::int64_t capture_us, std::int64_t received_us,
-                           double link_latency_ms, double fps, const cv::Mat& rgb, const cv::Mat& depth,
-                           const slam::Intrinsics& intrinsics) {
+                           double link_latency_ms, double fps, const cv::Mat& rgb,
+                           const cv::Mat& depth, const slam::Intrinsics& intrinsics) {
   FrameRecord r{sequence, capture_us, received_us, link_latency_ms, fps, {}, {}, intrinsics};
   bool with_images = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    with_images = options_.image_every_n_frames > 0 && frames_seen_ % options_.image_every_n_frames == 0;
+    with_images =
+        options_.image_every_n_frames > 0 && frames_seen_ % options_.image_every_n_frames == 0;
     ++frames_seen_;
   }
   if (with_images) {
@@ -299,7 +337,8 @@ void FlightRecorder::command(CommandRecord record) {
     // Latency of the first command carrying a new pose (later ones re-send the same pose).
     if (record.pose_capture_us >= 0 && record.pose_capture_us != last_commanded_capture_us_) {
       last_commanded_capture_us_ = record.pose_capture_us;
-      stats_.capture_to_command_ms = static_cast<double>(record.send_us - record.pose_capture_us) * kMsPerUs;
+      stats_.capture_to_command_ms =
+          static_cast<double>(record.send_us - record.pose_capture_us) * kMsPerUs;
       stats_.pose_to_command_ms = static_cast<double>(record.send_us - record.pose_us) * kMsPerUs;
     }
   }
@@ -310,14 +349,16 @@ void FlightRecorder::reply(std::int64_t received_us, const ControlReply& reply) 
   push(ReplyRecord{received_us, reply}, false);
 }
 
-void FlightRecorder::status(std::int64_t now_us, const std::string& state, const std::string& last_event) {
+void FlightRecorder::status(std::int64_t now_us, const std::string& state,
+                            const std::string& last_event) {
   EventRecord e;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (state == last_state_ && last_event == last_event_) return;
     const bool to_failsafe = state != last_state_ && (state == "lost-hold" || state == "land");
-    e = EventRecord{now_us, to_failsafe ? 3 : 2, state != last_state_ ? "state" : "controller",
-                    (state != last_state_ ? last_state_ + " -> " + state + ": " : std::string()) + last_event};
+    e = EventRecord{
+        now_us, to_failsafe ? 3 : 2, state != last_state_ ? "state" : "controller",
+        (state != last_state_ ? last_state_ + " -> " + state + ": " : std::string()) + last_event};
     last_state_ = state;
     last_event_ = last_event;
   }
@@ -329,7 +370,9 @@ void FlightRecorder::event(EventRecord record) { push(std::move(record), false);
 bool FlightRecorder::map_due(std::int64_t now_us) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (options_.map_period_ms <= 0) return false;
-  if (last_map_us_ >= 0 && now_us - last_map_us_ < static_cast<std::int64_t>(options_.map_period_ms) * 1000) return false;
+  if (last_map_us_ >= 0 &&
+      now_us - last_map_us_ < static_cast<std::int64_t>(options_.map_period_ms) * 1000)
+    return false;
   last_map_us_ = now_us;
   return true;
 }
@@ -341,7 +384,8 @@ RecorderStats FlightRecorder::stats() const {
   return stats_;
 }
 
-// ---- writer thread -------------------------------------------------------------------------------
+// ---- writer thread
+// -------------------------------------------------------------------------------
 namespace {
 struct Encoder {
   const RecorderOptions& options;
@@ -351,8 +395,12 @@ struct Encoder {
   bool frame(W& w, const FrameRecord& f, double* cpu_ms) {
     const bool images = !f.rgb.empty();
     if (!w.write(record::kTopicFrame, f.received_us,
-                 {{"sequence", f.sequence}, {"capture_us", f.capture_us}, {"received_us", f.received_us},
-                  {"link_latency_ms", f.link_latency_ms}, {"fps", f.fps}, {"images_recorded", images}})) {
+                 {{"sequence", f.sequence},
+                  {"capture_us", f.capture_us},
+                  {"received_us", f.received_us},
+                  {"link_latency_ms", f.link_latency_ms},
+                  {"fps", f.fps},
+                  {"images_recorded", images}})) {
       return false;
     }
     if (!images) return true;
@@ -360,28 +408,37 @@ struct Encoder {
     std::vector<std::uint8_t> jpeg;
     cv::imencode(".jpg", f.rgb, jpeg, {cv::IMWRITE_JPEG_QUALITY, options.jpeg_quality});
     const json header = stamp(f.capture_us);
-    json rgb = {{"timestamp", header}, {"frame_id", "camera"}, {"format", "jpeg"},
+    json rgb = {{"timestamp", header},
+                {"frame_id", "camera"},
+                {"format", "jpeg"},
                 {"data", base64_encode(jpeg.data(), jpeg.size())}};
     bool ok = w.write(record::kTopicRgb, f.received_us, rgb);
     if (ok && f.depth.type() == CV_16UC1 && f.depth.isContinuous()) {
-      // 16UC1 little-endian, as the sensor's units (channel metadata / calibration carry the scale).
+      // 16UC1 little-endian, as the sensor's units (channel metadata / calibration carry the
+      // scale).
       const auto* px = f.depth.ptr<std::uint8_t>(0);
       const std::size_t n = f.depth.total() * f.depth.elemSize();
-      json depth = {{"timestamp", header}, {"frame_id", "camera"}, {"width", f.depth.cols},
-                    {"height", f.depth.rows}, {"encoding", "16UC1"}, {"step", f.depth.cols * 2},
+      json depth = {{"timestamp", header},         {"frame_id", "camera"},
+                    {"width", f.depth.cols},       {"height", f.depth.rows},
+                    {"encoding", "16UC1"},         {"step", f.depth.cols * 2},
                     {"data", base64_encode(px, n)}};
       ok = w.write(record::kTopicDepth, f.received_us, depth);
     }
     if (ok) {
       const auto& k = f.intrinsics;
-      json cal = {{"timestamp", header}, {"frame_id", "camera"}, {"width", f.rgb.cols}, {"height", f.rgb.rows},
-                  {"distortion_model", "plumb_bob"},
-                  {"D", {k.distortion[0], k.distortion[1], k.distortion[2], k.distortion[3], k.distortion[4]}},
-                  {"K", {k.fx_px, 0, k.cx_px, 0, k.fy_px, k.cy_px, 0, 0, 1}},
-                  {"R", {1, 0, 0, 0, 1, 0, 0, 0, 1}},
-                  {"P", {k.fx_px, 0, k.cx_px, 0, 0, k.fy_px, k.cy_px, 0, 0, 0, 1, 0}},
-                  // Not in Foxglove's schema (ignored there): the depth image's scale.
-                  {"depth_units_per_m", k.depth_units_per_m}};
+      json cal = {
+          {"timestamp", header},
+          {"frame_id", "camera"},
+          {"width", f.rgb.cols},
+          {"height", f.rgb.rows},
+          {"distortion_model", "plumb_bob"},
+          {"D",
+           {k.distortion[0], k.distortion[1], k.distortion[2], k.distortion[3], k.distortion[4]}},
+          {"K", {k.fx_px, 0, k.cx_px, 0, k.fy_px, k.cy_px, 0, 0, 1}},
+          {"R", {1, 0, 0, 0, 1, 0, 0, 0, 1}},
+          {"P", {k.fx_px, 0, k.cx_px, 0, 0, k.fy_px, k.cy_px, 0, 0, 0, 1, 0}},
+          // Not in Foxglove's schema (ignored there): the depth image's scale.
+          {"depth_units_per_m", k.depth_units_per_m}};
       ok = w.write(record::kTopicCalibration, f.received_us, cal);
     }
     *cpu_ms = thread_cpu_ms() - t0;
@@ -390,42 +447,68 @@ struct Encoder {
 
   template <class W>
   bool pose(W& w, const PoseRecord& p) {
-    const double dx = p.pose.x_m - p.setpoint.x_m, dy = p.pose.y_m - p.setpoint.y_m, dz = p.pose.z_m - p.setpoint.z_m;
-    json tracking = {{"sequence", p.sequence}, {"capture_us", p.capture_us}, {"pose_us", p.pose_us},
-                     {"tracking", p.tracking}, {"slam_state", p.slam_state}, {"inliers", p.inliers},
-                     {"session", p.session}, {"flight_state", p.flight_state}, {"setpoint", craft_json(p.setpoint)}};
+    const double dx = p.pose.x_m - p.setpoint.x_m, dy = p.pose.y_m - p.setpoint.y_m,
+                 dz = p.pose.z_m - p.setpoint.z_m;
+    json tracking = {{"sequence", p.sequence},
+                     {"capture_us", p.capture_us},
+                     {"pose_us", p.pose_us},
+                     {"tracking", p.tracking},
+                     {"slam_state", p.slam_state},
+                     {"inliers", p.inliers},
+                     {"session", p.session},
+                     {"flight_state", p.flight_state},
+                     {"setpoint", craft_json(p.setpoint)}};
     if (p.tracking) {
       tracking["pose"] = craft_json(p.pose);
       tracking["position_error_m"] = std::sqrt(dx * dx + dy * dy + dz * dz);
       tracking["height_error_m"] = dz;
     }
-    bool ok = w.write(record::kTopicTracking, p.pose_us, tracking) &&
-              w.write(record::kTopicLatency, p.pose_us,
-                      {{"sequence", p.sequence}, {"capture_us", p.capture_us},
-                       {"capture_to_received_ms", static_cast<double>(p.received_us - p.capture_us) * kMsPerUs},
-                       {"received_to_pose_ms", static_cast<double>(p.pose_us - p.received_us) * kMsPerUs},
-                       {"slam_ms", p.slam_latency_ms}}) &&
-              w.write(record::kTopicSetpoint, p.pose_us,
-                      {{"timestamp", stamp(p.pose_us)}, {"frame_id", "floor"},
-                       {"pose", pose_json(setpoint_T_floor_cam(p.setpoint))}});
+    bool ok =
+        w.write(record::kTopicTracking, p.pose_us, tracking) &&
+        w.write(record::kTopicLatency, p.pose_us,
+                {{"sequence", p.sequence},
+                 {"capture_us", p.capture_us},
+                 {"capture_to_received_ms",
+                  static_cast<double>(p.received_us - p.capture_us) * kMsPerUs},
+                 {"received_to_pose_ms", static_cast<double>(p.pose_us - p.received_us) * kMsPerUs},
+                 {"slam_ms", p.slam_latency_ms}}) &&
+        w.write(record::kTopicSetpoint, p.pose_us,
+                {{"timestamp", stamp(p.pose_us)},
+                 {"frame_id", "floor"},
+                 {"pose", pose_json(setpoint_T_floor_cam(p.setpoint))}});
     if (!ok || !p.tracking) return ok;
     const json pose = pose_json(p.T_floor_cam);
     return w.write(record::kTopicPose, p.pose_us,
                    {{"timestamp", stamp(p.capture_us)}, {"frame_id", "floor"}, {"pose", pose}}) &&
            w.write(record::kTopicTf, p.pose_us,
-                   {{"timestamp", stamp(p.capture_us)}, {"parent_frame_id", "floor"}, {"child_frame_id", "camera"},
-                    {"translation", {{"x", pose["position"]["x"]}, {"y", pose["position"]["y"]}, {"z", pose["position"]["z"]}}},
+                   {{"timestamp", stamp(p.capture_us)},
+                    {"parent_frame_id", "floor"},
+                    {"child_frame_id", "camera"},
+                    {"translation",
+                     {{"x", pose["position"]["x"]},
+                      {"y", pose["position"]["y"]},
+                      {"z", pose["position"]["z"]}}},
                     {"rotation", pose["orientation"]}});
   }
 
   template <class W>
   bool command(W& w, const CommandRecord& c) {
-    json j = {{"seq", c.seq}, {"send_us", c.send_us}, {"flight_state", c.flight_state}, {"armed", c.pwm.armed},
-              {"stick_pct", {{"roll", c.stick.roll_pct}, {"pitch", c.stick.pitch_pct}, {"yaw", c.stick.yaw_pct},
-                             {"throttle", c.stick.throttle_pct}}},
-              {"pwm_us", {{"roll", c.pwm.roll_us}, {"pitch", c.pwm.pitch_us}, {"throttle", c.pwm.throttle_us},
-                          {"yaw", c.pwm.yaw_us}}},
-              {"pose_capture_us", c.pose_capture_us}, {"pose_us", c.pose_us}};
+    json j = {{"seq", c.seq},
+              {"send_us", c.send_us},
+              {"flight_state", c.flight_state},
+              {"armed", c.pwm.armed},
+              {"stick_pct",
+               {{"roll", c.stick.roll_pct},
+                {"pitch", c.stick.pitch_pct},
+                {"yaw", c.stick.yaw_pct},
+                {"throttle", c.stick.throttle_pct}}},
+              {"pwm_us",
+               {{"roll", c.pwm.roll_us},
+                {"pitch", c.pwm.pitch_us},
+                {"throttle", c.pwm.throttle_us},
+                {"yaw", c.pwm.yaw_us}}},
+              {"pose_capture_us", c.pose_capture_us},
+              {"pose_us", c.pose_us}};
     if (c.pose_capture_us >= 0) {
       j["capture_to_command_ms"] = static_cast<double>(c.send_us - c.pose_capture_us) * kMsPerUs;
       j["pose_to_command_ms"] = static_cast<double>(c.send_us - c.pose_us) * kMsPerUs;
@@ -436,30 +519,43 @@ struct Encoder {
   template <class W>
   bool reply(W& w, const ReplyRecord& r) {
     const auto& p = r.reply;
-    json j = {{"received_us", r.received_us}, {"status", p.status}, {"seq", p.seq}, {"state", p.state},
-              {"err", p.err}, {"out_us", p.out_us}, {"clamped", p.clamped}, {"att_mrad", p.att_mrad},
+    json j = {{"received_us", r.received_us},
+              {"status", p.status},
+              {"seq", p.seq},
+              {"state", p.state},
+              {"err", p.err},
+              {"out_us", p.out_us},
+              {"clamped", p.clamped},
+              {"att_mrad", p.att_mrad},
               {"imu_raw", p.imu_raw}};
     if (p.att_age_ms) j["att_age_ms"] = *p.att_age_ms;
     if (p.imu_age_ms) j["imu_age_ms"] = *p.imu_age_ms;
     bool ok = w.write(record::kTopicReply, r.received_us, j);
     if (ok && p.state == "failsafe") {
-      ok = event(w, EventRecord{r.received_us, 3, "failsafe", "firmware reports failsafe (seq " + std::to_string(p.seq) + ")"});
+      ok = event(w, EventRecord{r.received_us, 3, "failsafe",
+                                "firmware reports failsafe (seq " + std::to_string(p.seq) + ")"});
     }
     return ok;
   }
 
   template <class W>
   bool event(W& w, const EventRecord& e) {
-    return w.write(record::kTopicEvent, e.t_us,
-                   {{"t_us", e.t_us}, {"level", e.level}, {"source", e.source}, {"text", e.text}}) &&
+    return w.write(
+               record::kTopicEvent, e.t_us,
+               {{"t_us", e.t_us}, {"level", e.level}, {"source", e.source}, {"text", e.text}}) &&
            w.write(record::kTopicLog, e.t_us,
-                   {{"timestamp", stamp(e.t_us)}, {"level", e.level}, {"message", e.text}, {"name", e.source},
-                    {"file", ""}, {"line", 0}});
+                   {{"timestamp", stamp(e.t_us)},
+                    {"level", e.level},
+                    {"message", e.text},
+                    {"name", e.source},
+                    {"file", ""},
+                    {"line", 0}});
   }
 
   template <class W>
   bool map(W& w, const MapRecord& m) {
-    const std::size_t stride = std::max<std::size_t>(1, (m.points.size() + options.map_max_points - 1) / options.map_max_points);
+    const std::size_t stride = std::max<std::size_t>(
+        1, (m.points.size() + options.map_max_points - 1) / options.map_max_points);
     std::string data;
     data.reserve((m.points.size() / stride + 1) * kCloudStrideBytes);
     for (std::size_t i = 0; i < m.points.size(); i += stride) {
@@ -478,19 +574,26 @@ struct Encoder {
     }
     json fields = json::array();
     const char* names[] = {"x", "y", "z"};
-    for (int a = 0; a < 3; ++a) fields.push_back({{"name", names[a]}, {"offset", 4 * a}, {"type", kFoxgloveFloat32}});
+    for (int a = 0; a < 3; ++a)
+      fields.push_back({{"name", names[a]}, {"offset", 4 * a}, {"type", kFoxgloveFloat32}});
     const char* colours[] = {"red", "green", "blue", "alpha"};
-    for (int c = 0; c < 4; ++c) fields.push_back({{"name", colours[c]}, {"offset", 12 + c}, {"type", kFoxgloveUint8}});
+    for (int c = 0; c < 4; ++c)
+      fields.push_back({{"name", colours[c]}, {"offset", 12 + c}, {"type", kFoxgloveUint8}});
     return w.write(record::kTopicMap, m.t_us,
-                   {{"timestamp", stamp(m.t_us)}, {"frame_id", "floor"}, {"pose", pose_json(Eigen::Isometry3d::Identity())},
-                    {"point_stride", kCloudStrideBytes}, {"fields", fields}, {"data", base64_encode(data)}});
+                   {{"timestamp", stamp(m.t_us)},
+                    {"frame_id", "floor"},
+                    {"pose", pose_json(Eigen::Isometry3d::Identity())},
+                    {"point_stride", kCloudStrideBytes},
+                    {"fields", fields},
+                    {"data", base64_encode(data)}});
   }
 };
 }  // namespace
 
 void FlightRecorder::run() {
   Encoder enc{options_, logger_};
-  auto next_flush = std::chrono::steady_clock::now() + std::chrono::milliseconds(options_.flush_period_ms);
+  auto next_flush =
+      std::chrono::steady_clock::now() + std::chrono::milliseconds(options_.flush_period_ms);
   double cpu_ms_total = 0.0;
   std::uint64_t frames_recorded = 0;
   std::int64_t last_t_us = 0;
@@ -512,20 +615,23 @@ void FlightRecorder::run() {
       if (const auto* f = std::get_if<FrameRecord>(&e)) {
         double cpu = 0.0;
         ok = enc.frame(*writer_, *f, &cpu);
-        last_t_us = f->received_us;
+        last_t_us = std::max(last_t_us, f->received_us);
         if (!f->rgb.empty()) {
           cpu_ms_total += cpu;
           ++frames_recorded;
         }
       } else if (const auto* p = std::get_if<PoseRecord>(&e)) {
         ok = enc.pose(*writer_, *p);
+        last_t_us = std::max(last_t_us, p->pose_us);
       } else if (const auto* c = std::get_if<CommandRecord>(&e)) {
         ok = enc.command(*writer_, *c);
-        last_t_us = c->send_us;
+        last_t_us = std::max(last_t_us, c->send_us);
       } else if (const auto* r = std::get_if<ReplyRecord>(&e)) {
         ok = enc.reply(*writer_, *r);
+        last_t_us = std::max(last_t_us, r->received_us);
       } else if (const auto* ev = std::get_if<EventRecord>(&e)) {
         ok = enc.event(*writer_, *ev);
+        last_t_us = std::max(last_t_us, ev->t_us);
       } else if (const auto* m = std::get_if<MapRecord>(&e)) {
         ok = enc.map(*writer_, *m);
       }
@@ -534,13 +640,20 @@ void FlightRecorder::run() {
     const auto now = std::chrono::steady_clock::now();
     if (!failed && (now >= next_flush || stopping)) {
       next_flush = now + std::chrono::milliseconds(options_.flush_period_ms);
+      // Stamped with the newest event's time (the recorder has no clock of its own); none yet: no
+      // stats.
       RecorderStats s = stats();
-      failed = !writer_->write(record::kTopicRecorder, last_t_us,
-                               {{"messages", writer_->messages()}, {"bytes", writer_->bytes()},
-                                {"dropped_queue_full", s.dropped_queue_full}, {"frames_recorded", frames_recorded},
-                                {"encode_ms_per_frame", frames_recorded ? cpu_ms_total / frames_recorded : 0.0},
-                                {"queued", batch.size()}}) ||
-               !writer_->flush();
+      failed =
+          (last_t_us > 0 &&
+           !writer_->write(
+               record::kTopicRecorder, last_t_us,
+               {{"messages", writer_->messages()},
+                {"bytes", writer_->bytes()},
+                {"dropped_queue_full", s.dropped_queue_full},
+                {"frames_recorded", frames_recorded},
+                {"encode_ms_per_frame", frames_recorded ? cpu_ms_total / frames_recorded : 0.0},
+                {"queued", batch.size()}})) ||
+          !writer_->flush();
     }
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -561,14 +674,16 @@ void FlightRecorder::run() {
     }
     if (failed && stats().failed) {
       // One line, then the thread only waits for the end of the flight; the flight goes on.
-      logger_("recording stopped: " + writer_->error() + " (the flight goes on; the file is readable up to the last second before the error)");
+      logger_("recording stopped: " + writer_->error() +
+              " (the flight goes on; the file is readable up to the last second before the error)");
       writer_->close();
       std::unique_lock<std::mutex> lock(mutex_);
       wake_.wait(lock, [this] { return stop_; });
       return;
     }
     if (stopping) {
-      if (!writer_->close()) logger_("recording: closing " + writer_->file() + ": " + writer_->error());
+      if (!writer_->close())
+        logger_("recording: closing " + writer_->file() + ": " + writer_->error());
       return;
     }
   }

@@ -14,6 +14,7 @@
 // Thread safety: every public method may be called from any thread.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -21,15 +22,13 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <thread>
 #include <variant>
 #include <vector>
-
-#include <Eigen/Geometry>
-#include <nlohmann/json.hpp>
-#include <opencv2/core.hpp>
 
 #include "core/flight_controller.hpp"
 #include "core/stick_mapping.hpp"
@@ -40,18 +39,18 @@
 namespace rgbdquad::quadcontrol {
 
 struct RecorderOptions {
-  bool enabled = false;   ///< built-in default off (tests, tools); the shipped config turns it on
-  std::string dir;        ///< output folder, created if missing
+  bool enabled = false;  ///< built-in default off (tests, tools); the shipped config turns it on
+  std::string dir;       ///< output folder, created if missing
   /// RGB (JPEG) and depth (16UC1) of every n-th frame. 6: 5 Hz from the Kinect's 30 fps, enough to
   /// see what the camera saw and to replay SLAM on a slow indoor flight, at ~13 MB/min (measured,
   /// docs/recording.md) instead of ~80 at 30 Hz.
   int image_every_n_frames = 6;
-  int jpeg_quality = 90;          ///< 90: JPEG artefacts too small to move ORB corners much (replay)
-  int map_period_ms = 10000;      ///< the whole coloured cloud every 10 s (it grows to ~10^5 points)
+  int jpeg_quality = 90;      ///< 90: JPEG artefacts too small to move ORB corners much (replay)
+  int map_period_ms = 10000;  ///< the whole coloured cloud every 10 s (it grows to ~10^5 points)
   std::size_t map_max_points = 20000;  ///< decimated to this (20000 x 15 B ~ 0.3 MB per message)
-  int flush_period_ms = 1000;     ///< chunk closed at least this often: the loss on a SIGKILL
-  double max_file_mb = 512.0;     ///< rotate: ~40 min per file at the default rate
-  double max_total_mb = 4096.0;   ///< this run's budget; oldest files of the run deleted beyond it
+  int flush_period_ms = 1000;          ///< chunk closed at least this often: the loss on a SIGKILL
+  double max_file_mb = 512.0;          ///< rotate: ~40 min per file at the default rate
+  double max_total_mb = 4096.0;  ///< this run's budget; oldest files of the run deleted beyond it
   std::size_t queue_max_events = 1024;  ///< ~10 s of telemetry at ~100 events/s
   std::size_t queue_max_frames = 4;     ///< frames with images waiting (each ~1.2 MB of pixels)
   bool zstd = true;
@@ -92,8 +91,8 @@ struct ReplyRecord {
 };
 struct EventRecord {
   std::int64_t t_us = 0;
-  int level = 2;          ///< foxglove.Log levels: 1 debug, 2 info, 3 warning, 4 error, 5 fatal
-  std::string source;     ///< "state", "failsafe", "slam", "stream", "recorder"
+  int level = 2;       ///< foxglove.Log levels: 1 debug, 2 info, 3 warning, 4 error, 5 fatal
+  std::string source;  ///< "state", "failsafe", "slam", "stream", "recorder"
   std::string text;
 };
 struct MapRecord {
@@ -108,7 +107,7 @@ struct RecorderStats {
   std::uint64_t dropped_queue_full = 0, dropped_after_failure = 0;
   std::uint64_t frames_recorded = 0;
   double encode_ms_per_frame = 0.0;  ///< writer thread CPU per recorded frame (JPEG + depth + JSON)
-  double writer_cpu_ms = 0.0;        ///< writer thread CPU since start (everything it encoded and wrote)
+  double writer_cpu_ms = 0.0;  ///< writer thread CPU since start (everything it encoded and wrote)
   // Live figures for the dashboard's history plots (from the recorded stream).
   std::optional<double> capture_to_command_ms, pose_to_command_ms;
 };
@@ -118,14 +117,16 @@ class FlightRecorder {
   using Logger = std::function<void(const std::string&)>;
   /// Opens `<dir>/<stem>-000.mcap` and starts the writer thread; nullptr with `error` on failure.
   /// `logger` gets the recorder's own events (rotation, deletion, failure), one line each.
-  static std::unique_ptr<FlightRecorder> open(const RecorderOptions& options, const std::string& stem,
-                                              Logger logger, std::string* error);
+  static std::unique_ptr<FlightRecorder> open(const RecorderOptions& options,
+                                              const std::string& stem, Logger logger,
+                                              std::string* error);
   ~FlightRecorder();  ///< drains the queue, writes the summary, joins the thread
   FlightRecorder(const FlightRecorder&) = delete;
   FlightRecorder& operator=(const FlightRecorder&) = delete;
 
-  void frame(std::int64_t sequence, std::int64_t capture_us, std::int64_t received_us, double link_latency_ms,
-             double fps, const cv::Mat& rgb, const cv::Mat& depth, const slam::Intrinsics& intrinsics);
+  void frame(std::int64_t sequence, std::int64_t capture_us, std::int64_t received_us,
+             double link_latency_ms, double fps, const cv::Mat& rgb, const cv::Mat& depth,
+             const slam::Intrinsics& intrinsics);
   void pose(PoseRecord record);
   void command(CommandRecord record);
   void reply(std::int64_t received_us, const ControlReply& reply);
@@ -139,7 +140,8 @@ class FlightRecorder {
   RecorderStats stats() const;
 
  private:
-  using Event = std::variant<FrameRecord, PoseRecord, CommandRecord, ReplyRecord, EventRecord, MapRecord>;
+  using Event =
+      std::variant<FrameRecord, PoseRecord, CommandRecord, ReplyRecord, EventRecord, MapRecord>;
   class Writer;
   FlightRecorder(RecorderOptions options, std::unique_ptr<Writer> writer, Logger logger);
   void push(Event e, bool is_frame);
@@ -161,6 +163,9 @@ class FlightRecorder {
   RecorderStats stats_;
   std::thread thread_;
 };
+
+/// For the dashboard's /api/state "recording" object.
+nlohmann::json to_json(const RecorderStats& stats);
 
 /// RFC 4648 base64 (JSON-encoded MCAP messages carry bytes fields as base64, Foxglove's rule).
 std::string base64_encode(const std::string& bytes);

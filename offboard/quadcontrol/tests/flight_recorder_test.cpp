@@ -1,6 +1,8 @@
 // FlightRecorder: events reach the file (counted), a write error stops recording with one logged
 // line while the callers go on, rotation and the run's budget. The files' content is validated by
 // the Python `mcap` reader (offboard/recorder/tests/).
+#include "record/flight_recorder.hpp"
+
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -8,14 +10,13 @@
 #include <csignal>
 #include <filesystem>
 
-#include "record/flight_recorder.hpp"
-
 namespace rgbdquad::quadcontrol {
 namespace {
 namespace fs = std::filesystem;
 
 fs::path fresh_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("flight_recorder_test_" + std::to_string(::getpid()) + "_" + name);
+  const fs::path d = fs::temp_directory_path() /
+                     ("flight_recorder_test_" + std::to_string(::getpid()) + "_" + name);
   fs::remove_all(d);
   return d;
 }
@@ -40,7 +41,8 @@ TEST(FlightRecorder, GivenEventsWhenClosedThenEveryOneIsWrittenAndCounted) {
   std::string error;
   auto o = options_in(dir);
   o.queue_max_frames = 100;  // this test must not drop
-  auto r = FlightRecorder::open(o, "flight", [&log](const std::string& l) { log.push_back(l); }, &error);
+  auto r = FlightRecorder::open(
+      o, "flight", [&log](const std::string& l) { log.push_back(l); }, &error);
   ASSERT_TRUE(r) << error;
   const cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(5000));
   for (int i = 0; i < 5; ++i) {
@@ -64,14 +66,16 @@ TEST(FlightRecorder, GivenEventsWhenClosedThenEveryOneIsWrittenAndCounted) {
   r.reset();
   ASSERT_TRUE(log.empty()) << log.front();
   ASSERT_TRUE(fs::exists(dir / "flight-000.mcap"));
-  EXPECT_GT(fs::file_size(dir / "flight-000.mcap"), 5u * 150000u);  // five noise JPEGs (~220 kB each at q90)
+  EXPECT_GT(fs::file_size(dir / "flight-000.mcap"),
+            5u * 150000u);  // five noise JPEGs (~220 kB each at q90)
 }
 
 TEST(FlightRecorder, GivenAFileSizeLimitWhenReachedThenRecordingStopsWithOneLineAndCallersGoOn) {
   const fs::path dir = fresh_dir("full");
   std::vector<std::string> log;
   std::string error;
-  auto r = FlightRecorder::open(options_in(dir), "flight", [&log](const std::string& l) { log.push_back(l); }, &error);
+  auto r = FlightRecorder::open(
+      options_in(dir), "flight", [&log](const std::string& l) { log.push_back(l); }, &error);
   ASSERT_TRUE(r) << error;
   rlimit old{};
   getrlimit(RLIMIT_FSIZE, &old);
@@ -105,7 +109,8 @@ TEST(FlightRecorder, GivenASmallFileLimitThenFilesRotateAndTheBudgetDeletesTheOl
   o.max_total_mb = 2.5;
   o.zstd = false;  // sizes predictable: ~0.8 MB of base64 depth per frame
   o.queue_max_frames = 100;
-  auto r = FlightRecorder::open(o, "flight", [&log](const std::string& l) { log.push_back(l); }, &error);
+  auto r = FlightRecorder::open(
+      o, "flight", [&log](const std::string& l) { log.push_back(l); }, &error);
   ASSERT_TRUE(r) << error;
   const cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(5000));
   for (int i = 0; i < 8; ++i) r->frame(i, i, i, 0.0, 30.0, noise_rgb(i), depth, slam::Intrinsics{});
@@ -118,7 +123,8 @@ TEST(FlightRecorder, GivenASmallFileLimitThenFilesRotateAndTheBudgetDeletesTheOl
   }
   EXPECT_FALSE(fs::exists(dir / "flight-000.mcap"));  // the oldest went first
   EXPECT_GE(files, 2);
-  EXPECT_LE(static_cast<double>(total), (2.5 + 1.0) * 1024 * 1024);  // budget + the file being written
+  EXPECT_LE(static_cast<double>(total),
+            (2.5 + 1.0) * 1024 * 1024);  // budget + the file being written
   bool rotated = false, deleted = false;
   for (const auto& l : log) {
     rotated |= l.find("rotated to") != std::string::npos;

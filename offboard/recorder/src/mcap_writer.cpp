@@ -71,11 +71,13 @@ std::uint32_t crc32_of(std::uint32_t crc, const std::string& bytes) {
 }  // namespace
 
 std::string McapWriterOptions::validate() const {
-  if (chunk_max_bytes < 1024 || chunk_max_bytes > (256u << 20)) return "recorder: chunk_max_bytes must be in [1 KiB, 256 MiB]";
+  if (chunk_max_bytes < 1024 || chunk_max_bytes > (256u << 20))
+    return "recorder: chunk_max_bytes must be in [1 KiB, 256 MiB]";
   return {};
 }
 
-std::unique_ptr<McapWriter> McapWriter::open(const std::string& path, McapWriterOptions options, std::string* error) {
+std::unique_ptr<McapWriter> McapWriter::open(const std::string& path, McapWriterOptions options,
+                                             std::string* error) {
   if (auto e = options.validate(); !e.empty()) {
     *error = e;
     return nullptr;
@@ -111,7 +113,8 @@ bool McapWriter::write_out(const std::string& bytes) {
     const ssize_t n = ::write(fd_, bytes.data() + done, bytes.size() - done);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
-      error_ = "write to " + path_ + " failed: " + (n < 0 ? std::strerror(errno) : "no progress (disk full?)");
+      error_ = "write to " + path_ +
+               " failed: " + (n < 0 ? std::strerror(errno) : "no progress (disk full?)");
       return false;
     }
     done += static_cast<std::size_t>(n);
@@ -121,7 +124,8 @@ bool McapWriter::write_out(const std::string& bytes) {
   return true;
 }
 
-std::uint16_t McapWriter::add_schema(const std::string& name, const std::string& encoding, const std::string& data) {
+std::uint16_t McapWriter::add_schema(const std::string& name, const std::string& encoding,
+                                     const std::string& data) {
   if (next_schema_id_ == std::numeric_limits<std::uint16_t>::max()) return 0;
   const std::uint16_t id = next_schema_id_;
   std::string c;
@@ -161,10 +165,12 @@ std::uint16_t McapWriter::add_channel(std::uint16_t schema_id, const std::string
   return id;
 }
 
-bool McapWriter::write_message(std::uint16_t channel_id, std::uint32_t sequence, std::uint64_t log_time_ns,
-                               std::uint64_t publish_time_ns, const std::string& data) {
+bool McapWriter::write_message(std::uint16_t channel_id, std::uint32_t sequence,
+                               std::uint64_t log_time_ns, std::uint64_t publish_time_ns,
+                               const std::string& data) {
   if (failed() || closed_) return false;
-  if (!chunk_records_.empty() && chunk_records_.size() + data.size() > options_.chunk_max_bytes && !flush_chunk()) {
+  if (!chunk_records_.empty() && chunk_records_.size() + data.size() > options_.chunk_max_bytes &&
+      !flush_chunk()) {
     return false;
   }
   if (chunk_index_.empty()) {
@@ -216,7 +222,8 @@ bool McapWriter::flush_chunk() {
   put_str(c, compression);
   put_u64(c, body.size());
   c += body;
-  ChunkIndexEntry entry{chunk_start_ns_, chunk_end_ns_, file_offset_, 0, 0, body.size(), chunk_records_.size(), {}};
+  ChunkIndexEntry entry{
+      chunk_start_ns_, chunk_end_ns_, file_offset_, 0, 0, body.size(), chunk_records_.size(), {}};
   std::string out = record(kChunk, c);
   entry.length = out.size();
   for (const auto& [channel, entries] : chunk_index_) {
@@ -234,7 +241,8 @@ bool McapWriter::flush_chunk() {
   }
   chunk_records_.clear();
   chunk_index_.clear();
-  if (!write_out(out)) return false;  // one write: a crash leaves the chunk whole or cut, never reordered
+  if (!write_out(out))
+    return false;  // one write: a crash leaves the chunk whole or cut, never reordered
   chunks_.push_back(std::move(entry));
   return true;
 }

@@ -1,6 +1,8 @@
 // McapWriter: byte layout of the parts a reader checks first (magic, Header, Footer, DataEnd CRC),
 // failure behaviour on a write error. Full-file validation is the Python `mcap` reader's job
 // (test_mcap_writer.py).
+#include "rgbdquad/recorder/mcap_writer.hpp"
+
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 #include <zlib.h>
@@ -9,8 +11,6 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
-
-#include "rgbdquad/recorder/mcap_writer.hpp"
 
 namespace {
 using rgbdquad::recorder::McapWriter;
@@ -31,7 +31,9 @@ std::uint32_t u32_at(const std::string& b, std::size_t at) {
   return v;
 }
 std::string temp_path(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / ("mcap_writer_test_" + std::to_string(::getpid()) + "_" + name)).string();
+  return (std::filesystem::temp_directory_path() /
+          ("mcap_writer_test_" + std::to_string(::getpid()) + "_" + name))
+      .string();
 }
 const std::string kMagic("\x89MCAP0\r\n", 8);
 
@@ -60,14 +62,16 @@ TEST(McapWriter, GivenMessagesWhenClosedThenMagicHeaderFooterAndDataCrcAreAsSpec
     EXPECT_EQ(u64_at(b, footer + 1), 20u);
     const std::uint64_t summary_start = u64_at(b, footer + 9);
     ASSERT_GT(summary_start, 13u);
-    // DataEnd (opcode 0x0F, length 4) ends right where the summary starts; its CRC covers all before it.
+    // DataEnd (opcode 0x0F, length 4) ends right where the summary starts; its CRC covers all
+    // before it.
     const std::size_t data_end = summary_start - 13;
     EXPECT_EQ(b[data_end], '\x0f');
     const auto crc = static_cast<std::uint32_t>(
         crc32(0, reinterpret_cast<const Bytef*>(b.data()), static_cast<uInt>(data_end)));
     EXPECT_EQ(u32_at(b, data_end + 9), crc);
-    const auto summary_crc = static_cast<std::uint32_t>(crc32(
-        0, reinterpret_cast<const Bytef*>(b.data() + summary_start), static_cast<uInt>(footer + 25 - summary_start)));
+    const auto summary_crc = static_cast<std::uint32_t>(
+        crc32(0, reinterpret_cast<const Bytef*>(b.data() + summary_start),
+              static_cast<uInt>(footer + 25 - summary_start)));
     EXPECT_EQ(u32_at(b, footer + 25), summary_crc);
     std::filesystem::remove(path);
   }

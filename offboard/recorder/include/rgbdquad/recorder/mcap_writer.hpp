@@ -27,9 +27,9 @@
 namespace rgbdquad::recorder {
 
 struct McapWriterOptions {
-  std::string profile;                      ///< MCAP profile ("" = none; ours is JSON-encoded messages)
+  std::string profile;  ///< MCAP profile ("" = none; ours is JSON-encoded messages)
   std::string library = "rgbdquad-recorder";
-  bool zstd = true;                         ///< compress chunks with zstd (level 1: fast)
+  bool zstd = true;  ///< compress chunks with zstd (level 1: fast)
   /// A chunk is closed when its records exceed this (also on flush_chunk()). 4 MiB: a few image
   /// messages per chunk; readers decompress one chunk at a time.
   std::size_t chunk_max_bytes = 4u << 20;
@@ -39,15 +39,19 @@ struct McapWriterOptions {
 class McapWriter {
  public:
   /// Creates (truncates) `path` and writes magic + Header. nullptr with `error` on failure.
-  static std::unique_ptr<McapWriter> open(const std::string& path, McapWriterOptions options, std::string* error);
+  static std::unique_ptr<McapWriter> open(const std::string& path, McapWriterOptions options,
+                                          std::string* error);
   ~McapWriter();  ///< close()s if not closed (errors then only in error())
   McapWriter(const McapWriter&) = delete;
   McapWriter& operator=(const McapWriter&) = delete;
 
-  /// Schema / channel records go straight into the data section (before any message that uses them),
-  /// so a streaming reader of a truncated file knows every channel. Ids start at 1. 0 on failure.
-  std::uint16_t add_schema(const std::string& name, const std::string& encoding, const std::string& data);
-  std::uint16_t add_channel(std::uint16_t schema_id, const std::string& topic, const std::string& message_encoding,
+  /// Schema / channel records go straight into the data section (before any message that uses
+  /// them), so a streaming reader of a truncated file knows every channel. Ids start at 1. 0 on
+  /// failure.
+  std::uint16_t add_schema(const std::string& name, const std::string& encoding,
+                           const std::string& data);
+  std::uint16_t add_channel(std::uint16_t schema_id, const std::string& topic,
+                            const std::string& message_encoding,
                             const std::map<std::string, std::string>& metadata = {});
   /// Appends a message to the open chunk (closing it first when full). False once failed.
   bool write_message(std::uint16_t channel_id, std::uint32_t sequence, std::uint64_t log_time_ns,
@@ -70,7 +74,8 @@ class McapWriter {
     std::uint64_t start_ns, end_ns, offset, length, index_length, compressed, uncompressed;
     std::map<std::uint16_t, std::uint64_t> index_offsets;
   };
-  bool write_out(const std::string& bytes);  ///< to the file, data CRC updated; sets error_ on failure
+  bool write_out(
+      const std::string& bytes);  ///< to the file, data CRC updated; sets error_ on failure
 
   std::string path_;
   int fd_;
@@ -84,7 +89,8 @@ class McapWriter {
   // Open chunk.
   std::string chunk_records_;
   std::uint64_t chunk_start_ns_ = 0, chunk_end_ns_ = 0;
-  std::map<std::uint16_t, std::vector<std::pair<std::uint64_t, std::uint64_t>>> chunk_index_;  ///< (log time, offset)
+  std::map<std::uint16_t, std::vector<std::pair<std::uint64_t, std::uint64_t>>>
+      chunk_index_;  ///< (log time, offset)
   // Summary.
   std::vector<ChunkIndexEntry> chunks_;
   std::uint64_t message_count_ = 0, message_start_ns_ = 0, message_end_ns_ = 0;

@@ -1,0 +1,188 @@
+"""quad-control's MCAP recording end to end: the real quad-control (TUM replay, in-process SLAM, the
+firmware double behind the HIL WiFi-bridge emulator, all on 127.0.0.1) records with --record; the
+file is read back by the Python `mcap` reader.
+
+  * a flight stopped with SIGTERM: a complete file (summary, CRCs), every channel of
+    docs/recording.md present, images decodable, counts equal to the summary's statistics;
+  * SIGKILL mid-flight (by PID): the streaming read recovers the flight up to about its last second;
+    the recovered fraction is printed;
+  * a full disk (RLIMIT_FSIZE on quad-control): recording stops with the cause in /api/state and
+    one log line, while frames and commands go on.
+Processes are stopped by PID; nothing asserts on wall time beyond generous deadlines.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import os
+from pathlib import Path
+import resource
+import signal
+import sys
+import time
+import urllib.request
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[3]
+sys.path.insert(0, str(ROOT / "offboard" / "dashboard" / "tests"))
+
+from dashboard_fixtures import KEY, QuadControl, quad_control_binary, write_config  # noqa: E402
+from flight_recording.reader import read, read_complete  # noqa: E402
+
+DEADLINE_S = 90.0  # the shared 2-core machine may run SLAM at ~1 pose/s
+FLIGHT_S = 12.0    # long enough that the last second is a small part of it
+
+
+@pytest.fixture(scope="module")
+def binary() -> Path:
+    b = quad_control_binary()
+    if b is None:
+        pytest.skip("quad-control is not built (make build, or set QUAD_CONTROL_BIN)")
+    return b
+
+
+@pytest.fixture(scope="module")
+def bridge():
+    from firmware_double import FirmwareDouble
+    from wifi_bridge import WifiBridgeEmulator
+
+    double = FirmwareDouble(KEY)
+    b = WifiBridgeEmulator(double.transact).start()
+    yield double, b
+    b.close()
+
+
+def api_state(url: str) -> dict:
+    with urllib.request.urlopen(url + "api/state", timeout=5) as r:
+        return json.load(r)
+
+
+def api_post(url: str, path: str, body: dict) -> dict:
+    req = urllib.request.Request(url + path, data=json.dumps(body).encode(), method="POST",
+                                 headers={"Content-Type": "application/json"})
+    with urllib.request.urlopen(req, timeout=5) as r:
+        return json.load(r)
+
+
+def wait_for(predicate, what: str, timeout_s: float = DEADLINE_S):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        got = predicate()
+        if got:
+            return got
+        time.sleep(0.2)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def start(binary: Path, tmp: Path, bridge_port: int, record_dir: Path, preexec_fn=None) -> QuadControl:
+    cfg = write_config(tmp, bridge_port)
+    qc = QuadControl(binary, ["--config", str(cfg), "--port", "0", "--record", str(record_dir)],
+                     preexec_fn=preexec_fn)
+    # Recording starts with the first frame; wait for frames and one image pair.
+    wait_for(lambda: api_state(qc.url)["recording"]["frames_recorded"] >= 1, "a recorded frame")
+    return qc
+
+
+def fly(qc: QuadControl, seconds: float) -> dict:
+    api_post(qc.url, "api/command", {"command": "arm"})
+    time.sleep(seconds)
+    return api_state(qc.url)
+
+
+def one_file(d: Path) -> Path:
+    files = sorted(d.glob("*.mcap"))
+    assert len(files) == 1, files
+    return files[0]
+
+
+def test_sigterm_leaves_a_complete_recording_with_every_channel(binary, bridge, tmp_path):
+    _double, b = bridge
+    qc = start(binary, tmp_path, b.port, tmp_path / "rec")
+    try:
+        state = fly(qc, FLIGHT_S)
+    finally:
+        qc.stop()
+    rec = read_complete(one_file(tmp_path / "rec"))
+    counts = rec.counts()
+    print("channels and message counts:", json.dumps(counts, sort_keys=True))
+    for topic in ("/stream/frame", "/camera/rgb/compressed", "/camera/depth/raw", "/camera/calibration",
+                  "/control/command", "/firmware/reply", "/events", "/log", "/recorder/stats",
+                  "/slam/tracking", "/latency", "/control/setpoint"):
+        assert counts.get(topic, 0) > 0, f"{topic} missing: {counts}"
+    assert state["recording"]["dropped_queue_full"] == 0
+    # Frames: one /stream/frame per frame received; images of every 6th (the default decimation).
+    frames = rec.topic("/stream/frame")
+    assert [m.data["sequence"] for m in frames] == sorted(m.data["sequence"] for m in frames)
+    images = counts["/camera/rgb/compressed"]
+    assert abs(images - len(frames) / 6) <= 2, (images, len(frames))
+    from PIL import Image
+    rgb = rec.topic("/camera/rgb/compressed")[0].data
+    assert rgb["format"] == "jpeg" and rgb["frame_id"] == "camera"
+    assert Image.open(io.BytesIO(base64.b64decode(rgb["data"]))).size == (640, 480)
+    depth = rec.topic("/camera/depth/raw")[0].data
+    assert depth["encoding"] == "16UC1" and depth["step"] == 2 * depth["width"]
+    assert len(base64.b64decode(depth["data"])) == depth["height"] * depth["step"]
+    # Commands and the state machine.
+    assert any("disarmed -> armed" in m.data["text"] for m in rec.topic("/events"))
+    armed = [m.data for m in rec.topic("/control/command") if m.data["armed"]]
+    assert armed and all(1000 <= m["pwm_us"]["throttle"] <= 2000 for m in armed)
+    assert all(m.data["state"] in ("disarmed", "armed") for m in rec.topic("/firmware/reply"))
+
+
+def test_sigkill_leaves_the_flight_readable_up_to_about_its_last_second(binary, bridge, tmp_path):
+    _double, b = bridge
+    qc = start(binary, tmp_path, b.port, tmp_path / "rec")
+    state = fly(qc, FLIGHT_S)
+    frames_before = state["stream"]["frames"]
+    qc.proc.send_signal(signal.SIGKILL)  # by PID: no goodbye, no summary
+    qc.proc.wait(timeout=10)
+    last_frames = frames_before  # frames received after the last /api/state are not counted
+    rec = read(one_file(tmp_path / "rec"))
+    assert not rec.complete
+    assert any("streaming order" in e for e in rec.errors), rec.errors
+    frames = rec.topic("/stream/frame")
+    first_seq = frames[0].data["sequence"] if frames else 0
+    recovered = len(frames)
+    expected = last_frames - first_seq
+    span = rec.span_s()
+    fraction = recovered / max(1, expected)
+    print(f"SIGKILL after {FLIGHT_S:.0f} s: {recovered} of {expected} frames recovered "
+          f"({100 * fraction:.1f} %), span {span:.2f} s, load {os.getloadavg()[0]:.1f}")
+    # The writer closes a chunk every second: at most ~1 s (plus the queue) is lost.
+    fps = state["stream"]["fps"] or 30.0
+    assert recovered >= expected - 2.5 * fps, (recovered, expected, fps)
+    assert counts_ok(rec)
+
+
+def counts_ok(rec) -> bool:
+    c = rec.counts()
+    return c.get("/control/command", 0) > 0 and c.get("/camera/rgb/compressed", 0) > 0
+
+
+def test_full_disk_stops_recording_with_the_cause_and_the_flight_goes_on(binary, bridge, tmp_path):
+    double, b = bridge
+    limit = 3 * 1024 * 1024  # a few seconds of recording
+
+    def small_disk():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    qc = start(binary, tmp_path, b.port, tmp_path / "rec", preexec_fn=small_disk)
+    try:
+        api_post(qc.url, "api/command", {"command": "arm"})
+        st = wait_for(lambda: (s := api_state(qc.url))["recording"]["failed"] and s, "the recording to fail")
+        assert "File too large" in st["recording"]["error"]
+        frames, sent = st["stream"]["frames"], st["firmware"]["sent"]
+        time.sleep(3.0)
+        after = api_state(qc.url)
+        assert after["stream"]["frames"] > frames and after["firmware"]["sent"] > sent  # the flight goes on
+        assert after["recording"]["dropped_after_failure"] > 0
+        assert double.last_command() is not None
+    finally:
+        qc.stop()
+    log = "".join(qc.log)
+    assert log.count("recording stopped") == 1, log
+    rec = read(one_file(tmp_path / "rec"))
+    assert rec.messages and os.path.getsize(one_file(tmp_path / "rec")) <= limit
