@@ -34,6 +34,12 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def write_key(path: Path, text: str = "00112233445566778899aabbccddeeff\n", mode: int = 0o600) -> Path:
+    path.write_text(text)
+    os.chmod(path, mode)
+    return path
+
+
 def test_help_lists_every_option_and_each_is_honoured():
     help_text = run("--help").stdout
     options = re.findall(r"--([a-z0-9-]+)", help_text)
@@ -66,18 +72,35 @@ def test_bad_configuration_exits_2_with_the_reason(tmp_path, text, message):
     assert message in out.stderr
 
 
-def test_missing_kinect_is_a_clear_start_up_error():
-    out = run("--source", "openni2", "--host", "127.0.0.1", "--stats-period", "0")
+def test_missing_kinect_is_a_clear_start_up_error(tmp_path):
+    out = run("--source", "openni2", "--host", "127.0.0.1", "--stats-period", "0",
+              "--stream-key-file", str(write_key(tmp_path / "stream.key")))
     assert out.returncode == 1
     assert "OpenNI2" in out.stderr
 
 
-def test_searches_for_the_ground_station_forever_and_stops_on_sigterm():
+@pytest.mark.parametrize("setup,message", [
+    (lambda d: d / "absent.key", "No such file"),
+    (lambda d: write_key(d / "open.key", mode=0o644), "accessible by group or others (mode 0644); `chmod 600"),
+    (lambda d: write_key(d / "short.key", "abcd\n"), "32 hex digits"),
+    (lambda d: write_key(d / "zero.key", "0" * 32 + "\n"), "all zeros"),
+])
+def test_missing_or_unsafe_stream_key_exits_2_with_the_reason(tmp_path, setup, message):
+    # GIVEN a stream key file that is absent, readable by others, malformed or a zero template
+    key = setup(tmp_path)
+    # WHEN the streamer starts THEN it refuses at once, naming the file and the fix
+    out = run("--source", "tum", "--tum-dir", str(DESK), "--host", "127.0.0.1",
+              "--stream-key-file", str(key), "--config", "/dev/null")
+    assert out.returncode == 2, out.stderr
+    assert str(key) in out.stderr and message in out.stderr
+
+
+def test_searches_for_the_ground_station_forever_and_stops_on_sigterm(tmp_path):
     port = free_port()  # nobody listens here
     proc = subprocess.Popen(
         [str(BINARY), "--source", "tum", "--tum-dir", str(DESK), "--tum-loop", "true",
          "--host", "127.0.0.1", "--rgb-port", str(port), "--depth-port", str(free_port()),
-         "--stats-period", "0.5"],
+         "--stats-period", "0.5", "--stream-key-file", str(write_key(tmp_path / "stream.key"))],
         stderr=subprocess.PIPE, text=True)
     try:
         time.sleep(2.0)
@@ -100,8 +123,8 @@ def test_installer_stages_binary_config_and_a_valid_unit(tmp_path):
     out = subprocess.run([str(ROOT / "onboard" / "install.sh")], env=env, capture_output=True,
                          text=True, timeout=60)
     assert out.returncode == 0, out.stdout + out.stderr
-    binary = tmp_path / "usr/local/bin/rgbd-streamer"
-    unit = tmp_path / "etc/systemd/system/rgbd-streamer.service"
+    binary = tmp_path / "usr/bin/rgbd-streamer"
+    unit = tmp_path / "lib/systemd/system/rgbd-streamer.service"
     assert binary.exists() and (tmp_path / "etc/rgbd-streamer/rgbd-streamer.yaml").exists()
     text = unit.read_text()
     for line in ["Restart=always", "User=rgbd", "After=network-online.target",
@@ -115,7 +138,7 @@ def test_installer_stages_binary_config_and_a_valid_unit(tmp_path):
     assert (tmp_path / "etc/rgbd-streamer/rgbd-streamer.yaml").read_text() == "host: 10.0.0.7\n"
     if shutil.which("systemd-analyze"):
         checked = tmp_path / "rgbd-streamer.service"
-        checked.write_text(text.replace("ExecStart=/usr/local/bin/rgbd-streamer",
+        checked.write_text(text.replace("ExecStart=/usr/bin/rgbd-streamer",
                                         f"ExecStart={binary}"))
         verify = subprocess.run(["systemd-analyze", "verify", str(checked)], capture_output=True,
                                 text=True, timeout=60)
