@@ -1,0 +1,95 @@
+"""HIL scenario 2 with quad-control's MCAP recording on or off: what the recording holds and costs.
+
+    PYTHONPATH=hil:protocol/python:firmware/tools:offboard/python \
+        .venv/bin/python hil/recording_flight.py --record on  --out out/rec-hil-on
+    ... --record off --out out/rec-hil-off
+
+Flies hilrig.missions.scenario2 (take off, hold, two waypoints, land) exactly as `make demo`, with
+SlamFlightOptions.record set, and writes DIR/recording-report.json with:
+  * the flight's camera (capture stamp) -> PWM latency median / p95 and the load average (the figure
+    to compare between --record on and off, run back to back on the same machine);
+  * with recording on: the file's size, MB per minute, channels and message counts (read back by the
+    Python `mcap` reader with CRCs checked), the writer thread's CPU per received frame (from
+    /api/state just before landing ends), drops; and the replay of the recorded frames through
+    slam-eval compared with the poses quad-control flew on (flight_recording.replay).
+Figures only: nothing here passes or fails (docs/recording.md quotes the runs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from pathlib import Path
+import shutil
+import sys
+import time
+
+from hilrig import missions
+from hilrig.paths import REPO_ROOT
+from hilrig.slam_flight import SlamFlight, SlamFlightOptions, missing_parts
+
+
+def recording_figures(flight: SlamFlight, state: dict, out: Path) -> dict:
+    from flight_recording.reader import read_complete
+    from flight_recording.replay import run as replay
+
+    files = sorted(flight.recording_dir.glob("*.mcap"))
+    size = sum(f.stat().st_size for f in files)
+    rec = read_complete(files[-1])
+    span_min = rec.span_s() / 60.0
+    r = state["recording"]
+    frames = state["stream"]["frames"]
+    figures = {
+        "files": [f.name for f in files],
+        "bytes": size,
+        "span_s": round(rec.span_s(), 2),
+        "mb_per_min": round(size / 1048576 / span_min, 2) if span_min > 0 else None,
+        "counts": rec.counts(),
+        "writer_cpu_ms": round(r["writer_cpu_ms"], 1),
+        "frames_received": frames,
+        "writer_cpu_ms_per_frame": round(r["writer_cpu_ms"] / max(1, frames), 3),
+        "encode_ms_per_recorded_frame": round(r["encode_ms_per_frame"], 3),
+        "dropped_queue_full": r["dropped_queue_full"],
+    }
+    try:
+        figures["replay"] = replay(files[-1], out / "replay", REPO_ROOT / "build" / "bin" / "slam-eval",
+                                   REPO_ROOT / "build" / "bin" / "tum-score")
+    except Exception as e:  # noqa: BLE001 - the flight's figures still count
+        figures["replay"] = {"error": f"{type(e).__name__}: {e}"}
+    return figures
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--record", choices=("on", "off"), required=True)
+    ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--hold-s", type=float, default=10.0)
+    args = ap.parse_args(argv)
+    missing = missing_parts()
+    if missing:
+        print("recording_flight: cannot fly: " + ", ".join(missing), file=sys.stderr)
+        return 2
+    if args.out.exists():
+        shutil.rmtree(args.out)
+    t0 = time.monotonic()
+    load_before = os.getloadavg()
+    with SlamFlight(args.out, SlamFlightOptions(record=args.record == "on")) as flight:
+        try:
+            report = missions.scenario2(flight, hold_s=args.hold_s)
+        except (TimeoutError, RuntimeError) as e:
+            report = {"aborted": str(e)}
+        report.update(flight.scores())
+        state = flight.state()
+    out = {"record": args.record, "wall_s": round(time.monotonic() - t0, 1), "load_average_before": load_before,
+           "load_average_after": os.getloadavg(), "aborted": report.get("aborted"),
+           "latency_ms": report.get("latency_ms"), "ate": report.get("ate"), "stream": report.get("stream")}
+    if args.record == "on":
+        out["recording"] = recording_figures(flight, state, args.out)
+    (args.out / "recording-report.json").write_text(json.dumps(out, indent=2, default=str))
+    print(json.dumps(out, indent=2, default=str))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
