@@ -9,7 +9,9 @@
 #   make hil             all hardware-in-loop scenarios
 #   make firmware        build the ATmega328P image, print flash/RAM use
 #   make flash PORT=/dev/ttyACM0   upload the firmware with avrdude
-#   make install-onboard install rgbd-streamer + config + systemd unit on this (onboard) machine
+#   make install-onboard install rgbd-streamer + config + systemd unit on this (onboard) machine (.deb)
+#   make onboard-arm ARCH=arm64|armhf  cross-build rgbd-streamer + unit tests (build-ARCH/), .deb;
+#                        TEST=1 also runs them under qemu-user; make bench-arm: encode cost on ARM
 #   make run-offboard    start the ground station for real hardware
 #   make clean           remove build outputs (keeps .venv)
 SHELL := /bin/bash
@@ -17,6 +19,7 @@ JOBS ?= $(shell nproc)
 DATA ?= ../shared/data
 PORT ?= /dev/ttyACM0
 FUZZ_SECONDS ?= 300
+ARCH ?= arm64
 export DATA JOBS PORT FUZZ_SECONDS
 
 # $(call component,script,args): run a component's entry script, or say it is not implemented yet.
@@ -25,7 +28,7 @@ define component
 endef
 
 .PHONY: all deps build build-cpp build-asan firmware test demo bench study fuzz hil flash \
-        install-onboard run-offboard clean help
+        install-onboard run-offboard clean help onboard-arm bench-arm
 
 all: build
 
@@ -65,8 +68,14 @@ flash: firmware
 install-onboard: build
 	$(call component,onboard/install.sh,)
 
+onboard-arm: deps
+	@scripts/onboard-arm.sh $(ARCH) --package $(if $(TEST),--test,)
+
+bench-arm: build
+	@scripts/onboard-arm.sh arm64 && scripts/onboard-arm.sh armhf && onboard/bench-arm.sh
+
 run-offboard: build
 	$(call component,offboard/run-offboard.sh,)
 
 clean:
-	rm -rf build build-asan build-fuzz firmware/.pio test-artifacts
+	rm -rf build build-asan build-fuzz build-arm64 build-armhf firmware/.pio test-artifacts
