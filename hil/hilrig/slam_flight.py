@@ -43,6 +43,7 @@ from hilrig.link_proxy import LinkImpairment, LinkProxy
 from hilrig.paths import find_binary
 from hilrig.procs import ManagedProcess
 from kinect_emulator.poses import camera_pose_from_ned
+from rgbd_protocol.stream_auth import write_key_file
 
 # What a closed-loop flight needs from the build (make build): the real programs.
 REQUIRED_BINARIES = ("fw_sim", "rgbd-streamer", "quad-control", "slam-server", "tum-score")
@@ -280,9 +281,16 @@ class SlamFlight:
         self._procs.append(p)
         return p
 
+    def _stream_key_file(self) -> Path:
+        """The craft's stream key (mode 0600), read by both the streamer and quad-control."""
+        path = self.workdir / "stream.key"
+        if not path.exists():
+            write_key_file(path)
+        return path
+
     def _write_streamer_config(self) -> Path:
         path = self.workdir / "rgbd-streamer.yaml"
-        path.write_text(self.kinect.streamer_config_yaml())
+        path.write_text(self.kinect.streamer_config_yaml(f"stream_key_file: {self._stream_key_file()}\n"))
         return path
 
     def _write_quad_control_config(self, slam_port: int, rgb_port: int, depth_port: int) -> Path:
@@ -294,6 +302,7 @@ class SlamFlight:
                 "bind_address": "127.0.0.1",
                 "rgb_port": rgb_port,
                 "depth_port": depth_port,
+                "key_file": str(self._stream_key_file()),
             },
             "slam": {"mode": "server", "host": "127.0.0.1", "port": slam_port},
             "firmware": {"enabled": True, "host": "127.0.0.1", "port": self.bridge.port, "key_hex": o.key.hex()},

@@ -103,7 +103,8 @@ nlohmann::json AppConfig::to_json_redacted() const {
                          {"allowed_hosts", dashboard_allowed_hosts}}},
           {"stream", {{"source", stream_source}, {"tum_folder", replay.folder}, {"speed", replay.speed},
                       {"camera", replay.camera}, {"bind_address", receiver.bind_address},
-                      {"rgb_port", receiver.rgb_port}, {"depth_port", receiver.depth_port}}},
+                      {"rgb_port", receiver.rgb_port}, {"depth_port", receiver.depth_port},
+                      {"key_file", stream_key_file}}},
           {"slam", {{"mode", station.slam_mode}, {"host", station.slam_server.host}, {"port", station.slam_server.port},
                     {"timeout_ms", station.slam_server.reply_timeout_ms}}},
           {"firmware", {{"enabled", firmware_enabled}, {"host", firmware.host}, {"port", firmware.port},
@@ -147,7 +148,9 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
       !read(d, "dashboard", "bind_address", c.dashboard_bind_address, error) ||
       !read(d, "dashboard", "port", c.dashboard_port, error) || !read(d, "dashboard", "token", c.dashboard_token, error) ||
       !read(d, "dashboard", "static_dir", c.dashboard_static_dir, error) ||
-      !check_keys(s, "stream", {"source", "tum_folder", "loop", "speed", "camera", "bind_address", "rgb_port", "depth_port"}, error) ||
+      !check_keys(s, "stream", {"source", "tum_folder", "loop", "speed", "camera", "bind_address", "rgb_port", "depth_port",
+                                "key_file"}, error) ||
+      !read(s, "stream", "key_file", c.stream_key_file, error) ||
       !read(s, "stream", "bind_address", c.receiver.bind_address, error) ||
       !read(s, "stream", "rgb_port", c.receiver.rgb_port, error) ||
       !read(s, "stream", "depth_port", c.receiver.depth_port, error) ||
@@ -190,6 +193,14 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
   if (c.replay.folder.empty()) c.replay.folder = defaults.replay.folder;
   if (c.control_spec_path.empty()) c.control_spec_path = defaults.control_spec_path;
   if (!read_recording(j.value("recording", empty), c.recording, error)) return std::nullopt;
+  if (!c.stream_key_file.empty()) {
+    const auto key = protocol::load_stream_key_file(c.stream_key_file, error);
+    if (!key) {
+      *error = "stream.key_file: " + *error;
+      return std::nullopt;
+    }
+    c.receiver.key = *key;
+  }
   if (!parse_replay_loop(loop, &c.replay.loop)) {
     *error = "stream.loop must be once, wrap or bounce";
     return std::nullopt;
