@@ -1,6 +1,7 @@
 """A minimal ground-station receiver of the RGB-D stream, in Python, for HIL scenarios.
 
-Listens on loopback for the two connections rgbd-streamer opens (RGB, depth), answers the handshake,
+Listens on loopback for the two connections rgbd-streamer opens (RGB, depth), challenges each one
+and accepts only a handshake signed with the stream key (protocol.stream_auth), answers it,
 grants credits the way docs/protocol.md prescribes (2 at start, 1 per frame taken off the socket)
 and records every frame with its receive time on CLOCK_MONOTONIC, the clock rgbd-streamer stamps
 send_timestamp_us with (same host), so send -> receive latency is measurable.
@@ -11,11 +12,14 @@ same ports. One thread per stream; `close()` joins them. Protocol: rgbd_protocol
 from __future__ import annotations
 
 from dataclasses import dataclass
+import os
+from pathlib import Path
 import socket
 import threading
 import time
 
 from rgbd_protocol.codec import Codec, StreamDecoder
+from rgbd_protocol.stream_auth import ack_tag, handshake_tag, load_key_file, tags_equal
 
 INITIAL_CREDITS = 2  # docs/protocol.md: one frame in flight while the next is produced
 
@@ -66,6 +70,8 @@ class _StreamPort:
 
     def _serve(self, conn: socket.socket, codec: Codec) -> None:
         conn.settimeout(0.2)
+        nonce = os.urandom(16)  # the challenge: fresh per connection
+        conn.sendall(codec.encode("StreamChallenge", {"receiver_nonce": list(nonce)}))
         dec = StreamDecoder(codec)
         while not self.stop.is_set():
             try:
@@ -86,9 +92,12 @@ class _StreamPort:
                 if ev.name == "Handshake":
                     self.owner._handshake(self.kind, ev.fields)
                     reason = codec.incompatibility(ev.fields)
-                    conn.sendall(
-                        codec.encode("HandshakeAck", {"accepted": not reason, "reason": reason})
-                    )
+                    expected = handshake_tag(codec, self.owner.key, nonce, ev.fields)
+                    if not tags_equal(ev.fields["mac"], expected):
+                        reason = "handshake not authenticated (wrong stream key?)"
+                    ack = {"accepted": not reason, "reason": reason, "mac": [0] * 8}
+                    ack["mac"] = ack_tag(codec, self.owner.key, nonce, bytes(ev.fields["sender_nonce"]), ack)
+                    conn.sendall(codec.encode("HandshakeAck", ack))
                     if reason:
                         self.owner._note(f"{self.kind}: refused handshake: {reason}")
                         return
@@ -134,8 +143,10 @@ class _StreamPort:
 
 
 class StreamReceiver:
-    def __init__(self) -> None:
+    def __init__(self, key_file: Path | str) -> None:
+        """`key_file`: the stream key (protocol.stream_auth), the same file the streamer reads."""
         self.codec = Codec()
+        self.key = load_key_file(key_file)
         self._lock = threading.Lock()
         self._frames: list[ReceivedFrame] = []
         self._notes: list[tuple[int, str]] = []

@@ -23,6 +23,7 @@ import pytest
 from hilrig.paths import artifacts_dir, find_binary
 from hilrig.procs import ManagedProcess
 from hilrig.stream_rx import StreamReceiver
+from rgbd_protocol.stream_auth import write_key_file
 from kinect_emulator import KinectEmulator, KinectOptions, camera_pose_from_ned, default_room
 from kinect_emulator.live import LiveKinect, fakenect_lib_dir, match_capture_stamps
 from kinect_emulator.writers import depth_mm_to_freenect_raw, freenect_raw_to_depth_mm
@@ -74,8 +75,11 @@ def _fly(setup, fps: float) -> dict:
     # streamer ("Cannot open file") and fail the frame counts below.
     cam = LiveKinect(work / "dump", opts, room=setup["room"])
     cfg = work / "streamer.yaml"
-    cfg.write_text(cam.streamer_config_yaml("stats_period_s: 0\nlog_level: warn\nexit_linger_ms: 1000\n"))
-    with StreamReceiver() as rx:
+    key = work / "stream.key"  # the craft's stream key, shared with the receiver (mode 0600)
+    write_key_file(key)
+    cfg.write_text(cam.streamer_config_yaml(
+        f"stats_period_s: 0\nlog_level: warn\nexit_linger_ms: 1000\nstream_key_file: {key}\n"))
+    with StreamReceiver(key) as rx:
         cam.start()
         try:
             argv = cam.direct_streamer_command(

@@ -27,6 +27,7 @@ from hilrig.flight import Leg, arm, fly_plan
 from hilrig.paths import artifacts_dir, find_binary
 from hilrig.procs import ManagedProcess
 from hilrig.stream_rx import StreamReceiver
+from rgbd_protocol.stream_auth import write_key_file
 from kinect_emulator import KinectEmulator, KinectOptions, TumFolderWriter, default_room
 
 pytestmark = pytest.mark.hil
@@ -54,10 +55,13 @@ def emulated(tmp_path_factory):
             frames[round((T0_S + f.capture_us * 1e-6) * 1e6)] = f
 
         fly_plan(fc, [Leg((0.3, 0.2, -1.5), 0.2, 2.0)], kinect=kin, sink=keep)
-    return dict(streamer=streamer, work=work, frames=frames)
+    # The craft's stream key, shared by the streamer and the receiver (mode 0600).
+    key = work / "stream.key"
+    write_key_file(key)
+    return dict(streamer=streamer, work=work, frames=frames, key=key)
 
 
-def _streamer(emulated, rx: StreamReceiver, loop: bool, name: str) -> ManagedProcess:
+def _streamer(emulated, rx: StreamReceiver, loop: bool, name: str, key=None) -> ManagedProcess:
     return ManagedProcess(
         [
             emulated["streamer"],
@@ -83,6 +87,8 @@ def _streamer(emulated, rx: StreamReceiver, loop: bool, name: str) -> ManagedPro
             "0",
             "--exit-linger-ms",
             "1500",
+            "--stream-key-file",
+            key or emulated["key"],
         ],
         emulated["work"] / f"{name}.log",
     )
@@ -99,7 +105,7 @@ def _wait(pred, timeout_s: float) -> bool:
 
 def test_stream_bit_exact_latency_and_blank_frames(emulated):
     frames = emulated["frames"]
-    with StreamReceiver() as rx:
+    with StreamReceiver(emulated["key"]) as rx:
         with _streamer(emulated, rx, loop=False, name="streamer_once") as proc:
             proc.wait(60)
             log = proc.log_text()
@@ -137,8 +143,29 @@ def test_stream_bit_exact_latency_and_blank_frames(emulated):
     assert np.all(lat >= 0)
 
 
+def test_streamer_without_the_key_is_refused_then_the_craft_streams(emulated, tmp_path):
+    """Issue 17 finding 6: only the craft's streamer (holding the stream key) is accepted. (This
+    Python receiver serves one connection per port at a time; the C++ receiver's concurrent case -
+    an impostor while the craft streams - is StreamAuthEndToEnd in offboard/receiver.)"""
+    other = tmp_path / "other.key"
+    write_key_file(other)
+    with StreamReceiver(emulated["key"]) as rx:
+        # GIVEN a streamer with another key WHEN it connects THEN its handshake is refused
+        with _streamer(emulated, rx, loop=True, name="streamer_impostor", key=other) as impostor:
+            refused = _wait(lambda: sum("not authenticated" in n for _, n in rx.notes()) >= 2, 15)
+            impostor_log = impostor.log_text()
+        assert refused, rx.notes()
+        assert not rx.frames(), "frames from a streamer without the key"
+        # AND the streamer says why, and never reports a connection
+        assert "not authenticated" in impostor_log, impostor_log[-2000:]
+        assert "connected to" not in impostor_log
+        # WHEN the craft's streamer connects THEN it streams
+        with _streamer(emulated, rx, loop=True, name="streamer_craft"):
+            assert _wait(lambda: len(rx.frames("depth")) >= 10, 30), rx.notes()
+
+
 def test_scenario4_stream_link_dropped_and_restored(emulated):
-    with StreamReceiver() as rx:
+    with StreamReceiver(emulated["key"]) as rx:
         with _streamer(emulated, rx, loop=True, name="streamer_loop"):
             assert _wait(lambda: len(rx.frames("depth")) >= 20, 30), "stream never started"
             rx.drop()
@@ -168,7 +195,7 @@ def test_scenario5_stream_link_degraded(emulated):
     coming (newest-only flow control bounds the staleness), latency grows by about the delay."""
     from hilrig.link_proxy import LinkImpairment, LinkProxy
 
-    with StreamReceiver() as rx:
+    with StreamReceiver(emulated["key"]) as rx:
         imp = LinkImpairment(delay_ms=20.0, jitter_ms=10.0, loss=0.02, seed=9)
         with LinkProxy(rx.rgb_port, imp) as prgb, LinkProxy(rx.depth_port, imp) as pdepth:
             proc = ManagedProcess(
@@ -194,6 +221,8 @@ def test_scenario5_stream_link_degraded(emulated):
                     "raw",
                     "--stats-period",
                     "0",
+                    "--stream-key-file",
+                    emulated["key"],
                 ],
                 emulated["work"] / "streamer_degraded.log",
             )
@@ -256,7 +285,7 @@ def test_fakenect_dump_replays_through_real_libfreenect(tmp_path, emulated):
         freenect_raw_to_depth_mm(depth_mm_to_freenect_raw(f.depth_mm)).tobytes() for f in frames
     }
     rgbs = {f.rgb.tobytes() for f in frames}
-    with StreamReceiver() as rx:
+    with StreamReceiver(emulated["key"]) as rx:
         proc = ManagedProcess(
             [
                 "fakenect",
@@ -267,6 +296,8 @@ def test_fakenect_dump_replays_through_real_libfreenect(tmp_path, emulated):
                 "--source",
                 "freenect",
                 "--freenect-disparity-depth",
+                "--stream-key-file",
+                emulated["key"],
                 "--host",
                 "127.0.0.1",
                 "--rgb-port",

@@ -57,6 +57,13 @@ def generate() -> str:
         "inline constexpr std::size_t kEnvelopeTrailerBytes = 4;",
         "",
     ]
+    auth = spec.raw["protocol"]["stream_auth"]
+    out.append("/// Stream authentication (spec protocol.stream_auth): " + auth["mac"] + " under a per-craft key.")
+    for key in ("key_bytes", "nonce_bytes", "tag_bytes"):
+        out.append(f"inline constexpr std::size_t kStreamAuth{camel(key)} = {auth[key]};")
+    for key in ("handshake_label", "ack_label"):
+        out.append(f"inline constexpr std::string_view kStreamAuth{camel(key)} = \"{auth[key]}\";")
+    out.append("")
     for name, lim in spec.raw["limits"].items():
         out.append(f"/// {lim['doc']}")
         out.append(f"inline constexpr std::size_t k{camel(name)} = {lim['value']};")

@@ -23,11 +23,13 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
-from rgbd_protocol.codec import Codec, StreamDecoder, event_view, normalize_events  # noqa: E402
+from rgbd_protocol.codec import Codec, EncodeError, StreamDecoder, event_view, normalize_events  # noqa: E402
+from rgbd_protocol.stream_auth import ack_tag, handshake_tag  # noqa: E402
 
 VECTORS = ROOT / "vectors"
 # Fuzz targets and the message whose bodies seed them (scripts/fuzz.sh: corpus/<target>).
 BODY_FUZZERS = {"Handshake": "handshake", "HandshakeAck": "handshake_ack", "Frame": "frame", "FrameRequest": "frame_request",
+                "StreamChallenge": "stream_challenge",
                 "SlamHello": "slam_hello", "RgbdFrame": "rgbd_frame", "PoseUpdate": "pose_update",
                 "PoseGraph": "pose_graph", "FloorMap": "floor_map"}
 
@@ -44,13 +46,33 @@ def unit_q(x, y, z, w):
 IDENTITY = {"t_m": [0.0, 0.0, 0.0], "q_xyzw": [0.0, 0.0, 0.0, 1.0]}
 
 
+# Stream authentication of the vectors (manifest "stream_auth"): the SipHash paper's key
+# 00 01 .. 0f and two fixed nonces, so every implementation can recompute each mac.
+AUTH_KEY = bytes(range(16))
+RECEIVER_NONCE = bytes(range(0x10, 0x20))
+SENDER_NONCE = bytes(range(0x20, 0x30))
+
+
 def handshake(kind="DEPTH", **over):
+    """A Handshake signed under AUTH_KEY answering RECEIVER_NONCE (unless `mac` is given)."""
     f = {"protocol_version": 1, "schema_hash": Codec().spec.schema_hash, "stream_kind": kind,
          "width": 640, "height": 480, "pixel_format": "DEPTH16" if kind == "DEPTH" else "RGB8",
          "encoding": "RAW", "intrinsics": FR1,
          "depth_scale_units_per_m": 5000.0 if kind == "DEPTH" else 0.0,
-         "device_id": "fakenect:tum-fr1-xyz"}
+         "device_id": "fakenect:tum-fr1-xyz", "sender_nonce": list(SENDER_NONCE), "mac": [0] * 8}
     f.update(over)
+    if "mac" not in over:
+        try:
+            f["mac"] = handshake_tag(Codec(), AUTH_KEY, RECEIVER_NONCE, f)
+        except EncodeError:
+            pass  # an invalid handshake (hostile vectors) is never authenticated: mac stays zero
+    return f
+
+
+def ack(accepted=True, reason=""):
+    """A HandshakeAck signed under AUTH_KEY for RECEIVER_NONCE / SENDER_NONCE."""
+    f = {"accepted": accepted, "reason": reason, "mac": [0] * 8}
+    f["mac"] = ack_tag(Codec(), AUTH_KEY, RECEIVER_NONCE, SENDER_NONCE, f)
     return f
 
 
@@ -164,10 +186,17 @@ class Builder:
         self.valid("handshake_depth_rvl", "depth handshake announcing the reserved DEPTH_RVL "
                    "encoding (compressed encodings need no version change)", "Handshake",
                    handshake("DEPTH", encoding="DEPTH_RVL"))
-        self.valid("handshake_ack_accepted", "receiver accepts", "HandshakeAck",
-                   {"accepted": True, "reason": ""})
+        self.valid("handshake_ack_accepted", "receiver accepts", "HandshakeAck", ack())
         self.valid("handshake_ack_refused", "receiver refuses with a reason", "HandshakeAck",
-                   {"accepted": False, "reason": "schema hash mismatch: peer 0x0000000000000001"})
+                   ack(False, "schema hash mismatch: peer 0x0000000000000001"))
+        self.valid("stream_challenge", "receiver's challenge (first message of a stream connection)",
+                   "StreamChallenge", {"receiver_nonce": list(RECEIVER_NONCE)})
+        # Decode fine, but their mac must not verify (stream_auth "forged").
+        self.valid("handshake_bad_mac", "RGB handshake whose mac has one bit flipped", "Handshake",
+                   handshake("RGB", mac=[b ^ (1 if i == 0 else 0) for i, b in
+                                         enumerate(handshake("RGB")["mac"])]))
+        self.valid("handshake_unsigned", "RGB handshake from a streamer without the key (mac zero)",
+                   "Handshake", handshake("RGB", mac=[0] * 8))
         self.valid("frame_rgb_raw", "4x3 RGB8 RAW frame", "Frame", {"image": image("RGB8")})
         self.valid("frame_depth_raw", "4x3 DEPTH16 RAW frame (one invalid 0 pixel)", "Frame",
                    {"image": image("DEPTH16", seq=5)})
@@ -209,13 +238,13 @@ class Builder:
                     "nodes": [], "edges": []})
         self.valid("floor_map", "4x3 occupancy map at 5 cm/cell", "FloorMap", floor_map())
 
-        # A whole stream session: handshake, ack, request, three frames.
-        session = [("Handshake", handshake("RGB")), ("HandshakeAck", {"accepted": True,
-                                                                      "reason": ""}),
+        # A whole stream session: challenge, handshake, ack, request, three frames.
+        session = [("StreamChallenge", {"receiver_nonce": list(RECEIVER_NONCE)}),
+                   ("Handshake", handshake("RGB")), ("HandshakeAck", ack()),
                    ("FrameRequest", {"credits": 3, "last_received_sequence": 0xFFFFFFFF})]
         session += [("Frame", {"image": image("RGB8", seq=s)}) for s in (0, 1, 3)]
         data = b"".join(self.msg(n, f) for n, f in session)
-        self.add("session_rgb", "handshake, ack, request, 3 frames back to back", data,
+        self.add("session_rgb", "challenge, handshake, ack, request, 3 frames back to back", data,
                  [self.expect_msg(n, f) for n, f in session], reencodes=True)
 
         # Peers that must be refused although their messages decode.
@@ -238,9 +267,9 @@ class Builder:
         req = self.msg("FrameRequest", {"credits": 1, "last_received_sequence": 3})
         self.hostile_body("body_shorter_than_fields", "FrameRequest body of 5 bytes",
                           "FrameRequest", req[16:21], "truncated_body")
-        ack = c.encode_body("HandshakeAck", {"accepted": True, "reason": "ok"})
+        ack_body = c.encode_body("HandshakeAck", dict(ack(), reason="ok"))
         self.hostile_body("body_trailing_bytes", "HandshakeAck body with one extra byte",
-                          "HandshakeAck", ack + b"\x00", "trailing_bytes")
+                          "HandshakeAck", ack_body + b"\x00", "trailing_bytes")
 
         # CRC errors.
         bad = bytearray(frame)
@@ -288,7 +317,7 @@ class Builder:
                           "length_too_large")
         hb = c.encode_body("Handshake", handshake("RGB", device_id="x"))
         self.hostile_body("oversized_string_length", "device_id length prefix 300 (max 255), 10 bytes present",
-                          "Handshake", hb[:-3] + struct.pack("<H", 300) + b"x" * 10,
+                          "Handshake", hb[:-27] + struct.pack("<H", 300) + b"x" * 10,
                           "length_too_large")
         gb = c.encode_body("PoseGraph", pose_graph())
         self.hostile_body("oversized_array_count", "PoseGraph nodes count 0xFFFFFFFF",
@@ -386,6 +415,13 @@ class Builder:
                     "the bytes left buffered, compared after merging each garbage_skipped event into a directly preceding error (so any chunking of the stream gives the same events); 'refused' means the message decodes but the "
                     "peer-compatibility check must refuse it with that reason.",
                     "schema_hash": f"0x{self.codec.spec.schema_hash:016x}",
+                    "stream_auth": {
+                        "about": "Every Handshake and HandshakeAck message in the vectors is signed "
+                        "with this key and these nonces (protocol.stream_auth), except those named "
+                        "in 'forged', whose mac must not verify.",
+                        "key": AUTH_KEY.hex(), "receiver_nonce": RECEIVER_NONCE.hex(),
+                        "sender_nonce": SENDER_NONCE.hex(),
+                        "forged": ["handshake_bad_mac", "handshake_unsigned"]},
                     "vectors": self.vectors}
         out[VECTORS / "manifest.json"] = (json.dumps(manifest, indent=1) + "\n").encode()
         for target, bodies in self.bodies.items():

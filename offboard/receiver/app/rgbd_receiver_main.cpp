@@ -20,12 +20,20 @@ int main(int argc, char** argv) {
   app.add_option("--bind", options.bind_address, "listen address (default 127.0.0.1; the ground station's WiFi address for the craft)");
   app.add_option("--rgb-port", options.rgb_port, "RGB stream port (default 5600)");
   app.add_option("--depth-port", options.depth_port, "depth stream port (default 5601)");
+  std::string key_file;
+  app.add_option("--key-file", key_file, "file holding the craft's stream key (32 hex digits, mode 0600; the streamer's stream_key_file)")->required();
   app.add_option("--credits", options.credits_in_flight, "frames in flight per stream, 1..8 (default 2)");
   app.add_option("--period", period_s, "seconds between status lines (default 1)");
   app.add_option("--seconds", seconds, "stop after this many seconds (default 0 = until SIGINT/SIGTERM)");
   CLI11_PARSE(app, argc, argv);
   auto log = spdlog::stderr_color_mt("rgbd-receiver");
   std::string why;
+  if (auto key = protocol::load_stream_key_file(key_file, &why)) {
+    options.key = *key;
+  } else {
+    log->error("{}", why);
+    return 2;
+  }
   if (!options.is_valid(&why) || !(period_s > 0) || seconds < 0) {
     log->error("invalid options: {}", why.empty() ? "period must be > 0, seconds >= 0" : why);
     return 2;

@@ -13,6 +13,7 @@
 #include "rgbdquad/encodings/jpeg_codec.h"
 #include "rgbdquad/protocol/codec.hpp"
 #include "rgbdquad/receiver/log_throttle.h"
+#include "rgbdquad/receiver/receiver_session.h"
 
 namespace rgbdquad::receiver {
 namespace {
@@ -25,47 +26,70 @@ constexpr std::size_t kReadChunkBytes = 256 * 1024;
 // A FrameRequest must leave within 1 s or the link is considered dead.
 constexpr int kSendTimeoutMs = 1000;
 // A new connection is a candidate until its handshake is accepted: only then may it replace the
-// live streamer (a raw connect, or random bytes, used to drop the real streamer at once). The
-// streamer sends its handshake as soon as it connects; 2 s is an absolute deadline from the
-// connect (not restarted per byte, so a dripping peer cannot hold a slot).
+// live streamer (a raw connect, or random bytes, used to drop the real streamer at once), and it
+// is accepted only when its mac verifies under the stream key. The streamer answers the challenge
+// at once; 2 s is an absolute deadline from the connect (not restarted per byte, so a dripping
+// peer cannot hold a slot).
 constexpr std::int64_t kHandshakeDeadlineUs = 2'000'000;
 // Candidates at once: the streamer reconnecting plus a few stray peers; more evicts the oldest.
 constexpr std::size_t kMaxCandidates = 4;
-// Poll slice while candidates wait, so their deadlines fire on time.
-constexpr int kCandidatePollMs = 100;
 // A failed accept (EMFILE at the descriptor limit) leaves the connection in the backlog, so the
 // listener stays readable: it is left out of poll() this long instead of spinning a core.
 constexpr std::int64_t kAcceptBackoffUs = 100'000;
 
-struct Session {
+// One accepted connection: the socket and its socket-free session (receiver_session.h).
+struct Connection {
   net::UniqueFd fd;
   std::string peer;
-  protocol::StreamDecoder decoder{protocol::StreamDecoder::Options{
-      protocol::max_body_bytes(static_cast<std::uint8_t>(protocol::MessageType::kFrame))}};
-  std::optional<protocol::Handshake> handshake;
-  std::int64_t last_activity_us = 0;
-  std::int64_t connected_us = 0;
+  ReceiverSession session;
 };
 
-std::string check_handshake(const protocol::Handshake& h, StreamKind expected,
-                            const std::vector<Encoding>& accepted) {
-  std::string why = protocol::handshake_incompatibility(h);
-  if (!why.empty()) return why;
-  if (h.stream_kind != expected) {
-    return std::string("this port takes the ") + protocol::to_string(expected).data() + " stream";
+// Decoded pixels of a frame the session accepted; nullopt with `error` when the payload does not
+// decode (JPEG/RVL/zstd damage the envelope CRC did not catch).
+struct DecodedFrame {
+  std::shared_ptr<const ReceivedRgb> rgb;
+  std::shared_ptr<const ReceivedDepth> depth;
+};
+std::optional<DecodedFrame> decode_payload(const protocol::Frame& frame, const protocol::Handshake& hs, FrameInfo info,
+                                           encodings::JpegDecoder& jpeg,
+                                           const std::function<std::int64_t()>& now_us, std::string* error) {
+  const auto& h = frame.image.header;
+  const auto& payload = frame.image.payload;
+  const std::int64_t start_us = now_us();
+  DecodedFrame out;
+  if (hs.stream_kind == StreamKind::kRgb) {
+    auto rgb = std::make_shared<ReceivedRgb>();
+    if (h.encoding == Encoding::kRgbJpeg) {
+      auto pixels = jpeg.decode(payload.data(), payload.size(), h.width, h.height, error);
+      if (!pixels) return std::nullopt;
+      rgb->rgb = std::move(*pixels);
+    } else {
+      rgb->rgb = payload;  // RAW: the protocol decoder checked the length
+    }
+    rgb->info = info;
+    rgb->info.decode_us = now_us() - start_us;
+    out.rgb = std::move(rgb);
+    return out;
   }
-  const auto format = expected == StreamKind::kRgb ? protocol::PixelFormat::kRgb8 : protocol::PixelFormat::kDepth16;
-  if (h.pixel_format != format) return "pixel format does not match the stream kind";
-  if (!protocol::encoding_allows_pixel_format(h.encoding, format)) return "encoding cannot carry this stream";
-  if (!accepted.empty() && std::find(accepted.begin(), accepted.end(), h.encoding) == accepted.end()) {
-    return std::string("encoding ") + protocol::to_string(h.encoding).data() + " not accepted by this receiver";
-  }
-  if (expected == StreamKind::kDepth && !(h.depth_scale_units_per_m > 0)) return "depth scale must be > 0";
-  return {};
+  const encodings::DepthCodec codec = h.encoding == Encoding::kDepthRvl ? encodings::DepthCodec::kRvl
+                                      : h.encoding == Encoding::kDepthZstdDelta ? encodings::DepthCodec::kZstdDelta
+                                                                                : encodings::DepthCodec::kRaw;
+  auto pixels = encodings::decode_depth(codec, payload.data(), payload.size(), h.width, h.height, error);
+  if (!pixels) return std::nullopt;
+  auto depth = std::make_shared<ReceivedDepth>();
+  depth->info = info;
+  depth->info.decode_us = now_us() - start_us;
+  depth->units_per_m = hs.depth_scale_units_per_m;
+  depth->depth = std::move(*pixels);
+  out.depth = std::move(depth);
+  return out;
+}
+
+bool key_is_set(const protocol::StreamKey& key) {
+  return std::any_of(key.begin(), key.end(), [](std::uint8_t b) { return b != 0; });
 }
 
 }  // namespace
-
 
 bool ReceiverOptions::is_valid(std::string* error) const {
   if (credits_in_flight < 1 || credits_in_flight > protocol::kMaxCreditsPerRequest) *error = "credits_in_flight must be 1..8";
@@ -73,6 +97,7 @@ bool ReceiverOptions::is_valid(std::string* error) const {
   else if (history_frames < 1 || history_frames > 64) *error = "history_frames must be 1..64";
   else if (idle_timeout_ms < 100) *error = "idle_timeout_ms must be >= 100";
   else if (rgb_port != 0 && rgb_port == depth_port) *error = "RGB and depth ports must differ";
+  else if (!key_is_set(key)) *error = "no stream key: set the craft's stream key file (quad-control: stream.key_file; rgbd-receiver: --key-file); only a streamer holding it is accepted";
   else return true;
   return false;
 }
@@ -105,9 +130,15 @@ void StreamReceiver::serve(int index) {
   const StreamKind kind = index == 0 ? StreamKind::kRgb : StreamKind::kDepth;
   const char* name = index == 0 ? "rgb" : "depth";
   auto counter = [this, index]() -> ChannelCounters& { return index == 0 ? counters_.rgb : counters_.depth; };
-  std::optional<Session> session;  // the live streamer (its handshake accepted)
-  std::vector<Session> candidates;  // connected, handshake not (yet) accepted
-  bool drain_pending = false;       // a promoted candidate may hold buffered messages
+  ReceiverSessionOptions session_options;
+  session_options.kind = kind;
+  session_options.key = options_.key;
+  session_options.credits_in_flight = options_.credits_in_flight;
+  session_options.accepted_encodings = options_.accepted_encodings;
+  session_options.handshake_deadline_us = kHandshakeDeadlineUs;
+  session_options.idle_timeout_us = std::int64_t{options_.idle_timeout_ms} * 1000;
+  std::optional<Connection> live;       // the streamer (its handshake accepted)
+  std::vector<Connection> candidates;   // connected, handshake not (yet) accepted
   std::int64_t accept_paused_until_us = 0;
   std::vector<std::uint8_t> buffer(kReadChunkBytes);
   encodings::JpegDecoder jpeg;
@@ -123,259 +154,175 @@ void StreamReceiver::serve(int index) {
       log_->log(level, "{}", line);
     }
   };
-
-  auto drop = [&](const char* why) {
-    if (!session) return;
-    peer_log(spdlog::level::warn, fmt::format("{} stream: {} from {}", name, why, session->peer));
-    session.reset();
-    connected_[index] = false;
+  auto count = [&](std::uint64_t ChannelCounters::*field) {
     std::lock_guard<std::mutex> lock(mutex_);
-    ++counter().disconnects;
+    ++(counter().*field);
+  };
+
+  // A frame the session accepted: decode its payload, store it, count it.
+  auto take_frame = [&](const protocol::Frame& frame, std::size_t wire_bytes, const protocol::Handshake& hs) {
+    const auto& h = frame.image.header;
+    FrameInfo info;
+    info.sequence = h.sequence;
+    info.capture_timestamp_us = static_cast<std::int64_t>(h.capture_timestamp_us);
+    info.send_timestamp_us = static_cast<std::int64_t>(h.send_timestamp_us);
+    info.receive_timestamp_us = now_us_();
+    info.encoding = h.encoding;
+    info.width = h.width;
+    info.height = h.height;
+    info.wire_bytes = wire_bytes;
+    std::string error;
+    const std::int64_t start_us = now_us_();
+    auto decoded = decode_payload(frame, hs, info, jpeg, now_us_, &error);
+    if (decoded && decoded->rgb) store_rgb(std::move(decoded->rgb));
+    if (decoded && decoded->depth) store_depth(std::move(decoded->depth));
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (decoded) {
+        ++counter().frames;
+        counter().wire_bytes += wire_bytes;
+        counter().decode_us_total += now_us_() - start_us;
+      } else {
+        ++counter().invalid_frames;
+      }
+    }
+    if (!decoded) peer_log(spdlog::level::warn, fmt::format("{} stream: frame {} rejected: {}", name, h.sequence, error));
+  };
+
+  // Carries out what a session asked for; returns false when the connection is to be closed.
+  auto apply = [&](Connection& c, ReceiverOutput&& out) {
+    for (ReceiverEvent& e : out.events) {
+      switch (e.kind) {
+        case ReceiverEvent::Kind::kHandshakeAccepted:
+          if (kind == StreamKind::kRgb) {
+            std::lock_guard<std::mutex> lock(mutex_);
+            rgb_intrinsics_ = e.handshake->intrinsics;
+          }
+          log_->info("{} stream: {} connected ({}x{}, {}, device '{}')", name, c.peer, e.handshake->width,
+                     e.handshake->height, protocol::to_string(e.handshake->encoding).data(), e.handshake->device_id);
+          break;
+        case ReceiverEvent::Kind::kHandshakeRefused:
+          count(&ChannelCounters::handshakes_refused);
+          peer_log(spdlog::level::err, fmt::format("{} stream: refused handshake from {}: {}", name, c.peer, e.detail));
+          break;
+        case ReceiverEvent::Kind::kFrame:
+          take_frame(*e.frame, e.wire_bytes, *c.session.handshake());
+          break;
+        case ReceiverEvent::Kind::kFrameMismatch:
+          count(&ChannelCounters::invalid_frames);
+          peer_log(spdlog::level::warn, fmt::format("{} stream: {}", name, e.detail));
+          break;
+        case ReceiverEvent::Kind::kDecodeError: {
+          const bool crc = e.error == protocol::DecodeError::kBadBodyCrc || e.error == protocol::DecodeError::kBadHeaderCrc;
+          count(crc && c.session.live() ? &ChannelCounters::crc_errors : &ChannelCounters::protocol_errors);
+          if (c.session.live()) {
+            peer_log(spdlog::level::warn, fmt::format("{} stream: dropped bytes from {}: {} ({})", name, c.peer,
+                                                      protocol::to_string(e.error), e.detail));
+          }
+          break;
+        }
+        case ReceiverEvent::Kind::kUnexpectedMessage:
+          count(&ChannelCounters::protocol_errors);
+          if (c.session.live()) peer_log(spdlog::level::warn, fmt::format("{} stream: {} from {}", name, e.detail, c.peer));
+          break;
+      }
+    }
+    if (!out.send.empty() && net::send_all(c.fd.get(), out.send.data(), out.send.size(), stop_waker_,
+                                           kSendTimeoutMs) != net::IoStatus::kOk) {
+      if (!out.close) out.close = "connection closed";
+    }
+    return !out.close;
+  };
+  auto drop_live = [&](const std::string& why) {
+    peer_log(spdlog::level::warn, fmt::format("{} stream: {} from {}", name, why, live->peer));
+    live.reset();
+    connected_[index] = false;
+    count(&ChannelCounters::disconnects);
   };
   auto drop_candidate = [&](std::size_t i, const std::string& why) {
     peer_log(spdlog::level::warn, fmt::format("{} stream: {} from {} (not a live connection: nothing displaced)",
                                               name, why, candidates[i].peer));
     candidates.erase(candidates.begin() + static_cast<std::ptrdiff_t>(i));
-    std::lock_guard<std::mutex> lock(mutex_);
-    ++counter().dropped_before_handshake;
+    count(&ChannelCounters::dropped_before_handshake);
   };
-  // Sends the ack; an accepted handshake makes `peer` the live session (replacing the previous
-  // one). Returns false when the connection is to be dropped.
-  auto answer_handshake = [&](Session& peer, const protocol::Handshake& hello) {
-    const std::string why = check_handshake(hello, kind, options_.accepted_encodings);
-    protocol::HandshakeAck ack;
-    ack.accepted = why.empty();
-    ack.reason = why;
-    if (!why.empty()) {
-      peer_log(spdlog::level::err, fmt::format("{} stream: refused handshake from {}: {}", name, peer.peer, why));
-      std::lock_guard<std::mutex> lock(mutex_);
-      ++counter().handshakes_refused;
-    }
-    const auto bytes = protocol::encode_handshake_ack(ack);
-    const bool sent = net::send_all(peer.fd.get(), bytes.bytes.data(), bytes.bytes.size(), stop_waker_,
-                                    kSendTimeoutMs) == net::IoStatus::kOk;
-    if (!why.empty() || !sent) return false;
-    peer.handshake = hello;
-    if (kind == StreamKind::kRgb) {
-      std::lock_guard<std::mutex> lock(mutex_);
-      rgb_intrinsics_ = hello.intrinsics;
-    }
-    log_->info("{} stream: {} connected ({}x{}, {}, device '{}')", name, peer.peer, hello.width, hello.height,
-               protocol::to_string(hello.encoding).data(), hello.device_id);
-    return true;
-  };
-  auto grant = [&](std::uint16_t credits) {
-    protocol::FrameRequest request;
-    request.credits = credits;
-    const auto bytes = protocol::encode_frame_request(request);
-    return net::send_all(session->fd.get(), bytes.bytes.data(), bytes.bytes.size(), stop_waker_,
-                         kSendTimeoutMs) == net::IoStatus::kOk;
+  // Feeds what the socket has; returns the reason to close, or nullopt.
+  auto pump = [&](Connection& c) -> std::optional<std::string> {
+    std::size_t got = 0;
+    const net::IoStatus s = net::read_some(c.fd.get(), buffer.data(), buffer.size(), &got, stop_waker_, 0);
+    if (s == net::IoStatus::kTimeout) return std::nullopt;
+    if (s != net::IoStatus::kOk) return std::string(c.session.live() ? "" : "closed before its handshake: ") + net::to_string(s);
+    ReceiverOutput out = c.session.on_bytes(now_us_(), buffer.data(), got);
+    std::optional<std::string> why = out.close;
+    if (!apply(c, std::move(out))) return why ? *why : std::string("connection closed");
+    return std::nullopt;
   };
 
   while (true) {
-    const bool accept_paused = now_us_() < accept_paused_until_us;
+    const std::int64_t now = now_us_();
+    const bool accept_paused = now < accept_paused_until_us;
     std::vector<pollfd> fds = {{stop_waker_.fd(), POLLIN, 0},
                                {accept_paused ? -1 : listeners_[index].get(), POLLIN, 0},
-                               {session ? session->fd.get() : -1, POLLIN, 0}};
-    for (const Session& c : candidates) fds.push_back({c.fd.get(), POLLIN, 0});
-    int timeout_ms = options_.idle_timeout_ms;
-    if (!candidates.empty() || accept_paused) timeout_ms = std::min(timeout_ms, kCandidatePollMs);
-    if (drain_pending) timeout_ms = 0;
+                               {live ? live->fd.get() : -1, POLLIN, 0}};
+    std::int64_t next_us = live ? live->session.next_deadline_us() : now + std::int64_t{options_.idle_timeout_ms} * 1000;
+    for (const Connection& c : candidates) {
+      fds.push_back({c.fd.get(), POLLIN, 0});
+      next_us = std::min(next_us, c.session.next_deadline_us());
+    }
+    if (accept_paused) next_us = std::min(next_us, accept_paused_until_us);
+    const int timeout_ms = static_cast<int>(std::clamp<std::int64_t>((next_us - now) / 1000 + 1, 0, options_.idle_timeout_ms));
     const int n = poll(fds.data(), fds.size(), timeout_ms);
     if (n < 0 && errno != EINTR) break;
     if (fds[0].revents & POLLIN) break;
 
-    // Candidates: the first message must be an acceptable handshake, within the deadline.
-    bool promoted = false;
+    // Candidates: a handshake accepted makes one the live connection, replacing the previous one.
     for (std::size_t i = candidates.size(); i-- > 0;) {
-      Session& c = candidates[i];
-      if (!(fds[3 + i].revents & (POLLIN | POLLHUP | POLLERR))) {
-        if (now_us_() - c.connected_us > kHandshakeDeadlineUs) drop_candidate(i, "no handshake within 2 s");
+      Connection& c = candidates[i];
+      std::optional<std::string> why;
+      if (fds[3 + i].revents & (POLLIN | POLLHUP | POLLERR)) why = pump(c);
+      if (!why) {
+        ReceiverOutput late = c.session.on_tick(now_us_());
+        if (late.close) why = *late.close;
+      }
+      if (why) {
+        drop_candidate(i, *why);
         continue;
       }
-      std::size_t got = 0;
-      const net::IoStatus s = net::read_some(c.fd.get(), buffer.data(), buffer.size(), &got, stop_waker_, 0);
-      if (s == net::IoStatus::kTimeout) continue;
-      if (s != net::IoStatus::kOk) {
-        drop_candidate(i, std::string("closed before its handshake: ") + net::to_string(s));
-        continue;
-      }
-      c.decoder.feed(buffer.data(), got);
-      const auto r = c.decoder.next();
-      if (r.status == protocol::DecodeStatus::kNeedMoreBytes) {
-        if (now_us_() - c.connected_us > kHandshakeDeadlineUs) drop_candidate(i, "no handshake within 2 s");
-        continue;
-      }
-      if (r.status == protocol::DecodeStatus::kError) {
-        {
-          std::lock_guard<std::mutex> lock(mutex_);
-          ++counter().protocol_errors;
-        }
-        drop_candidate(i, std::string("bytes before a handshake: ") + protocol::to_string(r.error));
-        continue;
-      }
-      const auto* hello = std::get_if<protocol::Handshake>(&*r.message);
-      if (hello == nullptr) {
-        {
-          std::lock_guard<std::mutex> lock(mutex_);
-          ++counter().protocol_errors;
-        }
-        drop_candidate(i, "first message is not a handshake");
-        continue;
-      }
-      if (!answer_handshake(c, *hello)) {
-        drop_candidate(i, "handshake not accepted");
-        continue;
-      }
-      // Authenticated as far as this protocol can (valid handshake): now it replaces the live one.
-      Session next = std::move(c);
+      if (!c.session.live()) continue;
+      Connection next = std::move(c);
       candidates.erase(candidates.begin() + static_cast<std::ptrdiff_t>(i));
-      if (session) {
+      if (live) {
         peer_log(spdlog::level::warn, fmt::format("{} stream: {} replaced by {} (its handshake accepted)", name,
-                                                  session->peer, next.peer));
+                                                  live->peer, next.peer));
         std::lock_guard<std::mutex> lock(mutex_);
         ++counter().replaced;
         ++counter().disconnects;
       }
-      session = std::move(next);
-      session->last_activity_us = now_us_();
+      live = std::move(next);
       connected_[index] = true;
-      if (!grant(options_.credits_in_flight)) {
-        drop("connection closed");
-        continue;
-      }
-      promoted = true;
-      drain_pending = true;
-      break;  // fds no longer match the candidates: poll again
     }
-    if (promoted) continue;
-
     if (fds[1].revents & POLLIN) {
       std::string peer;
       if (auto fd = net::accept_tcp(listeners_[index], &peer)) {
         if (candidates.size() >= kMaxCandidates) drop_candidate(0, "too many connections awaiting a handshake");
-        Session c;
-        c.fd = std::move(*fd);
-        c.peer = peer;
-        c.connected_us = c.last_activity_us = now_us_();
-        candidates.push_back(std::move(c));
-        std::lock_guard<std::mutex> lock(mutex_);
-        ++counter().connections;
+        count(&ChannelCounters::connections);
+        Connection c{std::move(*fd), peer, ReceiverSession(session_options, protocol::random_stream_nonce(), now_us_())};
+        if (apply(c, c.session.start())) {
+          candidates.push_back(std::move(c));
+        } else {
+          count(&ChannelCounters::dropped_before_handshake);
+        }
       } else {
         accept_paused_until_us = now_us_() + kAcceptBackoffUs;
       }
-      continue;  // poll again with the new socket
     }
-    if (!session) {
-      drain_pending = false;
-      continue;
+    if (!live) continue;
+    std::optional<std::string> why;
+    if (fds[2].revents & (POLLIN | POLLHUP | POLLERR)) why = pump(*live);
+    if (!why) {
+      ReceiverOutput tick = live->session.on_tick(now_us_());
+      if (tick.close) why = *tick.close;
     }
-    const bool readable = fds[2].revents & (POLLIN | POLLHUP | POLLERR);
-    if (!readable && !drain_pending) {
-      if (now_us_() - session->last_activity_us > std::int64_t{options_.idle_timeout_ms} * 1000) {
-        drop("idle timeout");
-      }
-      continue;
-    }
-    drain_pending = false;
-    if (readable) {
-      std::size_t got = 0;
-      const net::IoStatus s = net::read_some(session->fd.get(), buffer.data(), buffer.size(), &got, stop_waker_, 0);
-      if (s == net::IoStatus::kTimeout) continue;
-      if (s != net::IoStatus::kOk) {
-        drop(net::to_string(s));
-        continue;
-      }
-      session->last_activity_us = now_us_();
-      session->decoder.feed(buffer.data(), got);
-    }
-    bool alive = true;
-    for (auto r = session->decoder.next(); alive && r.status != protocol::DecodeStatus::kNeedMoreBytes;
-         r = session->decoder.next()) {
-      if (r.status == protocol::DecodeStatus::kError) {
-        const bool crc = r.error == protocol::DecodeError::kBadBodyCrc || r.error == protocol::DecodeError::kBadHeaderCrc;
-        {
-          std::lock_guard<std::mutex> lock(mutex_);
-          ++(crc ? counter().crc_errors : counter().protocol_errors);
-        }
-        peer_log(spdlog::level::warn, fmt::format("{} stream: dropped bytes from {}: {} ({})", name, session->peer,
-                                                  protocol::to_string(r.error), r.detail));
-        // The dropped bytes were most likely a frame we granted a credit for: grant it again.
-        if (session->handshake && r.error != protocol::DecodeError::kGarbageSkipped) alive = grant(1);
-        continue;
-      }
-      if (const auto* hello = std::get_if<protocol::Handshake>(&*r.message)) {
-        // A new handshake on the live connection (the streamer changed its encoding).
-        alive = answer_handshake(*session, *hello);
-        if (!alive) continue;
-        connected_[index] = true;
-        alive = grant(options_.credits_in_flight);
-        continue;
-      }
-      const auto* frame = std::get_if<protocol::Frame>(&*r.message);
-      if (frame == nullptr || !session->handshake) {
-        std::lock_guard<std::mutex> lock(mutex_);
-        ++counter().protocol_errors;  // wrong message for this link, or a frame before the handshake
-        continue;
-      }
-      const auto& h = frame->image.header;
-      const auto& hs = *session->handshake;
-      FrameInfo info;
-      info.sequence = h.sequence;
-      info.capture_timestamp_us = static_cast<std::int64_t>(h.capture_timestamp_us);
-      info.send_timestamp_us = static_cast<std::int64_t>(h.send_timestamp_us);
-      info.receive_timestamp_us = now_us_();
-      info.encoding = h.encoding;
-      info.width = h.width;
-      info.height = h.height;
-      info.wire_bytes = frame->image.payload.size() + 16 + 4;  // payload + envelope header/trailer
-      std::string error;
-      bool ok = h.width == hs.width && h.height == hs.height && h.pixel_format == hs.pixel_format &&
-                h.encoding == hs.encoding;
-      if (!ok) error = "frame size/format/encoding differs from the handshake";
-      const auto& payload = frame->image.payload;
-      const std::int64_t start_us = now_us_();
-      if (ok && kind == StreamKind::kRgb) {
-        auto out = std::make_shared<ReceivedRgb>();
-        out->info = info;
-        if (h.encoding == Encoding::kRgbJpeg) {
-          auto pixels = jpeg.decode(payload.data(), payload.size(), h.width, h.height, &error);
-          ok = pixels.has_value();
-          if (ok) out->rgb = std::move(*pixels);
-        } else {
-          out->rgb = payload;  // RAW: the protocol decoder checked the length
-        }
-        out->info.decode_us = now_us_() - start_us;
-        if (ok) store_rgb(std::move(out));
-      } else if (ok) {
-        const encodings::DepthCodec codec = h.encoding == Encoding::kDepthRvl ? encodings::DepthCodec::kRvl
-                                            : h.encoding == Encoding::kDepthZstdDelta ? encodings::DepthCodec::kZstdDelta
-                                                                                      : encodings::DepthCodec::kRaw;
-        auto pixels = encodings::decode_depth(codec, payload.data(), payload.size(), h.width, h.height, &error);
-        ok = pixels.has_value();
-        if (ok) {
-          auto out = std::make_shared<ReceivedDepth>();
-          out->info = info;
-          out->info.decode_us = now_us_() - start_us;
-          out->units_per_m = hs.depth_scale_units_per_m;
-          out->depth = std::move(*pixels);
-          store_depth(std::move(out));
-        }
-      }
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        if (ok) {
-          ++counter().frames;
-          counter().wire_bytes += info.wire_bytes;
-          counter().decode_us_total += now_us_() - start_us;
-        } else {
-          ++counter().invalid_frames;
-        }
-      }
-      if (!ok) peer_log(spdlog::level::warn, fmt::format("{} stream: frame {} rejected: {}", name, h.sequence, error));
-      alive = grant(1);
-    }
-    if (!alive) drop("connection closed");
+    if (why) drop_live(*why);
   }
 }
 

@@ -16,6 +16,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "rgbdquad/capture/freenect_source.h"
+#include "rgbdquad/protocol/stream_auth_testing.hpp"
 #include "rgbdquad/receiver/stream_receiver.h"
 #include "test_support.h"
 
@@ -106,9 +107,18 @@ TEST(FakenectEndToEnd, DumpReplaysThroughLibfreenectIntoTheReceiverBitExact) {
     config << "depth_intrinsics: [525.0, 525.0, 319.5, 239.5]\n"
               "rgb_intrinsics: [525.0, 525.0, 319.5, 239.5]\n"
               "t_rgb_depth_m: [0, 0, 0]\n"
-              "stats_period_s: 0\nlog_level: warn\nexit_linger_ms: 3000\n";
+              "stats_period_s: 0\nlog_level: warn\nexit_linger_ms: 3000\n"
+           << "stream_key_file: " << (dir / "stream.key").string() << "\n";
   }
+  // The stream key both ends hold (mode 0600, as the streamer demands).
+  {
+    std::ofstream key(dir / "stream.key");
+    for (std::uint8_t b : protocol::testing::kTestStreamKey) key << "0123456789abcdef"[b >> 4] << "0123456789abcdef"[b & 15];
+    key << "\n";
+  }
+  fs::permissions(dir / "stream.key", fs::perms::owner_read | fs::perms::owner_write, fs::perm_options::replace);
   receiver::ReceiverOptions options;
+  options.key = protocol::testing::kTestStreamKey;
   options.bind_address = "127.0.0.1";
   options.rgb_port = 0;
   options.depth_port = 0;

@@ -1,7 +1,9 @@
 // The receiver under a hostile peer (issue 17): garbage on a stream port is counted but logged at
 // a bounded rate (finding 7: one line per malformed envelope), and a new connection displaces the
 // live streamer only once its handshake is accepted (finding 6: a raw connect, even random bytes,
-// dropped the real streamer). Loopback only.
+// dropped the real streamer), and only a handshake signed with the stream key over this
+// connection's challenge is accepted (finding 6: any peer with a valid handshake was fed to SLAM).
+// Loopback only.
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -15,12 +17,14 @@
 #include <algorithm>
 #include <chrono>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "rgbdquad/protocol/codec.hpp"
+#include "rgbdquad/protocol/stream_auth_testing.hpp"
 #include "rgbdquad/receiver/log_throttle.h"
 #include "rgbdquad/receiver/stream_receiver.h"
 
@@ -75,6 +79,43 @@ bool closed_by_peer(int fd, int timeout_ms) {
     if (::recv(fd, buf, sizeof buf, 0) <= 0) return true;
   }
   return false;
+}
+
+/// The receiver's StreamChallenge, the first thing it sends on a connection; nullopt on timeout.
+std::optional<protocol::StreamNonce> read_challenge(int fd, int timeout_ms = 2000) {
+  protocol::StreamDecoder decoder;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+  while (std::chrono::steady_clock::now() < deadline) {
+    for (auto r = decoder.next(); r.status != protocol::DecodeStatus::kNeedMoreBytes; r = decoder.next()) {
+      if (r.status != protocol::DecodeStatus::kMessage) continue;
+      if (const auto* c = std::get_if<protocol::StreamChallenge>(&*r.message)) return c->receiver_nonce;
+    }
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 50) <= 0) continue;
+    std::uint8_t buf[64];  // the challenge is 36 bytes and nothing follows it before the handshake
+    const ssize_t got = ::recv(fd, buf, sizeof buf, 0);
+    if (got <= 0) return std::nullopt;
+    decoder.feed(buf, static_cast<std::size_t>(got));
+  }
+  return std::nullopt;
+}
+
+/// Connects, reads the challenge and sends `hello` signed with `key`; -1 on failure.
+int connect_and_handshake(std::uint16_t port, const protocol::Handshake& hello,
+                          const protocol::StreamKey& key = protocol::testing::kTestStreamKey) {
+  const int fd = connect_loopback(port);
+  if (fd < 0) return -1;
+  const auto nonce = read_challenge(fd);
+  if (!nonce) {
+    ::close(fd);
+    return -1;
+  }
+  const auto bytes = protocol::encode_handshake(protocol::testing::signed_handshake(hello, *nonce, key)).bytes;
+  if (::send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(bytes.size())) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
 }
 
 protocol::Handshake rgb_handshake(const char* device) {
@@ -138,16 +179,16 @@ TEST(ReceiverHostileInput, GarbageIsLoggedAtABoundedRate) {
     o.rgb_port = 0;
     o.depth_port = 0;
     o.idle_timeout_ms = 60000;
+    o.key = protocol::testing::kTestStreamKey;
     receiver::StreamReceiver rx(o, now_us, logger);
     std::vector<int> fds;
     auto errors = [&] { return rx.counters().rgb.crc_errors + rx.counters().rgb.protocol_errors; };
     std::uint64_t expected = 0;
     if (!reconnect_flood) {
       // GIVEN a live streamer WHEN it sends 4000 envelopes with a broken header CRC
-      const int fd = connect_loopback(rx.rgb_port());
+      const int fd = connect_and_handshake(rx.rgb_port(), rgb_handshake("craft"));
       ASSERT_GE(fd, 0);
       fds.push_back(fd);
-      send_bytes(fd, protocol::encode_handshake(rgb_handshake("craft")).bytes);
       ASSERT_TRUE(eventually([&] { return rx.connected(protocol::StreamKind::kRgb); }));
       send_bytes(fd, garbage);
       expected = kEnvelopes;
@@ -191,34 +232,61 @@ TEST(ReceiverHostileInput, ANewConnectionDisplacesTheLiveStreamerOnlyAfterItsHan
   o.rgb_port = 0;
   o.depth_port = 0;
   o.idle_timeout_ms = 60000;  // the fake streamer sends no frames
-  receiver::StreamReceiver rx(o, now_us, nullptr);
-  // GIVEN a live streamer on the RGB port (handshake accepted)
+  o.key = protocol::testing::kTestStreamKey;
+  auto sink = std::make_shared<CaptureSink>();
+  receiver::StreamReceiver rx(o, now_us, std::make_shared<spdlog::logger>("receiver-test", sink));
+  // GIVEN a live streamer on the RGB port (handshake signed with the key, accepted); its signed
+  // handshake is recorded by an eavesdropper on the WiFi
   const int live = connect_loopback(rx.rgb_port());
   ASSERT_GE(live, 0);
-  send_bytes(live, protocol::encode_handshake(rgb_handshake("craft")).bytes);
+  const auto live_nonce = read_challenge(live);
+  ASSERT_TRUE(live_nonce);
+  const auto recorded = protocol::encode_handshake(protocol::testing::signed_handshake(rgb_handshake("craft"), *live_nonce)).bytes;
+  send_bytes(live, recorded);
   ASSERT_TRUE(eventually([&] { return rx.connected(protocol::StreamKind::kRgb); }));
 
   struct Probe {
     const char* name;
-    std::vector<std::uint8_t> bytes;  // sent right after the connect; empty = a raw connect, silent
+    std::vector<std::uint8_t> bytes;  // sent right after the challenge; empty = silent
+    bool sign = false;                // sign `hello` over this connection's challenge with `key`
+    protocol::Handshake hello{};
+    protocol::StreamKey key = protocol::testing::kTestStreamKey;
+    const char* logged = nullptr;     // a log line that must say why
   };
   std::mt19937 rng(17);
   std::vector<std::uint8_t> random_bytes(4096);
   for (auto& b : random_bytes) b = static_cast<std::uint8_t>(rng());
   auto wrong_kind = rgb_handshake("intruder");
-  wrong_kind.stream_kind = protocol::StreamKind::kDepth;
+  wrong_kind.stream_kind = protocol::StreamKind::kDepth;  // a valid depth handshake, on the RGB port
+  wrong_kind.pixel_format = protocol::PixelFormat::kDepth16;
+  wrong_kind.depth_scale_units_per_m = 1000;
+  protocol::StreamKey wrong_key = protocol::testing::kTestStreamKey;
+  wrong_key[0] ^= 0x01;
   const Probe probes[] = {
       {"raw connect, silent", {}},
       {"4 KiB of random bytes", random_bytes},
       {"a frame request instead of a handshake", protocol::encode_frame_request(protocol::FrameRequest{}).bytes},
-      {"a refused handshake (depth on the RGB port)", protocol::encode_handshake(wrong_kind).bytes},
+      {"a refused handshake (depth on the RGB port)", {}, true, wrong_kind, protocol::testing::kTestStreamKey,
+       "this port takes the RGB stream"},
+      {"an unsigned handshake (no key)", protocol::encode_handshake(rgb_handshake("intruder")).bytes, false, {}, {},
+       "not authenticated"},
+      {"a handshake signed with the wrong key", {}, true, rgb_handshake("intruder"), wrong_key, "not authenticated"},
+      {"the live streamer's handshake replayed", recorded, false, {}, {}, "not authenticated"},
   };
   for (const auto& probe : probes) {
     SCOPED_TRACE(probe.name);
     // WHEN a peer connects and sends the probe
     const int intruder = connect_loopback(rx.rgb_port());
     ASSERT_GE(intruder, 0);
-    if (!probe.bytes.empty()) send_bytes(intruder, probe.bytes);
+    const auto nonce = read_challenge(intruder);
+    ASSERT_TRUE(nonce) << "every connection is challenged";
+    if (probe.sign) {
+      const auto signed_bytes = protocol::encode_handshake(protocol::testing::signed_handshake(probe.hello, *nonce, probe.key));
+      ASSERT_TRUE(signed_bytes.ok()) << signed_bytes.error;
+      send_bytes(intruder, signed_bytes.bytes);
+    } else if (!probe.bytes.empty()) {
+      send_bytes(intruder, probe.bytes);
+    }
     // THEN the intruder is dropped (at the latest at the 2 s handshake deadline) ...
     EXPECT_TRUE(closed_by_peer(intruder, 4000));
     ::close(intruder);
@@ -226,13 +294,18 @@ TEST(ReceiverHostileInput, ANewConnectionDisplacesTheLiveStreamerOnlyAfterItsHan
     EXPECT_FALSE(closed_by_peer(live, 100));
     EXPECT_TRUE(rx.connected(protocol::StreamKind::kRgb));
     EXPECT_EQ(rx.counters().rgb.replaced, 0u);
+    // AND the log says why
+    if (probe.logged != nullptr) {
+      EXPECT_TRUE(eventually([&] { return any_line_has(sink->lines(), probe.logged); }));
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));  // the next probe's lines fit the 5/s log budget
   }
   EXPECT_EQ(rx.counters().rgb.dropped_before_handshake, std::size(probes));
+  EXPECT_EQ(rx.counters().rgb.handshakes_refused, 4u);  // wrong kind, unsigned, wrong key, replayed
 
-  // WHEN the streamer reconnects (a new connection with an acceptable handshake)
-  const int again = connect_loopback(rx.rgb_port());
+  // WHEN the streamer reconnects (a new connection with a handshake signed with the key)
+  const int again = connect_and_handshake(rx.rgb_port(), rgb_handshake("craft"));
   ASSERT_GE(again, 0);
-  send_bytes(again, protocol::encode_handshake(rgb_handshake("craft")).bytes);
   // THEN it replaces the old connection, which is closed
   EXPECT_TRUE(eventually([&] { return rx.counters().rgb.replaced == 1; }));
   EXPECT_TRUE(closed_by_peer(live, 2000));

@@ -5,6 +5,7 @@
 
 #include "rgbdquad/net/socket.h"
 #include "rgbdquad/protocol/codec.hpp"
+#include "rgbdquad/protocol/stream_auth_testing.hpp"
 #include "rgbdquad/receiver/stream_receiver.h"
 #include "rgbdquad/stream/pipeline.h"
 #include "rgbdquad/stream/stream_sender.h"
@@ -24,6 +25,7 @@ receiver::ReceiverOptions loopback_receiver(std::uint16_t rgb_port = 0, std::uin
   o.bind_address = "127.0.0.1";
   o.rgb_port = rgb_port;
   o.depth_port = depth_port;
+  o.key = protocol::testing::kTestStreamKey;
   return o;
 }
 
@@ -37,6 +39,7 @@ stream::StreamSenderOptions sender_options(StreamKind kind, std::uint16_t port, 
   o.depth_units_per_m = capture::kTumDepthUnitsPerM;
   o.backoff_first_ms = 5;
   o.backoff_max_ms = 100;
+  o.key = protocol::testing::kTestStreamKey;
   return o;
 }
 
@@ -222,6 +225,79 @@ TEST(StreamEndToEnd, RefusedEncodingFallsBackToRawAndStillDeliversBitExact) {
   EXPECT_GE(rx.counters().depth.handshakes_refused, 1u);
 }
 
+// --- authentication (issue 17, finding 6) ---------------------------------------------------
+
+TEST(StreamAuthEndToEnd, AStreamerWithAnotherKeyIsRefusedWhileTheCraftKeepsStreaming) {
+  capture::SteadyClock clock;
+  const auto frames = testing::load_tum(kDesk);
+  auto depth_frame = std::get<capture::DepthFrame>(
+      std::holds_alternative<capture::DepthFrame>(frames[0]) ? frames[0] : frames[1]);
+  receiver::StreamReceiver rx(loopback_receiver(), testing::steady_now_us(), nullptr);
+  // GIVEN the craft's streamer, live and delivering frames
+  stream::StreamSender craft(sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kDepthRvl), &clock, nullptr);
+  std::int64_t stamp_us = 1'000'000;
+  auto publish = [&](stream::StreamSender& s) {
+    depth_frame.capture_timestamp_us = stamp_us;
+    stamp_us += 33'333;
+    s.publish(depth_frame);
+  };
+  ASSERT_TRUE(eventually([&] {
+    publish(craft);
+    return rx.counters().depth.frames >= 3;
+  }));
+  // WHEN an impostor streamer with another key connects to the same port and keeps trying
+  auto impostor_options = sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kRaw);
+  impostor_options.key[0] ^= 0x55;
+  impostor_options.device_id = "impostor";
+  stream::StreamSender impostor(impostor_options, &clock, nullptr);
+  const std::uint64_t frames_before = rx.counters().depth.frames;
+  ASSERT_TRUE(eventually([&] {
+    publish(craft);
+    publish(impostor);
+    return rx.counters().depth.handshakes_refused >= 3 && rx.counters().depth.frames >= frames_before + 10;
+  }, 10000)) << "refused " << rx.counters().depth.handshakes_refused << ", frames " << rx.counters().depth.frames;
+  // THEN it never becomes live, never displaces the craft, and every frame stored is the craft's
+  EXPECT_FALSE(impostor.connected());
+  EXPECT_EQ(impostor.counters().connects, 0u);
+  EXPECT_EQ(impostor.counters().sent, 0u);
+  EXPECT_EQ(rx.counters().depth.replaced, 0u);
+  EXPECT_TRUE(craft.connected());
+  EXPECT_EQ(craft.counters().connects, 1u);
+  EXPECT_EQ(rx.newest_depth()->info.encoding, Encoding::kDepthRvl);  // the impostor offers raw
+}
+
+TEST(StreamAuthEndToEnd, AStreamerDoesNotTalkToAReceiverWithoutItsKey) {
+  capture::SteadyClock clock;
+  auto options = loopback_receiver();
+  options.key[7] ^= 0x01;  // a ground station (or a peer posing as one) with another key
+  receiver::StreamReceiver rx(options, testing::steady_now_us(), nullptr);
+  stream::StreamSender sender(sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kRaw), &clock, nullptr);
+  capture::DepthFrame frame;
+  frame.width = 640;
+  frame.height = 480;
+  frame.depth.assign(640 * 480, 1000);
+  ASSERT_TRUE(eventually([&] {
+    sender.publish(frame);
+    return rx.counters().depth.handshakes_refused >= 2;
+  }));
+  // The receiver refuses (the streamer's mac is wrong for its key) and the streamer cannot verify
+  // the refusal either: no raw fallback is tried on an unauthenticated answer.
+  EXPECT_FALSE(sender.connected());
+  EXPECT_EQ(sender.counters().sent, 0u);
+  EXPECT_EQ(sender.counters().refused, 0u);
+  EXPECT_EQ(rx.counters().depth.frames, 0u);
+}
+
+TEST(StreamAuthEndToEnd, NoKeyNoStart) {
+  capture::SteadyClock clock;
+  auto rx_options = loopback_receiver();
+  rx_options.key = {};
+  EXPECT_THROW(receiver::StreamReceiver(rx_options, testing::steady_now_us(), nullptr), std::runtime_error);
+  auto tx_options = sender_options(StreamKind::kRgb, 5600, Encoding::kRaw);
+  tx_options.key = {};
+  EXPECT_THROW(stream::StreamSender(tx_options, &clock, nullptr), std::invalid_argument);
+}
+
 // --- raw-socket peers ---------------------------------------------------------------------
 
 struct RawPeer {
@@ -230,6 +306,14 @@ struct RawPeer {
   protocol::StreamDecoder decoder;
   void send(const std::vector<std::uint8_t>& bytes) {
     ASSERT_EQ(net::send_all(fd.get(), bytes.data(), bytes.size(), waker, 2000), net::IoStatus::kOk);
+  }
+  // As a streamer: answers the receiver's challenge with `hello` signed with the test key.
+  void handshake(const protocol::Handshake& hello) {
+    auto challenge = receive();
+    ASSERT_TRUE(challenge && std::holds_alternative<protocol::StreamChallenge>(*challenge));
+    send(protocol::encode_handshake(
+             protocol::testing::signed_handshake(hello, std::get<protocol::StreamChallenge>(*challenge).receiver_nonce))
+             .bytes);
   }
   std::optional<protocol::Message> receive(int timeout_ms = 5000) {
     std::uint8_t buffer[65536];
@@ -264,7 +348,7 @@ TEST(StreamEndToEnd, CorruptedBytesOnTheWireAreRejectedByCrcAndCounted) {
   auto fd = net::connect_tcp("127.0.0.1", rx.depth_port(), 1000, peer.waker, &error);
   ASSERT_TRUE(fd) << error;
   peer.fd = std::move(*fd);
-  peer.send(protocol::encode_handshake(depth_handshake()).bytes);
+  peer.handshake(depth_handshake());
   auto ack = peer.receive();
   ASSERT_TRUE(ack && std::get<protocol::HandshakeAck>(*ack).accepted);
   const auto frames = testing::load_tum(kDesk);
@@ -316,7 +400,7 @@ TEST(StreamEndToEnd, WrongSchemaOrStreamKindIsRefusedLoudly) {
     auto fd = net::connect_tcp("127.0.0.1", c.port, 1000, peer.waker, &error);
     ASSERT_TRUE(fd) << error;
     peer.fd = std::move(*fd);
-    peer.send(protocol::encode_handshake(c.hello).bytes);
+    peer.handshake(c.hello);
     auto ack = peer.receive();
     ASSERT_TRUE(ack.has_value()) << c.name;
     EXPECT_FALSE(std::get<protocol::HandshakeAck>(*ack).accepted) << c.name;
@@ -334,11 +418,16 @@ TEST(StreamEndToEnd, SlowReceiverGetsTheNewestFrameNeverABacklog) {
   auto fd = net::accept_tcp(listener, nullptr);
   ASSERT_TRUE(fd);
   rx.fd = std::move(*fd);
+  protocol::StreamChallenge challenge;
+  challenge.receiver_nonce = protocol::random_stream_nonce();
+  rx.send(protocol::encode_stream_challenge(challenge).bytes);
   auto hello = rx.receive();
   ASSERT_TRUE(hello && std::holds_alternative<protocol::Handshake>(*hello));
   protocol::HandshakeAck ack;
   ack.accepted = true;
-  rx.send(protocol::encode_handshake_ack(ack).bytes);
+  rx.send(protocol::encode_handshake_ack(protocol::testing::signed_ack(
+                                             ack, challenge.receiver_nonce, std::get<protocol::Handshake>(*hello).sender_nonce))
+              .bytes);
   ASSERT_TRUE(eventually([&] { return sender.connected(); }));
   capture::DepthFrame frame;
   frame.width = 640;

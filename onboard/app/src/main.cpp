@@ -51,13 +51,15 @@ std::unique_ptr<capture::FrameSource> make_source(const app::StreamerConfig& c, 
   return std::make_unique<capture::FreenectSource>(o, clock);
 }
 
-int run(const app::StreamerConfig& config, std::shared_ptr<spdlog::logger> log, const sigset_t& signals) {
+int run(const app::StreamerConfig& config, const protocol::StreamKey& key, std::shared_ptr<spdlog::logger> log,
+        const sigset_t& signals) {
   capture::SteadyClock clock;
   auto source = make_source(config, &clock);
   log->info("source: {}", source->describe());
 
   stream::StreamSenderOptions rgb_options;
   rgb_options.host = config.host;
+  rgb_options.key = key;
   rgb_options.kind = protocol::StreamKind::kRgb;
   rgb_options.port = config.rgb_port;
   rgb_options.encoding = *stream::rgb_encoding_from_string(config.rgb_encoding);
@@ -157,6 +159,7 @@ int main(int argc, char** argv) {
   over(parser.add_option("--tum-loop", cli.tum_loop, "replay forever (true/false, default true)"), [&](auto* c) { c->tum_loop = cli.tum_loop; });
   over(parser.add_option("--max-frames", cli.max_frames, "stop after this many captured frames (0 = never)"), [&](auto* c) { c->max_frames = cli.max_frames; });
   over(parser.add_option("--host", cli.host, "ground-station address (default 192.168.1.10)"), [&](auto* c) { c->host = cli.host; });
+  over(parser.add_option("--stream-key-file", cli.stream_key_file, "file holding the craft's stream key (default /etc/rgbd-streamer/stream.key, mode 0600)"), [&](auto* c) { c->stream_key_file = cli.stream_key_file; });
   over(parser.add_option("--rgb-port", cli.rgb_port, "ground-station RGB stream port (default 5600)"), [&](auto* c) { c->rgb_port = cli.rgb_port; });
   over(parser.add_option("--depth-port", cli.depth_port, "ground-station depth stream port (default 5601)"), [&](auto* c) { c->depth_port = cli.depth_port; });
   over(parser.add_option("--depth-encoding", cli.depth_encoding, "raw | rvl | zstd-delta (default rvl, lossless)"), [&](auto* c) { c->depth_encoding = cli.depth_encoding; });
@@ -190,6 +193,12 @@ int main(int argc, char** argv) {
     std::cout << config.to_string();
     return 0;
   }
+  std::string key_error;
+  const auto key = protocol::load_stream_key_file(config.stream_key_file, &key_error);
+  if (!key) {
+    log->error("{}", key_error);
+    return 2;
+  }
   log->set_level(spdlog::level::from_str(config.log_level));
   log->info("configuration ({}):\n{}", config_path.empty() ? "defaults + options" : config_path, config.to_string());
 
@@ -200,7 +209,7 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGUSR2);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   try {
-    return run(config, log, signals);
+    return run(config, *key, log, signals);
   } catch (const std::exception& e) {
     log->error("{}", e.what());
     return 1;

@@ -69,6 +69,7 @@ void load_yaml_file(const std::string& path, StreamerConfig* c) {
       else if (key == "tum_preload") read(v, key, &c->tum_preload);
       else if (key == "max_frames") read(v, key, &c->max_frames);
       else if (key == "host") read(v, key, &c->host);
+      else if (key == "stream_key_file") read(v, key, &c->stream_key_file);
       else if (key == "rgb_port") read(v, key, &c->rgb_port);
       else if (key == "depth_port") read(v, key, &c->depth_port);
       else if (key == "depth_encoding") read(v, key, &c->depth_encoding);
@@ -104,6 +105,7 @@ bool StreamerConfig::is_valid(std::string* error) const {
   else if (!std::isfinite(tum_fps) || tum_fps > 1000) *error = "tum_fps must be finite and <= 1000";
   else if (freenect_device_index < 0) *error = "freenect_device_index must be >= 0";
   else if (host.empty()) *error = "host is empty";
+  else if (stream_key_file.empty()) *error = "stream_key_file is empty (the receiver accepts only a signed handshake)";
   else if (rgb_port == 0 || depth_port == 0 || rgb_port == depth_port) *error = "rgb_port and depth_port must be distinct and non-zero";
   else if (!kDepth.count(depth_encoding)) *error = "depth_encoding must be raw, rvl or zstd-delta";
   else if (!kRgb.count(rgb_encoding)) *error = "rgb_encoding must be raw or jpeg";
@@ -136,6 +138,7 @@ std::string StreamerConfig::to_string() const {
     << "host: " << host << "\n"
     << "rgb_port: " << rgb_port << "\n"
     << "depth_port: " << depth_port << "\n"
+    << "stream_key_file: " << stream_key_file << "\n"
     << "depth_encoding: " << depth_encoding << "\n"
     << "rgb_encoding: " << rgb_encoding << "\n"
     << "jpeg_quality: " << jpeg_quality << "\n"

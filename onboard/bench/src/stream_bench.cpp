@@ -159,7 +159,10 @@ void end_to_end(const Frames& f, double link_mbps, double fps, double seconds) {
   for (const auto& mode : modes) {
     const auto depth_enc = mode.depth;
     const auto rgb_enc = mode.rgb;
+    // One random stream key for both ends (authenticated handshake, as on the craft).
+    const protocol::StreamKey key = protocol::random_stream_nonce();
     receiver::ReceiverOptions ro;
+    ro.key = key;
     ro.credits_in_flight = mode.credits;
     ro.bind_address = "127.0.0.1";
     ro.rgb_port = 0;
@@ -167,6 +170,7 @@ void end_to_end(const Frames& f, double link_mbps, double fps, double seconds) {
     receiver::StreamReceiver rx(ro, [&] { return clock.now_us(); }, nullptr);
     bench::ShapedProxy proxy({rx.rgb_port(), rx.depth_port()}, link_mbps * 1e6);
     stream::StreamSenderOptions so;
+    so.key = key;
     so.host = "127.0.0.1";
     so.intrinsics = {517.3, 516.5, 318.6, 255.3, {}};
     so.depth_units_per_m = capture::kTumDepthUnitsPerM;

@@ -5,6 +5,7 @@
 #include <spdlog/sinks/null_sink.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
 
@@ -13,10 +14,8 @@
 
 namespace rgbdquad::stream {
 namespace {
-// Read buffer for FrameRequests/HandshakeAck (a few dozen bytes each).
+// Read buffer for StreamChallenge/HandshakeAck/FrameRequests (a few dozen bytes each).
 constexpr std::size_t kReadChunkBytes = 4096;
-// Credits banked at most: the protocol's per-request maximum (kMaxCreditsPerRequest = 8).
-constexpr std::uint32_t kMaxBankedCredits = protocol::kMaxCreditsPerRequest;
 }  // namespace
 
 std::size_t choose_frame(const std::vector<std::int64_t>& capture_us, std::int64_t hint,
@@ -47,6 +46,7 @@ bool StreamSenderOptions::is_valid(std::string* error) const {
   else if (held_frames < 1 || held_frames > 30) *error = "held_frames must be 1..30";
   else if (connect_timeout_ms < 1 || handshake_timeout_ms < 1 || stall_timeout_ms < 1 || credit_idle_timeout_ms < 1) *error = "timeouts must be >= 1 ms";
   else if (kind == protocol::StreamKind::kDepth && !(depth_units_per_m > 0 && depth_units_per_m < 1e6)) *error = "depth_units_per_m must be in (0, 1e6)";
+  else if (std::all_of(key.begin(), key.end(), [](std::uint8_t b) { return b == 0; })) *error = "no stream key (stream_key_file): the receiver accepts only a signed handshake";
   else return true;
   return false;
 }
@@ -100,44 +100,45 @@ void StreamSender::run() {
     current_encoding_ = offer_raw ? protocol::Encoding::kRaw : options_.encoding;
     auto fd = net::connect_tcp(options_.host, options_.port, options_.connect_timeout_ms,
                                stop_waker_, &error);
-    protocol::StreamDecoder decoder;
-    bool refused = false;
-    if (fd && handshake(fd->get(), &decoder, &error, &refused)) {
-      backoff.reset();
-      last_error.clear();
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        ++counters_.connects;
-      }
-      log_->info("{} stream: connected to {}:{} ({})", kind, options_.host, options_.port,
-                 encoding_name(current_encoding_));
-      connected_ = true;
-      session(std::move(*fd), &decoder);
+    ConnectionEnd end;
+    if (fd) {
+      end = serve_connection(fd->get(), [&] {
+        backoff.reset();
+        last_error.clear();
+      });
+    } else {
+      end.why = error;
+    }
+    if (end.was_live) {
       connected_ = false;
       offer_raw = false;
+      if (!stopping_) log_->warn("{} stream: {}; reconnecting", kind, end.why);
       std::lock_guard<std::mutex> lock(mutex_);
       ++counters_.disconnects;
       continue;  // reconnect at once: the server may already be back
     }
     if (stopping_) break;
-    if (refused && !offer_raw && options_.raw_fallback && options_.encoding != protocol::Encoding::kRaw) {
-      log_->warn("{} stream: {}; offering raw instead", kind, error);
+    if (end.refused) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++counters_.refused;
+    }
+    if (end.refused && !offer_raw && options_.raw_fallback && options_.encoding != protocol::Encoding::kRaw) {
+      log_->warn("{} stream: {}; offering raw instead", kind, end.why);
       offer_raw = true;
       continue;
     }
     offer_raw = false;
-    if (error != last_error) {  // log each new reason once, not every retry
+    if (end.why != last_error) {  // log each new reason once, not every retry
       log_->warn("{} stream: {}:{}: {}; retrying (backoff <= {} ms)", kind, options_.host,
-                 options_.port, error, options_.backoff_max_ms);
-      last_error = error;
+                 options_.port, end.why, options_.backoff_max_ms);
+      last_error = end.why;
     }
     pollfd stop{stop_waker_.fd(), POLLIN, 0};
     poll(&stop, 1, backoff.next_delay_ms());
   }
 }
 
-bool StreamSender::handshake(int fd, protocol::StreamDecoder* decoder, std::string* why,
-                             bool* refused) {
+protocol::Handshake StreamSender::make_hello() const {
   protocol::Handshake hello;
   hello.stream_kind = options_.kind;
   hello.width = static_cast<std::uint16_t>(options_.width_px);
@@ -149,96 +150,87 @@ bool StreamSender::handshake(int fd, protocol::StreamDecoder* decoder, std::stri
   hello.depth_scale_units_per_m =
       options_.kind == protocol::StreamKind::kDepth ? options_.depth_units_per_m : 0.0;
   hello.device_id = options_.device_id;
-  const auto bytes = protocol::encode_handshake(hello);
-  if (!bytes.ok()) {
-    *why = "handshake invalid: " + bytes.error;
-    return false;
-  }
-  net::IoStatus s = net::send_all(fd, bytes.bytes.data(), bytes.bytes.size(), stop_waker_,
-                                  options_.stall_timeout_ms);
-  if (s != net::IoStatus::kOk) {
-    *why = std::string("sending handshake: ") + net::to_string(s);
-    return false;
-  }
-  std::uint8_t buffer[kReadChunkBytes];
-  // One deadline for the whole ack, not per read: a peer dripping a byte at a time used to
-  // restart the timeout on every byte (issue 17: a dripped ack held the streamer 6.9 s).
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(options_.handshake_timeout_ms);
-  while (true) {
-    std::size_t got = 0;
-    const auto left_ms =
-        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()).count();
-    s = left_ms > 0 ? net::read_some(fd, buffer, sizeof buffer, &got, stop_waker_, static_cast<int>(left_ms))
-                    : net::IoStatus::kTimeout;
-    if (s != net::IoStatus::kOk) {
-      *why = std::string("waiting for handshake ack: ") + net::to_string(s);
-      return false;
-    }
-    decoder->feed(buffer, got);
-    // Stops right after the ack: FrameRequests behind it stay in the decoder for session().
-    for (auto r = decoder->next(); r.status != protocol::DecodeStatus::kNeedMoreBytes; r = decoder->next()) {
-      if (r.status != protocol::DecodeStatus::kMessage) continue;
-      if (const auto* ack = std::get_if<protocol::HandshakeAck>(&*r.message)) {
-        if (ack->accepted) return true;
-        *why = "receiver refused the handshake: " + ack->reason;
-        *refused = true;
-        std::lock_guard<std::mutex> lock(mutex_);
-        ++counters_.refused;
-        return false;
-      }
-    }
-  }
+  return hello;
 }
 
-void StreamSender::session(net::UniqueFd fd, protocol::StreamDecoder* decoder) {
-  std::uint32_t credits = 0;
+StreamSender::ConnectionEnd StreamSender::serve_connection(int fd, const std::function<void()>& on_live) {
+  SenderSessionOptions session_options;
+  session_options.hello = make_hello();
+  session_options.key = options_.key;
+  session_options.handshake_timeout_us = std::int64_t{options_.handshake_timeout_ms} * 1000;
+  session_options.credit_idle_timeout_us = std::int64_t{options_.credit_idle_timeout_ms} * 1000;
+  SenderSession session(session_options, protocol::random_stream_nonce(), clock_->now_us());
+  ConnectionEnd end;
   std::optional<std::uint32_t> last_sent;
-  std::int64_t last_request_us = clock_->now_us();
   std::uint8_t buffer[kReadChunkBytes];
-  while (!stopping_) {
-    // 1. Credits from every FrameRequest received so far.
-    for (auto r = decoder->next(); r.status != protocol::DecodeStatus::kNeedMoreBytes; r = decoder->next()) {
-      if (r.status != protocol::DecodeStatus::kMessage) continue;
-      if (const auto* request = std::get_if<protocol::FrameRequest>(&*r.message)) {
-        credits = std::min<std::uint32_t>(kMaxBankedCredits, credits + request->credits);
-        last_request_us = clock_->now_us();
+  // Sends what the session produced; true when the connection is over (`end` says why).
+  auto carry_out = [&](SenderOutput&& out) {
+    if (!out.send.empty()) {
+      const net::IoStatus s = net::send_all(fd, out.send.data(), out.send.size(), stop_waker_, options_.stall_timeout_ms);
+      if (s != net::IoStatus::kOk) {
+        end.why = std::string("sending handshake: ") + net::to_string(s);
+        return true;
       }
     }
-    // 2. One newest frame per credit.
-    while (credits > 0) {
+    if (out.accepted) {
+      end.was_live = true;
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        ++counters_.connects;
+      }
+      on_live();
+      log_->info("{} stream: connected to {}:{} ({})", protocol::to_string(options_.kind).data(), options_.host,
+                 options_.port, encoding_name(current_encoding_));
+      connected_ = true;
+    }
+    if (out.close) {
+      end.why = *out.close;
+      end.refused = out.refused;
+      return true;
+    }
+    return false;
+  };
+  while (!stopping_) {
+    // 1. One newest frame per credit.
+    while (session.live() && session.credits() > 0) {
       const auto sent_before = last_sent;
-      if (!send_newest(fd.get(), &last_sent)) return;
+      if (!send_newest(fd, &last_sent)) {
+        end.why = "send failed";
+        return end;
+      }
       if (last_sent == sent_before) break;  // nothing new to send
-      --credits;
-      last_request_us = clock_->now_us();
+      session.take_credit(clock_->now_us());
     }
     bool waiting;
     {
       std::lock_guard<std::mutex> lock(mutex_);
       waiting = !mailbox_.empty();
     }
-    if (credits == 0 && waiting &&
-        clock_->now_us() - last_request_us > std::int64_t{options_.credit_idle_timeout_ms} * 1000) {
-      log_->warn("{} stream: no frame request for {} ms, reconnecting",
-                 protocol::to_string(options_.kind).data(), options_.credit_idle_timeout_ms);
-      return;
+    const std::int64_t now_us = clock_->now_us();
+    if (carry_out(session.on_tick(now_us, waiting))) return end;
+    // 2. Wait for the receiver, a new frame (while live) or stop, at most until the next deadline.
+    const int timeout_ms = static_cast<int>(
+        std::clamp<std::int64_t>((session.next_deadline_us() - now_us) / 1000 + 1, 1, options_.credit_idle_timeout_ms));
+    pollfd fds[3] = {{fd, POLLIN, 0}, {session.live() ? frame_waker_.fd() : -1, POLLIN, 0}, {stop_waker_.fd(), POLLIN, 0}};
+    const int n = poll(fds, 3, timeout_ms);
+    if (n < 0 && errno != EINTR) {
+      end.why = "poll failed";
+      return end;
     }
-    // 3. Wait for a request, a new frame or stop.
-    pollfd fds[3] = {{fd.get(), POLLIN, 0}, {frame_waker_.fd(), POLLIN, 0}, {stop_waker_.fd(), POLLIN, 0}};
-    const int n = poll(fds, 3, options_.credit_idle_timeout_ms);
-    if (n < 0 && errno != EINTR) return;
-    if (fds[2].revents & POLLIN) return;
+    if (fds[2].revents & POLLIN) break;
     if (fds[1].revents & POLLIN) frame_waker_.clear();
     if (fds[0].revents & (POLLIN | POLLHUP | POLLERR)) {
       std::size_t got = 0;
-      const net::IoStatus s = net::read_some(fd.get(), buffer, sizeof buffer, &got, stop_waker_, 0);
+      const net::IoStatus s = net::read_some(fd, buffer, sizeof buffer, &got, stop_waker_, 0);
       if (s != net::IoStatus::kOk && s != net::IoStatus::kTimeout) {
-        log_->warn("{} stream: connection lost ({})", protocol::to_string(options_.kind).data(), net::to_string(s));
-        return;
+        end.why = std::string(session.live() ? "connection lost (" : "waiting for handshake ack: (") + net::to_string(s) + ")";
+        return end;
       }
-      decoder->feed(buffer, got);
+      if (carry_out(session.on_bytes(clock_->now_us(), buffer, got))) return end;
     }
   }
+  end.why = "stopping";
+  return end;
 }
 
 bool StreamSender::send_newest(int fd, std::optional<std::uint32_t>* last_sent) {

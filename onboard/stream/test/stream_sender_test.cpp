@@ -9,6 +9,7 @@
 
 #include "rgbdquad/encodings/depth_codec.h"
 #include "rgbdquad/net/socket.h"
+#include "rgbdquad/protocol/stream_auth_testing.hpp"
 #include "rgbdquad/stream/payload_encoder.h"
 #include "rgbdquad/stream/stream_sender.h"
 
@@ -69,6 +70,7 @@ TEST(StreamSender, HandshakeDeadlineIsNotRestartedByADrippingReceiver) {
   o.intrinsics = {517.3, 516.5, 318.6, 255.3, {}};
   o.depth_units_per_m = 5000;
   o.handshake_timeout_ms = 300;
+  o.key = protocol::testing::kTestStreamKey;
   o.backoff_first_ms = 5;
   o.backoff_max_ms = 100;
   capture::SteadyClock clock;

@@ -149,6 +149,7 @@ std::string validate_one(const Handshake& m) {
 }
 
 std::string validate_one(const HandshakeAck& m) { return check_string(m.reason, "reason"); }
+std::string validate_one(const StreamChallenge&) { return {}; }  // any 16 bytes
 
 std::string validate_one(const Frame& m) { return check_image(m.image, "image"); }
 
@@ -252,11 +253,15 @@ void put_body(Writer& w, const Handshake& m) {
   put_intrinsics(w, m.intrinsics);
   w.f64(m.depth_scale_units_per_m);
   put_string(w, m.device_id);
+  w.raw(m.sender_nonce.data(), m.sender_nonce.size());
+  w.raw(m.mac.data(), m.mac.size());
 }
 void put_body(Writer& w, const HandshakeAck& m) {
   w.u8(m.accepted ? 1 : 0);
   put_string(w, m.reason);
+  w.raw(m.mac.data(), m.mac.size());
 }
+void put_body(Writer& w, const StreamChallenge& m) { w.raw(m.receiver_nonce.data(), m.receiver_nonce.size()); }
 void put_body(Writer& w, const Frame& m) { put_image(w, m.image); }
 void put_body(Writer& w, const FrameRequest& m) {
   w.u16(m.credits);
@@ -358,6 +363,13 @@ std::vector<std::uint8_t> get_bytes(Parse& p, std::size_t max_len, const char* f
   return b == nullptr ? std::vector<std::uint8_t>{} : std::vector<std::uint8_t>(b, b + len);
 }
 
+// Fixed-size byte array (u8[N] in the spec): no length prefix.
+template <std::size_t N>
+void get_fixed(Parse& p, std::array<std::uint8_t, N>& out) {
+  const std::uint8_t* b = p.r.take(N);
+  if (b != nullptr) std::copy(b, b + N, out.begin());
+}
+
 void get_intrinsics(Parse& p, CameraIntrinsics& k) {
   k.fx_px = p.r.f64();
   k.fy_px = p.r.f64();
@@ -394,11 +406,15 @@ void get_body(Parse& p, Handshake& m) {
   get_intrinsics(p, m.intrinsics);
   m.depth_scale_units_per_m = p.r.f64();
   m.device_id = get_string(p, "device_id");
+  get_fixed(p, m.sender_nonce);
+  get_fixed(p, m.mac);
 }
 void get_body(Parse& p, HandshakeAck& m) {
   m.accepted = get_bool(p, "accepted");
   m.reason = get_string(p, "reason");
+  get_fixed(p, m.mac);
 }
+void get_body(Parse& p, StreamChallenge& m) { get_fixed(p, m.receiver_nonce); }
 void get_body(Parse& p, Frame& m) { get_image(p, m.image, "image.payload"); }
 void get_body(Parse& p, FrameRequest& m) {
   m.credits = p.r.u16();
@@ -539,6 +555,7 @@ constexpr MessageType type_of() {
   if constexpr (std::is_same_v<T, PoseUpdate>) return MessageType::kPoseUpdate;
   if constexpr (std::is_same_v<T, PoseGraph>) return MessageType::kPoseGraph;
   if constexpr (std::is_same_v<T, FloorMap>) return MessageType::kFloorMap;
+  if constexpr (std::is_same_v<T, StreamChallenge>) return MessageType::kStreamChallenge;
 }
 
 // Writes an envelope straight into `out`: header with placeholders, the body by `put_body`, then
@@ -642,6 +659,7 @@ EncodeResult encode_handshake(const Handshake& m) { return encode_typed(m, true)
 EncodeResult encode_handshake_ack(const HandshakeAck& m) { return encode_typed(m, true); }
 EncodeResult encode_frame(const Frame& m) { return encode_typed(m, true); }
 EncodeResult encode_frame_request(const FrameRequest& m) { return encode_typed(m, true); }
+EncodeResult encode_stream_challenge(const StreamChallenge& m) { return encode_typed(m, true); }
 
 EncodeResult encode_frame(const FrameHeader& header, const std::uint8_t* payload,
                           std::size_t payload_size) {
@@ -680,6 +698,8 @@ BodyResult decode_body(std::uint8_t type, const std::uint8_t* data, std::size_t 
       return decode_as<PoseGraph>(data, size);
     case MessageType::kFloorMap:
       return decode_as<FloorMap>(data, size);
+    case MessageType::kStreamChallenge:
+      return decode_as<StreamChallenge>(data, size);
   }
   BodyResult result;
   result.error = DecodeError::kUnknownMessageType;

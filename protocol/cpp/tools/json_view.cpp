@@ -68,6 +68,21 @@ std::array<double, N> doubles(const json& j, const char* field) {
   return out;
 }
 
+// u8[N] spec fields: a JSON array of N integers 0..255 (as the Python view).
+template <std::size_t N>
+std::array<std::uint8_t, N> byte_array(const json& j, const char* field) {
+  const json& v = at(j, field);
+  if (!v.is_array() || v.size() != N)
+    throw std::invalid_argument(std::string(field) + ": expected " + std::to_string(N) + " bytes");
+  std::array<std::uint8_t, N> out{};
+  for (std::size_t i = 0; i < N; ++i) {
+    if (!v[i].is_number_unsigned() || v[i].get<std::uint64_t>() > 255)
+      throw std::invalid_argument(std::string(field) + ": not a byte");
+    out[i] = static_cast<std::uint8_t>(v[i].get<std::uint64_t>());
+  }
+  return out;
+}
+
 std::string str(const json& j, const char* field) {
   const json& v = at(j, field);
   if (!v.is_string()) throw std::invalid_argument(std::string(field) + ": expected a string");
@@ -141,9 +156,14 @@ json fields_of(const Handshake& m) {
           {"encoding", enum_name(m.encoding, kAllEncoding)},
           {"intrinsics", intrinsics_json(m.intrinsics)},
           {"depth_scale_units_per_m", m.depth_scale_units_per_m},
-          {"device_id", m.device_id}};
+          {"device_id", m.device_id},
+          {"sender_nonce", m.sender_nonce},
+          {"mac", m.mac}};
 }
-json fields_of(const HandshakeAck& m) { return {{"accepted", m.accepted}, {"reason", m.reason}}; }
+json fields_of(const HandshakeAck& m) {
+  return {{"accepted", m.accepted}, {"reason", m.reason}, {"mac", m.mac}};
+}
+json fields_of(const StreamChallenge& m) { return {{"receiver_nonce", m.receiver_nonce}}; }
 json fields_of(const Frame& m) { return {{"image", image_json(m.image)}}; }
 json fields_of(const FrameRequest& m) {
   return {{"credits", m.credits}, {"last_received_sequence", m.last_received_sequence}};
@@ -218,12 +238,20 @@ Message from_fields(const std::string& type, const json& f) {
     m.intrinsics = intrinsics_from(at(f, "intrinsics"));
     m.depth_scale_units_per_m = num<double>(f, "depth_scale_units_per_m");
     m.device_id = str(f, "device_id");
+    m.sender_nonce = byte_array<kStreamAuthNonceBytes>(f, "sender_nonce");
+    m.mac = byte_array<kStreamAuthTagBytes>(f, "mac");
     return m;
   }
   if (type == "HandshakeAck") {
     HandshakeAck m;
     m.accepted = boolean(f, "accepted");
     m.reason = str(f, "reason");
+    m.mac = byte_array<kStreamAuthTagBytes>(f, "mac");
+    return m;
+  }
+  if (type == "StreamChallenge") {
+    StreamChallenge m;
+    m.receiver_nonce = byte_array<kStreamAuthNonceBytes>(f, "receiver_nonce");
     return m;
   }
   if (type == "Frame") {

@@ -139,7 +139,13 @@ class Codec:
                 if not (math.isfinite(x) and lo <= x <= hi):
                     raise EncodeError(f"{path}: {x} outside [{lo}, {hi}] or not finite")
         elif t in SCALAR_SIZES or _ARRAY_RE.match(t):
-            for x in (v if isinstance(v, list) else [v]):
+            m = _ARRAY_RE.match(t)
+            if m and (not isinstance(v, (list, tuple)) or len(v) != int(m.group(2))):
+                raise EncodeError(f"{path}: expected {m.group(2)} values")
+            bits = 8 * SCALAR_SIZES[m.group(1) if m else t]
+            for x in (v if isinstance(v, (list, tuple)) else [v]):
+                if not (isinstance(x, int) and 0 <= x < (1 << bits)):
+                    raise EncodeError(f"{path}: {x} does not fit its wire type")
                 if rng and not (rng[0] <= x <= rng[1]):
                     raise EncodeError(f"{path}: {x} outside [{rng[0]}, {rng[1]}]")
         elif t == "string":

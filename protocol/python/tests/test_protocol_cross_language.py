@@ -64,8 +64,11 @@ def random_messages(seed: int, count: int) -> list[tuple[str, dict]]:
                                "encoding": rng.choice(["RAW", "DEPTH_RVL", "DEPTH_ZSTD_DELTA"]),
                                "intrinsics": intr, "depth_scale_units_per_m": 1000.0,
                                "device_id": "".join(chr(rng.randint(32, 126))
-                                                    for _ in range(rng.randint(0, 255)))}),
-        lambda: ("HandshakeAck", {"accepted": rng.random() < 0.5, "reason": "because"}),
+                                                    for _ in range(rng.randint(0, 255))),
+                               "sender_nonce": list(rng.randbytes(16)), "mac": list(rng.randbytes(8))}),
+        lambda: ("HandshakeAck", {"accepted": rng.random() < 0.5, "reason": "because",
+                                  "mac": list(rng.randbytes(8))}),
+        lambda: ("StreamChallenge", {"receiver_nonce": list(rng.randbytes(16))}),
         lambda: ("Frame", {"image": image(rng.choice(["RGB8", "DEPTH16"]), rng.randint(1, 40),
                                           rng.randint(1, 30))}),
         lambda: ("FrameRequest", {"credits": rng.randint(1, 8),
@@ -188,6 +191,7 @@ def mutated_bodies(seed: int, per_seed: int) -> list[tuple[int, bytes]]:
     spec = CODEC.spec
     ids = {m["name"]: m["id"] for m in spec.messages}
     target_to_type = {"handshake": "Handshake", "handshake_ack": "HandshakeAck", "frame": "Frame",
+                      "stream_challenge": "StreamChallenge",
                       "frame_request": "FrameRequest", "slam_hello": "SlamHello",
                       "rgbd_frame": "RgbdFrame", "pose_update": "PoseUpdate",
                       "pose_graph": "PoseGraph", "floor_map": "FloorMap"}

@@ -5,10 +5,14 @@
 // RGB with depth by nearest capture timestamp. Consumers (SLAM server, control loop) read the
 // newest pair.
 //
-// Hostile peers (issue 17): a new connection is only a candidate until its handshake is accepted
-// (within 2 s of the connect, first message); only then does it replace the live streamer, so the
-// streamer may reconnect at any moment but a raw connect or garbage displaces nothing. Up to 4
-// candidates wait at once. Log lines caused by a peer's input are rate-limited (log_throttle.h).
+// Authentication (issue 17): every connection gets a StreamChallenge; its Handshake must carry a
+// mac over that challenge under the craft's stream key (protocol/stream_auth.hpp), so only the
+// craft's streamer is accepted and a recorded handshake is refused.
+// Hostile peers: a new connection is only a candidate until its handshake is accepted (within 2 s
+// of the connect, first message); only then does it replace the live streamer, so the streamer
+// may reconnect at any moment but a raw connect, garbage or a peer without the key displaces
+// nothing. Up to 4 candidates wait at once. The protocol logic of one connection is the
+// socket-free ReceiverSession (receiver_session.h); this class is its socket shell. Log lines caused by a peer's input are rate-limited (log_throttle.h).
 // A failed accept (descriptor limit) pauses the listener 100 ms instead of spinning.
 //
 // Thread safety: all public members may be called from any thread. Two I/O threads (one per
@@ -30,6 +34,7 @@
 
 #include "rgbdquad/net/socket.h"
 #include "rgbdquad/protocol/messages.hpp"
+#include "rgbdquad/protocol/stream_auth.hpp"
 
 namespace spdlog {
 class logger;
@@ -72,9 +77,12 @@ struct RgbdPair {
 };
 
 struct ReceiverOptions {
-  // Loopback by default: the streams are unauthenticated, so listening on every interface is an
-  // explicit choice; on the craft's WiFi bind the ground station's address on that network.
+  // Loopback by default: listening on every interface is an explicit choice; on the craft's WiFi
+  // bind the ground station's address on that network.
   std::string bind_address = "127.0.0.1";
+  // The craft's stream key (protocol/stream_auth.hpp; read from a key file with
+  // protocol::load_stream_key_file): only a streamer holding it is accepted. Required.
+  protocol::StreamKey key{};
   std::uint16_t rgb_port = 5600;    // 0 = any free port (tests)
   std::uint16_t depth_port = 5601;
   // Frames in flight per stream: 2 hides one round trip (so the link stays busy) while keeping at

@@ -25,6 +25,9 @@ struct StreamerConfig {
   std::string host = "192.168.1.10";
   std::uint16_t rgb_port = 5600;
   std::uint16_t depth_port = 5601;
+  // The craft's stream key (32 hex digits, mode 0600; the same file as the ground station's
+  // stream.key_file): the receiver accepts only a handshake signed with it (docs/security.md).
+  std::string stream_key_file = "/etc/rgbd-streamer/stream.key";
 
   // encodings (negotiated in the handshake)
   std::string depth_encoding = "rvl";  // raw | rvl | zstd-delta

@@ -1,7 +1,9 @@
 // One stream connection of rgbd-streamer (RGB or depth) to the ground-station receiver.
 //
-// Contract (docs/protocol.md): connect to host:port, send Handshake (stream kind, size, encoding,
-// intrinsics, depth scale), wait for HandshakeAck (refused: offer raw next, see raw_fallback); then send one Frame per credit granted by the
+// Contract (docs/protocol.md): connect to host:port, answer the receiver's StreamChallenge with a
+// Handshake (stream kind, size, encoding, intrinsics, depth scale) signed with the stream key,
+// wait for a HandshakeAck whose mac verifies (refused: offer raw next, see raw_fallback); the
+// protocol logic is the socket-free SenderSession (sender_session.h). Then send one Frame per credit granted by the
 // receiver's FrameRequests, always the NEWEST frame published since the last one sent (a slow
 // receiver never gets a backlog: frames it had no credit for are overwritten, counted as
 // "superseded"). On any failure (refused, closed, stalled, no credit for credit_idle_timeout_ms
@@ -15,6 +17,7 @@
 #include <atomic>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <vector>
 #include <memory>
 #include <mutex>
@@ -27,6 +30,8 @@
 #include "rgbdquad/net/socket.h"
 #include "rgbdquad/protocol/codec.hpp"
 #include "rgbdquad/protocol/messages.hpp"
+#include "rgbdquad/protocol/stream_auth.hpp"
+#include "rgbdquad/stream/sender_session.h"
 
 namespace spdlog {
 class logger;
@@ -58,6 +63,8 @@ std::size_t choose_frame(const std::vector<std::int64_t>& capture_us, std::int64
 struct StreamSenderOptions {
   std::string host = "127.0.0.1";
   std::uint16_t port = 0;
+  // The craft's stream key (protocol/stream_auth.hpp), from the key file; required.
+  protocol::StreamKey key{};
   protocol::StreamKind kind = protocol::StreamKind::kRgb;
   protocol::Encoding encoding = protocol::Encoding::kRaw;
   int width_px = capture::kKinectWidthPx;
@@ -118,10 +125,16 @@ class StreamSender {
   const StreamSenderOptions& options() const { return options_; }
 
  private:
+  struct ConnectionEnd {
+    bool was_live = false;  // the handshake had been accepted
+    bool refused = false;   // the receiver refused the handshake (signed answer)
+    std::string why;
+  };
   void run();
-  // One connection's lifetime; returns when it ends (error or stop).
-  void session(net::UniqueFd fd, protocol::StreamDecoder* decoder);
-  bool handshake(int fd, protocol::StreamDecoder* decoder, std::string* why, bool* refused);
+  protocol::Handshake make_hello() const;
+  // One connection's lifetime around a SenderSession; returns when it ends (error or stop).
+  // `on_live` runs once when the handshake is accepted.
+  ConnectionEnd serve_connection(int fd, const std::function<void()>& on_live);
   bool send_newest(int fd, std::optional<std::uint32_t>* last_sent);
 
   StreamSenderOptions options_;

@@ -63,6 +63,7 @@ EncodeResult encode_frame(const Frame& message);
 EncodeResult encode_frame(const FrameHeader& header, const std::uint8_t* payload,
                           std::size_t payload_size);
 EncodeResult encode_frame_request(const FrameRequest& message);
+EncodeResult encode_stream_challenge(const StreamChallenge& message);
 
 /// Body of a message (no envelope): what encode() wraps. Used by tests and fuzzers.
 EncodeResult encode_body(const Message& message);

@@ -13,6 +13,11 @@
 
 namespace rgbdquad::protocol {
 
+/// Random bytes of one side of a stream connection (spec protocol.stream_auth.nonce_bytes).
+using StreamNonce = std::array<std::uint8_t, kStreamAuthNonceBytes>;
+/// SipHash-2-4 tag (spec protocol.stream_auth.tag_bytes).
+using StreamTag = std::array<std::uint8_t, kStreamAuthTagBytes>;
+
 /// Pinhole intrinsics of the image a stream carries; distortion in OpenCV order k1 k2 p1 p2 k3.
 struct CameraIntrinsics {
   double fx_px = 1.0;
@@ -58,12 +63,21 @@ struct Handshake {
   CameraIntrinsics intrinsics;
   double depth_scale_units_per_m = 0.0;  ///< DEPTH16 units per metre (1000 Kinect, 5000 TUM); 0 RGB
   std::string device_id;                 ///< printable ASCII, <= kMaxStringBytes
+  StreamNonce sender_nonce{};            ///< random per connection (stream_auth.hpp)
+  StreamTag mac{};                       ///< over the receiver's challenge and this body
 };
 
 /// Stream, receiver -> sender: answer to the Handshake.
 struct HandshakeAck {
   bool accepted = false;
   std::string reason;  ///< printable ASCII, empty when accepted
+  StreamTag mac{};     ///< over both nonces and this body (stream_auth.hpp)
+};
+
+/// Stream, receiver -> sender: first message on each connection, the challenge the Handshake's
+/// mac must cover.
+struct StreamChallenge {
+  StreamNonce receiver_nonce{};
 };
 
 /// Stream, sender -> receiver: one image, sent only against a credit, always the newest held.
@@ -148,7 +162,7 @@ struct FloorMap {
 
 /// Any message; the alternative index is not the wire id, use message_type().
 using Message = std::variant<Handshake, HandshakeAck, Frame, FrameRequest, SlamHello, RgbdFrame,
-                             PoseUpdate, PoseGraph, FloorMap>;
+                             PoseUpdate, PoseGraph, FloorMap, StreamChallenge>;
 
 /// Wire id of the message held.
 MessageType message_type(const Message& message);

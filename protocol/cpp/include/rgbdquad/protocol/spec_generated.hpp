@@ -11,11 +11,18 @@ namespace rgbdquad::protocol {
 /// Protocol major version carried in every envelope; peers with another version refuse.
 inline constexpr std::uint8_t kProtocolVersion = 1;
 /// First 8 bytes (little-endian) of SHA-256 of the canonical spec (see docs/protocol.md).
-inline constexpr std::uint64_t kSchemaHash = 0xbe1fc2e7dc9d9960ULL;
+inline constexpr std::uint64_t kSchemaHash = 0x2eeedc3f3abf2f68ULL;
 /// Envelope magic, resynchronisation marker.
 inline constexpr std::uint8_t kMagic[4] = {0x52, 0x47, 0x42, 0x51};
 inline constexpr std::size_t kEnvelopeHeaderBytes = 16;
 inline constexpr std::size_t kEnvelopeTrailerBytes = 4;
+
+/// Stream authentication (spec protocol.stream_auth): SipHash-2-4 under a per-craft key.
+inline constexpr std::size_t kStreamAuthKeyBytes = 16;
+inline constexpr std::size_t kStreamAuthNonceBytes = 16;
+inline constexpr std::size_t kStreamAuthTagBytes = 8;
+inline constexpr std::string_view kStreamAuthHandshakeLabel = "RGBQ-HS1";
+inline constexpr std::string_view kStreamAuthAckLabel = "RGBQ-AK1";
 
 /// device ids, peer names and reasons are short identifiers
 inline constexpr std::size_t kMaxStringBytes = 255;
@@ -294,6 +301,7 @@ enum class MessageType : std::uint8_t {
   kHandshakeAck = 2,  // stream link
   kFrame = 3,  // stream link
   kFrameRequest = 4,  // stream link
+  kStreamChallenge = 5,  // stream link
   kSlamHello = 16,  // slam link
   kRgbdFrame = 17,  // slam link
   kPoseUpdate = 18,  // slam link
@@ -305,13 +313,15 @@ enum class MessageType : std::uint8_t {
 constexpr std::size_t max_body_bytes(std::uint8_t message_type) {
   switch (message_type) {
     case 1:  // Handshake
-      return 354;
+      return 378;
     case 2:  // HandshakeAck
-      return 258;
+      return 266;
     case 3:  // Frame
       return 1048606;
     case 4:  // FrameRequest
       return 6;
+    case 5:  // StreamChallenge
+      return 16;
     case 16:  // SlamHello
       return 537;
     case 17:  // RgbdFrame
@@ -336,6 +346,8 @@ constexpr std::string_view to_string(MessageType t) {
       return "Frame";
     case MessageType::kFrameRequest:
       return "FrameRequest";
+    case MessageType::kStreamChallenge:
+      return "StreamChallenge";
     case MessageType::kSlamHello:
       return "SlamHello";
     case MessageType::kRgbdFrame:
