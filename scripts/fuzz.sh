@@ -18,6 +18,10 @@ status=0
 for t in "${targets[@]}"; do
   name=$(basename "$t")
   seeds="protocol/vectors/corpus/${name#fuzz_}"
+  case "$name" in  # targets of tests/fuzz: stream sessions start from the stream vectors
+    fuzz_receiver_session|fuzz_sender_session) seeds=protocol/vectors/corpus/stream ;;
+    fuzz_dashboard_request) seeds=tests/fuzz/corpus/dashboard_request ;;
+  esac
   work=$(mktemp -d)
   [ -d "$seeds" ] && cp -r "$seeds"/. "$work"/ 2>/dev/null || true
   echo "fuzz: $name for ${per}s (seeds: $seeds)"
