@@ -4,8 +4,10 @@
 #   SIFT/SURF/ORB x local map/VO/LLC/GLC, plus cv::rgbd::RgbdOdometry (rgbd-odometry-peer) on the
 #   same frames; then real-time replays at 30 fps (local map ORB and SIFT, the thesis ORB VO+LLC and
 #   VO+GLC) counting dropped front-end frames; relocalisation (1 s withheld mid-sequence; a second
-#   run from the saved map); and the long run (fr1_xyz_first300 forward/backward LONGRUN_PASSES
-#   times, real time, per-minute table). Prints tables shaped like thesis Tables 4.8 (RPE) and 4.10
+#   run from the saved map); loop closing on vs off (local map ORB, wait and real time, on
+#   fr1_xyz_first300 and fr2_desk_first50: ATE, loops detected/accepted, pose-graph ms, map-lock
+#   hold ms); and the long run (fr1_xyz_first300 forward/backward LONGRUN_PASSES times, real time,
+#   per-minute table). Prints tables shaped like thesis Tables 4.8 (RPE) and 4.10
 #   (ATE), per-stage median ms, and the verdicts.
 # Env: DATA (default ../shared/data), SLAM_BIN (default build/bin), BENCH_OUT (default out/bench),
 #      BENCH_SEQUENCES (space-separated subset), BENCH_DETECTORS, BENCH_BACKENDS,
@@ -58,6 +60,19 @@ if [ -d "$DATA/fr1_xyz_first300" ]; then
     echo "bench: [$(( $(date +%s) - start ))s] real-time replay at 30 fps: $1 $2"
     "$BIN/slam-eval" run --dataset "$xyz" --features "$1" --backend "$2" --mode realtime \
       --no-map --quiet --out "$OUT/realtime_${1}_$2" 2> "$OUT/realtime_${1}_$2.log" || status=1
+  done
+  # Loop closing on vs off (the local map ORB system), both modes, both sequences.
+  for seq in fr1_xyz_first300 fr2_desk_first50; do
+    [ -d "$DATA/$seq" ] || continue
+    camera=fr1; case "$seq" in fr2*) camera=fr2;; esac
+    for mode in wait realtime; do
+      for lc in on off; do
+        echo "bench: [$(( $(date +%s) - start ))s] loop closing $lc: $seq $mode"
+        "$BIN/slam-eval" run --dataset "$DATA/$seq" --camera "$camera" --features orb --backend localmap \
+          --mode "$mode" --loop-closing "$lc" --no-map --quiet --out "$OUT/loop_${seq}_${mode}_$lc" \
+          2> "$OUT/loop_${seq}_${mode}_$lc.log" || status=1
+      done
+    done
   done
   echo "bench: [$(( $(date +%s) - start ))s] relocalisation: 1 s withheld at 5 s; a run from the saved map"
   "$BIN/slam-eval" run --dataset "$xyz" --withhold 1 --withhold-from 5 --mode wait --no-map --quiet \

@@ -5,6 +5,9 @@
 //     DIR/trajectory_online.tum (poses as estimated at the time), DIR/metrics.json, DIR/map.ply,
 //     DIR/graph_before.g2o, DIR/graph_after.g2o; progress on stderr.
 //   slam-eval score --gt GT.txt --est EST.tum    prints the ATE/RPE JSON.
+//   slam-eval vocab --dataset DIR [--dataset DIR2] --out FILE   trains the ORB bag-of-words
+//     vocabulary (deterministic; offboard/slam/data/orb_vocabulary_k10_l3.bin is its output on
+//     tests/data/fr1_desk_9frames, compiled into the library).
 // This file is wiring only: options -> dataset -> pipeline -> writers.
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -39,6 +42,7 @@ struct RunArgs {
   std::string stamp = "depth";
   std::string save_map, load_map;
   double withhold_from_s = -1, withhold_s = 0;
+  std::string loop_closing = "on", keyframe_new_content = "on";
 };
 
 json stage_stats(std::vector<double> v) {
@@ -51,6 +55,7 @@ json stage_stats(std::vector<double> v) {
   j["mean_ms"] = s / static_cast<double>(v.size());
   j["median_ms"] = v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
   j["p95_ms"] = v[std::min(v.size() - 1, static_cast<std::size_t>(0.95 * static_cast<double>(v.size())))];
+  j["max_ms"] = v.back();
   return j;
 }
 
@@ -89,6 +94,8 @@ int run_command(const RunArgs& a) {
   if (a.orb_levels > 0) po.frontend.features.orb_levels = a.orb_levels;
   if (a.orb_scale_factor > 0) po.frontend.features.orb_scale_factor = a.orb_scale_factor;
   po.frontend.seed = a.seed;
+  po.loop_closing = a.loop_closing == "on";
+  po.tracker.keyframe_needs_new_content = a.keyframe_new_content == "on";
   po.backend.seed = a.seed + 1;
   const auto sampling = a.ransac == "thesis" ? slam::RansacSampling::kThesis : slam::RansacSampling::kRandom;
   po.frontend.ransac.sampling = sampling;
@@ -210,17 +217,32 @@ int run_command(const RunArgs& a) {
   // Per-frame and per-keyframe tables for long-run analysis (offboard/tools/longrun.py).
   {
     std::ofstream frames_csv(fs::path(a.out) / "frames.csv");
-    frames_csv << "index,stamp_s,state,keyframe,matches,inliers,frontend_ms,frontend_cpu_ms,map_keyframes,map_points\n";
+    frames_csv << "index,stamp_s,state,keyframe,matches,inliers,frontend_ms,frontend_cpu_ms,map_keyframes,map_points,"
+                  "keyframe_wanted,ref_tracked,near_tracked,near_untracked,near_redundant\n";
     for (const auto& r : records)
       frames_csv << r.index << "," << std::fixed << std::setprecision(6) << r.stamp_s << ","
                  << slam::to_string(r.state) << "," << (r.keyframe ? 1 : 0) << "," << r.matches << "," << r.inliers << "," << std::setprecision(3)
-                 << r.frontend_ms << "," << r.frontend_cpu_ms << "," << r.map_keyframes << "," << r.map_points << "\n";
+                 << r.frontend_ms << "," << r.frontend_cpu_ms << "," << r.map_keyframes << "," << r.map_points << ","
+                 << slam::to_string(r.keyframe_wanted) << "," << r.ref_tracked << "," << r.near_tracked << ","
+                 << r.near_untracked << "," << r.near_redundant << "\n";
     std::ofstream mapping_csv(fs::path(a.out) / "mapping.csv");
     mapping_csv << "keyframe,mapping_ms,mapping_cpu_ms,ba_ms,ba_points,points_culled,points_fused,keyframes_culled\n";
     for (const auto& st : pipeline->mapper_stats())
       mapping_csv << st.keyframe << "," << std::fixed << std::setprecision(3) << st.total_ms << ","
                   << st.total_cpu_ms << "," << st.ba_ms << "," << st.ba_points << "," << st.points_culled << ","
                   << st.points_fused << "," << st.keyframes_culled << "\n";
+    std::ofstream loops_csv(fs::path(a.out) / "loops.csv");
+    loops_csv << "keyframe,searched,candidates,verified_ransac,accepted,loop_keyframe,ransac_inliers,fit_inliers,"
+                 "correction_m,correction_deg,graph_keyframes,graph_edges,points_merged,points_attached,bow_ms,"
+                 "query_ms,verify_ms,posegraph_ms,snapshot_lock_ms,apply_lock_ms,fuse_lock_ms,total_ms,total_cpu_ms\n";
+    for (const auto& l : pipeline->loop_stats())
+      loops_csv << l.keyframe << "," << l.searched << "," << l.candidates << "," << l.verified_ransac << ","
+                << l.accepted << "," << l.loop_keyframe << "," << l.ransac_inliers << "," << l.fit_inliers << ","
+                << std::fixed << std::setprecision(4) << l.correction_m << "," << l.correction_deg << ","
+                << l.graph_keyframes << "," << l.graph_edges << "," << l.points_merged << "," << l.points_attached
+                << "," << l.bow_ms << "," << l.query_ms << "," << l.verify_ms << "," << l.posegraph_ms << ","
+                << l.snapshot_lock_ms << "," << l.apply_lock_ms << "," << l.fuse_lock_ms << "," << l.total_ms << ","
+                << l.total_cpu_ms << "\n";
     std::ofstream rss_csv(fs::path(a.out) / "rss.csv");
     rss_csv << "stamp_s,rss_mib\n";
     for (const auto& [t, mib] : rss_samples) rss_csv << std::fixed << std::setprecision(6) << t << "," << mib << "\n";
@@ -242,6 +264,8 @@ int run_command(const RunArgs& a) {
   m["stamp"] = a.stamp;
   m["reprojection_refine"] = !a.no_reprojection;
   m["cv_threads"] = a.cv_threads;
+  m["loop_closing_option"] = a.loop_closing;
+  m["keyframe_new_content"] = a.keyframe_new_content;
   m["frames"] = records.size();
   m["frames_submitted"] = summary.frames_submitted;
   m["frames_failed"] = summary.frames_failed;
@@ -262,6 +286,27 @@ int run_command(const RunArgs& a) {
     }
     m["mapping"] = {{"keyframes_mapped", map_ms.size()}, {"mapping", stage_stats(map_ms)},
                     {"mapping_cpu", stage_stats(map_cpu)}, {"bundle_adjustment", stage_stats(ba_ms)}};
+    std::vector<double> loop_ms, loop_cpu, pg_ms, snap_lock, apply_lock, fuse_lock;
+    std::size_t searched = 0, ransac_ok = 0, ba_discarded = 0;
+    for (const auto& l : pipeline->loop_stats()) {
+      loop_ms.push_back(l.total_ms);
+      loop_cpu.push_back(l.total_cpu_ms);
+      snap_lock.push_back(l.snapshot_lock_ms);
+      searched += l.searched ? 1 : 0;
+      ransac_ok += l.verified_ransac > 0 ? 1 : 0;
+      if (!l.accepted) continue;
+      pg_ms.push_back(l.posegraph_ms);
+      apply_lock.push_back(l.apply_lock_ms);
+      fuse_lock.push_back(l.fuse_lock_ms);
+    }
+    for (const auto& st : pipeline->mapper_stats()) ba_discarded += st.ba_discarded ? 1 : 0;
+    m["loop_closing"] = {{"active", summary.loop_closing_active}, {"keyframes_processed", loop_ms.size()},
+                         {"keyframes_searched", searched}, {"detections", summary.loop_detections},
+                         {"ransac_verified", ransac_ok}, {"accepted", summary.loop_closures},
+                         {"local_ba_discarded", ba_discarded},
+                         {"loop_closing", stage_stats(loop_ms)}, {"loop_closing_cpu", stage_stats(loop_cpu)},
+                         {"posegraph", stage_stats(pg_ms)}, {"snapshot_lock", stage_stats(snap_lock)},
+                         {"apply_lock", stage_stats(apply_lock)}, {"fuse_lock_max_per_keyframe", stage_stats(fuse_lock)}};
   }
   m["wall_s"] = wall_s;
   m["frames_withheld"] = withheld;
@@ -354,6 +399,54 @@ int run_command(const RunArgs& a) {
   return 0;
 }
 
+int vocab_command(const std::vector<std::string>& datasets, const std::string& out,
+                  const slam::VocabularyOptions& options) {
+  std::vector<cv::Mat> images;
+  std::string err;
+  for (const std::string& dir : datasets) {
+    const auto ds = slam::TumDataset::open(dir, slam::TumDatasetOptions{}, &err);
+    slam::Intrinsics intr;
+    if (!ds || !slam::Intrinsics::from_name(guess_camera(dir), &intr, &err)) {
+      std::cerr << "slam-eval vocab: " << err << "\n";
+      return 1;
+    }
+    slam::FeatureOptions fo;  // ORB with the defaults the local-map system runs
+    fo.kind = slam::DetectorKind::kOrb;
+    auto extractor = slam::FeatureExtractor::create(fo, intr, &err);
+    if (!extractor) {
+      std::cerr << "slam-eval vocab: " << err << "\n";
+      return 1;
+    }
+    for (std::size_t i = 0; i < ds->size(); ++i) {
+      auto frame = ds->load(i, &err);
+      auto f = frame ? extractor->extract(*frame, &err) : std::nullopt;
+      if (!f) {
+        std::cerr << "slam-eval vocab: " << dir << " frame " << i << ": " << err << "\n";
+        return 1;
+      }
+      images.push_back(f->descriptors.clone());
+    }
+  }
+  const auto v = slam::BinaryVocabulary::train(images, options, &err);
+  if (!v) {
+    std::cerr << "slam-eval vocab: " << err << "\n";
+    return 1;
+  }
+  const std::vector<std::uint8_t> bytes = v->to_bytes();
+  std::ofstream f(out, std::ios::binary | std::ios::trunc);
+  f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  if (!f) {
+    std::cerr << "slam-eval vocab: cannot write " << out << "\n";
+    return 1;
+  }
+  std::size_t descriptors = 0;
+  for (const cv::Mat& m : images) descriptors += static_cast<std::size_t>(m.rows);
+  std::cerr << "slam-eval vocab: " << images.size() << " images, " << descriptors << " descriptors -> " << v->words()
+            << " words (k " << options.branching << ", L " << options.levels << "), " << bytes.size()
+            << " bytes to " << out << "\n";
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -404,13 +497,29 @@ int main(int argc, char** argv) {
   run->add_option("--orb-levels", a.orb_levels, "ORB pyramid levels (0: default, thesis: 6)");
   run->add_option("--orb-scale-factor", a.orb_scale_factor, "ORB pyramid scale factor (0: default, thesis: 2)");
   run->add_flag("--quiet", a.quiet, "no per-25-frame progress");
+  run->add_option("--loop-closing", a.loop_closing,
+                  "localmap: loop closing on its own thread (ORB only: the vocabulary is ORB's)")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
+  run->add_option("--keyframe-new-content", a.keyframe_new_content,
+                  "localmap: a view change makes no keyframe that would be culled as redundant at once (>= 90 % of "
+                  "its tracked near points seen by >= 3 keyframes); off: ORB-SLAM2's rule as is")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   std::string gt, est;
   auto* score = app.add_subcommand("score", "print ATE/RPE of EST against GT as JSON (TUM definitions, 20 ms association)");
   score->add_option("--gt", gt, "ground truth, TUM format")->required();
   score->add_option("--est", est, "estimate, TUM format")->required();
+  std::vector<std::string> vocab_datasets;
+  std::string vocab_out;
+  slam::VocabularyOptions vocab_options;
+  auto* vocab = app.add_subcommand("vocab", "train the ORB bag-of-words vocabulary on TUM folders (deterministic)");
+  vocab->add_option("--dataset", vocab_datasets, "TUM folder(s) whose frames are the training images")->required();
+  vocab->add_option("--out", vocab_out, "vocabulary file to write")->required();
+  vocab->add_option("--branching", vocab_options.branching, "k")->capture_default_str();
+  vocab->add_option("--levels", vocab_options.levels, "L")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {
     if (*run) return run_command(a);
+    if (*vocab) return vocab_command(vocab_datasets, vocab_out, vocab_options);
     return slam::eval::run_score_command(gt, est, std::cout, std::cerr);
   } catch (const std::exception& e) {
     std::cerr << "slam-eval: " << e.what() << "\n";

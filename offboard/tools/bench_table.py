@@ -36,7 +36,7 @@ def stage(m, name, key="median_ms"):
 
 def main(out_dir: str) -> int:
     out = Path(out_dir)
-    special = ("realtime_", "longrun", "reloc")
+    special = ("realtime_", "longrun", "reloc", "loop_")
     seqs = sorted(p.name for p in out.iterdir() if p.is_dir() and not p.name.startswith(special))
     for seq in seqs:
         runs = {(d, b): load(out / seq / f"{d}_{b}" / "metrics.json") for d in DETECTORS for b, _ in BACKENDS}
@@ -102,6 +102,28 @@ def main(out_dir: str) -> int:
                   f"{stage(rt, 'frontend_cpu') or float('nan'):.1f} / {stage(rt, 'frontend_cpu', 'p95_ms') or float('nan'):.1f} | "
                   f"{stage(rt, 'frontend') or float('nan'):.1f} / {stage(rt, 'frontend', 'p95_ms') or float('nan'):.1f} | "
                   f"{mp.get('p95_ms', float('nan')):.1f} |")
+    loops = sorted(p for p in out.iterdir() if p.is_dir() and p.name.startswith("loop_"))
+    if loops:
+        print("\n### Loop closing on vs off (local map ORB; lock = map-lock hold of the correction step, "
+              "fuse = longest hold of one fusion step)")
+        print("| run | ATE m | RPE mm | keyframes | loop searches | detections | RANSAC-verified | accepted | "
+              "loop closing CPU p95 ms | pose graph ms max | lock ms max | fuse ms max | BA dropped | dropped |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+        for p in loops:
+            m = load(p / "metrics.json")
+            if m is None:
+                continue
+            lc = m.get("loop_closing") or {}
+
+            def mx(key):
+                v = (lc.get(key) or {})
+                return f"{v['p95_ms']:.1f}" if "p95_ms" in v else "-"
+            print(f"| {p.name[len('loop_'):]} | {cell(m, 'ate_rmse_m', '{:.4f}')} | {cell(m, 'rpe_trans_rmse_mm', '{:.2f}')} | "
+                  f"{m.get('keyframes')} | {lc.get('keyframes_searched', '-')} | {lc.get('detections', '-')} | "
+                  f"{lc.get('ransac_verified', '-')} | {lc.get('accepted', '-')} | {mx('loop_closing_cpu')} | "
+                  f"{(lc.get('posegraph') or {}).get('max_ms', '-')} | {(lc.get('apply_lock') or {}).get('max_ms', '-')} | "
+                  f"{(lc.get('fuse_lock_max_per_keyframe') or {}).get('max_ms', '-')} | {lc.get('local_ba_discarded', '-')} | "
+                  f"{m.get('frontend_dropped')} |")
     for name, title in (("reloc_gap", "1 s of frames withheld mid-sequence"),
                         ("reloc_reload", "second run started from the reloaded map")):
         m = load(out / name / "metrics.json")

@@ -112,6 +112,7 @@ def table(run: Path, minute_s: float = 60.0) -> int:
     frames = list(csv.DictReader(open(run / "frames.csv")))
     mapping = list(csv.DictReader(open(run / "mapping.csv")))
     rss = list(csv.DictReader(open(run / "rss.csv")))
+    loops = list(csv.DictReader(open(run / "loops.csv"))) if (run / "loops.csv").exists() else []
     metrics = json.loads((run / "metrics.json").read_text())
     if not frames:
         print("longrun: no frames", file=sys.stderr)
@@ -125,6 +126,12 @@ def table(run: Path, minute_s: float = 60.0) -> int:
         fr = [f for f in frames if lo <= float(f["stamp_s"]) < hi]
         mp = [x for x in mapping if lo <= stamp_of.get(int(x["keyframe"]), -1) < hi]
         rs = [float(x["rss_mib"]) for x in rss if lo <= float(x["stamp_s"]) < hi]
+        lp = [x for x in loops if lo <= stamp_of.get(int(x["keyframe"]), -1) < hi]
+        # why the keyframes were made (frames.csv keyframe_wanted: view_changed, need_near or both)
+        why = {"view_changed": 0, "need_near": 0, "view_changed+need_near": 0}
+        for f in fr:
+            if int(f["keyframe"]) and f.get("keyframe_wanted") in why:
+                why[f["keyframe_wanted"]] += 1
         last = fr[-1] if fr else None
         rows.append({
             "minute": m + 1, "frames": len(fr),
@@ -136,9 +143,12 @@ def table(run: Path, minute_s: float = 60.0) -> int:
             "tracking_cpu_p95_ms": _p95([float(f["frontend_cpu_ms"]) for f in fr]),
             "mapping_p95_ms": _p95([float(x["mapping_ms"]) for x in mp]),
             "keyframes_mapped": len(mp),
+            "kf_view/near/both": f"{why['view_changed']}/{why['need_near']}/{why['view_changed+need_near']}",
+            "loops_accepted": sum(1 for x in lp if x["accepted"] == "1"),
         })
     cols = ["minute", "frames", "lost", "new_keyframes", "keyframes_end", "map_points_end",
-            "rss_mib_end", "tracking_cpu_p95_ms", "mapping_p95_ms", "keyframes_mapped"]
+            "rss_mib_end", "tracking_cpu_p95_ms", "mapping_p95_ms", "keyframes_mapped", "kf_view/near/both",
+            "loops_accepted"]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for r in rows:

@@ -65,6 +65,59 @@ double chi2_of(const MapKeyframe& kf, int kp, const Eigen::Vector3d& p_world, co
 
 }  // namespace
 
+FuseCounts fuse_into_keyframe(SlamMap& map, const CameraModel& camera, double radius_px, std::int64_t target,
+                              const std::vector<std::int64_t>& pids) {
+  FuseCounts counts;
+  const MapKeyframe* kf = map.keyframe(target);
+  if (!kf) return counts;
+  const Eigen::Isometry3d T_cam_world = kf->T_world_cam.inverse();
+  const cv::Mat& desc = kf->features.features->descriptors;
+  const bool binary = desc.type() == CV_8U;
+  std::vector<int> cand;
+  for (std::int64_t pid : pids) {
+    const MapPoint* p = map.point(pid);
+    if (!p || p->observations.count(target)) continue;
+    const Eigen::Vector3d pc = T_cam_world * p->p_world_m;
+    if (pc.z() <= 0.1) continue;
+    const Eigen::Vector3d uvd = camera.project(pc);
+    if (!camera.in_image(uvd.x(), uvd.y())) continue;
+    kf->features.grid.query(uvd.x(), uvd.y(), radius_px * 8.0, &cand);
+    double best = 1e300;
+    int best_k = -1;
+    for (int k : cand) {
+      const auto ks = static_cast<std::size_t>(k);
+      const Eigen::Vector3d e = (uvd - kf->features.measurement(ks, camera)) / kf->features.sigma_px[ks];
+      if (e.head<2>().norm() > radius_px || e.squaredNorm() > kChi2Rgbd95) continue;
+      const double d = descriptor_distance(p->descriptor, desc.row(k));
+      if (d < best) {
+        best = d;
+        best_k = k;
+      }
+    }
+    if (best_k < 0) continue;
+    // Fusion gate: ORB-SLAM2 TH_LOW (50 bits) for binary; NNMMT for float descriptors.
+    const double gate = binary ? 50.0 : 0.5 * distance_to_origin(desc.row(best_k));
+    if (best > gate) continue;
+    const std::int64_t there = kf->point_ids[static_cast<std::size_t>(best_k)];
+    if (there >= 0 && there != pid) {
+      const MapPoint* q = map.point(there);
+      if (!q) continue;
+      // Keep the point with more observations (ties: the older one).
+      const bool keep_q = q->observations.size() > p->observations.size() ||
+                          (q->observations.size() == p->observations.size() && there < pid);
+      if (keep_q) map.replace_point(pid, there);
+      else map.replace_point(there, pid);
+      ++counts.merged;
+    } else if (there < 0) {
+      map.add_observation(pid, target, best_k);
+      ++counts.attached;
+    }
+    kf = map.keyframe(target);
+    if (!kf) return counts;
+  }
+  return counts;
+}
+
 bool LocalMapperOptions::is_valid(std::string* error) const {
   auto fail = [&](const char* m) {
     if (error) *error = std::string("local mapper: ") + m;
@@ -138,57 +191,6 @@ int LocalMapper::cull_points(std::int64_t kf_id) {
   return culled;
 }
 
-void LocalMapper::fuse_into(std::int64_t target, const std::vector<std::int64_t>& pids, MapperStats* stats) {
-  SlamMap& map = map_->map;
-  const MapKeyframe* kf = map.keyframe(target);
-  if (!kf) return;
-  const Eigen::Isometry3d T_cam_world = kf->T_world_cam.inverse();
-  const cv::Mat& desc = kf->features.features->descriptors;
-  const bool binary = desc.type() == CV_8U;
-  std::vector<int> cand;
-  for (std::int64_t pid : pids) {
-    const MapPoint* p = map.point(pid);
-    if (!p || p->observations.count(target)) continue;
-    const Eigen::Vector3d pc = T_cam_world * p->p_world_m;
-    if (pc.z() <= 0.1) continue;
-    const Eigen::Vector3d uvd = camera_.project(pc);
-    if (!camera_.in_image(uvd.x(), uvd.y())) continue;
-    kf->features.grid.query(uvd.x(), uvd.y(), options_.fuse_radius_px * 8.0, &cand);
-    double best = 1e300;
-    int best_k = -1;
-    for (int k : cand) {
-      const auto ks = static_cast<std::size_t>(k);
-      const Eigen::Vector3d e = (uvd - kf->features.measurement(ks, camera_)) / kf->features.sigma_px[ks];
-      if (e.head<2>().norm() > options_.fuse_radius_px || e.squaredNorm() > kChi2Rgbd95) continue;
-      const double d = descriptor_distance(p->descriptor, desc.row(k));
-      if (d < best) {
-        best = d;
-        best_k = k;
-      }
-    }
-    if (best_k < 0) continue;
-    // Fusion gate: ORB-SLAM2 TH_LOW (50 bits) for binary; NNMMT for float descriptors.
-    const double gate = binary ? 50.0 : 0.5 * distance_to_origin(desc.row(best_k));
-    if (best > gate) continue;
-    const std::int64_t there = kf->point_ids[static_cast<std::size_t>(best_k)];
-    if (there >= 0 && there != pid) {
-      const MapPoint* q = map.point(there);
-      if (!q) continue;
-      // Keep the point with more observations (ties: the older one).
-      const bool keep_q = q->observations.size() > p->observations.size() ||
-                          (q->observations.size() == p->observations.size() && there < pid);
-      if (keep_q) map.replace_point(pid, there);
-      else map.replace_point(there, pid);
-      ++stats->points_fused;
-    } else if (there < 0) {
-      map.add_observation(pid, target, best_k);
-      ++stats->observations_added;
-    }
-    kf = map.keyframe(target);
-    if (!kf) return;
-  }
-}
-
 void LocalMapper::fuse(std::int64_t kf_id, MapperStats* stats) {
   std::lock_guard<std::mutex> lock(map_->mutex);
   SlamMap& map = map_->map;
@@ -202,14 +204,19 @@ void LocalMapper::fuse(std::int64_t kf_id, MapperStats* stats) {
       for (std::int64_t pid : kf->point_ids) if (pid >= 0) v.push_back(pid);
     return v;
   };
-  for (std::int64_t n : neighbours) fuse_into(n, own_points(), stats);
+  auto fuse_into = [&](std::int64_t target, const std::vector<std::int64_t>& pids) {
+    const FuseCounts c = fuse_into_keyframe(map, camera_, options_.fuse_radius_px, target, pids);
+    stats->points_fused += c.merged;
+    stats->observations_added += c.attached;
+  };
+  for (std::int64_t n : neighbours) fuse_into(n, own_points());
   std::vector<std::int64_t> theirs;
   std::unordered_set<std::int64_t> seen;
   for (std::int64_t n : neighbours)
     if (const MapKeyframe* kf = map.keyframe(n))
       for (std::int64_t pid : kf->point_ids)
         if (pid >= 0 && seen.insert(pid).second) theirs.push_back(pid);
-  fuse_into(kf_id, theirs, stats);
+  fuse_into(kf_id, theirs);
 }
 
 void LocalMapper::bundle_adjust(std::int64_t kf_id, MapperStats* stats) {
@@ -225,10 +232,12 @@ void LocalMapper::bundle_adjust(std::int64_t kf_id, MapperStats* stats) {
   std::map<std::int64_t, std::array<double, 3>> points;
   std::vector<Obs> obs;
   std::int64_t first_kf = -1;
+  std::uint64_t corrections = 0;
   {
     std::lock_guard<std::mutex> lock(map_->mutex);
     const SlamMap& map = map_->map;
     if (!map.has_keyframe(kf_id)) return;
+    corrections = map_->corrections;
     first_kf = map.keyframes().begin()->first;
     std::vector<std::int64_t> window{kf_id};
     for (const auto& [n, shared] : map.covisible(kf_id, options_.covisibility_min_shared)) {
@@ -295,6 +304,13 @@ void LocalMapper::bundle_adjust(std::int64_t kf_id, MapperStats* stats) {
   {
     std::lock_guard<std::mutex> lock(map_->mutex);
     SlamMap& map = map_->map;
+    if (map_->corrections != corrections) {
+      // Solved on poses from before a loop correction: writing it back would undo the correction
+      // in this window (ORB-SLAM2 aborts its local BA for the same reason).
+      stats->ba_discarded = true;
+      stats->ba_ms = ms_since(t0);
+      return;
+    }
     for (const auto& [k, b] : poses) {
       if (fixed.count(k)) continue;
       MapKeyframe* kf = map.keyframe(k);
@@ -327,7 +343,7 @@ int LocalMapper::cull_keyframes(std::int64_t kf_id) {
   const std::int64_t first_kf = map.keyframes().begin()->first;
   int culled = 0;
   for (const auto& [n, shared] : map.covisible(kf_id, 1)) {
-    if (n == first_kf || n == kf_id) continue;
+    if (n == first_kf || n == kf_id || map.in_loop_edge(n)) continue;
     const MapKeyframe* kf = map.keyframe(n);
     if (!kf) continue;
     int points = 0, redundant = 0;

@@ -47,8 +47,20 @@ struct MapperStats {
   std::int64_t keyframe = -1;
   int points_culled = 0, points_fused = 0, observations_added = 0, outliers_removed = 0;
   int keyframes_culled = 0, ba_keyframes = 0, ba_fixed = 0, ba_points = 0;
+  bool ba_discarded = false;  ///< a loop correction moved the map while the BA was solving
   double total_ms = 0, ba_ms = 0, total_cpu_ms = 0;
 };
+
+struct FuseCounts {
+  int merged = 0;    ///< duplicates merged into one point
+  int attached = 0;  ///< observations added to keypoints that saw no point
+};
+/// Projects points `pids` into keyframe `target` and, per point, takes the best keypoint within
+/// `radius_px` x its sigma (and the RGB-D chi-square gate) whose descriptor passes the fusion gate:
+/// a keypoint seeing another point merges the two (the one with more observations stays), a free
+/// keypoint gains the observation. Call with the map locked. Shared by mapping and loop closing.
+FuseCounts fuse_into_keyframe(SlamMap& map, const CameraModel& camera, double radius_px, std::int64_t target,
+                              const std::vector<std::int64_t>& pids);
 
 class LocalMapper {
  public:
@@ -62,8 +74,6 @@ class LocalMapper {
       : options_(std::move(o)), camera_(c), map_(std::move(m)) {}
   int cull_points(std::int64_t kf_id);
   void fuse(std::int64_t kf_id, MapperStats* stats);
-  /// Projects `pids` into keyframe `target` and fuses/attaches; returns merges + attachments.
-  void fuse_into(std::int64_t target, const std::vector<std::int64_t>& pids, MapperStats* stats);
   void bundle_adjust(std::int64_t kf_id, MapperStats* stats);
   int cull_keyframes(std::int64_t kf_id);
 

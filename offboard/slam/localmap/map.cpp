@@ -226,11 +226,17 @@ int SlamMap::tracked_points(std::int64_t kf_id, int min_obs) const {
   return n;
 }
 
+bool SlamMap::in_loop_edge(std::int64_t kf_id) const {
+  return std::any_of(loop_edges_.begin(), loop_edges_.end(),
+                     [&](const LoopEdge& e) { return e.a == kf_id || e.b == kf_id; });
+}
+
 void SlamMap::restore(std::map<std::int64_t, MapKeyframe> kfs, std::map<std::int64_t, MapPoint> pts,
-                      std::map<std::int64_t, CulledKeyframe> culled) {
+                      std::map<std::int64_t, CulledKeyframe> culled, std::vector<LoopEdge> loop_edges) {
   keyframes_ = std::move(kfs);
   points_ = std::move(pts);
   culled_ = std::move(culled);
+  loop_edges_ = std::move(loop_edges);
   next_point_id_ = points_.empty() ? 0 : points_.rbegin()->first + 1;
   keyframes_created_ = static_cast<std::int64_t>(keyframes_.size() + culled_.size());
 }

@@ -117,6 +117,13 @@ struct CulledKeyframe {
   Eigen::Isometry3d T_parent_kf = Eigen::Isometry3d::Identity();
 };
 
+/// A verified loop closure between keyframes a and b: T_a_b maps points of camera b into camera a.
+/// Kept for every later pose-graph optimisation; its keyframes are never culled.
+struct LoopEdge {
+  std::int64_t a = -1, b = -1;
+  Eigen::Isometry3d T_a_b = Eigen::Isometry3d::Identity();
+};
+
 class SlamMap {
  public:
   // --- keyframes
@@ -154,16 +161,22 @@ class SlamMap {
   /// Points of keyframe `kf_id` observed by at least `min_obs` keyframes.
   int tracked_points(std::int64_t kf_id, int min_obs) const;
 
+  // --- loop closures
+  void add_loop_edge(const LoopEdge& e) { loop_edges_.push_back(e); }
+  const std::vector<LoopEdge>& loop_edges() const { return loop_edges_; }
+  bool in_loop_edge(std::int64_t kf_id) const;
+
   // --- for tests and reporting
   std::int64_t next_point_id() const { return next_point_id_; }
   /// Replaces the whole content (map loading). Ids continue after the largest loaded one.
   void restore(std::map<std::int64_t, MapKeyframe> kfs, std::map<std::int64_t, MapPoint> pts,
-               std::map<std::int64_t, CulledKeyframe> culled);
+               std::map<std::int64_t, CulledKeyframe> culled, std::vector<LoopEdge> loop_edges = {});
 
  private:
   std::map<std::int64_t, MapKeyframe> keyframes_;
   std::map<std::int64_t, MapPoint> points_;
   std::map<std::int64_t, CulledKeyframe> culled_;
+  std::vector<LoopEdge> loop_edges_;
   std::int64_t next_point_id_ = 0;
   std::int64_t keyframes_created_ = 0;
 };

@@ -20,14 +20,7 @@ constexpr std::uint64_t kMaxPoints = 50000000;
 constexpr std::uint64_t kMaxObservations = 100000;
 constexpr int kThumbnailCols = 40, kThumbnailRows = 30;
 
-std::uint64_t fnv1a(const std::vector<std::uint8_t>& bytes, std::size_t n) {
-  std::uint64_t h = 1469598103934665603ull;
-  for (std::size_t i = 0; i < n; ++i) {
-    h ^= bytes[i];
-    h *= 1099511628211ull;
-  }
-  return h;
-}
+std::uint64_t fnv1a(const std::vector<std::uint8_t>& bytes, std::size_t n) { return fnv1a64(bytes.data(), n); }
 
 class Writer {
  public:
@@ -101,6 +94,15 @@ bool fail(std::string* error, const std::string& path, const std::string& why) {
 
 }  // namespace
 
+std::uint64_t fnv1a64(const std::uint8_t* data, std::size_t n) {
+  std::uint64_t h = 1469598103934665603ull;
+  for (std::size_t i = 0; i < n; ++i) {
+    h ^= data[i];
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
 bool save_map(const std::string& path, const SlamMap& map, const MapFileContext& ctx, std::string* error) {
   const std::uint16_t probe = 1;
   if (*reinterpret_cast<const std::uint8_t*>(&probe) != 1)
@@ -167,6 +169,12 @@ bool save_map(const std::string& path, const SlamMap& map, const MapFileContext&
     w.put<std::int64_t>(id);
     w.put<std::int64_t>(c2.parent);
     w.pose(c2.T_parent_kf);
+  }
+  w.put<std::uint64_t>(map.loop_edges().size());
+  for (const LoopEdge& e : map.loop_edges()) {
+    w.put<std::int64_t>(e.a);
+    w.put<std::int64_t>(e.b);
+    w.pose(e.T_a_b);
   }
   w.put<std::uint64_t>(fnv1a(w.bytes(), w.bytes().size()));
   const std::string tmp = path + ".tmp";
@@ -322,9 +330,18 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
     if (!r.get(&id) || !r.get(&ck.parent) || !r.pose(&ck.T_parent_kf)) return corrupt("culled keyframe");
     culled[id] = ck;
   }
+  std::vector<LoopEdge> loops;
+  std::uint64_t nl = 0;
+  if (!r.get(&nl) || nl > kMaxKeyframes) return corrupt("loop edge count");
+  for (std::uint64_t i = 0; i < nl; ++i) {
+    LoopEdge e;
+    if (!r.get(&e.a) || !r.get(&e.b) || !r.pose(&e.T_a_b)) return corrupt("loop edge");
+    if (!kfs.count(e.a) || !kfs.count(e.b)) return corrupt("loop edge between unknown keyframes");
+    loops.push_back(e);
+  }
   if (r.left() != 0) return corrupt("trailing bytes");
   SlamMap map;
-  map.restore(std::move(kfs), std::move(pts), std::move(culled));
+  map.restore(std::move(kfs), std::move(pts), std::move(culled), std::move(loops));
   return map;
 }
 

@@ -5,7 +5,7 @@
 // File format (all little-endian, written field by field, never a struct memcpy):
 //   "RGBDQMAP" | u32 version (kMapFileVersion) | camera fx fy cx cy bf (f64) width height (i32)
 //   | detector kind (u8: 0 sift, 1 surf, 2 orb) | descriptor cols (i32) and OpenCV type (i32)
-//   | keyframes | points | culled keyframes | u64 FNV-1a hash of every byte before it.
+//   | keyframes | points | culled keyframes | loop edges (v2) | u64 FNV-1a hash of every byte before it.
 // A file of another version, another camera or detector, a bad hash (corrupt or truncated) or
 // counts beyond the sanity bounds is refused with a message; loading never trusts a size field
 // before checking it against the bytes left.
@@ -21,7 +21,11 @@
 
 namespace slam {
 
-constexpr std::uint32_t kMapFileVersion = 1;
+/// Version 2 added the loop-closure edges after the culled keyframes (version 1 files are refused).
+constexpr std::uint32_t kMapFileVersion = 2;
+
+/// FNV-1a 64-bit hash of `n` bytes: the integrity check of the map and vocabulary files.
+std::uint64_t fnv1a64(const std::uint8_t* data, std::size_t n);
 
 struct MapFileContext {
   CameraModel camera;

@@ -7,6 +7,7 @@
 #include <unordered_set>
 
 #include "slam/localmap/place_index.hpp"
+#include "slam/localmap/registration.hpp"
 
 namespace slam {
 
@@ -22,6 +23,28 @@ Eigen::Isometry3d scale_motion(const Eigen::Isometry3d& T, double s) {
 }
 
 }  // namespace
+
+ProjectionFitOptions projection_fit_options(const TrackerOptions& o) {
+  ProjectionFitOptions f;
+  f.search = o.search;
+  f.refine_radius_px = o.refine_radius_px;
+  f.wide_radius_factor = o.wide_radius_factor;
+  f.min_matches_first_pass = o.min_matches_first_pass;
+  f.pose = o.pose;
+  return f;
+}
+
+const char* to_string(KeyframeReason r) {
+  switch (r) {
+    case KeyframeReason::kNone: return "none";
+    case KeyframeReason::kFirst: return "first";
+    case KeyframeReason::kViewChanged: return "view_changed";
+    case KeyframeReason::kNeedNear: return "need_near";
+    case KeyframeReason::kBoth: return "view_changed+need_near";
+    case KeyframeReason::kRedundant: return "redundant";
+  }
+  return "?";
+}
 
 bool TrackerOptions::is_valid(std::string* error) const {
   auto fail = [&](const char* m) {
@@ -100,50 +123,7 @@ Tracker::LocalMap Tracker::build_local_map(const std::vector<std::int64_t>& seed
 
 Tracker::Fit Tracker::fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
                                     const Eigen::Isometry3d& T_guess, double first_radius_px) const {
-  Fit fit;
-  ProjectionSearchOptions so = options_.search;
-  so.radius_px = first_radius_px;
-  ProjectionMatches m = search_by_projection(local.points, T_guess, frame, camera_, so);
-  if (m.matches < options_.min_matches_first_pass) {
-    so.radius_px = first_radius_px * options_.wide_radius_factor;
-    m = search_by_projection(local.points, T_guess, frame, camera_, so);
-  }
-  if (m.matches < 6) return fit;
-  // Optimises from `T_start` on the matches in `pok`; `kept` receives the inlier matches only.
-  auto optimise = [&](const std::vector<int>& pok, const Eigen::Isometry3d& T_start, std::vector<int>* kept) {
-    std::vector<PoseObservation> obs;
-    std::vector<int> kp_of_obs;
-    for (std::size_t k = 0; k < pok.size(); ++k) {
-      if (pok[k] < 0) continue;
-      obs.push_back(PoseObservation{local.points[static_cast<std::size_t>(pok[k])].p_world_m,
-                                    frame.measurement(k, camera_), frame.sigma_px[k]});
-      kp_of_obs.push_back(static_cast<int>(k));
-    }
-    const PoseOptimizerResult r = optimize_pose(T_start, obs, camera_, options_.pose);
-    kept->assign(pok.size(), -1);
-    if (!r.ok) return r;
-    for (std::size_t i = 0; i < obs.size(); ++i) {
-      const auto k = static_cast<std::size_t>(kp_of_obs[i]);
-      if (r.inlier[i]) (*kept)[k] = pok[k];
-    }
-    return r;
-  };
-  std::vector<int> kept;
-  const PoseOptimizerResult first = optimise(m.point_of_keypoint, T_guess, &kept);
-  if (!first.ok || first.inliers < 6) return fit;
-  // Second pass: keep the inliers, look for more points around the refined projections.
-  so.radius_px = options_.refine_radius_px;
-  const ProjectionMatches m2 =
-      search_by_projection(local.points, first.T_cam_world, frame, camera_, so, &kept);
-  std::vector<int> kept2;
-  const PoseOptimizerResult second = optimise(m2.point_of_keypoint, first.T_cam_world, &kept2);
-  if (!second.ok) return fit;
-  fit.ok = true;
-  fit.T_cam_world = second.T_cam_world;
-  fit.point_of_keypoint = std::move(kept2);
-  fit.matches = static_cast<std::size_t>(m2.matches);
-  fit.inliers = static_cast<std::size_t>(second.inliers);
-  return fit;
+  return fit_by_projection(local.points, frame, camera_, T_guess, first_radius_px, projection_fit_options(options_));
 }
 
 std::optional<Eigen::Isometry3d> Tracker::pose_from_keyframes(const TrackedFeatures& frame,
@@ -152,41 +132,18 @@ std::optional<Eigen::Isometry3d> Tracker::pose_from_keyframes(const TrackedFeatu
   std::optional<Eigen::Isometry3d> best;
   std::size_t best_inliers = 0;
   for (std::int64_t kf_id : candidates) {
-    std::vector<Eigen::Vector3d> world;
-    cv::Mat desc;
+    KeyframePoints kp;
     {
       std::lock_guard<std::mutex> lock(map_->mutex);
-      const MapKeyframe* kf = map_->map.keyframe(kf_id);
-      if (!kf) continue;
-      std::vector<int> rows;
-      for (std::size_t k = 0; k < kf->point_ids.size(); ++k) {
-        const MapPoint* p = kf->point_ids[k] >= 0 ? map_->map.point(kf->point_ids[k]) : nullptr;
-        if (!p) continue;
-        world.push_back(p->p_world_m);
-        rows.push_back(static_cast<int>(k));
-      }
-      if (rows.size() < options_.ransac.min_pairs) continue;
-      const cv::Mat& all = kf->features.features->descriptors;
-      desc.create(static_cast<int>(rows.size()), all.cols, all.type());
-      for (std::size_t r = 0; r < rows.size(); ++r) all.row(rows[r]).copyTo(desc.row(static_cast<int>(r)));
+      kp = keyframe_points(map_->map, kf_id);
     }
-    const std::vector<Match> m = match_descriptors(frame.features->descriptors, desc, options_.matching);
-    if (m.size() < options_.ransac.min_pairs) continue;
-    std::vector<Eigen::Vector3d> src, dst;
-    std::vector<int> order(m.size());
-    for (const Match& x : m) {
-      src.push_back(frame.features->points_cam_m[static_cast<std::size_t>(x.query)]);
-      dst.push_back(world[static_cast<std::size_t>(x.train)]);
-    }
-    std::iota(order.begin(), order.end(), 0);
-    std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
-      return m[static_cast<std::size_t>(a)].distance < m[static_cast<std::size_t>(b)].distance;
-    });
-    auto est = estimate_motion_ransac(src, dst, order, options_.ransac, seed ^ static_cast<std::uint64_t>(kf_id), nullptr);
-    if (!est || est->inliers.size() < static_cast<std::size_t>(options_.min_relocalisation_ransac_inliers)) continue;
-    if (est->inliers.size() > best_inliers) {
-      best_inliers = est->inliers.size();
-      best = est->T_dst_src;  // T_world_cam
+    if (kp.keyframe < 0) continue;
+    const auto reg = register_to_keyframe(*frame.features, kp, options_.matching, options_.ransac,
+                                          seed ^ static_cast<std::uint64_t>(kf_id),
+                                          options_.min_relocalisation_ransac_inliers);
+    if (reg && reg->inliers > best_inliers) {
+      best_inliers = reg->inliers;
+      best = reg->T_world_cam;
     }
   }
   return best;
@@ -260,7 +217,19 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     out.T_world_cam = T_world_cam;
     out.reference_keyframe = out.keyframe_id;
     out.keyframe = true;
+    out.keyframe_wanted = KeyframeReason::kFirst;
+    T_ref_last_ = Eigen::Isometry3d::Identity();
     return out;
+  }
+
+  // A loop correction moved the map since the last frame: carry the last pose along with its
+  // reference keyframe so that the prediction lands in the corrected map.
+  {
+    std::lock_guard<std::mutex> lock(map_->mutex);
+    if (map_->corrections != corrections_seen_) {
+      corrections_seen_ = map_->corrections;
+      if (auto T_kf = map_->map.resolve_pose(reference_kf_)) T_world_last_ = *T_kf * T_ref_last_;
+    }
   }
 
   // 1. Prediction.
@@ -344,6 +313,7 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     out.reference_keyframe = reference_kf_;
     std::lock_guard<std::mutex> lock(map_->mutex);
     if (auto T_kf = map_->map.resolve_pose(reference_kf_)) out.T_kf_cam = T_kf->inverse() * T_world_last_;
+    T_ref_last_ = out.T_kf_cam;
     out.map_keyframes = map_->map.keyframes().size();
     out.map_points = map_->map.points().size();
     return out;
@@ -352,11 +322,13 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
   const Eigen::Isometry3d T_world_cam = fit.T_cam_world.inverse();
   // Statistics, reference keyframe, keyframe decision.
   std::vector<std::int64_t> matched_ids;
+  std::vector<bool> matched_near;
   int near_tracked = 0, near_untracked = 0;
   for (std::size_t k = 0; k < fit.point_of_keypoint.size(); ++k) {
     const bool near = tf.depth_m[k] <= options_.near_depth_m;
     if (fit.point_of_keypoint[k] >= 0) {
       matched_ids.push_back(local.points[static_cast<std::size_t>(fit.point_of_keypoint[k])].id);
+      matched_near.push_back(near);
       near_tracked += near ? 1 : 0;
     } else {
       near_untracked += near ? 1 : 0;
@@ -376,11 +348,16 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
       if (camera_.in_image(uvd.x(), uvd.y())) ++p->visible;
     }
     std::unordered_map<std::int64_t, int> votes;
-    for (std::int64_t pid : matched_ids) {
-      MapPoint* p = map.point(pid);
+    int near_matched = 0, near_well_observed = 0;
+    for (std::size_t i = 0; i < matched_ids.size(); ++i) {
+      MapPoint* p = map.point(matched_ids[i]);
       if (!p) continue;
       ++p->found;
       for (const auto& [kf, kp] : p->observations) ++votes[kf];
+      if (matched_near[i]) {
+        ++near_matched;
+        near_well_observed += static_cast<int>(p->observations.size()) >= options_.redundant_observers ? 1 : 0;
+      }
     }
     std::int64_t best_kf = reference_kf_;
     int best_votes = -1;
@@ -402,6 +379,20 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     const bool view_changed = tracked < ratio * ref_tracked;
     const bool need_near = near_tracked < options_.near_tracked_min && near_untracked > options_.near_untracked_min;
     make_keyframe = keyframe_allowed && (view_changed || need_near) && tracked > 15;
+    out.keyframe_wanted = !(view_changed || need_near) || tracked <= 15 ? KeyframeReason::kNone
+                          : view_changed && need_near                  ? KeyframeReason::kBoth
+                          : view_changed                               ? KeyframeReason::kViewChanged
+                                                                       : KeyframeReason::kNeedNear;
+    if (make_keyframe && view_changed && !need_near && options_.keyframe_needs_new_content && near_matched > 0) {
+      out.near_redundant = static_cast<double>(near_well_observed) / near_matched;
+      if (out.near_redundant >= options_.redundant_fraction) {
+        make_keyframe = false;
+        out.keyframe_wanted = KeyframeReason::kRedundant;
+      }
+    }
+    out.ref_tracked = ref_tracked;
+    out.near_tracked = near_tracked;
+    out.near_untracked = near_untracked;
     out.reference_keyframe = reference_kf_;
     if (auto T_kf = map.resolve_pose(reference_kf_)) out.T_kf_cam = T_kf->inverse() * T_world_cam;
   }
@@ -423,6 +414,7 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
   }
   state_ = TrackingState::kTracking;
   T_world_last_ = T_world_cam;
+  T_ref_last_ = out.T_kf_cam;
   last_stamp_s_ = frame.stamp_s;
   last_points_ = std::move(matched_ids);
   out.state = TrackingState::kTracking;

@@ -31,17 +31,28 @@
 #include "slam/localmap/map.hpp"
 #include "slam/localmap/pose_optimizer.hpp"
 #include "slam/localmap/projection_search.hpp"
+#include "slam/localmap/registration.hpp"
 #include "slam/matching/matching.hpp"
 #include "slam/motion/motion.hpp"
 #include "slam/pipeline/frontend.hpp"
 
 namespace slam {
 
-/// The map with the mutex that guards it; shared by the tracker and the mapper.
+/// The map with the mutex that guards it; shared by the tracker, the mapper and the loop closer.
 struct SharedMap {
   std::mutex mutex;
   SlamMap map;
+  /// Bumped (under `mutex`) by every loop correction that moved keyframes and points: the tracker
+  /// re-anchors its last pose to its reference keyframe, the mapper drops a bundle adjustment
+  /// solved on poses from before the correction.
+  std::uint64_t corrections = 0;
 };
+
+/// Why the keyframe rule asked for a keyframe (logged per frame; see Tracker::track step 5).
+/// kRedundant: the view changed, but the map already sees this view from enough keyframes (a
+/// revisit): the keyframe would be culled as redundant at once, so none was made.
+enum class KeyframeReason { kNone, kFirst, kViewChanged, kNeedNear, kBoth, kRedundant };
+const char* to_string(KeyframeReason r);
 
 struct TrackerOptions {
   ProjectionSearchOptions search;              ///< first pass: radius 15 px (ORB-SLAM2 motion model)
@@ -60,6 +71,14 @@ struct TrackerOptions {
   int near_untracked_min = 70;                 ///< ...and > 70 near untracked -> keyframe
   int min_new_points = 100;                    ///< ORB-SLAM2 CreateNewKeyFrame: at least the 100 nearest
   int min_init_features = 100;                 ///< a first keyframe needs this many features with depth
+  /// Revisits: a view change alone does not make a keyframe that the mapper's culling would judge
+  /// redundant at once - when >= `redundant_fraction` of the frame's tracked near points are
+  /// already observed by >= `redundant_observers` keyframes (ORB-SLAM2 KeyFrameCulling's test, the
+  /// same values as LocalMapperOptions). Without it, a revisited place keeps getting keyframes that
+  /// the culling then removes. Weak tracking (the near rule) still inserts.
+  bool keyframe_needs_new_content = true;
+  double redundant_fraction = 0.9;
+  int redundant_observers = 3;
   std::size_t relocalisation_candidates = 4;   ///< keyframes tried, by appearance
   MatchOptions matching;                       ///< descriptor matching for relocalisation (thesis NNMMT...
   double relocalisation_ratio = 0.75;          ///< ...with ORB-SLAM2's Relocalization ratio: views far apart match fewer pairs than consecutive frames)
@@ -89,7 +108,14 @@ struct TrackResult {
   std::size_t inliers = 0;
   double local_map_ms = 0, search_ms = 0, optimise_ms = 0, relocalise_ms = 0;
   std::size_t map_keyframes = 0, map_points = 0;  ///< map size after this frame
+  /// The keyframe rule's verdict and inputs (also when the keyframe was deferred: `keyframe` false).
+  KeyframeReason keyframe_wanted = KeyframeReason::kNone;
+  int ref_tracked = 0, near_tracked = 0, near_untracked = 0;
+  double near_redundant = -1;  ///< fraction of tracked near points seen by >= 3 keyframes (-1: not computed)
 };
+
+/// The projection-fit settings inside the tracker options.
+ProjectionFitOptions projection_fit_options(const TrackerOptions& options);
 
 class Tracker {
  public:
@@ -116,12 +142,7 @@ class Tracker {
   };
   /// Local keyframes and their points (locks the map). `seed_points`: points of the last frame.
   LocalMap build_local_map(const std::vector<std::int64_t>& seed_points, std::int64_t fallback_kf) const;
-  struct Fit {
-    bool ok = false;
-    Eigen::Isometry3d T_cam_world = Eigen::Isometry3d::Identity();
-    std::vector<int> point_of_keypoint;  ///< inlier matches only
-    std::size_t matches = 0, inliers = 0;
-  };
+  using Fit = ProjectionFit;
   /// Two-pass projection matching and pose optimisation from a pose guess.
   Fit fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
                     const Eigen::Isometry3d& T_cam_world_guess, double first_radius_px) const;
@@ -144,6 +165,8 @@ class Tracker {
   bool have_velocity_ = false;
   std::vector<std::int64_t> last_points_;  ///< map points matched in the last tracked frame
   std::int64_t reference_kf_ = -1;
+  Eigen::Isometry3d T_ref_last_ = Eigen::Isometry3d::Identity();  ///< last pose relative to reference_kf_
+  std::uint64_t corrections_seen_ = 0;  ///< SharedMap::corrections when T_world_last_ was last anchored
 };
 
 }  // namespace slam

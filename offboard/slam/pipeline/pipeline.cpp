@@ -32,7 +32,8 @@ const char* to_string(PipelineMode m) {
 
 bool PipelineOptions::is_valid(std::string* error) const {
   if (!frontend.is_valid(error) || !backend.is_valid(error)) return false;
-  if (backend.kind == BackendKind::kLocalMap) return tracker.is_valid(error) && mapper.is_valid(error);
+  if (backend.kind == BackendKind::kLocalMap)
+    return tracker.is_valid(error) && mapper.is_valid(error) && (!loop_closing || loop.is_valid(error));
   return true;
 }
 
@@ -67,6 +68,18 @@ std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intri
     if (!p->tracker_) return nullptr;
     p->mapper_ = LocalMapper::create(opts.mapper, cam, p->map_, error);
     if (!p->mapper_) return nullptr;
+    if (opts.loop_closing && opts.frontend.features.kind == DetectorKind::kOrb) {
+      auto vocabulary = builtin_orb_vocabulary(error);
+      if (!vocabulary) return nullptr;
+      LoopCloserOptions lo = opts.loop;
+      lo.matching = to.matching;
+      lo.ransac = to.ransac;
+      lo.fit = projection_fit_options(to);
+      p->loop_closer_ = LoopCloser::create(
+          lo, cam, p->map_, std::make_shared<const BinaryVocabulary>(std::move(*vocabulary)), error);
+      if (!p->loop_closer_) return nullptr;
+      p->summary_.loop_closing_active = true;
+    }
   }
   if (opts.mode == PipelineMode::kLive) {
     p->backend_thread_ = std::thread([q = p.get()] { q->mapper_loop(); });
@@ -75,6 +88,8 @@ std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intri
     if (local_map) p->backend_thread_ = std::thread([q = p.get()] { q->mapper_loop(); });
     else p->backend_thread_ = std::thread([q = p.get()] { q->backend_loop(); });
   }
+  if (p->loop_closer_ && opts.mode != PipelineMode::kSequential)
+    p->loop_thread_ = std::thread([q = p.get()] { q->loop_closing_loop(); });
   return p;
 }
 
@@ -123,6 +138,12 @@ void Pipeline::finish() {
   }
   cv_.notify_all();
   if (backend_thread_.joinable()) backend_thread_.join();
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    loop_closed_ = true;
+  }
+  cv_.notify_all();
+  if (loop_thread_.joinable()) loop_thread_.join();
   std::sort(records_.begin(), records_.end(),
             [](const FrameRecord& a, const FrameRecord& b) { return a.index < b.index; });
   if (is_local_map()) {
@@ -130,6 +151,8 @@ void Pipeline::finish() {
     summary_.keyframes = map_->map.keyframes().size();
     summary_.map_points = map_->map.points().size();
     summary_.keyframes_culled = map_->map.culled().size();
+    summary_.loop_closures = map_->map.loop_edges().size();
+    for (const LoopStats& l : loop_stats_) summary_.loop_detections += l.candidates > 0 ? 1 : 0;
   } else {
     summary_.keyframes = backend_->keyframes().size();
     summary_.loop_closures = backend_->loop_closures();
@@ -292,6 +315,7 @@ bool Pipeline::load_map(const std::string& path, std::string* error) {
     map_->map = std::move(*loaded);
   }
   tracker_->set_lost();  // the first frames relocalise in the loaded map
+  if (loop_closer_) loop_closer_->index_map();
   return true;
 }
 
@@ -307,6 +331,49 @@ bool Pipeline::save_map(const std::string& path, std::string* error) const {
 std::vector<MapperStats> Pipeline::mapper_stats() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return mapper_stats_;
+}
+
+std::vector<LoopStats> Pipeline::loop_stats() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return loop_stats_;
+}
+
+void Pipeline::close_loops(std::int64_t kf) {
+  LoopStats st;
+  try {
+    st = loop_closer_->process(kf);
+  } catch (const std::exception&) {  // nothing escapes a thread; the map stays as mapped
+    st.keyframe = kf;
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  loop_stats_.push_back(st);
+}
+
+void Pipeline::loop_closing_loop() {
+  if (options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive) {
+    // Off the camera-to-command path like mapping: it yields the CPU to tracking.
+    constexpr int kLoopClosingNiceRealtime = 10;
+    if (setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), kLoopClosingNiceRealtime) != 0) {
+      // Not fatal: without it loop closing competes for the CPU as an equal.
+    }
+  }
+  for (;;) {
+    std::int64_t kf;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait(lock, [&] { return !loop_queue_.empty() || loop_closed_; });
+      if (loop_queue_.empty()) return;
+      kf = loop_queue_.front();
+      loop_queue_.pop_front();
+      loop_busy_ = true;
+    }
+    close_loops(kf);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      loop_busy_ = false;
+    }
+    cv_.notify_all();
+  }
 }
 
 void Pipeline::run_tracker(const RgbdFrame& frame) {
@@ -356,6 +423,11 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   rec.inliers = tr.inliers;
   rec.map_keyframes = tr.map_keyframes;
   rec.map_points = tr.map_points;
+  rec.keyframe_wanted = tr.keyframe_wanted;
+  rec.ref_tracked = tr.ref_tracked;
+  rec.near_tracked = tr.near_tracked;
+  rec.near_untracked = tr.near_untracked;
+  rec.near_redundant = tr.near_redundant;
   rec.matching_ms = tr.local_map_ms + tr.search_ms;
   rec.ransac_ms = tr.relocalise_ms;
   rec.frontend_ms = ms_since(t0);
@@ -369,15 +441,20 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   if (!tr.keyframe) return;
   if (options_.mode == PipelineMode::kSequential) {
     const MapperStats st = mapper_->process(tr.keyframe_id);
-    std::lock_guard<std::mutex> lock(mutex_);
-    mapper_stats_.push_back(st);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      mapper_stats_.push_back(st);
+    }
+    if (loop_closer_) close_loops(tr.keyframe_id);
     return;
   }
   std::unique_lock<std::mutex> lock(mutex_);
   keyframe_queue_.push_back(tr.keyframe_id);
   cv_.notify_all();
   if (options_.mode == PipelineMode::kWait)
-    cv_.wait(lock, [&] { return keyframe_queue_.empty() && !mapper_busy_; });
+    cv_.wait(lock, [&] {
+      return keyframe_queue_.empty() && !mapper_busy_ && loop_queue_.empty() && !loop_busy_;
+    });
 }
 
 void Pipeline::mapper_loop() {
@@ -408,6 +485,7 @@ void Pipeline::mapper_loop() {
       std::lock_guard<std::mutex> lock(mutex_);
       mapper_stats_.push_back(st);
       mapper_busy_ = false;
+      if (loop_closer_) loop_queue_.push_back(kf);  // same step: wait mode never sees both idle early
     }
     cv_.notify_all();
   }

@@ -12,8 +12,9 @@
 //    front-end's odometry mapped through the latest back-end correction.
 //
 // With BackendKind::kLocalMap the front-end thread runs feature extraction and the Tracker (pose
-// against the local map, the camera-to-command path) and the back-end thread runs the LocalMapper
-// on keyframes. wait: the tracker waits for each keyframe to be mapped (deterministic, equals
+// against the local map, the camera-to-command path), the back-end thread runs the LocalMapper
+// on keyframes and a third thread the LoopCloser on each mapped keyframe (wait mode waits for
+// both, sequential mode runs both inline). wait: the tracker waits for each keyframe to be mapped (deterministic, equals
 // sequential); realtime: keyframes queue for the mapper (at most kMaxQueuedKeyframes, beyond which
 // the tracker defers its keyframe), tracking never waits for mapping.
 //
@@ -31,6 +32,7 @@
 #include <vector>
 
 #include "slam/localmap/local_mapper.hpp"
+#include "slam/localmap/loop_closer.hpp"
 #include "slam/localmap/tracker.hpp"
 #include "slam/pipeline/backend.hpp"
 #include "slam/pipeline/frontend.hpp"
@@ -53,6 +55,10 @@ struct PipelineOptions {
   bool reprojection_refine = true;
   TrackerOptions tracker;          ///< BackendKind::kLocalMap only
   LocalMapperOptions mapper;       ///< BackendKind::kLocalMap only
+  /// BackendKind::kLocalMap: loop closing on its own thread (binary descriptors only: the
+  /// vocabulary is ORB's; with SIFT/SURF it stays off and PipelineSummary says so).
+  bool loop_closing = true;
+  LoopCloserOptions loop;          ///< matching, RANSAC and projection settings are filled in from the tracker's
   bool is_valid(std::string* error) const;
 };
 
@@ -76,6 +82,10 @@ struct FrameRecord {
   double keyframe_ms = 0, llc_ms = 0, glc_ms = 0, posegraph_ms = 0, backend_ms = 0;
   double frontend_cpu_ms = 0, backend_cpu_ms = 0;
   std::size_t map_keyframes = 0, map_points = 0;  ///< local-map system: map size after this frame
+  /// Local-map system: the keyframe rule's verdict and inputs (TrackResult).
+  KeyframeReason keyframe_wanted = KeyframeReason::kNone;
+  int ref_tracked = 0, near_tracked = 0, near_untracked = 0;
+  double near_redundant = -1;
 };
 
 struct PipelineSummary {
@@ -91,6 +101,8 @@ struct PipelineSummary {
   std::size_t keyframes_culled = 0;
   std::size_t relocalisations = 0;   ///< frames whose pose came from the keyframe database
   std::size_t frames_lost = 0;
+  bool loop_closing_active = false;  ///< the loop closer ran (option on and a vocabulary for the detector)
+  std::size_t loop_detections = 0;   ///< keyframes with database candidates passed to verification
 };
 
 class Pipeline {
@@ -117,6 +129,7 @@ class Pipeline {
   /// Local-map system: the map (lock `mutex` to read while running), and per-keyframe mapping stats.
   std::shared_ptr<SharedMap> local_map() const { return map_; }
   std::vector<MapperStats> mapper_stats() const;
+  std::vector<LoopStats> loop_stats() const;
   /// Local-map system: starts from the map in `path` (before the first frame; the first frames
   /// relocalise in it, poses are in its world frame). False with `error`: wrong version, camera,
   /// detector, corrupt file, or frames already submitted.
@@ -135,6 +148,9 @@ class Pipeline {
   void run_backend(const FrontendOutput& out);
   void run_tracker(const RgbdFrame& frame);
   void mapper_loop();
+  void loop_closing_loop();
+  /// Loop-closes keyframe `kf` and records its stats (the loop thread, or inline in sequential mode).
+  void close_loops(std::int64_t kf);
 
   PipelineOptions options_;
   std::optional<FrontEnd> frontend_;
@@ -161,8 +177,14 @@ class Pipeline {
   bool mapper_busy_ = false;
   bool keyframes_closed_ = false;
   std::vector<MapperStats> mapper_stats_;
+  std::optional<LoopCloser> loop_closer_;
+  std::deque<std::int64_t> loop_queue_;  // mapped keyframes waiting for loop closing (one per keyframe)
+  bool loop_busy_ = false;
+  bool loop_closed_ = false;
+  std::vector<LoopStats> loop_stats_;
   std::thread frontend_thread_;
   std::thread backend_thread_;
+  std::thread loop_thread_;
 };
 
 }  // namespace slam

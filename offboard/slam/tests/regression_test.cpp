@@ -172,6 +172,51 @@ PipelineOptions local_map_options() {
   return o;
 }
 
+TEST(Regression, LocalMapWithLoopClosingWaitModeEqualsSequentialOnAForwardBackwardRevisit) {
+  // GIVEN the excerpt played forward then backward (a revisit) and a loop closer that searches from
+  // the second keyframe on (the 60 frames make too few keyframes for the default bars)
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  auto run_mode = [&](PipelineMode mode, std::vector<LoopStats>* loops) {
+    PipelineOptions o = local_map_options();
+    o.mode = mode;
+    o.loop.min_keyframes_in_map = 2;
+    o.loop.keyframes_between_loops = 0;
+    auto p = Pipeline::create(o, Intrinsics{}, &err);
+    EXPECT_TRUE(p) << err;
+    const std::size_t n = ds->size();
+    for (std::size_t i = 0; i < 2 * n; ++i) {
+      auto f = ds->load(i < n ? i : 2 * n - 1 - i, &err);
+      f->index = static_cast<std::int64_t>(i);
+      f->stamp_s = 1000.0 + static_cast<double>(i) / 30.0;
+      p->submit(std::move(*f));
+    }
+    p->finish();
+    *loops = p->loop_stats();
+    EXPECT_TRUE(p->summary().loop_closing_active);
+    return p->final_trajectory();
+  };
+  std::vector<LoopStats> la, lb;
+  // WHEN it runs in wait mode (three threads) and sequentially
+  const auto a = run_mode(PipelineMode::kWait, &la);
+  const auto b = run_mode(PipelineMode::kSequential, &lb);
+  // THEN both give the same trajectory bit for bit and the same loop-closing decisions
+  ASSERT_EQ(a.size(), 60u);
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) EXPECT_TRUE(a[i].second.isApprox(b[i].second, 1e-12)) << i;
+  ASSERT_EQ(la.size(), lb.size());
+  ASSERT_GE(la.size(), 2u);
+  int searched = 0;
+  for (std::size_t i = 0; i < la.size(); ++i) {
+    EXPECT_EQ(la[i].keyframe, lb[i].keyframe);
+    EXPECT_EQ(la[i].candidates, lb[i].candidates);
+    EXPECT_EQ(la[i].accepted, lb[i].accepted);
+    searched += la[i].searched ? 1 : 0;
+  }
+  EXPECT_GE(searched, 1);
+}
+
 TEST(Regression, LocalMapSavedThenReloadedRelocalisesInTheSameWorldFrame) {
   // GIVEN a map saved after the first 20 frames
   const std::string path = ::testing::TempDir() + "/localmap_test.map";
@@ -243,11 +288,15 @@ TEST(Regression, MapFilesThatDoNotFitAreRefusedWithAReason) {
   PipelineOptions sift = o;
   sift.frontend.features.kind = DetectorKind::kSift;
   refused(sift, Intrinsics{}, "another feature detector");
-  // a future version
+  // the previous version (1: no loop edges) and a future one
   std::string v = bytes;
-  v[8] = 2;
+  ASSERT_EQ(v[8], 2) << "kMapFileVersion changed: update this test";
+  v[8] = 1;
   write(v);
-  refused(o, Intrinsics{}, "format version 2");
+  refused(o, Intrinsics{}, "format version 1, this build reads version 2");
+  v[8] = 3;
+  write(v);
+  refused(o, Intrinsics{}, "format version 3");
   // one flipped byte in the middle, and a truncated file
   std::string c = bytes;
   c[c.size() / 2] = static_cast<char>(c[c.size() / 2] ^ 0x5A);
