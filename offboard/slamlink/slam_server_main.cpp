@@ -24,6 +24,7 @@
 #include <map>
 #include <memory>
 
+#include "slam/pipeline/thread_priority.hpp"
 #include "slam_connection.hpp"
 #include "slam_sessions.hpp"
 
@@ -261,7 +262,16 @@ int main(int argc, char** argv) {
   app.add_option("--write-timeout-ms", copt.write_timeout_ms, "the peer must take reply bytes within this")->capture_default_str();
   app.add_option("--resume-grace-ms", ropt.resume_grace_ms, "a session without its client is kept this long")->capture_default_str();
   app.add_option("--max-sessions", ropt.max_sessions, "maps held at once (attached + parked)")->capture_default_str();
+  std::string thread_policy = "rr";
+  slam::ThreadPriorityOptions priority;
+  app.add_option("--thread-policy", thread_policy,
+                 "scheduling of the serving (tracking) thread: rr | fifo (real-time, falls back to nice with a "
+                 "logged reason) | nice | off; local mapping always yields (normal policy, nice 10)")
+      ->check(CLI::IsMember({"rr", "fifo", "nice", "off"}))->capture_default_str();
+  app.add_option("--rt-priority", priority.rt_priority, "real-time priority of the serving thread")
+      ->check(CLI::Range(1, 99))->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  slam::parse_thread_policy(thread_policy, &priority.policy, nullptr);
   slam::PipelineOptions options;
   std::string err;
   if (!slam::parse_detector_kind(features, &options.frontend.features.kind, &err) ||
@@ -302,6 +312,9 @@ int main(int argc, char** argv) {
             << backend << ", max " << max_clients << " clients, hello/idle/message/write timeouts "
             << copt.hello_timeout_ms << "/" << copt.idle_timeout_ms << "/" << copt.message_timeout_ms << "/"
             << copt.write_timeout_ms << " ms, resume grace " << ropt.resume_grace_ms << " ms)" << std::endl;
+  // Tracking runs on this (the poll) thread: it is the real-time path; sessions' mappers lower
+  // themselves (slam::lower_current_thread).
+  log_line(slam::raise_current_thread(priority).describe("serving"));
   const slam::SessionMapFiles map_files{load_map, save_map};
   slam::SessionRegistry registry(
       ropt, [options, map_files] { return std::make_unique<slam::SlamLinkSession>(options, map_files); });

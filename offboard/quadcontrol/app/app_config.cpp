@@ -114,6 +114,8 @@ nlohmann::json AppConfig::to_json_redacted() const {
                         {"key_hex", firmware_key_hex.empty() ? "" : "<redacted>"},
                         {"control_spec", control_spec_path}}},
           {"camera", {{"mount_pitch_down_deg", station.mount_pitch_down_deg}}},
+          {"realtime", {{"policy", slam::to_string(station.realtime.policy)}, {"priority", station.realtime.rt_priority},
+                        {"fallback_nice", station.realtime.fallback_nice}}},
           {"controller", to_json(station.controller)},
           {"recording", recording.to_json()}};
 }
@@ -131,7 +133,7 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
     return std::nullopt;
   }
   if (!check_keys(j, "config", {"about", "dashboard", "stream", "slam", "firmware", "camera", "floor", "map", "controller",
-                           "recording"}, error)) {
+                           "realtime", "recording"}, error)) {
     return std::nullopt;
   }
   const json empty = json::object();
@@ -142,7 +144,9 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
   const json& cam = j.value("camera", empty);
   const json& fl = j.value("floor", empty);
   const json& m = j.value("map", empty);
+  const json& rt = j.value("realtime", empty);
   std::string loop = "bounce";
+  std::string thread_policy = slam::to_string(c.station.realtime.policy);
   if (!check_keys(d, "dashboard", {"bind_address", "port", "token", "static_dir", "allowed_hosts"}, error) ||
       !read(d, "dashboard", "allowed_hosts", c.dashboard_allowed_hosts, error) ||
       !read(d, "dashboard", "bind_address", c.dashboard_bind_address, error) ||
@@ -184,7 +188,11 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
       !check_keys(m, "map", {"resolution_m", "size_m", "max_depth_m"}, error) ||
       !read(m, "map", "resolution_m", c.station.map.resolution_m, error) ||
       !read(m, "map", "size_m", c.station.map.size_m, error) ||
-      !read(m, "map", "max_depth_m", c.station.max_depth_m, error)) {
+      !read(m, "map", "max_depth_m", c.station.max_depth_m, error) ||
+      !check_keys(rt, "realtime", {"policy", "priority", "fallback_nice"}, error) ||
+      !read(rt, "realtime", "policy", thread_policy, error) ||
+      !read(rt, "realtime", "priority", c.station.realtime.rt_priority, error) ||
+      !read(rt, "realtime", "fallback_nice", c.station.realtime.fallback_nice, error)) {
     return std::nullopt;
   }
   // "" means the repo default (the shipped config file leaves these empty).
@@ -192,6 +200,10 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
   if (c.dashboard_static_dir.empty()) c.dashboard_static_dir = defaults.dashboard_static_dir;
   if (c.replay.folder.empty()) c.replay.folder = defaults.replay.folder;
   if (c.control_spec_path.empty()) c.control_spec_path = defaults.control_spec_path;
+  if (!slam::parse_thread_policy(thread_policy, &c.station.realtime.policy, error)) {
+    *error = "realtime.policy: " + *error;
+    return std::nullopt;
+  }
   if (!read_recording(j.value("recording", empty), c.recording, error)) return std::nullopt;
   if (!c.stream_key_file.empty()) {
     const auto key = protocol::load_stream_key_file(c.stream_key_file, error);

@@ -6,6 +6,7 @@
 #include <boost/asio/post.hpp>
 
 #include "app/frame_source.hpp"
+#include "app/thread_setup.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -48,7 +49,10 @@ FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, Contro
   } else {
     schedule();
   }
-  thread_ = std::thread([this] { io_.run(); });
+  thread_ = std::thread([this] {
+    raise_this_thread(options_.thread_priority, "firmware link");
+    io_.run();
+  });
 }
 
 FirmwareLink::~FirmwareLink() {

@@ -33,6 +33,7 @@
 #include "core/command_scheduler.hpp"
 #include "core/stick_mapping.hpp"
 #include "link/control_codec.hpp"
+#include "slam/pipeline/thread_priority.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -49,6 +50,8 @@ struct FirmwareLinkOptions {
   int min_interval_ms = 17;
   /// With send_on_pose: longest gap without a command (5 per firmware failsafe of 250 ms).
   int keep_alive_ms = 50;
+  /// The I/O thread (control step + send) is on the real-time path (GroundStationOptions::realtime).
+  slam::ThreadPriorityOptions thread_priority;
   CommandScheduleOptions schedule() const {
     return {std::int64_t{min_interval_ms} * 1000, std::int64_t{keep_alive_ms} * 1000};
   }

@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "app/thread_setup.hpp"
 #include "core/geometry.hpp"
 
 namespace rgbdquad::quadcontrol {
@@ -37,6 +38,7 @@ std::string GroundStationOptions::validate() const {
   if (control_period_ms < 5 || control_period_ms > 200) return "control_period_ms must be in [5, 200]";
   if (slam_mode != "server" && slam_mode != "in-process") return "slam.mode must be 'server' or 'in-process'";
   if (auto e = slam_server.validate(); !e.empty()) return e;
+  if (auto e = realtime.validate(); !e.empty()) return "realtime." + e;
   return {};
 }
 
@@ -52,6 +54,7 @@ GroundStation::GroundStation(GroundStationOptions options, std::unique_ptr<Frame
       recorder_(std::move(recorder)) {
   last_pwm_ = to_pwm(StickCommand{}, spec_.pwm);
   if (firmware) {
+    firmware->thread_priority = options_.realtime;
     firmware_ = std::make_unique<FirmwareLink>(
         *firmware, spec_, key, [this](std::int64_t t, std::uint32_t seq) { return command_at(t, seq); },
         [this](std::int64_t t, const ControlReply& r) { on_reply(t, r); });
@@ -69,6 +72,7 @@ GroundStation::~GroundStation() {
 }
 
 void GroundStation::frame_loop() {
+  raise_this_thread(options_.realtime, "frame");
   while (!stop_) {
     std::string error;
     auto frame = source_->next(stop_, &error);
@@ -77,9 +81,11 @@ void GroundStation::frame_loop() {
       std::string slam_error;
       auto callback = [this](const SlamResult& r, const CameraFrame& f) { on_slam(r, f); };
       if (options_.slam_mode == "server") {
-        slam_ = std::make_unique<SlamServerClient>(options_.slam_server, callback);
+        SlamServerOptions server = options_.slam_server;
+        server.thread_priority = options_.realtime;
+        slam_ = std::make_unique<SlamServerClient>(server, callback);
       } else {
-        slam_ = InProcessSlam::create(frame->intrinsics, callback, &slam_error);
+        slam_ = InProcessSlam::create(frame->intrinsics, callback, options_.realtime, &slam_error);
       }
       if (!slam_) {
         std::lock_guard<std::mutex> lock(mutex_);

@@ -48,6 +48,9 @@ struct GroundStationOptions {
   std::int64_t imu_match_window_us = 20000;  ///< TUM's association rule: nearest within 20 ms
   std::string slam_mode = "server";  ///< "server": slam-server over the SLAM link; "in-process": local-map SLAM here
   SlamServerOptions slam_server;
+  /// Scheduling of the real-time path (frame, SLAM link and firmware link threads; config key
+  /// "realtime"): SCHED_RR 10 by default, nice -10 where refused, each thread logs what it got.
+  slam::ThreadPriorityOptions realtime;
   std::string validate() const;
 };
 

@@ -13,6 +13,7 @@
 #include "app/ground_station.hpp"
 #include "app/http_server.hpp"
 #include "app/receiver_source.hpp"
+#include "app/thread_setup.hpp"
 
 using namespace rgbdquad::quadcontrol;
 
@@ -119,6 +120,9 @@ int main(int argc, char** argv) {
     source = TumReplaySource::open(config->replay, &error);
   } else {
     try {
+      // The receiver's two socket threads are on the real-time path: created while this thread is
+      // raised, they inherit its scheduling (offboard/receiver stays free of it).
+      const ScopedThreadRaise raised(config->station.realtime, "stream receiver (its socket threads)");
       source = std::make_unique<ReceiverSource>(config->receiver);
     } catch (const std::exception& e) {
       error = e.what();

@@ -1,9 +1,12 @@
 // In-process SLAM link: see slam_link.hpp.
 #include "app/slam_link.hpp"
 
+#include "app/thread_setup.hpp"
+
 namespace rgbdquad::quadcontrol {
 
 std::unique_ptr<InProcessSlam> InProcessSlam::create(const slam::Intrinsics& intrinsics, Callback callback,
+                                                     const slam::ThreadPriorityOptions& priority,
                                                      std::string* error) {
   // The system that flies (as slam-server's default): ORB, tracking against a local map on this
   // link's thread, local mapping on the pipeline's own thread.
@@ -13,12 +16,17 @@ std::unique_ptr<InProcessSlam> InProcessSlam::create(const slam::Intrinsics& int
   options.mode = slam::PipelineMode::kLive;
   auto pipeline = slam::Pipeline::create(options, intrinsics, error);
   if (!pipeline) return nullptr;
-  return std::unique_ptr<InProcessSlam>(new InProcessSlam(std::move(pipeline), std::move(callback)));
+  return std::unique_ptr<InProcessSlam>(new InProcessSlam(std::move(pipeline), std::move(callback), priority));
 }
 
-InProcessSlam::InProcessSlam(std::unique_ptr<slam::Pipeline> pipeline, Callback callback)
+InProcessSlam::InProcessSlam(std::unique_ptr<slam::Pipeline> pipeline, Callback callback,
+                             slam::ThreadPriorityOptions priority)
     : pipeline_(std::move(pipeline)), callback_(std::move(callback)) {
-  thread_ = std::thread([this] { run(); });
+  // Tracking runs on this thread (the real-time path); the pipeline's mapper lowers itself.
+  thread_ = std::thread([this, priority] {
+    raise_this_thread(priority, "SLAM (in-process tracking)");
+    run();
+  });
 }
 
 InProcessSlam::~InProcessSlam() {

@@ -17,6 +17,7 @@
 #include "app/frame_mailbox.hpp"
 #include "app/frame_source.hpp"
 #include "slam/pipeline/pipeline.hpp"
+#include "slam/pipeline/thread_priority.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -55,15 +56,16 @@ class SlamLink {
 
 class InProcessSlam : public SlamLink {
  public:
+  /// `priority`: the tracking thread's scheduling (the real-time path).
   static std::unique_ptr<InProcessSlam> create(const slam::Intrinsics& intrinsics, Callback callback,
-                                               std::string* error);
+                                               const slam::ThreadPriorityOptions& priority, std::string* error);
   ~InProcessSlam() override;
   bool submit(const CameraFrame& frame) override;
   SlamStats stats() const override;
   std::string name() const override { return "in-process local-map SLAM (offboard/slam)"; }
 
  private:
-  InProcessSlam(std::unique_ptr<slam::Pipeline> pipeline, Callback callback);
+  InProcessSlam(std::unique_ptr<slam::Pipeline> pipeline, Callback callback, slam::ThreadPriorityOptions priority);
   void run();
 
   std::unique_ptr<slam::Pipeline> pipeline_;

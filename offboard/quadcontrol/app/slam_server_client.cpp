@@ -7,6 +7,8 @@
 
 #include <Eigen/Geometry>
 
+#include "app/thread_setup.hpp"
+
 namespace rgbdquad::quadcontrol {
 
 namespace proto = rgbdquad::protocol;
@@ -251,6 +253,7 @@ std::optional<SlamResult> SlamServerClient::exchange(const CameraFrame& f, std::
 }
 
 void SlamServerClient::run() {
+  raise_this_thread(options_.thread_priority, "SLAM link");
   while (auto taken = mailbox_.take()) {
     const CameraFrame& frame = *taken;
     std::string error;

@@ -29,6 +29,7 @@
 #include "app/slam_link.hpp"
 #include "app/slam_link_socket.hpp"
 #include "rgbdquad/protocol/codec.hpp"
+#include "slam/pipeline/thread_priority.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -38,6 +39,7 @@ struct SlamServerOptions {
   int reply_timeout_ms = 5000;     ///< one frame's SLAM, generous for a loaded machine
   int reconnect_interval_ms = 1000;
   std::uint64_t session_id = 0;    ///< 0: a random id per client (one flight per quad-control run)
+  slam::ThreadPriorityOptions thread_priority;  ///< the link thread is on the real-time path
   std::string validate() const;
 };
 

@@ -2,6 +2,7 @@
 #include "slam/pipeline/pipeline.hpp"
 
 #include "slam/localmap/map_io.hpp"
+#include "slam/pipeline/thread_priority.hpp"
 
 #include <algorithm>
 
@@ -180,10 +181,12 @@ void Pipeline::backend_loop() {
   if (options_.mode == PipelineMode::kRealtime) {
     // Real time: the front-end must keep up with the camera; the back-end is best effort (it
     // skips frames anyway), so it yields the CPU to the front-end. Linux applies nice per thread.
+    // Below the front-end either way (slam/pipeline/thread_priority.hpp): by weight under a normal
+    // front-end, by policy under a real-time one (then still ahead of the machine's other work).
+    // Not fatal when refused: the back-end then competes for the CPU as an equal.
     constexpr int kBackendNiceRealtime = 10;
-    if (setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), kBackendNiceRealtime) != 0) {
-      // Not fatal: without it the back-end competes for the CPU as an equal.
-    }
+    constexpr int kBackendNiceBelowRealtime = -10;
+    lower_current_thread(kBackendNiceRealtime, kBackendNiceBelowRealtime);
   }
   for (;;) {
     FrontendOutput out;
@@ -351,11 +354,10 @@ void Pipeline::close_loops(std::int64_t kf) {
 
 void Pipeline::loop_closing_loop() {
   if (options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive) {
-    // Off the camera-to-command path like mapping: it yields the CPU to tracking.
+    // Off the camera-to-command path like mapping, with the same priorities (see mapper_loop).
     constexpr int kLoopClosingNiceRealtime = 10;
-    if (setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), kLoopClosingNiceRealtime) != 0) {
-      // Not fatal: without it loop closing competes for the CPU as an equal.
-    }
+    constexpr int kLoopClosingNiceBelowRealtime = -10;
+    lower_current_thread(kLoopClosingNiceRealtime, kLoopClosingNiceBelowRealtime);
   }
   for (;;) {
     std::int64_t kf;
@@ -460,10 +462,14 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
 void Pipeline::mapper_loop() {
   if (options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive) {
     // Mapping is off the camera-to-command path: it yields the CPU to tracking.
+    // Below tracking either way (slam/pipeline/thread_priority.hpp): by weight under a normal
+    // tracker; by policy under a real-time one (slam-server's and quad-control's), and then at nice
+    // -10, still ahead of the machine's other work: tracking needs the map kept up to date (at nice
+    // 10 beside two CPU burners mapping starved and tracking was lost during the HIL take-off).
+    // Not fatal when refused: mapping then competes for the CPU as an equal.
     constexpr int kMapperNiceRealtime = 10;
-    if (setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), kMapperNiceRealtime) != 0) {
-      // Not fatal: without it mapping competes for the CPU as an equal.
-    }
+    constexpr int kMapperNiceBelowRealtime = -10;
+    lower_current_thread(kMapperNiceRealtime, kMapperNiceBelowRealtime);
   }
   for (;;) {
     std::int64_t kf;
