@@ -27,7 +27,7 @@ define component
 	@if [ -x "$(1)" ]; then "$(1)" $(2); else echo "make $@: not implemented yet ($(1) does not exist)"; exit 1; fi
 endef
 
-.PHONY: all deps build build-cpp build-asan firmware test demo bench study fuzz hil flash \
+.PHONY: all deps build build-cpp build-asan firmware test demo demo-loop bench study fuzz hil flash \
         install-onboard run-offboard clean help onboard-arm bench-arm
 
 all: build
@@ -49,6 +49,10 @@ test: build
 
 demo: build
 	@scripts/demo.sh
+
+# Ten consecutive `make demo` flights and one summary (hil/tools/demo_loop.py; RUNS=N for another count).
+demo-loop: build
+	.venv/bin/python hil/tools/demo_loop.py --runs $(or $(RUNS),10)
 
 bench: build
 	@scripts/bench.sh

@@ -43,6 +43,8 @@ def main(argv=None) -> int:
     ap.add_argument("--fps", type=float, default=SlamFlightOptions.fps, help=f"camera frame rate (default {SlamFlightOptions.fps:g})")
     ap.add_argument("--hold-s", type=float, default=10.0, help="seconds to hold before the waypoints")
     ap.add_argument("--linger-s", type=float, default=0.0, help="keep everything up this long after landing")
+    ap.add_argument("--send-on-pose", choices=("on", "off"), default=None,
+                    help="quad-control's firmware.send_on_pose (default: its configured default)")
     args = ap.parse_args(argv)
     missing = missing_parts()
     if missing:
@@ -55,7 +57,8 @@ def main(argv=None) -> int:
     def progress(text: str) -> None:
         print(f"demo [{time.monotonic() - t0:6.1f} s] {text}", flush=True)
 
-    with SlamFlight(args.out, SlamFlightOptions(fps=args.fps)) as flight:
+    send_on_pose = None if args.send_on_pose is None else args.send_on_pose == "on"
+    with SlamFlight(args.out, SlamFlightOptions(fps=args.fps, send_on_pose=send_on_pose)) as flight:
         progress(f"dashboard: http://127.0.0.1:{flight.dashboard_port}/ (open it to watch the flight)")
         progress(f"logs: {args.out}/*.log, flight log: {flight.log_dir}")
         try:
@@ -132,6 +135,8 @@ def print_figures(report: dict, args) -> None:
     print(f"demo: SLAM link: {link['link_breaks']} break(s), {link['resumes']} resumed, "
           f"resets {link['resets']} (counted from {', '.join(link['sources']) or 'nothing'})")
     print(f"demo: report {args.out / 'report.json'}; {report['wall_s']} s, real-time factor {report['realtime_factor']}")
+    print(f"demo: load average {report.get('load_average')}; send_on_pose {args.send_on_pose or 'default'}; "
+          f"scheduling {report.get('scheduling')}")
 
 
 if __name__ == "__main__":

@@ -61,6 +61,11 @@ def missing_parts() -> list[str]:
     return missing
 
 
+def missing_load_tool() -> list[str]:
+    """What the load scenario needs beyond a flight (empty: it can run)."""
+    return [] if shutil.which("stress-ng") else ["stress-ng (apt: deps/apt/hil.txt)"]
+
+
 def free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.bind(("127.0.0.1", 0))
@@ -115,6 +120,15 @@ class SlamFlightOptions:
     stream_impairment: LinkImpairment | None = None
     # Render indices the Kinect emulator delivers all-zero (the streamer must drop them).
     blank_frames: frozenset = frozenset()
+    # The rig (its threads, simavr, the Kinect renderer, rgbd-streamer: the hardware and the craft's
+    # own computer) under SCHED_RR above the ground station (hilrig.realtime), so only the system
+    # under test competes with the machine's other work. False: everything inherits the caller's.
+    rig_realtime: bool = True
+    # The load scenario: this many CPU-burning workers (stress-ng --cpu N, normal policy, nice 0)
+    # run beside the ground station for the whole flight.
+    cpu_burners: int = 0
+    # quad-control's firmware.send_on_pose (commands on each fresh pose); None: its default.
+    send_on_pose: bool | None = None
     # quad-control records the flight as MCAP in <workdir>/recording (docs/recording.md); False: off.
     record: bool = True
 
@@ -125,6 +139,8 @@ class SlamFlightOptions:
             raise ValueError("features must be orb|sift|surf and backend localmap|vo|llc|glc")
         if len(self.key) != 16:
             raise ValueError("key must be 16 bytes")
+        if self.cpu_burners < 0:
+            raise ValueError("cpu_burners must be >= 0")
 
 
 class SlamFlight:
@@ -144,7 +160,9 @@ class SlamFlight:
         self.rig = None
         self.bridge = None
         self.kinect = None
-        self._procs: list[ManagedProcess] = []
+        self._procs: list[tuple[str, ManagedProcess]] = []  # (program name, process)
+        self.rig_scheduling = "not started"
+        self._saved_sched = None
         self.stream_proxies: list[LinkProxy] = []
         self._pump_stop = threading.Event()
         self._pump: threading.Thread | None = None
@@ -161,7 +179,15 @@ class SlamFlight:
         from wifi_bridge import WifiBridgeEmulator
 
         o = self.options
+        from hilrig import realtime
+
         try:
+            # Before anything is created: the rig's threads and children inherit this thread's policy.
+            self._saved_sched = realtime.save_this_thread()
+            self.rig_scheduling = realtime.raise_this_thread() if o.rig_realtime else realtime.current_policy()
+            if o.cpu_burners:
+                self._start("stress-ng", ["stress-ng", "--cpu", o.cpu_burners, "--cpu-method", "matrixprod",
+                                          "--metrics-brief"], system=True)
             self.rig = LiveRig(
                 key_record(o.key),
                 fc_options=o.fc_options,
@@ -183,6 +209,7 @@ class SlamFlight:
                     "--backend",
                     o.backend,
                 ],
+                system=True,
             )
             config = self._write_quad_control_config(slam_port, rgb_port, depth_port)
             qc = self._start(
@@ -196,6 +223,7 @@ class SlamFlight:
                     "--flight-log",
                     self.log_dir,
                 ],
+                system=True,
             )
             self.dashboard_port = self._wait_dashboard_port(qc)
             self.kinect = LiveKinect(
@@ -242,12 +270,17 @@ class SlamFlight:
         # or end of file (kinect_emulator.live), so it must see EOF before it is asked to stop.
         if self.kinect is not None:
             self.kinect.close()
-        for p in reversed(self._procs):
+        for _, p in reversed(self._procs):
             p.stop()
         for proxy in self.stream_proxies:
             proxy.close()
         if self.bridge is not None:
             self.bridge.close()
+        if self._saved_sched is not None:
+            from hilrig import realtime
+
+            realtime.restore_this_thread(self._saved_sched)
+            self._saved_sched = None
         if self.rig is not None:
             rig, self.rig = self.rig, None
             rig.close()
@@ -260,10 +293,31 @@ class SlamFlight:
 
     def kill_ground_station(self) -> None:
         """Scenario 3: quad-control dies (SIGKILL, no goodbye); slam-server and the craft go on."""
-        for p in self._procs:
-            if Path(p.argv[0]).name == "quad-control" and p.alive():
+        for name, p in self._procs:
+            if name == "quad-control" and p.alive():
                 p.proc.kill()
                 p.proc.wait(timeout=5)
+
+    def kill_slam_server(self) -> None:
+        """slam-server dies mid-flight (SIGKILL: no goodbye, its maps are gone)."""
+        for name, p in self._procs:
+            if name == "slam-server" and p.alive():
+                p.proc.kill()
+                p.proc.wait(timeout=5)
+
+    def restart_slam_server(self) -> None:
+        """A new slam-server on the same port (what a supervisor would do): quad-control's link
+        reconnects; its session is unknown there, so a new map starts and quad-control re-anchors."""
+        old = [p for name, p in self._procs if name == "slam-server"]
+        if not old or old[-1].alive():
+            raise RuntimeError("slam-server is still running: kill_slam_server() first")
+        argv = list(old[-1].argv)
+        self._procs = [(n, p) for n, p in self._procs if p is not old[-1]]
+        old[-1].stop()
+        log = self.workdir / "slam-server.log"
+        log.rename(self.workdir / f"slam-server-{len(list(self.workdir.glob('slam-server*.log')))}.log")
+        p = ManagedProcess(argv, log)
+        self._procs.append(("slam-server", p))
 
     def sever_stream(self) -> None:
         """Scenario 4: the stream link drops (both sockets; the streamer reconnects with backoff)."""
@@ -276,10 +330,24 @@ class SlamFlight:
         for proxy in self.stream_proxies:
             proxy.restore()
 
-    def _start(self, name: str, argv, env=None) -> ManagedProcess:
-        p = ManagedProcess([str(a) for a in argv], self.workdir / f"{name}.log", env=env)
-        self._procs.append(p)
+    def _start(self, name: str, argv, env=None, system: bool = False) -> ManagedProcess:
+        """`system`: a process of the ground station (or the load), started under the normal policy
+        whatever the rig runs under (it raises its own real-time threads, as on its own machine)."""
+        from hilrig.realtime import normal_policy_argv
+
+        argv = [str(a) for a in argv]
+        p = ManagedProcess(normal_policy_argv(argv) if system else argv, self.workdir / f"{name}.log", env=env)
+        self._procs.append((name, p))
         return p
+
+    def scheduling(self) -> dict:
+        """What each part runs under: the rig's policy, and the lines in which quad-control and
+        slam-server logged their threads' scheduling (or why real-time was refused)."""
+        out = {"rig": self.rig_scheduling}
+        for name, p in self._procs:
+            if name in ("quad-control", "slam-server"):
+                out[name] = re.findall(r"^(?:quad-control|slam-server): (.+ thread: .*)$", p.log_text(), re.M)[:6]
+        return out
 
     def _stream_key_file(self) -> Path:
         """The craft's stream key (mode 0600), read by both the streamer and quad-control."""
@@ -305,7 +373,8 @@ class SlamFlight:
                 "key_file": str(self._stream_key_file()),
             },
             "slam": {"mode": "server", "host": "127.0.0.1", "port": slam_port},
-            "firmware": {"enabled": True, "host": "127.0.0.1", "port": self.bridge.port, "key_hex": o.key.hex()},
+            "firmware": {"enabled": True, "host": "127.0.0.1", "port": self.bridge.port, "key_hex": o.key.hex(),
+                         **({} if o.send_on_pose is None else {"send_on_pose": o.send_on_pose})},
             "camera": {"mount_pitch_down_deg": o.mount.mount_pitch_down_deg},
             "recording": {"enabled": o.record, "dir": str(self.recording_dir)},
         }
@@ -405,9 +474,9 @@ class SlamFlight:
         """Raises if a part of the rig died (a process exited, the pump or rig thread failed)."""
         if self._pump_error is not None:
             raise RuntimeError(f"camera pump failed: {self._pump_error!r}")
-        for p in self._procs:
-            if not p.alive() and Path(p.argv[0]).name != "quad-control":
-                raise RuntimeError(f"{Path(p.argv[0]).name} exited:\n" + p.log_text()[-2000:])
+        for name, p in self._procs:
+            if not p.alive() and name != "quad-control":
+                raise RuntimeError(f"{name} exited:\n" + p.log_text()[-2000:])
 
     # ---- scoring ------------------------------------------------------------------------------
     def poses(self) -> list[dict]:
@@ -500,7 +569,8 @@ class SlamFlight:
 
     def scores(self) -> dict:
         """The figures every flight reports: ATE, latency per stage, stream/SLAM counts."""
-        return {"ate": self.ate(), "latency_ms": self.latency(), "stream": self.stream_stats()}
+        return {"ate": self.ate(), "latency_ms": self.latency(), "stream": self.stream_stats(),
+                "scheduling": self.scheduling(), "load_average": _load_average()}
 
     def stream_stats(self) -> dict:
         frames = self.frames()
@@ -513,6 +583,14 @@ class SlamFlight:
             "slam_tracked": sum(p["tracking"] == "1" for p in poses),
             "kinect": self.kinect.stats(),
         }
+
+
+def _load_average() -> str | None:
+    """/proc/loadavg's 1/5/15-minute averages (every timing is reported with the machine's load)."""
+    try:
+        return " ".join(Path("/proc/loadavg").read_text().split()[:3])
+    except OSError:
+        return None
 
 
 def _read_csv(path: Path) -> list[dict]:

@@ -8,8 +8,9 @@ and the FC emulator. The operator uses quad-control's dashboard API; emulator tr
   scenario 4  the stream link (both sockets) drops for 1 s mid-hover and comes back
   scenario 5  degraded stream link (20 +- 10 ms, 2 % loss stalls of 200 ms) during a hover
   scenario 6  blank frames from the Kinect mid-hover (the streamer drops them)
+  load        take off and hold 30 s with two CPU burners (stress-ng) beside the ground station
 Each fault scenario must end holding or landed, never flying away.
-Reports: test-artifacts/hil/slam_loop_scenario{1..6}.json (printed by make hil).
+Reports: test-artifacts/hil/slam_loop_scenario{1..6}.json, slam_loop_load.json (printed by make hil).
 """
 
 from __future__ import annotations
@@ -31,8 +32,10 @@ from hilrig.slam_flight import (
     camera_room_position,
     goal_in_room,
     hold_error,
+    missing_load_tool,
     missing_parts,
 )
+from hilrig.verdict import judge_hold, session_resets
 from kinect_emulator.live import match_capture_stamps
 
 pytestmark = pytest.mark.hil
@@ -52,7 +55,7 @@ def _flight(tmp_path, **options):
     missing = missing_parts()
     if missing:
         pytest.skip("not built / not installed: " + ", ".join(missing))
-    return SlamFlight(tmp_path, SlamFlightOptions(quad_params=DISTURBED, **options))
+    return SlamFlight(tmp_path, SlamFlightOptions(**{"quad_params": DISTURBED, **options}))
 
 
 @pytest.fixture
@@ -239,3 +242,83 @@ def test_slam_loop_scenario6_blank_frames(tmp_path):
     assert report["blank_frames_received"] == [], "blank frames reached the ground station"
     assert out["state_after"] == "hold" and not out["failsafe_events"]
     assert err["max_m"] <= 2 * HOLD_TOLERANCE_M
+
+
+# The load scenario (issue 13 item 5): two CPU-burning workers, one per core of the 2-core machine
+# the rig was sized on, at the normal policy beside the ground station for the whole flight.
+LOAD_CPU_BURNERS = 2
+LOAD_HOLD_S = 30.0
+
+
+def test_slam_loop_load_two_cpu_burners(tmp_path):
+    """Take off and hold 30 s while `stress-ng --cpu 2` burns both cores. The ground station's
+    real-time path (quad-control's frame / SLAM-link / firmware-link threads, slam-server's tracking
+    thread: SCHED_RR) must hold: hold +-0.15 m, SLAM ATE <= 30 mm, 0 SLAM session resets. The rig
+    (SCHED_RR above them, hilrig.realtime) must keep real time; if it did not, the run fails as
+    "rig overloaded" and the other figures are not judged. Flown in make demo's conditions (no gusts,
+    no trim error): scenario 1 holds the gusty case, this one isolates the load."""
+    missing = missing_load_tool()
+    if missing:
+        pytest.skip("not installed: " + ", ".join(missing))
+    with _flight(tmp_path, cpu_burners=LOAD_CPU_BURNERS, quad_params=QuadParams()) as flight:
+        report: dict = {"cpu_burners": LOAD_CPU_BURNERS}
+        try:
+            to = missions.take_off(flight, progress=print)
+            report["hold"] = missions.hold(flight, to["start_room_m"], LOAD_HOLD_S, progress=print)
+        except (TimeoutError, RuntimeError) as e:
+            report["aborted"] = str(e)[:300]
+        report["failsafe_events"] = [e for _, e in flight.rig.fc.events if "failsafe" in e]
+        report["realtime_factor"] = round(flight.rig.realtime_factor, 3)
+        try:
+            final_state = flight.state()
+        except Exception:  # noqa: BLE001 - quad-control may have died; its log still counts
+            final_state = None
+        report = _finish(flight, "slam_loop_load", report)
+        resets = session_resets(_log(tmp_path / "slam-server.log"), _log(tmp_path / "quad-control.log"), final_state)
+    report["slam_link"] = resets
+    checks = judge_hold(report, resets, flight.options.fps)
+    report["verdict"] = [c.__dict__ for c in checks]
+    (artifacts_dir() / "slam_loop_load.json").write_text(json.dumps(report, indent=2, default=str))
+    lat = report["latency_ms"].get("capture_to_pwm", {})
+    print(f"load scenario (load average {report['load_average']}): camera->PWM median {lat.get('median_ms')} ms, "
+          f"p95 {lat.get('p95_ms')} ms; scheduling {report['scheduling']}")
+    for c in checks:
+        print("load scenario: " + c.line())
+    rig, *targets = checks
+    if not rig.passed:
+        pytest.fail("rig overloaded (not a system fault): " + rig.line())
+    assert not report["failsafe_events"], report["failsafe_events"]
+    missed = [c.line() for c in targets if not c.passed]
+    assert not missed, "; ".join(missed)
+
+
+def _log(path) -> str | None:
+    return path.read_text(errors="replace") if path.exists() else None
+
+
+def test_slam_loop_slam_server_killed_and_restarted(tmp_path):
+    """slam-server is SIGKILLed in the hover and a new one started on the same port 1 s later (a
+    supervisor's restart). Its maps died with it, so the reconnect cannot resume: quad-control
+    must log the broken link with its cause, start a new session and re-anchor it on the last pose
+    (or, with no pose for 300 ms, lost-hold -> blind landing through the firmware failsafe); it
+    must not crash, and the craft must end holding or landed, never flying away."""
+    with _flight(tmp_path) as flight:
+        to = missions.take_off(flight, progress=print)
+        flight.hold_for(missions.SETTLE_S)
+        t_fault = flight.rig.sim_us
+        flight.kill_slam_server()
+        flight.hold_for(1.0)
+        flight.restart_slam_server()
+        _settle_outcome(flight)
+        if flight.state()["state"] == "hold":
+            flight.hold_for(8.0)
+        out = _fault_outcome(flight, to["start_room_m"], t_fault)
+        qc_log = _log(tmp_path / "quad-control.log") or ""
+        st = flight.state()
+        report = _finish(flight, "slam_loop_slam_server_restart", {
+            "outage_s": 1.0, "slam": st.get("slam"),
+            "disconnect_causes": [line for line in qc_log.splitlines() if "SLAM link: disconnected" in line][:3],
+            **out})
+    assert report["disconnect_causes"], "the broken SLAM link was not logged with a cause"
+    assert out["max_horizontal_from_hold_point_m"] < FLYAWAY_RADIUS_M
+    assert _holding_or_landed(out), report

@@ -82,3 +82,18 @@ def test_given_an_aborted_flight_then_unmeasured_targets_miss():
     assert "only 2 tracked frames" in checks["SLAM ATE"].why
     landed = by_target(judge(dict(aborted, touchdowns_mps=[0.2, 0.48]), {"resets": 0}, 30.0))
     assert landed["touchdown"].passed and landed["touchdown"].measured == "0.48 m/s"
+
+
+def test_hold_only_flight_is_judged_on_rig_hold_ate_and_resets():
+    from hilrig.verdict import judge_hold
+
+    report = {k: v for k, v in GOOD.items() if k not in ("waypoints", "landing")}
+    checks = judge_hold(report, {"resets": 0, "sources": {"slam-server log": 0}}, 30.0)
+    assert [c.target for c in checks] == ["rig real-time", "hold", "SLAM ATE", "SLAM session resets"]
+    assert all(c.passed for c in checks)
+    loaded = dict(report, stream={"received_fps": 12.0, "kinect": {"submitted": 1000, "delivered": 500,
+                                                                  "superseded": 500, "render_ms_median": 60.0}})
+    rig = judge_hold(loaded, {"resets": 0}, 30.0)[0]
+    assert not rig.passed and "rig overloaded" in rig.why
+    aborted = judge_hold(dict(report, aborted="take-off -> hold: not within 60 s", hold=None), {"resets": 1}, 30.0)
+    assert [c.target for c in aborted if not c.passed] == ["flight completed", "hold", "SLAM session resets"]
