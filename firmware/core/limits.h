@@ -96,7 +96,7 @@ static_assert(kThrottleLowUs > kApmFsThrValueUs, "disarmed/ground throttle must 
 constexpr uint8_t kMaxRequestBytes = 128;
 /// A request line that gets no byte for this long before its newline is discarded with a 408 reply
 /// (silence, not line duration: a long line arriving steadily is never cut). The bridge forwards
-/// whole requests back to back (20 us per byte at 500 kbaud), so 100 ms of silence only happens to a
+/// whole requests back to back (10 us per byte at 1 Mbaud), so 100 ms of silence only happens to a
 /// truncated request.
 constexpr uint32_t kLineStallTimeoutMs = 100;
 

@@ -310,7 +310,7 @@ TEST(LineAssembler, LinesOverlongAndStall) {
 struct OverlongRow {
   const char* name;
   size_t bytes;          ///< line length without the newline
-  uint32_t byte_gap_us;  ///< time between bytes (20 us = 500 kbaud back to back)
+  uint32_t byte_gap_us;  ///< time between bytes (20 us = 500 kbaud back to back; the link runs 1 Mbaud, 10 us)
   bool newline;          ///< false: the newline was lost in transit
 };
 

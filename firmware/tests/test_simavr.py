@@ -160,7 +160,10 @@ def test_bad_requests_get_error_replies_and_change_no_output():
     assert set(got[11:-1]) == {401} and got[-1] == 200
     # THEN outputs stayed at the last valid command until the failsafe deadline, and the rejected
     # requests did not feed the failsafe timer: the final status shows failsafe.
-    t_last_valid = r.replies[1].start_us
+    # The failsafe timer starts when the last valid command is accepted, between its last byte and
+    # its reply; the last byte is the safe bound (at 1 Mbaud the reply's start was 5 ms too late:
+    # the first failsafe pulse fell inside the window).
+    t_last_valid = r.sent[1].end_us
     frames = [
         p.width_us for p in r.pulses_of(3, r.replies[1].end_us + FRAME_US, t_last_valid + 250 * MS)
     ]
@@ -170,10 +173,12 @@ def test_bad_requests_get_error_replies_and_change_no_output():
 
 #: Lengths reported answered 408 (132, 272, 312) and 414 (152, 212, 612) by the old image.
 OVERLONG_LINE_BYTES = [129, 132, 152, 212, 272, 312, 612]
-#: simavr delivers a bridge byte every 32 us: the 129th byte (the first one too many) has arrived
-#: 4.1 ms after the line started; 5 ms more covers the main-loop pass that formats the reply
-#: (measured 2.8 ms). The old image answered a 612-byte line only after its newline, at 22 ms.
-OVERLONG_REPLY_DEADLINE_US = 129 * 32 + 5 * MS
+#: simavr delivers a bridge byte every 16 us at the firmware's 1 Mbaud (16 bit times per byte; 32 us
+#: at the earlier 500 kbaud): the 129th byte (the first one too many) has arrived 2.1 ms after the
+#: line started; 5 ms more covers the main-loop pass that formats the reply (measured 2.8 ms). The
+#: old image answered a 612-byte line only after its newline, at 22 ms.
+SIMAVR_BRIDGE_BYTE_US = 16
+OVERLONG_REPLY_DEADLINE_US = 129 * SIMAVR_BRIDGE_BYTE_US + 5 * MS
 
 
 def test_overlong_lines_of_any_length_get_414_promptly_and_one_reply_each():

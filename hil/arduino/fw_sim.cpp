@@ -56,10 +56,11 @@ namespace {
 
 constexpr uint32_t kCpuHz = 16000000;
 constexpr double kCyclesPerUs = kCpuHz / 1e6;
-/// Bridge link bytes are fed at simavr 1.6's own UART byte time at 500000 baud, 32 us (it models a
-/// byte as 16 bit times, measured from the firmware's TX; real 8N1 is 10 bit times = 20 us): faster
-/// feeding would pile bytes up in simavr's input FIFO and overflow it on long lines.
-constexpr uint64_t kBridgeByteCycles = 512;
+/// Bridge link bytes are fed at simavr 1.6's own UART byte time at the firmware's 1000000 baud,
+/// 16 us (it models a byte as 16 bit times, measured from the firmware's TX; real 8N1 is 10 bit
+/// times = 10 us): faster feeding would pile bytes up in simavr's input FIFO and overflow it on
+/// long lines. (At 500000 baud it was 32 us = 512 cycles.)
+constexpr uint64_t kBridgeByteCycles = 256;
 /// MAVLink telemetry: 57600 baud; a bit lasts 16e6 / 57600 = 277.78 cycles.
 constexpr double kMavBitCycles = kCpuHz / 57600.0;
 /// ATmega328P SRAM ends at 0x8FF; the stack starts there and grows down.
