@@ -107,8 +107,9 @@ def main(out_dir: str) -> int:
         print("\n### Loop closing on vs off (local map ORB; lock = map-lock hold of the correction step, "
               "fuse = longest hold of one fusion step)")
         print("| run | ATE m | RPE mm | keyframes | loop searches | detections | RANSAC-verified | accepted | "
-              "loop closing CPU p95 ms | pose graph ms max | lock ms max | fuse ms max | BA dropped | dropped |")
-        print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+              "loop closing CPU p95 ms | snapshot lock ms p95 / max | pose graph ms max | lock ms max | fuse ms max | "
+              "BA dropped | dropped |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
         for p in loops:
             m = load(p / "metrics.json")
             if m is None:
@@ -121,6 +122,7 @@ def main(out_dir: str) -> int:
             print(f"| {p.name[len('loop_'):]} | {cell(m, 'ate_rmse_m', '{:.4f}')} | {cell(m, 'rpe_trans_rmse_mm', '{:.2f}')} | "
                   f"{m.get('keyframes')} | {lc.get('keyframes_searched', '-')} | {lc.get('detections', '-')} | "
                   f"{lc.get('ransac_verified', '-')} | {lc.get('accepted', '-')} | {mx('loop_closing_cpu')} | "
+                  f"{mx('snapshot_lock')} / {(lc.get('snapshot_lock') or {}).get('max_ms', float('nan')):.1f} | "
                   f"{(lc.get('posegraph') or {}).get('max_ms', '-')} | {(lc.get('apply_lock') or {}).get('max_ms', '-')} | "
                   f"{(lc.get('fuse_lock_max_per_keyframe') or {}).get('max_ms', '-')} | {lc.get('local_ba_discarded', '-')} | "
                   f"{m.get('frontend_dropped')} |")
