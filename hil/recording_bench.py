@@ -1,7 +1,7 @@
 """Recording on vs off, side by side: what MCAP recording costs quad-control (a benchmark; prints
 numbers, asserts nothing).
 
-    .venv/bin/python offboard/recorder/tools/measure_recording.py [--seconds 30] [--pairs 2]
+    PYTHONPATH=hil:protocol/python:offboard/python .venv/bin/python hil/recording_bench.py [--seconds 30] [--pairs 2]
 
 Runs quad-control on the TUM replay (tests/data/fr1_xyz_first30 bouncing, 30 fps) with in-process
 SLAM and the firmware double behind the HIL WiFi-bridge emulator (loopback), armed, alternately with

@@ -60,11 +60,27 @@ def recording_figures(flight: SlamFlight, state: dict, out: Path) -> dict:
     return figures
 
 
+def with_image_rate(every_n: int) -> None:
+    """Sets recording.image_every_n_frames in the quad-control config SlamFlight writes."""
+    write = SlamFlight._write_quad_control_config
+
+    def patched(self, *a, **k) -> Path:
+        path = write(self, *a, **k)
+        cfg = json.loads(path.read_text())
+        cfg.setdefault("recording", {})["image_every_n_frames"] = every_n
+        path.write_text(json.dumps(cfg, indent=2))
+        return path
+
+    SlamFlight._write_quad_control_config = patched
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--record", choices=("on", "off"), required=True)
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--hold-s", type=float, default=10.0)
+    ap.add_argument("--image-every", type=int, default=None,
+                    help="recording.image_every_n_frames for this flight (default: quad-control's, 6)")
     args = ap.parse_args(argv)
     missing = missing_parts()
     if missing:
@@ -74,6 +90,8 @@ def main(argv=None) -> int:
         shutil.rmtree(args.out)
     t0 = time.monotonic()
     load_before = os.getloadavg()
+    if args.image_every is not None:
+        with_image_rate(args.image_every)
     with SlamFlight(args.out, SlamFlightOptions(record=args.record == "on")) as flight:
         try:
             report = missions.scenario2(flight, hold_s=args.hold_s)
@@ -81,7 +99,7 @@ def main(argv=None) -> int:
             report = {"aborted": str(e)}
         report.update(flight.scores())
         state = flight.state()
-    out = {"record": args.record, "wall_s": round(time.monotonic() - t0, 1), "load_average_before": load_before,
+    out = {"record": args.record, "image_every_n_frames": args.image_every, "wall_s": round(time.monotonic() - t0, 1), "load_average_before": load_before,
            "load_average_after": os.getloadavg(), "aborted": report.get("aborted"),
            "latency_ms": report.get("latency_ms"), "ate": report.get("ate"), "stream": report.get("stream")}
     if args.record == "on":

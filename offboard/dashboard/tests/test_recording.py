@@ -1,6 +1,7 @@
 """quad-control's MCAP recording end to end: the real quad-control (TUM replay, in-process SLAM, the
-firmware double behind the HIL WiFi-bridge emulator, all on 127.0.0.1) records with --record; the
-file is read back by the Python `mcap` reader.
+firmware double behind the HIL WiFi-bridge emulator: the `firmware` fixture of conftest.py, all on
+127.0.0.1) records with --record; the file is read back by the Python `mcap` reader
+(offboard/python/flight_recording; the writer is offboard/recorder, docs/recording.md).
 
   * a flight stopped with SIGTERM: a complete file (summary, CRCs), every channel of
     docs/recording.md present, images decodable, counts equal to the summary's statistics;
@@ -20,39 +21,14 @@ import os
 from pathlib import Path
 import resource
 import signal
-import sys
 import time
 import urllib.request
 
-import pytest
-
-ROOT = Path(__file__).resolve().parents[3]
-sys.path.insert(0, str(ROOT / "offboard" / "dashboard" / "tests"))
-
-from dashboard_fixtures import KEY, QuadControl, quad_control_binary, write_config  # noqa: E402
-from flight_recording.reader import read, read_complete  # noqa: E402
+from dashboard_fixtures import QuadControl, write_config
+from flight_recording.reader import read, read_complete
 
 DEADLINE_S = 90.0  # the shared 2-core machine may run SLAM at ~1 pose/s
 FLIGHT_S = 12.0    # long enough that the last second is a small part of it
-
-
-@pytest.fixture(scope="module")
-def binary() -> Path:
-    b = quad_control_binary()
-    if b is None:
-        pytest.skip("quad-control is not built (make build, or set QUAD_CONTROL_BIN)")
-    return b
-
-
-@pytest.fixture(scope="module")
-def bridge():
-    from firmware_double import FirmwareDouble
-    from wifi_bridge import WifiBridgeEmulator
-
-    double = FirmwareDouble(KEY)
-    b = WifiBridgeEmulator(double.transact).start()
-    yield double, b
-    b.close()
 
 
 def api_state(url: str) -> dict:
@@ -98,8 +74,8 @@ def one_file(d: Path) -> Path:
     return files[0]
 
 
-def test_sigterm_leaves_a_complete_recording_with_every_channel(binary, bridge, tmp_path):
-    _double, b = bridge
+def test_sigterm_leaves_a_complete_recording_with_every_channel(binary, firmware, tmp_path):
+    _double, b = firmware
     qc = start(binary, tmp_path, b.port, tmp_path / "rec")
     try:
         state = fly(qc, FLIGHT_S)
@@ -132,8 +108,8 @@ def test_sigterm_leaves_a_complete_recording_with_every_channel(binary, bridge, 
     assert all(m.data["state"] in ("disarmed", "armed") for m in rec.topic("/firmware/reply"))
 
 
-def test_sigkill_leaves_the_flight_readable_up_to_about_its_last_second(binary, bridge, tmp_path):
-    _double, b = bridge
+def test_sigkill_leaves_the_flight_readable_up_to_about_its_last_second(binary, firmware, tmp_path):
+    _double, b = firmware
     qc = start(binary, tmp_path, b.port, tmp_path / "rec")
     state = fly(qc, FLIGHT_S)
     frames_before = state["stream"]["frames"]
@@ -162,8 +138,8 @@ def counts_ok(rec) -> bool:
     return c.get("/control/command", 0) > 0 and c.get("/camera/rgb/compressed", 0) > 0
 
 
-def test_full_disk_stops_recording_with_the_cause_and_the_flight_goes_on(binary, bridge, tmp_path):
-    double, b = bridge
+def test_full_disk_stops_recording_with_the_cause_and_the_flight_goes_on(binary, firmware, tmp_path):
+    double, b = firmware
     limit = 3 * 1024 * 1024  # a few seconds of recording
 
     def small_disk():

@@ -149,6 +149,7 @@ std::vector<ChannelSpec> make_specs() {
                    object("rgbdquad.RecorderStats", {{"messages", integer()},
                                                      {"bytes", integer()},
                                                      {"dropped_queue_full", integer()},
+                                                     {"images_dropped", integer()},
                                                      {"frames_recorded", integer()},
                                                      {"encode_ms_per_frame", num()},
                                                      {"queued", integer()}})));

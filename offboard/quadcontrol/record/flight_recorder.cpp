@@ -130,6 +130,7 @@ json to_json(const RecorderStats& s) {
           {"deleted_files", s.deleted_files},
           {"dropped_queue_full", s.dropped_queue_full},
           {"dropped_after_failure", s.dropped_after_failure},
+          {"images_dropped", s.images_dropped},
           {"frames_recorded", s.frames_recorded},
           {"encode_ms_per_frame", s.encode_ms_per_frame},
           {"writer_cpu_ms", s.writer_cpu_ms},
@@ -300,12 +301,21 @@ void FlightRecorder::push(Event e, bool is_frame) {
       ++stats_.dropped_after_failure;
       return;
     }
-    if (queue_.size() >= options_.queue_max_events ||
-        (is_frame && frames_queued_ >= options_.queue_max_frames)) {
+    if (queue_.size() >= options_.queue_max_events) {
       ++stats_.dropped_queue_full;
       return;
     }
-    if (is_frame) ++frames_queued_;
+    if (is_frame) {
+      auto& f = std::get<FrameRecord>(e);
+      if (frames_queued_ >= options_.queue_max_frames) {
+        // The frame's telemetry still goes in; only its images are dropped (counted).
+        f.rgb.release();
+        f.depth.release();
+        ++stats_.images_dropped;
+      } else {
+        ++frames_queued_;
+      }
+    }
     queue_.push_back(std::move(e));
   }
   wake_.notify_one();
@@ -650,6 +660,7 @@ void FlightRecorder::run() {
                {{"messages", writer_->messages()},
                 {"bytes", writer_->bytes()},
                 {"dropped_queue_full", s.dropped_queue_full},
+                {"images_dropped", s.images_dropped},
                 {"frames_recorded", frames_recorded},
                 {"encode_ms_per_frame", frames_recorded ? cpu_ms_total / frames_recorded : 0.0},
                 {"queued", batch.size()}})) ||

@@ -52,7 +52,10 @@ struct RecorderOptions {
   double max_file_mb = 512.0;          ///< rotate: ~40 min per file at the default rate
   double max_total_mb = 4096.0;  ///< this run's budget; oldest files of the run deleted beyond it
   std::size_t queue_max_events = 1024;  ///< ~10 s of telemetry at ~100 events/s
-  std::size_t queue_max_frames = 4;     ///< frames with images waiting (each ~1.2 MB of pixels)
+  /// Frames with images waiting for the writer (each ~1.2 MB of pixels, shared with the hub):
+  /// 30 = 1 s at 30 fps, so a writer thread starved for a second by the real-time threads of a
+  /// loaded machine loses no image (4 lost 876 of 1218 in a HIL flight at load ~7).
+  std::size_t queue_max_frames = 30;
   bool zstd = true;
   std::string validate() const;
   nlohmann::json to_json() const;
@@ -105,6 +108,8 @@ struct RecorderStats {
   std::string error, file;
   std::uint64_t messages = 0, bytes = 0, files = 0, deleted_files = 0;
   std::uint64_t dropped_queue_full = 0, dropped_after_failure = 0;
+  std::uint64_t images_dropped =
+      0;  ///< frames whose images found the frame slots full (telemetry kept)
   std::uint64_t frames_recorded = 0;
   double encode_ms_per_frame = 0.0;  ///< writer thread CPU per recorded frame (JPEG + depth + JSON)
   double writer_cpu_ms = 0.0;  ///< writer thread CPU since start (everything it encoded and wrote)
