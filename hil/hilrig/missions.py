@@ -16,6 +16,7 @@ from hilrig.slam_flight import SlamFlight, camera_room_position, goal_in_room, h
 HOLD_HEIGHT_M = 1.7  # thesis: hold height after take-off (quad-control's controller.hold_height_m)
 SETTLE_S = 5.0  # after quad-control reports "hold": the PID settles before the hold is scored
 ARRIVAL_SETTLE_S = 6.0  # after arriving at a waypoint: settle, then score the last second
+SETPOINT_MATCH_M = 0.01  # the hold setpoint equals the clicked waypoint (JSON round trip of doubles)
 
 
 def _say(progress, text: str) -> None:
@@ -75,8 +76,13 @@ def go_to(flight: SlamFlight, start_room: np.ndarray, x_m: float, y_m: float, pr
     flight.waypoint(x_m, y_m)
     flight.wait_until(lambda s: s["state"] == "go-to-waypoint", timeout_s=5, what="go-to-waypoint")
     t_start = flight.rig.sim_us
+    # Arrived: holding with the setpoint on the waypoint (quad-control holds where it arrived). Not
+    # the "waypoint reached" event alone: a tracking blip right after the arrival replaces it with
+    # "tracking back" before the next poll (seen under load: the craft held at the waypoint while the
+    # operator waited 60 s for the event).
     flight.wait_until(
-        lambda s: s["state"] == "hold" and "waypoint reached" in s["last_event"],
+        lambda s: s["state"] == "hold"
+        and ("waypoint reached" in s["last_event"] or _setpoint_at(s, x_m, y_m)),
         timeout_s=60,
         what=f"arrival at ({x_m}, {y_m})",
     )
@@ -86,6 +92,12 @@ def go_to(flight: SlamFlight, start_room: np.ndarray, x_m: float, y_m: float, pr
     t_end = flight.rig.sim_us
     err = hold_error(flight.rig.history(), goal, flight.options.mount, t_end - 1e6, t_end)
     return {"leg_s": round((t_arrived - t_start) / 1e6, 1), **err}
+
+
+def _setpoint_at(state: dict, x_m: float, y_m: float) -> bool:
+    """quad-control's setpoint is on (x_m, y_m) (floor frame; it is set to the waypoint on arrival)."""
+    sp = state.get("setpoint") or {}
+    return abs(sp.get("x_m", 1e9) - x_m) <= SETPOINT_MATCH_M and abs(sp.get("y_m", 1e9) - y_m) <= SETPOINT_MATCH_M
 
 
 def land(flight: SlamFlight, progress=None) -> dict:
