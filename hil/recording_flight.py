@@ -31,12 +31,12 @@ from hilrig.slam_flight import SlamFlight, SlamFlightOptions, missing_parts
 
 
 def recording_figures(flight: SlamFlight, state: dict, out: Path) -> dict:
-    from flight_recording.reader import read_complete
+    from flight_recording.reader import read
     from flight_recording.replay import run as replay
 
     files = sorted(flight.recording_dir.glob("*.mcap"))
     size = sum(f.stat().st_size for f in files)
-    rec = read_complete(files[-1])
+    rec = read(files[-1])  # SIGKILLed after the stop grace: no summary, read in streaming order
     span_min = rec.span_s() / 60.0
     r = state["recording"]
     frames = state["stream"]["frames"]
@@ -45,12 +45,15 @@ def recording_figures(flight: SlamFlight, state: dict, out: Path) -> dict:
         "bytes": size,
         "span_s": round(rec.span_s(), 2),
         "mb_per_min": round(size / 1048576 / span_min, 2) if span_min > 0 else None,
+        "complete": rec.complete,
+        "read_errors": rec.errors[:3],
         "counts": rec.counts(),
         "writer_cpu_ms": round(r["writer_cpu_ms"], 1),
         "frames_received": frames,
         "writer_cpu_ms_per_frame": round(r["writer_cpu_ms"] / max(1, frames), 3),
         "encode_ms_per_recorded_frame": round(r["encode_ms_per_frame"], 3),
         "dropped_queue_full": r["dropped_queue_full"],
+        "images_dropped": r.get("images_dropped"),
     }
     try:
         figures["replay"] = replay(files[-1], out / "replay", REPO_ROOT / "build" / "bin" / "slam-eval",

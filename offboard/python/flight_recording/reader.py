@@ -16,7 +16,7 @@ import json
 from pathlib import Path
 import struct
 
-from mcap.exceptions import McapError
+from mcap.exceptions import EndOfFile, McapError
 from mcap.reader import make_reader
 from mcap.records import Channel, DataEnd, Footer, Message, Schema
 from mcap.stream_reader import StreamReader
@@ -98,6 +98,8 @@ def read_tolerant(path: Path) -> Recording:
         try:
             for r in StreamReader(io.BytesIO(data[pos:end]), skip_magic=True, validate_crcs=True).records:
                 _take(rec, r)
+        except EndOfFile:
+            pass  # the one whole record was consumed (its length was checked above); no next record
         except (McapError, ValueError, struct.error, EOFError) as e:
             rec.errors.append(f"damaged record opcode 0x{opcode:02x} at byte {pos} skipped: {e}")
         except Exception as e:  # noqa: BLE001 - zstd/json errors surface as various types
