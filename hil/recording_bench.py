@@ -26,7 +26,7 @@ import sys
 import time
 import urllib.request
 
-REPO = pathlib.Path(__file__).resolve().parents[3]
+REPO = pathlib.Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "offboard/dashboard/tests"), str(REPO / "protocol/python"), str(REPO / "hil"),
                 str(REPO / "offboard/python")]
 
