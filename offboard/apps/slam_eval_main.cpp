@@ -39,7 +39,7 @@ struct RunArgs {
   int rate = 1, max_frames = 0, map_stride = 8, sift_first_octave = 0, max_features = 0;
   std::uint64_t seed = 20260101;
   bool no_undistort = false, no_map = false, quiet = false, no_reprojection = false;
-  std::string stamp = "depth";
+  std::string stamp = "auto";
   std::string save_map, load_map;
   double withhold_from_s = -1, withhold_s = 0;
   std::string loop_closing = "on", keyframe_new_content = "on";
@@ -112,7 +112,12 @@ int run_command(const RunArgs& a) {
   slam::TumDatasetOptions dso;
   dso.rate_divisor = a.rate;
   dso.max_frames = a.max_frames;
-  dso.stamp_from_depth = a.stamp == "depth";
+  // auto: the local map's poses rest on pixel measurements in the colour image, so they carry its
+  // time (ORB-SLAM2's rgbd_tum does the same); the thesis back-ends align 3D points from the depth
+  // image, so they carry the depth time (RGBD-SLAM's convention, which the thesis follows).
+  const std::string stamp =
+      a.stamp != "auto" ? a.stamp : (po.backend.kind == slam::BackendKind::kLocalMap ? "rgb" : "depth");
+  dso.stamp_from_depth = stamp == "depth";
   auto ds = slam::TumDataset::open(a.dataset, dso, &err);
   if (!ds) {
     std::cerr << "slam-eval: " << err << "\n";
@@ -261,7 +266,7 @@ int run_command(const RunArgs& a) {
   m["sift_first_octave"] = a.sift_first_octave;
   m["max_features"] = a.max_features;
   m["undistort"] = !a.no_undistort;
-  m["stamp"] = a.stamp;
+  m["stamp"] = stamp;
   m["reprojection_refine"] = !a.no_reprojection;
   m["cv_threads"] = a.cv_threads;
   m["loop_closing_option"] = a.loop_closing;
@@ -478,8 +483,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({-1, 0}))->capture_default_str();
   run->add_option("--max-features", a.max_features, "SIFT: keep the N strongest (0 = all)")
       ->check(CLI::NonNegativeNumber)->capture_default_str();
-  run->add_option("--stamp", a.stamp, "pose time: depth (geometry's capture time) | rgb")
-      ->check(CLI::IsMember({"depth", "rgb"}))->capture_default_str();
+  run->add_option("--stamp", a.stamp,
+                  "pose time: auto (rgb for localmap, whose poses rest on colour-image pixels; depth for "
+                  "vo/llc/glc, which align depth-image points) | depth | rgb")
+      ->check(CLI::IsMember({"auto", "depth", "rgb"}))->capture_default_str();
   run->add_flag("--no-reprojection-refine", a.no_reprojection,
                 "skip the Gauss-Newton reprojection refinement after RANSAC");
   run->add_option("--cv-threads", a.cv_threads,

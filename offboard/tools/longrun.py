@@ -9,7 +9,7 @@ slam-eval run on it (keyframes, map points, RSS, tracking and mapping cost).
 
 `make` links the images (no copies) under new names and rewrites every timestamp so that time runs
 forward at the excerpt's own frame period; the ground truth of each new frame is the motion-capture
-pose nearest (<= 20 ms, the TUM rule) to its original depth stamp, restamped. A backward pass is a
+pose nearest (<= 20 ms, the TUM rule) to its original rgb stamp (the local map's pose time), restamped. A backward pass is a
 valid camera trajectory (the same poses in reverse order), so the sequence is continuous except for
 the turn-around, where the camera stops for one frame interval. rgb and depth get the same new
 stamp (the excerpt's own rgb/depth offset of up to 20 ms is dropped).
@@ -57,15 +57,16 @@ def make(src: Path, out: Path, passes: int) -> int:
         return 2
     depth_stamps = [t for t, _ in depth]
     gt_stamps = [t for t, _ in gt]
-    # Frames of the excerpt: rgb with its nearest depth (<= 20 ms) and ground truth at the depth stamp.
+    # Frames of the excerpt: rgb with its nearest depth (<= 20 ms) and ground truth at the rgb stamp
+    # (slam-eval stamps the local map's poses with the colour image's time: --stamp auto).
     frames = []
     for t_rgb, rgb_file in rgb:
         j = _nearest(depth_stamps, t_rgb)
         if abs(depth_stamps[j] - t_rgb) > kAssocMaxDtS:
             continue
         t_d, depth_file = depth[j]
-        g = _nearest(gt_stamps, t_d)
-        if abs(gt_stamps[g] - t_d) > kAssocMaxDtS:
+        g = _nearest(gt_stamps, t_rgb)
+        if abs(gt_stamps[g] - t_rgb) > kAssocMaxDtS:
             continue
         frames.append((t_rgb, rgb_file, t_d, depth_file, gt[g][1]))
     if len(frames) < 2:
@@ -81,8 +82,7 @@ def make(src: Path, out: Path, passes: int) -> int:
         order = frames if p % 2 == 0 else list(reversed(frames))
         for t_rgb, rgb_file, t_d, depth_file, pose in order:
             t = t0 + n * period
-            # rgb and depth share the new stamp; the pose is the one at the original depth stamp
-            # (slam-eval stamps poses with the depth image's time).
+            # rgb and depth share the new stamp; the pose is the one at the original rgb stamp.
             name = f"{t:.6f}.png"
             for kind, f in (("rgb", rgb_file), ("depth", depth_file)):
                 link = out / kind / name
