@@ -46,9 +46,9 @@ def generate() -> str:
         "",
         "namespace rgbdquad::protocol {",
         "",
-        f"/// Protocol major version carried in every envelope; peers with another version refuse.",
+        "/// Protocol major version carried in every envelope; peers with another version refuse.",
         f"inline constexpr std::uint8_t kProtocolVersion = {spec.version};",
-        f"/// First 8 bytes (little-endian) of SHA-256 of the canonical spec (see docs/protocol.md).",
+        "/// First 8 bytes (little-endian) of SHA-256 of the canonical spec (see docs/protocol.md).",
         f"inline constexpr std::uint64_t kSchemaHash = 0x{spec.schema_hash:016x}ULL;",
         "/// Envelope magic, resynchronisation marker.",
         "inline constexpr std::uint8_t kMagic[4] = {"

@@ -35,8 +35,8 @@ bool cors_safelisted(const std::string& content_type) {
   const auto first = essence.find_first_not_of(" \t");
   const auto last = essence.find_last_not_of(" \t");
   essence = first == std::string::npos ? "" : essence.substr(first, last - first + 1);
-  return essence.empty() || essence == "text/plain" || essence == "application/x-www-form-urlencoded" ||
-         essence == "multipart/form-data";
+  return essence.empty() || essence == "text/plain" ||
+         essence == "application/x-www-form-urlencoded" || essence == "multipart/form-data";
 }
 
 void check(const HttpRequest& req, const AccessPolicy& policy) {
@@ -47,14 +47,16 @@ void check(const HttpRequest& req, const AccessPolicy& policy) {
     return;
   }
   const std::string host_header(req[http::field::host]);
-  const std::string origin(req[http::field::origin]);  // a browser's is never empty ("null" at least)
+  const std::string origin(
+      req[http::field::origin]);  // a browser's is never empty ("null" at least)
   if (host_header.empty()) {
     // Without Host only a non-browser client (browsers always send it, with Origin on a POST)
     if (!origin.empty()) std::abort();
   } else {
     const std::string host = rgbdquad::quadcontrol::host_without_port(host_header);
-    const bool known = host == "localhost" || host == "groundstation.local" || host == "quad" ||
-                       host.find_first_not_of("0123456789.:abcdef") == std::string::npos;  // IP literal
+    const bool known =
+        host == "localhost" || host == "groundstation.local" || host == "quad" ||
+        host.find_first_not_of("0123456789.:abcdef") == std::string::npos;  // IP literal
     if (!known) std::abort();
     if (!origin.empty() && lower(origin) != "http://" + lower(host_header)) std::abort();
   }
@@ -64,7 +66,8 @@ void check(const HttpRequest& req, const AccessPolicy& policy) {
   }
   if (!policy.token.empty()) {
     const std::string target(req.target());
-    if (req.find("X-Dashboard-Token") == req.end() && target.find("token=") == std::string::npos) std::abort();
+    if (req.find("X-Dashboard-Token") == req.end() && target.find("token=") == std::string::npos)
+      std::abort();
   }
 }
 

@@ -24,7 +24,8 @@ void check_sent(const std::vector<std::uint8_t>& bytes) {
   for (auto r = d.next(); r.status != protocol::DecodeStatus::kNeedMoreBytes; r = d.next()) {
     if (r.status != protocol::DecodeStatus::kMessage) std::abort();
     const auto type = protocol::message_type(*r.message);
-    if (type != protocol::MessageType::kStreamChallenge && type != protocol::MessageType::kHandshakeAck &&
+    if (type != protocol::MessageType::kStreamChallenge &&
+        type != protocol::MessageType::kHandshakeAck &&
         type != protocol::MessageType::kFrameRequest) {
       std::abort();
     }
@@ -54,7 +55,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     h.height = 48;
     h.pixel_format = (mode & 1) ? protocol::PixelFormat::kDepth16 : protocol::PixelFormat::kRgb8;
     h.depth_scale_units_per_m = (mode & 1) ? 1000.0 : 0.0;
-    const auto bytes = protocol::encode_handshake(protocol::testing::signed_handshake(h, nonce)).bytes;
+    const auto bytes =
+        protocol::encode_handshake(protocol::testing::signed_handshake(h, nonce)).bytes;
     const auto out = session.on_bytes(now_us, bytes.data(), bytes.size());
     check_sent(out.send);
     if (!session.live()) std::abort();
@@ -72,7 +74,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       bool verified = false;
       for (const auto& e : out.events) {
         if (e.kind == receiver::ReceiverEvent::Kind::kHandshakeAccepted && e.handshake &&
-            protocol::tags_equal(e.handshake->mac, protocol::handshake_tag(options.key, nonce, *e.handshake))) {
+            protocol::tags_equal(e.handshake->mac,
+                                 protocol::handshake_tag(options.key, nonce, *e.handshake))) {
           verified = true;
         }
       }

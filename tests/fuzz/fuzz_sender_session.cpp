@@ -54,8 +54,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     handshakes += handshakes_in(session.on_bytes(now_us, bytes.data(), bytes.size()).send);
     protocol::HandshakeAck ack;
     ack.accepted = true;
-    bytes = protocol::encode_handshake_ack(protocol::testing::signed_ack(ack, c.receiver_nonce, sender_nonce)).bytes;
-    if (!session.on_bytes(now_us, bytes.data(), bytes.size()).accepted || !session.live()) std::abort();
+    bytes = protocol::encode_handshake_ack(
+                protocol::testing::signed_ack(ack, c.receiver_nonce, sender_nonce))
+                .bytes;
+    if (!session.on_bytes(now_us, bytes.data(), bytes.size()).accepted || !session.live())
+      std::abort();
   }
   bool closed = false;
   for (std::size_t off = 0; off < size; off += chunk) {

@@ -23,23 +23,30 @@ ReceiverEvent event(ReceiverEvent::Kind kind, std::string detail) {
 
 }  // namespace
 
-std::string check_handshake(const protocol::Handshake& h, StreamKind expected, const std::vector<Encoding>& accepted) {
+std::string check_handshake(const protocol::Handshake& h, StreamKind expected,
+                            const std::vector<Encoding>& accepted) {
   std::string why = protocol::handshake_incompatibility(h);
   if (!why.empty()) return why;
   if (h.stream_kind != expected) {
     return std::string("this port takes the ") + protocol::to_string(expected).data() + " stream";
   }
-  const auto format = expected == StreamKind::kRgb ? protocol::PixelFormat::kRgb8 : protocol::PixelFormat::kDepth16;
+  const auto format =
+      expected == StreamKind::kRgb ? protocol::PixelFormat::kRgb8 : protocol::PixelFormat::kDepth16;
   if (h.pixel_format != format) return "pixel format does not match the stream kind";
-  if (!protocol::encoding_allows_pixel_format(h.encoding, format)) return "encoding cannot carry this stream";
-  if (!accepted.empty() && std::find(accepted.begin(), accepted.end(), h.encoding) == accepted.end()) {
-    return std::string("encoding ") + protocol::to_string(h.encoding).data() + " not accepted by this receiver";
+  if (!protocol::encoding_allows_pixel_format(h.encoding, format))
+    return "encoding cannot carry this stream";
+  if (!accepted.empty() &&
+      std::find(accepted.begin(), accepted.end(), h.encoding) == accepted.end()) {
+    return std::string("encoding ") + protocol::to_string(h.encoding).data() +
+           " not accepted by this receiver";
   }
-  if (expected == StreamKind::kDepth && !(h.depth_scale_units_per_m > 0)) return "depth scale must be > 0";
+  if (expected == StreamKind::kDepth && !(h.depth_scale_units_per_m > 0))
+    return "depth scale must be > 0";
   return {};
 }
 
-ReceiverSession::ReceiverSession(const ReceiverSessionOptions& options, const protocol::StreamNonce& receiver_nonce,
+ReceiverSession::ReceiverSession(const ReceiverSessionOptions& options,
+                                 const protocol::StreamNonce& receiver_nonce,
                                  std::int64_t connected_us)
     : options_(options),
       receiver_nonce_(receiver_nonce),
@@ -64,7 +71,8 @@ std::int64_t ReceiverSession::next_deadline_us() const {
 ReceiverOutput ReceiverSession::on_tick(std::int64_t now_us) const {
   ReceiverOutput out;
   if (state_ == State::kAwaitingHandshake && now_us > next_deadline_us()) {
-    out.close = "no handshake within " + std::to_string(options_.handshake_deadline_us / 1000) + " ms";
+    out.close =
+        "no handshake within " + std::to_string(options_.handshake_deadline_us / 1000) + " ms";
   } else if (state_ == State::kLive && now_us > next_deadline_us()) {
     out.close = "idle timeout";
   }
@@ -83,7 +91,8 @@ void ReceiverSession::grant(std::uint16_t credits, ReceiverOutput* out) const {
   append(out->send, protocol::encode_frame_request(request));
 }
 
-ReceiverOutput ReceiverSession::on_bytes(std::int64_t now_us, const std::uint8_t* data, std::size_t size) {
+ReceiverOutput ReceiverSession::on_bytes(std::int64_t now_us, const std::uint8_t* data,
+                                         std::size_t size) {
   ReceiverOutput out;
   if (state_ == State::kClosed) return out;
   last_activity_us_ = now_us;
@@ -105,9 +114,10 @@ ReceiverOutput ReceiverSession::on_bytes(std::int64_t now_us, const std::uint8_t
     }
     const auto* hello = std::get_if<protocol::Handshake>(&*r.message);
     if (hello == nullptr) {
-      out.events.push_back(event(ReceiverEvent::Kind::kUnexpectedMessage,
-                                 std::string(protocol::to_string(protocol::message_type(*r.message))) +
-                                     " before the handshake"));
+      out.events.push_back(
+          event(ReceiverEvent::Kind::kUnexpectedMessage,
+                std::string(protocol::to_string(protocol::message_type(*r.message))) +
+                    " before the handshake"));
       close("first message is not a handshake", &out);
       break;
     }
@@ -120,13 +130,16 @@ ReceiverOutput ReceiverSession::on_bytes(std::int64_t now_us, const std::uint8_t
   return out;
 }
 
-void ReceiverSession::on_handshake(std::int64_t now_us, const protocol::Handshake& hello, ReceiverOutput* out) {
+void ReceiverSession::on_handshake(std::int64_t now_us, const protocol::Handshake& hello,
+                                   ReceiverOutput* out) {
   // The mac first: a peer without the key learns nothing about this port but that it is refused.
   std::string why;
-  if (!protocol::tags_equal(hello.mac, protocol::handshake_tag(options_.key, receiver_nonce_, hello))) {
+  if (!protocol::tags_equal(hello.mac,
+                            protocol::handshake_tag(options_.key, receiver_nonce_, hello))) {
     why = "handshake not authenticated (wrong stream key, or a replayed handshake)";
   } else if (now_us > connected_us_ + options_.handshake_deadline_us) {
-    why = "handshake later than " + std::to_string(options_.handshake_deadline_us / 1000) + " ms after the connect";
+    why = "handshake later than " + std::to_string(options_.handshake_deadline_us / 1000) +
+          " ms after the connect";
   } else {
     why = check_handshake(hello, options_.kind, options_.accepted_encodings);
   }
@@ -159,21 +172,25 @@ void ReceiverSession::on_live_message(protocol::DecodeResult& r, ReceiverOutput*
   }
   auto* frame = std::get_if<protocol::Frame>(&*r.message);
   if (frame == nullptr) {
-    out->events.push_back(event(ReceiverEvent::Kind::kUnexpectedMessage,
-                                std::string(protocol::to_string(protocol::message_type(*r.message))) +
-                                    " on a live stream connection"));
+    out->events.push_back(
+        event(ReceiverEvent::Kind::kUnexpectedMessage,
+              std::string(protocol::to_string(protocol::message_type(*r.message))) +
+                  " on a live stream connection"));
     return;
   }
   const auto& h = frame->image.header;
   const auto& hs = *handshake_;
   last_sequence_ = h.sequence;
-  if (h.width != hs.width || h.height != hs.height || h.pixel_format != hs.pixel_format || h.encoding != hs.encoding) {
-    out->events.push_back(event(ReceiverEvent::Kind::kFrameMismatch,
-                                "frame " + std::to_string(h.sequence) +
-                                    " rejected: frame size/format/encoding differs from the handshake"));
+  if (h.width != hs.width || h.height != hs.height || h.pixel_format != hs.pixel_format ||
+      h.encoding != hs.encoding) {
+    out->events.push_back(
+        event(ReceiverEvent::Kind::kFrameMismatch,
+              "frame " + std::to_string(h.sequence) +
+                  " rejected: frame size/format/encoding differs from the handshake"));
   } else {
     ReceiverEvent e = event(ReceiverEvent::Kind::kFrame, {});
-    e.wire_bytes = frame->image.payload.size() + protocol::kEnvelopeHeaderBytes + protocol::kEnvelopeTrailerBytes;
+    e.wire_bytes = frame->image.payload.size() + protocol::kEnvelopeHeaderBytes +
+                   protocol::kEnvelopeTrailerBytes;
     e.frame = std::move(*frame);
     out->events.push_back(std::move(e));
   }

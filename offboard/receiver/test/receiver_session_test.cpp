@@ -2,6 +2,8 @@
 // golden vectors of protocol/vectors (signed with the manifest's key and nonces), the
 // authentication cases of issue 17 (wrong key, missing mac, replayed handshake) and the deadlines,
 // all with time passed in.
+#include "rgbdquad/receiver/receiver_session.h"
+
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -9,7 +11,6 @@
 #include <nlohmann/json.hpp>
 
 #include "rgbdquad/protocol/stream_auth_testing.hpp"
-#include "rgbdquad/receiver/receiver_session.h"
 
 namespace rgbdquad::receiver {
 namespace {
@@ -25,7 +26,8 @@ std::vector<std::uint8_t> vector_bytes(const std::string& name) {
 template <typename Array>
 Array hex_array(const std::string& hex) {
   Array out{};
-  for (std::size_t i = 0; i < out.size(); ++i) out[i] = static_cast<std::uint8_t>(std::stoi(hex.substr(2 * i, 2), nullptr, 16));
+  for (std::size_t i = 0; i < out.size(); ++i)
+    out[i] = static_cast<std::uint8_t>(std::stoi(hex.substr(2 * i, 2), nullptr, 16));
   return out;
 }
 
@@ -37,7 +39,8 @@ struct VectorAuth {
 VectorAuth vector_auth() {
   std::ifstream in(kVectors + "/manifest.json");
   const auto auth = nlohmann::json::parse(in)["stream_auth"];
-  return {hex_array<protocol::StreamKey>(auth["key"]), hex_array<protocol::StreamNonce>(auth["receiver_nonce"]),
+  return {hex_array<protocol::StreamKey>(auth["key"]),
+          hex_array<protocol::StreamNonce>(auth["receiver_nonce"]),
           hex_array<protocol::StreamNonce>(auth["sender_nonce"])};
 }
 
@@ -48,7 +51,8 @@ ReceiverSessionOptions rgb_options(const protocol::StreamKey& key) {
   return o;
 }
 
-ReceiverOutput feed(ReceiverSession& s, std::int64_t now_us, const std::vector<std::uint8_t>& bytes) {
+ReceiverOutput feed(ReceiverSession& s, std::int64_t now_us,
+                    const std::vector<std::uint8_t>& bytes) {
   return s.on_bytes(now_us, bytes.data(), bytes.size());
 }
 
@@ -77,7 +81,8 @@ TEST(ReceiverSession, GoldenSignedHandshakeIsAcceptedWithTheGoldenAck) {
   EXPECT_FALSE(out.close);
   protocol::FrameRequest first;
   first.credits = 2;
-  EXPECT_EQ(out.send, concat(vector_bytes("handshake_ack_accepted"), protocol::encode_frame_request(first).bytes));
+  EXPECT_EQ(out.send, concat(vector_bytes("handshake_ack_accepted"),
+                             protocol::encode_frame_request(first).bytes));
 }
 
 TEST(ReceiverSession, UnauthenticatedHandshakesAreRefusedWithASignedReason) {
@@ -96,7 +101,8 @@ TEST(ReceiverSession, UnauthenticatedHandshakesAreRefusedWithASignedReason) {
       {"mac with one bit flipped", auth.key, auth.receiver_nonce, "handshake_bad_mac"},
       {"no mac (a streamer without the key)", auth.key, auth.receiver_nonce, "handshake_unsigned"},
       {"receiver holds another key", wrong_key, auth.receiver_nonce, "handshake_rgb"},
-      {"replayed: a handshake recorded on another connection", auth.key, other_nonce, "handshake_rgb"},
+      {"replayed: a handshake recorded on another connection", auth.key, other_nonce,
+       "handshake_rgb"},
   };
   for (const auto& c : cases) {
     SCOPED_TRACE(c.name);
@@ -113,8 +119,10 @@ TEST(ReceiverSession, UnauthenticatedHandshakesAreRefusedWithASignedReason) {
     ASSERT_EQ(r.status, protocol::DecodeStatus::kMessage);
     const auto& ack = std::get<protocol::HandshakeAck>(*r.message);
     EXPECT_FALSE(ack.accepted);
-    EXPECT_TRUE(protocol::tags_equal(ack.mac, protocol::ack_tag(c.key, c.nonce, auth.sender_nonce, ack)));
-    EXPECT_EQ(d.next().status, protocol::DecodeStatus::kNeedMoreBytes) << "no credits for a refused peer";
+    EXPECT_TRUE(
+        protocol::tags_equal(ack.mac, protocol::ack_tag(c.key, c.nonce, auth.sender_nonce, ack)));
+    EXPECT_EQ(d.next().status, protocol::DecodeStatus::kNeedMoreBytes)
+        << "no credits for a refused peer";
   }
 }
 
@@ -144,7 +152,8 @@ TEST(ReceiverSession, EveryGoldenVectorBeforeAndAfterTheHandshakeKeepsTheSession
     const ReceiverOutput after = feed(live, 20, bytes);
     EXPECT_FALSE(after.close) << name;
     EXPECT_TRUE(live.live()) << name;
-    EXPECT_FALSE(has(after, Kind::kFrame)) << name << ": vectors' frames are 4x3, the handshake 640x480";
+    EXPECT_FALSE(has(after, Kind::kFrame))
+        << name << ": vectors' frames are 4x3, the handshake 640x480";
   }
   EXPECT_EQ(accepted, 1);
 }
@@ -168,12 +177,16 @@ TEST(ReceiverSession, DeadlinesTable) {
   h.width = 640;
   h.height = 480;
   ReceiverSession late(rgb_options(key), nonce, 0);
-  const auto out = feed(late, 2'500'000, protocol::encode_handshake(protocol::testing::signed_handshake(h, nonce)).bytes);
+  const auto out =
+      feed(late, 2'500'000,
+           protocol::encode_handshake(protocol::testing::signed_handshake(h, nonce)).bytes);
   EXPECT_TRUE(has(out, Kind::kHandshakeRefused));
   // AND a live connection idle for more than 5 s is closed, activity resets the clock
   ReceiverSession live(rgb_options(key), nonce, 0);
-  ASSERT_TRUE(has(feed(live, 100, protocol::encode_handshake(protocol::testing::signed_handshake(h, nonce)).bytes),
-                  Kind::kHandshakeAccepted));
+  ASSERT_TRUE(
+      has(feed(live, 100,
+               protocol::encode_handshake(protocol::testing::signed_handshake(h, nonce)).bytes),
+          Kind::kHandshakeAccepted));
   EXPECT_FALSE(live.on_tick(5'000'100).close);
   EXPECT_TRUE(live.on_tick(5'000'101).close);
   protocol::Frame f;
@@ -185,7 +198,9 @@ TEST(ReceiverSession, DeadlinesTable) {
   ASSERT_TRUE(has(frame_out, Kind::kFrame));
   EXPECT_FALSE(live.on_tick(8'000'000).close);
   // AND a second handshake on the live connection is a protocol error, not a re-negotiation
-  const auto again = feed(live, 4'100'000, protocol::encode_handshake(protocol::testing::signed_handshake(h, nonce)).bytes);
+  const auto again =
+      feed(live, 4'100'000,
+           protocol::encode_handshake(protocol::testing::signed_handshake(h, nonce)).bytes);
   EXPECT_TRUE(has(again, Kind::kUnexpectedMessage));
   EXPECT_TRUE(again.send.empty());
 }

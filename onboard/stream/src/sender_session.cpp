@@ -9,8 +9,8 @@ namespace {
 constexpr std::uint32_t kMaxBankedCredits = protocol::kMaxCreditsPerRequest;
 }  // namespace
 
-SenderSession::SenderSession(SenderSessionOptions options, const protocol::StreamNonce& sender_nonce,
-                             std::int64_t connected_us)
+SenderSession::SenderSession(SenderSessionOptions options,
+                             const protocol::StreamNonce& sender_nonce, std::int64_t connected_us)
     : options_(std::move(options)), connected_us_(connected_us), last_request_us_(connected_us) {
   options_.hello.sender_nonce = sender_nonce;
   // Only StreamChallenge, HandshakeAck and FrameRequest are expected: a few hundred bytes at
@@ -31,8 +31,10 @@ SenderOutput SenderSession::on_tick(std::int64_t now_us, bool frames_waiting) co
     out.close = "no challenge from the receiver within " + std::to_string(timeout_ms) + " ms";
   } else if (state_ == State::kAwaitingAck && now_us >= next_deadline_us()) {
     out.close = "waiting for handshake ack: timeout (" + std::to_string(timeout_ms) + " ms)";
-  } else if (state_ == State::kLive && credits_ == 0 && frames_waiting && now_us > next_deadline_us()) {
-    out.close = "no frame request for " + std::to_string(options_.credit_idle_timeout_us / 1000) + " ms";
+  } else if (state_ == State::kLive && credits_ == 0 && frames_waiting &&
+             now_us > next_deadline_us()) {
+    out.close =
+        "no frame request for " + std::to_string(options_.credit_idle_timeout_us / 1000) + " ms";
   }
   return out;
 }
@@ -42,14 +44,16 @@ void SenderSession::take_credit(std::int64_t now_us) {
   last_request_us_ = now_us;
 }
 
-SenderOutput SenderSession::on_bytes(std::int64_t now_us, const std::uint8_t* data, std::size_t size) {
+SenderOutput SenderSession::on_bytes(std::int64_t now_us, const std::uint8_t* data,
+                                     std::size_t size) {
   SenderOutput out;
   if (state_ == State::kClosed) return out;
   decoder_.feed(data, size);
   while (state_ != State::kClosed) {
     const protocol::DecodeResult r = decoder_.next();
     if (r.status == protocol::DecodeStatus::kNeedMoreBytes) break;
-    if (r.status != protocol::DecodeStatus::kMessage) continue;  // damaged bytes: ignored, deadlines bound them
+    if (r.status != protocol::DecodeStatus::kMessage)
+      continue;  // damaged bytes: ignored, deadlines bound them
     on_message(now_us, *r.message, &out);
   }
   if (state_ != State::kClosed && state_ != State::kLive && !out.close) {
@@ -71,7 +75,8 @@ void SenderSession::on_message(std::int64_t now_us, const protocol::Message& m, 
     case State::kAwaitingChallenge: {
       const auto* challenge = std::get_if<protocol::StreamChallenge>(&m);
       if (challenge == nullptr) {
-        close(std::string("receiver sent ") + protocol::to_string(protocol::message_type(m)).data() +
+        close(std::string("receiver sent ") +
+              protocol::to_string(protocol::message_type(m)).data() +
               " instead of a challenge (a receiver from before stream authentication?)");
         return;
       }
@@ -91,9 +96,11 @@ void SenderSession::on_message(std::int64_t now_us, const protocol::Message& m, 
       const auto* ack = std::get_if<protocol::HandshakeAck>(&m);
       if (ack == nullptr) return;  // as before: only the ack counts here
       const bool authentic = protocol::tags_equal(
-          ack->mac, protocol::ack_tag(options_.key, receiver_nonce_, options_.hello.sender_nonce, *ack));
+          ack->mac,
+          protocol::ack_tag(options_.key, receiver_nonce_, options_.hello.sender_nonce, *ack));
       if (!authentic) {
-        close(std::string("the receiver's answer is not authenticated (wrong stream key on one side?)") +
+        close(std::string(
+                  "the receiver's answer is not authenticated (wrong stream key on one side?)") +
               (ack->accepted ? "" : "; it said: " + ack->reason));
         return;
       }

@@ -3,6 +3,8 @@
 // the golden challenge with exactly the golden signed handshake and take exactly the golden ack;
 // plus the authentication cases (an ack from a receiver without the key, a replayed ack) and the
 // deadlines, with time passed in.
+#include "rgbdquad/stream/sender_session.h"
+
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -10,7 +12,6 @@
 #include <nlohmann/json.hpp>
 
 #include "rgbdquad/protocol/stream_auth_testing.hpp"
-#include "rgbdquad/stream/sender_session.h"
 
 namespace rgbdquad::stream {
 namespace {
@@ -33,7 +34,8 @@ protocol::Message only_message(const std::string& name) {
 template <typename Array>
 Array hex_array(const std::string& hex) {
   Array out{};
-  for (std::size_t i = 0; i < out.size(); ++i) out[i] = static_cast<std::uint8_t>(std::stoi(hex.substr(2 * i, 2), nullptr, 16));
+  for (std::size_t i = 0; i < out.size(); ++i)
+    out[i] = static_cast<std::uint8_t>(std::stoi(hex.substr(2 * i, 2), nullptr, 16));
   return out;
 }
 
@@ -60,7 +62,8 @@ SenderOutput feed(SenderSession& s, std::int64_t now_us, const std::vector<std::
 TEST(SenderSession, GoldenChallengeGetsTheGoldenSignedHandshakeAndTheGoldenAckIsTaken) {
   const Golden g = golden();
   SenderSession s(g.options, g.sender_nonce, 0);
-  // GIVEN the golden challenge WHEN it arrives THEN the answer is byte for byte the golden handshake
+  // GIVEN the golden challenge WHEN it arrives THEN the answer is byte for byte the golden
+  // handshake
   const SenderOutput hello = feed(s, 1000, vector_bytes("stream_challenge"));
   EXPECT_EQ(hello.send, vector_bytes("handshake_rgb"));
   EXPECT_FALSE(hello.close);
@@ -90,11 +93,12 @@ TEST(SenderSession, AnswersThatAreNotSignedForThisConnectionAreNotTrusted) {
   protocol::StreamKey wrong_key = g.options.key;
   wrong_key[2] ^= 0x04;
   const Case cases[] = {
-      {"signed refusal: trusted, the reason shown", g.sender_nonce, g.options.key, "handshake_ack_refused", true,
-       "refused the handshake: schema hash mismatch"},
-      {"ack replayed from another connection", other_sender, g.options.key, "handshake_ack_accepted", false,
+      {"signed refusal: trusted, the reason shown", g.sender_nonce, g.options.key,
+       "handshake_ack_refused", true, "refused the handshake: schema hash mismatch"},
+      {"ack replayed from another connection", other_sender, g.options.key,
+       "handshake_ack_accepted", false, "not authenticated"},
+      {"receiver without our key", g.sender_nonce, wrong_key, "handshake_ack_accepted", false,
        "not authenticated"},
-      {"receiver without our key", g.sender_nonce, wrong_key, "handshake_ack_accepted", false, "not authenticated"},
   };
   for (const auto& c : cases) {
     SCOPED_TRACE(c.name);
@@ -119,7 +123,8 @@ TEST(SenderSession, DeadlinesTable) {
   // GIVEN a connection at t = 1 s WHEN the receiver drips bytes THEN the 300 ms deadline holds
   SenderSession s(o, g.sender_nonce, 1'000'000);
   const auto challenge = vector_bytes("stream_challenge");
-  for (std::size_t i = 0; i < 10; ++i) EXPECT_FALSE(s.on_bytes(1'000'000 + 20'000 * i, &challenge[i], 1).close);
+  for (std::size_t i = 0; i < 10; ++i)
+    EXPECT_FALSE(s.on_bytes(1'000'000 + 20'000 * i, &challenge[i], 1).close);
   EXPECT_FALSE(s.on_tick(1'299'999, false).close);
   ASSERT_TRUE(s.on_tick(1'300'000, false).close);
   EXPECT_NE(s.on_tick(1'300'000, false).close->find("no challenge"), std::string::npos);

@@ -2,6 +2,6 @@
 #include "fuzz_body.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  return rgbdquad::protocol::fuzz::fuzz_body(rgbdquad::protocol::MessageType::kStreamChallenge, data,
-                                             size);
+  return rgbdquad::protocol::fuzz::fuzz_body(rgbdquad::protocol::MessageType::kStreamChallenge,
+                                             data, size);
 }

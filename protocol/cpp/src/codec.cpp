@@ -261,7 +261,9 @@ void put_body(Writer& w, const HandshakeAck& m) {
   put_string(w, m.reason);
   w.raw(m.mac.data(), m.mac.size());
 }
-void put_body(Writer& w, const StreamChallenge& m) { w.raw(m.receiver_nonce.data(), m.receiver_nonce.size()); }
+void put_body(Writer& w, const StreamChallenge& m) {
+  w.raw(m.receiver_nonce.data(), m.receiver_nonce.size());
+}
 void put_body(Writer& w, const Frame& m) { put_image(w, m.image); }
 void put_body(Writer& w, const FrameRequest& m) {
   w.u16(m.credits);

@@ -17,21 +17,27 @@
 namespace rgbdquad::protocol {
 namespace {
 
-static_assert(kStreamAuthKeyBytes == rgbd_control::kSipHashKeyBytes, "the spec's key is a SipHash key");
-static_assert(kStreamAuthTagBytes == rgbd_control::kSipHashTagBytes, "the spec's tag is a SipHash tag");
+static_assert(kStreamAuthKeyBytes == rgbd_control::kSipHashKeyBytes,
+              "the spec's key is a SipHash key");
+static_assert(kStreamAuthTagBytes == rgbd_control::kSipHashTagBytes,
+              "the spec's tag is a SipHash tag");
 
 // A key file larger than this is not a key file (32 hex digits and a newline).
 constexpr std::size_t kMaxKeyFileBytes = 256;
 
 StreamTag tag_of(const StreamKey& key, const std::vector<std::uint8_t>& message) {
   StreamTag tag{};
-  rgbd_control::siphash24_tag_bytes(rgbd_control::siphash24(key.data(), message.data(), message.size()),
-                                    tag.data());
+  rgbd_control::siphash24_tag_bytes(
+      rgbd_control::siphash24(key.data(), message.data(), message.size()), tag.data());
   return tag;
 }
 
-void append(std::vector<std::uint8_t>& out, std::string_view label) { out.insert(out.end(), label.begin(), label.end()); }
-void append(std::vector<std::uint8_t>& out, const StreamNonce& nonce) { out.insert(out.end(), nonce.begin(), nonce.end()); }
+void append(std::vector<std::uint8_t>& out, std::string_view label) {
+  out.insert(out.end(), label.begin(), label.end());
+}
+void append(std::vector<std::uint8_t>& out, const StreamNonce& nonce) {
+  out.insert(out.end(), nonce.begin(), nonce.end());
+}
 
 // The body as encode_body() writes it; a message the codec refuses gives an empty body, whose
 // tag then matches no tag a valid peer computed (the decoder never delivers such a message).
@@ -49,7 +55,8 @@ int hex_digit(char c) {
 
 }  // namespace
 
-StreamTag handshake_tag(const StreamKey& key, const StreamNonce& receiver_nonce, const Handshake& hello) {
+StreamTag handshake_tag(const StreamKey& key, const StreamNonce& receiver_nonce,
+                        const Handshake& hello) {
   Handshake unsigned_hello = hello;
   unsigned_hello.mac = {};
   std::vector<std::uint8_t> message;
@@ -59,8 +66,8 @@ StreamTag handshake_tag(const StreamKey& key, const StreamNonce& receiver_nonce,
   return tag_of(key, message);
 }
 
-StreamTag ack_tag(const StreamKey& key, const StreamNonce& receiver_nonce, const StreamNonce& sender_nonce,
-                  const HandshakeAck& ack) {
+StreamTag ack_tag(const StreamKey& key, const StreamNonce& receiver_nonce,
+                  const StreamNonce& sender_nonce, const HandshakeAck& ack) {
   HandshakeAck unsigned_ack = ack;
   unsigned_ack.mac = {};
   std::vector<std::uint8_t> message;
@@ -92,7 +99,8 @@ StreamNonce random_stream_nonce() {
 std::optional<StreamKey> parse_stream_key(std::string_view text, std::string* error) {
   const auto first = text.find_first_not_of(" \t\r\n");
   const auto last = text.find_last_not_of(" \t\r\n");
-  const std::string_view hex = first == std::string_view::npos ? std::string_view{} : text.substr(first, last - first + 1);
+  const std::string_view hex =
+      first == std::string_view::npos ? std::string_view{} : text.substr(first, last - first + 1);
   if (hex.size() != 2 * kStreamAuthKeyBytes) {
     *error = "a stream key is " + std::to_string(2 * kStreamAuthKeyBytes) + " hex digits, found " +
              std::to_string(hex.size()) + " characters";
@@ -111,7 +119,9 @@ std::optional<StreamKey> parse_stream_key(std::string_view text, std::string* er
     all_zero = all_zero && key[i] == 0;
   }
   if (all_zero) {
-    *error = "the stream key is all zeros (an unfilled template; generate one with `openssl rand -hex 16`)";
+    *error =
+        "the stream key is all zeros (an unfilled template; generate one with `openssl rand -hex "
+        "16`)";
     return std::nullopt;
   }
   return key;
@@ -136,8 +146,8 @@ std::optional<StreamKey> load_stream_key_file(const std::string& path, std::stri
   if ((st.st_mode & (S_IRWXG | S_IRWXO)) != 0) {
     char mode[8];
     std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
-    *error = "stream key file " + path + " is accessible by group or others (mode " + mode + "); `chmod 600 " +
-             path + "`";
+    *error = "stream key file " + path + " is accessible by group or others (mode " + mode +
+             "); `chmod 600 " + path + "`";
     return std::nullopt;
   }
   std::ifstream in(path, std::ios::binary);

@@ -5,8 +5,8 @@
 
 #include <algorithm>
 #include <fstream>
-#include <set>
 #include <iterator>
+#include <set>
 
 #include "json_view.hpp"
 #include "rgbdquad/protocol/codec.hpp"
@@ -203,8 +203,8 @@ TEST(StreamKey, ParsesHexAndRefusesEverythingElse) {
   const auto key = parse_stream_key("  000102030405060708090a0b0c0d0eFF\n", &error);
   ASSERT_TRUE(key) << error;
   EXPECT_EQ((*key)[15], 0xFF);
-  for (const char* bad : {"", "0001", "000102030405060708090a0b0c0d0e0f00", "g00102030405060708090a0b0c0d0e0f",
-                          "00000000000000000000000000000000"}) {
+  for (const char* bad : {"", "0001", "000102030405060708090a0b0c0d0e0f00",
+                          "g00102030405060708090a0b0c0d0e0f", "00000000000000000000000000000000"}) {
     error.clear();
     EXPECT_FALSE(parse_stream_key(bad, &error)) << bad;
     EXPECT_FALSE(error.empty()) << bad;

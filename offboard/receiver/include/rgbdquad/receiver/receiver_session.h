@@ -65,8 +65,8 @@ class ReceiverSession {
  public:
   /// `receiver_nonce`: fresh random bytes for this connection (random_stream_nonce() in the
   /// shell, fixed in tests). `connected_us`: when the connection was accepted.
-  ReceiverSession(const ReceiverSessionOptions& options, const protocol::StreamNonce& receiver_nonce,
-                  std::int64_t connected_us);
+  ReceiverSession(const ReceiverSessionOptions& options,
+                  const protocol::StreamNonce& receiver_nonce, std::int64_t connected_us);
 
   /// The StreamChallenge, to send at once.
   ReceiverOutput start() const;

@@ -43,7 +43,8 @@ struct SenderOutput {
 class SenderSession {
  public:
   /// `sender_nonce`: fresh random bytes for this connection (random_stream_nonce() in the shell).
-  SenderSession(SenderSessionOptions options, const protocol::StreamNonce& sender_nonce, std::int64_t connected_us);
+  SenderSession(SenderSessionOptions options, const protocol::StreamNonce& sender_nonce,
+                std::int64_t connected_us);
 
   SenderOutput on_bytes(std::int64_t now_us, const std::uint8_t* data, std::size_t size);
   /// Deadlines at `now_us`; `frames_waiting`: the shell holds a frame it could send.

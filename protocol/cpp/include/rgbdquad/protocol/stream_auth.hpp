@@ -4,11 +4,12 @@
 //   receiver -> sender   StreamChallenge{receiver_nonce}          (on accept)
 //   sender -> receiver   Handshake{..., sender_nonce, mac}        mac = handshake_tag(...)
 //   receiver -> sender   HandshakeAck{accepted, reason, mac}      mac = ack_tag(...)
-// The MAC is SipHash-2-4, the control link's MAC (protocol/control/include/rgbd_control/siphash24.h,
-// one implementation checked against the paper's vectors): no new crypto library on the craft, and
-// a 64-bit tag that an online forger must guess once per TCP connection. The nonces make a recorded
-// Handshake or HandshakeAck useless on any other connection.
-// Pure functions apart from load_stream_key_file (reads one file) and random_stream_nonce: thread-safe.
+// The MAC is SipHash-2-4, the control link's MAC
+// (protocol/control/include/rgbd_control/siphash24.h, one implementation checked against the
+// paper's vectors): no new crypto library on the craft, and a 64-bit tag that an online forger must
+// guess once per TCP connection. The nonces make a recorded Handshake or HandshakeAck useless on
+// any other connection. Pure functions apart from load_stream_key_file (reads one file) and
+// random_stream_nonce: thread-safe.
 #pragma once
 
 #include <array>
@@ -26,12 +27,13 @@ using StreamKey = std::array<std::uint8_t, kStreamAuthKeyBytes>;
 
 /// Tag of a Handshake answering `receiver_nonce`: over the label, the nonce and the Handshake's
 /// body with `mac` zeroed (so the tag does not depend on the `mac` field it is written into).
-StreamTag handshake_tag(const StreamKey& key, const StreamNonce& receiver_nonce, const Handshake& hello);
+StreamTag handshake_tag(const StreamKey& key, const StreamNonce& receiver_nonce,
+                        const Handshake& hello);
 
 /// Tag of a HandshakeAck on the connection whose nonces are given, over the ack's body with `mac`
 /// zeroed.
-StreamTag ack_tag(const StreamKey& key, const StreamNonce& receiver_nonce, const StreamNonce& sender_nonce,
-                  const HandshakeAck& ack);
+StreamTag ack_tag(const StreamKey& key, const StreamNonce& receiver_nonce,
+                  const StreamNonce& sender_nonce, const HandshakeAck& ack);
 
 /// Constant-time comparison (no early exit a peer could time).
 bool tags_equal(const StreamTag& a, const StreamTag& b);

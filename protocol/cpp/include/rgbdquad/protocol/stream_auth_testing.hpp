@@ -19,7 +19,8 @@ inline Handshake signed_handshake(Handshake hello, const StreamNonce& receiver_n
 }
 
 /// `ack` signed for the connection with these nonces under `key`.
-inline HandshakeAck signed_ack(HandshakeAck ack, const StreamNonce& receiver_nonce, const StreamNonce& sender_nonce,
+inline HandshakeAck signed_ack(HandshakeAck ack, const StreamNonce& receiver_nonce,
+                               const StreamNonce& sender_nonce,
                                const StreamKey& key = kTestStreamKey) {
   ack.mac = ack_tag(key, receiver_nonce, sender_nonce, ack);
   return ack;
