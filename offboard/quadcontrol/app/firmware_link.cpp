@@ -61,7 +61,7 @@ FirmwareLink::~FirmwareLink() {
 }
 
 FirmwareLinkStats FirmwareLink::stats() const {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   return stats_;
 }
 
@@ -124,7 +124,7 @@ void FirmwareLink::on_scheduled() {
   }
   const bool pose_driven = scheduler_.on_sent(now);  // also when the provider withheld the command
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
     ++(pose_driven ? stats_.pose_driven : stats_.keep_alives);
   }
   arm_scheduled();
@@ -136,7 +136,7 @@ void FirmwareLink::start(Client& c) {
   // without holding the link's lock (the provider takes the ground station's).
   bool wants_command = false;
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
     wants_command = seq_known_ && stats_.seq < spec_.seq_max;
   }
   const std::uint32_t next_seq = stats().seq + 1;
@@ -146,7 +146,7 @@ void FirmwareLink::start(Client& c) {
     if (!command) return;  // nothing to send this period
   }
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
     if (!seq_known_) {
       target = spec_.status_path;
       c.is_status = true;
@@ -203,7 +203,7 @@ void FirmwareLink::finish(Client& c, beast::error_code ec) {
   }
   std::optional<ControlReply> reply;
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
     if (ec == beast::error::timeout) {
       ++stats_.timeouts;
       stats_.last_error = "request timed out after " + std::to_string(options_.timeout_ms) + " ms";

@@ -88,7 +88,7 @@ void GroundStation::frame_loop() {
         slam_ = InProcessSlam::create(frame->intrinsics, callback, options_.realtime, &slam_error);
       }
       if (!slam_) {
-        std::lock_guard<std::mutex> lock(mutex_);
+        std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
         source_error_ = "SLAM link: " + slam_error;
         return;
       }
@@ -96,13 +96,13 @@ void GroundStation::frame_loop() {
     }
     if (!frame) {
       if (stop_) return;
-      std::lock_guard<std::mutex> lock(mutex_);
+      std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
       source_error_ = error;
       if (error == "replay finished") return;
       continue;
     }
     {
-      std::lock_guard<std::mutex> lock(mutex_);
+      std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
       if (last_frame_us_ > 0 && frame->received_us > last_frame_us_) {
         const double inst = 1e6 / static_cast<double>(frame->received_us - last_frame_us_);
         fps_ = frames_ <= 1 ? inst : (1.0 - kFpsEmaWeight) * fps_ + kFpsEmaWeight * inst;
@@ -132,7 +132,7 @@ void GroundStation::control_loop() {
     next += std::chrono::milliseconds(options_.control_period_ms);
     std::this_thread::sleep_until(next);
     const std::int64_t now = monotonic_now_us();
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
     last_stick_ = controller_.update(now);
     last_pwm_ = to_pwm(last_stick_, spec_.pwm, apm_input());
     if (recorder_) record_command(now, 0, false);  // no craft: state events only, nothing is sent
@@ -142,7 +142,7 @@ void GroundStation::control_loop() {
 std::optional<PwmCommand> GroundStation::command_at(std::int64_t now_us, std::uint32_t seq) {
   LoggedCommand logged;
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
     last_stick_ = controller_.update(now_us);
     last_pwm_ = to_pwm(last_stick_, spec_.pwm, apm_input());
     if (recorder_) record_command(now_us, seq, !last_stick_.hand_over_to_failsafe);
@@ -195,7 +195,7 @@ bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFram
   std::optional<FloorPlane> found;
   bool need_floor;
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
     need_floor = !T_floor_world_.has_value() && result.tracking;
   }
   if (need_floor) {
@@ -205,7 +205,7 @@ bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFram
   std::vector<Eigen::Vector3d> cam_points;
   if (result.tracking) cam_points = depth_points(frame, options_.map_pixel_step);
 
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   last_slam_ = result;
   bool floor_set_now = false;
   if (need_floor && !T_floor_world_) {
@@ -278,7 +278,7 @@ bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFram
 
 void GroundStation::on_reply(std::int64_t received_us, const ControlReply& reply) {
   if (recorder_) recorder_->reply(received_us, reply);
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   imu_replies_.push(received_us, reply);
 }
 
@@ -288,7 +288,7 @@ nlohmann::json GroundStation::state_json() {
   const SlamLinkStatus slam_link = slam_ready ? slam_->link_status() : SlamLinkStatus{};
   std::optional<FirmwareLinkStats> fw;
   if (firmware_) fw = firmware_->stats();
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   const auto& st = controller_.status();
   nlohmann::json j;
   j["state"] = to_string(st.state);
@@ -378,7 +378,7 @@ void GroundStation::invalidate_image_caches_if_new_frame() {
 }
 
 std::optional<std::string> GroundStation::rgb_jpeg() {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   if (!latest_frame_) return std::nullopt;
   invalidate_image_caches_if_new_frame();
   if (!rgb_jpeg_cache_) {
@@ -390,7 +390,7 @@ std::optional<std::string> GroundStation::rgb_jpeg() {
 }
 
 std::optional<std::string> GroundStation::depth_png() {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   if (!latest_frame_) return std::nullopt;
   invalidate_image_caches_if_new_frame();
   if (!depth_png_cache_) {
@@ -416,7 +416,7 @@ std::string GroundStation::map_png() {
   std::vector<std::uint8_t> rgb;
   int n;
   {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
     rgb = map_.render_rgb();
     n = map_.width_cells();
   }
@@ -429,7 +429,7 @@ std::string GroundStation::map_png() {
 }
 
 nlohmann::json GroundStation::cloud_json(std::size_t max_points) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   const auto& cloud = map_.cloud();
   nlohmann::json pts = nlohmann::json::array();
   const std::size_t stride = std::max<std::size_t>(1, (cloud.size() + max_points - 1) / std::max<std::size_t>(1, max_points));
@@ -443,7 +443,7 @@ nlohmann::json GroundStation::cloud_json(std::size_t max_points) {
 }
 
 std::string GroundStation::map_ply() {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   return map_.to_ply();
 }
 
@@ -454,17 +454,17 @@ std::string GroundStation::command(const std::string& name) {
   else if (name == "takeoff") cmd = OperatorCommand::kTakeOff;
   else if (name == "land") cmd = OperatorCommand::kLand;
   else return "unknown command '" + name + "' (arm, disarm, takeoff, land)";
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   return controller_.command(monotonic_now_us(), cmd);
 }
 
 std::string GroundStation::waypoint(double x_m, double y_m) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   return controller_.set_waypoint(monotonic_now_us(), x_m, y_m);
 }
 
 std::string GroundStation::manual(double forward_m, double left_m, double up_m, double yaw_ccw_deg) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   return controller_.nudge(monotonic_now_us(), forward_m, left_m, up_m, yaw_ccw_deg);
 }
 

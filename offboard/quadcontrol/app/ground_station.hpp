@@ -103,7 +103,7 @@ class GroundStation {
   std::unique_ptr<FrameSource> source_;
   std::atomic<bool> stop_{false};
 
-  std::mutex mutex_;
+  slam::PriorityInheritanceMutex mutex_;  ///< taken by real-time threads and the dashboard
   FlightController controller_;
   FloorMap map_;
   std::optional<CameraFrame> latest_frame_;

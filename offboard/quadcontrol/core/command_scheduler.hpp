@@ -18,13 +18,13 @@
 namespace rgbdquad::quadcontrol {
 
 struct CommandScheduleOptions {
-  /// Shortest gap between two commands. 17 ms: in simavr the real firmware image needs 16.4 ms per
-  /// command with one request in flight (85-byte request 2.75 ms + 5.9 ms of firmware time, 2.7 ms
-  /// of it SipHash + 176-byte reply 7.75 ms: 61 commands/s); two requests in flight sustain
-  /// 14 ms (71/s) and at 12 ms lines are lost to the 128-byte RX ring (400/414 replies). 17 ms
-  /// keeps one request in flight on the firmware and still lets every 30 fps pose (33 ms) through
-  /// without waiting. docs/firmware.md, "Commands per second".
-  std::int64_t min_interval_us = 17000;
+  /// Shortest gap between two commands. 11 ms: in simavr the real firmware image needs 10.6 ms per
+  /// command with one request in flight at the bridge's 1 Mbaud (93.9 commands/s; 16.4 ms and
+  /// 61/s at the earlier 500 kbaud, when this was 17 ms; request bytes, ~5.3 ms of firmware time
+  /// with 2.7 ms of SipHash, reply bytes). So the firmware never has two requests queued (at 500
+  /// kbaud two in flight lost lines to the 128-byte RX ring below 14 ms), and every 30 fps pose
+  /// (33 ms) goes through without waiting. docs/firmware.md, "Commands per second".
+  std::int64_t min_interval_us = 11000;
   /// Longest gap without a command. 50 ms: five keep-alives fit into the firmware's 250 ms
   /// failsafe (a lost reply or two never trips it), and at 30 fps (33 ms) poses always come first,
   /// so a keep-alive never delays a pose-driven command.

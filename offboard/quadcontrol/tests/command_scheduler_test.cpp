@@ -51,7 +51,7 @@ TEST(CommandScheduler, GivenNothingSentYetThenTheFirstCommandIsDueAtOnce) {
 }
 
 TEST(CommandScheduler, GivenNoPosesThenKeepAlivesGoOutAtTheKeepAlivePeriod) {
-  // GIVEN the default schedule (17 ms minimum, 50 ms keep-alive) and SLAM producing nothing
+  // GIVEN the default schedule (11 ms minimum, 50 ms keep-alive) and SLAM producing nothing
   CommandScheduler s;
   // WHEN 300 ms pass
   const SendLog run = simulate(s, {}, 300 * kMs);
@@ -69,8 +69,8 @@ TEST(CommandScheduler, GivenAPoseBurstThenCommandsAreRateLimitedAndTheBurstCoale
   // WHEN the link runs to 60 ms
   const SendLog run = simulate(s, poses, 60 * kMs);
   // THEN no two commands are closer than the minimum interval, and the burst costs two commands
-  // (17 ms and 34 ms), not twenty; then the keep-alive period resumes from the last one
-  const std::vector<std::int64_t> expected{0, 17 * kMs, 34 * kMs};
+  // (11 ms and 22 ms), not twenty; then the keep-alive period resumes from the last one
+  const std::vector<std::int64_t> expected{0, 11 * kMs, 22 * kMs};
   EXPECT_EQ(run.sent_us, expected);
   EXPECT_EQ(run.pose_driven, 2);
   for (std::size_t k = 1; k < run.sent_us.size(); ++k) {
@@ -151,7 +151,7 @@ TEST(CommandScheduleOptions, ValidateTable) {
     bool valid;
   };
   const Row table[] = {
-      {"defaults", 17000, 50000, true},
+      {"defaults", 11000, 50000, true},
       {"keep-alive equal to the minimum", 20000, 20000, true},
       {"minimum below 1 ms", 500, 50000, false},
       {"keep-alive shorter than the minimum", 20000, 10000, false},

@@ -9,6 +9,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <system_error>
 
 namespace slam {
 namespace {
@@ -158,5 +159,24 @@ void restore_current_thread(const ThreadSchedule& schedule) {
   if (schedule.policy != SCHED_RR && schedule.policy != SCHED_FIFO)
     set_thread_nice(schedule.nice, &ignored);
 }
+
+PriorityInheritanceMutex::PriorityInheritanceMutex() {
+  pthread_mutexattr_t attr;
+  ::pthread_mutexattr_init(&attr);
+  ::pthread_mutexattr_setprotocol(&attr, PTHREAD_PRIO_INHERIT);
+  ::pthread_mutex_init(&mutex_, &attr);
+  ::pthread_mutexattr_destroy(&attr);
+}
+
+PriorityInheritanceMutex::~PriorityInheritanceMutex() { ::pthread_mutex_destroy(&mutex_); }
+
+void PriorityInheritanceMutex::lock() {
+  if (const int err = ::pthread_mutex_lock(&mutex_); err != 0)
+    throw std::system_error(err, std::generic_category(), "mutex lock");
+}
+
+void PriorityInheritanceMutex::unlock() { ::pthread_mutex_unlock(&mutex_); }
+
+bool PriorityInheritanceMutex::try_lock() { return ::pthread_mutex_trylock(&mutex_) == 0; }
 
 }  // namespace slam

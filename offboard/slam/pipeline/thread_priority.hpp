@@ -7,6 +7,8 @@
 // real-time bandwidth, or a policy switched off in the configuration.
 #pragma once
 
+#include <pthread.h>
+
 #include <string>
 
 namespace slam {
@@ -64,5 +66,24 @@ struct ThreadSchedule {
 };
 ThreadSchedule current_thread_schedule();
 void restore_current_thread(const ThreadSchedule& schedule);
+
+/// A mutex with priority inheritance (PTHREAD_PRIO_INHERIT): a normal-policy thread holding it
+/// (e.g. the dashboard building /api/state) runs at the priority of the real-time thread waiting
+/// for it until it unlocks, so CPU-heavy neighbours cannot stretch the wait (priority inversion;
+/// seen in the HIL: the firmware link waited 100-1000 ms for the hub's lock under load and the
+/// firmware's 250 ms failsafe fired). Lockable, for std::lock_guard / std::unique_lock.
+class PriorityInheritanceMutex {
+ public:
+  PriorityInheritanceMutex();
+  ~PriorityInheritanceMutex();
+  PriorityInheritanceMutex(const PriorityInheritanceMutex&) = delete;
+  PriorityInheritanceMutex& operator=(const PriorityInheritanceMutex&) = delete;
+  void lock();
+  void unlock();
+  bool try_lock();
+
+ private:
+  pthread_mutex_t mutex_;
+};
 
 }  // namespace slam
