@@ -162,6 +162,7 @@ class SlamFlight:
         self.kinect = None
         self._procs: list[tuple[str, ManagedProcess]] = []  # (program name, process)
         self.rig_scheduling = "not started"
+        self._killed_on_purpose: set[str] = set()  # a scenario's fault, not a rig failure (check())
         self._saved_sched = None
         self.stream_proxies: list[LinkProxy] = []
         self._pump_stop = threading.Event()
@@ -304,6 +305,7 @@ class SlamFlight:
             if name == "slam-server" and p.alive():
                 p.proc.kill()
                 p.proc.wait(timeout=5)
+        self._killed_on_purpose.add("slam-server")
 
     def restart_slam_server(self) -> None:
         """A new slam-server on the same port (what a supervisor would do): quad-control's link
@@ -318,6 +320,7 @@ class SlamFlight:
         log.rename(self.workdir / f"slam-server-{len(list(self.workdir.glob('slam-server*.log')))}.log")
         p = ManagedProcess(argv, log)
         self._procs.append(("slam-server", p))
+        self._killed_on_purpose.discard("slam-server")
 
     def sever_stream(self) -> None:
         """Scenario 4: the stream link drops (both sockets; the streamer reconnects with backoff)."""
@@ -475,7 +478,7 @@ class SlamFlight:
         if self._pump_error is not None:
             raise RuntimeError(f"camera pump failed: {self._pump_error!r}")
         for name, p in self._procs:
-            if not p.alive() and name != "quad-control":
+            if not p.alive() and name != "quad-control" and name not in self._killed_on_purpose:
                 raise RuntimeError(f"{name} exited:\n" + p.log_text()[-2000:])
 
     # ---- scoring ------------------------------------------------------------------------------

@@ -301,7 +301,10 @@ def test_slam_loop_slam_server_killed_and_restarted(tmp_path):
     supervisor's restart). Its maps died with it, so the reconnect cannot resume: quad-control
     must log the broken link with its cause, start a new session and re-anchor it on the last pose
     (or, with no pose for 300 ms, lost-hold -> blind landing through the firmware failsafe); it
-    must not crash, and the craft must end holding or landed, never flying away."""
+    must not crash, and the craft must end holding with tracking or landed, never climbing or
+    flying away. Where it holds is not judged against +-0.15 m: the drift during the outage (lost-
+    hold, neutral sticks, no pose) cannot be observed, and the new map is anchored on the last pose
+    before it (measured: 0.43 m off, reported in the artifact)."""
     with _flight(tmp_path) as flight:
         to = missions.take_off(flight, progress=print)
         flight.hold_for(missions.SETTLE_S)
@@ -321,4 +324,7 @@ def test_slam_loop_slam_server_killed_and_restarted(tmp_path):
             **out})
     assert report["disconnect_causes"], "the broken SLAM link was not logged with a cause"
     assert out["max_horizontal_from_hold_point_m"] < FLYAWAY_RADIUS_M
-    assert _holding_or_landed(out), report
+    holding = out["state_after"] == "hold" and report["slam"]["state"] == "tracking"
+    assert holding or out["landed"], report
+    # Never a climb: the height stays on the hold height (AltHold) or the craft is down.
+    assert out["landed"] or out["final_hold_error"]["max_vertical_m"] <= HOLD_TOLERANCE_M, out
