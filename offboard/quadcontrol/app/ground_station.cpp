@@ -1,6 +1,7 @@
 // The quad-control hub: see ground_station.hpp.
 #include "app/ground_station.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <opencv2/imgcodecs.hpp>
@@ -15,6 +16,8 @@ namespace {
 constexpr double kFpsEmaWeight = 0.2;       // frame-to-frame fps, smoothed over ~5 frames
 constexpr double kDepthDisplayMaxM = 5.0;   // greyscale: 0 m white .. 5 m black (Kinect range)
 constexpr std::int64_t kUsPerMs = 1000;
+constexpr int kMaxRtPriority = 99;       // SCHED_RR's highest priority on Linux
+constexpr int kCommandPriorityStep = 2;  // firmware link above the SLAM link (and its tracking)
 
 CraftPose craft_pose(const Eigen::Isometry3d& T_floor_cam) {
   const Eigen::Vector3d t = T_floor_cam.translation();
@@ -55,6 +58,10 @@ GroundStation::GroundStation(GroundStationOptions options, std::unique_ptr<Frame
   last_pwm_ = to_pwm(StickCommand{}, spec_.pwm);
   if (firmware) {
     firmware->thread_priority = options_.realtime;
+    // Above the SLAM thread: SCHED_RR threads of equal priority take turns in 100 ms slices, so a
+    // command (~1 ms of work, due every 11-50 ms, failsafe at 250 ms) must never wait behind a
+    // CPU-bound tracker (seen under load: 170-270 ms without a command -> the firmware's failsafe).
+    firmware->thread_priority.rt_priority = std::min(kMaxRtPriority, options_.realtime.rt_priority + kCommandPriorityStep);
     firmware_ = std::make_unique<FirmwareLink>(
         *firmware, spec_, key, [this](std::int64_t t, std::uint32_t seq) { return command_at(t, seq); },
         [this](std::int64_t t, const ControlReply& r) { on_reply(t, r); });
