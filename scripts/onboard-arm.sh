@@ -5,7 +5,7 @@
 #   scripts/onboard-arm.sh <arm64|armhf> [--test] [--package]
 #   --test     the unit tests under qemu-user (ctest runs them through the toolchain's emulator) and
 #              the end-to-end check: the ARM rgbd-streamer under qemu streams tests/data to the x86
-#              receiver (build/, made by `make build`), frames bit-exact (onboard/crosstest/)
+#              receiver (build/, made by `make build`), frames bit-exact (tests/crosstest/)
 #   --package  build-<arch>/rgbd-streamer_<version>_<arch>.deb (onboard/package-deb.sh)
 # Offboard, HIL and native firmware tests are not part of the ARM build (they run on the ground station).
 set -euo pipefail
