@@ -33,9 +33,6 @@ struct AppConfig {
   /// The craft's stream key file (stream.key_file; mode 0600, the streamer's stream_key_file):
   /// read when the config is loaded into receiver.key; required for stream.source "receiver".
   std::string stream_key_file;
-  /// The craft's stream key file (stream.key_file; mode 0600, the streamer's stream_key_file):
-  /// read when the config is loaded into receiver.key; required for stream.source "receiver".
-  std::string stream_key_file;
   // SLAM link: station.slam_mode / station.slam_server
   // firmware
   bool firmware_enabled = true;
