@@ -4,7 +4,8 @@
 #   2. ctest on build-asan/ (protocol library and firmware core under ASan+UBSan)
 #   3. fuzz smoke: every libFuzzer target, ~60 s in total
 #   4. pytest (Python codecs, cross-language round trips, firmware image in simavr, tools)
-#   5. ARM: rgbd-streamer cross-built for arm64 and armhf, unit tests under qemu-user, the ARM streamer
+#   5. lint: ruff and the clang-format check (scripts/lint.sh)
+#   6. ARM: rgbd-streamer cross-built for arm64 and armhf, unit tests under qemu-user, the ARM streamer
 #      streaming tests/data bit-exact to the x86 receiver, .deb per architecture (scripts/onboard-arm.sh)
 set -uo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -17,6 +18,7 @@ run ctest ctest --test-dir build --output-on-failure -j "$jobs"
 run ctest-asan ctest --test-dir build-asan --output-on-failure -j "$jobs"
 run fuzz-smoke env FUZZ_TOTAL_SECONDS="${FUZZ_SMOKE_SECONDS:-60}" scripts/fuzz.sh
 run pytest .venv/bin/python -m pytest -q
+run lint scripts/lint.sh
 for arch in arm64 armhf; do run "onboard-arm-$arch" scripts/onboard-arm.sh "$arch" --test --package; done
 
 if [ "${#failed[@]}" -gt 0 ]; then

@@ -36,7 +36,7 @@ constexpr int kRunTimeoutMs = 90000;
 constexpr std::size_t kMinFramesChecked = 3;
 
 struct Reference {
-  std::map<std::int64_t, std::vector<std::uint8_t>> rgb;     // by capture timestamp (us)
+  std::map<std::int64_t, std::vector<std::uint8_t>> rgb;  // by capture timestamp (us)
   std::map<std::int64_t, std::vector<std::uint16_t>> depth;
 };
 
@@ -48,7 +48,8 @@ Reference load_reference() {
   capture::TumReplaySource source(o, &clock);
   Reference ref;
   while (auto frame = source.next()) {
-    if (auto* r = std::get_if<capture::RgbFrame>(&*frame)) ref.rgb[r->capture_timestamp_us] = r->rgb;
+    if (auto* r = std::get_if<capture::RgbFrame>(&*frame))
+      ref.rgb[r->capture_timestamp_us] = r->rgb;
     else {
       auto& d = std::get<capture::DepthFrame>(*frame);
       ref.depth[d.capture_timestamp_us] = d.depth;
@@ -71,26 +72,31 @@ fs::path make_key_dir() {
   const fs::path dir(tmpl);
   {
     std::ofstream key(dir / "stream.key");
-    for (std::uint8_t b : protocol::testing::kTestStreamKey) key << "0123456789abcdef"[b >> 4] << "0123456789abcdef"[b & 15];
+    for (std::uint8_t b : protocol::testing::kTestStreamKey)
+      key << "0123456789abcdef"[b >> 4] << "0123456789abcdef"[b & 15];
     key << "\n";
   }
-  fs::permissions(dir / "stream.key", fs::perms::owner_read | fs::perms::owner_write, fs::perm_options::replace);
+  fs::permissions(dir / "stream.key", fs::perms::owner_read | fs::perms::owner_write,
+                  fs::perm_options::replace);
   return dir;
 }
 
-// Starts $RGBD_STREAMER_CMD + TUM replay options + `extra` towards the given ports; returns the PID.
+// Starts $RGBD_STREAMER_CMD + TUM replay options + `extra` towards the given ports; returns the
+// PID.
 pid_t start_streamer(const fs::path& key_dir, std::uint16_t rgb_port, std::uint16_t depth_port,
                      const std::vector<std::string>& extra) {
   const char* cmd = std::getenv("RGBD_STREAMER_CMD");
   if (cmd == nullptr) return -1;
   std::vector<std::string> args = split_words(cmd);
-  for (std::string a : {"--source", "tum", "--tum-dir", kDesk, "--host", "127.0.0.1", "--rgb-encoding", "raw",
-                        "--stats-period", "0", "--log-level", "error", "--config", "/dev/null"}) {
+  for (std::string a :
+       {"--source", "tum", "--tum-dir", kDesk, "--host", "127.0.0.1", "--rgb-encoding", "raw",
+        "--stats-period", "0", "--log-level", "error", "--config", "/dev/null"}) {
     args.push_back(a);
   }
-  for (const std::string& a : {std::string("--rgb-port"), std::to_string(rgb_port), std::string("--depth-port"),
-                               std::to_string(depth_port), std::string("--stream-key-file"),
-                               (key_dir / "stream.key").string()}) {
+  for (const std::string& a :
+       {std::string("--rgb-port"), std::to_string(rgb_port), std::string("--depth-port"),
+        std::to_string(depth_port), std::string("--stream-key-file"),
+        (key_dir / "stream.key").string()}) {
     args.push_back(a);
   }
   args.insert(args.end(), extra.begin(), extra.end());
@@ -108,7 +114,8 @@ pid_t start_streamer(const fs::path& key_dir, std::uint16_t rgb_port, std::uint1
 class CrossStreamEndToEnd : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(CrossStreamEndToEnd, TumFramesArriveBitExact) {
-  ASSERT_NE(std::getenv("RGBD_STREAMER_CMD"), nullptr) << "set RGBD_STREAMER_CMD (scripts/onboard-arm.sh does)";
+  ASSERT_NE(std::getenv("RGBD_STREAMER_CMD"), nullptr)
+      << "set RGBD_STREAMER_CMD (scripts/onboard-arm.sh does)";
   const Reference ref = load_reference();
   ASSERT_EQ(ref.depth.size(), 9u);
 
@@ -120,8 +127,8 @@ TEST_P(CrossStreamEndToEnd, TumFramesArriveBitExact) {
   options.depth_port = 0;
   receiver::StreamReceiver rx(options, testing::steady_now_us(), nullptr);
   const pid_t pid = start_streamer(dir, rx.rgb_port(), rx.depth_port(),
-                                   {"--tum-fps", "0", "--tum-loop", "false", "--depth-encoding", GetParam(),
-                                    "--exit-linger-ms", "3000"});
+                                   {"--tum-fps", "0", "--tum-loop", "false", "--depth-encoding",
+                                    GetParam(), "--exit-linger-ms", "3000"});
   ASSERT_GT(pid, 0);
 
   // Check every frame the receiver holds while the streamer runs (newest only, so poll).
@@ -132,13 +139,17 @@ TEST_P(CrossStreamEndToEnd, TumFramesArriveBitExact) {
       [&] {
         if (auto d = rx.newest_depth(); d && depth_seen.insert(d->info.sequence).second) {
           auto it = ref.depth.find(d->info.capture_timestamp_us);
-          if (it == ref.depth.end()) ++unknown_timestamp;
-          else if (it->second != d->depth) ++depth_mismatch;
+          if (it == ref.depth.end())
+            ++unknown_timestamp;
+          else if (it->second != d->depth)
+            ++depth_mismatch;
         }
         if (auto r = rx.newest_rgb(); r && rgb_seen.insert(r->info.sequence).second) {
           auto it = ref.rgb.find(r->info.capture_timestamp_us);
-          if (it == ref.rgb.end()) ++unknown_timestamp;
-          else if (it->second != r->rgb) ++rgb_mismatch;
+          if (it == ref.rgb.end())
+            ++unknown_timestamp;
+          else if (it->second != r->rgb)
+            ++rgb_mismatch;
         }
         return waitpid(pid, &status, WNOHANG) == pid;
       },
@@ -160,10 +171,13 @@ TEST_P(CrossStreamEndToEnd, TumFramesArriveBitExact) {
   EXPECT_EQ(depth_mismatch, 0);
   EXPECT_EQ(rgb_mismatch, 0);
   EXPECT_EQ(unknown_timestamp, 0);
-  std::printf("cross e2e (%s depth, raw rgb): %zu depth + %zu rgb frames checked bit-exact of 9 each "
-              "(receiver got %llu + %llu)\n",
-              GetParam(), depth_seen.size() - static_cast<std::size_t>(depth_mismatch), rgb_seen.size() - static_cast<std::size_t>(rgb_mismatch),
-              static_cast<unsigned long long>(c.depth.frames), static_cast<unsigned long long>(c.rgb.frames));
+  std::printf(
+      "cross e2e (%s depth, raw rgb): %zu depth + %zu rgb frames checked bit-exact of 9 each "
+      "(receiver got %llu + %llu)\n",
+      GetParam(), depth_seen.size() - static_cast<std::size_t>(depth_mismatch),
+      rgb_seen.size() - static_cast<std::size_t>(rgb_mismatch),
+      static_cast<unsigned long long>(c.depth.frames),
+      static_cast<unsigned long long>(c.rgb.frames));
 }
 
 // The golden and hostile vectors of protocol/vectors (the same bytes protocol_tests decodes on
@@ -181,29 +195,34 @@ std::vector<std::vector<std::uint8_t>> streamer_side_vectors() {
   for (const auto& v : manifest.at("vectors")) {
     bool relevant = true;
     for (const auto& e : v.at("expected").at("events")) {
-      if (e.value("event", "") == "message" && !to_streamer.count(e.at("message").at("type").get<std::string>())) {
+      if (e.value("event", "") == "message" &&
+          !to_streamer.count(e.at("message").at("type").get<std::string>())) {
         relevant = false;
       }
     }
     if (!relevant) continue;
-    std::ifstream in(std::string(RGBD_PROTOCOL_VECTORS_DIR) + "/" + v.at("file").get<std::string>(), std::ios::binary);
+    std::ifstream in(std::string(RGBD_PROTOCOL_VECTORS_DIR) + "/" + v.at("file").get<std::string>(),
+                     std::ios::binary);
     vectors.emplace_back((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   }
   return vectors;
 }
 
 TEST(CrossStreamHostile, ProtocolVectorsFromTheGroundStationLeaveTheStreamerRunning) {
-  ASSERT_NE(std::getenv("RGBD_STREAMER_CMD"), nullptr) << "set RGBD_STREAMER_CMD (scripts/onboard-arm.sh does)";
+  ASSERT_NE(std::getenv("RGBD_STREAMER_CMD"), nullptr)
+      << "set RGBD_STREAMER_CMD (scripts/onboard-arm.sh does)";
   const auto vectors = streamer_side_vectors();
   ASSERT_GE(vectors.size(), 20u);
   net::Waker waker;
   net::UniqueFd listeners[2] = {net::listen_tcp("127.0.0.1", 0), net::listen_tcp("127.0.0.1", 0)};
   const fs::path dir = make_key_dir();
   ASSERT_FALSE(dir.empty());
-  const pid_t pid = start_streamer(dir, net::local_port(listeners[0]), net::local_port(listeners[1]),
-                                   {"--tum-fps", "0", "--tum-loop", "true"});
+  const pid_t pid =
+      start_streamer(dir, net::local_port(listeners[0]), net::local_port(listeners[1]),
+                     {"--tum-fps", "0", "--tum-loop", "true"});
   ASSERT_GT(pid, 0);
-  // Per connection: read what the streamer sends first (bounded), answer with the next vector, close.
+  // Per connection: read what the streamer sends first (bounded), answer with the next vector,
+  // close.
   std::size_t next = 0, served[2] = {0, 0};
   int status = 0;
   bool died = false;
@@ -214,7 +233,9 @@ TEST(CrossStreamHostile, ProtocolVectorsFromTheGroundStationLeaveTheStreamerRunn
       break;
     }
     for (int s = 0; s < 2; ++s) {
-      if (next == vectors.size() || net::wait_readable(listeners[s].get(), waker, 20) != net::IoStatus::kOk) continue;
+      if (next == vectors.size() ||
+          net::wait_readable(listeners[s].get(), waker, 20) != net::IoStatus::kOk)
+        continue;
       auto conn = net::accept_tcp(listeners[s], nullptr);
       if (!conn) continue;
       std::uint8_t buffer[4096];
@@ -235,13 +256,16 @@ TEST(CrossStreamHostile, ProtocolVectorsFromTheGroundStationLeaveTheStreamerRunn
   EXPECT_EQ(next, vectors.size()) << "not every vector was delivered before the deadline";
   EXPECT_GT(served[0], 0u);
   EXPECT_GT(served[1], 0u);
-  EXPECT_TRUE(alive && WIFEXITED(status) && WEXITSTATUS(status) == 0) << "exit status after SIGTERM " << status;
-  std::printf("cross hostile: %zu protocol vectors answered to the streamer's connections; streamer alive, "
-              "clean exit on SIGTERM: %s\n",
-              next, alive && WIFEXITED(status) && WEXITSTATUS(status) == 0 ? "yes" : "no");
+  EXPECT_TRUE(alive && WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << "exit status after SIGTERM " << status;
+  std::printf(
+      "cross hostile: %zu protocol vectors answered to the streamer's connections; streamer alive, "
+      "clean exit on SIGTERM: %s\n",
+      next, alive && WIFEXITED(status) && WEXITSTATUS(status) == 0 ? "yes" : "no");
 }
 
-INSTANTIATE_TEST_SUITE_P(LosslessDepth, CrossStreamEndToEnd, ::testing::Values("rvl", "zstd-delta"));
+INSTANTIATE_TEST_SUITE_P(LosslessDepth, CrossStreamEndToEnd,
+                         ::testing::Values("rvl", "zstd-delta"));
 
 }  // namespace
 }  // namespace rgbdquad

@@ -93,7 +93,8 @@ bool read(const std::string& path, Want want, std::vector<std::uint8_t>& bytes, 
 
 }  // namespace
 
-std::optional<PngPixels<std::uint16_t>> read_png_gray16(const std::string& path, std::string* error) {
+std::optional<PngPixels<std::uint16_t>> read_png_gray16(const std::string& path,
+                                                        std::string* error) {
   std::vector<std::uint8_t> bytes;
   PngPixels<std::uint16_t> out;
   if (!read(path, Want::kGray16, bytes, &out.width, &out.height, error)) return std::nullopt;

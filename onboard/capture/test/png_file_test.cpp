@@ -1,13 +1,14 @@
 // libpng reader on the shipped TUM frames. Expected figures were computed independently with
-// Pillow + numpy (`np.array(Image.open(path))`): sums, hole count and sample pixels, so a byte-order,
-// channel-order or row-stride error fails here on every architecture (also under qemu on ARM).
+// Pillow + numpy (`np.array(Image.open(path))`): sums, hole count and sample pixels, so a
+// byte-order, channel-order or row-stride error fails here on every architecture (also under qemu
+// on ARM).
+#include "rgbdquad/capture/png_file.h"
+
 #include <gtest/gtest.h>
 
 #include <cstdio>
 #include <fstream>
 #include <numeric>
-
-#include "rgbdquad/capture/png_file.h"
 
 namespace rgbdquad::capture {
 namespace {
@@ -43,7 +44,8 @@ TEST(PngFile, RgbMatchesAnIndependentDecoder) {
   }
   const std::size_t last = (479u * 640u + 639u) * 3u;
   EXPECT_EQ(std::vector<int>(p.begin(), p.begin() + 3), (std::vector<int>{137, 124, 126}));
-  EXPECT_EQ(std::vector<int>(p.begin() + last, p.begin() + last + 3), (std::vector<int>{232, 218, 238}));
+  EXPECT_EQ(std::vector<int>(p.begin() + last, p.begin() + last + 3),
+            (std::vector<int>{232, 218, 238}));
 }
 
 TEST(PngFile, WrongKindMissingAndTruncatedFilesAreErrorsNotCrashes) {

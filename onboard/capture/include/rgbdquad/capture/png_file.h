@@ -20,7 +20,8 @@ struct PngPixels {
 };
 
 // A 16-bit single-channel PNG; anything else (8-bit, colour, unreadable) -> nullopt + *error.
-std::optional<PngPixels<std::uint16_t>> read_png_gray16(const std::string& path, std::string* error);
+std::optional<PngPixels<std::uint16_t>> read_png_gray16(const std::string& path,
+                                                        std::string* error);
 
 // Any PNG as 8-bit RGB: grey and palette images expanded, alpha dropped, 16-bit samples reduced to
 // their high byte (as OpenCV's IMREAD_COLOR does). Unreadable -> nullopt + *error.
