@@ -68,6 +68,9 @@ std::string host_without_port(const std::string& host_header) {
 
 std::optional<Refusal> check_api_request(const HttpRequest& req, const AccessPolicy& policy) {
   const std::string host_header = header(req, "Host");
+  if (host_header.empty() && req.version() >= 11) {
+    return Refusal{http::status::bad_request, "HTTP/1.1 request without a Host header (RFC 9112 section 3.2)"};
+  }
   if (!host_header.empty()) {
     const std::string host = host_without_port(host_header);
     const bool known = is_ip_literal(host) || host == "localhost" ||

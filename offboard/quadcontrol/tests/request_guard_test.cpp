@@ -20,10 +20,11 @@ struct Row {
   const char* target;
   std::vector<std::pair<const char*, const char*>> headers;
   std::optional<http::status> refused;  // nullopt: accepted
+  unsigned http_version = 11;            // 10: an HTTP/1.0 client (Host optional)
 };
 
 HttpRequest make_request(const Row& row) {
-  HttpRequest req{row.method, row.target, 11};
+  HttpRequest req{row.method, row.target, row.http_version};
   for (const auto& [k, v] : row.headers) req.set(k, v);
   req.body() = R"({"command":"arm"})";
   req.prepare_payload();
@@ -61,7 +62,9 @@ TEST(RequestGuard, CrossSiteProbesWithoutToken) {
        {{"Host", "127.0.0.1:8080"}, {"Content-Type", "application/json; charset=utf-8"}}, std::nullopt},
       // non-browser clients (curl, the HIL rig): no Origin
       {"HIL rig POST", kPost, "/api/command", {{"Host", "127.0.0.1:8080"}, {"Content-Type", kJson}}, std::nullopt},
-      {"no Host (HTTP/1.0 client)", kPost, "/api/command", {{"Content-Type", kJson}}, std::nullopt},
+      {"no Host (HTTP/1.0 client)", kPost, "/api/command", {{"Content-Type", kJson}}, std::nullopt, 10},
+      {"no Host (HTTP/1.1 requires one)", kPost, "/api/command", {{"Content-Type", kJson}},
+       http::status::bad_request},
       // the issue's probe: text/plain from evil.example through a rebinding host name
       {"issue probe", kPost, "/api/command",
        {{"Host", "evil.example:8080"}, {"Origin", "http://evil.example"}, {"Content-Type", "text/plain"}},
