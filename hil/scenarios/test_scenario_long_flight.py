@@ -115,7 +115,7 @@ def test_slam_long_flight_box_laps(tmp_path):
                     leg = missions.go_to(flight, start, x, y)
                     minute = int((time.monotonic() * 1e6 - t0_us) // 60_000_000) + 1
                     legs.append({"lap": lap, "minute": minute, "waypoint": [x, y], **leg})
-                    rss.append({"minute": minute, **{n: _rss_mib(p.pid()) for n, p in procs.items()}})
+                    rss.append({"minute": minute, **{n: _rss_mib(p.proc.pid) for n, p in procs.items()}})
                 print(f"lap {lap}: {len(legs)} waypoints, worst {max(leg['max_m'] for leg in legs):.3f} m, "
                       f"rss {rss[-1]}")
             landing = missions.land(flight, progress=print)
