@@ -66,7 +66,13 @@ def start(binary: Path, tmp: Path, bridge_port: int, record_dir: Path, preexec_f
 
 
 def fly(qc: QuadControl, seconds: float) -> dict:
+    # Arm only once commands (and with them the recorder's state events) are flowing: arming in the
+    # first milliseconds would record " -> armed" with no disarmed state before it.
+    wait_for(lambda: api_state(qc.url)["recording"]["messages"] >= 100, "recorded telemetry before arming")
     api_post(qc.url, "api/command", {"command": "arm"})
+    # The arm gesture ends when the firmware reports armed; on a loaded machine that can take longer
+    # than a fixed sleep, and the recording is then checked for an arming it never saw.
+    wait_for(lambda: api_state(qc.url)["state"] == "armed", "armed (gesture finished)")
     time.sleep(seconds)
     return api_state(qc.url)
 
