@@ -6,6 +6,7 @@
 // clients omit it, and then without Origin) is an IP literal, localhost or an allowed name, any
 // Origin equals http://<Host>, anything but GET/HEAD has no CORS-safelisted Content-Type; with a
 // token configured, the token was given; refusals are 4xx with a reason.
+#include <boost/asio/ip/address.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
 #include <boost/beast/http.hpp>
 #include <cstdint>
@@ -54,9 +55,12 @@ void check(const HttpRequest& req, const AccessPolicy& policy) {
     if (!origin.empty()) std::abort();
   } else {
     const std::string host = rgbdquad::quadcontrol::host_without_port(host_header);
+    // An IP literal (IPv4, IPv6, IPv6 with a zone id such as [fe80::1%eth0]) cannot be a
+    // rebinding host name, so any of them is fine; the standard parser decides what is one.
+    boost::system::error_code ec;
+    boost::asio::ip::make_address(host, ec);
     const bool known =
-        host == "localhost" || host == "groundstation.local" || host == "quad" ||
-        host.find_first_not_of("0123456789.:abcdef") == std::string::npos;  // IP literal
+        host == "localhost" || host == "groundstation.local" || host == "quad" || !ec;
     if (!known) std::abort();
     if (!origin.empty() && lower(origin) != "http://" + lower(host_header)) std::abort();
   }
