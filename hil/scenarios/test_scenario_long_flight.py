@@ -30,6 +30,7 @@ from hilrig.paths import artifacts_dir
 from hilrig.slam_flight import SlamFlight, SlamFlightOptions, missing_parts
 from hilrig.verdict import session_resets
 from kinect_emulator.live import match_capture_stamps
+from slam_study.se3 import align_rigid
 
 pytestmark = pytest.mark.hil
 
@@ -55,14 +56,9 @@ def _rss_mib(pid: int) -> float | None:
 
 
 def _aligned_errors(est: np.ndarray, gt: np.ndarray) -> np.ndarray:
-    """Per-sample position error after one rigid (Horn/Umeyama, no scale) alignment of est to gt."""
-    me, mg = est.mean(axis=0), gt.mean(axis=0)
-    u, _, vt = np.linalg.svd((gt - mg).T @ (est - me))
-    d = np.eye(3)
-    if np.linalg.det(u @ vt) < 0:
-        d[2, 2] = -1
-    r = u @ d @ vt
-    return np.linalg.norm((est - me) @ r.T + mg - gt, axis=1)
+    """Per-sample position error after one rigid (Horn, no scale) alignment of est to gt."""
+    rot, t = align_rigid(gt, est)
+    return np.linalg.norm(est @ rot.T + t - gt, axis=1)
 
 
 def _slam_error_by_minute(flight: SlamFlight, t0_us: int) -> list[dict]:
