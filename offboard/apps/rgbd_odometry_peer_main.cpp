@@ -1,7 +1,7 @@
-// rgbd-odometry-peer: OpenCV contrib's dense photometric odometry (cv::rgbd::RgbdOdometry, Steinbruecker
-// et al. 2011) on the same TUM frames as slam-eval, as a benchmark peer. Frame-to-frame, chained,
-// default OpenCV parameters; writes OUT/trajectory.tum and OUT/metrics.json (ATE/RPE when ground
-// truth exists, ms/frame median/mean).
+// rgbd-odometry-peer: OpenCV contrib's dense photometric odometry (cv::rgbd::RgbdOdometry,
+// Steinbruecker et al. 2011) on the same TUM frames as slam-eval, as a benchmark peer.
+// Frame-to-frame, chained, default OpenCV parameters; writes OUT/trajectory.tum and
+// OUT/metrics.json (ATE/RPE when ground truth exists, ms/frame median/mean).
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <filesystem>
@@ -23,22 +23,35 @@ int main(int argc, char** argv) {
   int rate = 1, max_frames = 0, cv_threads = 1;
   app.add_option("--dataset", dataset, "TUM folder")->required();
   app.add_option("--out", out, "output folder (created)")->required();
-  app.add_option("--camera", camera, "fr1 | fr2 | fr3")->check(CLI::IsMember({"fr1", "fr2", "fr3"}))->capture_default_str();
-  app.add_option("--rate", rate, "keep every K-th frame")->check(CLI::PositiveNumber)->capture_default_str();
-  app.add_option("--max-frames", max_frames, "0 = all")->check(CLI::NonNegativeNumber)->capture_default_str();
-  app.add_option("--cv-threads", cv_threads, "OpenCV worker threads (1: CPU ms per frame is complete; -1 = OpenCV default)")
+  app.add_option("--camera", camera, "fr1 | fr2 | fr3")
+      ->check(CLI::IsMember({"fr1", "fr2", "fr3"}))
+      ->capture_default_str();
+  app.add_option("--rate", rate, "keep every K-th frame")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--max-frames", max_frames, "0 = all")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--cv-threads", cv_threads,
+                 "OpenCV worker threads (1: CPU ms per frame is complete; -1 = OpenCV default)")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   if (cv_threads >= 0) cv::setNumThreads(cv_threads);
 
   std::string err;
   slam::Intrinsics k;
-  if (!slam::Intrinsics::from_name(camera, &k, &err)) { std::cerr << "rgbd-odometry-peer: " << err << "\n"; return 2; }
+  if (!slam::Intrinsics::from_name(camera, &k, &err)) {
+    std::cerr << "rgbd-odometry-peer: " << err << "\n";
+    return 2;
+  }
   slam::TumDatasetOptions o;
   o.rate_divisor = rate;
   o.max_frames = max_frames;
   auto ds = slam::TumDataset::open(dataset, o, &err);
-  if (!ds) { std::cerr << "rgbd-odometry-peer: " << err << "\n"; return 1; }
+  if (!ds) {
+    std::cerr << "rgbd-odometry-peer: " << err << "\n";
+    return 1;
+  }
   fs::create_directories(out);
   const cv::Mat K = (cv::Mat_<float>(3, 3) << k.fx_px, 0, k.cx_px, 0, k.fy_px, k.cy_px, 0, 0, 1);
   cv::Ptr<cv::rgbd::RgbdOdometry> odo = cv::rgbd::RgbdOdometry::create(K);
@@ -49,7 +62,10 @@ int main(int argc, char** argv) {
   std::size_t failures = 0;
   for (std::size_t i = 0; i < ds->size(); ++i) {
     auto f = ds->load(i, &err);
-    if (!f) { std::cerr << "rgbd-odometry-peer: " << err << "\n"; return 1; }
+    if (!f) {
+      std::cerr << "rgbd-odometry-peer: " << err << "\n";
+      return 1;
+    }
     const std::int64_t t0 = slam::steady_now_ns();
     const std::int64_t c0 = slam::thread_cpu_now_ns();
     cv::Mat grey, depth;
@@ -58,7 +74,8 @@ int main(int argc, char** argv) {
     if (!prev_grey.empty()) {
       cv::Mat Rt;
       // Rt maps points of the source (previous) frame into the destination (current) frame.
-      if (odo->compute(prev_grey, prev_depth, cv::Mat(), grey, depth, cv::Mat(), Rt) && !Rt.empty()) {
+      if (odo->compute(prev_grey, prev_depth, cv::Mat(), grey, depth, cv::Mat(), Rt) &&
+          !Rt.empty()) {
         Eigen::Matrix4d M;
         for (int r = 0; r < 4; ++r)
           for (int c = 0; c < 4; ++c) M(r, c) = Rt.at<double>(r, c);

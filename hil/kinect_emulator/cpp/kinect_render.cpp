@@ -69,8 +69,8 @@ struct Box {
 void tile_coords_row(int W, const float* __restrict zr, const uint8_t* __restrict fr,
                      const float* __restrict rxr, const float* __restrict ryr,
                      const float (&Rf)[3][3], const float (&of)[3], float tile_w, float tile_h,
-                     float* __restrict fu_out, float* __restrict fv_out,
-                     int32_t* __restrict ti_out, int32_t* __restrict tj_out) {
+                     float* __restrict fu_out, float* __restrict fv_out, int32_t* __restrict ti_out,
+                     int32_t* __restrict tj_out) {
   const float R00 = Rf[0][0], R01 = Rf[0][1], R02 = Rf[0][2];
   const float R10 = Rf[1][0], R11 = Rf[1][1], R12 = Rf[1][2];
   const float R20 = Rf[2][0], R21 = Rf[2][1], R22 = Rf[2][2];
@@ -136,8 +136,8 @@ struct KrRenderer {
 
 namespace {
 inline uint32_t texel_offset(const KrRenderer& r, int32_t i, int32_t y, int32_t x) {
-  const uint32_t block = (static_cast<uint32_t>(i) * r.blocks_y + y / kBlock) * r.blocks_x +
-                         x / kBlock;
+  const uint32_t block =
+      (static_cast<uint32_t>(i) * r.blocks_y + y / kBlock) * r.blocks_x + x / kBlock;
   return block * (kBlock * kBlock) + (y % kBlock) * kBlock + x % kBlock;
 }
 }  // namespace
@@ -150,8 +150,7 @@ extern "C" KrRenderer* kr_create(int width, int height, double fx, double fy, do
                                  const uint32_t* tex_packed, int tex_n, int tex_h, int tex_w) {
   if (width <= 0 || height <= 0 || !(fx > 0) || !(fy > 0) || !room_lo || !room_hi ||
       n_obstacles < 0 || n_obstacles > kMaxObstacles || (n_obstacles > 0 && !obstacles_lo_hi) ||
-      !(tile_w_m > 0) || !(tile_h_m > 0) || !tex_packed || tex_n <= 0 || tex_h <= 1 ||
-      tex_w <= 1) {
+      !(tile_w_m > 0) || !(tile_h_m > 0) || !tex_packed || tex_n <= 0 || tex_h <= 1 || tex_w <= 1) {
     return nullptr;
   }
   auto r = std::unique_ptr<KrRenderer>(new (std::nothrow) KrRenderer);
@@ -185,8 +184,7 @@ extern "C" KrRenderer* kr_create(int width, int height, double fx, double fy, do
   r->tile_h_m = static_cast<float>(tile_h_m);
   r->blocks_x = (tex_w + kBlock - 1) / kBlock;
   r->blocks_y = (tex_h + kBlock - 1) / kBlock;
-  const size_t n_blocked =
-      static_cast<size_t>(tex_n) * r->blocks_y * r->blocks_x * kBlock * kBlock;
+  const size_t n_blocked = static_cast<size_t>(tex_n) * r->blocks_y * r->blocks_x * kBlock * kBlock;
   if (n_blocked > UINT32_MAX) return nullptr;  // texel offsets are uint32
   r->tex_blocks.reset(new (std::nothrow) uint32_t[n_blocked]());
   if (!r->tex_blocks) return nullptr;
@@ -397,54 +395,54 @@ extern "C" int kr_render(const KrRenderer* r, const double T_room_cam[16], const
   const float tile_w = r->tile_w_m;
   const float tile_h = r->tile_h_m;
   for (int row = 0; row < H; ++row) {
-  const size_t row_begin = static_cast<size_t>(row) * W;
-  const size_t row_end = row_begin + W;
-  // In-plane coordinates and tile numbers: branch-free, vectorised.
-  tile_coords_row(W, zs + row_begin, face_at + row_begin, ray_x + row_begin, ray_y + row_begin, Rf,
-                  of, tile_w, tile_h, row_fu, row_fv, row_ti, row_tj);
-  for (int col = 0; col < W; ++col) {
-    const size_t p = row_begin + col;
-    const uint32_t face = face_at[p];
-    const int32_t ti_i = row_ti[col];
-    const int32_t tj_i = row_tj[col];
-    float fu = row_fu[col];
-    float fv = row_fv[col];
-    if (face != last_face || ti_i != last_ti || tj_i != last_tj) {
-      uint32_t h = face * 73856093u;
-      h ^= static_cast<uint32_t>(ti_i) * 19349663u;
-      h ^= static_cast<uint32_t>(tj_i) * 83492791u;
-      idx = static_cast<int32_t>(h % tex_n);
-      off_x = static_cast<int32_t>((h >> 7) % span_x);
-      off_y = static_cast<int32_t>((h >> 17) % span_y);
-      tile_hash = h;
-      last_face = face;
-      last_ti = ti_i;
-      last_tj = tj_i;
-    }
-    if ((tile_hash >> 27) & 1u) fu = 1.0f - fu;
-    fu *= win_w1;
-    const int32_t tcol = static_cast<int32_t>(fu) + off_x;
-    fv = 1.0f - fv;  // rows go down
-    fv *= win_h1;
-    const int32_t trow = static_cast<int32_t>(fv) + off_y;
-    const uint32_t at = texel_offset(*r, idx, trow, tcol);
-    texel_at[p] = at;
-    __builtin_prefetch(tex + at);
-  }
-  // ---- pass 1d: the gather of the row, in a loop of its own after its prefetches: each miss
-  // inside the per-pixel dependency chain above stalled it (3x slower).
-  for (size_t p = row_begin; p < row_end; ++p) {
-    const uint32_t texel = tex[texel_at[p]];
-    uint8_t* out = rgb_out + 3 * p;
-    for (int c = 0; c < 3; ++c) {
-      int v = static_cast<int>((texel >> (8 * c)) & 0xffu);
-      if (sensor->rgb_noise) {
-        v += sensor->rgb_noise[3 * p + c];
-        v = v < 0 ? 0 : (v > 255 ? 255 : v);
+    const size_t row_begin = static_cast<size_t>(row) * W;
+    const size_t row_end = row_begin + W;
+    // In-plane coordinates and tile numbers: branch-free, vectorised.
+    tile_coords_row(W, zs + row_begin, face_at + row_begin, ray_x + row_begin, ray_y + row_begin,
+                    Rf, of, tile_w, tile_h, row_fu, row_fv, row_ti, row_tj);
+    for (int col = 0; col < W; ++col) {
+      const size_t p = row_begin + col;
+      const uint32_t face = face_at[p];
+      const int32_t ti_i = row_ti[col];
+      const int32_t tj_i = row_tj[col];
+      float fu = row_fu[col];
+      float fv = row_fv[col];
+      if (face != last_face || ti_i != last_ti || tj_i != last_tj) {
+        uint32_t h = face * 73856093u;
+        h ^= static_cast<uint32_t>(ti_i) * 19349663u;
+        h ^= static_cast<uint32_t>(tj_i) * 83492791u;
+        idx = static_cast<int32_t>(h % tex_n);
+        off_x = static_cast<int32_t>((h >> 7) % span_x);
+        off_y = static_cast<int32_t>((h >> 17) % span_y);
+        tile_hash = h;
+        last_face = face;
+        last_ti = ti_i;
+        last_tj = tj_i;
       }
-      out[c] = static_cast<uint8_t>(v);
+      if ((tile_hash >> 27) & 1u) fu = 1.0f - fu;
+      fu *= win_w1;
+      const int32_t tcol = static_cast<int32_t>(fu) + off_x;
+      fv = 1.0f - fv;  // rows go down
+      fv *= win_h1;
+      const int32_t trow = static_cast<int32_t>(fv) + off_y;
+      const uint32_t at = texel_offset(*r, idx, trow, tcol);
+      texel_at[p] = at;
+      __builtin_prefetch(tex + at);
     }
-  }
+    // ---- pass 1d: the gather of the row, in a loop of its own after its prefetches: each miss
+    // inside the per-pixel dependency chain above stalled it (3x slower).
+    for (size_t p = row_begin; p < row_end; ++p) {
+      const uint32_t texel = tex[texel_at[p]];
+      uint8_t* out = rgb_out + 3 * p;
+      for (int c = 0; c < 3; ++c) {
+        int v = static_cast<int>((texel >> (8 * c)) & 0xffu);
+        if (sensor->rgb_noise) {
+          v += sensor->rgb_noise[3 * p + c];
+          v = v < 0 ? 0 : (v > 255 ? 255 : v);
+        }
+        out[c] = static_cast<uint8_t>(v);
+      }
+    }
   }
 
   // ---- pass 2: depth model per scan line (renderer.py _sensor_depth, _projector_shadow)

@@ -40,14 +40,14 @@ void kr_destroy(KrRenderer* r);
 
 // Sensor model switches and draws for one frame (renderer.py's KinectOptions + noise slices).
 typedef struct {
-  double min_range_m;         // no reading below
-  double max_range_m;         // no reading beyond
-  int shadows;                // IR projector shadows
-  int quantise;               // 1/8-pixel disparity quantisation
-  const float* depth_noise;   // width*height standard normal draws, or NULL (no depth noise)
-  const int16_t* rgb_noise;   // width*height*3 rounded RGB noise (8-bit levels), or NULL
-  const float* dropout_u;     // width*height uniforms in [0, 1), or NULL (no dropouts)
-  double dropout_fraction;    // a pixel drops out when its uniform < this
+  double min_range_m;        // no reading below
+  double max_range_m;        // no reading beyond
+  int shadows;               // IR projector shadows
+  int quantise;              // 1/8-pixel disparity quantisation
+  const float* depth_noise;  // width*height standard normal draws, or NULL (no depth noise)
+  const int16_t* rgb_noise;  // width*height*3 rounded RGB noise (8-bit levels), or NULL
+  const float* dropout_u;    // width*height uniforms in [0, 1), or NULL (no dropouts)
+  double dropout_fraction;   // a pixel drops out when its uniform < this
 } KrSensor;
 
 // Renders one frame. T_room_cam: 16 doubles, row-major. rects: n_obstacles x 4 int32 (r0, r1, c0,

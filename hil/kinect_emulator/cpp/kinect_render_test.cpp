@@ -1,11 +1,11 @@
 // GoogleTest of the C++ Kinect renderer's geometry and contract on a synthetic one-texture room.
 // The bit-for-bit comparison with the numpy renderer is tests/test_native.py (pytest).
+#include "kinect_render.h"
+
 #include <gtest/gtest.h>
 
 #include <cstdint>
 #include <vector>
-
-#include "kinect_render.h"
 
 namespace {
 

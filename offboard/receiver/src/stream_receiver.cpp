@@ -50,9 +50,11 @@ struct DecodedFrame {
   std::shared_ptr<const ReceivedRgb> rgb;
   std::shared_ptr<const ReceivedDepth> depth;
 };
-std::optional<DecodedFrame> decode_payload(const protocol::Frame& frame, const protocol::Handshake& hs, FrameInfo info,
+std::optional<DecodedFrame> decode_payload(const protocol::Frame& frame,
+                                           const protocol::Handshake& hs, FrameInfo info,
                                            encodings::JpegDecoder& jpeg,
-                                           const std::function<std::int64_t()>& now_us, std::string* error) {
+                                           const std::function<std::int64_t()>& now_us,
+                                           std::string* error) {
   const auto& h = frame.image.header;
   const auto& payload = frame.image.payload;
   const std::int64_t start_us = now_us();
@@ -63,6 +65,7 @@ std::optional<DecodedFrame> decode_payload(const protocol::Frame& frame, const p
       auto pixels = jpeg.decode(payload.data(), payload.size(), h.width, h.height, error);
       if (!pixels) return std::nullopt;
       rgb->rgb = std::move(*pixels);
+      rgb->encoded = std::make_shared<const std::vector<std::uint8_t>>(payload);
     } else {
       rgb->rgb = payload;  // RAW: the protocol decoder checked the length
     }
@@ -71,16 +74,20 @@ std::optional<DecodedFrame> decode_payload(const protocol::Frame& frame, const p
     out.rgb = std::move(rgb);
     return out;
   }
-  const encodings::DepthCodec codec = h.encoding == Encoding::kDepthRvl ? encodings::DepthCodec::kRvl
-                                      : h.encoding == Encoding::kDepthZstdDelta ? encodings::DepthCodec::kZstdDelta
-                                                                                : encodings::DepthCodec::kRaw;
-  auto pixels = encodings::decode_depth(codec, payload.data(), payload.size(), h.width, h.height, error);
+  const encodings::DepthCodec codec =
+      h.encoding == Encoding::kDepthRvl         ? encodings::DepthCodec::kRvl
+      : h.encoding == Encoding::kDepthZstdDelta ? encodings::DepthCodec::kZstdDelta
+                                                : encodings::DepthCodec::kRaw;
+  auto pixels =
+      encodings::decode_depth(codec, payload.data(), payload.size(), h.width, h.height, error);
   if (!pixels) return std::nullopt;
   auto depth = std::make_shared<ReceivedDepth>();
   depth->info = info;
   depth->info.decode_us = now_us() - start_us;
   depth->units_per_m = hs.depth_scale_units_per_m;
   depth->depth = std::move(*pixels);
+  if (codec != encodings::DepthCodec::kRaw)
+    depth->encoded = std::make_shared<const std::vector<std::uint8_t>>(payload);
   out.depth = std::move(depth);
   return out;
 }
@@ -92,13 +99,22 @@ bool key_is_set(const protocol::StreamKey& key) {
 }  // namespace
 
 bool ReceiverOptions::is_valid(std::string* error) const {
-  if (credits_in_flight < 1 || credits_in_flight > protocol::kMaxCreditsPerRequest) *error = "credits_in_flight must be 1..8";
-  else if (max_pair_gap_us < 0) *error = "max_pair_gap_us must be >= 0";
-  else if (history_frames < 1 || history_frames > 64) *error = "history_frames must be 1..64";
-  else if (idle_timeout_ms < 100) *error = "idle_timeout_ms must be >= 100";
-  else if (rgb_port != 0 && rgb_port == depth_port) *error = "RGB and depth ports must differ";
-  else if (!key_is_set(key)) *error = "no stream key: set the craft's stream key file (quad-control: stream.key_file; rgbd-receiver: --key-file); only a streamer holding it is accepted";
-  else return true;
+  if (credits_in_flight < 1 || credits_in_flight > protocol::kMaxCreditsPerRequest)
+    *error = "credits_in_flight must be 1..8";
+  else if (max_pair_gap_us < 0)
+    *error = "max_pair_gap_us must be >= 0";
+  else if (history_frames < 1 || history_frames > 64)
+    *error = "history_frames must be 1..64";
+  else if (idle_timeout_ms < 100)
+    *error = "idle_timeout_ms must be >= 100";
+  else if (rgb_port != 0 && rgb_port == depth_port)
+    *error = "RGB and depth ports must differ";
+  else if (!key_is_set(key))
+    *error =
+        "no stream key: set the craft's stream key file (quad-control: stream.key_file; "
+        "rgbd-receiver: --key-file); only a streamer holding it is accepted";
+  else
+    return true;
   return false;
 }
 
@@ -107,7 +123,9 @@ StreamReceiver::StreamReceiver(const ReceiverOptions& options, std::function<std
     : options_(options), now_us_(std::move(now_us)), log_(std::move(logger)) {
   std::string why;
   if (!options_.is_valid(&why)) throw std::runtime_error("receiver: " + why);
-  if (!log_) log_ = std::make_shared<spdlog::logger>("null", std::make_shared<spdlog::sinks::null_sink_mt>());
+  if (!log_)
+    log_ =
+        std::make_shared<spdlog::logger>("null", std::make_shared<spdlog::sinks::null_sink_mt>());
   listeners_[0] = net::listen_tcp(options_.bind_address, options_.rgb_port);
   listeners_[1] = net::listen_tcp(options_.bind_address, options_.depth_port);
   for (int i = 0; i < 2; ++i) {
@@ -129,7 +147,9 @@ bool StreamReceiver::connected(StreamKind kind) const {
 void StreamReceiver::serve(int index) {
   const StreamKind kind = index == 0 ? StreamKind::kRgb : StreamKind::kDepth;
   const char* name = index == 0 ? "rgb" : "depth";
-  auto counter = [this, index]() -> ChannelCounters& { return index == 0 ? counters_.rgb : counters_.depth; };
+  auto counter = [this, index]() -> ChannelCounters& {
+    return index == 0 ? counters_.rgb : counters_.depth;
+  };
   ReceiverSessionOptions session_options;
   session_options.kind = kind;
   session_options.key = options_.key;
@@ -137,8 +157,8 @@ void StreamReceiver::serve(int index) {
   session_options.accepted_encodings = options_.accepted_encodings;
   session_options.handshake_deadline_us = kHandshakeDeadlineUs;
   session_options.idle_timeout_us = std::int64_t{options_.idle_timeout_ms} * 1000;
-  std::optional<Connection> live;       // the streamer (its handshake accepted)
-  std::vector<Connection> candidates;   // connected, handshake not (yet) accepted
+  std::optional<Connection> live;      // the streamer (its handshake accepted)
+  std::vector<Connection> candidates;  // connected, handshake not (yet) accepted
   std::int64_t accept_paused_until_us = 0;
   std::vector<std::uint8_t> buffer(kReadChunkBytes);
   encodings::JpegDecoder jpeg;
@@ -160,7 +180,8 @@ void StreamReceiver::serve(int index) {
   };
 
   // A frame the session accepted: decode its payload, store it, count it.
-  auto take_frame = [&](const protocol::Frame& frame, std::size_t wire_bytes, const protocol::Handshake& hs) {
+  auto take_frame = [&](const protocol::Frame& frame, std::size_t wire_bytes,
+                        const protocol::Handshake& hs) {
     const auto& h = frame.image.header;
     FrameInfo info;
     info.sequence = h.sequence;
@@ -186,7 +207,9 @@ void StreamReceiver::serve(int index) {
         ++counter().invalid_frames;
       }
     }
-    if (!decoded) peer_log(spdlog::level::warn, fmt::format("{} stream: frame {} rejected: {}", name, h.sequence, error));
+    if (!decoded)
+      peer_log(spdlog::level::warn,
+               fmt::format("{} stream: frame {} rejected: {}", name, h.sequence, error));
   };
 
   // Carries out what a session asked for; returns false when the connection is to be closed.
@@ -198,12 +221,14 @@ void StreamReceiver::serve(int index) {
             std::lock_guard<std::mutex> lock(mutex_);
             rgb_intrinsics_ = e.handshake->intrinsics;
           }
-          log_->info("{} stream: {} connected ({}x{}, {}, device '{}')", name, c.peer, e.handshake->width,
-                     e.handshake->height, protocol::to_string(e.handshake->encoding).data(), e.handshake->device_id);
+          log_->info("{} stream: {} connected ({}x{}, {}, device '{}')", name, c.peer,
+                     e.handshake->width, e.handshake->height,
+                     protocol::to_string(e.handshake->encoding).data(), e.handshake->device_id);
           break;
         case ReceiverEvent::Kind::kHandshakeRefused:
           count(&ChannelCounters::handshakes_refused);
-          peer_log(spdlog::level::err, fmt::format("{} stream: refused handshake from {}: {}", name, c.peer, e.detail));
+          peer_log(spdlog::level::err,
+                   fmt::format("{} stream: refused handshake from {}: {}", name, c.peer, e.detail));
           break;
         case ReceiverEvent::Kind::kFrame:
           take_frame(*e.frame, e.wire_bytes, *c.session.handshake());
@@ -213,22 +238,27 @@ void StreamReceiver::serve(int index) {
           peer_log(spdlog::level::warn, fmt::format("{} stream: {}", name, e.detail));
           break;
         case ReceiverEvent::Kind::kDecodeError: {
-          const bool crc = e.error == protocol::DecodeError::kBadBodyCrc || e.error == protocol::DecodeError::kBadHeaderCrc;
-          count(crc && c.session.live() ? &ChannelCounters::crc_errors : &ChannelCounters::protocol_errors);
+          const bool crc = e.error == protocol::DecodeError::kBadBodyCrc ||
+                           e.error == protocol::DecodeError::kBadHeaderCrc;
+          count(crc && c.session.live() ? &ChannelCounters::crc_errors
+                                        : &ChannelCounters::protocol_errors);
           if (c.session.live()) {
-            peer_log(spdlog::level::warn, fmt::format("{} stream: dropped bytes from {}: {} ({})", name, c.peer,
-                                                      protocol::to_string(e.error), e.detail));
+            peer_log(spdlog::level::warn,
+                     fmt::format("{} stream: dropped bytes from {}: {} ({})", name, c.peer,
+                                 protocol::to_string(e.error), e.detail));
           }
           break;
         }
         case ReceiverEvent::Kind::kUnexpectedMessage:
           count(&ChannelCounters::protocol_errors);
-          if (c.session.live()) peer_log(spdlog::level::warn, fmt::format("{} stream: {} from {}", name, e.detail, c.peer));
+          if (c.session.live())
+            peer_log(spdlog::level::warn,
+                     fmt::format("{} stream: {} from {}", name, e.detail, c.peer));
           break;
       }
     }
-    if (!out.send.empty() && net::send_all(c.fd.get(), out.send.data(), out.send.size(), stop_waker_,
-                                           kSendTimeoutMs) != net::IoStatus::kOk) {
+    if (!out.send.empty() && net::send_all(c.fd.get(), out.send.data(), out.send.size(),
+                                           stop_waker_, kSendTimeoutMs) != net::IoStatus::kOk) {
       if (!out.close) out.close = "connection closed";
     }
     return !out.close;
@@ -240,17 +270,21 @@ void StreamReceiver::serve(int index) {
     count(&ChannelCounters::disconnects);
   };
   auto drop_candidate = [&](std::size_t i, const std::string& why) {
-    peer_log(spdlog::level::warn, fmt::format("{} stream: {} from {} (not a live connection: nothing displaced)",
-                                              name, why, candidates[i].peer));
+    peer_log(spdlog::level::warn,
+             fmt::format("{} stream: {} from {} (not a live connection: nothing displaced)", name,
+                         why, candidates[i].peer));
     candidates.erase(candidates.begin() + static_cast<std::ptrdiff_t>(i));
     count(&ChannelCounters::dropped_before_handshake);
   };
   // Feeds what the socket has; returns the reason to close, or nullopt.
   auto pump = [&](Connection& c) -> std::optional<std::string> {
     std::size_t got = 0;
-    const net::IoStatus s = net::read_some(c.fd.get(), buffer.data(), buffer.size(), &got, stop_waker_, 0);
+    const net::IoStatus s =
+        net::read_some(c.fd.get(), buffer.data(), buffer.size(), &got, stop_waker_, 0);
     if (s == net::IoStatus::kTimeout) return std::nullopt;
-    if (s != net::IoStatus::kOk) return std::string(c.session.live() ? "" : "closed before its handshake: ") + net::to_string(s);
+    if (s != net::IoStatus::kOk)
+      return std::string(c.session.live() ? "" : "closed before its handshake: ") +
+             net::to_string(s);
     ReceiverOutput out = c.session.on_bytes(now_us_(), buffer.data(), got);
     std::optional<std::string> why = out.close;
     if (!apply(c, std::move(out))) return why ? *why : std::string("connection closed");
@@ -263,13 +297,15 @@ void StreamReceiver::serve(int index) {
     std::vector<pollfd> fds = {{stop_waker_.fd(), POLLIN, 0},
                                {accept_paused ? -1 : listeners_[index].get(), POLLIN, 0},
                                {live ? live->fd.get() : -1, POLLIN, 0}};
-    std::int64_t next_us = live ? live->session.next_deadline_us() : now + std::int64_t{options_.idle_timeout_ms} * 1000;
+    std::int64_t next_us = live ? live->session.next_deadline_us()
+                                : now + std::int64_t{options_.idle_timeout_ms} * 1000;
     for (const Connection& c : candidates) {
       fds.push_back({c.fd.get(), POLLIN, 0});
       next_us = std::min(next_us, c.session.next_deadline_us());
     }
     if (accept_paused) next_us = std::min(next_us, accept_paused_until_us);
-    const int timeout_ms = static_cast<int>(std::clamp<std::int64_t>((next_us - now) / 1000 + 1, 0, options_.idle_timeout_ms));
+    const int timeout_ms = static_cast<int>(
+        std::clamp<std::int64_t>((next_us - now) / 1000 + 1, 0, options_.idle_timeout_ms));
     const int n = poll(fds.data(), fds.size(), timeout_ms);
     if (n < 0 && errno != EINTR) break;
     if (fds[0].revents & POLLIN) break;
@@ -291,8 +327,9 @@ void StreamReceiver::serve(int index) {
       Connection next = std::move(c);
       candidates.erase(candidates.begin() + static_cast<std::ptrdiff_t>(i));
       if (live) {
-        peer_log(spdlog::level::warn, fmt::format("{} stream: {} replaced by {} (its handshake accepted)", name,
-                                                  live->peer, next.peer));
+        peer_log(spdlog::level::warn,
+                 fmt::format("{} stream: {} replaced by {} (its handshake accepted)", name,
+                             live->peer, next.peer));
         std::lock_guard<std::mutex> lock(mutex_);
         ++counter().replaced;
         ++counter().disconnects;
@@ -303,9 +340,11 @@ void StreamReceiver::serve(int index) {
     if (fds[1].revents & POLLIN) {
       std::string peer;
       if (auto fd = net::accept_tcp(listeners_[index], &peer)) {
-        if (candidates.size() >= kMaxCandidates) drop_candidate(0, "too many connections awaiting a handshake");
+        if (candidates.size() >= kMaxCandidates)
+          drop_candidate(0, "too many connections awaiting a handshake");
         count(&ChannelCounters::connections);
-        Connection c{std::move(*fd), peer, ReceiverSession(session_options, protocol::random_stream_nonce(), now_us_())};
+        Connection c{std::move(*fd), peer,
+                     ReceiverSession(session_options, protocol::random_stream_nonce(), now_us_())};
         if (apply(c, c.session.start())) {
           candidates.push_back(std::move(c));
         } else {
@@ -333,8 +372,9 @@ void StreamReceiver::store_rgb(std::shared_ptr<const ReceivedRgb> frame) {
     rgb_history_.push_back(frame);
     if (rgb_history_.size() > options_.history_frames) rgb_history_.pop_front();
     for (const auto& d : depth_history_) {
-      if (!best || std::llabs(d->info.capture_timestamp_us - frame->info.capture_timestamp_us) <
-                       std::llabs(best->info.capture_timestamp_us - frame->info.capture_timestamp_us)) {
+      if (!best ||
+          std::llabs(d->info.capture_timestamp_us - frame->info.capture_timestamp_us) <
+              std::llabs(best->info.capture_timestamp_us - frame->info.capture_timestamp_us)) {
         best = d;
       }
     }
@@ -349,8 +389,9 @@ void StreamReceiver::store_depth(std::shared_ptr<const ReceivedDepth> frame) {
     depth_history_.push_back(frame);
     if (depth_history_.size() > options_.history_frames) depth_history_.pop_front();
     for (const auto& r : rgb_history_) {
-      if (!best || std::llabs(r->info.capture_timestamp_us - frame->info.capture_timestamp_us) <
-                       std::llabs(best->info.capture_timestamp_us - frame->info.capture_timestamp_us)) {
+      if (!best ||
+          std::llabs(r->info.capture_timestamp_us - frame->info.capture_timestamp_us) <
+              std::llabs(best->info.capture_timestamp_us - frame->info.capture_timestamp_us)) {
         best = r;
       }
     }
@@ -391,7 +432,8 @@ std::optional<RgbdPair> StreamReceiver::newest_pair() const {
   return newest_pair_;
 }
 
-std::optional<RgbdPair> StreamReceiver::wait_for_pair(std::uint64_t after_pair_id, int timeout_ms) const {
+std::optional<RgbdPair> StreamReceiver::wait_for_pair(std::uint64_t after_pair_id,
+                                                      int timeout_ms) const {
   std::unique_lock<std::mutex> lock(mutex_);
   const bool ready = pair_ready_.wait_for(lock, std::chrono::milliseconds(timeout_ms), [&] {
     return newest_pair_ && newest_pair_->pair_id > after_pair_id;

@@ -95,7 +95,8 @@ Dump write_dump(const fs::path& dir) {
 }
 
 TEST(FakenectEndToEnd, DumpReplaysThroughLibfreenectIntoTheReceiverBitExact) {
-  if (access("/usr/bin/fakenect", X_OK) != 0) GTEST_SKIP() << "libfreenect-bin (fakenect) not installed";
+  if (access("/usr/bin/fakenect", X_OK) != 0)
+    GTEST_SKIP() << "libfreenect-bin (fakenect) not installed";
   char tmpl[] = "/tmp/rgbd_fakenect_XXXXXX";
   ASSERT_NE(mkdtemp(tmpl), nullptr);
   const fs::path dir(tmpl);
@@ -113,10 +114,12 @@ TEST(FakenectEndToEnd, DumpReplaysThroughLibfreenectIntoTheReceiverBitExact) {
   // The stream key both ends hold (mode 0600, as the streamer demands).
   {
     std::ofstream key(dir / "stream.key");
-    for (std::uint8_t b : protocol::testing::kTestStreamKey) key << "0123456789abcdef"[b >> 4] << "0123456789abcdef"[b & 15];
+    for (std::uint8_t b : protocol::testing::kTestStreamKey)
+      key << "0123456789abcdef"[b >> 4] << "0123456789abcdef"[b & 15];
     key << "\n";
   }
-  fs::permissions(dir / "stream.key", fs::perms::owner_read | fs::perms::owner_write, fs::perm_options::replace);
+  fs::permissions(dir / "stream.key", fs::perms::owner_read | fs::perms::owner_write,
+                  fs::perm_options::replace);
   receiver::ReceiverOptions options;
   options.key = protocol::testing::kTestStreamKey;
   options.bind_address = "127.0.0.1";
@@ -131,14 +134,15 @@ TEST(FakenectEndToEnd, DumpReplaysThroughLibfreenectIntoTheReceiverBitExact) {
   ASSERT_GE(pid, 0);
   if (pid == 0) {
     execl("/usr/bin/fakenect", "fakenect", dir.c_str(), RGBD_STREAMER_BIN, "-c", config.c_str(),
-          "--source", "freenect", "--freenect-disparity-depth", "--host", "127.0.0.1",
-          "--rgb-port", rgb_port.c_str(), "--depth-port", depth_port.c_str(),
-          "--depth-encoding", "rvl", "--rgb-encoding", "raw", static_cast<char*>(nullptr));
+          "--source", "freenect", "--freenect-disparity-depth", "--host", "127.0.0.1", "--rgb-port",
+          rgb_port.c_str(), "--depth-port", depth_port.c_str(), "--depth-encoding", "rvl",
+          "--rgb-encoding", "raw", static_cast<char*>(nullptr));
     _exit(127);
   }
   // The dump spans 0.3 s; wait for the streamer to finish it (and linger) or time out.
   int status = 0;
-  const bool exited = testing::eventually([&] { return waitpid(pid, &status, WNOHANG) == pid; }, 20000);
+  const bool exited =
+      testing::eventually([&] { return waitpid(pid, &status, WNOHANG) == pid; }, 20000);
   if (!exited) {
     kill(pid, SIGTERM);
     waitpid(pid, &status, 0);
@@ -148,7 +152,8 @@ TEST(FakenectEndToEnd, DumpReplaysThroughLibfreenectIntoTheReceiverBitExact) {
   const auto c = rx.counters();
   EXPECT_GE(c.depth.frames, 1u);
   EXPECT_GE(c.rgb.frames, 1u);
-  EXPECT_EQ(c.depth.crc_errors + c.rgb.crc_errors + c.depth.invalid_frames + c.rgb.invalid_frames, 0u);
+  EXPECT_EQ(c.depth.crc_errors + c.rgb.crc_errors + c.depth.invalid_frames + c.rgb.invalid_frames,
+            0u);
   const auto depth = rx.newest_depth();
   const auto rgb = rx.newest_rgb();
   ASSERT_TRUE(depth && rgb);
@@ -161,7 +166,8 @@ TEST(FakenectEndToEnd, DumpReplaysThroughLibfreenectIntoTheReceiverBitExact) {
   EXPECT_EQ(depth->units_per_m, 1000.0);
   EXPECT_TRUE(rx.newest_pair().has_value());
   std::printf("fakenect e2e: %llu depth, %llu rgb frames received of 9 each\n",
-              static_cast<unsigned long long>(c.depth.frames), static_cast<unsigned long long>(c.rgb.frames));
+              static_cast<unsigned long long>(c.depth.frames),
+              static_cast<unsigned long long>(c.rgb.frames));
   fs::remove_all(dir);
 }
 

@@ -5,14 +5,13 @@
 // connection's challenge is accepted (finding 6: any peer with a valid handshake was fed to SLAM).
 // Loopback only.
 #include <arpa/inet.h>
+#include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <poll.h>
-#include <sys/socket.h>
-#include <unistd.h>
-
-#include <gtest/gtest.h>
 #include <spdlog/sinks/base_sink.h>
 #include <spdlog/spdlog.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -32,7 +31,8 @@ namespace rgbdquad {
 namespace {
 
 std::int64_t now_us() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now().time_since_epoch())
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
       .count();
 }
 
@@ -66,7 +66,8 @@ int connect_loopback(std::uint16_t port) {
 }
 
 void send_bytes(int fd, const std::vector<std::uint8_t>& bytes) {
-  ASSERT_EQ(::send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL), static_cast<ssize_t>(bytes.size()));
+  ASSERT_EQ(::send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL),
+            static_cast<ssize_t>(bytes.size()));
 }
 
 /// True when the peer closed `fd` within `timeout_ms` (EOF or reset); data that arrives is skipped.
@@ -86,9 +87,11 @@ std::optional<protocol::StreamNonce> read_challenge(int fd, int timeout_ms = 200
   protocol::StreamDecoder decoder;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
   while (std::chrono::steady_clock::now() < deadline) {
-    for (auto r = decoder.next(); r.status != protocol::DecodeStatus::kNeedMoreBytes; r = decoder.next()) {
+    for (auto r = decoder.next(); r.status != protocol::DecodeStatus::kNeedMoreBytes;
+         r = decoder.next()) {
       if (r.status != protocol::DecodeStatus::kMessage) continue;
-      if (const auto* c = std::get_if<protocol::StreamChallenge>(&*r.message)) return c->receiver_nonce;
+      if (const auto* c = std::get_if<protocol::StreamChallenge>(&*r.message))
+        return c->receiver_nonce;
     }
     pollfd p{fd, POLLIN, 0};
     if (::poll(&p, 1, 50) <= 0) continue;
@@ -110,7 +113,8 @@ int connect_and_handshake(std::uint16_t port, const protocol::Handshake& hello,
     ::close(fd);
     return -1;
   }
-  const auto bytes = protocol::encode_handshake(protocol::testing::signed_handshake(hello, *nonce, key)).bytes;
+  const auto bytes =
+      protocol::encode_handshake(protocol::testing::signed_handshake(hello, *nonce, key)).bytes;
   if (::send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(bytes.size())) {
     ::close(fd);
     return -1;
@@ -149,7 +153,9 @@ class CaptureSink : public spdlog::sinks::base_sink<std::mutex> {
   }
 
  protected:
-  void sink_it_(const spdlog::details::log_msg& msg) override { lines_.emplace_back(msg.payload.data(), msg.payload.size()); }
+  void sink_it_(const spdlog::details::log_msg& msg) override {
+    lines_.emplace_back(msg.payload.data(), msg.payload.size());
+  }
   void flush_() override {}
 
  private:
@@ -157,7 +163,8 @@ class CaptureSink : public spdlog::sinks::base_sink<std::mutex> {
 };
 
 bool any_line_has(const std::vector<std::string>& lines, const char* text) {
-  return std::any_of(lines.begin(), lines.end(), [&](const std::string& l) { return l.find(text) != std::string::npos; });
+  return std::any_of(lines.begin(), lines.end(),
+                     [&](const std::string& l) { return l.find(text) != std::string::npos; });
 }
 
 TEST(ReceiverHostileInput, GarbageIsLoggedAtABoundedRate) {
@@ -171,7 +178,8 @@ TEST(ReceiverHostileInput, GarbageIsLoggedAtABoundedRate) {
   constexpr int kReconnects = 200;
 
   for (const bool reconnect_flood : {false, true}) {
-    SCOPED_TRACE(reconnect_flood ? "200 connections, each sending garbage" : "the live connection sends garbage");
+    SCOPED_TRACE(reconnect_flood ? "200 connections, each sending garbage"
+                                 : "the live connection sends garbage");
     auto sink = std::make_shared<CaptureSink>();
     auto logger = std::make_shared<spdlog::logger>("receiver-test", sink);
     receiver::ReceiverOptions o;
@@ -200,7 +208,8 @@ TEST(ReceiverHostileInput, GarbageIsLoggedAtABoundedRate) {
         send_bytes(fd, bad);
         fds.push_back(fd);
         // one at a time: the listen backlog is 4, and an overflowing SYN waits a 1 s retransmit
-        ASSERT_TRUE(eventually([&] { return rx.counters().rgb.dropped_before_handshake >= fds.size(); }));
+        ASSERT_TRUE(
+            eventually([&] { return rx.counters().rgb.dropped_before_handshake >= fds.size(); }));
       }
       expected = kReconnects;
     }
@@ -210,13 +219,16 @@ TEST(ReceiverHostileInput, GarbageIsLoggedAtABoundedRate) {
         [&] {
           char buf[65536];
           for (int fd : fds) (void)::recv(fd, buf, sizeof buf, MSG_DONTWAIT);
-          return reconnect_flood ? rx.counters().rgb.dropped_before_handshake >= expected : errors() >= expected;
+          return reconnect_flood ? rx.counters().rgb.dropped_before_handshake >= expected
+                                 : errors() >= expected;
         },
         15000))
-        << errors() << " errors, " << rx.counters().rgb.dropped_before_handshake << " dropped, of " << expected;
+        << errors() << " errors, " << rx.counters().rgb.dropped_before_handshake << " dropped, of "
+        << expected;
     // AND the log holds a handful of lines, not one per error
     const auto lines = sink->lines();
-    EXPECT_LE(lines.size(), 30u) << lines.size() << " lines, first: " << (lines.empty() ? "" : lines.front());
+    EXPECT_LE(lines.size(), 30u) << lines.size()
+                                 << " lines, first: " << (lines.empty() ? "" : lines.front());
     EXPECT_GE(lines.size(), 1u);
     // AND WHEN the peers go away a second later THEN a line reports what was suppressed
     std::this_thread::sleep_for(std::chrono::milliseconds(1100));
@@ -241,7 +253,9 @@ TEST(ReceiverHostileInput, ANewConnectionDisplacesTheLiveStreamerOnlyAfterItsHan
   ASSERT_GE(live, 0);
   const auto live_nonce = read_challenge(live);
   ASSERT_TRUE(live_nonce);
-  const auto recorded = protocol::encode_handshake(protocol::testing::signed_handshake(rgb_handshake("craft"), *live_nonce)).bytes;
+  const auto recorded = protocol::encode_handshake(protocol::testing::signed_handshake(
+                                                       rgb_handshake("craft"), *live_nonce))
+                            .bytes;
   send_bytes(live, recorded);
   ASSERT_TRUE(eventually([&] { return rx.connected(protocol::StreamKind::kRgb); }));
 
@@ -251,13 +265,14 @@ TEST(ReceiverHostileInput, ANewConnectionDisplacesTheLiveStreamerOnlyAfterItsHan
     bool sign = false;                // sign `hello` over this connection's challenge with `key`
     protocol::Handshake hello{};
     protocol::StreamKey key = protocol::testing::kTestStreamKey;
-    const char* logged = nullptr;     // a log line that must say why
+    const char* logged = nullptr;  // a log line that must say why
   };
   std::mt19937 rng(17);
   std::vector<std::uint8_t> random_bytes(4096);
   for (auto& b : random_bytes) b = static_cast<std::uint8_t>(rng());
   auto wrong_kind = rgb_handshake("intruder");
-  wrong_kind.stream_kind = protocol::StreamKind::kDepth;  // a valid depth handshake, on the RGB port
+  wrong_kind.stream_kind =
+      protocol::StreamKind::kDepth;  // a valid depth handshake, on the RGB port
   wrong_kind.pixel_format = protocol::PixelFormat::kDepth16;
   wrong_kind.depth_scale_units_per_m = 1000;
   protocol::StreamKey wrong_key = protocol::testing::kTestStreamKey;
@@ -265,12 +280,26 @@ TEST(ReceiverHostileInput, ANewConnectionDisplacesTheLiveStreamerOnlyAfterItsHan
   const Probe probes[] = {
       {"raw connect, silent", {}},
       {"4 KiB of random bytes", random_bytes},
-      {"a frame request instead of a handshake", protocol::encode_frame_request(protocol::FrameRequest{}).bytes},
-      {"a refused handshake (depth on the RGB port)", {}, true, wrong_kind, protocol::testing::kTestStreamKey,
+      {"a frame request instead of a handshake",
+       protocol::encode_frame_request(protocol::FrameRequest{}).bytes},
+      {"a refused handshake (depth on the RGB port)",
+       {},
+       true,
+       wrong_kind,
+       protocol::testing::kTestStreamKey,
        "this port takes the RGB stream"},
-      {"an unsigned handshake (no key)", protocol::encode_handshake(rgb_handshake("intruder")).bytes, false, {}, {},
+      {"an unsigned handshake (no key)",
+       protocol::encode_handshake(rgb_handshake("intruder")).bytes,
+       false,
+       {},
+       {},
        "not authenticated"},
-      {"a handshake signed with the wrong key", {}, true, rgb_handshake("intruder"), wrong_key, "not authenticated"},
+      {"a handshake signed with the wrong key",
+       {},
+       true,
+       rgb_handshake("intruder"),
+       wrong_key,
+       "not authenticated"},
       {"the live streamer's handshake replayed", recorded, false, {}, {}, "not authenticated"},
   };
   for (const auto& probe : probes) {
@@ -281,7 +310,8 @@ TEST(ReceiverHostileInput, ANewConnectionDisplacesTheLiveStreamerOnlyAfterItsHan
     const auto nonce = read_challenge(intruder);
     ASSERT_TRUE(nonce) << "every connection is challenged";
     if (probe.sign) {
-      const auto signed_bytes = protocol::encode_handshake(protocol::testing::signed_handshake(probe.hello, *nonce, probe.key));
+      const auto signed_bytes = protocol::encode_handshake(
+          protocol::testing::signed_handshake(probe.hello, *nonce, probe.key));
       ASSERT_TRUE(signed_bytes.ok()) << signed_bytes.error;
       send_bytes(intruder, signed_bytes.bytes);
     } else if (!probe.bytes.empty()) {
@@ -298,7 +328,8 @@ TEST(ReceiverHostileInput, ANewConnectionDisplacesTheLiveStreamerOnlyAfterItsHan
     if (probe.logged != nullptr) {
       EXPECT_TRUE(eventually([&] { return any_line_has(sink->lines(), probe.logged); }));
     }
-    std::this_thread::sleep_for(std::chrono::milliseconds(250));  // the next probe's lines fit the 5/s log budget
+    std::this_thread::sleep_for(
+        std::chrono::milliseconds(250));  // the next probe's lines fit the 5/s log budget
   }
   EXPECT_EQ(rx.counters().rgb.dropped_before_handshake, std::size(probes));
   EXPECT_EQ(rx.counters().rgb.handshakes_refused, 4u);  // wrong kind, unsigned, wrong key, replayed

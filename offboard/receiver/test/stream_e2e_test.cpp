@@ -20,7 +20,8 @@ using testing::eventually;
 
 constexpr const char* kDesk = RGBD_TEST_DATA_DIR "/fr1_desk_9frames";
 
-receiver::ReceiverOptions loopback_receiver(std::uint16_t rgb_port = 0, std::uint16_t depth_port = 0) {
+receiver::ReceiverOptions loopback_receiver(std::uint16_t rgb_port = 0,
+                                            std::uint16_t depth_port = 0) {
   receiver::ReceiverOptions o;
   o.bind_address = "127.0.0.1";
   o.rgb_port = rgb_port;
@@ -54,8 +55,10 @@ TEST(StreamEndToEnd, RealFramesArriveDepthBitExactAndPaired) {
   ASSERT_EQ(frames.size(), 18u);
   for (Encoding depth_encoding : {Encoding::kDepthRvl, Encoding::kDepthZstdDelta, Encoding::kRaw}) {
     receiver::StreamReceiver rx(loopback_receiver(), testing::steady_now_us(), nullptr);
-    stream::StreamSender rgb(sender_options(StreamKind::kRgb, rx.rgb_port(), Encoding::kRgbJpeg), &clock, nullptr);
-    stream::StreamSender depth(sender_options(StreamKind::kDepth, rx.depth_port(), depth_encoding), &clock, nullptr);
+    stream::StreamSender rgb(sender_options(StreamKind::kRgb, rx.rgb_port(), Encoding::kRgbJpeg),
+                             &clock, nullptr);
+    stream::StreamSender depth(sender_options(StreamKind::kDepth, rx.depth_port(), depth_encoding),
+                               &clock, nullptr);
     testing::ScriptedSource source(frames);
     stream::StreamerPipeline pipeline(&source, {}, std::nullopt, &rgb, &depth);
     // One frame at a time, waiting for its arrival: every frame must come through.
@@ -86,7 +89,8 @@ TEST(StreamEndToEnd, RealFramesArriveDepthBitExactAndPaired) {
     const auto c = rx.counters();
     EXPECT_EQ(c.rgb.frames, 9u);
     EXPECT_EQ(c.depth.frames, 9u);
-    EXPECT_EQ(c.rgb.crc_errors + c.depth.crc_errors + c.rgb.invalid_frames + c.depth.invalid_frames, 0u);
+    EXPECT_EQ(c.rgb.crc_errors + c.depth.crc_errors + c.rgb.invalid_frames + c.depth.invalid_frames,
+              0u);
     EXPECT_GE(c.pairs, 9u);
   }
 }
@@ -102,10 +106,14 @@ TEST(StreamEndToEnd, BlankAndMalformedFramesAreNeverSent) {
     auto f = frames[i];
     std::visit([&](auto& x) { x.capture_timestamp_us = t++; }, f);
     if (i % 3 == 1) {
-      std::visit([](auto& x) {
-        if constexpr (std::is_same_v<std::decay_t<decltype(x)>, capture::RgbFrame>) std::fill(x.rgb.begin(), x.rgb.end(), 0);
-        else std::fill(x.depth.begin(), x.depth.end(), 0);
-      }, f);
+      std::visit(
+          [](auto& x) {
+            if constexpr (std::is_same_v<std::decay_t<decltype(x)>, capture::RgbFrame>)
+              std::fill(x.rgb.begin(), x.rgb.end(), 0);
+            else
+              std::fill(x.depth.begin(), x.depth.end(), 0);
+          },
+          f);
     } else if (i % 3 == 2) {
       std::visit([](auto& x) { x.height = 240; }, f);
     } else if (std::holds_alternative<capture::DepthFrame>(f)) {
@@ -114,8 +122,10 @@ TEST(StreamEndToEnd, BlankAndMalformedFramesAreNeverSent) {
     script.push_back(std::move(f));
   }
   receiver::StreamReceiver rx(loopback_receiver(), testing::steady_now_us(), nullptr);
-  stream::StreamSender rgb(sender_options(StreamKind::kRgb, rx.rgb_port(), Encoding::kRaw), &clock, nullptr);
-  stream::StreamSender depth(sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kDepthRvl), &clock, nullptr);
+  stream::StreamSender rgb(sender_options(StreamKind::kRgb, rx.rgb_port(), Encoding::kRaw), &clock,
+                           nullptr);
+  stream::StreamSender depth(
+      sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kDepthRvl), &clock, nullptr);
   ASSERT_TRUE(eventually([&] { return rgb.connected() && depth.connected(); }));
   testing::ScriptedSource source(script);
   stream::StreamerPipeline pipeline(&source, {}, std::nullopt, &rgb, &depth);
@@ -140,7 +150,8 @@ TEST(StreamEndToEnd, BlankAndMalformedFramesAreNeverSent) {
   EXPECT_EQ(rc.rgb.frames + rc.depth.frames, 6u);
   const auto d = rx.newest_depth();
   ASSERT_TRUE(d);
-  EXPECT_TRUE(std::any_of(d->depth.begin(), d->depth.end(), [](std::uint16_t v) { return v != 0; }));
+  EXPECT_TRUE(
+      std::any_of(d->depth.begin(), d->depth.end(), [](std::uint16_t v) { return v != 0; }));
 }
 
 TEST(StreamEndToEnd, ReconnectsAfterServerRestartsWithoutDescriptorOrMemoryGrowth) {
@@ -148,22 +159,31 @@ TEST(StreamEndToEnd, ReconnectsAfterServerRestartsWithoutDescriptorOrMemoryGrowt
   const auto frames = testing::load_tum(kDesk);
   const std::uint16_t rgb_port = free_port();
   const std::uint16_t depth_port = free_port();
-  stream::StreamSender rgb(sender_options(StreamKind::kRgb, rgb_port, Encoding::kRgbJpeg), &clock, nullptr);
-  stream::StreamSender depth(sender_options(StreamKind::kDepth, depth_port, Encoding::kDepthRvl), &clock, nullptr);
+  stream::StreamSender rgb(sender_options(StreamKind::kRgb, rgb_port, Encoding::kRgbJpeg), &clock,
+                           nullptr);
+  stream::StreamSender depth(sender_options(StreamKind::kDepth, depth_port, Encoding::kDepthRvl),
+                             &clock, nullptr);
   constexpr int kCycles = 25;
   int fds_after_warmup = 0;
   long rss_after_warmup_kb = 0;
   for (int cycle = 0; cycle < kCycles; ++cycle) {
     {
       // GIVEN the ground station (re)starts on the same ports
-      receiver::StreamReceiver rx(loopback_receiver(rgb_port, depth_port), testing::steady_now_us(), nullptr);
+      receiver::StreamReceiver rx(loopback_receiver(rgb_port, depth_port), testing::steady_now_us(),
+                                  nullptr);
       // WHEN the streamer keeps publishing
       std::size_t i = static_cast<std::size_t>(cycle) % 9;
-      ASSERT_TRUE(eventually([&] {
-        rgb.publish(frames[2 * i + (std::holds_alternative<capture::RgbFrame>(frames[2 * i]) ? 0 : 1)]);
-        depth.publish(frames[2 * i + (std::holds_alternative<capture::DepthFrame>(frames[2 * i]) ? 0 : 1)]);
-        return rx.counters().depth.frames > 0 && rx.counters().rgb.frames > 0;
-      }, 10000)) << "no frames after restart " << cycle;
+      ASSERT_TRUE(eventually(
+          [&] {
+            rgb.publish(
+                frames[2 * i + (std::holds_alternative<capture::RgbFrame>(frames[2 * i]) ? 0 : 1)]);
+            depth.publish(
+                frames[2 * i +
+                       (std::holds_alternative<capture::DepthFrame>(frames[2 * i]) ? 0 : 1)]);
+            return rx.counters().depth.frames > 0 && rx.counters().rgb.frames > 0;
+          },
+          10000))
+          << "no frames after restart " << cycle;
       // THEN it reconnected and frames flow on both streams
       EXPECT_TRUE(rx.newest_depth());
     }
@@ -191,7 +211,8 @@ TEST(StreamEndToEnd, ReceiverSurvivesStreamerRestarts) {
     // Each streamer run stamps its frames with its own time, so frames still in flight from the
     // previous run cannot be mistaken for this one's.
     depth_frame.capture_timestamp_us = 1'000'000 * (cycle + 1);
-    stream::StreamSender depth(sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kDepthRvl), &clock, nullptr);
+    stream::StreamSender depth(
+        sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kDepthRvl), &clock, nullptr);
     ASSERT_TRUE(eventually([&] {
       depth.publish(depth_frame);
       const auto got = rx.newest_depth();
@@ -211,7 +232,8 @@ TEST(StreamEndToEnd, RefusedEncodingFallsBackToRawAndStillDeliversBitExact) {
   options.accepted_encodings = {Encoding::kRaw};
   receiver::StreamReceiver rx(options, testing::steady_now_us(), nullptr);
   // WHEN the streamer offers RVL
-  stream::StreamSender depth(sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kDepthRvl), &clock, nullptr);
+  stream::StreamSender depth(
+      sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kDepthRvl), &clock, nullptr);
   auto depth_frame = std::get<capture::DepthFrame>(
       std::holds_alternative<capture::DepthFrame>(frames[0]) ? frames[0] : frames[1]);
   // THEN it is refused once, falls back to raw, and frames arrive raw and bit-exact
@@ -234,7 +256,8 @@ TEST(StreamAuthEndToEnd, AStreamerWithAnotherKeyIsRefusedWhileTheCraftKeepsStrea
       std::holds_alternative<capture::DepthFrame>(frames[0]) ? frames[0] : frames[1]);
   receiver::StreamReceiver rx(loopback_receiver(), testing::steady_now_us(), nullptr);
   // GIVEN the craft's streamer, live and delivering frames
-  stream::StreamSender craft(sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kDepthRvl), &clock, nullptr);
+  stream::StreamSender craft(
+      sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kDepthRvl), &clock, nullptr);
   std::int64_t stamp_us = 1'000'000;
   auto publish = [&](stream::StreamSender& s) {
     depth_frame.capture_timestamp_us = stamp_us;
@@ -251,11 +274,16 @@ TEST(StreamAuthEndToEnd, AStreamerWithAnotherKeyIsRefusedWhileTheCraftKeepsStrea
   impostor_options.device_id = "impostor";
   stream::StreamSender impostor(impostor_options, &clock, nullptr);
   const std::uint64_t frames_before = rx.counters().depth.frames;
-  ASSERT_TRUE(eventually([&] {
-    publish(craft);
-    publish(impostor);
-    return rx.counters().depth.handshakes_refused >= 3 && rx.counters().depth.frames >= frames_before + 10;
-  }, 10000)) << "refused " << rx.counters().depth.handshakes_refused << ", frames " << rx.counters().depth.frames;
+  ASSERT_TRUE(eventually(
+      [&] {
+        publish(craft);
+        publish(impostor);
+        return rx.counters().depth.handshakes_refused >= 3 &&
+               rx.counters().depth.frames >= frames_before + 10;
+      },
+      10000))
+      << "refused " << rx.counters().depth.handshakes_refused << ", frames "
+      << rx.counters().depth.frames;
   // THEN it never becomes live, never displaces the craft, and every frame stored is the craft's
   EXPECT_FALSE(impostor.connected());
   EXPECT_EQ(impostor.counters().connects, 0u);
@@ -271,7 +299,8 @@ TEST(StreamAuthEndToEnd, AStreamerDoesNotTalkToAReceiverWithoutItsKey) {
   auto options = loopback_receiver();
   options.key[7] ^= 0x01;  // a ground station (or a peer posing as one) with another key
   receiver::StreamReceiver rx(options, testing::steady_now_us(), nullptr);
-  stream::StreamSender sender(sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kRaw), &clock, nullptr);
+  stream::StreamSender sender(sender_options(StreamKind::kDepth, rx.depth_port(), Encoding::kRaw),
+                              &clock, nullptr);
   capture::DepthFrame frame;
   frame.width = 640;
   frame.height = 480;
@@ -292,7 +321,8 @@ TEST(StreamAuthEndToEnd, NoKeyNoStart) {
   capture::SteadyClock clock;
   auto rx_options = loopback_receiver();
   rx_options.key = {};
-  EXPECT_THROW(receiver::StreamReceiver(rx_options, testing::steady_now_us(), nullptr), std::runtime_error);
+  EXPECT_THROW(receiver::StreamReceiver(rx_options, testing::steady_now_us(), nullptr),
+               std::runtime_error);
   auto tx_options = sender_options(StreamKind::kRgb, 5600, Encoding::kRaw);
   tx_options.key = {};
   EXPECT_THROW(stream::StreamSender(tx_options, &clock, nullptr), std::invalid_argument);
@@ -312,7 +342,8 @@ struct RawPeer {
     auto challenge = receive();
     ASSERT_TRUE(challenge && std::holds_alternative<protocol::StreamChallenge>(*challenge));
     send(protocol::encode_handshake(
-             protocol::testing::signed_handshake(hello, std::get<protocol::StreamChallenge>(*challenge).receiver_nonce))
+             protocol::testing::signed_handshake(
+                 hello, std::get<protocol::StreamChallenge>(*challenge).receiver_nonce))
              .bytes);
   }
   std::optional<protocol::Message> receive(int timeout_ms = 5000) {
@@ -322,7 +353,9 @@ struct RawPeer {
       if (r.status == protocol::DecodeStatus::kMessage) return r.message;
       if (r.status == protocol::DecodeStatus::kError) continue;
       std::size_t got = 0;
-      if (net::read_some(fd.get(), buffer, sizeof buffer, &got, waker, timeout_ms) != net::IoStatus::kOk) return std::nullopt;
+      if (net::read_some(fd.get(), buffer, sizeof buffer, &got, waker, timeout_ms) !=
+          net::IoStatus::kOk)
+        return std::nullopt;
       decoder.feed(buffer, got);
     }
   }
@@ -378,7 +411,8 @@ TEST(StreamEndToEnd, CorruptedBytesOnTheWireAreRejectedByCrcAndCounted) {
   ASSERT_TRUE(eventually([&] {
     const auto c = rx.counters().depth;
     return c.frames == 4 && c.crc_errors == 2;
-  })) << "frames " << rx.counters().depth.frames << " crc " << rx.counters().depth.crc_errors;
+  })) << "frames "
+      << rx.counters().depth.frames << " crc " << rx.counters().depth.crc_errors;
   EXPECT_EQ(rx.newest_depth()->info.sequence, 5u);
   EXPECT_EQ(rx.newest_depth()->depth, depth.depth);
 }
@@ -412,7 +446,9 @@ TEST(StreamEndToEnd, WrongSchemaOrStreamKindIsRefusedLoudly) {
 TEST(StreamEndToEnd, SlowReceiverGetsTheNewestFrameNeverABacklog) {
   capture::SteadyClock clock;
   net::UniqueFd listener = net::listen_tcp("127.0.0.1", 0);
-  stream::StreamSender sender(sender_options(StreamKind::kDepth, net::local_port(listener), Encoding::kDepthRvl), &clock, nullptr);
+  stream::StreamSender sender(
+      sender_options(StreamKind::kDepth, net::local_port(listener), Encoding::kDepthRvl), &clock,
+      nullptr);
   RawPeer rx;
   ASSERT_EQ(net::wait_readable(listener.get(), rx.waker, 5000), net::IoStatus::kOk);
   auto fd = net::accept_tcp(listener, nullptr);
@@ -425,8 +461,9 @@ TEST(StreamEndToEnd, SlowReceiverGetsTheNewestFrameNeverABacklog) {
   ASSERT_TRUE(hello && std::holds_alternative<protocol::Handshake>(*hello));
   protocol::HandshakeAck ack;
   ack.accepted = true;
-  rx.send(protocol::encode_handshake_ack(protocol::testing::signed_ack(
-                                             ack, challenge.receiver_nonce, std::get<protocol::Handshake>(*hello).sender_nonce))
+  rx.send(protocol::encode_handshake_ack(
+              protocol::testing::signed_ack(ack, challenge.receiver_nonce,
+                                            std::get<protocol::Handshake>(*hello).sender_nonce))
               .bytes);
   ASSERT_TRUE(eventually([&] { return sender.connected(); }));
   capture::DepthFrame frame;

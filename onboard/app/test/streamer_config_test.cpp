@@ -1,15 +1,14 @@
 // Config: the shipped file parses to the built-in defaults; overrides apply; bad files and values
 // are rejected with messages naming the key.
-#include <gtest/gtest.h>
+#include "rgbdquad/app/streamer_config.h"
 
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
-#include <functional>
 #include <fstream>
-
-#include "rgbdquad/app/streamer_config.h"
+#include <functional>
 
 namespace rgbdquad::app {
 namespace {
@@ -33,8 +32,9 @@ TEST(StreamerConfig, ShippedFileEqualsDefaultsAndIsValid) {
 }
 
 TEST(StreamerConfig, FileValuesOverrideDefaults) {
-  const auto path = write_temp("source: tum\ntum_directory: /data/x\ndepth_encoding: zstd-delta\n"
-                               "rgb_intrinsics: [517.3, 516.5, 318.6, 255.3]\nrgb_port: 7000\n");
+  const auto path = write_temp(
+      "source: tum\ntum_directory: /data/x\ndepth_encoding: zstd-delta\n"
+      "rgb_intrinsics: [517.3, 516.5, 318.6, 255.3]\nrgb_port: 7000\n");
   StreamerConfig c;
   load_yaml_file(path, &c);
   std::remove(path.c_str());

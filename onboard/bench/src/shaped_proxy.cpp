@@ -10,7 +10,8 @@ namespace rgbdquad::bench {
 namespace {
 std::int64_t now_us() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
-             std::chrono::steady_clock::now().time_since_epoch()).count();
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
 }
 // Forwarding chunk: 16 KiB = 1.1 ms at 120 Mbps, fine-grained enough that both streams interleave.
 constexpr std::size_t kChunkBytes = 16 * 1024;
@@ -18,7 +19,10 @@ constexpr int kPollMs = 100;
 }  // namespace
 
 TokenBucket::TokenBucket(double bytes_per_s, double burst_bytes)
-    : bytes_per_s_(bytes_per_s), burst_bytes_(burst_bytes), tokens_(burst_bytes), last_us_(now_us()) {}
+    : bytes_per_s_(bytes_per_s),
+      burst_bytes_(burst_bytes),
+      tokens_(burst_bytes),
+      last_us_(now_us()) {}
 
 void TokenBucket::acquire(std::size_t bytes) {
   while (true) {
@@ -34,7 +38,8 @@ void TokenBucket::acquire(std::size_t bytes) {
       }
       wait_s = (static_cast<double>(bytes) - tokens_) / bytes_per_s_;
     }
-    std::this_thread::sleep_for(std::chrono::microseconds(static_cast<std::int64_t>(wait_s * 1e6) + 1));
+    std::this_thread::sleep_for(
+        std::chrono::microseconds(static_cast<std::int64_t>(wait_s * 1e6) + 1));
   }
 }
 
@@ -45,7 +50,8 @@ ShapedProxy::ShapedProxy(const std::vector<std::uint16_t>& upstream_ports, doubl
     listeners_.push_back(net::listen_tcp("127.0.0.1", 0));
     ports_.push_back(net::local_port(listeners_.back()));
   }
-  for (std::size_t i = 0; i < upstream_.size(); ++i) threads_.emplace_back([this, i] { accept_loop(i); });
+  for (std::size_t i = 0; i < upstream_.size(); ++i)
+    threads_.emplace_back([this, i] { accept_loop(i); });
 }
 
 ShapedProxy::~ShapedProxy() {
@@ -83,7 +89,8 @@ void ShapedProxy::pump(net::UniqueFd* from, net::UniqueFd* to, bool shaped) {
   std::vector<std::uint8_t> buffer(kChunkBytes);
   while (true) {
     std::size_t got = 0;
-    const net::IoStatus s = net::read_some(from->get(), buffer.data(), buffer.size(), &got, stop_, kPollMs);
+    const net::IoStatus s =
+        net::read_some(from->get(), buffer.data(), buffer.size(), &got, stop_, kPollMs);
     if (s == net::IoStatus::kTimeout) continue;
     if (s != net::IoStatus::kOk) break;
     if (shaped) bucket_.acquire(got);

@@ -44,18 +44,23 @@ Frames load(const std::string& dir) {
   capture::TumReplaySource source(o, &clock);
   Frames f;
   while (auto frame = source.next()) {
-    if (auto* r = std::get_if<capture::RgbFrame>(&*frame)) f.rgb.push_back(std::move(*r));
-    else f.depth.push_back(std::get<capture::DepthFrame>(std::move(*frame)));
+    if (auto* r = std::get_if<capture::RgbFrame>(&*frame))
+      f.rgb.push_back(std::move(*r));
+    else
+      f.depth.push_back(std::get<capture::DepthFrame>(std::move(*frame)));
   }
   return f;
 }
 
 void codec_table(const Frames& f) {
-  std::printf("\n## Codecs on %zu depth + %zu RGB frames (one core of this machine)\n", f.depth.size(), f.rgb.size());
-  std::printf("| stream | codec | encode ms/frame | decode ms/frame | bytes/frame | ratio | check |\n|---|---|---|---|---|---|---|\n");
+  std::printf("\n## Codecs on %zu depth + %zu RGB frames (one core of this machine)\n",
+              f.depth.size(), f.rgb.size());
+  std::printf(
+      "| stream | codec | encode ms/frame | decode ms/frame | bytes/frame | ratio | check "
+      "|\n|---|---|---|---|---|---|---|\n");
   const double raw_depth = 640.0 * 480 * 2;
-  for (auto codec : {encodings::DepthCodec::kRaw, encodings::DepthCodec::kRvl, encodings::DepthCodec::kZstdDelta,
-                     encodings::DepthCodec::kLz4Delta}) {
+  for (auto codec : {encodings::DepthCodec::kRaw, encodings::DepthCodec::kRvl,
+                     encodings::DepthCodec::kZstdDelta, encodings::DepthCodec::kLz4Delta}) {
     double enc_ms = 0, dec_ms = 0, bytes = 0;
     bool exact = true;
     for (const auto& d : f.depth) {
@@ -64,13 +69,15 @@ void codec_table(const Frames& f) {
       enc_ms += ms_since(t);
       bytes += static_cast<double>(payload.size());
       t = Clock::now();
-      auto back = encodings::decode_depth(codec, payload.data(), payload.size(), d.width, d.height, nullptr);
+      auto back = encodings::decode_depth(codec, payload.data(), payload.size(), d.width, d.height,
+                                          nullptr);
       dec_ms += ms_since(t);
       exact = exact && back && *back == d.depth;
     }
     const double n = static_cast<double>(f.depth.size());
-    std::printf("| depth | %s | %.2f | %.2f | %.0f | %.2f | %s |\n", encodings::to_string(codec), enc_ms / n,
-                dec_ms / n, bytes / n, raw_depth / (bytes / n), exact ? "bit-exact" : "MISMATCH");
+    std::printf("| depth | %s | %.2f | %.2f | %.0f | %.2f | %s |\n", encodings::to_string(codec),
+                enc_ms / n, dec_ms / n, bytes / n, raw_depth / (bytes / n),
+                exact ? "bit-exact" : "MISMATCH");
   }
   for (int quality : {90, 75}) {
     encodings::JpegEncoder enc(quality);
@@ -93,8 +100,8 @@ void codec_table(const Frames& f) {
       psnr += 10 * std::log10(255.0 * 255.0 / (se / static_cast<double>(back->size())));
     }
     const double n = static_cast<double>(f.rgb.size());
-    std::printf("| rgb | jpeg q%d | %.2f | %.2f | %.0f | %.2f | PSNR %.1f dB |\n", quality, enc_ms / n, dec_ms / n,
-                bytes / n, 640.0 * 480 * 3 / (bytes / n), psnr / n);
+    std::printf("| rgb | jpeg q%d | %.2f | %.2f | %.0f | %.2f | PSNR %.1f dB |\n", quality,
+                enc_ms / n, dec_ms / n, bytes / n, 640.0 * 480 * 3 / (bytes / n), psnr / n);
   }
 }
 
@@ -102,7 +109,8 @@ void codec_table(const Frames& f) {
 // clock so latency can be measured end to end.
 class PacedSource final : public capture::FrameSource {
  public:
-  PacedSource(const Frames* f, double fps, capture::Clock* clock) : f_(f), period_us_(1e6 / fps), clock_(clock) {}
+  PacedSource(const Frames* f, double fps, capture::Clock* clock)
+      : f_(f), period_us_(1e6 / fps), clock_(clock) {}
   std::optional<capture::SourceFrame> next() override {
     if (stopped_) return std::nullopt;
     if (!start_us_) start_us_ = clock_->now_us();
@@ -139,11 +147,16 @@ double percentile(std::vector<double> v, double p) {
 }
 
 void end_to_end(const Frames& f, double link_mbps, double fps, double seconds) {
-  std::printf("\n## End to end through a %.0f Mbps token-bucket link, source %.0f fps RGB + %.0f fps depth, %.0f s per mode\n",
-              link_mbps, fps, fps, seconds);
+  std::printf(
+      "\n## End to end through a %.0f Mbps token-bucket link, source %.0f fps RGB + %.0f fps "
+      "depth, %.0f s per mode\n",
+      link_mbps, fps, fps, seconds);
   std::printf("(raw arithmetic: %.0f Mbps / (921600 + 614400 B) = %.1f fps)\n", link_mbps,
               link_mbps * 1e6 / 8 / (921600.0 + 614400.0));
-  std::printf("| depth | rgb | pair depth with rgb | credits | rgb fps | depth fps | pairs/s | link Mbps used | latency ms mean / p95 (capture -> decoded) | encode ms rgb / depth | decode ms rgb / depth |\n");
+  std::printf(
+      "| depth | rgb | pair depth with rgb | credits | rgb fps | depth fps | pairs/s | link Mbps "
+      "used | latency ms mean / p95 (capture -> decoded) | encode ms rgb / depth | decode ms rgb / "
+      "depth |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
   struct Mode {
     protocol::Encoding depth, rgb;
@@ -151,10 +164,14 @@ void end_to_end(const Frames& f, double link_mbps, double fps, double seconds) {
     std::uint16_t credits;
   };
   using E = protocol::Encoding;
-  const Mode modes[] = {{E::kRaw, E::kRaw, false, 2},         {E::kRaw, E::kRaw, true, 2},
-                        {E::kRaw, E::kRaw, true, 1},          {E::kDepthRvl, E::kRaw, true, 2},
-                        {E::kDepthZstdDelta, E::kRaw, true, 2}, {E::kDepthRvl, E::kRgbJpeg, true, 2},
-                        {E::kDepthRvl, E::kRgbJpeg, true, 1}, {E::kDepthZstdDelta, E::kRgbJpeg, true, 2}};
+  const Mode modes[] = {{E::kRaw, E::kRaw, false, 2},
+                        {E::kRaw, E::kRaw, true, 2},
+                        {E::kRaw, E::kRaw, true, 1},
+                        {E::kDepthRvl, E::kRaw, true, 2},
+                        {E::kDepthZstdDelta, E::kRaw, true, 2},
+                        {E::kDepthRvl, E::kRgbJpeg, true, 2},
+                        {E::kDepthRvl, E::kRgbJpeg, true, 1},
+                        {E::kDepthZstdDelta, E::kRgbJpeg, true, 2}};
   capture::SteadyClock clock;
   for (const auto& mode : modes) {
     const auto depth_enc = mode.depth;
@@ -167,7 +184,8 @@ void end_to_end(const Frames& f, double link_mbps, double fps, double seconds) {
     ro.bind_address = "127.0.0.1";
     ro.rgb_port = 0;
     ro.depth_port = 0;
-    receiver::StreamReceiver rx(ro, [&] { return clock.now_us(); }, nullptr);
+    receiver::StreamReceiver rx(
+        ro, [&] { return clock.now_us(); }, nullptr);
     bench::ShapedProxy proxy({rx.rgb_port(), rx.depth_port()}, link_mbps * 1e6);
     stream::StreamSenderOptions so;
     so.key = key;
@@ -188,7 +206,8 @@ void end_to_end(const Frames& f, double link_mbps, double fps, double seconds) {
     so.port = proxy.port(1);
     so.encoding = depth_enc;
     stream::StreamSender depth(so, &clock, nullptr);
-    while (!(rgb.connected() && depth.connected())) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    while (!(rgb.connected() && depth.connected()))
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
 
     PacedSource source(&f, fps, &clock);
     stream::StreamerPipeline pipeline(&source, {}, std::nullopt, &rgb, &depth);
@@ -209,7 +228,8 @@ void end_to_end(const Frames& f, double link_mbps, double fps, double seconds) {
       pair_id = pair->pair_id;
       const auto& d = pair->depth->info;
       if (d.sequence != last_depth_seq) {
-        latency_ms.push_back((d.receive_timestamp_us + d.decode_us - d.capture_timestamp_us) / 1000.0);
+        latency_ms.push_back((d.receive_timestamp_us + d.decode_us - d.capture_timestamp_us) /
+                             1000.0);
         last_depth_seq = d.sequence;
       }
     }
@@ -221,17 +241,28 @@ void end_to_end(const Frames& f, double link_mbps, double fps, double seconds) {
     producer.join();
     const double rgb_fps = static_cast<double>(c1.rgb.frames - c0.rgb.frames) / elapsed;
     const double depth_fps = static_cast<double>(c1.depth.frames - c0.depth.frames) / elapsed;
-    const double mbps = static_cast<double>((c1.rgb.wire_bytes - c0.rgb.wire_bytes) + (c1.depth.wire_bytes - c0.depth.wire_bytes)) * 8 / 1e6 / elapsed;
-    auto per = [](std::int64_t us, std::uint64_t n) { return n ? static_cast<double>(us) / 1000.0 / static_cast<double>(n) : 0.0; };
-    const double mean = latency_ms.empty() ? 0 : std::accumulate(latency_ms.begin(), latency_ms.end(), 0.0) / static_cast<double>(latency_ms.size());
-    std::printf("| %s | %s | %s | %u | %.1f | %.1f | %.1f | %.1f | %.1f / %.1f | %.2f / %.2f | %.2f / %.2f |\n",
-                stream::encoding_name(depth_enc).c_str(), stream::encoding_name(rgb_enc).c_str(),
-                mode.pair ? "yes" : "no", static_cast<unsigned>(mode.credits), rgb_fps, depth_fps,
-                static_cast<double>(pair_id - first_pair) / elapsed, mbps, mean, percentile(latency_ms, 0.95),
-                per(s1.rgb.encode_us_total - s0.rgb.encode_us_total, s1.rgb.sent - s0.rgb.sent),
-                per(s1.depth.encode_us_total - s0.depth.encode_us_total, s1.depth.sent - s0.depth.sent),
-                per(c1.rgb.decode_us_total - c0.rgb.decode_us_total, c1.rgb.frames - c0.rgb.frames),
-                per(c1.depth.decode_us_total - c0.depth.decode_us_total, c1.depth.frames - c0.depth.frames));
+    const double mbps = static_cast<double>((c1.rgb.wire_bytes - c0.rgb.wire_bytes) +
+                                            (c1.depth.wire_bytes - c0.depth.wire_bytes)) *
+                        8 / 1e6 / elapsed;
+    auto per = [](std::int64_t us, std::uint64_t n) {
+      return n ? static_cast<double>(us) / 1000.0 / static_cast<double>(n) : 0.0;
+    };
+    const double mean = latency_ms.empty()
+                            ? 0
+                            : std::accumulate(latency_ms.begin(), latency_ms.end(), 0.0) /
+                                  static_cast<double>(latency_ms.size());
+    std::printf(
+        "| %s | %s | %s | %u | %.1f | %.1f | %.1f | %.1f | %.1f / %.1f | %.2f / %.2f | %.2f / %.2f "
+        "|\n",
+        stream::encoding_name(depth_enc).c_str(), stream::encoding_name(rgb_enc).c_str(),
+        mode.pair ? "yes" : "no", static_cast<unsigned>(mode.credits), rgb_fps, depth_fps,
+        static_cast<double>(pair_id - first_pair) / elapsed, mbps, mean,
+        percentile(latency_ms, 0.95),
+        per(s1.rgb.encode_us_total - s0.rgb.encode_us_total, s1.rgb.sent - s0.rgb.sent),
+        per(s1.depth.encode_us_total - s0.depth.encode_us_total, s1.depth.sent - s0.depth.sent),
+        per(c1.rgb.decode_us_total - c0.rgb.decode_us_total, c1.rgb.frames - c0.rgb.frames),
+        per(c1.depth.decode_us_total - c0.depth.decode_us_total,
+            c1.depth.frames - c0.depth.frames));
     std::fflush(stdout);
   }
 }
@@ -245,7 +276,8 @@ int main(int argc, char** argv) {
   std::size_t codec_frames = 100;
   bool skip_e2e = false;
   app.add_option("--data", data, "TUM RGB-D folder (rgb.txt, depth.txt)")->required();
-  app.add_option("--link-mbps", link_mbps, "shaped link rate in Mbit/s (default 120: usable WiFi in the thesis)");
+  app.add_option("--link-mbps", link_mbps,
+                 "shaped link rate in Mbit/s (default 120: usable WiFi in the thesis)");
   app.add_option("--fps", fps, "source rate of each stream (default 30: Kinect v1)");
   app.add_option("--seconds", seconds, "measurement time per end-to-end mode (default 8)");
   app.add_option("--codec-frames", codec_frames, "frames used for the codec table (default 100)");
@@ -258,10 +290,13 @@ int main(int argc, char** argv) {
   try {
     const auto t = Clock::now();
     Frames f = load(data);
-    std::printf("loaded %zu RGB + %zu depth frames from %s in %.1f s\n", f.rgb.size(), f.depth.size(), data.c_str(), ms_since(t) / 1000);
+    std::printf("loaded %zu RGB + %zu depth frames from %s in %.1f s\n", f.rgb.size(),
+                f.depth.size(), data.c_str(), ms_since(t) / 1000);
     Frames subset;
-    for (std::size_t i = 0; i < std::min(codec_frames, f.depth.size()); ++i) subset.depth.push_back(f.depth[i]);
-    for (std::size_t i = 0; i < std::min(codec_frames, f.rgb.size()); ++i) subset.rgb.push_back(f.rgb[i]);
+    for (std::size_t i = 0; i < std::min(codec_frames, f.depth.size()); ++i)
+      subset.depth.push_back(f.depth[i]);
+    for (std::size_t i = 0; i < std::min(codec_frames, f.rgb.size()); ++i)
+      subset.rgb.push_back(f.rgb[i]);
     codec_table(subset);
     if (!skip_e2e) end_to_end(f, link_mbps, fps, seconds);
   } catch (const std::exception& e) {

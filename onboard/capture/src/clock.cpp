@@ -1,8 +1,8 @@
 // Real monotonic clock.
+#include "rgbdquad/capture/clock.h"
+
 #include <chrono>
 #include <thread>
-
-#include "rgbdquad/capture/clock.h"
 
 namespace rgbdquad::capture {
 

@@ -22,10 +22,16 @@ bool RegistrationOptions::is_valid(std::string* error) const {
     return false;
   }
   for (double v : R_rgb_depth) {
-    if (!std::isfinite(v)) { *error = "R_rgb_depth must be finite"; return false; }
+    if (!std::isfinite(v)) {
+      *error = "R_rgb_depth must be finite";
+      return false;
+    }
   }
   for (double v : t_rgb_depth_m) {
-    if (!std::isfinite(v)) { *error = "t_rgb_depth_m must be finite"; return false; }
+    if (!std::isfinite(v)) {
+      *error = "t_rgb_depth_m must be finite";
+      return false;
+    }
   }
   return true;
 }
@@ -34,8 +40,7 @@ DepthRegistration::DepthRegistration(const RegistrationOptions& options) : optio
 
 std::optional<DepthFrame> DepthRegistration::register_depth(const DepthFrame& in) const {
   if (in.width <= 0 || in.height <= 0 ||
-      in.depth.size() != static_cast<std::size_t>(in.width) * in.height ||
-      !(in.units_per_m > 0)) {
+      in.depth.size() != static_cast<std::size_t>(in.width) * in.height || !(in.units_per_m > 0)) {
     return std::nullopt;
   }
   const auto& kd = options_.depth;

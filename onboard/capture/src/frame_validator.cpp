@@ -20,10 +20,14 @@ bool FrameValidatorOptions::is_valid(std::string* error) const {
 
 const char* to_string(Verdict verdict) {
   switch (verdict) {
-    case Verdict::kOk: return "ok";
-    case Verdict::kBlank: return "blank";
-    case Verdict::kMalformed: return "malformed";
-    case Verdict::kOutOfOrder: return "out-of-order";
+    case Verdict::kOk:
+      return "ok";
+    case Verdict::kBlank:
+      return "blank";
+    case Verdict::kMalformed:
+      return "malformed";
+    case Verdict::kOutOfOrder:
+      return "out-of-order";
   }
   return "unknown";
 }

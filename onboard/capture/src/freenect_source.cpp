@@ -155,7 +155,8 @@ std::string FreenectSource::error() const {
 
 std::string FreenectSource::describe() const {
   return "freenect:" + std::to_string(options_.device_index) +
-         (options_.disparity_depth ? " (11-bit disparity -> mm, software registration)" : " (registered mm)");
+         (options_.disparity_depth ? " (11-bit disparity -> mm, software registration)"
+                                   : " (registered mm)");
 }
 
 std::uint16_t FreenectSource::disparity_to_mm(std::uint16_t raw) {

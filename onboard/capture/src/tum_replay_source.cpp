@@ -1,13 +1,13 @@
 // TUM RGB-D folder replay.
 #include "rgbdquad/capture/tum_replay_source.h"
 
-#include "rgbdquad/capture/png_file.h"
-
 #include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
+
+#include "rgbdquad/capture/png_file.h"
 
 namespace rgbdquad::capture {
 namespace {
@@ -60,10 +60,13 @@ TumReplaySource::TumReplaySource(const TumReplayOptions& options, Clock* clock)
   const auto rgb = read_index(options_.directory + "/rgb.txt");
   const auto depth = read_index(options_.directory + "/depth.txt");
   if (rgb.empty() || depth.empty()) {
-    throw std::runtime_error("TUM replay: " + options_.directory + " lists no rgb or no depth frames");
+    throw std::runtime_error("TUM replay: " + options_.directory +
+                             " lists no rgb or no depth frames");
   }
-  for (const auto& l : rgb) entries_.push_back({l.timestamp_us, false, options_.directory + "/" + l.file});
-  for (const auto& l : depth) entries_.push_back({l.timestamp_us, true, options_.directory + "/" + l.file});
+  for (const auto& l : rgb)
+    entries_.push_back({l.timestamp_us, false, options_.directory + "/" + l.file});
+  for (const auto& l : depth)
+    entries_.push_back({l.timestamp_us, true, options_.directory + "/" + l.file});
   std::stable_sort(entries_.begin(), entries_.end(),
                    [](const Entry& a, const Entry& b) { return a.timestamp_us < b.timestamp_us; });
   const double rgb_period_us =
@@ -91,7 +94,7 @@ std::size_t TumReplaySource::rgb_count() const {
 std::size_t TumReplaySource::depth_count() const { return entries_.size() - rgb_count(); }
 
 std::string TumReplaySource::describe() const {
-  std::string pacing = options_.fps == 0 ? "original timing"
+  std::string pacing = options_.fps == 0  ? "original timing"
                        : options_.fps < 0 ? "unpaced"
                                           : std::to_string(options_.fps) + " fps";
   return "tum:" + options_.directory + " (" + pacing + (options_.loop ? ", loop" : "") + ")";

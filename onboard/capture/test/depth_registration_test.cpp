@@ -1,10 +1,10 @@
 // Depth-to-RGB registration: identity keeps the image; a baseline shifts a fronto-parallel plane
 // by fx*b/Z pixels; a nearer surface occludes a farther one.
+#include "rgbdquad/capture/depth_registration.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
-
-#include "rgbdquad/capture/depth_registration.h"
 
 namespace rgbdquad::capture {
 namespace {
@@ -28,7 +28,8 @@ DepthFrame plane(std::uint16_t mm) {
 
 TEST(DepthRegistration, IdentityKeepsEveryPixel) {
   DepthFrame in = plane(0);
-  for (std::size_t i = 0; i < in.depth.size(); i += 7) in.depth[i] = static_cast<std::uint16_t>(500 + i % 3000);
+  for (std::size_t i = 0; i < in.depth.size(); i += 7)
+    in.depth[i] = static_cast<std::uint16_t>(500 + i % 3000);
   const auto out = DepthRegistration(same_camera()).register_depth(in);
   ASSERT_TRUE(out.has_value());
   EXPECT_EQ(out->depth, in.depth);

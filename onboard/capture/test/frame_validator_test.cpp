@@ -1,7 +1,7 @@
 // Frame validation: table of good, blank, malformed and out-of-order frames.
-#include <gtest/gtest.h>
-
 #include "rgbdquad/capture/frame_validator.h"
+
+#include <gtest/gtest.h>
 
 namespace rgbdquad::capture {
 namespace {

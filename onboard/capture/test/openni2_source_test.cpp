@@ -3,11 +3,11 @@
 // consistent sizes and increasing timestamps. A missing device is a clear start-up error.
 // Own binary: Debian's DummyDevice 2.2 keeps a generator thread that crashes when its streams are
 // destroyed under it, so the dummy source is deliberately left open until the process exits.
+#include "rgbdquad/capture/openni2_source.h"
+
 #include <gtest/gtest.h>
 
 #include <cstdio>
-
-#include "rgbdquad/capture/openni2_source.h"
 
 namespace rgbdquad::capture {
 namespace {

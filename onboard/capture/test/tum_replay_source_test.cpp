@@ -1,7 +1,7 @@
 // TUM replay on the shipped excerpt, on a simulated clock: order, timestamps, pacing, loop.
-#include <gtest/gtest.h>
-
 #include "rgbdquad/capture/tum_replay_source.h"
+
+#include <gtest/gtest.h>
 
 namespace rgbdquad::capture {
 namespace {

@@ -64,11 +64,16 @@ void Waker::clear() {
 
 const char* to_string(IoStatus status) {
   switch (status) {
-    case IoStatus::kOk: return "ok";
-    case IoStatus::kTimeout: return "timeout";
-    case IoStatus::kWoken: return "stopped";
-    case IoStatus::kClosed: return "closed by peer";
-    case IoStatus::kError: return "socket error";
+    case IoStatus::kOk:
+      return "ok";
+    case IoStatus::kTimeout:
+      return "timeout";
+    case IoStatus::kWoken:
+      return "stopped";
+    case IoStatus::kClosed:
+      return "closed by peer";
+    case IoStatus::kError:
+      return "socket error";
   }
   return "unknown";
 }

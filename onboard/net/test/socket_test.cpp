@@ -1,10 +1,10 @@
 // TCP helpers on loopback: connect/accept/send/read, stop interrupts waits, refused connects fail
 // fast, backoff is capped.
+#include "rgbdquad/net/socket.h"
+
 #include <gtest/gtest.h>
 
 #include <thread>
-
-#include "rgbdquad/net/socket.h"
 
 namespace rgbdquad::net {
 namespace {

@@ -25,10 +25,14 @@ std::optional<Encoding> rgb_encoding_from_string(const std::string& name) {
 
 std::string encoding_name(Encoding encoding) {
   switch (encoding) {
-    case Encoding::kRaw: return "raw";
-    case Encoding::kDepthRvl: return "rvl";
-    case Encoding::kDepthZstdDelta: return "zstd-delta";
-    case Encoding::kRgbJpeg: return "jpeg";
+    case Encoding::kRaw:
+      return "raw";
+    case Encoding::kDepthRvl:
+      return "rvl";
+    case Encoding::kDepthZstdDelta:
+      return "zstd-delta";
+    case Encoding::kRgbJpeg:
+      return "jpeg";
   }
   return "unknown";
 }
@@ -37,12 +41,13 @@ PayloadEncoder::PayloadEncoder(protocol::StreamKind kind, Encoding encoding, int
                                int zstd_level)
     : kind_(kind), encoding_(encoding), zstd_level_(zstd_level) {
   const auto format = kind == protocol::StreamKind::kRgb ? protocol::PixelFormat::kRgb8
-                                                          : protocol::PixelFormat::kDepth16;
+                                                         : protocol::PixelFormat::kDepth16;
   if (!protocol::encoding_allows_pixel_format(encoding, format)) {
     throw std::invalid_argument("encoding " + encoding_name(encoding) + " cannot carry " +
                                 std::string(protocol::to_string(format)));
   }
-  if (encoding == Encoding::kRgbJpeg) jpeg_ = std::make_unique<encodings::JpegEncoder>(jpeg_quality);
+  if (encoding == Encoding::kRgbJpeg)
+    jpeg_ = std::make_unique<encodings::JpegEncoder>(jpeg_quality);
 }
 
 PayloadEncoder::~PayloadEncoder() = default;
@@ -55,7 +60,8 @@ std::optional<std::vector<std::uint8_t>> PayloadEncoder::encode(const capture::S
       *error = "depth frame given to the RGB stream";
       return std::nullopt;
     }
-    if (encoding_ == Encoding::kRgbJpeg) return jpeg_->encode(rgb->rgb.data(), rgb->width, rgb->height, error);
+    if (encoding_ == Encoding::kRgbJpeg)
+      return jpeg_->encode(rgb->rgb.data(), rgb->width, rgb->height, error);
     return rgb->rgb;
   }
   const auto* depth = std::get_if<capture::DepthFrame>(&frame);

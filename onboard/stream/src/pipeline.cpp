@@ -13,7 +13,9 @@ std::string format_stats(const PipelineCounters& now, const PipelineCounters& pr
   };
   auto encode_ms = [](const SenderCounters& n, const SenderCounters& p) {
     const std::uint64_t frames = n.sent - p.sent;
-    return frames == 0 ? 0.0 : static_cast<double>(n.encode_us_total - p.encode_us_total) / 1000.0 / frames;
+    return frames == 0
+               ? 0.0
+               : static_cast<double>(n.encode_us_total - p.encode_us_total) / 1000.0 / frames;
   };
   const auto& v = now.validation;
   // Totals only when there is no interval (the final line), totals and rates otherwise.
@@ -21,9 +23,12 @@ std::string format_stats(const PipelineCounters& now, const PipelineCounters& pr
     return seconds > 0 ? fmt::format("{} ({:.1f}/s)", a, rate(a, b)) : fmt::format("{}", a);
   };
   const std::string bytes =
-      seconds > 0 ? fmt::format("{:.2f} MB/s", (rate(now.rgb.bytes_sent, previous.rgb.bytes_sent) +
-                                                 rate(now.depth.bytes_sent, previous.depth.bytes_sent)) / 1e6)
-                  : fmt::format("{:.1f} MB sent", static_cast<double>(now.rgb.bytes_sent + now.depth.bytes_sent) / 1e6);
+      seconds > 0
+          ? fmt::format("{:.2f} MB/s", (rate(now.rgb.bytes_sent, previous.rgb.bytes_sent) +
+                                        rate(now.depth.bytes_sent, previous.depth.bytes_sent)) /
+                                           1e6)
+          : fmt::format("{:.1f} MB sent",
+                        static_cast<double>(now.rgb.bytes_sent + now.depth.bytes_sent) / 1e6);
   return fmt::format(
       "captured {} sent rgb {} depth {} dropped blank {} malformed {} out-of-order {} "
       "unregistered {} superseded rgb {} depth {} | {} | encode ms rgb {:.2f} depth {:.2f} | "
@@ -49,11 +54,14 @@ bool StreamerPipeline::step() {
   const capture::Verdict verdict = validator_.check(*frame);
   bool unregistered = false;
   if (verdict == capture::Verdict::kOk) {
-    if (auto* depth = std::get_if<capture::DepthFrame>(&*frame); depth && !depth->registered_to_rgb) {
+    if (auto* depth = std::get_if<capture::DepthFrame>(&*frame);
+        depth && !depth->registered_to_rgb) {
       std::optional<capture::DepthFrame> registered;
       if (registration_) registered = registration_->register_depth(*depth);
-      if (registered) *depth = std::move(*registered);
-      else unregistered = true;
+      if (registered)
+        *depth = std::move(*registered);
+      else
+        unregistered = true;
     }
   }
   {

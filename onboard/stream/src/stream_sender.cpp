@@ -35,19 +35,33 @@ std::size_t choose_frame(const std::vector<std::int64_t>& capture_us, std::int64
 
 bool StreamSenderOptions::is_valid(std::string* error) const {
   const auto format = kind == protocol::StreamKind::kRgb ? protocol::PixelFormat::kRgb8
-                                                          : protocol::PixelFormat::kDepth16;
-  if (host.empty()) *error = "host is empty";
-  else if (port == 0) *error = "port must be 1..65535";
-  else if (!protocol::encoding_allows_pixel_format(encoding, format)) *error = "encoding does not fit the stream";
-  else if (width_px <= 0 || height_px <= 0 || width_px > 4096 || height_px > 4096) *error = "size must be 1..4096 px";
-  else if (jpeg_quality < 1 || jpeg_quality > 100) *error = "jpeg_quality must be 1..100";
-  else if (zstd_level < 1 || zstd_level > 19) *error = "zstd_level must be 1..19";
-  else if (backoff_first_ms < 1 || backoff_max_ms < backoff_first_ms || backoff_max_ms > 1000) *error = "backoff must satisfy 1 <= first <= max <= 1000 ms";
-  else if (held_frames < 1 || held_frames > 30) *error = "held_frames must be 1..30";
-  else if (connect_timeout_ms < 1 || handshake_timeout_ms < 1 || stall_timeout_ms < 1 || credit_idle_timeout_ms < 1) *error = "timeouts must be >= 1 ms";
-  else if (kind == protocol::StreamKind::kDepth && !(depth_units_per_m > 0 && depth_units_per_m < 1e6)) *error = "depth_units_per_m must be in (0, 1e6)";
-  else if (std::all_of(key.begin(), key.end(), [](std::uint8_t b) { return b == 0; })) *error = "no stream key (stream_key_file): the receiver accepts only a signed handshake";
-  else return true;
+                                                         : protocol::PixelFormat::kDepth16;
+  if (host.empty())
+    *error = "host is empty";
+  else if (port == 0)
+    *error = "port must be 1..65535";
+  else if (!protocol::encoding_allows_pixel_format(encoding, format))
+    *error = "encoding does not fit the stream";
+  else if (width_px <= 0 || height_px <= 0 || width_px > 4096 || height_px > 4096)
+    *error = "size must be 1..4096 px";
+  else if (jpeg_quality < 1 || jpeg_quality > 100)
+    *error = "jpeg_quality must be 1..100";
+  else if (zstd_level < 1 || zstd_level > 19)
+    *error = "zstd_level must be 1..19";
+  else if (backoff_first_ms < 1 || backoff_max_ms < backoff_first_ms || backoff_max_ms > 1000)
+    *error = "backoff must satisfy 1 <= first <= max <= 1000 ms";
+  else if (held_frames < 1 || held_frames > 30)
+    *error = "held_frames must be 1..30";
+  else if (connect_timeout_ms < 1 || handshake_timeout_ms < 1 || stall_timeout_ms < 1 ||
+           credit_idle_timeout_ms < 1)
+    *error = "timeouts must be >= 1 ms";
+  else if (kind == protocol::StreamKind::kDepth &&
+           !(depth_units_per_m > 0 && depth_units_per_m < 1e6))
+    *error = "depth_units_per_m must be in (0, 1e6)";
+  else if (std::all_of(key.begin(), key.end(), [](std::uint8_t b) { return b == 0; }))
+    *error = "no stream key (stream_key_file): the receiver accepts only a signed handshake";
+  else
+    return true;
   return false;
 }
 
@@ -56,7 +70,9 @@ StreamSender::StreamSender(const StreamSenderOptions& options, capture::Clock* c
     : options_(options), clock_(clock), log_(std::move(logger)) {
   std::string why;
   if (!options_.is_valid(&why)) throw std::invalid_argument("stream sender: " + why);
-  if (!log_) log_ = std::make_shared<spdlog::logger>("null", std::make_shared<spdlog::sinks::null_sink_mt>());
+  if (!log_)
+    log_ =
+        std::make_shared<spdlog::logger>("null", std::make_shared<spdlog::sinks::null_sink_mt>());
   encoder_ = std::make_unique<PayloadEncoder>(options_.kind, options_.encoding,
                                               options_.jpeg_quality, options_.zstd_level);
   raw_encoder_ = std::make_unique<PayloadEncoder>(options_.kind, protocol::Encoding::kRaw,
@@ -122,7 +138,8 @@ void StreamSender::run() {
       std::lock_guard<std::mutex> lock(mutex_);
       ++counters_.refused;
     }
-    if (end.refused && !offer_raw && options_.raw_fallback && options_.encoding != protocol::Encoding::kRaw) {
+    if (end.refused && !offer_raw && options_.raw_fallback &&
+        options_.encoding != protocol::Encoding::kRaw) {
       log_->warn("{} stream: {}; offering raw instead", kind, end.why);
       offer_raw = true;
       continue;
@@ -143,8 +160,9 @@ protocol::Handshake StreamSender::make_hello() const {
   hello.stream_kind = options_.kind;
   hello.width = static_cast<std::uint16_t>(options_.width_px);
   hello.height = static_cast<std::uint16_t>(options_.height_px);
-  hello.pixel_format = options_.kind == protocol::StreamKind::kRgb ? protocol::PixelFormat::kRgb8
-                                                                    : protocol::PixelFormat::kDepth16;
+  hello.pixel_format = options_.kind == protocol::StreamKind::kRgb
+                           ? protocol::PixelFormat::kRgb8
+                           : protocol::PixelFormat::kDepth16;
   hello.encoding = current_encoding_;
   hello.intrinsics = options_.intrinsics;
   hello.depth_scale_units_per_m =
@@ -153,7 +171,8 @@ protocol::Handshake StreamSender::make_hello() const {
   return hello;
 }
 
-StreamSender::ConnectionEnd StreamSender::serve_connection(int fd, const std::function<void()>& on_live) {
+StreamSender::ConnectionEnd StreamSender::serve_connection(int fd,
+                                                           const std::function<void()>& on_live) {
   SenderSessionOptions session_options;
   session_options.hello = make_hello();
   session_options.key = options_.key;
@@ -166,7 +185,8 @@ StreamSender::ConnectionEnd StreamSender::serve_connection(int fd, const std::fu
   // Sends what the session produced; true when the connection is over (`end` says why).
   auto carry_out = [&](SenderOutput&& out) {
     if (!out.send.empty()) {
-      const net::IoStatus s = net::send_all(fd, out.send.data(), out.send.size(), stop_waker_, options_.stall_timeout_ms);
+      const net::IoStatus s = net::send_all(fd, out.send.data(), out.send.size(), stop_waker_,
+                                            options_.stall_timeout_ms);
       if (s != net::IoStatus::kOk) {
         end.why = std::string("sending handshake: ") + net::to_string(s);
         return true;
@@ -179,8 +199,8 @@ StreamSender::ConnectionEnd StreamSender::serve_connection(int fd, const std::fu
         ++counters_.connects;
       }
       on_live();
-      log_->info("{} stream: connected to {}:{} ({})", protocol::to_string(options_.kind).data(), options_.host,
-                 options_.port, encoding_name(current_encoding_));
+      log_->info("{} stream: connected to {}:{} ({})", protocol::to_string(options_.kind).data(),
+                 options_.host, options_.port, encoding_name(current_encoding_));
       connected_ = true;
     }
     if (out.close) {
@@ -209,9 +229,11 @@ StreamSender::ConnectionEnd StreamSender::serve_connection(int fd, const std::fu
     const std::int64_t now_us = clock_->now_us();
     if (carry_out(session.on_tick(now_us, waiting))) return end;
     // 2. Wait for the receiver, a new frame (while live) or stop, at most until the next deadline.
-    const int timeout_ms = static_cast<int>(
-        std::clamp<std::int64_t>((session.next_deadline_us() - now_us) / 1000 + 1, 1, options_.credit_idle_timeout_ms));
-    pollfd fds[3] = {{fd, POLLIN, 0}, {session.live() ? frame_waker_.fd() : -1, POLLIN, 0}, {stop_waker_.fd(), POLLIN, 0}};
+    const int timeout_ms = static_cast<int>(std::clamp<std::int64_t>(
+        (session.next_deadline_us() - now_us) / 1000 + 1, 1, options_.credit_idle_timeout_ms));
+    pollfd fds[3] = {{fd, POLLIN, 0},
+                     {session.live() ? frame_waker_.fd() : -1, POLLIN, 0},
+                     {stop_waker_.fd(), POLLIN, 0}};
     const int n = poll(fds, 3, timeout_ms);
     if (n < 0 && errno != EINTR) {
       end.why = "poll failed";
@@ -223,7 +245,9 @@ StreamSender::ConnectionEnd StreamSender::serve_connection(int fd, const std::fu
       std::size_t got = 0;
       const net::IoStatus s = net::read_some(fd, buffer, sizeof buffer, &got, stop_waker_, 0);
       if (s != net::IoStatus::kOk && s != net::IoStatus::kTimeout) {
-        end.why = std::string(session.live() ? "connection lost (" : "waiting for handshake ack: (") + net::to_string(s) + ")";
+        end.why =
+            std::string(session.live() ? "connection lost (" : "waiting for handshake ack: (") +
+            net::to_string(s) + ")";
         return end;
       }
       if (carry_out(session.on_bytes(clock_->now_us(), buffer, got))) return end;
@@ -243,7 +267,8 @@ bool StreamSender::send_newest(int fd, std::optional<std::uint32_t>* last_sent) 
     if (options_.pair_hint && options_.kind == protocol::StreamKind::kDepth) {
       std::vector<std::int64_t> times;
       for (const auto& held : mailbox_) {
-        times.push_back(std::visit([](const auto& f) { return f.capture_timestamp_us; }, held.second));
+        times.push_back(
+            std::visit([](const auto& f) { return f.capture_timestamp_us; }, held.second));
       }
       const std::int64_t hint = options_.pair_hint->rgb_sent_us();
       pick = choose_frame(times, hint, hint_used_us_);
@@ -257,7 +282,8 @@ bool StreamSender::send_newest(int fd, std::optional<std::uint32_t>* last_sent) 
   }
   const std::int64_t start_us = clock_->now_us();
   std::string error;
-  PayloadEncoder* encoder = current_encoding_ == options_.encoding ? encoder_.get() : raw_encoder_.get();
+  PayloadEncoder* encoder =
+      current_encoding_ == options_.encoding ? encoder_.get() : raw_encoder_.get();
   const auto payload = encoder->encode(*frame, &error);
   const std::int64_t encoded_us = clock_->now_us();
   if (!payload) {
@@ -274,8 +300,9 @@ bool StreamSender::send_newest(int fd, std::optional<std::uint32_t>* last_sent) 
   header.send_timestamp_us = static_cast<std::uint64_t>(encoded_us);
   header.width = static_cast<std::uint16_t>(options_.width_px);
   header.height = static_cast<std::uint16_t>(options_.height_px);
-  header.pixel_format = options_.kind == protocol::StreamKind::kRgb ? protocol::PixelFormat::kRgb8
-                                                                     : protocol::PixelFormat::kDepth16;
+  header.pixel_format = options_.kind == protocol::StreamKind::kRgb
+                            ? protocol::PixelFormat::kRgb8
+                            : protocol::PixelFormat::kDepth16;
   header.encoding = current_encoding_;
   header.payload_length = static_cast<std::uint32_t>(payload->size());
   const auto bytes = protocol::encode_frame(header, payload->data(), payload->size());
@@ -289,7 +316,8 @@ bool StreamSender::send_newest(int fd, std::optional<std::uint32_t>* last_sent) 
   const net::IoStatus s = net::send_all(fd, bytes.bytes.data(), bytes.bytes.size(), stop_waker_,
                                         options_.stall_timeout_ms);
   if (s != net::IoStatus::kOk) {
-    log_->warn("{} stream: send failed ({})", protocol::to_string(options_.kind).data(), net::to_string(s));
+    log_->warn("{} stream: send failed ({})", protocol::to_string(options_.kind).data(),
+               net::to_string(s));
     return false;
   }
   *last_sent = sequence;

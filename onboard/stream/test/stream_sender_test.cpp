@@ -1,8 +1,9 @@
 // Sender pieces without sockets: the pair-aware frame choice and the payload encoder's contract;
 // and, on loopback, the handshake deadline against a receiver that drips its answer.
-#include <sys/socket.h>
+#include "rgbdquad/stream/stream_sender.h"
 
 #include <gtest/gtest.h>
+#include <sys/socket.h>
 
 #include <chrono>
 #include <thread>
@@ -11,7 +12,6 @@
 #include "rgbdquad/net/socket.h"
 #include "rgbdquad/protocol/stream_auth_testing.hpp"
 #include "rgbdquad/stream/payload_encoder.h"
-#include "rgbdquad/stream/stream_sender.h"
 
 namespace rgbdquad::stream {
 namespace {
@@ -31,7 +31,8 @@ TEST(ChooseFrame, TableOfHints) {
       {"RGB older than every depth: oldest", -5000, 40000, 0},
       {"tie: the newer one", 50500, 0, 2},
   };
-  for (const auto& c : cases) EXPECT_EQ(choose_frame(held, c.hint, c.used_before), c.expected) << c.name;
+  for (const auto& c : cases)
+    EXPECT_EQ(choose_frame(held, c.hint, c.used_before), c.expected) << c.name;
 }
 
 TEST(PayloadEncoder, EncodesOnlyItsKindInItsEncoding) {
@@ -47,14 +48,16 @@ TEST(PayloadEncoder, EncodesOnlyItsKindInItsEncoding) {
   std::string error;
   const auto payload = rvl.encode(depth, &error);
   ASSERT_TRUE(payload.has_value()) << error;
-  const auto back = encodings::decode_depth(encodings::DepthCodec::kRvl, payload->data(), payload->size(), 4, 2, &error);
+  const auto back = encodings::decode_depth(encodings::DepthCodec::kRvl, payload->data(),
+                                            payload->size(), 4, 2, &error);
   ASSERT_TRUE(back.has_value()) << error;
   EXPECT_EQ(*back, depth.depth);
   EXPECT_FALSE(rvl.encode(rgb, &error).has_value());
   EXPECT_NE(error.find("RGB frame given to the depth stream"), std::string::npos);
   PayloadEncoder raw_rgb(protocol::StreamKind::kRgb, protocol::Encoding::kRaw, 90, 1);
   EXPECT_EQ(*raw_rgb.encode(rgb, &error), rgb.rgb);
-  EXPECT_THROW(PayloadEncoder(protocol::StreamKind::kRgb, protocol::Encoding::kDepthRvl, 90, 1), std::invalid_argument);
+  EXPECT_THROW(PayloadEncoder(protocol::StreamKind::kRgb, protocol::Encoding::kDepthRvl, 90, 1),
+               std::invalid_argument);
   EXPECT_EQ(depth_encoding_from_string("zstd-delta"), protocol::Encoding::kDepthZstdDelta);
   EXPECT_FALSE(rgb_encoding_from_string("rvl").has_value());
 }
@@ -92,7 +95,8 @@ TEST(StreamSender, HandshakeDeadlineIsNotRestartedByADrippingReceiver) {
     }
   }
   const auto waited_ms =
-      std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - t0).count();
+      std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - t0)
+          .count();
   EXPECT_TRUE(reconnected) << "still waiting for the ack after " << waited_ms << " ms";
   EXPECT_LT(waited_ms, 1500);
 }

@@ -16,7 +16,8 @@ constexpr std::size_t kMaxPixelCount = 4096u * 4096u;
 bool dims_ok(int width, int height, std::string* error) {
   if (width <= 0 || height <= 0 ||
       static_cast<std::size_t>(width) * static_cast<std::size_t>(height) > kMaxPixelCount) {
-    if (error) *error = "invalid image size " + std::to_string(width) + "x" + std::to_string(height);
+    if (error)
+      *error = "invalid image size " + std::to_string(width) + "x" + std::to_string(height);
     return false;
   }
   return true;
@@ -140,17 +141,21 @@ constexpr std::size_t kLz4SizePrefixBytes = 4;
 
 const char* to_string(DepthCodec codec) {
   switch (codec) {
-    case DepthCodec::kRaw: return "raw";
-    case DepthCodec::kRvl: return "rvl";
-    case DepthCodec::kZstdDelta: return "zstd-delta";
-    case DepthCodec::kLz4Delta: return "lz4-delta";
+    case DepthCodec::kRaw:
+      return "raw";
+    case DepthCodec::kRvl:
+      return "rvl";
+    case DepthCodec::kZstdDelta:
+      return "zstd-delta";
+    case DepthCodec::kLz4Delta:
+      return "lz4-delta";
   }
   return "unknown";
 }
 
 std::optional<DepthCodec> depth_codec_from_string(const std::string& name) {
-  for (DepthCodec c : {DepthCodec::kRaw, DepthCodec::kRvl, DepthCodec::kZstdDelta,
-                       DepthCodec::kLz4Delta}) {
+  for (DepthCodec c :
+       {DepthCodec::kRaw, DepthCodec::kRvl, DepthCodec::kZstdDelta, DepthCodec::kLz4Delta}) {
     if (name == to_string(c)) return c;
   }
   return std::nullopt;
@@ -165,7 +170,10 @@ std::vector<std::uint8_t> rvl_encode(const std::uint16_t* depth, std::size_t pix
   std::int32_t previous = 0;
   while (p != end) {
     std::uint32_t zeros = 0;
-    while (p != end && *p == 0) { ++p; ++zeros; }
+    while (p != end && *p == 0) {
+      ++p;
+      ++zeros;
+    }
     writer.put_value(zeros);
     std::uint32_t nonzeros = 0;
     for (const std::uint16_t* q = p; q != end && *q != 0; ++q) ++nonzeros;
@@ -247,10 +255,10 @@ std::vector<std::uint8_t> encode_depth(DepthCodec codec, const std::uint16_t* de
       for (std::size_t b = 0; b < kLz4SizePrefixBytes; ++b) {
         out[b] = static_cast<std::uint8_t>(raw_size >> (8 * b));
       }
-      const int written = LZ4_compress_default(
-          reinterpret_cast<const char*>(deltas.data()),
-          reinterpret_cast<char*>(out.data() + kLz4SizePrefixBytes),
-          static_cast<int>(deltas.size()), bound);
+      const int written =
+          LZ4_compress_default(reinterpret_cast<const char*>(deltas.data()),
+                               reinterpret_cast<char*>(out.data() + kLz4SizePrefixBytes),
+                               static_cast<int>(deltas.size()), bound);
       out.resize(kLz4SizePrefixBytes + static_cast<std::size_t>(written > 0 ? written : 0));
       return out;
     }
@@ -258,7 +266,8 @@ std::vector<std::uint8_t> encode_depth(DepthCodec codec, const std::uint16_t* de
   return {};
 }
 
-std::optional<std::vector<std::uint16_t>> decode_depth(DepthCodec codec, const std::uint8_t* payload,
+std::optional<std::vector<std::uint16_t>> decode_depth(DepthCodec codec,
+                                                       const std::uint8_t* payload,
                                                        std::size_t payload_bytes, int width,
                                                        int height, std::string* error) {
   if (!dims_ok(width, height, error)) return std::nullopt;
@@ -269,8 +278,9 @@ std::optional<std::vector<std::uint16_t>> decode_depth(DepthCodec codec, const s
   };
   switch (codec) {
     case DepthCodec::kRaw: {
-      if (payload_bytes != n * 2) return fail("payload is " + std::to_string(payload_bytes) +
-                                              " bytes, expected " + std::to_string(n * 2));
+      if (payload_bytes != n * 2)
+        return fail("payload is " + std::to_string(payload_bytes) + " bytes, expected " +
+                    std::to_string(n * 2));
       std::vector<std::uint16_t> out(n);
       for (std::size_t i = 0; i < n; ++i) {
         out[i] = static_cast<std::uint16_t>(payload[2 * i] | (payload[2 * i + 1] << 8));

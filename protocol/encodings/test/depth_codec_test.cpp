@@ -1,17 +1,18 @@
 // Lossless depth codecs: bit-exact round trips on real TUM Kinect frames, and malformed payloads
 // rejected without crashing.
+#include "rgbdquad/encodings/depth_codec.h"
+
 #include <gtest/gtest.h>
 
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 
-#include "rgbdquad/encodings/depth_codec.h"
-
 namespace rgbdquad::encodings {
 namespace {
 
 constexpr const char* kDepthPng = RGBD_TEST_DATA_DIR "/fr1_xyz_first30/depth/1305031102.160407.png";
-constexpr const char* kDepthPng2 = RGBD_TEST_DATA_DIR "/fr1_desk_9frames/depth/1305031453.374112.png";
+constexpr const char* kDepthPng2 =
+    RGBD_TEST_DATA_DIR "/fr1_desk_9frames/depth/1305031453.374112.png";
 constexpr DepthCodec kAllCodecs[] = {DepthCodec::kRaw, DepthCodec::kRvl, DepthCodec::kZstdDelta,
                                      DepthCodec::kLz4Delta};
 

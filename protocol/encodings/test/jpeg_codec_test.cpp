@@ -1,12 +1,12 @@
 // JPEG RGB codec: real frames compress, decode to the right size with bounded error; bad input
 // is rejected with a message.
+#include "rgbdquad/encodings/jpeg_codec.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-
-#include "rgbdquad/encodings/jpeg_codec.h"
 
 namespace rgbdquad::encodings {
 namespace {

@@ -12,7 +12,8 @@ namespace rgbdquad::receiver {
 class LogThrottle {
  public:
   /// Defaults: 5 lines per second, enough to see what a misbehaving streamer sends.
-  explicit LogThrottle(int burst = 5, std::int64_t window_us = 1'000'000) : burst_(burst), window_us_(window_us) {}
+  explicit LogThrottle(int burst = 5, std::int64_t window_us = 1'000'000)
+      : burst_(burst), window_us_(window_us) {}
 
   /// True when a line may be logged at `now_us`; then `*suppressed` is the number of lines
   /// dropped since the last one let through (to be mentioned in that line).

@@ -12,8 +12,9 @@
 // of the connect, first message); only then does it replace the live streamer, so the streamer
 // may reconnect at any moment but a raw connect, garbage or a peer without the key displaces
 // nothing. Up to 4 candidates wait at once. The protocol logic of one connection is the
-// socket-free ReceiverSession (receiver_session.h); this class is its socket shell. Log lines caused by a peer's input are rate-limited (log_throttle.h).
-// A failed accept (descriptor limit) pauses the listener 100 ms instead of spinning.
+// socket-free ReceiverSession (receiver_session.h); this class is its socket shell. Log lines
+// caused by a peer's input are rate-limited (log_throttle.h). A failed accept (descriptor limit)
+// pauses the listener 100 ms instead of spinning.
 //
 // Thread safety: all public members may be called from any thread. Two I/O threads (one per
 // port) are owned by the receiver, started in the constructor and joined in the destructor.
@@ -48,8 +49,8 @@ struct FrameInfo {
   std::int64_t send_timestamp_us = 0;     // streamer's monotonic clock at encode
   std::int64_t receive_timestamp_us = 0;  // receiver clock when the frame was complete
   protocol::Encoding encoding = protocol::Encoding::kRaw;
-  std::size_t wire_bytes = 0;     // envelope bytes of the Frame message
-  std::int64_t decode_us = 0;     // time to decode the payload
+  std::size_t wire_bytes = 0;  // envelope bytes of the Frame message
+  std::int64_t decode_us = 0;  // time to decode the payload
   int width = 0;
   int height = 0;
 };
@@ -57,12 +58,18 @@ struct FrameInfo {
 struct ReceivedRgb {
   FrameInfo info;
   std::vector<std::uint8_t> rgb;  // width*height*3, R,G,B
+  // The payload as it came off the link when it was encoded (info.encoding kRgbJpeg: one JFIF
+  // image), shared so a recorder can store it without re-encoding; null for raw frames.
+  std::shared_ptr<const std::vector<std::uint8_t>> encoded;
 };
 
 struct ReceivedDepth {
   FrameInfo info;
-  double units_per_m = 1000.0;      // from the depth handshake
+  double units_per_m = 1000.0;       // from the depth handshake
   std::vector<std::uint16_t> depth;  // width*height, 0 = no reading
+  // The payload as received when encoded (info.encoding kDepthRvl / kDepthZstdDelta,
+  // protocol/encodings/README.md), shared for a recorder; null for raw frames.
+  std::shared_ptr<const std::vector<std::uint8_t>> encoded;
 };
 
 struct RgbdPair {
@@ -83,7 +90,7 @@ struct ReceiverOptions {
   // The craft's stream key (protocol/stream_auth.hpp; read from a key file with
   // protocol::load_stream_key_file): only a streamer holding it is accepted. Required.
   protocol::StreamKey key{};
-  std::uint16_t rgb_port = 5600;    // 0 = any free port (tests)
+  std::uint16_t rgb_port = 5600;  // 0 = any free port (tests)
   std::uint16_t depth_port = 5601;
   // Frames in flight per stream: 2 hides one round trip (so the link stays busy) while keeping at
   // most one frame that is older than the newest at send time.
@@ -106,15 +113,16 @@ struct ReceiverOptions {
 
 struct ChannelCounters {
   std::uint64_t connections = 0;
-  std::uint64_t replaced = 0;            // live connection replaced by a new one whose handshake was accepted
-  std::uint64_t dropped_before_handshake = 0;  // new connections that never became live (garbage,
-                                               // refused or no handshake within 2 s): nothing displaced
+  std::uint64_t replaced = 0;  // live connection replaced by a new one whose handshake was accepted
+  std::uint64_t dropped_before_handshake =
+      0;  // new connections that never became live (garbage,
+          // refused or no handshake within 2 s): nothing displaced
   std::uint64_t disconnects = 0;
   std::uint64_t handshakes_refused = 0;
-  std::uint64_t frames = 0;              // valid frames stored
-  std::uint64_t crc_errors = 0;          // header or body CRC mismatch (frame dropped)
-  std::uint64_t protocol_errors = 0;     // other envelope/body errors
-  std::uint64_t invalid_frames = 0;      // frame disagrees with the handshake or fails to decode
+  std::uint64_t frames = 0;           // valid frames stored
+  std::uint64_t crc_errors = 0;       // header or body CRC mismatch (frame dropped)
+  std::uint64_t protocol_errors = 0;  // other envelope/body errors
+  std::uint64_t invalid_frames = 0;   // frame disagrees with the handshake or fails to decode
   std::uint64_t wire_bytes = 0;
   std::int64_t decode_us_total = 0;
 };

@@ -14,7 +14,7 @@ struct StreamerConfig {
   std::string source = "freenect";  // freenect | openni2 | tum
   int freenect_device_index = 0;
   bool freenect_disparity_depth = false;  // true for fakenect dumps (see freenect_source.h)
-  std::string openni2_uri;                  // empty = first device
+  std::string openni2_uri;                // empty = first device
   std::string tum_directory;
   double tum_fps = 0.0;  // 0 original timing, > 0 RGB frame rate, < 0 unpaced
   bool tum_loop = true;

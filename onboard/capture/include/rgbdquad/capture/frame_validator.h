@@ -27,8 +27,8 @@ struct ValidationCounters {
   std::uint64_t depth_ok = 0;
   std::uint64_t rgb_blank = 0;
   std::uint64_t depth_blank = 0;
-  std::uint64_t malformed = 0;       // wrong size / buffer length / depth units
-  std::uint64_t out_of_order = 0;    // timestamp <= previous of the same channel
+  std::uint64_t malformed = 0;     // wrong size / buffer length / depth units
+  std::uint64_t out_of_order = 0;  // timestamp <= previous of the same channel
   std::uint64_t dropped() const { return rgb_blank + depth_blank + malformed + out_of_order; }
 };
 

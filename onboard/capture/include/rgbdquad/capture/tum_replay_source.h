@@ -58,8 +58,8 @@ class TumReplaySource final : public FrameSource {
   Clock* clock_;
   std::vector<Entry> entries_;  // merged, time-ordered
   std::vector<SourceFrame> preloaded_;
-  double time_scale_ = 1.0;     // wall seconds per dataset second
-  std::int64_t span_us_ = 0;    // dataset span + one RGB period (loop offset)
+  double time_scale_ = 1.0;   // wall seconds per dataset second
+  std::int64_t span_us_ = 0;  // dataset span + one RGB period (loop offset)
   std::size_t cursor_ = 0;
   std::size_t delivered_ = 0;
   std::int64_t loop_offset_us_ = 0;

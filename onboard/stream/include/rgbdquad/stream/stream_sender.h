@@ -3,11 +3,12 @@
 // Contract (docs/protocol.md): connect to host:port, answer the receiver's StreamChallenge with a
 // Handshake (stream kind, size, encoding, intrinsics, depth scale) signed with the stream key,
 // wait for a HandshakeAck whose mac verifies (refused: offer raw next, see raw_fallback); the
-// protocol logic is the socket-free SenderSession (sender_session.h). Then send one Frame per credit granted by the
-// receiver's FrameRequests, always the NEWEST frame published since the last one sent (a slow
-// receiver never gets a backlog: frames it had no credit for are overwritten, counted as
-// "superseded"). On any failure (refused, closed, stalled, no credit for credit_idle_timeout_ms
-// while frames wait) it reconnects forever with exponential backoff capped at backoff_max_ms.
+// protocol logic is the socket-free SenderSession (sender_session.h). Then send one Frame per
+// credit granted by the receiver's FrameRequests, always the NEWEST frame published since the last
+// one sent (a slow receiver never gets a backlog: frames it had no credit for are overwritten,
+// counted as "superseded"). On any failure (refused, closed, stalled, no credit for
+// credit_idle_timeout_ms while frames wait) it reconnects forever with exponential backoff capped
+// at backoff_max_ms.
 //
 // Thread safety: publish(), counters(), connected() may be called from any thread. The
 // connection runs on a thread owned by the sender, started in the constructor and joined in the
@@ -18,12 +19,12 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
-#include <vector>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "rgbdquad/capture/clock.h"
 #include "rgbdquad/capture/frame.h"
@@ -146,7 +147,8 @@ class StreamSender {
   net::Waker stop_waker_;
   net::Waker frame_waker_;
   mutable std::mutex mutex_;  // guards mailbox_, next_sequence_, counters_
-  std::deque<std::pair<std::uint32_t, capture::SourceFrame>> mailbox_;  // (sequence, frame), oldest first
+  std::deque<std::pair<std::uint32_t, capture::SourceFrame>>
+      mailbox_;                                  // (sequence, frame), oldest first
   std::int64_t hint_used_us_ = PairHint::kNone;  // connection thread only
   std::uint32_t next_sequence_ = 0;
   SenderCounters counters_;

@@ -4,7 +4,8 @@
 // encodes with them, the ground-station receiver decodes with them.
 //
 // All functions are pure and thread-safe (no shared state). Decoders never trust their input:
-// malformed, truncated or oversized payloads yield std::nullopt and an error message, never a crash.
+// malformed, truncated or oversized payloads yield std::nullopt and an error message, never a
+// crash.
 #pragma once
 
 #include <cstddef>
@@ -32,7 +33,8 @@ std::vector<std::uint8_t> encode_depth(DepthCodec codec, const std::uint16_t* de
                                        int height, int zstd_level = 1);
 
 // Decodes a payload that must hold exactly width*height pixels.
-std::optional<std::vector<std::uint16_t>> decode_depth(DepthCodec codec, const std::uint8_t* payload,
+std::optional<std::vector<std::uint16_t>> decode_depth(DepthCodec codec,
+                                                       const std::uint8_t* payload,
                                                        std::size_t payload_bytes, int width,
                                                        int height, std::string* error);
 
