@@ -7,7 +7,6 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
-#include <iterator>
 #include <nlohmann/json.hpp>
 
 #include "rgbdquad/protocol/stream_auth_testing.hpp"
@@ -19,30 +18,11 @@ using Kind = ReceiverEvent::Kind;
 const std::string kVectors = RGBD_PROTOCOL_VECTORS_DIR;
 
 std::vector<std::uint8_t> vector_bytes(const std::string& name) {
-  std::ifstream in(kVectors + "/" + name + ".bin", std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  return protocol::testing::golden_vector_bytes(kVectors, name);
 }
 
-template <typename Array>
-Array hex_array(const std::string& hex) {
-  Array out{};
-  for (std::size_t i = 0; i < out.size(); ++i)
-    out[i] = static_cast<std::uint8_t>(std::stoi(hex.substr(2 * i, 2), nullptr, 16));
-  return out;
-}
-
-struct VectorAuth {
-  protocol::StreamKey key;
-  protocol::StreamNonce receiver_nonce;
-  protocol::StreamNonce sender_nonce;
-};
-VectorAuth vector_auth() {
-  std::ifstream in(kVectors + "/manifest.json");
-  const auto auth = nlohmann::json::parse(in)["stream_auth"];
-  return {hex_array<protocol::StreamKey>(auth["key"]),
-          hex_array<protocol::StreamNonce>(auth["receiver_nonce"]),
-          hex_array<protocol::StreamNonce>(auth["sender_nonce"])};
-}
+using VectorAuth = protocol::testing::GoldenStreamAuth;
+VectorAuth vector_auth() { return protocol::testing::golden_stream_auth(kVectors); }
 
 ReceiverSessionOptions rgb_options(const protocol::StreamKey& key) {
   ReceiverSessionOptions o;

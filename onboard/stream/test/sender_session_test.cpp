@@ -7,10 +7,6 @@
 
 #include <gtest/gtest.h>
 
-#include <fstream>
-#include <iterator>
-#include <nlohmann/json.hpp>
-
 #include "rgbdquad/protocol/stream_auth_testing.hpp"
 
 namespace rgbdquad::stream {
@@ -19,8 +15,7 @@ namespace {
 const std::string kVectors = RGBD_PROTOCOL_VECTORS_DIR;
 
 std::vector<std::uint8_t> vector_bytes(const std::string& name) {
-  std::ifstream in(kVectors + "/" + name + ".bin", std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  return protocol::testing::golden_vector_bytes(kVectors, name);
 }
 
 protocol::Message only_message(const std::string& name) {
@@ -31,27 +26,18 @@ protocol::Message only_message(const std::string& name) {
   return r.message.value_or(protocol::Message{});
 }
 
-template <typename Array>
-Array hex_array(const std::string& hex) {
-  Array out{};
-  for (std::size_t i = 0; i < out.size(); ++i)
-    out[i] = static_cast<std::uint8_t>(std::stoi(hex.substr(2 * i, 2), nullptr, 16));
-  return out;
-}
-
 struct Golden {
   SenderSessionOptions options;
   protocol::StreamNonce sender_nonce;
   protocol::StreamNonce receiver_nonce;
 };
 Golden golden() {
-  std::ifstream in(kVectors + "/manifest.json");
-  const auto auth = nlohmann::json::parse(in)["stream_auth"];
+  const protocol::testing::GoldenStreamAuth auth = protocol::testing::golden_stream_auth(kVectors);
   Golden g;
   g.options.hello = std::get<protocol::Handshake>(only_message("handshake_rgb"));
-  g.options.key = hex_array<protocol::StreamKey>(auth["key"]);
-  g.sender_nonce = hex_array<protocol::StreamNonce>(auth["sender_nonce"]);
-  g.receiver_nonce = hex_array<protocol::StreamNonce>(auth["receiver_nonce"]);
+  g.options.key = auth.key;
+  g.sender_nonce = auth.sender_nonce;
+  g.receiver_nonce = auth.receiver_nonce;
   return g;
 }
 
