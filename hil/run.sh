@@ -3,16 +3,18 @@
 # of what each reported (test-artifacts/hil/*.json) and the latency budget.
 #   RGBD_BUILD_DIR   build folder holding bin/fw_sim, bin/slam-eval, ... (default: build)
 #   RGBD_FIRMWARE_ELF firmware image (default: firmware/.pio/build/uno_wifi/program.elf)
-# Scenarios whose components are not built are skipped with the reason. Extra args go to pytest.
+# A scenario whose components are not built fails with the reason (HIL_STRICT=1; set HIL_STRICT=0
+# to let such scenarios skip while running a subset). Extra args go to pytest.
 set -uo pipefail
 if [ "${1:-}" = "-h" ] || [ "${1:-}" = "--help" ]; then
-  sed -n '2,6p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,7p' "$0" | sed 's/^# \{0,1\}//'
   exit 0
 fi
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 export RGBD_BUILD_DIR=${RGBD_BUILD_DIR:-$root/build}
 export MPLBACKEND=Agg
+export HIL_STRICT=${HIL_STRICT:-1}
 rm -f test-artifacts/hil/*.json
 .venv/bin/python -m pytest -m hil hil -v -s -rsxX "$@"
 status=$?
