@@ -11,17 +11,22 @@ simulated microseconds. The HIL rig builds on this.
     result = sc.run(key_record=record_bytes)
     result.pulses_of(3)          # throttle pulses
 
-Binary and image are found at <repo>/build/bin/fw_sim and firmware/.pio/build/uno_wifi/program.elf
-(`make build` makes both), or from FW_SIM_BIN / FW_ELF.
+This is the one driver of fw_sim: the HIL rig's live flights (LiveSession) and the batch scenarios
+(Scenario) both go through it. The harness is found at $RGBD_BUILD_DIR/bin/fw_sim (default
+<repo>/build, `make build`), the image at $RGBD_FIRMWARE_ELF (default
+firmware/.pio/build/uno_wifi/program.elf, `make firmware`); both can also be passed explicitly.
 """
 
 from __future__ import annotations
 
 import os
 import pathlib
+import shutil
 import subprocess
 import tempfile
 from dataclasses import dataclass, field
+
+from hilrig.paths import find_binary
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 #: Upper bound on one fw_sim run (wall clock): scenarios are a few simulated seconds, simavr runs
@@ -31,14 +36,37 @@ RUN_TIMEOUT_S = 120
 MAV_BYTE_US = 10 / 57600 * 1e6
 
 
+FIRMWARE_ELF = REPO / "firmware" / ".pio" / "build" / "uno_wifi" / "program.elf"
+
+
 def fw_sim_path() -> pathlib.Path:
-    return pathlib.Path(os.environ.get("FW_SIM_BIN", REPO / "build" / "bin" / "fw_sim"))
+    """Where the harness should be ($RGBD_BUILD_DIR/bin/fw_sim), built or not."""
+    found = find_binary("fw_sim")
+    if found is not None:
+        return found
+    return pathlib.Path(os.environ.get("RGBD_BUILD_DIR", REPO / "build")) / "bin" / "fw_sim"
 
 
 def firmware_elf_path() -> pathlib.Path:
-    return pathlib.Path(
-        os.environ.get("FW_ELF", REPO / "firmware" / ".pio" / "build" / "uno_wifi" / "program.elf")
-    )
+    """Where the firmware image should be ($RGBD_FIRMWARE_ELF), built or not."""
+    return pathlib.Path(os.environ.get("RGBD_FIRMWARE_ELF", FIRMWARE_ELF))
+
+
+def firmware_elf() -> pathlib.Path | None:
+    """The firmware image if it is built, else None."""
+    p = firmware_elf_path()
+    return p if p.is_file() else None
+
+
+def _require(sim: pathlib.Path | None, elf: pathlib.Path | None) -> tuple[pathlib.Path, pathlib.Path]:
+    sim, elf = sim or fw_sim_path(), elf or firmware_elf_path()
+    for p, how in (
+        (sim, "build it: make build (or cmake --build ... --target fw_sim)"),
+        (elf, "build it: make firmware (firmware/build.sh)"),
+    ):
+        if not p.is_file():
+            raise FileNotFoundError(f"{p} not found: {how}")
+    return sim, elf
 
 
 @dataclass(frozen=True)
@@ -46,6 +74,15 @@ class Pulse:
     channel: int  # 1..4 (roll, pitch, throttle, yaw)
     rise_us: float
     width_us: float
+
+    @property
+    def end_us(self) -> float:
+        return self.rise_us + self.width_us
+
+    @property
+    def rc_index(self) -> int:
+        """0..3, the index the flight-controller emulator's feed_pulse takes."""
+        return self.channel - 1
 
 
 @dataclass(frozen=True)
@@ -128,18 +165,18 @@ class Scenario:
         workdir: pathlib.Path | None = None,
         keep_eeprom: bool = False,
         stack_paint_from: int | None = None,
+        fw_sim: pathlib.Path | None = None,
+        elf: pathlib.Path | None = None,
+        timeout_s: float = RUN_TIMEOUT_S,
     ) -> Result:
         """Runs fw_sim; key_record is the EEPROM content from address 0 (None: erased EEPROM, no
         key), e.g. a key record or the `eeprom` of an earlier Result (a reboot)."""
-        sim, elf = fw_sim_path(), firmware_elf_path()
-        for p, how in (
-            (sim, "build it: make build (or cmake --build ... --target fw_sim)"),
-            (elf, "build it: firmware/build.sh"),
-        ):
-            if not p.is_file():
-                raise FileNotFoundError(f"{p} not found: {how}")
-        args = [str(sim), "--elf", str(elf)]
+        sim, elf = _require(fw_sim, elf)
         with tempfile.TemporaryDirectory(dir=workdir) as tmp:
+            # A private copy of the image: the one in the tree can be rebuilt while this runs.
+            elf_copy = pathlib.Path(tmp) / "program.elf"
+            shutil.copyfile(elf, elf_copy)
+            args = [str(sim), "--elf", str(elf_copy)]
             if key_record is not None:
                 ee = pathlib.Path(tmp) / "eeprom_in.bin"
                 ee.write_bytes(key_record)
@@ -154,7 +191,7 @@ class Scenario:
                 input=self.script(),
                 capture_output=True,
                 text=True,
-                timeout=RUN_TIMEOUT_S,
+                timeout=timeout_s,
                 check=False,
             )
             if proc.returncode != 0:
@@ -194,11 +231,14 @@ class LiveSession:
     Use as a context manager; the fw_sim process is stopped by its PID on exit.
     """
 
-    def __init__(self, key_record: bytes | None, workdir: pathlib.Path | None = None) -> None:
-        sim, elf = fw_sim_path(), firmware_elf_path()
-        for p in (sim, elf):
-            if not p.is_file():
-                raise FileNotFoundError(f"{p} not found: run make build")
+    def __init__(
+        self,
+        key_record: bytes | None,
+        workdir: pathlib.Path | None = None,
+        fw_sim: pathlib.Path | None = None,
+        elf: pathlib.Path | None = None,
+    ) -> None:
+        sim, elf = _require(fw_sim, elf)
         args = [str(sim), "--elf", str(elf), "--interactive"]
         self._eeprom = None
         if key_record is not None:

@@ -18,14 +18,13 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
-import os
 import threading
 import time
 
 import numpy as np
 
+from arduino.simavr_session import LiveSession, firmware_elf
 from fc_emulator import FcOptions, FcSnapshot, FlightControllerEmulator, QuadParams
-from hilrig.fw_sim import firmware_elf
 from hilrig.paths import find_binary
 
 
@@ -74,11 +73,7 @@ class LiveRig:
             )
         if not step_us > 0 or not time_scale > 0:
             raise ValueError("step_us and time_scale must be > 0")
-        os.environ["FW_SIM_BIN"] = str(binary)  # LiveSession finds the harness through these
-        os.environ["FW_ELF"] = str(elf)
-        from arduino.simavr_session import LiveSession
-
-        self._session = LiveSession(key_record, workdir)
+        self._session = LiveSession(key_record, workdir, fw_sim=binary, elf=elf)
         self._mav: list[tuple[int, bytes]] = []
         self.fc = FlightControllerEmulator(
             sink=lambda t, d: self._mav.append((t, d)), options=fc_options, params=quad_params

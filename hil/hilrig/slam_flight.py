@@ -51,7 +51,7 @@ REQUIRED_BINARIES = ("fw_sim", "rgbd-streamer", "quad-control", "slam-server", "
 
 def missing_parts() -> list[str]:
     """Names of what is not built or installed (empty: a closed-loop flight can run)."""
-    from hilrig.fw_sim import firmware_elf
+    from arduino.simavr_session import firmware_elf
 
     missing = [b for b in REQUIRED_BINARIES if find_binary(b) is None]
     if firmware_elf() is None:

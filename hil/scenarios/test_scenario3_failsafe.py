@@ -25,7 +25,7 @@ import pytest
 from fc_emulator import FlightControllerEmulator, fly
 from fc_emulator.emulator import LAND_SPEED_MPS, RC_READ_PERIOD_US
 from hilrig.flight import Leg, fly_plan
-from hilrig.fw_sim import FwScript, firmware_elf, run_fw_sim
+from arduino.simavr_session import Scenario, firmware_elf
 from hilrig.paths import artifacts_dir, find_binary
 from hilrig.pilot import ARM_STICKS_US
 
@@ -37,6 +37,8 @@ ARM_GESTURE_S = 2.4  # ArduCopter needs 2 s; 0.4 s margin for the PWM frame dela
 HOLD_ALT_M = 1.7
 FLY_S = 14.0  # take off (~4 s) + hold; the ground station dies at the end
 AFTER_KILL_S = 14.0  # onset 0.25 s + APM Land from 1.7 m at 0.5 m/s (~4.6 s) + margin
+THROTTLE_CHANNEL = 3  # fw_sim numbers the RC outputs 1..4: roll, pitch, throttle, yaw
+FW_SIM_TIMEOUT_S = 300.0  # 28 simulated s run in ~8 s idle; a loaded machine may be 10x slower
 
 
 def _ground_station_commands() -> list[tuple[int, tuple[int, int, int, int], bool]]:
@@ -60,17 +62,17 @@ def _ground_station_commands() -> list[tuple[int, tuple[int, int, int, int], boo
     return cmds
 
 
-def _script(cmds, kill_us: int, end_us: int, mavlink=()) -> FwScript:
+def _script(cmds, kill_us: int, end_us: int, mavlink=()) -> Scenario:
     from rgbd_protocol.control import SequenceCounter, build_control_request
 
     seqs = SequenceCounter()
-    sc = FwScript()
+    sc = Scenario()
     for t, (r, p, th, y), armed in cmds:
         if t >= kill_us:
             break
-        sc.request(t, build_control_request(KEY, seqs.next(), armed, r, p, th, y))
+        sc.req(t, build_control_request(KEY, seqs.next(), armed, r, p, th, y))
     for t, data in mavlink:
-        sc.mavlink(t, data)
+        sc.mav(t, data)
     sc.end(end_us)
     return sc
 
@@ -82,7 +84,7 @@ def _fly_on_pulses(pulses, end_us: int, sink=None):
     for p in sorted(pulses, key=lambda q: q.end_us):
         t = int(p.end_us)
         fc.advance_to(t)
-        fc.feed_pulse(p.channel, p.width_us, t)
+        fc.feed_pulse(p.rc_index, p.width_us, t)
         if not trace or t - trace[-1][0] >= 20_000:
             s = fc.snapshot()
             trace.append((t, s.pos_ned_m, s.armed))
@@ -104,10 +106,10 @@ def scenario(tmp_path_factory):
     kill_us = cmds[-1][0] + RC_READ_PERIOD_US
     end_us = kill_us + int(AFTER_KILL_S * 1e6)
     eeprom = key_record(KEY)
-    pass1 = run_fw_sim(_script(cmds, kill_us, end_us), eeprom, work, name="pass1")
+    pass1 = _script(cmds, kill_us, end_us).run(eeprom, work, timeout_s=FW_SIM_TIMEOUT_S)
     mav = []
     fc, trace = _fly_on_pulses(pass1.pulses, end_us, sink=lambda t, d: mav.append((t, d)))
-    pass2 = run_fw_sim(_script(cmds, kill_us, end_us, mavlink=mav), eeprom, work, name="pass2")
+    pass2 = _script(cmds, kill_us, end_us, mavlink=mav).run(eeprom, work, timeout_s=FW_SIM_TIMEOUT_S)
     return dict(
         cmds=cmds,
         kill_us=kill_us,
@@ -124,7 +126,7 @@ def _metrics(sc) -> dict:
     kill_us, fc, trace = sc["kill_us"], sc["fc"], sc["trace"]
     last_cmd_us = max(t for t, _, _ in sc["cmds"] if t < kill_us)
     last_thr = [c for t, c, _ in sc["cmds"] if t < kill_us][-1][2]
-    thr = [p for p in sc["pass1"].pulses if p.channel == 2 and p.rise_us > last_cmd_us]
+    thr = [p for p in sc["pass1"].pulses if p.channel == THROTTLE_CHANNEL and p.rise_us > last_cmd_us]
     onset = next(p for p in thr if abs(p.width_us - last_thr) > 3)  # first pulse off the command
     below = next(p for p in thr if p.width_us < 975)
     fs_events = [t for t, e in fc.events if e.startswith("radio failsafe") and t > kill_us]
@@ -219,7 +221,7 @@ def test_scenario3_failsafe_output_also_lands_a_craft_in_stabilize(scenario):
     cmds, p1 = scenario["cmds"], scenario["pass1"].pulses
     last_cmd_us = max(t for t, _, _ in cmds if t < scenario["kill_us"])
     last_thr = [c for tt, c, _ in cmds if tt < scenario["kill_us"]][-1][2]
-    thr = [p for p in p1 if p.channel == 2 and p.rise_us > last_cmd_us]
+    thr = [p for p in p1 if p.channel == THROTTLE_CHANNEL and p.rise_us > last_cmd_us]
     onset = next(p for p in thr if abs(p.width_us - last_thr) > 3)
     # The roll and pitch pulses of the same frame precede it by < 4 ms; the previous frame ended
     # > 10 ms before.
@@ -233,7 +235,7 @@ def test_scenario3_failsafe_output_also_lands_a_craft_in_stabilize(scenario):
     for p in sorted((q for q in p1 if q.rise_us >= frame_start), key=lambda q: q.end_us):
         tt = int(p.end_us + shift)
         fc.advance_to(tt)
-        fc.feed_pulse(p.channel, p.width_us, tt)
+        fc.feed_pulse(p.rc_index, p.width_us, tt)
     fc.advance_to(int(scenario["end_us"] + shift))
     kill = last_cmd_stab + RC_READ_PERIOD_US
     fs = [tt for tt, e in fc.events if e.startswith("radio failsafe") and tt > kill]

@@ -27,7 +27,7 @@ import pytest
 
 from fc_emulator import QuadParams
 from hilrig.flight import Leg
-from hilrig.fw_sim import firmware_elf
+from arduino.simavr_session import firmware_elf
 from hilrig.ground_station import GroundStation
 from hilrig.paths import artifacts_dir, find_binary
 
