@@ -62,6 +62,7 @@ std::string ControlConfig::validate() const {
   if (!(apm_throttle_deadband_us >= 0.0 && apm_throttle_deadband_us <= 300.0)) {
     return "controller.apm_throttle_deadband_us must be in [0, 300]";
   }
+  if (auto e = estimator.validate(); !e.empty()) return e;
   if (hover_throttle_pct >= 100.0) return "controller.hover_throttle_pct must be < 100";
   if (motor_stop_height_m >= hold_height_m) return "controller.motor_stop_height_m must be below hold_height_m";
   if (hold_height_m > max_height_m) return "controller.hold_height_m must not exceed max_height_m";
@@ -86,6 +87,8 @@ std::string load_control_config(const nlohmann::json& j, ControlConfig& config) 
     if (auto it = scalars.find(key); it != scalars.end()) {
       if (!value.is_number()) return "controller." + key + ": expected a number";
       *it->second = value.get<double>();
+    } else if (key == "estimator") {
+      if (auto e = load_estimator_options(value, config.estimator); !e.empty()) return e;
     } else if (auto pit = pids.find(key); pit != pids.end()) {
       if (!value.is_object()) return "controller." + key + ": expected an object {kp, ki, kd, output_limit_pct}";
       for (const auto& [gk, gv] : value.items()) {
@@ -111,6 +114,7 @@ nlohmann::json to_json(const ControlConfig& config) {
   for (auto& [name, pid] : pid_fields(copy)) {
     j[name] = {{"kp", pid->kp}, {"ki", pid->ki}, {"kd", pid->kd}, {"output_limit_pct", pid->output_limit_pct}};
   }
+  j["estimator"] = to_json(config.estimator);
   return j;
 }
 

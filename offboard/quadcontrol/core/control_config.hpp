@@ -8,6 +8,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include "core/estimator_options.hpp"
 #include "core/pid.hpp"
 
 namespace rgbdquad::quadcontrol {
@@ -73,6 +74,8 @@ struct ControlConfig {
   /// thrust. With the APM in AltHold the height PID's output is a climb-rate command (use ki = 0:
   /// the APM holds the hover itself) and hover_throttle_pct must be 50 (mid-stick = no climb).
   double apm_throttle_deadband_us = 0.0;
+  /// State estimation across pose gaps (IMU + delayed SLAM poses; docs/control.md "Estimator").
+  EstimatorOptions estimator;
 
   std::string validate() const;
 };

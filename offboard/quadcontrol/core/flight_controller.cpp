@@ -206,9 +206,14 @@ std::string FlightController::nudge(std::int64_t, double forward_m, double left_
   return {};
 }
 
-void FlightController::on_pose(const PoseSample& sample) {
+void FlightController::on_pose(const PoseSample& sample, std::optional<Velocity3> velocity_m_per_s) {
   PoseSample s = sample;
   if (!finite_pose(s.pose)) s.tracking = false;
+  if (velocity_m_per_s &&
+      !std::all_of(velocity_m_per_s->begin(), velocity_m_per_s->end(), [](double v) { return std::isfinite(v); })) {
+    velocity_m_per_s.reset();  // the derivative falls back to differencing poses
+  }
+  pose_velocity_ = velocity_m_per_s;
   if (s.tracking && last_accepted_pose_) {
     // Jump gate: an estimate far from the last accepted one is a SLAM failure (e.g. a false loop
     // closure), not motion. It counts as lost until the estimate comes back near the last accepted
@@ -250,15 +255,23 @@ StickCommand FlightController::position_control(const PoseSample& sample, double
   StickCommand cmd;
   cmd.armed = true;
   const BodyError e = world_to_body(status_.setpoint.x_m - pose.x_m, status_.setpoint.y_m - pose.y_m, pose.yaw_deg);
-  // Body-frame PIDs: measurement = craft position relative to the setpoint, in mm.
-  if (auto out = pitch_.update(now_us, 0.0, -e.forward_m * kMmPerM)) cmd.pitch_pct = *out;
-  if (auto out = roll_.update(now_us, 0.0, -e.left_m * kMmPerM)) cmd.roll_pct = -*out;  // left error -> roll left
+  // Body-frame PIDs: measurement = craft position relative to the setpoint, in mm. With an
+  // estimated velocity its body-frame components are the measurements' rates (mm/s).
+  std::optional<double> forward_rate, left_rate, up_rate;
+  if (const auto& v = pose_velocity_) {
+    const BodyError vb = world_to_body((*v)[0], (*v)[1], pose.yaw_deg);
+    forward_rate = vb.forward_m * kMmPerM;
+    left_rate = vb.left_m * kMmPerM;
+    up_rate = (*v)[2] * kMmPerM;
+  }
+  if (auto out = pitch_.update(now_us, 0.0, -e.forward_m * kMmPerM, forward_rate)) cmd.pitch_pct = *out;
+  if (auto out = roll_.update(now_us, 0.0, -e.left_m * kMmPerM, left_rate)) cmd.roll_pct = -*out;  // left error -> roll left
   // Yaw on a continuous (unwrapped) angle so the derivative never sees a 360 deg jump.
   const double yaw_cont = unwrap_yaw(pose.yaw_deg);
   const double yaw_target = yaw_cont + wrap_deg(status_.setpoint.yaw_deg - pose.yaw_deg);
   if (auto out = yaw_.update(now_us, yaw_target, yaw_cont)) cmd.yaw_pct = -*out;  // ccw error -> stick left
   double throttle_out = 0.0;
-  if (auto out = throttle_.update(now_us, height_setpoint_m * kMmPerM, pose.z_m * kMmPerM)) throttle_out = *out;
+  if (auto out = throttle_.update(now_us, height_setpoint_m * kMmPerM, pose.z_m * kMmPerM, up_rate)) throttle_out = *out;
   cmd.throttle_pct = std::clamp(config_.hover_throttle_pct + throttle_out, 0.0, 100.0);
   pid_pose_us_ = sample.received_us;
   pid_cmd_ = cmd;

@@ -30,6 +30,7 @@
 // the app owns one instance behind a mutex.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -60,6 +61,9 @@ struct PoseSample {
   bool tracking = false;         ///< false: SLAM lost track, `pose` is meaningless
   CraftPose pose;
 };
+
+/// Floor-frame velocity (x, y, z), m/s.
+using Velocity3 = std::array<double, 3>;
 
 struct StickCommand {
   double roll_pct = 0.0;
@@ -103,8 +107,10 @@ class FlightController {
   /// clamped into the envelope (last_event says so).
   std::string nudge(std::int64_t now_us, double forward_m, double left_m, double up_m, double yaw_ccw_deg);
 
-  /// Newest pose estimate. Non-finite poses count as tracking lost.
-  void on_pose(const PoseSample& sample);
+  /// Newest pose estimate. Non-finite poses count as tracking lost. `velocity_m_per_s`: when an
+  /// estimator provides one (core/pose_estimator.hpp), the roll/pitch/throttle derivative terms
+  /// use it instead of differencing poses (a non-finite one is ignored).
+  void on_pose(const PoseSample& sample, std::optional<Velocity3> velocity_m_per_s = std::nullopt);
 
   /// One control step; call at the command rate (~50 Hz).
   StickCommand update(std::int64_t now_us);
@@ -132,6 +138,7 @@ class FlightController {
   Pid throttle_;
   ControllerStatus status_;
   std::optional<PoseSample> pose_;
+  std::optional<Velocity3> pose_velocity_;  ///< with pose_, when the estimator gave one
   std::optional<CraftPose> last_accepted_pose_;  ///< the jump gate's reference
   std::int64_t state_entered_us_ = 0;
   double takeoff_start_height_m_ = 0.0;

@@ -32,8 +32,10 @@ void Pid::reset() {
   terms_ = PidTerms{};
 }
 
-std::optional<double> Pid::update(std::int64_t now_us, double setpoint, double measurement) {
+std::optional<double> Pid::update(std::int64_t now_us, double setpoint, double measurement,
+                                  std::optional<double> measurement_rate_per_s) {
   if (!std::isfinite(setpoint) || !std::isfinite(measurement)) return std::nullopt;
+  if (measurement_rate_per_s && !std::isfinite(*measurement_rate_per_s)) return std::nullopt;
   if (last_time_us_ && now_us <= *last_time_us_) return std::nullopt;
 
   const double error = setpoint - measurement;
@@ -45,6 +47,7 @@ std::optional<double> Pid::update(std::int64_t now_us, double setpoint, double m
     // Derivative on measurement: -kd * d(measurement)/dt, so a setpoint step gives no kick.
     d_term = -gains_.kd * (measurement - *last_measurement_) / dt_s;
   }
+  if (measurement_rate_per_s) d_term = -gains_.kd * *measurement_rate_per_s;
   const double p_term = gains_.kp * error;
 
   // Anti-windup: integrate unless the output is saturated and the error pushes further out.

@@ -39,7 +39,12 @@ class Pid {
   explicit Pid(PidGains gains) : gains_(gains) {}
 
   /// One control step at `now_us` (monotonic, microseconds). error = setpoint - measurement.
-  std::optional<double> update(std::int64_t now_us, double setpoint, double measurement);
+  /// `measurement_rate_per_s`: the measurement's rate of change (unit per second) when the caller
+  /// has an estimate of it (quad-control's IMU-aided velocity); the derivative term then uses it
+  /// instead of differencing successive measurements. A non-finite rate is rejected like a
+  /// non-finite measurement.
+  std::optional<double> update(std::int64_t now_us, double setpoint, double measurement,
+                               std::optional<double> measurement_rate_per_s = std::nullopt);
 
   /// Forget integrator and derivative history (e.g. on a mode change).
   void reset();

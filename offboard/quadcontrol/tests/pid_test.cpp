@@ -76,6 +76,29 @@ TEST(Pid, DerivativeActsOnMeasurementNotSetpoint) {
   EXPECT_NEAR(*out, -5.0, 1e-9);
 }
 
+TEST(Pid, GivenAMeasuredRateThenTheDerivativeUsesItInsteadOfDifferences) {
+  struct Row {
+    const char* name;
+    double rate_per_s;
+    double expected;  // kp * error - kd * rate
+  };
+  const Row table[] = {{"moving away 200 mm/s", 200.0, 0.03 * 100.0 - 0.03 * 200.0},
+                       {"at rest", 0.0, 3.0},
+                       {"closing 100 mm/s", -100.0, 0.03 * 100.0 + 0.03 * 100.0}};
+  for (const Row& r : table) {
+    // GIVEN a PID that already saw a measurement 500 mm away (differencing would give 20000 mm/s)
+    Pid pid({0.03, 0.0, 0.03, 20.0});
+    ASSERT_TRUE(pid.update(0, 0.0, 400.0));
+    // WHEN the next step comes with an estimated rate of change
+    const auto out = pid.update(kStepUs, 0.0, -100.0, r.rate_per_s);
+    // THEN the derivative is -kd * rate, not the 500 mm jump over 20 ms
+    ASSERT_TRUE(out) << r.name;
+    EXPECT_NEAR(*out, r.expected, 1e-9) << r.name;
+  }
+  Pid pid({0.03, 0.0, 0.03, 20.0});
+  EXPECT_FALSE(pid.update(0, 0.0, 1.0, std::numeric_limits<double>::quiet_NaN()));  // non-finite rate refused
+}
+
 TEST(Pid, IntegratesOverTime) {
   // throttle Ki 0.013/s, error 100 mm for 1 s -> integral 1.3 %
   Pid pid({0.0, 0.013, 0.0, 30.0});
