@@ -26,18 +26,7 @@ KNOWN = {
     ("firmware/tests/test_simavr.py", "hil:arduino"),
     ("offboard/dashboard/tests/conftest.py", "hil:wifi_bridge"),
     ("offboard/quadcontrol/tools/measure_links.py", "hil:wifi_bridge"),
-    ("offboard/receiver/include/rgbdquad/receiver/stream_receiver.h", "onboard/net"),
-    ("offboard/receiver/test/fakenect_e2e_test.cpp", "onboard/capture"),
-    ("offboard/receiver/test/stream_e2e_test.cpp", "onboard/net"),
-    ("offboard/receiver/test/stream_e2e_test.cpp", "onboard/stream"),
-    ("offboard/receiver/test/test_support.h", "onboard/capture"),
     ("offboard/slamlink/tests/test_slam_link_resume_e2e.py", "hil:hilrig"),
-    ("onboard/bench/src/stream_bench.cpp", "offboard/receiver"),
-    ("offboard/receiver/CMakeLists.txt", "onboard/net"),
-    ("offboard/receiver/CMakeLists.txt", "onboard:rgbd_capture"),
-    ("offboard/receiver/CMakeLists.txt", "onboard:rgbd_net"),
-    ("offboard/receiver/CMakeLists.txt", "onboard:rgbd_stream_sender"),
-    ("onboard/bench/CMakeLists.txt", "offboard:rgbd_receiver"),
 }
 
 
