@@ -95,6 +95,12 @@ class LiveRig:
         self.sim_us = 0
         self.wall_s = 0.0
         self.lag_dropped_s = 0.0
+        # Diagnosis of command gaps (the firmware's 250 ms failsafe counts simulated time): each lag
+        # drop above one step (simulated us, wall s, dropped s), and every long simulated gap between
+        # two lines injected on the serial link (_note_injection).
+        self.lag_events: list[tuple[int, float, float]] = []
+        self._last_injected_us: float | None = None
+        self.injection_gaps: list[dict] = []
         self._thread = threading.Thread(target=self._run, name="live-rig", daemon=True)
 
     # ---- API ------------------------------------------------------------------------------------
@@ -177,12 +183,30 @@ class LiveRig:
                     time.sleep(min(due_wall - now, 0.002))
                     continue
                 if now - due_wall > MAX_LAG_S:
-                    wall0 += now - due_wall - MAX_LAG_S
-                    self.lag_dropped_s += now - due_wall - MAX_LAG_S
+                    dropped = now - due_wall - MAX_LAG_S
+                    wall0 += dropped
+                    self.lag_dropped_s += dropped
+                    if dropped > self.step_us / 1e6:
+                        self.lag_events.append((self.sim_us, now, round(dropped, 4)))
                 self._step(t_next)
                 self.wall_s = self._clock() - wall_start
         except BaseException as e:  # reported by close(); nothing escapes the thread
             self._error = e
+
+    # A gap between injected lines this long (simulated us) is recorded: two keep-alive periods of
+    # quad-control (50 ms), 40 % of the firmware's 250 ms failsafe (as quad-control's own gap log).
+    INJECTION_GAP_US = 100_000
+
+    def _note_injection(self, t_us: float) -> None:
+        """Caller holds the lock. Records a long simulated gap since the previous injected line, with
+        the lag the rig dropped meanwhile (a stalled rig shows as lag) and the lines still queued."""
+        last = self._last_injected_us
+        self._last_injected_us = t_us
+        if last is None or t_us - last <= self.INJECTION_GAP_US:
+            return
+        lag = sum(d for sim, _, d in self.lag_events if last <= sim <= t_us)
+        self.injection_gaps.append({"sim_s": round(last / 1e6, 3), "gap_ms": round((t_us - last) / 1e3, 1),
+                                    "rig_lag_dropped_ms": round(lag * 1e3, 1), "queued": len(self._queue)})
 
     def _step(self, t_next: int) -> None:
         s = self._session
@@ -193,6 +217,7 @@ class LiveRig:
                 if self._queue:
                     self._inflight = self._queue.popleft()
                     self._inflight.injected_us = max(float(self.sim_us), s.now_us)
+                    self._note_injection(self._inflight.injected_us)
                     s.req(self._inflight.injected_us, self._inflight.line)
         for t, data in self._mav:
             s.mav(t, data)

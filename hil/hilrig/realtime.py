@@ -3,7 +3,8 @@
 In a real flight the FC, the firmware, the Kinect and the craft's onboard computer (rgbd-streamer)
 have their own CPUs; here they share two cores with the ground station and everything else. So the
 rig runs its threads and children under SCHED_RR at RIG_RT_PRIORITY, above the ground station's
-real-time threads (quad-control / slam-server "realtime" default SCHED_RR 10): the system under test
+CPU-heavy real-time threads (quad-control / slam-server "realtime" default SCHED_RR 10) and below its
+firmware link thread (12: a hard 250 ms deadline, ~1 ms of CPU per command): the system under test
 can then be slowed down by its neighbours (the load scenario's CPU burners, other engineers'
 builds) but never the emulated hardware, unless the rig's own real-time work no longer fits the
 cores - which the rig measures and reports as "rig overloaded" (hilrig.verdict.rig_health).
@@ -21,10 +22,16 @@ from __future__ import annotations
 import os
 import shutil
 
-# Above the ground station's real-time threads (10, thread_priority.hpp) and below the kernel's
-# threaded interrupt handlers (50), which carry the loopback traffic between the rig and the
-# ground station.
-RIG_RT_PRIORITY = 20
+# Above the ground station's CPU-heavy real-time threads (frame, SLAM link, slam-server's tracking:
+# SCHED_RR 10, quad-control.json "realtime"), below quad-control's firmware link thread (10 + 2,
+# ground_station.cpp kCommandPriorityStep) and the kernel's threaded interrupt handlers (50).
+# Not above the link thread (it was 20 until issue 13's long flight): the rig's own bursts (renderer,
+# rgbd-streamer, simavr, this process) filled both cores for 85 ms at a time and left the link
+# thread runnable but without a CPU while the simulated firmware's 250 ms failsafe kept counting;
+# two rigs on the machine stalled it 1.1 s and the failsafe landed the craft. On the craft, the
+# firmware and camera have their own CPUs and never take the ground station's; the link thread
+# needs ~1 ms of CPU per command (<1 % of a core), so ranking it above the rig costs the rig nothing.
+RIG_RT_PRIORITY = 11
 # When real-time is refused: a nice-0 neighbour then gets ~1/10 of the weight (CFS, 1.25x per step).
 RIG_FALLBACK_NICE = -10
 

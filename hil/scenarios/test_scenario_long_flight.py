@@ -55,6 +55,14 @@ def _rss_mib(pid: int) -> float | None:
     return None
 
 
+def _gap_lines(qc) -> list[str]:
+    """quad-control's explained command gaps (firmware_link.cpp, command_gap.hpp), the first 20."""
+    if qc is None:
+        return []
+    return [ln.split("firmware link: ", 1)[1] for ln in qc.log_text().splitlines()
+            if "without a command" in ln][:20]
+
+
 def _aligned_errors(est: np.ndarray, gt: np.ndarray) -> np.ndarray:
     """Per-sample position error after one rigid (Horn, no scale) alignment of est to gt."""
     rot, t = align_rigid(gt, est)
@@ -146,6 +154,14 @@ def test_slam_long_flight_box_laps(tmp_path):
             "landing": landing,
             "resets": resets,
             "failsafe_events": [e for _, e in flight.rig.fc.events if "failsafe" in e],
+            # Command gaps (issue 13): quad-control's own count and longest gap between two commands
+            # (each gap over 100 ms is logged with its causes in quad-control.log), the firmware
+            # link's timeouts, and the rig's side: simulated gaps between lines on the serial link.
+            "command_gaps": {k: state.get("firmware", {}).get(k) for k in
+                             ("command_gaps", "max_command_gap_ms", "timeouts", "withheld", "sent", "ok")},
+            "command_gap_log": _gap_lines(procs.get("quad-control")),
+            "rig_injection_gaps": flight.rig.injection_gaps[:20],
+            "rig_lag_dropped_s": round(flight.rig.lag_dropped_s, 3),
             "realtime_factor": round(flight.rig.realtime_factor, 3),
             **flight.scores(),
         }

@@ -1,6 +1,8 @@
 // Two rotating HTTP clients of the control link: see firmware_link.hpp.
 #include "app/firmware_link.hpp"
 
+#include <algorithm>
+#include <iostream>
 #include <stdexcept>
 
 #include <boost/asio/post.hpp>
@@ -72,8 +74,10 @@ void FirmwareLink::schedule() {
   next_tick_ = next_tick_.time_since_epoch().count() == 0 ? now + period : next_tick_ + period;
   if (next_tick_ < now - 5 * period) next_tick_ = now + period;  // far behind: restart the grid
   timer_.expires_at(next_tick_);
+  timer_target_us_ = monotonic_now_us() + std::chrono::duration_cast<std::chrono::microseconds>(next_tick_ - now).count();
   timer_.async_wait([this](beast::error_code ec) {
     if (ec) return;
+    gap_causes_.late_us = std::max(gap_causes_.late_us, monotonic_now_us() - timer_target_us_);
     tick();
     schedule();
   });
@@ -106,9 +110,11 @@ void FirmwareLink::arm_scheduled() {
   const std::int64_t now = monotonic_now_us();
   if (scheduler_.due(now)) return on_scheduled();
   // Re-arming cancels an earlier wait (its handler sees operation_aborted): one wait at a time.
-  timer_.expires_after(std::chrono::microseconds(*scheduler_.next_send_us() - now));
+  timer_target_us_ = *scheduler_.next_send_us();
+  timer_.expires_after(std::chrono::microseconds(timer_target_us_ - now));
   timer_.async_wait([this](beast::error_code ec) {
     if (ec) return;
+    gap_causes_.late_us = std::max(gap_causes_.late_us, monotonic_now_us() - timer_target_us_);
     on_scheduled();
   });
 }
@@ -120,6 +126,7 @@ void FirmwareLink::on_scheduled() {
     // Both requests still in flight: the firmware has no capacity now; the first reply (or
     // timeout) frees a client and sends the newest command then.
     waiting_for_client_ = true;
+    waiting_since_us_ = now;
     return;
   }
   const bool pose_driven = scheduler_.on_sent(now);  // also when the provider withheld the command
@@ -141,9 +148,17 @@ void FirmwareLink::start(Client& c) {
   }
   const std::uint32_t next_seq = stats().seq + 1;
   std::optional<PwmCommand> command;
+  std::int64_t provider_us = 0;
   if (wants_command) {
-    command = provider_(monotonic_now_us(), next_seq);
-    if (!command) return;  // nothing to send this period
+    const std::int64_t asked_us = monotonic_now_us();
+    command = provider_(asked_us, next_seq);
+    provider_us = monotonic_now_us() - asked_us;
+    if (!command) {  // nothing to send this period
+      ++gap_causes_.withheld;
+      std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
+      ++stats_.withheld;
+      return;
+    }
   }
   {
     std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
@@ -171,6 +186,7 @@ void FirmwareLink::start(Client& c) {
   }
   c.busy = true;
   c.started_us = monotonic_now_us();
+  if (!c.is_status) note_command_sent(c.started_us, provider_us);
   c.request = {};
   c.request.method(c.is_status ? http::verb::get : http::verb::put);
   c.request.target(target);
@@ -199,6 +215,7 @@ void FirmwareLink::finish(Client& c, beast::error_code ec) {
   if (waiting_for_client_) {
     // A command became due while both clients were busy: send it after this reply is handled.
     waiting_for_client_ = false;
+    gap_causes_.waited_for_client_us += now - waiting_since_us_;
     asio::post(io_, [this] { on_scheduled(); });
   }
   std::optional<ControlReply> reply;
@@ -242,7 +259,33 @@ void FirmwareLink::finish(Client& c, beast::error_code ec) {
       seq_known_ = true;
     }
   }
-  if (callback_) callback_(now, *reply);
+  if (callback_) {
+    callback_(now, *reply);
+    gap_causes_.max_reply_callback_us = std::max(gap_causes_.max_reply_callback_us, monotonic_now_us() - now);
+  }
+}
+
+void FirmwareLink::note_command_sent(std::int64_t now_us, std::int64_t provider_us) {
+  gap_causes_.provider_us = provider_us;
+  std::uint64_t timeouts, failures;
+  {
+    std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
+    timeouts = stats_.timeouts;
+    failures = stats_.connect_errors + stats_.http_errors;
+  }
+  gap_causes_.timeouts = timeouts - timeouts_at_last_send_;
+  gap_causes_.errors = failures - failures_at_last_send_;
+  timeouts_at_last_send_ = timeouts;
+  failures_at_last_send_ = failures;
+  const std::optional<std::string> gap = gap_monitor_.on_sent(now_us, read_thread_cpu_times(), gap_causes_);
+  gap_causes_ = {};
+  {
+    std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
+    stats_.command_gaps = gap_monitor_.gaps();
+    stats_.max_command_gap_ms = static_cast<double>(gap_monitor_.max_gap_us()) / 1000.0;
+  }
+  // Rare (a gap over 100 ms), so the write to the log costs nothing in a healthy flight.
+  if (gap) std::cerr << "quad-control: firmware link: " + *gap + "\n" << std::flush;
 }
 
 }  // namespace rgbdquad::quadcontrol

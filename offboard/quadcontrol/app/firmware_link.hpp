@@ -30,6 +30,7 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 
+#include "app/command_gap.hpp"
 #include "core/command_scheduler.hpp"
 #include "core/stick_mapping.hpp"
 #include "link/control_codec.hpp"
@@ -69,6 +70,11 @@ struct FirmwareLinkStats {
   std::uint32_t seq = 0;
   std::uint64_t pose_driven = 0;  ///< send_on_pose: commands sent for a fresh pose
   std::uint64_t keep_alives = 0;  ///< send_on_pose: commands sent because no pose came for keep_alive_ms
+  std::uint64_t withheld = 0;     ///< sends the provider withheld (the controller handed over to the failsafe)
+  /// Gaps between two commands longer than CommandGapMonitor's threshold (each logged with its
+  /// causes), and the longest gap so far.
+  std::uint64_t command_gaps = 0;
+  double max_command_gap_ms = 0.0;
 };
 
 class FirmwareLink {
@@ -113,6 +119,8 @@ class FirmwareLink {
   bool start_on_idle_client();
   void start(Client& client);
   void finish(Client& client, boost::beast::error_code ec);
+  /// A command went out at now_us: checks the gap since the previous one (logged with its causes).
+  void note_command_sent(std::int64_t now_us, std::int64_t provider_us);
 
   FirmwareLinkOptions options_;
   ControlSpec spec_;
@@ -128,6 +136,13 @@ class FirmwareLink {
   CommandScheduler scheduler_;      ///< send_on_pose only; the link's thread only
   bool waiting_for_client_ = false;  ///< a due command waits for a reply to free a client
   bool seq_known_ = false;
+  // Command gap diagnosis (the link's thread only).
+  CommandGapMonitor gap_monitor_;
+  CommandGapCauses gap_causes_;              ///< accumulated since the previous command
+  std::int64_t timer_target_us_ = 0;         ///< when the armed timer should fire
+  std::int64_t waiting_since_us_ = 0;        ///< a due send found both clients busy at this time
+  std::uint64_t failures_at_last_send_ = 0;  ///< timeouts + errors when the previous command went out
+  std::uint64_t timeouts_at_last_send_ = 0;
   mutable slam::PriorityInheritanceMutex mutex_;  ///< the I/O thread (real-time) and stats() readers
   FirmwareLinkStats stats_;
   std::thread thread_;

@@ -346,6 +346,9 @@ nlohmann::json GroundStation::state_json() {
                 {"seq", fw->seq},
                 {"pose_driven", fw->pose_driven},
                 {"keep_alives", fw->keep_alives},
+                {"withheld", fw->withheld},
+                {"command_gaps", fw->command_gaps},
+                {"max_command_gap_ms", fw->max_command_gap_ms},
                 {"last_error", fw->last_error}});
     if (fw->last_reply) {
       const auto& r = *fw->last_reply;
