@@ -21,15 +21,21 @@ import time
 ROOT = Path(__file__).resolve().parents[2]
 
 
+NO_FLIGHT = "flight (no report: the demo did not fly; see run-NN.log)"
+
+
 def load_average() -> str:
     return " ".join(Path("/proc/loadavg").read_text().split()[:3])
 
 
 def run_summary(index: int, status: int, report: dict | None, load_before: str, load_after: str, wall_s: float) -> dict:
     """One run's figures from its report.json (None: the demo wrote none)."""
-    out = {"run": index, "exit": status, "passed": status == 0, "wall_s": round(wall_s, 1),
+    # No report: the demo did not fly (hil/demo.sh falls back to the SLAM-only demo, exit 0, when a
+    # part is missing - e.g. a binary being relinked by a concurrent build): not a pass.
+    out = {"run": index, "exit": status, "passed": status == 0 and report is not None, "wall_s": round(wall_s, 1),
            "load_before": load_before, "load_after": load_after}
     if report is None:
+        out["missed"] = [NO_FLIGHT]
         return out
     lat = report.get("latency_ms") or {}
     c2p = lat.get("capture_to_pwm") or {}

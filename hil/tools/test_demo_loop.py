@@ -30,4 +30,11 @@ def test_summary_counts_passes_resets_and_ranges():
     assert s["capture_to_pwm_median_ms_range"] == "55.0 .. 71.5"
     assert s["ate_mm_range"] == "8.0 .. 41.0"
     assert s["load_average_range"] == "2.0 .. 4.5"
-    assert s["targets_missed"] == {"SLAM session resets": 1}
+    assert s["targets_missed"] == {"SLAM session resets": 1, demo_loop.NO_FLIGHT: 1}
+
+
+def test_a_demo_that_fell_back_without_flying_is_not_a_pass():
+    # hil/demo.sh exits 0 after the SLAM-only fallback when a part is missing (seen when a concurrent
+    # build was relinking quad-control): no report, so no flight to judge.
+    r = demo_loop.run_summary(1, 0, None, "9.0 9 9", "9 9 9", 8.0)
+    assert not r["passed"] and r["missed"] == [demo_loop.NO_FLIGHT]
