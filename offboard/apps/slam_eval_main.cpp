@@ -42,7 +42,9 @@ struct RunArgs {
   std::string stamp = "auto";
   std::string save_map, load_map;
   double withhold_from_s = -1, withhold_s = 0;
-  std::string loop_closing = "on", keyframe_new_content = "on";
+  std::string loop_closing = "on", keyframe_new_content = "on", depth_noise = "keypoint",
+              map_lock = "pi", tracking_policy = "off", local_ba = "on";
+  double depth_units_per_m = 0;
 };
 
 json stage_stats(std::vector<double> v) {
@@ -96,6 +98,13 @@ int run_command(const RunArgs& a) {
   po.frontend.seed = a.seed;
   po.loop_closing = a.loop_closing == "on";
   po.tracker.keyframe_needs_new_content = a.keyframe_new_content == "on";
+  po.map_lock_priority_inheritance = a.map_lock == "pi";
+  po.mapper.bundle_adjustment = a.local_ba == "on";
+  if (!slam::parse_thread_policy(a.tracking_policy, &po.tracking_thread_policy, &err) ||
+      !slam::parse_depth_noise_model(a.depth_noise, &po.depth_noise, &err)) {
+    std::cerr << "slam-eval: " << err << "\n";
+    return 2;
+  }
   po.backend.seed = a.seed + 1;
   const auto sampling = a.ransac == "thesis" ? slam::RansacSampling::kThesis : slam::RansacSampling::kRandom;
   po.frontend.ransac.sampling = sampling;
@@ -109,6 +118,7 @@ int run_command(const RunArgs& a) {
     std::cerr << "slam-eval: " << err << "\n";
     return 2;
   }
+  if (a.depth_units_per_m > 0) intr.depth_units_per_m = a.depth_units_per_m;
   slam::TumDatasetOptions dso;
   dso.rate_divisor = a.rate;
   dso.max_frames = a.max_frames;
@@ -223,13 +233,13 @@ int run_command(const RunArgs& a) {
   {
     std::ofstream frames_csv(fs::path(a.out) / "frames.csv");
     frames_csv << "index,stamp_s,state,keyframe,matches,inliers,frontend_ms,frontend_cpu_ms,map_keyframes,map_points,"
-                  "keyframe_wanted,ref_tracked,near_tracked,near_untracked,near_redundant\n";
+                  "keyframe_wanted,ref_tracked,near_tracked,near_untracked,near_redundant,map_lock_wait_ms\n";
     for (const auto& r : records)
       frames_csv << r.index << "," << std::fixed << std::setprecision(6) << r.stamp_s << ","
                  << slam::to_string(r.state) << "," << (r.keyframe ? 1 : 0) << "," << r.matches << "," << r.inliers << "," << std::setprecision(3)
                  << r.frontend_ms << "," << r.frontend_cpu_ms << "," << r.map_keyframes << "," << r.map_points << ","
                  << slam::to_string(r.keyframe_wanted) << "," << r.ref_tracked << "," << r.near_tracked << ","
-                 << r.near_untracked << "," << r.near_redundant << "\n";
+                 << r.near_untracked << "," << r.near_redundant << "," << r.map_lock_wait_ms << "\n";
     std::ofstream mapping_csv(fs::path(a.out) / "mapping.csv");
     mapping_csv << "keyframe,mapping_ms,mapping_cpu_ms,ba_ms,ba_points,points_culled,points_fused,keyframes_culled\n";
     for (const auto& st : pipeline->mapper_stats())
@@ -271,6 +281,12 @@ int run_command(const RunArgs& a) {
   m["cv_threads"] = a.cv_threads;
   m["loop_closing_option"] = a.loop_closing;
   m["keyframe_new_content"] = a.keyframe_new_content;
+  m["depth_noise"] = a.depth_noise;
+  m["map_lock"] = a.map_lock;
+  m["local_ba"] = a.local_ba;
+  m["depth_units_per_m"] = intr.depth_units_per_m;
+  m["tracking_policy"] = a.tracking_policy;
+  m["tracking_thread"] = summary.tracking_thread;
   m["frames"] = records.size();
   m["frames_submitted"] = summary.frames_submitted;
   m["frames_failed"] = summary.frames_failed;
@@ -328,7 +344,7 @@ int run_command(const RunArgs& a) {
     if (a.withhold_s > 0) m["frames_until_tracking_after_gap"] = after_gap ? json(*after_gap) : json(nullptr);
   }
   std::size_t lost = 0, llc = 0;
-  std::vector<double> feat, match, ransac, fe, kf, llc_ms, glc, pg, bend, nfeat, fe_cpu, be_cpu;
+  std::vector<double> feat, match, ransac, fe, kf, llc_ms, glc, pg, bend, nfeat, fe_cpu, be_cpu, lock_wait;
   for (const auto& r : records) {
     if (!r.ok) continue;
     if (r.state == slam::TrackingState::kLost) ++lost;
@@ -338,6 +354,7 @@ int run_command(const RunArgs& a) {
     fe.push_back(r.frontend_ms);
     fe_cpu.push_back(r.frontend_cpu_ms);
     nfeat.push_back(static_cast<double>(r.features));
+    if (pipeline->is_local_map()) lock_wait.push_back(r.map_lock_wait_ms);
     if (!r.backend_processed) continue;
     kf.push_back(r.keyframe_ms);
     bend.push_back(r.backend_ms);
@@ -356,7 +373,7 @@ int run_command(const RunArgs& a) {
                  {"keyframe", stage_stats(kf)},     {"llc", stage_stats(llc_ms)},
                  {"glc", stage_stats(glc)},         {"posegraph", stage_stats(pg)},
                  {"backend", stage_stats(bend)},    {"frontend_cpu", stage_stats(fe_cpu)},
-                 {"backend_cpu", stage_stats(be_cpu)}};
+                 {"backend_cpu", stage_stats(be_cpu)}, {"map_lock_wait", stage_stats(lock_wait)}};
   if (!ds->groundtruth_path().empty()) {
     auto gt = slam::eval::read_tum_trajectory(ds->groundtruth_path(), &err);
     if (!gt) {
@@ -511,6 +528,23 @@ int main(int argc, char** argv) {
                   "localmap: a view change makes no keyframe that would be culled as redundant at once (>= 90 % of "
                   "its tracked near points seen by >= 3 keyframes); off: ORB-SLAM2's rule as is")
       ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
+  run->add_option("--depth-noise", a.depth_noise,
+                  "localmap: sigma of the depth residual - kinect (the sensor's axial noise, Nguyen et al. 2012) | "
+                  "keypoint (ORB-SLAM2: the keypoint's pixel sigma on the virtual-stereo disparity)")
+      ->check(CLI::IsMember({"kinect", "keypoint"}))->capture_default_str();
+  run->add_option("--depth-units-per-m", a.depth_units_per_m,
+                  "raw depth units per metre (0: the camera's, TUM 5000; ORB-SLAM2's TUM2.yaml uses 5208 for fr2) - "
+                  "for calibration ablations");
+  run->add_option("--local-ba", a.local_ba,
+                  "localmap: the mapper's local bundle adjustment (poses and points); off for ablations")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
+  run->add_option("--map-lock", a.map_lock,
+                  "localmap: pi (the map lock inherits a waiting real-time tracker's priority) | plain (to compare)")
+      ->check(CLI::IsMember({"pi", "plain"}))->capture_default_str();
+  run->add_option("--tracking-policy", a.tracking_policy,
+                  "realtime mode: scheduling of the tracking thread - off (as created) | nice | rr | fifo "
+                  "(slam-server's and quad-control's real-time path)")
+      ->check(CLI::IsMember({"off", "nice", "rr", "fifo"}))->capture_default_str();
   std::string gt, est;
   auto* score = app.add_subcommand("score", "print ATE/RPE of EST against GT as JSON (TUM definitions, 20 ms association)");
   score->add_option("--gt", gt, "ground truth, TUM format")->required();

@@ -15,7 +15,11 @@ the turn-around, where the camera stops for one frame interval. rgb and depth ge
 stamp (the excerpt's own rgb/depth offset of up to 20 ms is dropped).
 
 What a bounded back-end must show (issue: "keyframes level off, the last minute's mapping p95 is at
-most 1.5x the second minute's"): the table prints both checks and a verdict.
+most 1.5x the second minute's"): the table prints both checks and a verdict. "Level off" is judged
+against the first minute, which explores the desk (every later minute only revisits it): the last
+whole minute may add at most `kSteadyKeyframeFraction` of the first minute's new keyframes, and the
+map may not end it with more keyframes than it had after the first minute. (Comparing the last
+minute with the second only showed that the rate did not grow: 31 -> 27 passed.)
 """
 
 from __future__ import annotations
@@ -29,6 +33,9 @@ import sys
 from pathlib import Path
 
 kAssocMaxDtS = 0.02  # TUM associate.py's default tolerance
+# Revisits in steady state add no keyframes (issue 12); a tenth of the exploring minute's count leaves
+# room for the odd keyframe at a turn-around without calling a constant churn "levelled off".
+kSteadyKeyframeFraction = 0.1
 
 
 def _read_list(path: Path) -> list[tuple[float, str]]:
@@ -132,6 +139,8 @@ def table(run: Path, minute_s: float = 60.0) -> int:
         for f in fr:
             if int(f["keyframe"]) and f.get("keyframe_wanted") in why:
                 why[f["keyframe_wanted"]] += 1
+        # frames whose keyframe was left for later because the mapper was busy (tracker c1b/c1c gate)
+        deferred_busy = sum(1 for f in fr if f.get("keyframe_wanted") == "mapper_busy")
         last = fr[-1] if fr else None
         rows.append({
             "minute": m + 1, "frames": len(fr),
@@ -145,10 +154,11 @@ def table(run: Path, minute_s: float = 60.0) -> int:
             "keyframes_mapped": len(mp),
             "kf_view/near/both": f"{why['view_changed']}/{why['need_near']}/{why['view_changed+need_near']}",
             "loops_accepted": sum(1 for x in lp if x["accepted"] == "1"),
+            "deferred_busy": deferred_busy,
         })
     cols = ["minute", "frames", "lost", "new_keyframes", "keyframes_end", "map_points_end",
             "rss_mib_end", "tracking_cpu_p95_ms", "mapping_p95_ms", "keyframes_mapped", "kf_view/near/both",
-            "loops_accepted"]
+            "loops_accepted", "deferred_busy"]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for r in rows:
@@ -158,14 +168,20 @@ def table(run: Path, minute_s: float = 60.0) -> int:
     verdict = 0
     full = [r for r in rows if r["frames"] > 0.9 * minute_s * 25]  # whole minutes only
     if len(full) >= 3:
-        second, lastm = full[1], full[-1]
+        first, second, lastm = full[0], full[1], full[-1]
         ratio = lastm["mapping_p95_ms"] / second["mapping_p95_ms"] if second["mapping_p95_ms"] > 0 else float("inf")
         ok_cost = ratio <= 1.5 or lastm["keyframes_mapped"] == 0
-        ok_kf = lastm["new_keyframes"] <= second["new_keyframes"]
+        allowed = math.floor(kSteadyKeyframeFraction * first["new_keyframes"])
+        ok_rate = lastm["new_keyframes"] <= allowed
+        ok_size = lastm["keyframes_end"] <= first["keyframes_end"]
+        ok_kf = ok_rate and ok_size
         print(f"mapping p95, last whole minute / second minute: {ratio:.2f} (target <= 1.5): "
               f"{'met' if ok_cost else 'MISSED'}")
-        print(f"keyframes level off: {second['new_keyframes']} new in minute 2, {lastm['new_keyframes']} "
-              f"in minute {lastm['minute']}: {'met' if ok_kf else 'MISSED'}")
+        print(f"keyframes level off: {first['new_keyframes']} new in minute 1 (exploring), "
+              f"{second['new_keyframes']} in minute 2, {lastm['new_keyframes']} in minute {lastm['minute']} "
+              f"(target <= {allowed}, {kSteadyKeyframeFraction:.0%} of minute 1); map {first['keyframes_end']} "
+              f"keyframes after minute 1, {lastm['keyframes_end']} after minute {lastm['minute']}: "
+              f"{'met' if ok_kf else 'MISSED'}")
         verdict = 0 if ok_cost and ok_kf else 1
     else:
         print("fewer than 3 whole minutes: no verdict (use more --passes)")

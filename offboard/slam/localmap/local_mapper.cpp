@@ -18,8 +18,8 @@ namespace {
 /// Whitened RGB-D reprojection residual of one observation. Pose block: angle-axis (3) and
 /// translation (3) of T_cam_world; point block: world position (3).
 struct RgbdReprojectionCost {
-  RgbdReprojectionCost(const Eigen::Vector3d& measurement, double sigma_px, const CameraModel& cam)
-      : z_(measurement), inv_sigma_(1.0 / sigma_px), cam_(cam) {}
+  RgbdReprojectionCost(const Eigen::Vector3d& measurement, const Eigen::Vector3d& sigma_px, const CameraModel& cam)
+      : z_(measurement), inv_sigma_(sigma_px.cwiseInverse()), cam_(cam) {}
   template <typename T>
   bool operator()(const T* pose, const T* point, T* residual) const {
     T pc[3];
@@ -29,13 +29,13 @@ struct RgbdReprojectionCost {
     pc[2] += pose[5];
     if (pc[2] < T(1e-3)) pc[2] = T(1e-3);  // keeps the residual finite; such an edge is an outlier
     const T iz = T(1.0) / pc[2];
-    residual[0] = (T(cam_.fx_px) * pc[0] * iz + T(cam_.cx_px) - T(z_.x())) * T(inv_sigma_);
-    residual[1] = (T(cam_.fy_px) * pc[1] * iz + T(cam_.cy_px) - T(z_.y())) * T(inv_sigma_);
-    residual[2] = (T(cam_.bf_px_m) * iz - T(z_.z())) * T(inv_sigma_);
+    residual[0] = (T(cam_.fx_px) * pc[0] * iz + T(cam_.cx_px) - T(z_.x())) * T(inv_sigma_.x());
+    residual[1] = (T(cam_.fy_px) * pc[1] * iz + T(cam_.cy_px) - T(z_.y())) * T(inv_sigma_.y());
+    residual[2] = (T(cam_.bf_px_m) * iz - T(z_.z())) * T(inv_sigma_.z());
     return true;
   }
   Eigen::Vector3d z_;
-  double inv_sigma_;
+  Eigen::Vector3d inv_sigma_;
   CameraModel cam_;
 };
 
@@ -59,7 +59,7 @@ double chi2_of(const MapKeyframe& kf, int kp, const Eigen::Vector3d& p_world, co
   const Eigen::Vector3d pc = kf.T_world_cam.inverse() * p_world;
   if (pc.z() <= 1e-3) return 1e9;
   const auto k = static_cast<std::size_t>(kp);
-  const Eigen::Vector3d e = (cam.project(pc) - kf.features.measurement(k, cam)) / kf.features.sigma_px[k];
+  const Eigen::Vector3d e = (cam.project(pc) - kf.features.measurement(k, cam)).cwiseQuotient(kf.features.sigma(k));
   return e.squaredNorm();
 }
 
@@ -86,7 +86,7 @@ FuseCounts fuse_into_keyframe(SlamMap& map, const CameraModel& camera, double ra
     int best_k = -1;
     for (int k : cand) {
       const auto ks = static_cast<std::size_t>(k);
-      const Eigen::Vector3d e = (uvd - kf->features.measurement(ks, camera)) / kf->features.sigma_px[ks];
+      const Eigen::Vector3d e = (uvd - kf->features.measurement(ks, camera)).cwiseQuotient(kf->features.sigma(ks));
       if (e.head<2>().norm() > radius_px || e.squaredNorm() > kChi2Rgbd95) continue;
       const double d = descriptor_distance(p->descriptor, desc.row(k));
       if (d < best) {
@@ -148,14 +148,14 @@ MapperStats LocalMapper::process(std::int64_t kf_id) {
   MapperStats stats;
   stats.keyframe = kf_id;
   {
-    std::lock_guard<std::mutex> lock(map_->mutex);
+    std::lock_guard<MapMutex> lock(map_->mutex);
     if (!map_->map.has_keyframe(kf_id)) return stats;
     stats.points_culled = cull_points(kf_id);
   }
   fuse(kf_id, &stats);
   if (options_.bundle_adjustment) bundle_adjust(kf_id, &stats);
   {
-    std::lock_guard<std::mutex> lock(map_->mutex);
+    std::lock_guard<MapMutex> lock(map_->mutex);
     stats.keyframes_culled = cull_keyframes(kf_id);
   }
   stats.total_ms = ms_since(t0);
@@ -192,7 +192,7 @@ int LocalMapper::cull_points(std::int64_t kf_id) {
 }
 
 void LocalMapper::fuse(std::int64_t kf_id, MapperStats* stats) {
-  std::lock_guard<std::mutex> lock(map_->mutex);
+  std::lock_guard<MapMutex> lock(map_->mutex);
   SlamMap& map = map_->map;
   const auto cov = map.covisible(kf_id, 1);
   std::vector<std::int64_t> neighbours;
@@ -225,7 +225,7 @@ void LocalMapper::bundle_adjust(std::int64_t kf_id, MapperStats* stats) {
     std::int64_t kf;
     std::int64_t pid;
     Eigen::Vector3d z;
-    double sigma;
+    Eigen::Vector3d sigma;
   };
   std::map<std::int64_t, std::array<double, 6>> poses;
   std::set<std::int64_t> fixed;
@@ -234,7 +234,7 @@ void LocalMapper::bundle_adjust(std::int64_t kf_id, MapperStats* stats) {
   std::int64_t first_kf = -1;
   std::uint64_t corrections = 0;
   {
-    std::lock_guard<std::mutex> lock(map_->mutex);
+    std::lock_guard<MapMutex> lock(map_->mutex);
     const SlamMap& map = map_->map;
     if (!map.has_keyframe(kf_id)) return;
     corrections = map_->corrections;
@@ -272,7 +272,7 @@ void LocalMapper::bundle_adjust(std::int64_t kf_id, MapperStats* stats) {
         if (!poses.count(o)) continue;
         const MapKeyframe* kf = map.keyframe(o);
         const auto k = static_cast<std::size_t>(kp);
-        obs.push_back(Obs{o, pid, kf->features.measurement(k, camera_), kf->features.sigma_px[k]});
+        obs.push_back(Obs{o, pid, kf->features.measurement(k, camera_), kf->features.sigma(k)});
       }
     }
   }
@@ -302,7 +302,7 @@ void LocalMapper::bundle_adjust(std::int64_t kf_id, MapperStats* stats) {
     return;
   }
   {
-    std::lock_guard<std::mutex> lock(map_->mutex);
+    std::lock_guard<MapMutex> lock(map_->mutex);
     SlamMap& map = map_->map;
     if (map_->corrections != corrections) {
       // Solved on poses from before a loop correction: writing it back would undo the correction

@@ -22,6 +22,30 @@ double keypoint_level_scale(const cv::KeyPoint& kp, const FeatureOptions& o) {
   return std::max(1.0, static_cast<double>(kp.size) / finest_px);
 }
 
+bool parse_depth_noise_model(const std::string& name, DepthNoiseModel* out, std::string* error) {
+  if (name == "keypoint") { *out = DepthNoiseModel::kKeypointSigma; return true; }
+  if (name == "kinect") { *out = DepthNoiseModel::kKinectAxial; return true; }
+  if (error) *error = "unknown depth noise model '" + name + "' (expected kinect or keypoint)";
+  return false;
+}
+
+const char* to_string(DepthNoiseModel m) {
+  switch (m) {
+    case DepthNoiseModel::kKeypointSigma: return "keypoint";
+    case DepthNoiseModel::kKinectAxial: return "kinect";
+  }
+  return "?";
+}
+
+double CameraModel::disparity_sigma_px(double depth_m, double kp_sigma_px) const {
+  if (depth_noise == DepthNoiseModel::kKeypointSigma) return kp_sigma_px;
+  // Nguyen et al. 2012, Eq. 1 (metres).
+  constexpr double kSigmaZ0M = 0.0012, kSigmaZ2PerM2 = 0.0019, kZOffsetM = 0.4;
+  const double dz = depth_m - kZOffsetM;
+  const double sigma_z_m = kSigmaZ0M + kSigmaZ2PerM2 * dz * dz;
+  return std::max(kMinDisparitySigmaPx, bf_px_m * sigma_z_m / (depth_m * depth_m));
+}
+
 KeypointGrid::KeypointGrid(const std::vector<Eigen::Vector2d>& pixels, int width_px, int height_px)
     : cols_((width_px + kCellPx - 1) / kCellPx),
       rows_((height_px + kCellPx - 1) / kCellPx),
@@ -57,11 +81,13 @@ TrackedFeatures TrackedFeatures::from(std::shared_ptr<const FrameFeatures> f, co
   t.pixels.reserve(n);
   t.depth_m.reserve(n);
   t.sigma_px.reserve(n);
+  t.disparity_sigma_px.reserve(n);
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d uvd = cam.project(f->points_cam_m[i]);
     t.pixels.emplace_back(uvd.x(), uvd.y());
     t.depth_m.push_back(f->points_cam_m[i].z());
     t.sigma_px.push_back(keypoint_level_scale(f->keypoints[i], options));
+    t.disparity_sigma_px.push_back(cam.disparity_sigma_px(t.depth_m.back(), t.sigma_px.back()));
   }
   t.grid = KeypointGrid(t.pixels, cam.width_px, cam.height_px);
   t.features = std::move(f);

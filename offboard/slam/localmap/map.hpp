@@ -27,11 +27,32 @@ namespace slam {
 /// Observation model shared by tracking and bundle adjustment: a pinhole camera on undistorted
 /// pixels plus a virtual-stereo disparity d = bf / z for the depth reading (ORB-SLAM2's RGB-D
 /// model; bf = 40 px*m in its TUM settings: the Kinect's 7.5 cm IR baseline times fx ~ 517 px).
-/// One sigma per keypoint, `level_scale` px (1 at the finest detector level).
+/// Pixel sigma per keypoint, `level_scale` px (1 at the finest detector level); the disparity's
+/// sigma follows `depth_noise` (see DepthNoiseModel).
+enum class DepthNoiseModel {
+  /// ORB-SLAM2: the disparity gets the keypoint's pixel sigma, as a stereo match would. For a
+  /// Kinect this says sigma_z = z^2 / bf per px: 25 mm at 1 m, 100 mm at 2 m - 10-20x the sensor's.
+  kKeypointSigma,
+  /// The Kinect's measured axial noise, sigma_z(z) = 1.2 mm + 1.9 mm/m^2 (z - 0.4 m)^2 (Nguyen,
+  /// Izadi, Lovell, "Modeling Kinect Sensor Noise for Improved 3D Reconstruction and Tracking",
+  /// 3DIMPVT 2012, Eq. 1, surfaces facing the camera), carried into disparity:
+  /// sigma_d = bf sigma_z / z^2 (0.08 px at 1 m, 0.06 px at 2 m), never below
+  /// `kMinDisparitySigmaPx`.
+  kKinectAxial,
+};
+bool parse_depth_noise_model(const std::string& name, DepthNoiseModel* out, std::string* error);
+const char* to_string(DepthNoiseModel m);
+
 struct CameraModel {
   double fx_px = 0, fy_px = 0, cx_px = 0, cy_px = 0;
   double bf_px_m = 40.0;
   int width_px = 640, height_px = 480;
+  DepthNoiseModel depth_noise = DepthNoiseModel::kKeypointSigma;
+  /// Floor of the disparity sigma: the Kinect reports disparity in 1/8 px steps (Khoshelham and
+  /// Elberink 2012), whose quantisation alone is 1/8 / sqrt(12) = 0.036 px.
+  static constexpr double kMinDisparitySigmaPx = 0.125 / 3.4641016151377544;
+  /// Disparity sigma, px, of a depth reading `depth_m` at a keypoint of pixel sigma `kp_sigma_px`.
+  double disparity_sigma_px(double depth_m, double kp_sigma_px) const;
   static CameraModel from(const Intrinsics& k) {
     CameraModel c;
     c.fx_px = k.fx_px;
@@ -80,7 +101,8 @@ struct TrackedFeatures {
   std::shared_ptr<const FrameFeatures> features;
   std::vector<Eigen::Vector2d> pixels;   ///< undistorted pixel of each keypoint
   std::vector<double> depth_m;
-  std::vector<double> sigma_px;
+  std::vector<double> sigma_px;            ///< pixel sigma of (u, v)
+  std::vector<double> disparity_sigma_px;  ///< sigma of the disparity (CameraModel::disparity_sigma_px)
   KeypointGrid grid;
   static TrackedFeatures from(std::shared_ptr<const FrameFeatures> f, const CameraModel& cam,
                               const FeatureOptions& options);
@@ -89,6 +111,8 @@ struct TrackedFeatures {
   Eigen::Vector3d measurement(std::size_t i, const CameraModel& cam) const {
     return {pixels[i].x(), pixels[i].y(), cam.bf_px_m / depth_m[i]};
   }
+  /// Sigmas of (u, v, disparity) for keypoint i, px.
+  Eigen::Vector3d sigma(std::size_t i) const { return {sigma_px[i], sigma_px[i], disparity_sigma_px[i]}; }
 };
 
 struct MapPoint {

@@ -41,12 +41,12 @@ PoseOptimizerResult optimize_pose(const Eigen::Isometry3d& T_init,
         const Eigen::Vector3d pc = T * obs[i].p_world_m;
         if (pc.z() <= 1e-3) continue;
         const double iz = 1.0 / pc.z(), iz2 = iz * iz;
-        const Eigen::Vector3d e = (cam.project(pc) - obs[i].measurement) / obs[i].sigma_px;
+        const Eigen::Vector3d e = (cam.project(pc) - obs[i].measurement).cwiseQuotient(obs[i].sigma_px);
         Eigen::Matrix3d Jp;
         Jp << cam.fx_px * iz, 0, -cam.fx_px * pc.x() * iz2,
               0, cam.fy_px * iz, -cam.fy_px * pc.y() * iz2,
               0, 0, -cam.bf_px_m * iz2;
-        Jp /= obs[i].sigma_px;
+        Jp = obs[i].sigma_px.cwiseInverse().asDiagonal() * Jp;
         Eigen::Matrix<double, 3, 6> Jt;
         Eigen::Matrix3d skew;
         skew << 0, -pc.z(), pc.y(), pc.z(), 0, -pc.x(), -pc.y(), pc.x(), 0;
@@ -73,7 +73,7 @@ PoseOptimizerResult optimize_pose(const Eigen::Isometry3d& T_init,
       const Eigen::Vector3d pc = T * obs[i].p_world_m;
       bool in = pc.z() > 1e-3;
       if (in) {
-        const Eigen::Vector3d e = (cam.project(pc) - obs[i].measurement) / obs[i].sigma_px;
+        const Eigen::Vector3d e = (cam.project(pc) - obs[i].measurement).cwiseQuotient(obs[i].sigma_px);
         in = e.squaredNorm() <= o.chi2_outlier;
       }
       r.inlier[i] = in;

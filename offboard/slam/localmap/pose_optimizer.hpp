@@ -16,7 +16,7 @@ namespace slam {
 struct PoseObservation {
   Eigen::Vector3d p_world_m = Eigen::Vector3d::Zero();
   Eigen::Vector3d measurement = Eigen::Vector3d::Zero();  ///< (u px, v px, disparity px)
-  double sigma_px = 1.0;
+  Eigen::Vector3d sigma_px = Eigen::Vector3d::Ones();  ///< sigmas of (u, v, disparity)
 };
 
 struct PoseOptimizerOptions {

@@ -69,7 +69,7 @@ ProjectionFit fit_by_projection(const std::vector<LocalPoint>& points, const Tra
     for (std::size_t k = 0; k < pok.size(); ++k) {
       if (pok[k] < 0) continue;
       obs.push_back(PoseObservation{points[static_cast<std::size_t>(pok[k])].p_world_m,
-                                    frame.measurement(k, camera), frame.sigma_px[k]});
+                                    frame.measurement(k, camera), frame.sigma(k)});
       kp_of_obs.push_back(static_cast<int>(k));
     }
     const PoseOptimizerResult r = optimize_pose(T_start, obs, camera, options.pose);

@@ -36,12 +36,20 @@ ProjectionFitOptions projection_fit_options(const TrackerOptions& o) {
 
 const char* to_string(KeyframeReason r) {
   switch (r) {
-    case KeyframeReason::kNone: return "none";
-    case KeyframeReason::kFirst: return "first";
-    case KeyframeReason::kViewChanged: return "view_changed";
-    case KeyframeReason::kNeedNear: return "need_near";
-    case KeyframeReason::kBoth: return "view_changed+need_near";
-    case KeyframeReason::kRedundant: return "redundant";
+    case KeyframeReason::kNone:
+      return "none";
+    case KeyframeReason::kFirst:
+      return "first";
+    case KeyframeReason::kViewChanged:
+      return "view_changed";
+    case KeyframeReason::kNeedNear:
+      return "need_near";
+    case KeyframeReason::kBoth:
+      return "view_changed+need_near";
+    case KeyframeReason::kRedundant:
+      return "redundant";
+    case KeyframeReason::kMapperBusy:
+      return "mapper_busy";
   }
   return "?";
 }
@@ -56,12 +64,18 @@ bool TrackerOptions::is_valid(std::string* error) const {
   if (!(search.ratio > 0 && search.ratio <= 1)) return fail("ratio must be in (0, 1]");
   if (min_inliers_tracking < 6 || min_inliers_relocalised < min_inliers_tracking)
     return fail("min_inliers_tracking must be >= 6 and <= min_inliers_relocalised");
-  if (max_local_keyframes < 1 || covisible_per_keyframe < 0) return fail("local map sizes must be positive");
-  if (!(keyframe_tracked_ratio > 0 && keyframe_tracked_ratio < 1)) return fail("keyframe_tracked_ratio must be in (0, 1)");
+  if (max_local_keyframes < 1 || covisible_per_keyframe < 0)
+    return fail("local map sizes must be positive");
+  if (!(keyframe_tracked_ratio > 0 && keyframe_tracked_ratio < 1))
+    return fail("keyframe_tracked_ratio must be in (0, 1)");
+  if (!(keyframe_busy_tracked_ratio >= 0 && keyframe_busy_tracked_ratio <= keyframe_tracked_ratio))
+    return fail("keyframe_busy_tracked_ratio must be in [0, keyframe_tracked_ratio]");
   if (!(near_depth_m > 0)) return fail("near_depth_m must be positive");
-  if (pose.rounds < 1 || pose.iterations_per_round < 1) return fail("pose optimiser needs >= 1 round and iteration");
+  if (pose.rounds < 1 || pose.iterations_per_round < 1)
+    return fail("pose optimiser needs >= 1 round and iteration");
   if (!(max_velocity_scale >= 1)) return fail("max_velocity_scale must be >= 1");
-  if (!(max_speed_m_per_s > 0) || !(max_rate_rad_per_s > 0) || !(motion_margin_m >= 0) || !(motion_margin_rad >= 0))
+  if (!(max_speed_m_per_s > 0) || !(max_rate_rad_per_s > 0) || !(motion_margin_m >= 0) ||
+      !(motion_margin_rad >= 0))
     return fail("motion bounds must be positive");
   return matching.is_valid(error) && ransac.is_valid(error);
 }
@@ -74,6 +88,13 @@ std::optional<Tracker> Tracker::create(const TrackerOptions& options, const Came
     return std::nullopt;
   }
   return Tracker(options, camera, std::move(map));
+}
+
+std::unique_lock<MapMutex> Tracker::lock_map() const {
+  const std::int64_t t0 = steady_now_ns();
+  std::unique_lock<MapMutex> lock(map_->mutex);
+  lock_wait_ms_ += ms_since(t0);
+  return lock;
 }
 
 Tracker::LocalMap Tracker::build_local_map(const std::vector<std::int64_t>& seed_points,
@@ -101,12 +122,14 @@ Tracker::LocalMap Tracker::build_local_map(const std::vector<std::int64_t>& seed
   // Neighbours of the best few, while there is room (covisibility is computed on demand, so the
   // expansion is limited to the kMaxExpanded best keyframes to bound the per-frame cost).
   constexpr std::size_t kMaxExpanded = 3;
-  const std::vector<std::int64_t> firsts(local.keyframes.begin(),
-                                         local.keyframes.begin() + std::min(kMaxExpanded, local.keyframes.size()));
+  const std::vector<std::int64_t> firsts(
+      local.keyframes.begin(),
+      local.keyframes.begin() + std::min(kMaxExpanded, local.keyframes.size()));
   for (std::int64_t kf : firsts) {
     if (local.keyframes.size() >= cap) break;
     const auto cov = map.covisible(kf, 1);
-    for (std::size_t i = 0; i < cov.size() && static_cast<int>(i) < options_.covisible_per_keyframe; ++i)
+    for (std::size_t i = 0; i < cov.size() && static_cast<int>(i) < options_.covisible_per_keyframe;
+         ++i)
       take(cov[i].first);
   }
   std::unordered_set<std::int64_t> seen;
@@ -122,19 +145,21 @@ Tracker::LocalMap Tracker::build_local_map(const std::vector<std::int64_t>& seed
 }
 
 Tracker::Fit Tracker::fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
-                                    const Eigen::Isometry3d& T_guess, double first_radius_px) const {
-  return fit_by_projection(local.points, frame, camera_, T_guess, first_radius_px, projection_fit_options(options_));
+                                    const Eigen::Isometry3d& T_guess,
+                                    double first_radius_px) const {
+  return fit_by_projection(local.points, frame, camera_, T_guess, first_radius_px,
+                           projection_fit_options(options_));
 }
 
-std::optional<Eigen::Isometry3d> Tracker::pose_from_keyframes(const TrackedFeatures& frame,
-                                                              const std::vector<std::int64_t>& candidates,
-                                                              std::uint64_t seed) const {
-  std::optional<Eigen::Isometry3d> best;
+std::optional<Tracker::KeyframeGuess> Tracker::pose_from_keyframes(
+    const TrackedFeatures& frame, const std::vector<std::int64_t>& candidates,
+    std::uint64_t seed) const {
+  std::optional<KeyframeGuess> best;
   std::size_t best_inliers = 0;
   for (std::int64_t kf_id : candidates) {
     KeyframePoints kp;
     {
-      std::lock_guard<std::mutex> lock(map_->mutex);
+      const auto lock = lock_map();
       kp = keyframe_points(map_->map, kf_id);
     }
     if (kp.keyframe < 0) continue;
@@ -143,17 +168,18 @@ std::optional<Eigen::Isometry3d> Tracker::pose_from_keyframes(const TrackedFeatu
                                           options_.min_relocalisation_ransac_inliers);
     if (reg && reg->inliers > best_inliers) {
       best_inliers = reg->inliers;
-      best = reg->T_world_cam;
+      best = KeyframeGuess{reg->T_world_cam, kf_id};
     }
   }
   return best;
 }
 
-std::int64_t Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf, const cv::Mat& thumbnail,
-                              const Eigen::Isometry3d& T_world_cam, const LocalMap& local,
-                              const std::vector<int>& point_of_keypoint) {
+std::int64_t Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf,
+                                      const cv::Mat& thumbnail,
+                                      const Eigen::Isometry3d& T_world_cam, const LocalMap& local,
+                                      const std::vector<int>& point_of_keypoint) {
   MapKeyframe kf;
-  std::lock_guard<std::mutex> lock(map_->mutex);
+  const auto lock = lock_map();
   SlamMap& map = map_->map;
   // Keyframe ids follow the frame index, but never reuse an id of a loaded (or culled) keyframe.
   std::int64_t id = frame.index;
@@ -181,7 +207,8 @@ std::int64_t Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatu
   for (int k : fresh) {
     const auto ks = static_cast<std::size_t>(k);
     if (tf.depth_m[ks] > options_.near_depth_m && created >= options_.min_new_points) break;
-    map.add_point(T_world_cam * tf.features->points_cam_m[ks], tf.features->descriptors.row(k), id, k);
+    map.add_point(T_world_cam * tf.features->points_cam_m[ks], tf.features->descriptors.row(k), id,
+                  k);
     ++created;
   }
   reference_kf_ = id;
@@ -190,8 +217,9 @@ std::int64_t Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatu
 
 TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFeatures> features,
                            const FeatureOptions& feature_options, bool keyframe_allowed,
-                           const std::optional<Eigen::Quaterniond>& R_prior) {
+                           bool mapper_idle, const std::optional<Eigen::Quaterniond>& R_prior) {
   TrackResult out;
+  lock_wait_ms_ = 0;
   const TrackedFeatures tf = TrackedFeatures::from(std::move(features), camera_, feature_options);
   const cv::Mat thumbnail = make_thumbnail(frame.rgb);
   const std::uint64_t seed = options_.ransac.max_iterations * 0x9E3779B97F4A7C15ull ^
@@ -199,14 +227,18 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
 
   bool map_empty;
   {
-    std::lock_guard<std::mutex> lock(map_->mutex);
+    const auto lock = lock_map();
     map_empty = map_->map.keyframes().empty();
   }
   if (map_empty) {
     out.state = TrackingState::kInitialising;
-    if (static_cast<int>(tf.size()) < options_.min_init_features) return out;
+    if (static_cast<int>(tf.size()) < options_.min_init_features) {
+      out.map_lock_wait_ms = lock_wait_ms_;
+      return out;
+    }
     const Eigen::Isometry3d T_world_cam =
-        R_prior ? Eigen::Isometry3d(R_prior->normalized().toRotationMatrix()) : Eigen::Isometry3d::Identity();
+        R_prior ? Eigen::Isometry3d(R_prior->normalized().toRotationMatrix())
+                : Eigen::Isometry3d::Identity();
     out.keyframe_id = insert_keyframe(frame, tf, thumbnail, T_world_cam, LocalMap{}, {});
     state_ = TrackingState::kTracking;
     T_world_last_ = T_world_cam;
@@ -219,13 +251,16 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     out.keyframe = true;
     out.keyframe_wanted = KeyframeReason::kFirst;
     T_ref_last_ = Eigen::Isometry3d::Identity();
-    return out;
+    {
+      out.map_lock_wait_ms = lock_wait_ms_;
+      return out;
+    }
   }
 
   // A loop correction moved the map since the last frame: carry the last pose along with its
   // reference keyframe so that the prediction lands in the corrected map.
   {
-    std::lock_guard<std::mutex> lock(map_->mutex);
+    const auto lock = lock_map();
     if (map_->corrections != corrections_seen_) {
       corrections_seen_ = map_->corrections;
       if (auto T_kf = map_->map.resolve_pose(reference_kf_)) T_world_last_ = *T_kf * T_ref_last_;
@@ -245,7 +280,7 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
   std::int64_t t0 = steady_now_ns();
   LocalMap local;
   {
-    std::lock_guard<std::mutex> lock(map_->mutex);
+    const auto lock = lock_map();
     if (!map_->map.has_keyframe(reference_kf_) && !map_->map.keyframes().empty())
       reference_kf_ = map_->map.keyframes().rbegin()->first;
     local = build_local_map(last_points_, reference_kf_);
@@ -264,8 +299,9 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     t0 = steady_now_ns();
     std::vector<std::int64_t> candidates;
     {
-      std::lock_guard<std::mutex> lock(map_->mutex);
-      candidates = rank_keyframes_by_appearance(map_->map, thumbnail, options_.relocalisation_candidates);
+      const auto lock = lock_map();
+      candidates =
+          rank_keyframes_by_appearance(map_->map, thumbnail, options_.relocalisation_candidates);
       if (state_ == TrackingState::kTracking && map_->map.has_keyframe(reference_kf_) &&
           std::find(candidates.begin(), candidates.end(), reference_kf_) == candidates.end())
         candidates.insert(candidates.begin(), reference_kf_);
@@ -274,11 +310,13 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     if (guess) {
       LocalMap around;
       {
-        std::lock_guard<std::mutex> lock(map_->mutex);
-        // Local map around the best candidate keyframe.
-        around = build_local_map({}, candidates.front());
+        const auto lock = lock_map();
+        // Local map around the keyframe the guess was registered to (the RANSAC-best candidate,
+        // not the first by appearance: while tracking, that is the reference keyframe).
+        around = build_local_map({}, guess->keyframe);
       }
-      Fit refit = fit_local_map(around, tf, guess->inverse(), options_.search.radius_px);
+      Fit refit =
+          fit_local_map(around, tf, guess->T_world_cam.inverse(), options_.search.radius_px);
       if (refit.ok && refit.inliers > fit.inliers) {
         fit = std::move(refit);
         local = std::move(around);
@@ -301,22 +339,28 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
   if (fit.ok && state_ == TrackingState::kTracking) {
     const Eigen::Isometry3d step = T_world_last_.inverse() * fit.T_cam_world.inverse();
     const double dt = std::max(0.0, frame.stamp_s - last_stamp_s_);
-    implausible = step.translation().norm() > options_.max_speed_m_per_s * dt + options_.motion_margin_m ||
-                  rotation_angle_rad(step) > options_.max_rate_rad_per_s * dt + options_.motion_margin_rad;
+    implausible =
+        step.translation().norm() > options_.max_speed_m_per_s * dt + options_.motion_margin_m ||
+        rotation_angle_rad(step) > options_.max_rate_rad_per_s * dt + options_.motion_margin_rad;
   }
-  if (!fit.ok || implausible || static_cast<int>(fit.inliers) < needed || !fit.T_cam_world.matrix().allFinite()) {
+  if (!fit.ok || implausible || static_cast<int>(fit.inliers) < needed ||
+      !fit.T_cam_world.matrix().allFinite()) {
     // Lost: hold the last pose; the next frames go straight to relocalisation.
     state_ = TrackingState::kLost;
     have_velocity_ = false;
     out.state = TrackingState::kLost;
     out.T_world_cam = T_world_last_;
     out.reference_keyframe = reference_kf_;
-    std::lock_guard<std::mutex> lock(map_->mutex);
-    if (auto T_kf = map_->map.resolve_pose(reference_kf_)) out.T_kf_cam = T_kf->inverse() * T_world_last_;
+    const auto lock = lock_map();
+    if (auto T_kf = map_->map.resolve_pose(reference_kf_))
+      out.T_kf_cam = T_kf->inverse() * T_world_last_;
     T_ref_last_ = out.T_kf_cam;
     out.map_keyframes = map_->map.keyframes().size();
     out.map_points = map_->map.points().size();
-    return out;
+    {
+      out.map_lock_wait_ms = lock_wait_ms_;
+      return out;
+    }
   }
 
   const Eigen::Isometry3d T_world_cam = fit.T_cam_world.inverse();
@@ -336,7 +380,7 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
   }
   bool make_keyframe = false;
   {
-    std::lock_guard<std::mutex> lock(map_->mutex);
+    const auto lock = lock_map();
     SlamMap& map = map_->map;
     // Visibility statistics at the refined pose (for the mapper's point culling).
     for (const LocalPoint& lp : local.points) {
@@ -356,7 +400,8 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
       for (const auto& [kf, kp] : p->observations) ++votes[kf];
       if (matched_near[i]) {
         ++near_matched;
-        near_well_observed += static_cast<int>(p->observations.size()) >= options_.redundant_observers ? 1 : 0;
+        near_well_observed +=
+            static_cast<int>(p->observations.size()) >= options_.redundant_observers ? 1 : 0;
       }
     }
     std::int64_t best_kf = reference_kf_;
@@ -373,17 +418,28 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     // (0.4 while there is a single keyframe).
     const std::size_t kfs = map.keyframes().size();
     const int min_obs = kfs > 2 ? 2 : 1;
-    const double ratio = kfs < 2 ? options_.keyframe_tracked_ratio_first : options_.keyframe_tracked_ratio;
+    const double ratio =
+        kfs < 2 ? options_.keyframe_tracked_ratio_first : options_.keyframe_tracked_ratio;
     const int ref_tracked = map.tracked_points(reference_kf_, min_obs);
     const int tracked = static_cast<int>(fit.inliers);
     const bool view_changed = tracked < ratio * ref_tracked;
-    const bool need_near = near_tracked < options_.near_tracked_min && near_untracked > options_.near_untracked_min;
+    const bool need_near =
+        near_tracked < options_.near_tracked_min && near_untracked > options_.near_untracked_min;
     make_keyframe = keyframe_allowed && (view_changed || need_near) && tracked > 15;
     out.keyframe_wanted = !(view_changed || need_near) || tracked <= 15 ? KeyframeReason::kNone
-                          : view_changed && need_near                  ? KeyframeReason::kBoth
-                          : view_changed                               ? KeyframeReason::kViewChanged
-                                                                       : KeyframeReason::kNeedNear;
-    if (make_keyframe && view_changed && !need_near && options_.keyframe_needs_new_content && near_matched > 0) {
+                          : view_changed && need_near                   ? KeyframeReason::kBoth
+                          : view_changed ? KeyframeReason::kViewChanged
+                                         : KeyframeReason::kNeedNear;
+    // ORB-SLAM2 c1b/c1c: with the mapper busy, only weak tracking inserts (otherwise a keyframe
+    // made now would wait behind the mapper while the view it was made for is already tracked
+    // again).
+    const bool weak = tracked < options_.keyframe_busy_tracked_ratio * ref_tracked || need_near;
+    if (make_keyframe && !mapper_idle && !weak) {
+      make_keyframe = false;
+      out.keyframe_wanted = KeyframeReason::kMapperBusy;
+    }
+    if (make_keyframe && view_changed && !need_near && options_.keyframe_needs_new_content &&
+        near_matched > 0) {
       out.near_redundant = static_cast<double>(near_well_observed) / near_matched;
       if (out.near_redundant >= options_.redundant_fraction) {
         make_keyframe = false;
@@ -397,7 +453,8 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     if (auto T_kf = map.resolve_pose(reference_kf_)) out.T_kf_cam = T_kf->inverse() * T_world_cam;
   }
   if (make_keyframe) {
-    out.keyframe_id = insert_keyframe(frame, tf, thumbnail, T_world_cam, local, fit.point_of_keypoint);
+    out.keyframe_id =
+        insert_keyframe(frame, tf, thumbnail, T_world_cam, local, fit.point_of_keypoint);
     out.keyframe = true;
     out.reference_keyframe = out.keyframe_id;
     out.T_kf_cam = Eigen::Isometry3d::Identity();
@@ -419,10 +476,13 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
   last_points_ = std::move(matched_ids);
   out.state = TrackingState::kTracking;
   out.T_world_cam = T_world_cam;
-  std::lock_guard<std::mutex> lock(map_->mutex);
+  const auto lock = lock_map();
   out.map_keyframes = map_->map.keyframes().size();
   out.map_points = map_->map.points().size();
-  return out;
+  {
+    out.map_lock_wait_ms = lock_wait_ms_;
+    return out;
+  }
 }
 
 }  // namespace slam

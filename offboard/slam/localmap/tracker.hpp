@@ -35,12 +35,22 @@
 #include "slam/matching/matching.hpp"
 #include "slam/motion/motion.hpp"
 #include "slam/pipeline/frontend.hpp"
+#include "slam/pipeline/thread_priority.hpp"
 
 namespace slam {
 
+/// The map's lock. Priority inheritance: the mapper and the loop closer run below tracking (niced,
+/// or SCHED_OTHER under a real-time tracker); preempted while holding the map they would keep a
+/// real-time tracker waiting behind the machine's other work (p95 16 ms, max 26 ms at load 7-10).
+/// With PTHREAD_PRIO_INHERIT the holder runs at the waiting tracker's real-time priority until it
+/// unlocks. (Between SCHED_OTHER threads the kernel's boost does not change CFS weights: it helps
+/// where tracking is real-time, as in slam-server and quad-control.)
+using MapMutex = PriorityInheritanceMutex;
+
 /// The map with the mutex that guards it; shared by the tracker, the mapper and the loop closer.
 struct SharedMap {
-  std::mutex mutex;
+  explicit SharedMap(bool priority_inheritance = true) : mutex(priority_inheritance) {}
+  MapMutex mutex;
   SlamMap map;
   /// Bumped (under `mutex`) by every loop correction that moved keyframes and points: the tracker
   /// re-anchors its last pose to its reference keyframe, the mapper drops a bundle adjustment
@@ -51,7 +61,9 @@ struct SharedMap {
 /// Why the keyframe rule asked for a keyframe (logged per frame; see Tracker::track step 5).
 /// kRedundant: the view changed, but the map already sees this view from enough keyframes (a
 /// revisit): the keyframe would be culled as redundant at once, so none was made.
-enum class KeyframeReason { kNone, kFirst, kViewChanged, kNeedNear, kBoth, kRedundant };
+/// kMapperBusy: the view changed, but the mapper was still busy and tracking was not weak (ORB-SLAM2
+/// NeedNewKeyFrame c1b/c1c): the keyframe is left to a later frame.
+enum class KeyframeReason { kNone, kFirst, kViewChanged, kNeedNear, kBoth, kRedundant, kMapperBusy };
 const char* to_string(KeyframeReason r);
 
 struct TrackerOptions {
@@ -66,6 +78,9 @@ struct TrackerOptions {
   int covisible_per_keyframe = 10;             ///< ORB-SLAM2 UpdateLocalKeyFrames: best 10 neighbours
   double keyframe_tracked_ratio = 0.75;        ///< ORB-SLAM2 RGB-D thRefRatio
   double keyframe_tracked_ratio_first = 0.4;   ///< ORB-SLAM2 thRefRatio while the map has one keyframe
+  /// While the mapper is busy (ORB-SLAM2 NeedNewKeyFrame c1b false) only weak tracking makes a
+  /// keyframe: inliers < this x the reference keyframe's tracked points (c1c: 0.25), or the near rule.
+  double keyframe_busy_tracked_ratio = 0.25;
   double near_depth_m = 3.1;                   ///< ORB-SLAM2 ThDepth: 40 baselines of the Kinect (bf 40 / fx 517)
   int near_tracked_min = 100;                  ///< ORB-SLAM2 bNeedToInsertClose: < 100 near tracked...
   int near_untracked_min = 70;                 ///< ...and > 70 near untracked -> keyframe
@@ -107,6 +122,9 @@ struct TrackResult {
   std::size_t matches = 0;        ///< projection matches before the final optimisation
   std::size_t inliers = 0;
   double local_map_ms = 0, search_ms = 0, optimise_ms = 0, relocalise_ms = 0;
+  /// Wall time this frame spent waiting to acquire the map lock (all acquisitions summed): what a
+  /// mapper or loop closer holding it costs the camera-to-command path.
+  double map_lock_wait_ms = 0;
   std::size_t map_keyframes = 0, map_points = 0;  ///< map size after this frame
   /// The keyframe rule's verdict and inputs (also when the keyframe was deferred: `keyframe` false).
   KeyframeReason keyframe_wanted = KeyframeReason::kNone;
@@ -123,9 +141,11 @@ class Tracker {
                                        std::shared_ptr<SharedMap> map, std::string* error);
 
   /// Tracks one frame whose features are extracted. `keyframe_allowed`: the mapper can take a
-  /// keyframe now (bounded queue). `R_world_cam_prior`: optional rotation prior.
+  /// keyframe now (bounded queue). `mapper_idle`: the mapper has nothing queued or in work (always
+  /// true when the caller waits for mapping); while false only weak tracking makes a keyframe.
+  /// `R_world_cam_prior`: optional rotation prior.
   TrackResult track(const RgbdFrame& frame, std::shared_ptr<const FrameFeatures> features,
-                    const FeatureOptions& feature_options, bool keyframe_allowed,
+                    const FeatureOptions& feature_options, bool keyframe_allowed, bool mapper_idle = true,
                     const std::optional<Eigen::Quaterniond>& R_world_cam_prior = std::nullopt);
 
   /// Forget the motion model and start from relocalisation (after a map load, or a reset).
@@ -146,17 +166,27 @@ class Tracker {
   /// Two-pass projection matching and pose optimisation from a pose guess.
   Fit fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
                     const Eigen::Isometry3d& T_cam_world_guess, double first_radius_px) const;
-  /// Pose from descriptor matches against the candidate keyframes' map points (3D-3D RANSAC).
-  std::optional<Eigen::Isometry3d> pose_from_keyframes(const TrackedFeatures& frame,
-                                                       const std::vector<std::int64_t>& candidates,
-                                                       std::uint64_t seed) const;
+  /// A pose guess from the keyframe database and the keyframe it was registered to.
+  struct KeyframeGuess {
+    Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+    std::int64_t keyframe = -1;
+  };
+  /// Pose from descriptor matches against the candidate keyframes' map points (3D-3D RANSAC): the
+  /// candidate with the most RANSAC inliers wins (its local map seeds the refit).
+  std::optional<KeyframeGuess> pose_from_keyframes(const TrackedFeatures& frame,
+                                                   const std::vector<std::int64_t>& candidates,
+                                                   std::uint64_t seed) const;
   /// Inserts the keyframe and its new points; returns its id.
   std::int64_t insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf, const cv::Mat& thumbnail,
                        const Eigen::Isometry3d& T_world_cam, const LocalMap& local,
                        const std::vector<int>& point_of_keypoint);
 
+  /// Locks the map, adding the wait to `lock_wait_ms_` (reset per frame by track()).
+  std::unique_lock<MapMutex> lock_map() const;
+
   TrackerOptions options_;
   CameraModel camera_;
+  mutable double lock_wait_ms_ = 0;
   std::shared_ptr<SharedMap> map_;
   TrackingState state_ = TrackingState::kInitialising;
   Eigen::Isometry3d T_world_last_ = Eigen::Isometry3d::Identity();

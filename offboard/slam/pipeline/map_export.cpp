@@ -75,7 +75,7 @@ long write_map_points_ply(const std::string& path, SharedMap& shared, std::strin
   std::vector<char> body;
   long count = 0;
   {
-    std::lock_guard<std::mutex> lock(shared.mutex);
+    std::lock_guard<MapMutex> lock(shared.mutex);
     for (const auto& [id, p] : shared.map.points()) {
       cv::Vec3b c(128, 128, 128);
       for (const auto& [kf_id, kp] : p.observations) {

@@ -60,11 +60,12 @@ std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intri
     to.matching = opts.frontend.matching;
     to.matching.lowe_ratio = to.relocalisation_ratio;
     to.ransac = opts.frontend.ransac;
-    const CameraModel cam = CameraModel::from(k);
+    CameraModel cam = CameraModel::from(k);
+    cam.depth_noise = opts.depth_noise;
     p->camera_ = cam;
     p->extractor_ = FeatureExtractor::create(opts.frontend.features, k, error);
     if (!p->extractor_) return nullptr;
-    p->map_ = std::make_shared<SharedMap>();
+    p->map_ = std::make_shared<SharedMap>(opts.map_lock_priority_inheritance);
     p->tracker_ = Tracker::create(to, cam, p->map_, error);
     if (!p->tracker_) return nullptr;
     p->mapper_ = LocalMapper::create(opts.mapper, cam, p->map_, error);
@@ -148,7 +149,7 @@ void Pipeline::finish() {
   std::sort(records_.begin(), records_.end(),
             [](const FrameRecord& a, const FrameRecord& b) { return a.index < b.index; });
   if (is_local_map()) {
-    std::lock_guard<std::mutex> lock(map_->mutex);
+    std::lock_guard<MapMutex> lock(map_->mutex);
     summary_.keyframes = map_->map.keyframes().size();
     summary_.map_points = map_->map.points().size();
     summary_.keyframes_culled = map_->map.culled().size();
@@ -163,6 +164,13 @@ void Pipeline::finish() {
 }
 
 void Pipeline::frontend_loop() {
+  if (options_.mode == PipelineMode::kRealtime && options_.tracking_thread_policy != ThreadPolicy::kOff) {
+    ThreadPriorityOptions tp;
+    tp.policy = options_.tracking_thread_policy;
+    const ThreadPriorityResult r = raise_current_thread(tp);
+    std::lock_guard<std::mutex> lock(mutex_);
+    summary_.tracking_thread = r.describe("tracking");
+  }
   for (;;) {
     RgbdFrame frame;
     {
@@ -310,7 +318,7 @@ bool Pipeline::load_map(const std::string& path, std::string* error) {
   auto loaded = slam::load_map(path, MapFileContext{camera_, options_.frontend.features}, error);
   if (!loaded) return false;
   {
-    std::lock_guard<std::mutex> lock(map_->mutex);
+    std::lock_guard<MapMutex> lock(map_->mutex);
     if (!map_->map.keyframes().empty()) {
       if (error) *error = "load_map: the pipeline has already started a map";
       return false;
@@ -327,7 +335,7 @@ bool Pipeline::save_map(const std::string& path, std::string* error) const {
     if (error) *error = "maps are saved and loaded by the localmap back-end only";
     return false;
   }
-  std::lock_guard<std::mutex> lock(map_->mutex);
+  std::lock_guard<MapMutex> lock(map_->mutex);
   return slam::save_map(path, map_->map, MapFileContext{camera_, options_.frontend.features}, error);
 }
 
@@ -400,15 +408,16 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   }
   rec.features_ms = ms_since(t0);
   rec.features = feats->points_cam_m.size();
-  bool keyframe_allowed = true;
+  bool keyframe_allowed = true, mapper_idle = true;  // wait/sequential: mapping is done before the next frame
   if (options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive) {
     std::lock_guard<std::mutex> lock(mutex_);
     keyframe_allowed = keyframe_queue_.size() + (mapper_busy_ ? 1 : 0) < kMaxQueuedKeyframes;
+    mapper_idle = keyframe_queue_.empty() && !mapper_busy_;
   }
   TrackResult tr;
   try {
     tr = tracker_->track(frame, std::make_shared<const FrameFeatures>(std::move(*feats)),
-                         extractor_->options(), keyframe_allowed);
+                         extractor_->options(), keyframe_allowed, mapper_idle);
   } catch (const std::exception& e) {
     tr.state = TrackingState::kLost;
     error = std::string("tracker: exception: ") + e.what();
@@ -432,6 +441,7 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   rec.near_redundant = tr.near_redundant;
   rec.matching_ms = tr.local_map_ms + tr.search_ms;
   rec.ransac_ms = tr.relocalise_ms;
+  rec.map_lock_wait_ms = tr.map_lock_wait_ms;
   rec.frontend_ms = ms_since(t0);
   rec.frontend_cpu_ms = (thread_cpu_now_ns() - c0) * 1e-6;
   {
@@ -502,7 +512,7 @@ std::vector<std::pair<double, Eigen::Isometry3d>> Pipeline::final_trajectory() c
   std::vector<std::pair<double, Eigen::Isometry3d>> out;
   if (is_local_map()) {
     // Each tracked frame re-anchored to the final pose of its reference keyframe.
-    std::lock_guard<std::mutex> map_lock(map_->mutex);
+    std::lock_guard<MapMutex> map_lock(map_->mutex);
     for (const auto& r : records_) {
       if (!r.ok) continue;
       const auto T_kf = r.reference_keyframe >= 0 ? map_->map.resolve_pose(r.reference_keyframe)

@@ -36,6 +36,7 @@
 #include "slam/localmap/tracker.hpp"
 #include "slam/pipeline/backend.hpp"
 #include "slam/pipeline/frontend.hpp"
+#include "slam/pipeline/thread_priority.hpp"
 
 namespace slam {
 
@@ -54,6 +55,14 @@ struct PipelineOptions {
   /// filled from the intrinsics when true).
   bool reprojection_refine = true;
   TrackerOptions tracker;          ///< BackendKind::kLocalMap only
+  /// BackendKind::kLocalMap: sigma of the depth (disparity) residual (see DepthNoiseModel).
+  DepthNoiseModel depth_noise = DepthNoiseModel::kKeypointSigma;
+  /// BackendKind::kLocalMap: the map lock inherits the priority of a waiting real-time tracker
+  /// (SharedMap / MapMutex); false only to measure what it changes.
+  bool map_lock_priority_inheritance = true;
+  /// kRealtime: scheduling of the tracking thread (slam-server and quad-control raise theirs; off
+  /// leaves it as created). Lets `slam-eval --mode realtime` measure the real-time path.
+  ThreadPolicy tracking_thread_policy = ThreadPolicy::kOff;
   LocalMapperOptions mapper;       ///< BackendKind::kLocalMap only
   /// BackendKind::kLocalMap: loop closing on its own thread (binary descriptors only: the
   /// vocabulary is ORB's; with SIFT/SURF it stays off and PipelineSummary says so).
@@ -86,6 +95,7 @@ struct FrameRecord {
   KeyframeReason keyframe_wanted = KeyframeReason::kNone;
   int ref_tracked = 0, near_tracked = 0, near_untracked = 0;
   double near_redundant = -1;
+  double map_lock_wait_ms = 0;  ///< local-map system: the tracker's wait for the map lock (TrackResult)
 };
 
 struct PipelineSummary {
@@ -103,6 +113,7 @@ struct PipelineSummary {
   std::size_t frames_lost = 0;
   bool loop_closing_active = false;  ///< the loop closer ran (option on and a vocabulary for the detector)
   std::size_t loop_detections = 0;   ///< keyframes with database candidates passed to verification
+  std::string tracking_thread;       ///< the tracking thread's scheduling, when PipelineOptions asked for one
 };
 
 class Pipeline {

@@ -160,10 +160,10 @@ void restore_current_thread(const ThreadSchedule& schedule) {
     set_thread_nice(schedule.nice, &ignored);
 }
 
-PriorityInheritanceMutex::PriorityInheritanceMutex() {
+PriorityInheritanceMutex::PriorityInheritanceMutex(bool inherit) {
   pthread_mutexattr_t attr;
   ::pthread_mutexattr_init(&attr);
-  ::pthread_mutexattr_setprotocol(&attr, PTHREAD_PRIO_INHERIT);
+  ::pthread_mutexattr_setprotocol(&attr, inherit ? PTHREAD_PRIO_INHERIT : PTHREAD_PRIO_NONE);
   ::pthread_mutex_init(&mutex_, &attr);
   ::pthread_mutexattr_destroy(&attr);
 }

@@ -74,7 +74,8 @@ void restore_current_thread(const ThreadSchedule& schedule);
 /// firmware's 250 ms failsafe fired). Lockable, for std::lock_guard / std::unique_lock.
 class PriorityInheritanceMutex {
  public:
-  PriorityInheritanceMutex();
+  /// `inherit` false: a plain mutex (PTHREAD_PRIO_NONE), for before/after measurements.
+  explicit PriorityInheritanceMutex(bool inherit = true);
   ~PriorityInheritanceMutex();
   PriorityInheritanceMutex(const PriorityInheritanceMutex&) = delete;
   PriorityInheritanceMutex& operator=(const PriorityInheritanceMutex&) = delete;

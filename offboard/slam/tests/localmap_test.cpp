@@ -39,7 +39,7 @@ std::vector<PoseObservation> observe(const std::vector<Eigen::Vector3d>& pts, co
   std::vector<PoseObservation> obs;
   for (const auto& p : pts) {
     const Eigen::Vector3d z = cam.project(T_cam_world * p) + Eigen::Vector3d(n(rng), n(rng), 0.1 * n(rng));
-    obs.push_back(PoseObservation{p, z, 1.0});
+    obs.push_back(PoseObservation{p, z, Eigen::Vector3d::Ones()});
   }
   return obs;
 }
@@ -72,6 +72,30 @@ TEST(PoseOptimizer, RejectsGrossOutliersAndStaysAccurate) {
   for (std::size_t i = 0; i < obs.size(); i += 3) flagged += r.inlier[i] ? 0 : 1;
   EXPECT_EQ(flagged, 100);
   EXPECT_LT((r.T_cam_world.translation() - truth.translation()).norm(), 0.005);
+}
+
+TEST(CameraModel, DisparitySigmaFollowsTheChosenDepthNoiseModel) {
+  CameraModel cam = fr1_camera();
+  // ORB-SLAM2's virtual stereo: the keypoint's own sigma, whatever the depth
+  cam.depth_noise = DepthNoiseModel::kKeypointSigma;
+  EXPECT_DOUBLE_EQ(cam.disparity_sigma_px(1.0, 1.0), 1.0);
+  EXPECT_DOUBLE_EQ(cam.disparity_sigma_px(3.0, 2.0), 2.0);
+  // Kinect axial noise (Nguyen et al. 2012): sigma_z(1 m) = 1.2 + 1.9 * 0.36 mm = 1.884 mm,
+  // sigma_d = 40 px m * 1.884 mm / 1 m^2
+  cam.depth_noise = DepthNoiseModel::kKinectAxial;
+  EXPECT_NEAR(cam.disparity_sigma_px(1.0, 1.0), 40.0 * 0.001884, 1e-12);
+  // sigma_z(3 m) = 1.2 + 1.9 * 6.76 mm = 14.044 mm: the disparity sigma is nearly flat in depth
+  EXPECT_NEAR(cam.disparity_sigma_px(3.0, 1.0), 40.0 * 0.014044 / 9.0, 1e-12);
+  // never below the quantisation of 1/8 px steps, and far tighter than a keypoint's pixel sigma
+  for (double z = 0.5; z <= 4.0; z += 0.1) {  // 0.5-4 m: the sensor's working range
+    EXPECT_GE(cam.disparity_sigma_px(z, 1.0), CameraModel::kMinDisparitySigmaPx);
+    EXPECT_LT(cam.disparity_sigma_px(z, 1.0), 0.5);
+  }
+  DepthNoiseModel m;
+  std::string err;
+  EXPECT_TRUE(parse_depth_noise_model("kinect", &m, &err));
+  EXPECT_EQ(m, DepthNoiseModel::kKinectAxial);
+  EXPECT_FALSE(parse_depth_noise_model("sonar", &m, &err));
 }
 
 TEST(PoseOptimizer, TooFewObservationsIsNotOk) {

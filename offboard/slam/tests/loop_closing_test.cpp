@@ -399,3 +399,111 @@ TEST(LoopCloser, TrackingProceedsBetweenTheSolveAndTheCorrectionAndFollowsIt) {
 
 }  // namespace
 }  // namespace slam
+
+namespace slam {
+namespace {
+
+TEST(Relocalisation, RefitsAroundTheKeyframeRansacFoundNotTheFirstCandidate) {
+  // GIVEN two places 5 m apart that share no point: keyframe 0 at A, keyframe 1 at B
+  SyntheticWorld w;
+  std::mt19937 rng(31);
+  const Eigen::Isometry3d T_a = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_b = Eigen::Isometry3d::Identity();
+  T_b.translation() = Eigen::Vector3d(5.0, 0.0, 0.0);
+  const std::vector<int> at_a = w.make_landmarks(T_a, 200, &rng);
+  const std::vector<int> at_b = w.make_landmarks(T_b, 200, &rng);
+  std::map<int, std::int64_t> known;
+  w.add_keyframe(0, T_a, T_a, at_a, &known);
+  w.add_keyframe(1, T_b, T_b, at_b, &known);
+  std::string err;
+  TrackerOptions to;
+  to.matching.lowe_ratio = 0.75;
+  auto tracker = Tracker::create(to, w.cam, w.map, &err);
+  ASSERT_TRUE(tracker) << err;
+  FeatureOptions fo;
+  fo.kind = DetectorKind::kOrb;
+  // and a tracker tracking at A (its reference keyframe is 0)
+  RgbdFrame f;
+  f.rgb = image_of(0);
+  f.index = 100;
+  f.stamp_s = 1.0;
+  tracker->set_lost();
+  const TrackResult a = tracker->track(f, w.features_of(T_a, at_a), fo, false);
+  ASSERT_EQ(a.state, TrackingState::kTracking);
+  ASSERT_EQ(a.reference_keyframe, 0);
+  // WHEN the next frame (10 s later: a stalled link) sees place B, looking like A by thumbnail, so
+  // the reference keyframe 0 heads the candidate list and only keyframe 1 registers by RANSAC
+  f.index = 101;
+  f.stamp_s = 11.0;
+  const TrackResult b = tracker->track(f, w.features_of(T_b, at_b), fo, false);
+  // THEN the refit runs against keyframe 1's local map and tracking resumes at B
+  ASSERT_EQ(b.state, TrackingState::kTracking);
+  EXPECT_TRUE(b.relocalised);
+  EXPECT_EQ(b.reference_keyframe, 1);
+  EXPECT_LT((b.T_world_cam.translation() - T_b.translation()).norm(), 0.01);
+}
+
+}  // namespace
+}  // namespace slam
+
+namespace slam {
+namespace {
+
+/// One keyframe seeing 200 near landmarks; a tracker tracking it; then a frame 1 cm away that sees
+/// `still_seen` of them plus 150 landmarks beyond the near depth (so the near rule stays quiet).
+TrackResult track_view_change(int still_seen, bool mapper_idle) {
+  SyntheticWorld w;
+  std::mt19937 rng(41);
+  const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity();
+  const std::vector<int> near = w.make_landmarks(T0, 200, &rng);
+  Eigen::Isometry3d T_far = Eigen::Isometry3d::Identity();
+  T_far.translation() =
+      Eigen::Vector3d(0, 0, 2.5);  // landmarks 3.5-5.5 m deep: beyond ThDepth 3.1 m
+  const std::vector<int> far = w.make_landmarks(T_far, 150, &rng);
+  std::map<int, std::int64_t> known;
+  w.add_keyframe(0, T0, T0, near, &known);
+  std::string err;
+  TrackerOptions to;
+  to.matching.lowe_ratio = 0.75;
+  auto tracker = Tracker::create(to, w.cam, w.map, &err);
+  EXPECT_TRUE(tracker) << err;
+  FeatureOptions fo;
+  fo.kind = DetectorKind::kOrb;
+  RgbdFrame f;
+  f.rgb = image_of(0);
+  f.index = 100;
+  f.stamp_s = 1.0;
+  tracker->set_lost();
+  const TrackResult first = tracker->track(f, w.features_of(T0, near), fo, true, true);
+  EXPECT_EQ(first.state, TrackingState::kTracking);
+  EXPECT_FALSE(first.keyframe);
+  Eigen::Isometry3d T1 = Eigen::Isometry3d::Identity();
+  T1.translation() = Eigen::Vector3d(0.01, 0, 0);
+  std::vector<int> seen(near.begin(), near.begin() + still_seen);
+  seen.insert(seen.end(), far.begin(), far.end());
+  f.index = 101;
+  f.stamp_s = 1.033;
+  return tracker->track(f, w.features_of(T1, seen), fo, true, mapper_idle);
+}
+
+TEST(KeyframeGate, WhileTheMapperIsBusyOnlyWeakTrackingMakesAKeyframe) {
+  // GIVEN a view change (70 of the reference's 200 points tracked: < 0.4 x 200 while the map has
+  // one keyframe) that is not weak tracking (>= 0.25 x 200) WHEN the mapper is idle THEN a keyframe
+  // is made
+  const TrackResult idle = track_view_change(70, true);
+  ASSERT_EQ(idle.state, TrackingState::kTracking);
+  EXPECT_TRUE(idle.keyframe);
+  EXPECT_EQ(idle.keyframe_wanted, KeyframeReason::kViewChanged);
+  // WHEN the mapper is busy THEN it is left for later (ORB-SLAM2 c1b/c1c)
+  const TrackResult busy = track_view_change(70, false);
+  ASSERT_EQ(busy.state, TrackingState::kTracking);
+  EXPECT_FALSE(busy.keyframe);
+  EXPECT_EQ(busy.keyframe_wanted, KeyframeReason::kMapperBusy);
+  // WHEN tracking is weak (40 < 0.25 x 200) THEN a keyframe is made even with the mapper busy
+  const TrackResult weak = track_view_change(40, false);
+  ASSERT_EQ(weak.state, TrackingState::kTracking);
+  EXPECT_TRUE(weak.keyframe);
+}
+
+}  // namespace
+}  // namespace slam
