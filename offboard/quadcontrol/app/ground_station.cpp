@@ -140,6 +140,7 @@ void GroundStation::control_loop() {
     std::this_thread::sleep_until(next);
     const std::int64_t now = monotonic_now_us();
     std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
+    feed_estimate(now);
     last_stick_ = controller_.update(now);
     last_pwm_ = to_pwm(last_stick_, spec_.pwm, apm_input());
     if (recorder_) record_command(now, 0, false);  // no craft: state events only, nothing is sent
@@ -150,6 +151,7 @@ std::optional<PwmCommand> GroundStation::command_at(std::int64_t now_us, std::ui
   LoggedCommand logged;
   {
     std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
+    feed_estimate(now_us);
     last_stick_ = controller_.update(now_us);
     last_pwm_ = to_pwm(last_stick_, spec_.pwm, apm_input());
     if (recorder_) record_command(now_us, seq, !last_stick_.hand_over_to_failsafe);
@@ -243,7 +245,8 @@ bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFram
   }
   const std::int64_t now = monotonic_now_us();
   if (!T_floor_world_ || !result.tracking || result.session != slam_session_) {
-    controller_.on_pose(PoseSample{now, false, pose_.value_or(CraftPose{})});
+    // With the estimator the IMU bridges the gap (up to its max_prediction_ms), else lost at once.
+    if (!feed_estimate(now)) controller_.on_pose(PoseSample{now, false, pose_.value_or(CraftPose{})});
     if (log_) log_->pose(LoggedPose{frame.sequence, frame.capture_us, frame.received_us, now, false});
     if (recorder_) record_pose(result, frame, now, false, Eigen::Isometry3d::Identity());
     return false;
@@ -253,7 +256,9 @@ bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFram
   last_T_floor_cam_ = T_floor_cam;
   pose_capture_us_ = frame.capture_us;
   pose_us_ = now;
-  controller_.on_pose(PoseSample{now, true, *pose_});
+  // The estimator takes the pose at its capture instant (on this clock) and carries it to now.
+  estimator_.fuse_pose(*pose_, capture_clock_.to_local(frame.capture_us, frame.received_us));
+  if (!feed_estimate(now)) controller_.on_pose(PoseSample{now, true, *pose_});
   if (log_) {
     log_->pose(LoggedPose{frame.sequence, frame.capture_us, frame.received_us, now, true, T_floor_cam, pose_->yaw_deg});
   }
@@ -287,6 +292,18 @@ void GroundStation::on_reply(std::int64_t received_us, const ControlReply& reply
   if (recorder_) recorder_->reply(received_us, reply);
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   imu_replies_.push(received_us, reply);
+  if (auto imu = imu_sample_from_reply(reply, received_us)) estimator_.predict(*imu);
+}
+
+bool GroundStation::feed_estimate(std::int64_t now_us) {
+  if (!options_.controller.estimator.enabled) return false;
+  last_estimate_ = estimator_.estimate(now_us);
+  if (!last_estimate_->imu_aided) return false;
+  const Eigen::Vector3d& v = last_estimate_->velocity_m_per_s;
+  // Invalid (too old or too uncertain): tracking lost -> the controller's lost-hold / landing.
+  controller_.on_pose(PoseSample{now_us, last_estimate_->valid, last_estimate_->pose}, Velocity3{v.x(), v.y(), v.z()});
+  ++estimates_flown_;
+  return true;
 }
 
 nlohmann::json GroundStation::state_json() {
@@ -359,6 +376,27 @@ nlohmann::json GroundStation::state_json() {
     fwj["imu_match_dt_ms"] = imu_match_dt_ms_ ? nlohmann::json(*imu_match_dt_ms_) : nlohmann::json(nullptr);
   }
   j["firmware"] = fwj;
+  if (last_estimate_) {
+    const StateEstimate& e = *last_estimate_;
+    const EstimatorStats& es = estimator_.stats();
+    j["estimator"] = {{"enabled", options_.controller.estimator.enabled},
+                      {"valid", e.valid},
+                      {"why_invalid", e.why_invalid},
+                      {"imu_aided", e.imu_aided},
+                      {"age_ms", e.age_ms},
+                      {"pose", pose_json(e.pose)},
+                      {"velocity_m_per_s", {e.velocity_m_per_s.x(), e.velocity_m_per_s.y(), e.velocity_m_per_s.z()}},
+                      {"position_sigma_m", {e.position_sigma_m.x(), e.position_sigma_m.y(), e.position_sigma_m.z()}},
+                      {"steps_flown", estimates_flown_},
+                      {"imu_samples", es.imu_samples},
+                      {"poses_fused", es.poses_fused},
+                      {"poses_out_of_order", es.poses_out_of_order},
+                      {"poses_rejected", es.poses_rejected},
+                      {"poses_too_old", es.poses_too_old},
+                      {"resets", es.resets}};
+  } else {
+    j["estimator"] = {{"enabled", options_.controller.estimator.enabled}};
+  }
   j["recording"] = recorder_ ? to_json(recorder_->stats()) : nlohmann::json{{"enabled", false}};
   j["floor"] = {{"found", floor_.has_value()},
                 {"fallback", floor_fallback_},

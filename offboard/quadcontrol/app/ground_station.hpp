@@ -27,6 +27,7 @@
 #include "app/slam_link.hpp"
 #include "app/slam_server_client.hpp"
 #include "core/flight_controller.hpp"
+#include "core/pose_estimator.hpp"
 #include "core/timestamp_buffer.hpp"
 #include "map/floor_map.hpp"
 #include "map/floor_plane.hpp"
@@ -87,6 +88,9 @@ class GroundStation {
   /// tracked pose (then the firmware link is told, outside the lock).
   bool apply_slam_result(const SlamResult& result, const CameraFrame& frame);
   void on_reply(std::int64_t received_us, const ControlReply& reply);
+  /// Feeds the controller the estimator's state at `now_us` (caller holds mutex_); false when the
+  /// estimator is off or has no fresh IMU input (the raw poses drive the controller then).
+  bool feed_estimate(std::int64_t now_us);
   /// MCAP recorder hooks (caller holds mutex_; recorder_ set): the controller's status, and the
   /// command when one is sent; a SLAM result as a PoseRecord.
   void record_command(std::int64_t now_us, std::uint32_t seq, bool sent);
@@ -130,6 +134,12 @@ class GroundStation {
   PwmCommand last_pwm_;
   TimestampBuffer<ControlReply> imu_replies_{256};
   std::optional<double> imu_match_dt_ms_;
+  /// IMU + delayed pose fusion (controller.estimator): the controller flies on its estimate now
+  /// while the IMU telemetry is fresh, else on the raw poses as before.
+  PoseEstimator estimator_{options_.controller.estimator};
+  CaptureClock capture_clock_;          ///< the craft's capture stamps -> this clock
+  std::optional<StateEstimate> last_estimate_;
+  std::uint64_t estimates_flown_ = 0;   ///< controller steps fed from the estimator
 
   std::unique_ptr<SlamLink> slam_;  ///< set once by the frame thread, then slam_ready_
   std::atomic<bool> slam_ready_{false};
