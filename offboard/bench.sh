@@ -61,6 +61,15 @@ if [ -d "$DATA/fr1_xyz_first300" ]; then
     "$BIN/slam-eval" run --dataset "$xyz" --features "$1" --backend "$2" --mode realtime \
       --no-map --quiet --out "$OUT/realtime_${1}_$2" 2> "$OUT/realtime_${1}_$2.log" || status=1
   done
+  # The map lock under a real-time tracker (SCHED_RR, as slam-server and quad-control run it): plain
+  # mutex vs priority inheritance; the table's lock-wait columns show what a preempted niced holder
+  # costs tracking.
+  for lock in plain pi; do
+    echo "bench: [$(( $(date +%s) - start ))s] real-time replay, RR tracker, map lock $lock"
+    "$BIN/slam-eval" run --dataset "$xyz" --features orb --backend localmap --mode realtime \
+      --tracking-policy rr --map-lock "$lock" --no-map --quiet --out "$OUT/realtime_orb_localmap_rr_lock_$lock" \
+      2> "$OUT/realtime_orb_localmap_rr_lock_$lock.log" || status=1
+  done
   # Loop closing on vs off (the local map ORB system), both modes, both sequences.
   for seq in fr1_xyz_first300 fr2_desk_first50; do
     [ -d "$DATA/$seq" ] || continue

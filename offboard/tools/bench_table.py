@@ -90,8 +90,9 @@ def main(out_dir: str) -> int:
     rts = sorted(p for p in out.iterdir() if p.is_dir() and p.name.startswith("realtime_"))
     if rts:
         print("\n### Real-time replay (30 fps pacing, fr1_xyz_first300; wall ms depend on the machine's load)")
-        print("| run | frames | front-end dropped | back-end skipped | ATE m | RPE mm | tracking CPU median / p95 ms | front-end wall median / p95 ms | mapping CPU p95 ms |")
-        print("|---|---|---|---|---|---|---|---|---|")
+        print("| run | frames | front-end dropped | back-end skipped | ATE m | RPE mm | tracking CPU median / p95 ms | "
+              "front-end wall median / p95 ms | mapping CPU p95 ms | map-lock wait p95 / max ms |")
+        print("|---|---|---|---|---|---|---|---|---|---|")
         for p in rts:
             rt = load(p / "metrics.json")
             if rt is None:
@@ -101,7 +102,9 @@ def main(out_dir: str) -> int:
                   f"{rt.get('backend_skipped')} | {cell(rt, 'ate_rmse_m', '{:.4f}')} | {cell(rt, 'rpe_trans_rmse_mm', '{:.2f}')} | "
                   f"{stage(rt, 'frontend_cpu') or float('nan'):.1f} / {stage(rt, 'frontend_cpu', 'p95_ms') or float('nan'):.1f} | "
                   f"{stage(rt, 'frontend') or float('nan'):.1f} / {stage(rt, 'frontend', 'p95_ms') or float('nan'):.1f} | "
-                  f"{mp.get('p95_ms', float('nan')):.1f} |")
+                  f"{mp.get('p95_ms', float('nan')):.1f} | "
+                  f"{stage(rt, 'map_lock_wait', 'p95_ms') or float('nan'):.2f} / "
+                  f"{stage(rt, 'map_lock_wait', 'max_ms') or float('nan'):.1f} |")
     loops = sorted(p for p in out.iterdir() if p.is_dir() and p.name.startswith("loop_"))
     if loops:
         print("\n### Loop closing on vs off (local map ORB; lock = map-lock hold of the correction step, "
