@@ -54,6 +54,9 @@ def recording_figures(flight: SlamFlight, state: dict, out: Path) -> dict:
         "encode_ms_per_recorded_frame": round(r["encode_ms_per_frame"], 3),
         "dropped_queue_full": r["dropped_queue_full"],
         "images_dropped": r.get("images_dropped"),
+        "frames_recorded": r.get("frames_recorded"),
+        "frames_encoded_here": r.get("frames_encoded_here"),
+        "queued_mb_peak": round(r.get("queued_bytes_peak", 0) / 1048576, 2),
     }
     try:
         figures["replay"] = replay(files[-1], out / "replay", REPO_ROOT / "build" / "bin" / "slam-eval",
@@ -83,7 +86,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--hold-s", type=float, default=10.0)
     ap.add_argument("--image-every", type=int, default=None,
-                    help="recording.image_every_n_frames for this flight (default: quad-control's, 6)")
+                    help="recording.image_every_n_frames for this flight (default: quad-control's, 1)")
     args = ap.parse_args(argv)
     missing = missing_parts()
     if missing:

@@ -3,8 +3,10 @@
     python -m flight_recording.replay FLIGHT.mcap --out DIR [--slam-eval BIN] [--tum-score BIN]
 
   1. extracts the recorded frames into a TUM RGB-D folder DIR/tum: rgb/<t>.jpg (the recorded JPEG
-     bytes, not re-encoded), depth/<t>.png (16-bit, rescaled to the TUM convention of 5000 units per
-     metre from the recording's depth_units_per_m), rgb.txt, depth.txt, and groundtruth.txt = the
+     bytes, not re-encoded), depth/<t>.png (16-bit, decoded from /camera/depth/compressed - RVL or
+     zstd-delta, flight_recording.depth - or, in older recordings, /camera/depth/raw; rescaled to
+     the TUM convention of 5000 units per metre from the recording's depth_units_per_m), rgb.txt,
+     depth.txt, and groundtruth.txt = the
      poses quad-control used in flight (/slam/pose, T_floor_cam at each frame's capture time);
   2. writes DIR/flight.tum (the same in-flight poses, for evo: `evo_ape tum DIR/flight.tum
      DIR/slam/trajectory.tum -a`);
@@ -28,6 +30,7 @@ import sys
 
 import numpy as np
 
+from flight_recording.depth import decode as decode_depth
 from flight_recording.reader import read
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -57,8 +60,10 @@ def extract(mcap: Path, out: Path) -> dict:
     rec = read(mcap)
     rgb = {m.data["timestamp"]["sec"] * 10**9 + m.data["timestamp"]["nsec"]: m.data
            for m in rec.topic("/camera/rgb/compressed")}
+    # Every recorded frame's depth as the link carried it; older recordings: the 16UC1 channel.
+    depth_topic = "/camera/depth/compressed" if rec.topic("/camera/depth/compressed") else "/camera/depth/raw"
     depth = {m.data["timestamp"]["sec"] * 10**9 + m.data["timestamp"]["nsec"]: m.data
-             for m in rec.topic("/camera/depth/raw")}
+             for m in rec.topic(depth_topic)}
     cal = rec.topic("/camera/calibration")
     if not cal:
         raise ValueError(f"{mcap}: no /camera/calibration message (recorded without images?)")
@@ -73,7 +78,9 @@ def extract(mcap: Path, out: Path) -> dict:
         t = f"{t_ns * 1e-9:.6f}"
         (tum / "rgb" / f"{t}.jpg").write_bytes(base64.b64decode(rgb[t_ns]["data"]))
         d = depth[t_ns]
-        raw = np.frombuffer(base64.b64decode(d["data"]), dtype="<u2").reshape(d["height"], d["width"])
+        encoding = d.get("encoding") if depth_topic == "/camera/depth/compressed" else "raw"
+        raw = decode_depth(encoding, base64.b64decode(d["data"]), d["width"], d["height"])
+        units = float(d.get("depth_units_per_m", units))
         scaled = np.clip(np.rint(raw.astype(np.float64) * (TUM_DEPTH_UNITS_PER_M / units)), 0, 65535).astype(np.uint16)
         buf = io.BytesIO()
         Image.fromarray(scaled).save(buf, format="PNG")

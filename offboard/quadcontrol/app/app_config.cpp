@@ -43,17 +43,20 @@ bool read(const json& obj, const std::string& section, const char* key, T& out, 
 
 bool read_recording(const json& r, RecorderOptions& o, std::string* error) {
   const char* s = "recording";
-  if (!check_keys(r, s, {"enabled", "dir", "image_every_n_frames", "jpeg_quality", "map_period_ms", "map_max_points",
-                         "flush_period_ms", "max_file_mb", "max_total_mb", "queue_max_events", "queue_max_frames", "zstd"},
+  if (!check_keys(r, s, {"enabled", "dir", "image_every_n_frames", "depth_preview_every_n_frames", "jpeg_quality",
+                         "map_period_ms", "map_max_points", "flush_period_ms", "max_file_mb", "max_total_mb",
+                         "queue_max_events", "queue_max_frames", "queue_max_mb", "zstd"},
                   error) ||
       !read(r, s, "enabled", o.enabled, error) || !read(r, s, "dir", o.dir, error) ||
       !read(r, s, "image_every_n_frames", o.image_every_n_frames, error) ||
+      !read(r, s, "depth_preview_every_n_frames", o.depth_preview_every_n_frames, error) ||
       !read(r, s, "jpeg_quality", o.jpeg_quality, error) || !read(r, s, "map_period_ms", o.map_period_ms, error) ||
       !read(r, s, "map_max_points", o.map_max_points, error) ||
       !read(r, s, "flush_period_ms", o.flush_period_ms, error) || !read(r, s, "max_file_mb", o.max_file_mb, error) ||
       !read(r, s, "max_total_mb", o.max_total_mb, error) ||
       !read(r, s, "queue_max_events", o.queue_max_events, error) ||
-      !read(r, s, "queue_max_frames", o.queue_max_frames, error) || !read(r, s, "zstd", o.zstd, error)) {
+      !read(r, s, "queue_max_frames", o.queue_max_frames, error) ||
+      !read(r, s, "queue_max_mb", o.queue_max_mb, error) || !read(r, s, "zstd", o.zstd, error)) {
     return false;
   }
   if (o.dir.rfind("~/", 0) == 0) {

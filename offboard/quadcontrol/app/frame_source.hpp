@@ -13,6 +13,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "record/encoded_image.hpp"
 #include "slam/core/types.hpp"
 #include "slam/dataset/tum_dataset.hpp"
 
@@ -27,6 +28,9 @@ struct CameraFrame {
   cv::Mat rgb;                     ///< CV_8UC3, BGR
   cv::Mat depth;                   ///< CV_16UC1, intrinsics.depth_units_per_m units, 0 = none
   slam::Intrinsics intrinsics;
+  /// The link's payloads when the stream was encoded (live source; empty for the dataset replay),
+  /// for the flight recorder to store without re-encoding.
+  EncodedImage rgb_encoded, depth_encoded;
 };
 
 class FrameSource {

@@ -121,7 +121,7 @@ void GroundStation::frame_loop() {
       if (log_) log_->frame(frame->sequence, frame->capture_us, frame->received_us, frame->link_latency_ms);
       if (recorder_) {
         recorder_->frame(frame->sequence, frame->capture_us, frame->received_us, frame->link_latency_ms, fps_,
-                         frame->rgb, frame->depth, frame->intrinsics);
+                         frame->rgb, frame->depth, frame->intrinsics, frame->rgb_encoded, frame->depth_encoded);
       }
       if (auto imu = imu_replies_.nearest(frame->received_us, options_.imu_match_window_us)) {
         imu_match_dt_ms_ = static_cast<double>(imu->first - frame->received_us) / kUsPerMs;

@@ -57,6 +57,10 @@ std::optional<CameraFrame> ReceiverSource::next(const std::atomic<bool>& stop, s
     f.intrinsics.cy_px = k.cy_px;
     for (std::size_t i = 0; i < 5; ++i) f.intrinsics.distortion[i] = k.distortion[i];
     f.intrinsics.depth_units_per_m = depth.units_per_m;
+    if (rgb.encoded && rgb.info.encoding == protocol::Encoding::kRgbJpeg) f.rgb_encoded = {"jpeg", rgb.encoded};
+    if (depth.encoded && depth.info.encoding == protocol::Encoding::kDepthRvl) f.depth_encoded = {"rvl", depth.encoded};
+    if (depth.encoded && depth.info.encoding == protocol::Encoding::kDepthZstdDelta)
+      f.depth_encoded = {"zstd-delta", depth.encoded};
     return f;
   }
   return std::nullopt;

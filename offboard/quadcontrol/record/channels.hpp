@@ -5,6 +5,7 @@
 // fields are base64 strings (Foxglove's JSON rule).
 #pragma once
 
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -18,7 +19,12 @@ struct ChannelSpec {
 
 // Topics (docs/recording.md).
 inline constexpr const char* kTopicRgb =
-    "/camera/rgb/compressed";                                    // foxglove.CompressedImage (jpeg)
+    "/camera/rgb/compressed";  // foxglove.CompressedImage (jpeg)
+/// Depth of every recorded frame as the link carried it (RVL / zstd-delta): Foxglove has no
+/// schema for these, so a project channel (docs/recording.md says how to decode it).
+inline constexpr const char* kTopicDepthCompressed =
+    "/camera/depth/compressed";  // rgbdquad.CompressedDepth
+/// A 1 Hz preview of the depth that Foxglove's Image panel shows as it is.
 inline constexpr const char* kTopicDepth = "/camera/depth/raw";  // foxglove.RawImage (16UC1)
 inline constexpr const char* kTopicCalibration =
     "/camera/calibration";                               // foxglove.CameraCalibration
@@ -37,5 +43,7 @@ inline constexpr const char* kTopicRecorder = "/recorder/stats";    // rgbdquad.
 
 /// Every channel, in the order they are registered (channel id = index + 1).
 const std::vector<ChannelSpec>& channel_specs();
+/// Index of `topic` in channel_specs(); channel_specs().size() for a topic not in the table.
+std::size_t channel_index(const char* topic);
 
 }  // namespace rgbdquad::quadcontrol::record

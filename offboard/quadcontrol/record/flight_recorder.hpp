@@ -2,20 +2,26 @@
 // container ROS 2 bags and Foxglove use, readable by any MCAP tool (docs/recording.md lists the
 // channels, units and frames).
 //
+// Images: every frame's RGB and depth are stored as the camera link carried them (JPEG; RVL or
+// zstd-delta depth), shared with the receiver, so recording every frame costs no image encoding;
+// only frames that came decoded (the dataset replay, a raw stream) are encoded here (JPEG, RVL).
 // Off the camera-to-command path: the hooks (frame, pose, command, reply, event, map) only copy a
-// small value (images are shared cv::Mat headers, taken for every n-th frame only) into a bounded
-// queue under a short mutex and return; one writer thread encodes (JPEG, JSON, base64), writes and
-// flushes. A full queue drops the event and counts it; nothing ever waits for the disk.
-// Crash safety: the writer closes its chunk about once a second (flush_period_ms), so a
-// quad-control killed by SIGKILL leaves a file a streaming reader reads up to its last second.
-// Budget: a file is rotated at max_file_mb; when this run's files exceed max_total_mb the oldest of
-// them is deleted (a flight recorder keeps the end of the flight). A write error (disk full, file
-// size limit) stops recording with one logged line; the flight goes on.
-// Thread safety: every public method may be called from any thread.
+// small value (images are shared buffers) into a queue bounded by count and by bytes, under a
+// priority-inheritance mutex (the producers are real-time threads, the writer is not), and return;
+// one writer thread encodes (JSON, base64), writes and flushes. A full queue drops the event and
+// counts it; nothing ever waits for the disk. Per-frame memory and CPU do not grow with the
+// flight's length (the queue is bounded, chunks are closed at a size and a period, the MCAP chunk
+// index grows by ~100 B per chunk). Crash safety: the writer closes its chunk about once a second
+// (flush_period_ms), so a quad-control killed by SIGKILL leaves a file a streaming reader reads up
+// to its last second. Budget: a file is rotated at max_file_mb; when this run's files exceed
+// max_total_mb the oldest of them is deleted (a flight recorder keeps the end of the flight). A
+// write error (disk full, file size limit) stops recording with one logged line; the flight goes
+// on. Thread safety: every public method may be called from any thread.
 #pragma once
 
 #include <Eigen/Geometry>
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -34,28 +40,40 @@
 #include "core/stick_mapping.hpp"
 #include "link/control_codec.hpp"
 #include "map/floor_map.hpp"
+#include "record/encoded_image.hpp"
 #include "slam/core/types.hpp"
+#include "slam/pipeline/thread_priority.hpp"
 
 namespace rgbdquad::quadcontrol {
 
 struct RecorderOptions {
   bool enabled = false;  ///< built-in default off (tests, tools); the shipped config turns it on
   std::string dir;       ///< output folder, created if missing
-  /// RGB (JPEG) and depth (16UC1) of every n-th frame. 6: 5 Hz from the Kinect's 30 fps, enough to
-  /// see what the camera saw and to replay SLAM on a slow indoor flight, at ~13 MB/min (measured,
-  /// docs/recording.md) instead of ~80 at 30 Hz.
-  int image_every_n_frames = 6;
-  int jpeg_quality = 90;      ///< 90: JPEG artefacts too small to move ORB corners much (replay)
+  /// RGB and depth of every n-th frame. 1: SLAM replayed on 1 frame in 6 lost track where the
+  /// flight's SLAM on every frame did not (docs/recording.md, session 4), and storing the link's
+  /// payloads as they are costs no encoding; the price is size (~the link's rate,
+  /// docs/recording.md).
+  int image_every_n_frames = 1;
+  /// Depth also as foxglove.RawImage 16UC1 every n-th frame (0: never), for Foxglove's Image panel
+  /// (it cannot decode RVL): 30 = 1 Hz at 30 fps, ~0.1 MB per preview after zstd.
+  int depth_preview_every_n_frames = 30;
+  int jpeg_quality = 90;  ///< frames that came decoded only: 90, the streamer's default (same look)
   int map_period_ms = 10000;  ///< the whole coloured cloud every 10 s (it grows to ~10^5 points)
   std::size_t map_max_points = 20000;  ///< decimated to this (20000 x 15 B ~ 0.3 MB per message)
   int flush_period_ms = 1000;          ///< chunk closed at least this often: the loss on a SIGKILL
-  double max_file_mb = 512.0;          ///< rotate: ~40 min per file at the default rate
-  double max_total_mb = 4096.0;  ///< this run's budget; oldest files of the run deleted beyond it
+  double max_file_mb = 512.0;          ///< rotate: ~1 min per file at the live stream's ~7 MB/s
+  /// This run's budget; its oldest files are deleted beyond it: ~9 min of every frame at ~7 MB/s
+  /// (the end of a flight is what a crash investigation needs).
+  double max_total_mb = 4096.0;
   std::size_t queue_max_events = 1024;  ///< ~10 s of telemetry at ~100 events/s
-  /// Frames with images waiting for the writer (each ~1.2 MB of pixels, shared with the hub):
-  /// 30 = 1 s at 30 fps, so a writer thread starved for a second by the real-time threads of a
-  /// loaded machine loses no image (4 lost 876 of 1218 in a HIL flight at load ~7).
-  std::size_t queue_max_frames = 30;
+  /// Frames with images waiting for the writer: 90 = 3 s at 30 fps, so a writer thread starved for
+  /// seconds by the real-time threads of a loaded machine loses no image (4 lost 876 of 1218 in a
+  /// HIL flight at load ~7); the byte bound below caps the memory.
+  std::size_t queue_max_frames = 90;
+  /// Bytes the queue may hold (payloads and pixels it keeps alive). 48 MiB: 3 s of the live stream
+  /// (JPEG + RVL ~0.3 MB per frame at 30 fps = 27 MB) with room for the map; or ~30 frames that
+  /// must be encoded here (1.5 MB of pixels each). Beyond it images are dropped (counted).
+  double queue_max_mb = 48.0;
   bool zstd = true;
   std::string validate() const;
   nlohmann::json to_json() const;
@@ -66,8 +84,15 @@ struct FrameRecord {
   std::int64_t sequence = 0, capture_us = 0, received_us = 0;
   double link_latency_ms = 0.0;
   double fps = 0.0;
-  cv::Mat rgb, depth;  ///< BGR8 / 16UC1, shared headers (the frame is never written after delivery)
+  cv::Mat rgb, depth;  ///< BGR8 / 16UC1, shared headers (the frame is never written after
+                       ///< delivery); kept only when an image must be encoded here or previewed
   slam::Intrinsics intrinsics;
+  EncodedImage rgb_encoded, depth_encoded;  ///< the link's payloads (stored as they are)
+  int width_px = 0, height_px = 0;          ///< of the (registered) images
+  bool images = false;   ///< this frame's images are recorded (every n-th, not dropped)
+  bool preview = false;  ///< also write the 16UC1 preview and the calibration
+  /// Memory this record keeps alive (payloads, pixels): what the queue's byte bound counts.
+  std::size_t bytes() const;
 };
 struct PoseRecord {
   std::int64_t sequence = 0, capture_us = 0, received_us = 0, pose_us = 0;
@@ -111,7 +136,10 @@ struct RecorderStats {
   std::uint64_t images_dropped =
       0;  ///< frames whose images found the frame slots full (telemetry kept)
   std::uint64_t frames_recorded = 0;
-  double encode_ms_per_frame = 0.0;  ///< writer thread CPU per recorded frame (JPEG + depth + JSON)
+  std::uint64_t frames_encoded_here = 0;  ///< recorded frames that came without the link's payloads
+  std::uint64_t queued_bytes = 0,
+                queued_bytes_peak = 0;  ///< the queue's bytes now / the most so far
+  double encode_ms_per_frame = 0.0;     ///< writer thread CPU per recorded frame (images + JSON)
   double writer_cpu_ms = 0.0;  ///< writer thread CPU since start (everything it encoded and wrote)
   // Live figures for the dashboard's history plots (from the recorded stream).
   std::optional<double> capture_to_command_ms, pose_to_command_ms;
@@ -129,9 +157,12 @@ class FlightRecorder {
   FlightRecorder(const FlightRecorder&) = delete;
   FlightRecorder& operator=(const FlightRecorder&) = delete;
 
+  /// `rgb_encoded` / `depth_encoded`: the link's payloads when the frame came encoded (stored as
+  /// they are); absent, the recorder encodes `rgb` (JPEG) and `depth` (RVL) on its writer thread.
   void frame(std::int64_t sequence, std::int64_t capture_us, std::int64_t received_us,
              double link_latency_ms, double fps, const cv::Mat& rgb, const cv::Mat& depth,
-             const slam::Intrinsics& intrinsics);
+             const slam::Intrinsics& intrinsics, const EncodedImage& rgb_encoded = {},
+             const EncodedImage& depth_encoded = {});
   void pose(PoseRecord record);
   void command(CommandRecord record);
   void reply(std::int64_t received_us, const ControlReply& reply);
@@ -151,15 +182,20 @@ class FlightRecorder {
   FlightRecorder(RecorderOptions options, std::unique_ptr<Writer> writer, Logger logger);
   void push(Event e, bool is_frame);
   void run();
+  /// Writes one event (writer thread); false once the file failed.
+  bool write_event(const Event& e, bool stopping, std::chrono::steady_clock::time_point stop_seen);
 
   RecorderOptions options_;
   Logger logger_;
   std::unique_ptr<Writer> writer_;  ///< touched by the writer thread only (after construction)
 
-  mutable std::mutex mutex_;
-  std::condition_variable wake_;
-  std::deque<Event> queue_;
-  std::size_t frames_queued_ = 0;
+  // Taken by the real-time frame / SLAM / firmware threads and by the normal-policy writer: with
+  // priority inheritance the writer holding it runs at the waiting producer's priority.
+  mutable slam::PriorityInheritanceMutex mutex_;
+  std::condition_variable_any wake_;
+  std::deque<Event> queue_;  ///< events not yet written (the writer pops each after writing it)
+  std::size_t frames_queued_ = 0;  ///< frames in queue_ holding images
+  std::size_t queued_bytes_ = 0;   ///< sum of the events' bytes in queue_
   bool stop_ = false;
   std::int64_t frames_seen_ = 0;
   std::int64_t last_map_us_ = -1;

@@ -9,6 +9,8 @@
 
 #include <csignal>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 
 namespace rgbdquad::quadcontrol {
 namespace {
@@ -107,13 +109,14 @@ TEST(FlightRecorder, GivenASmallFileLimitThenFilesRotateAndTheBudgetDeletesTheOl
   auto o = options_in(dir);
   o.max_file_mb = 1.0;
   o.max_total_mb = 2.5;
-  o.zstd = false;  // sizes predictable: ~0.8 MB of base64 depth per frame
+  o.zstd = false;  // sizes predictable: ~0.3 MB of base64 noise JPEG per frame
   o.queue_max_frames = 100;
   auto r = FlightRecorder::open(
       o, "flight", [&log](const std::string& l) { log.push_back(l); }, &error);
   ASSERT_TRUE(r) << error;
   const cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(5000));
-  for (int i = 0; i < 8; ++i) r->frame(i, i, i, 0.0, 30.0, noise_rgb(i), depth, slam::Intrinsics{});
+  for (int i = 0; i < 16; ++i)
+    r->frame(i, i, i, 0.0, 30.0, noise_rgb(i), depth, slam::Intrinsics{});
   r.reset();
   std::uint64_t total = 0;
   int files = 0;
@@ -132,6 +135,57 @@ TEST(FlightRecorder, GivenASmallFileLimitThenFilesRotateAndTheBudgetDeletesTheOl
   }
   EXPECT_TRUE(rotated);
   EXPECT_TRUE(deleted);
+}
+
+TEST(FlightRecorder, GivenTheLinksPayloadsThenTheyAreStoredAsTheyAreWithoutEncoding) {
+  const fs::path dir = fresh_dir("payloads");
+  std::string error;
+  auto o = options_in(dir);
+  o.zstd = false;  // the file then holds the base64 text as written
+  o.depth_preview_every_n_frames = 0;
+  auto r = FlightRecorder::open(
+      o, "flight", [](const std::string&) {}, &error);
+  ASSERT_TRUE(r) << error;
+  // Distinct marker bytes stand for the link's JPEG and RVL payloads.
+  const auto jpeg = std::make_shared<const std::vector<std::uint8_t>>(3000, std::uint8_t{0xAB});
+  const auto rvl = std::make_shared<const std::vector<std::uint8_t>>(3000, std::uint8_t{0xCD});
+  for (int i = 0; i < 3; ++i) {
+    r->frame(i, i, i, 0.0, 30.0, noise_rgb(i), cv::Mat(480, 640, CV_16UC1, cv::Scalar(0)),
+             slam::Intrinsics{}, EncodedImage{"jpeg", jpeg}, EncodedImage{"rvl", rvl});
+  }
+  const RecorderStats s = r->stats();
+  r.reset();
+  std::ifstream in(dir / "flight-000.mcap", std::ios::binary);
+  const std::string file((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  auto count = [&file](const std::string& needle) {
+    std::size_t n = 0;
+    for (auto at = file.find(needle); at != std::string::npos; at = file.find(needle, at + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(count(base64_encode(jpeg->data(), jpeg->size())), 3u);
+  EXPECT_EQ(count(base64_encode(rvl->data(), rvl->size())), 3u);
+  EXPECT_EQ(count("\"encoding\":\"rvl\""), 3u);
+  EXPECT_EQ(s.images_dropped, 0u);
+}
+
+TEST(FlightRecorder, GivenAQueueByteBoundThenImagesBeyondItAreDroppedAndCountedTelemetryKept) {
+  const fs::path dir = fresh_dir("bytes");
+  std::string error;
+  auto o = options_in(dir);
+  o.queue_max_mb = 4.0;       // under three frames of pixels the writer must encode (1.5 MB each)
+  o.queue_max_frames = 1000;  // the byte bound is the one that acts
+  auto r = FlightRecorder::open(
+      o, "flight", [](const std::string&) {}, &error);
+  ASSERT_TRUE(r) << error;
+  const cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(5000));
+  const cv::Mat rgb = noise_rgb(1);
+  constexpr int kFrames = 200;  // far faster than JPEG-encoding them: the queue fills
+  for (int i = 0; i < kFrames; ++i) r->frame(i, i, i, 0.0, 30.0, rgb, depth, slam::Intrinsics{});
+  const RecorderStats live = r->stats();
+  r.reset();
+  EXPECT_LE(static_cast<double>(live.queued_bytes_peak), 4.0 * 1024 * 1024);
+  EXPECT_GT(live.images_dropped, 0u);
+  EXPECT_EQ(live.dropped_queue_full, 0u);  // every frame's telemetry went in
 }
 
 TEST(RecorderOptions, GivenBadValuesThenValidateSaysWhich) {
