@@ -20,7 +20,7 @@ for t in "${targets[@]}"; do
   seeds="protocol/vectors/corpus/${name#fuzz_}"
   case "$name" in  # targets of tests/fuzz: stream sessions start from the stream vectors
     fuzz_receiver_session|fuzz_sender_session) seeds=protocol/vectors/corpus/stream ;;
-    fuzz_dashboard_request) seeds=tests/fuzz/corpus/dashboard_request ;;
+    fuzz_dashboard_request|fuzz_dashboard_api|fuzz_slam_connection) seeds=tests/fuzz/corpus/${name#fuzz_} ;;
   esac
   work=$(mktemp -d)
   [ -d "$seeds" ] && cp -r "$seeds"/. "$work"/ 2>/dev/null || true

@@ -51,8 +51,8 @@ std::optional<proto::Pose3> pose_to_wire(const Eigen::Isometry3d& T) {
   return p;
 }
 
-SlamLinkSession::SlamLinkSession(PipelineOptions options, SessionMapFiles map_files)
-    : options_(std::move(options)), map_files_(std::move(map_files)) {
+SlamLinkSession::SlamLinkSession(PipelineOptions options, SessionMapFiles map_files, PipelineFactory factory)
+    : options_(std::move(options)), map_files_(std::move(map_files)), factory_(std::move(factory)) {
   // Tracking answers each frame on the caller's thread; local mapping runs on its own thread.
   options_.mode = PipelineMode::kLive;
 }
@@ -112,7 +112,7 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
     k.distortion = frame.intrinsics.distortion;
     k.depth_units_per_m = frame.depth_scale_units_per_m;
     std::string err;
-    pipeline_ = Pipeline::create(options_, k, &err);
+    pipeline_ = factory_(options_, k, &err);
     if (!pipeline_) return lost_update(frame, "slam-link: cannot start the pipeline: " + err, error);
     if (!map_files_.load_path.empty() && !pipeline_->load_map(map_files_.load_path, &err)) {
       // The flight goes on in a new map: say so on every frame's first answer, never silently.

@@ -8,9 +8,15 @@
 // belong to the connection (slam_connection.hpp) and the registry (slam_sessions.hpp): a session
 // outlives a connection, so a client that reconnects continues the same map and world frame.
 //
+// The pipeline sits behind SessionPipeline (the calls a session makes): slam-server uses the real
+// Pipeline through live_pipeline_factory() (slam_link_pipeline.cpp); the libFuzzer target
+// tests/fuzz/fuzz_slam_connection.cpp uses a scripted fake, so the session and the connection are
+// fuzzed without building the SLAM engine.
+//
 // Not thread-safe: used by slam-server's single loop.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -36,10 +42,34 @@ struct SessionMapFiles {
   std::string save_path;
 };
 
+/// What a session asks of the SLAM pipeline (the subset of Pipeline it uses, same contracts).
+class SessionPipeline {
+ public:
+  virtual ~SessionPipeline() = default;
+  /// Tracks `frame` (kLive: its record is final when this returns). May throw on a bad frame.
+  virtual void submit(RgbdFrame frame) = 0;
+  virtual std::optional<FrameRecord> record(std::int64_t index) const = 0;
+  virtual bool load_map(const std::string& path, std::string* error) = 0;
+  virtual bool save_map(const std::string& path, std::string* error) const = 0;
+  /// Drains and joins the pipeline's threads. Idempotent.
+  virtual void finish() = 0;
+  virtual PipelineSummary summary() const = 0;
+};
+
+/// Starts a pipeline for the camera a client's first frame describes; null with `error` when the
+/// options or the intrinsics are refused.
+using PipelineFactory = std::function<std::unique_ptr<SessionPipeline>(const PipelineOptions& options,
+                                                                       const Intrinsics& intrinsics,
+                                                                       std::string* error)>;
+
+/// The real SLAM pipeline (Pipeline::create) behind SessionPipeline.
+PipelineFactory live_pipeline_factory();
+
 class SlamLinkSession {
  public:
   /// `options.mode` is forced to kLive (one reply per frame, computed on the caller's thread).
-  explicit SlamLinkSession(PipelineOptions options, SessionMapFiles map_files = {});
+  explicit SlamLinkSession(PipelineOptions options, SessionMapFiles map_files = {},
+                           PipelineFactory factory = live_pipeline_factory());
 
   /// Handles one RgbdFrame; always returns its PoseUpdate (see the file comment). `error` is set
   /// (else cleared) when the update is LOST because of a fault rather than the tracking itself,
@@ -52,7 +82,7 @@ class SlamLinkSession {
   /// Poses the codec refused as computed and that were re-normalised (see pose_to_wire).
   std::size_t poses_repaired() const { return repaired_; }
   /// The pipeline (null before the first frame); finish() it before reading results.
-  Pipeline* pipeline() { return pipeline_.get(); }
+  SessionPipeline* pipeline() { return pipeline_.get(); }
   /// One line for the log: frames, keyframes, loop closures (finishes the pipeline).
   std::string finish_summary();
 
@@ -64,7 +94,8 @@ class SlamLinkSession {
   PipelineOptions options_;
   SessionMapFiles map_files_;
   std::string map_load_error_;  ///< why the configured map could not be loaded ("" = loaded or none)
-  std::unique_ptr<Pipeline> pipeline_;
+  PipelineFactory factory_;
+  std::unique_ptr<SessionPipeline> pipeline_;
   std::size_t frames_ = 0;
   std::size_t faulted_ = 0;
   std::size_t repaired_ = 0;

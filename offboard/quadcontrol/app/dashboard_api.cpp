@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -54,6 +55,14 @@ std::string query_param(const std::string& target, const std::string& name) {
   return {};
 }
 
+std::optional<OperatorCommand> operator_command_named(const std::string& name) {
+  for (const OperatorCommand c :
+       {OperatorCommand::kArm, OperatorCommand::kDisarm, OperatorCommand::kTakeOff, OperatorCommand::kLand}) {
+    if (name == to_string(c)) return c;
+  }
+  return std::nullopt;
+}
+
 bool number(const nlohmann::json& j, const char* key, double* out) {
   if (!j.contains(key)) {
     *out = 0.0;
@@ -65,7 +74,7 @@ bool number(const nlohmann::json& j, const char* key, double* out) {
 }
 }  // namespace
 
-DashboardApi::DashboardApi(GroundStation& station, const std::string& static_dir, AccessPolicy policy)
+DashboardApi::DashboardApi(DashboardBackend& station, const std::string& static_dir, AccessPolicy policy)
     : station_(station), policy_(std::move(policy)) {
   namespace fs = std::filesystem;
   std::error_code ec;
@@ -137,7 +146,10 @@ HttpResponse DashboardApi::handle(const HttpRequest& req) {
       if (!body.contains("command") || !body["command"].is_string()) {
         return json_reply(req, {{"ok", false}, {"error", "expected {\"command\": \"arm\"|...}"}}, http::status::bad_request);
       }
-      return result_reply(req, station_.command(body["command"].get<std::string>()));
+      const std::string name = body["command"].get<std::string>();
+      const auto command = operator_command_named(name);
+      if (!command) return result_reply(req, "unknown command '" + name + "' (arm, disarm, takeoff, land)");
+      return result_reply(req, station_.command(*command));
     }
     if (path == "/api/waypoint") {
       double x, y;

@@ -1,4 +1,5 @@
-// HTTP routes of the web dashboard (static assets + JSON/PNG/JPEG API), mapped onto GroundStation.
+// HTTP routes of the web dashboard (static assets + JSON/PNG/JPEG API), mapped onto a
+// DashboardBackend (the GroundStation in quad-control; dashboard_backend.hpp).
 //   GET  /                   index.html (and the other files of the static dir, loaded at start-up)
 //   GET  /api/state          JSON snapshot: flight state, pose, setpoint, waypoint, links, fps, map
 //   GET  /api/rgb.jpg        newest RGB frame, JPEG;   GET /api/depth.png  newest depth, greyscale PNG
@@ -15,7 +16,7 @@
 #include <map>
 #include <string>
 
-#include "app/ground_station.hpp"
+#include "app/dashboard_backend.hpp"
 #include "app/http_server.hpp"
 #include "app/request_guard.hpp"
 
@@ -25,11 +26,11 @@ class DashboardApi {
  public:
   /// Loads the static assets of `static_dir` (regular files, top level only); throws
   /// std::runtime_error when the folder or its index.html is missing.
-  DashboardApi(GroundStation& station, const std::string& static_dir, AccessPolicy policy);
+  DashboardApi(DashboardBackend& station, const std::string& static_dir, AccessPolicy policy);
   HttpResponse handle(const HttpRequest& request);
 
  private:
-  GroundStation& station_;
+  DashboardBackend& station_;
   std::map<std::string, std::pair<std::string, std::string>> files_;  // path -> (content type, bytes)
   AccessPolicy policy_;
 };

@@ -495,13 +495,7 @@ std::string GroundStation::map_ply() {
   return map_.to_ply();
 }
 
-std::string GroundStation::command(const std::string& name) {
-  OperatorCommand cmd;
-  if (name == "arm") cmd = OperatorCommand::kArm;
-  else if (name == "disarm") cmd = OperatorCommand::kDisarm;
-  else if (name == "takeoff") cmd = OperatorCommand::kTakeOff;
-  else if (name == "land") cmd = OperatorCommand::kLand;
-  else return "unknown command '" + name + "' (arm, disarm, takeoff, land)";
+std::string GroundStation::command(OperatorCommand cmd) {
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   return controller_.command(monotonic_now_us(), cmd);
 }

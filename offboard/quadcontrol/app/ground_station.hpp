@@ -21,6 +21,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "app/dashboard_backend.hpp"
 #include "app/firmware_link.hpp"
 #include "app/flight_log.hpp"
 #include "app/frame_source.hpp"
@@ -55,7 +56,7 @@ struct GroundStationOptions {
   std::string validate() const;
 };
 
-class GroundStation {
+class GroundStation : public DashboardBackend {
  public:
   /// Starts every thread. `firmware` may be null options (no craft: commands are computed, not sent);
   /// `log` may be null (no flight recorder).
@@ -66,16 +67,16 @@ class GroundStation {
   GroundStation(const GroundStation&) = delete;
   GroundStation& operator=(const GroundStation&) = delete;
 
-  // Dashboard API (thread-safe).
-  nlohmann::json state_json();
-  std::optional<std::string> rgb_jpeg();
-  std::optional<std::string> depth_png();
-  std::string map_png();
-  nlohmann::json cloud_json(std::size_t max_points);
-  std::string map_ply();
-  std::string command(const std::string& name);
-  std::string waypoint(double x_m, double y_m);
-  std::string manual(double forward_m, double left_m, double up_m, double yaw_ccw_deg);
+  // Dashboard API (thread-safe; dashboard_backend.hpp).
+  nlohmann::json state_json() override;
+  std::optional<std::string> rgb_jpeg() override;
+  std::optional<std::string> depth_png() override;
+  std::string map_png() override;
+  nlohmann::json cloud_json(std::size_t max_points) override;
+  std::string map_ply() override;
+  std::string command(OperatorCommand command) override;
+  std::string waypoint(double x_m, double y_m) override;
+  std::string manual(double forward_m, double left_m, double up_m, double yaw_ccw_deg) override;
 
  private:
   void frame_loop();

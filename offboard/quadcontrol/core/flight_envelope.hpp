@@ -49,6 +49,8 @@ class FlightEnvelope {
 
   void set_home(double x_m, double y_m);
   bool has_home() const { return home_.has_value(); }
+  /// Home (x_m, y_m; z unused), nullopt before the first take-off.
+  const std::optional<SetpointPosition>& home() const { return home_; }
   const EnvelopeLimits& limits() const { return limits_; }
 
   /// The wanted position moved into the envelope; nullopt when it is not finite (refused).

@@ -1,0 +1,40 @@
+// What the dashboard routes (dashboard_api.hpp) need from the ground station: snapshots to show and
+// the operator's three inputs. GroundStation implements it; the route fuzzer
+// (tests/fuzz/fuzz_dashboard_api.cpp) backs it with a real FlightController and no threads, so the
+// routes are exercised without sockets, cameras or a SLAM link.
+//
+// Thread safety: implementations are called from the HTTP server's thread(s) concurrently with
+// their own threads and must lock what they share.
+#pragma once
+
+#include <cstddef>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+
+#include "core/flight_controller.hpp"
+
+namespace rgbdquad::quadcontrol {
+
+class DashboardBackend {
+ public:
+  virtual ~DashboardBackend() = default;
+
+  /// JSON snapshot for /api/state (flight state, pose, setpoint, links, map geometry).
+  virtual nlohmann::json state_json() = 0;
+  /// Newest RGB frame as JPEG / depth as greyscale PNG; nullopt before the first frame.
+  virtual std::optional<std::string> rgb_jpeg() = 0;
+  virtual std::optional<std::string> depth_png() = 0;
+  /// The 2D floor map, PNG.
+  virtual std::string map_png() = 0;
+  /// At most `max_points` coloured points, JSON [x, y, z, r, g, b]...
+  virtual nlohmann::json cloud_json(std::size_t max_points) = 0;
+  /// The whole coloured point-cloud map, ASCII PLY.
+  virtual std::string map_ply() = 0;
+  /// Operator inputs: empty when accepted, else why not (then nothing changed).
+  virtual std::string command(OperatorCommand command) = 0;
+  virtual std::string waypoint(double x_m, double y_m) = 0;
+  virtual std::string manual(double forward_m, double left_m, double up_m, double yaw_ccw_deg) = 0;
+};
+
+}  // namespace rgbdquad::quadcontrol
