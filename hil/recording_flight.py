@@ -30,7 +30,7 @@ from hilrig.paths import REPO_ROOT
 from hilrig.slam_flight import SlamFlight, SlamFlightOptions, missing_parts
 
 
-def recording_figures(flight: SlamFlight, state: dict, out: Path) -> dict:
+def recording_figures(flight: SlamFlight, state: dict, out: Path, replay_it: bool = True) -> dict:
     from flight_recording.reader import read
     from flight_recording.replay import run as replay
 
@@ -58,6 +58,8 @@ def recording_figures(flight: SlamFlight, state: dict, out: Path) -> dict:
         "frames_encoded_here": r.get("frames_encoded_here"),
         "queued_mb_peak": round(r.get("queued_bytes_peak", 0) / 1048576, 2),
     }
+    if not replay_it:
+        return figures
     try:
         figures["replay"] = replay(files[-1], out / "replay", REPO_ROOT / "build" / "bin" / "slam-eval",
                                    REPO_ROOT / "build" / "bin" / "tum-score")
@@ -87,6 +89,10 @@ def main(argv=None) -> int:
     ap.add_argument("--hold-s", type=float, default=10.0)
     ap.add_argument("--image-every", type=int, default=None,
                     help="recording.image_every_n_frames for this flight (default: quad-control's, 1)")
+    ap.add_argument("--rgb-encoding", choices=("raw", "jpeg"), default="raw",
+                    help="the streamer's RGB encoding (the rig's default raw: the recorder then JPEG-encodes "
+                         "every frame; jpeg: the shipped streamer's, stored as it came)")
+    ap.add_argument("--no-replay", action="store_true", help="skip the replay through SLAM")
     args = ap.parse_args(argv)
     missing = missing_parts()
     if missing:
@@ -98,18 +104,19 @@ def main(argv=None) -> int:
     load_before = os.getloadavg()
     if args.image_every is not None:
         with_image_rate(args.image_every)
-    with SlamFlight(args.out, SlamFlightOptions(record=args.record == "on")) as flight:
+    options = SlamFlightOptions(record=args.record == "on", rgb_encoding=args.rgb_encoding)
+    with SlamFlight(args.out, options) as flight:
         try:
             report = missions.scenario2(flight, hold_s=args.hold_s)
         except (TimeoutError, RuntimeError) as e:
             report = {"aborted": str(e)}
         report.update(flight.scores())
         state = flight.state()
-    out = {"record": args.record, "image_every_n_frames": args.image_every, "wall_s": round(time.monotonic() - t0, 1), "load_average_before": load_before,
+    out = {"record": args.record, "rgb_encoding": args.rgb_encoding, "image_every_n_frames": args.image_every, "wall_s": round(time.monotonic() - t0, 1), "load_average_before": load_before,
            "load_average_after": os.getloadavg(), "aborted": report.get("aborted"),
            "latency_ms": report.get("latency_ms"), "ate": report.get("ate"), "stream": report.get("stream")}
     if args.record == "on":
-        out["recording"] = recording_figures(flight, state, args.out)
+        out["recording"] = recording_figures(flight, state, args.out, replay_it=not args.no_replay)
     (args.out / "recording-report.json").write_text(json.dumps(out, indent=2, default=str))
     print(json.dumps(out, indent=2, default=str))
     return 0
