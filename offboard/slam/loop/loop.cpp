@@ -53,4 +53,27 @@ std::vector<std::size_t> select_glc_candidates(std::size_t n, std::size_t iterat
   return out;
 }
 
+std::vector<std::int64_t> glc_keyframes_to_test(const std::vector<std::int64_t>& recency,
+                                                std::int64_t self_id, std::size_t iteration,
+                                                const LoopOptions& options) {
+  std::vector<std::int64_t> older;
+  for (std::int64_t id : recency)
+    if (id != self_id) older.push_back(id);
+  const std::size_t excl =
+      std::min<std::size_t>(older.size(), static_cast<std::size_t>(options.glc_exclude_latest));
+  older.resize(older.size() - excl);
+  std::vector<std::int64_t> out;
+  for (std::size_t idx : select_glc_candidates(older.size(), iteration, options.glc_blocks))
+    out.push_back(older[idx]);
+  return out;
+}
+
+bool accept_glc_match(const LoopOptions& options, std::size_t n_features, std::size_t matches,
+                      double inlier_ratio, std::size_t inliers, std::size_t min_inliers) {
+  return n_features > 0 &&
+         static_cast<double>(matches) >=
+             options.glc_min_match_fraction * static_cast<double>(n_features) &&
+         inlier_ratio >= options.glc_min_inlier_fraction && inliers >= min_inliers;
+}
+
 }  // namespace slam

@@ -155,21 +155,14 @@ BackendOutput BackEnd::process(const FrontendOutput& in) {
   // 3. Global loop closure.
   if (options_.kind == BackendKind::kGlc && recency_.size() > static_cast<std::size_t>(options_.loop.glc_exclude_latest) + (new_kf ? 1 : 0)) {
     const std::int64_t tg = steady_now_ns();
-    // Older keyframes in recency order, excluding the latest ones (and the frame itself).
-    std::vector<std::int64_t> older;
-    for (std::int64_t id : recency_) if (id != in.index) older.push_back(id);
-    const std::size_t excl = std::min<std::size_t>(older.size(), static_cast<std::size_t>(options_.loop.glc_exclude_latest));
-    older.resize(older.size() - excl);
     const std::size_t n_features = in.features->points_cam_m.size();
     auto accept = [&](const Comparison& c) {
-      return c.est && n_features > 0 &&
-             c.matches >= options_.loop.glc_min_match_fraction * static_cast<double>(n_features) &&
-             c.est->inlier_ratio >= options_.loop.glc_min_inlier_fraction &&
-             c.est->inliers.size() >= options_.min_inliers;
+      return c.est && accept_glc_match(options_.loop, n_features, c.matches, c.est->inlier_ratio,
+                                       c.est->inliers.size(), options_.min_inliers);
     };
     std::optional<Comparison> found;
-    for (std::size_t idx : select_glc_candidates(older.size(), iteration_, options_.loop.glc_blocks)) {
-      Comparison c = compare(in, older[idx], 2);
+    for (std::int64_t kf : glc_keyframes_to_test(recency_, in.index, iteration_, options_.loop)) {
+      Comparison c = compare(in, kf, 2);
       if (accept(c) && (!found || c.est->inliers.size() > found->est->inliers.size())) found = c;
     }
     if (found && options_.loop.glc_test_neighbours) {

@@ -80,5 +80,28 @@ TEST(GlobalLoopClosure, GivenManyKeyframesThenOnePerBlockRotating) {
   for (int s : seen) EXPECT_GE(s, 1);
 }
 
+TEST(GlobalLoopClosure, GivenRecencyListThenFrameAndLatestThreeLeftOutBeforeThinning) {
+  const LoopOptions o;  // thesis: 7 blocks, the latest 3 excluded
+  // Keyframes 10..19 least recently used first; 19 is the frame itself (just made a keyframe).
+  std::vector<std::int64_t> recency;
+  for (std::int64_t id = 10; id < 20; ++id) recency.push_back(id);
+  // Without the frame: 10..18; without the latest 3 (16, 17, 18): 10..15, fewer than 7 blocks.
+  EXPECT_EQ(glc_keyframes_to_test(recency, 19, 0, o),
+            (std::vector<std::int64_t>{10, 11, 12, 13, 14, 15}));
+  // A frame that is not a keyframe: 10..19 minus 17, 18, 19.
+  EXPECT_EQ(glc_keyframes_to_test(recency, 99, 0, o),
+            (std::vector<std::int64_t>{10, 11, 12, 13, 14, 15, 16}));
+  EXPECT_TRUE(glc_keyframes_to_test({1, 2, 3}, 99, 0, o).empty());
+}
+
+TEST(GlobalLoopClosure, AcceptanceNeedsMatchShareInlierShareAndMinimumInliers) {
+  const LoopOptions o;  // thesis: >= 20 % of features matched, >= 60 % of matches inliers
+  EXPECT_TRUE(accept_glc_match(o, 500, 100, 0.60, 60, 10));
+  EXPECT_FALSE(accept_glc_match(o, 500, 99, 0.80, 79, 10));   // 19.8 % matched
+  EXPECT_FALSE(accept_glc_match(o, 500, 100, 0.59, 59, 10));  // inlier share below 60 %
+  EXPECT_FALSE(accept_glc_match(o, 40, 10, 0.90, 9, 10));     // fewer than min_inliers
+  EXPECT_FALSE(accept_glc_match(o, 0, 0, 1.0, 0, 0));         // a frame without features
+}
+
 }  // namespace
 }  // namespace slam
