@@ -42,7 +42,7 @@ struct RunArgs {
   std::string stamp = "auto";
   std::string save_map, load_map;
   double withhold_from_s = -1, withhold_s = 0;
-  std::string loop_closing = "on", keyframe_new_content = "on", depth_noise = "keypoint",
+  std::string loop_closing = "off", keyframe_new_content = "on", depth_noise = "keypoint",
               map_lock = "pi", tracking_policy = "off", local_ba = "on";
   double depth_units_per_m = 0;
 };

@@ -262,6 +262,11 @@ int main(int argc, char** argv) {
   app.add_option("--write-timeout-ms", copt.write_timeout_ms, "the peer must take reply bytes within this")->capture_default_str();
   app.add_option("--resume-grace-ms", ropt.resume_grace_ms, "a session without its client is kept this long")->capture_default_str();
   app.add_option("--max-sessions", ropt.max_sessions, "maps held at once (attached + parked)")->capture_default_str();
+  std::string loop_closing = "off";
+  app.add_option("--loop-closing", loop_closing,
+                 "localmap: loop closing on its own thread (off by default: an unverified correction reaches "
+                 "the controller as a pose jump; docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   std::string thread_policy = "rr";
   slam::ThreadPriorityOptions priority;
   app.add_option("--thread-policy", thread_policy,
@@ -273,6 +278,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   slam::parse_thread_policy(thread_policy, &priority.policy, nullptr);
   slam::PipelineOptions options;
+  options.loop_closing = loop_closing == "on";
   std::string err;
   if (!slam::parse_detector_kind(features, &options.frontend.features.kind, &err) ||
       !slam::parse_backend_kind(backend, &options.backend.kind, &err)) {

@@ -65,8 +65,12 @@ struct PipelineOptions {
   ThreadPolicy tracking_thread_policy = ThreadPolicy::kOff;
   LocalMapperOptions mapper;       ///< BackendKind::kLocalMap only
   /// BackendKind::kLocalMap: loop closing on its own thread (binary descriptors only: the
-  /// vocabulary is ORB's; with SIFT/SURF it stays off and PipelineSummary says so).
-  bool loop_closing = true;
+  /// vocabulary is ORB's; with SIFT/SURF it stays off and PipelineSummary says so). Off by default
+  /// (slam-eval / slam-server --loop-closing on): in the 10-minute HIL flight (2026-12-02) it
+  /// accepted a correction that left the pose 0.73 m from the truth, the controller rejected the
+  /// jump and landed; the closer has no temporal-consistency check (ORB-SLAM2 asks for 3 consistent
+  /// detections) and a correction reaches the controller as a pose jump (docs/slam.md).
+  bool loop_closing = false;
   LoopCloserOptions loop;          ///< matching, RANSAC and projection settings are filled in from the tracker's
   bool is_valid(std::string* error) const;
 };

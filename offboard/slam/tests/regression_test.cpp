@@ -181,6 +181,7 @@ TEST(Regression, LocalMapWithLoopClosingWaitModeEqualsSequentialOnAForwardBackwa
   auto run_mode = [&](PipelineMode mode, std::vector<LoopStats>* loops) {
     PipelineOptions o = local_map_options();
     o.mode = mode;
+    o.loop_closing = true;
     o.loop.min_keyframes_in_map = 2;
     o.loop.keyframes_between_loops = 0;
     auto p = Pipeline::create(o, Intrinsics{}, &err);
