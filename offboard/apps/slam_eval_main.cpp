@@ -42,7 +42,8 @@ struct RunArgs {
   std::string stamp = "auto";
   std::string save_map, load_map;
   double withhold_from_s = -1, withhold_s = 0;
-  std::string loop_closing = "off", keyframe_new_content = "on", depth_noise = "keypoint",
+  std::string keyframe_gate = slam::PipelineOptions{}.keyframe_gate_mapper_busy ? "on" : "off";
+  std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off", keyframe_new_content = "on", depth_noise = "keypoint",
               map_lock = "pi", tracking_policy = "off", local_ba = "on";
   double depth_units_per_m = 0;
 };
@@ -97,6 +98,7 @@ int run_command(const RunArgs& a) {
   if (a.orb_scale_factor > 0) po.frontend.features.orb_scale_factor = a.orb_scale_factor;
   po.frontend.seed = a.seed;
   po.loop_closing = a.loop_closing == "on";
+  po.keyframe_gate_mapper_busy = a.keyframe_gate == "on";
   po.tracker.keyframe_needs_new_content = a.keyframe_new_content == "on";
   po.map_lock_priority_inheritance = a.map_lock == "pi";
   po.mapper.bundle_adjustment = a.local_ba == "on";
@@ -521,6 +523,10 @@ int main(int argc, char** argv) {
   run->add_option("--orb-levels", a.orb_levels, "ORB pyramid levels (0: default, thesis: 6)");
   run->add_option("--orb-scale-factor", a.orb_scale_factor, "ORB pyramid scale factor (0: default, thesis: 2)");
   run->add_flag("--quiet", a.quiet, "no per-25-frame progress");
+  run->add_option("--keyframe-gate", a.keyframe_gate,
+                  "localmap, realtime: ORB-SLAM2's c1b/c1c rule - while the mapper is busy only weak tracking "
+                  "makes a keyframe (docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   run->add_option("--loop-closing", a.loop_closing,
                   "localmap: loop closing on its own thread (ORB only: the vocabulary is ORB's)")
       ->check(CLI::IsMember({"on", "off"}))->capture_default_str();

@@ -262,10 +262,8 @@ int main(int argc, char** argv) {
   app.add_option("--write-timeout-ms", copt.write_timeout_ms, "the peer must take reply bytes within this")->capture_default_str();
   app.add_option("--resume-grace-ms", ropt.resume_grace_ms, "a session without its client is kept this long")->capture_default_str();
   app.add_option("--max-sessions", ropt.max_sessions, "maps held at once (attached + parked)")->capture_default_str();
-  std::string loop_closing = "off";
-  app.add_option("--loop-closing", loop_closing,
-                 "localmap: loop closing on its own thread (off by default: an unverified correction reaches "
-                 "the controller as a pose jump; docs/slam.md)")
+  std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off";
+  app.add_option("--loop-closing", loop_closing, "localmap: loop closing on its own thread (docs/slam.md)")
       ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   std::string thread_policy = "rr";
   slam::ThreadPriorityOptions priority;

@@ -412,7 +412,7 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   if (options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive) {
     std::lock_guard<std::mutex> lock(mutex_);
     keyframe_allowed = keyframe_queue_.size() + (mapper_busy_ ? 1 : 0) < kMaxQueuedKeyframes;
-    mapper_idle = keyframe_queue_.empty() && !mapper_busy_;
+    mapper_idle = !options_.keyframe_gate_mapper_busy || (keyframe_queue_.empty() && !mapper_busy_);
   }
   TrackResult tr;
   try {

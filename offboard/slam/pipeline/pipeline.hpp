@@ -65,12 +65,15 @@ struct PipelineOptions {
   ThreadPolicy tracking_thread_policy = ThreadPolicy::kOff;
   LocalMapperOptions mapper;       ///< BackendKind::kLocalMap only
   /// BackendKind::kLocalMap: loop closing on its own thread (binary descriptors only: the
-  /// vocabulary is ORB's; with SIFT/SURF it stays off and PipelineSummary says so). Off by default
-  /// (slam-eval / slam-server --loop-closing on): in the 10-minute HIL flight (2026-12-02) it
-  /// accepted a correction that left the pose 0.73 m from the truth, the controller rejected the
-  /// jump and landed; the closer has no temporal-consistency check (ORB-SLAM2 asks for 3 consistent
-  /// detections) and a correction reaches the controller as a pose jump (docs/slam.md).
-  bool loop_closing = false;
+  /// vocabulary is ORB's; with SIFT/SURF it stays off and PipelineSummary says so).
+  bool loop_closing = true;
+  /// kRealtime/kLive: ORB-SLAM2's c1b/c1c gate - while the mapper is busy only weak tracking makes
+  /// a keyframe. Off by default: with it on, the HIL 10-minute flight on an idle machine drifted
+  /// (ATE 0.109 m, loop closing off) or accepted a wrong loop correction (0.73 m, loop closing on);
+  /// with it off the same build flew 4 minutes at SLAM error 6-8 mm (docs/hil.md). Our mapper runs
+  /// niced below a real-time tracker, so "busy" is most of the time in flight, and the gate then
+  /// withholds the keyframes the map needs; ORB-SLAM2's mapper is not starved that way.
+  bool keyframe_gate_mapper_busy = false;
   LoopCloserOptions loop;          ///< matching, RANSAC and projection settings are filled in from the tracker's
   bool is_valid(std::string* error) const;
 };
