@@ -186,7 +186,8 @@ function scrub(t) {
   let best = null;
   for (const im of rec.images) if (im.t <= t + 1e-6) best = im;
   const img = document.getElementById("rec-image");
-  if (best) { img.src = "data:image/jpeg;base64," + best.data.data; img.dataset.t = best.t.toFixed(2); }
+  // data-t at full precision: it is compared with the scrubber's value (2 decimals could round past it).
+  if (best) { img.src = "data:image/jpeg;base64," + best.data.data; img.dataset.t = String(best.t); }
 }
 
 document.getElementById("rec-file").addEventListener("change", async (e) => {
