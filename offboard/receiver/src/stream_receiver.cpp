@@ -304,11 +304,15 @@ void StreamReceiver::serve(int index) {
       next_us = std::min(next_us, c.session.next_deadline_us());
     }
     if (accept_paused) next_us = std::min(next_us, accept_paused_until_us);
+    next_us = std::min(next_us, throttle.unreported_due_us());
     const int timeout_ms = static_cast<int>(
         std::clamp<std::int64_t>((next_us - now) / 1000 + 1, 0, options_.idle_timeout_ms));
     const int n = poll(fds.data(), fds.size(), timeout_ms);
     if (n < 0 && errno != EINTR) break;
     if (fds[0].revents & POLLIN) break;
+    if (const std::uint64_t quiet = throttle.take_unreported(now_us_()); quiet > 0)
+      log_->warn("{} stream: {} similar lines suppressed (no line since to carry the count)", name,
+                 quiet);
 
     // Candidates: a handshake accepted makes one the live connection, replacing the previous one.
     for (std::size_t i = candidates.size(); i-- > 0;) {

@@ -52,6 +52,23 @@ TEST(LogThrottle, BurstThenSuppressedThenReported) {
   EXPECT_TRUE(t.allow(5, &suppressed));
 }
 
+TEST(LogThrottle, SuppressedLinesAreReportedWhenNoFurtherLineComes) {
+  receiver::LogThrottle t(2, 1'000'000);
+  std::uint64_t suppressed = 0;
+  EXPECT_EQ(t.unreported_due_us(), INT64_MAX);
+  // GIVEN 2 lines per second WHEN 5 arrive at once and then nothing
+  for (int i = 0; i < 5; ++i) (void)t.allow(1'000'000 + i, &suppressed);
+  // THEN the 3 suppressed are due when the window ends, not before
+  EXPECT_EQ(t.unreported_due_us(), 2'000'000);
+  EXPECT_EQ(t.take_unreported(1'999'999), 0u);
+  EXPECT_EQ(t.take_unreported(2'000'000), 3u);
+  // AND once taken they are not reported again, neither alone nor with the next line
+  EXPECT_EQ(t.take_unreported(3'000'000), 0u);
+  EXPECT_EQ(t.unreported_due_us(), INT64_MAX);
+  ASSERT_TRUE(t.allow(3'000'001, &suppressed));
+  EXPECT_EQ(suppressed, 0u);
+}
+
 int connect_loopback(std::uint16_t port) {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
   sockaddr_in addr{};

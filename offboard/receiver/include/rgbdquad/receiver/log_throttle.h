@@ -1,7 +1,9 @@
 // Rate limit for log lines caused by a peer's input (issue 17, finding 7: a peer sending garbage
 // got one log line per malformed envelope, i.e. per 16 bytes: a few KiB/s of input became MB/s of
 // log). At most `burst` lines per `window_us`; the rest are counted and the count is reported
-// with the next line let through, so nothing is hidden, only summarised.
+// with the next line let through, or - when no further line comes (the peer went quiet or its
+// connection was dropped without a line) - by `take_unreported` once the window is over, so
+// nothing is hidden, only summarised.
 // Time is passed in (monotonic microseconds). Not thread-safe: one per serving thread.
 #pragma once
 
@@ -30,6 +32,20 @@ class LogThrottle {
     *suppressed = suppressed_;
     suppressed_ = 0;
     return true;
+  }
+
+  /// When lines were suppressed and the window they fell in is over at `now_us`: their count
+  /// (to be logged on its own); they are then reported; otherwise 0.
+  std::uint64_t take_unreported(std::int64_t now_us) {
+    if (suppressed_ == 0 || now_us - window_start_us_ < window_us_) return 0;
+    const std::uint64_t n = suppressed_;
+    suppressed_ = 0;
+    return n;
+  }
+
+  /// The time at which `take_unreported` will have something to report, or INT64_MAX.
+  std::int64_t unreported_due_us() const {
+    return suppressed_ == 0 ? INT64_MAX : window_start_us_ + window_us_;
   }
 
  private:
