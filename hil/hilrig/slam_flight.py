@@ -40,6 +40,7 @@ import numpy as np
 from fc_emulator import FcOptions, FlightMode, QuadParams
 from hilrig.flight import CameraMount
 from hilrig.link_proxy import LinkImpairment, LinkProxy
+from hilrig.machine_lock import FlightLock
 from hilrig.paths import find_binary
 from hilrig.procs import ManagedProcess
 from kinect_emulator.poses import camera_pose_from_ned
@@ -164,6 +165,7 @@ class SlamFlight:
         self.rig_scheduling = "not started"
         self._killed_on_purpose: set[str] = set()  # a scenario's fault, not a rig failure (check())
         self._saved_sched = None
+        self._flight_lock: FlightLock | None = None
         self.stream_proxies: list[LinkProxy] = []
         self._pump_stop = threading.Event()
         self._pump: threading.Thread | None = None
@@ -183,6 +185,9 @@ class SlamFlight:
         from hilrig import realtime
 
         try:
+            # One real-time flight per machine (hilrig.machine_lock), taken before any priority is raised.
+            self._flight_lock = FlightLock(say=lambda m: print(m, flush=True)).acquire(
+                f"SlamFlight in {self.workdir}")
             # Before anything is created: the rig's threads and children inherit this thread's policy.
             self._saved_sched = realtime.save_this_thread()
             self.rig_scheduling = realtime.raise_this_thread() if o.rig_realtime else realtime.current_policy()
@@ -285,6 +290,9 @@ class SlamFlight:
         if self.rig is not None:
             rig, self.rig = self.rig, None
             rig.close()
+        if self._flight_lock is not None:
+            self._flight_lock.release()
+            self._flight_lock = None
 
     def __enter__(self) -> "SlamFlight":
         return self.start()

@@ -30,7 +30,7 @@ def load_average() -> str:
 
 def run_summary(index: int, status: int, report: dict | None, load_before: str, load_after: str, wall_s: float) -> dict:
     """One run's figures from its report.json (None: the demo wrote none)."""
-    # No report: the demo did not fly (hil/demo.sh falls back to the SLAM-only demo, exit 0, when a
+    # No report: the demo did not fly (hil/demo.sh falls back to the SLAM-only demo, exit 3, when a
     # part is missing - e.g. a binary being relinked by a concurrent build): not a pass.
     out = {"run": index, "exit": status, "passed": status == 0 and report is not None, "wall_s": round(wall_s, 1),
            "load_before": load_before, "load_after": load_after}
