@@ -101,23 +101,55 @@ proto::PoseUpdate SlamLinkSession::lost_update(const proto::RgbdFrame& frame, st
   return u;
 }
 
+namespace {
+
+Intrinsics intrinsics_of(const proto::RgbdFrame& frame) {
+  Intrinsics k;
+  k.fx_px = frame.intrinsics.fx_px;
+  k.fy_px = frame.intrinsics.fy_px;
+  k.cx_px = frame.intrinsics.cx_px;
+  k.cy_px = frame.intrinsics.cy_px;
+  k.distortion = frame.intrinsics.distortion;
+  k.depth_units_per_m = frame.depth_scale_units_per_m;
+  return k;
+}
+
+bool same_camera(const Intrinsics& a, const Intrinsics& b) {
+  return a.fx_px == b.fx_px && a.fy_px == b.fy_px && a.cx_px == b.cx_px && a.cy_px == b.cy_px &&
+         a.distortion == b.distortion && a.depth_units_per_m == b.depth_units_per_m;
+}
+
+std::string describe(const Intrinsics& k) {
+  std::ostringstream m;
+  m << "fx " << k.fx_px << " fy " << k.fy_px << " cx " << k.cx_px << " cy " << k.cy_px
+    << " px, depth " << k.depth_units_per_m << " units/m";
+  return m.str();
+}
+
+}  // namespace
+
 proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::string* error) {
   if (error) error->clear();
+  const Intrinsics k = intrinsics_of(frame);
   if (!pipeline_) {
-    Intrinsics k;
-    k.fx_px = frame.intrinsics.fx_px;
-    k.fy_px = frame.intrinsics.fy_px;
-    k.cx_px = frame.intrinsics.cx_px;
-    k.cy_px = frame.intrinsics.cy_px;
-    k.distortion = frame.intrinsics.distortion;
-    k.depth_units_per_m = frame.depth_scale_units_per_m;
     std::string err;
     pipeline_ = factory_(options_, k, &err);
     if (!pipeline_) return lost_update(frame, "slam-link: cannot start the pipeline: " + err, error);
+    intrinsics_ = k;
     if (!map_files_.load_path.empty() && !pipeline_->load_map(map_files_.load_path, &err)) {
       // The flight goes on in a new map: say so on every frame's first answer, never silently.
       map_load_error_ = "slam-link: map not loaded, starting a new map: " + err;
     }
+  }
+  if (!same_camera(k, intrinsics_)) {
+    // The map is built with the first frame's camera model: a frame with another one (a streamer
+    // restarted with another calibration) would be tracked with the wrong projection and its error
+    // would be put silently into the map. Refused with the reason; a new session takes the new camera.
+    return lost_update(frame,
+                       "slam-link: frame refused: its camera (" + describe(k) +
+                           ") is not the one this session's map is built with (" + describe(intrinsics_) +
+                           "); start a new session for a new camera",
+                       error);
   }
   if (!map_load_error_.empty() && frames_ == 0 && error) *error = map_load_error_;
   std::string why;

@@ -4,7 +4,8 @@
 // frame cannot be used (unsupported encoding, inconsistent sizes, the front end rejected it) or
 // the estimate cannot be put on the wire (non-finite, not a rotation) - a LOST update carrying the
 // last good pose, with the reason in `error`. The pipeline is created on the first frame from the
-// intrinsics and depth scale the frame carries. The SlamHello exchange and the choice of session
+// intrinsics and depth scale the frame carries; a later frame with another camera model is
+// answered LOST with both calibrations in the reason (the map holds one camera). The SlamHello exchange and the choice of session
 // belong to the connection (slam_connection.hpp) and the registry (slam_sessions.hpp): a session
 // outlives a connection, so a client that reconnects continues the same map and world frame.
 //
@@ -96,6 +97,7 @@ class SlamLinkSession {
   std::string map_load_error_;  ///< why the configured map could not be loaded ("" = loaded or none)
   PipelineFactory factory_;
   std::unique_ptr<SessionPipeline> pipeline_;
+  Intrinsics intrinsics_;  ///< what the pipeline was created with (the session's first frame)
   std::size_t frames_ = 0;
   std::size_t faulted_ = 0;
   std::size_t repaired_ = 0;

@@ -149,6 +149,38 @@ TEST(SlamLinkSession, GivenUnusableFramesThenEachStillGetsALostPoseUpdateWithARe
   EXPECT_EQ(s.frames_faulted(), cases.size());
 }
 
+TEST(SlamLinkSession, GivenAFrameFromAnotherCameraMidSessionThenItIsRefusedWithBothCalibrations) {
+  PipelineOptions o;
+  o.frontend.features.kind = DetectorKind::kOrb;
+  SlamLinkSession s(o);
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  // GIVEN a session whose map was started with the fr1 camera
+  for (std::uint32_t i = 0; i < 3; ++i) roundtrip(&s, to_wire(*ds->load(i, &err), i), &err);
+  ASSERT_TRUE(err.empty()) << err;
+  // WHEN frames arrive with another focal length, then another depth scale
+  for (const bool depth : {false, true}) {
+    proto::RgbdFrame other = to_wire(*ds->load(3, &err), depth ? 11 : 10);
+    if (depth) {
+      other.depth_scale_units_per_m = 1000.0;
+    } else {
+      other.intrinsics.fx_px = 525.0;
+    }
+    const proto::PoseUpdate u = roundtrip(&s, other, &err);
+    // THEN each is answered LOST, naming both cameras, and is not put into the map
+    EXPECT_EQ(u.tracking_state, proto::TrackingState::kLost);
+    EXPECT_NE(err.find("not the one this session's map is built with"), std::string::npos) << err;
+    EXPECT_NE(err.find(depth ? "depth 1000 units/m" : "fx 525"), std::string::npos) << err;
+  }
+  EXPECT_EQ(s.frames_faulted(), 2u);
+  EXPECT_EQ(s.frames_processed(), 3u);
+  // AND the session's own camera is still tracked
+  const proto::PoseUpdate back = roundtrip(&s, to_wire(*ds->load(4, &err), 12), &err);
+  EXPECT_TRUE(err.empty()) << err;
+  EXPECT_EQ(back.tracking_state, proto::TrackingState::kTracking);
+}
+
 // A rotation matrix orthonormal only to rounding can give |w| = 1 + 2e-16, which the codec's
 // range check refuses: before pose_to_wire, slam-server then failed to encode the PoseUpdate and
 // closed the connection without a word (the SLAM-link resets of issue 13).
