@@ -6,7 +6,8 @@
 //   D10    (PB2)              RC channel 2 pitch    -> APM RC input 2
 //   D11    (PB3)              RC channel 3 throttle -> APM RC input 3
 //   D12    (PB4)              RC channel 4 yaw      -> APM RC input 4
-// Timers: Timer0 = 1 kHz millisecond clock, Timer1 = RC pulse sequencer, Timer2 = software-UART bit clock.
+// Timers: Timer0 = 1 kHz millisecond clock, Timer1 = RC pulse sequencer, Timer2 = software-UART bit
+// clock.
 #ifndef FIRMWARE_AVR_BOARD_H_
 #define FIRMWARE_AVR_BOARD_H_
 
@@ -20,13 +21,14 @@ constexpr uint8_t kPwmPortBBits[4] = {_BV(PB1), _BV(PB2), _BV(PB3), _BV(PB4)};
 constexpr uint8_t kPwmPortBMask = _BV(PB1) | _BV(PB2) | _BV(PB3) | _BV(PB4);
 
 /// Bridge link: 1000000 baud is exact at 16 MHz (U2X0=1, UBRR0 = 16e6 / (8 * 1000000) - 1 = 1; the
-/// ESP8266's UART runs it too). Issue 13: at 500000 a command cycle was 16.4 ms in simavr (request and
-/// reply bytes half of it); at 250000 a 243-byte reply alone took 10 ms. 2 Mbaud (UBRR0 = 0) would
-/// leave the RX ISR 80 cycles per byte, too few beside the soft-UART and PWM interrupts.
+/// ESP8266's UART runs it too). Issue 13: at 500000 a command cycle was 16.4 ms in simavr (request
+/// and reply bytes half of it); at 250000 a 243-byte reply alone took 10 ms. 2 Mbaud (UBRR0 = 0)
+/// would leave the RX ISR 80 cycles per byte, too few beside the soft-UART and PWM interrupts.
 constexpr uint32_t kBridgeBaud = 1000000;
 constexpr uint16_t kBridgeUbrr = 1;
 
-/// MAVLink telemetry baud: ArduCopter's default SERIAL1_BAUD (57 = 57600) on the APM 2.6 telemetry port.
+/// MAVLink telemetry baud: ArduCopter's default SERIAL1_BAUD (57 = 57600) on the APM 2.6 telemetry
+/// port.
 constexpr uint32_t kMavlinkBaud = 57600;
 
 }  // namespace board

@@ -1,6 +1,6 @@
 // AVR peripheral drivers (registers + ISRs only); see drivers.h and board.h.
-// ISR timing budget: the RC pulse edges come from the Timer1 compare ISR, so every other ISR is kept
-// to a few microseconds (the longest delays an edge by its own length, < 4 us).
+// ISR timing budget: the RC pulse edges come from the Timer1 compare ISR, so every other ISR is
+// kept to a few microseconds (the longest delays an edge by its own length, < 4 us).
 #include "drivers.h"
 
 #include <avr/interrupt.h>
@@ -12,7 +12,8 @@
 namespace drivers {
 namespace {
 
-// ---- shared with ISRs ----------------------------------------------------------------------------
+// ---- shared with ISRs
+// ----------------------------------------------------------------------------
 struct ClockState {
   volatile uint32_t ms;
 };
@@ -71,16 +72,18 @@ struct SoftUartState {
 };
 SoftUartState g_suart;
 
-/// One MAVLink bit in Timer2 ticks (16 MHz / 8 = 2 ticks/us), 8.8 fixed point: 34.72 ticks at 57600.
+/// One MAVLink bit in Timer2 ticks (16 MHz / 8 = 2 ticks/us), 8.8 fixed point: 34.72 ticks at
+/// 57600.
 constexpr uint16_t kBitTicksFp =
     static_cast<uint16_t>((F_CPU / 8UL * 256UL + board::kMavlinkBaud / 2) / board::kMavlinkBaud);
 
 }  // namespace
 
-// ---- clock -----------------------------------------------------------------------------------------
+// ---- clock
+// -----------------------------------------------------------------------------------------
 void clock_init() {
-  OCR0A = 249;               // 16 MHz / 64 / 250 = 1 kHz
-  TCCR0A = _BV(WGM01);       // CTC
+  OCR0A = 249;          // 16 MHz / 64 / 250 = 1 kHz
+  TCCR0A = _BV(WGM01);  // CTC
   TCCR0B = _BV(CS01) | _BV(CS00);
   TIMSK0 = _BV(OCIE0A);
 }
@@ -94,7 +97,8 @@ uint32_t millis() {
 // Not timing critical: let the RC pulse ISR interrupt it.
 ISR(TIMER0_COMPA_vect, ISR_NOBLOCK) { g_clock.ms = g_clock.ms + 1; }
 
-// ---- RC pulses ---------------------------------------------------------------------------------------
+// ---- RC pulses
+// ---------------------------------------------------------------------------------------
 void pwm_init(const uint16_t slot_ticks[5]) {
   for (uint8_t i = 0; i < 5; ++i) {
     g_pwm.active_ticks[i] = slot_ticks[i];
@@ -139,7 +143,8 @@ ISR(TIMER1_COMPA_vect) {
   g_pwm.slot = next;
 }
 
-// ---- bridge UART -------------------------------------------------------------------------------------
+// ---- bridge UART
+// -------------------------------------------------------------------------------------
 void bridge_init() {
   UBRR0 = board::kBridgeUbrr;
   UCSR0A = _BV(U2X0);
@@ -192,13 +197,14 @@ ISR(USART_UDRE_vect) {
   if (left != 0) UCSR0B |= _BV(UDRIE0);
 }
 
-// ---- telemetry software UART -------------------------------------------------------------------------
+// ---- telemetry software UART
+// -------------------------------------------------------------------------
 void telemetry_init() {
   DDRD &= static_cast<uint8_t>(~_BV(PD2));
-  PORTD |= _BV(PD2);          // pull-up: idle line high
-  TCCR2A = 0;                 // normal mode, free running
-  TCCR2B = _BV(CS21);         // prescaler 8: 0.5 us per tick
-  EICRA = _BV(ISC01);         // INT0 on the falling (start-bit) edge
+  PORTD |= _BV(PD2);   // pull-up: idle line high
+  TCCR2A = 0;          // normal mode, free running
+  TCCR2B = _BV(CS21);  // prescaler 8: 0.5 us per tick
+  EICRA = _BV(ISC01);  // INT0 on the falling (start-bit) edge
   EIFR = _BV(INTF0);
   EIMSK = _BV(INT0);
 }
@@ -224,11 +230,11 @@ ISR(INT0_vect) {
   TIMSK2 = _BV(OCIE2A);
 }
 
-// Samples start bit (must be low), then data bits 0..7. The byte is finished in the middle of bit 7:
-// from there until the next start bit the line can only rise (bit 7 -> stop bit) or stay high, so
-// INT0 is re-armed 1.5 bit times before the next possible start edge instead of 0.5 (after a stop-bit
-// sample), which keeps back-to-back bytes aligned even when this ISR is delayed by the RC pulse ISR.
-// Stop bits are not checked; MAVLink's CRC rejects any corrupted frame.
+// Samples start bit (must be low), then data bits 0..7. The byte is finished in the middle of bit
+// 7: from there until the next start bit the line can only rise (bit 7 -> stop bit) or stay high,
+// so INT0 is re-armed 1.5 bit times before the next possible start edge instead of 0.5 (after a
+// stop-bit sample), which keeps back-to-back bytes aligned even when this ISR is delayed by the RC
+// pulse ISR. Stop bits are not checked; MAVLink's CRC rejects any corrupted frame.
 ISR(TIMER2_COMPA_vect) {
   const bool high = (PIND & _BV(PD2)) != 0;
   const uint8_t i = g_suart.bit_index;

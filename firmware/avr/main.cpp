@@ -1,6 +1,6 @@
 // ATmega328P firmware entry point: wires the AVR drivers to the core logic. All decisions (parsing,
-// authentication, arming, failsafe, limits, PWM schedule) are in firmware/core; this file only moves
-// bytes and time between the peripherals and the core.
+// authentication, arming, failsafe, limits, PWM schedule) are in firmware/core; this file only
+// moves bytes and time between the peripherals and the core.
 #include <avr/eeprom.h>
 #include <avr/interrupt.h>
 #include <avr/wdt.h>
@@ -38,7 +38,8 @@ class EepromSeqStore final : public fw::SeqStore {
 
  private:
   static void read(uint8_t* slots) {
-    eeprom_read_block(slots, reinterpret_cast<const void*>(fw::kSeqSlotsEepromAddress), fw::kSeqSlotsBytes);
+    eeprom_read_block(slots, reinterpret_cast<const void*>(fw::kSeqSlotsEepromAddress),
+                      fw::kSeqSlotsBytes);
   }
 };
 
@@ -68,8 +69,8 @@ class App {
       while (n == 0 && drivers::bridge_read(&b)) {
         switch (assembler_.feed(b, now_ms)) {
           case fw::LineEvent::kLine:
-            n = controller_.handle_line(assembler_.line(), assembler_.length(), now_ms, imu_, reply_,
-                                        sizeof(reply_));
+            n = controller_.handle_line(assembler_.line(), assembler_.length(), now_ms, imu_,
+                                        reply_, sizeof(reply_));
             break;
           case fw::LineEvent::kTooLong:
             n = controller_.reply_error(fw::Status::kTooLong, now_ms, imu_, reply_, sizeof(reply_));
@@ -103,12 +104,13 @@ class App {
 }  // namespace
 
 int main() {
-  // A hung main loop must not freeze the last outputs: the watchdog resets the chip, the pulses stop
-  // during the reset and the APM's own radio failsafe takes over. 120 ms > the longest loop pass
-  // (one SipHash of a 93-byte request, a few ms).
+  // A hung main loop must not freeze the last outputs: the watchdog resets the chip, the pulses
+  // stop during the reset and the APM's own radio failsafe takes over. 120 ms > the longest loop
+  // pass (one SipHash of a 93-byte request, a few ms).
   wdt_enable(WDTO_120MS);
   uint8_t record[fw::kKeyRecordBytes];
-  eeprom_read_block(record, reinterpret_cast<const void*>(fw::kKeyRecordEepromAddress), sizeof(record));
+  eeprom_read_block(record, reinterpret_cast<const void*>(fw::kKeyRecordEepromAddress),
+                    sizeof(record));
   uint8_t key[fw::kKeyBytes];
   const bool has_key = fw::load_key_record(record, key);
   static App app(has_key ? key : nullptr, EepromSeqStore::load());

@@ -1,8 +1,8 @@
 // Arming, failsafe, authentication and reply formatting; see controller.h.
 #include "controller.h"
 
-#include "rgbd_control/siphash24.h"
 #include "failsafe.h"
+#include "rgbd_control/siphash24.h"
 #include "text_writer.h"
 
 namespace fw {
@@ -31,9 +31,12 @@ void safe_outputs(uint16_t out_us[kChannelCount]) {
 
 const char* arm_state_name(ArmState s) {
   switch (s) {
-    case ArmState::kDisarmed: return "disarmed";
-    case ArmState::kArmed: return "armed";
-    case ArmState::kFailsafe: return "failsafe";
+    case ArmState::kDisarmed:
+      return "disarmed";
+    case ArmState::kArmed:
+      return "armed";
+    case ArmState::kFailsafe:
+      return "failsafe";
   }
   return "unknown";
 }
@@ -64,7 +67,8 @@ Status Controller::apply_control(const ParsedRequest& r, uint32_t now_ms) {
   }
   if (r.seq > seq_reserved_) {
     // Persist the reservation BEFORE applying, so a reset can never re-open this number.
-    seq_reserved_ = r.seq > 0xFFFFFFFFUL - kSeqReserveCount ? 0xFFFFFFFFUL : r.seq + kSeqReserveCount;
+    seq_reserved_ =
+        r.seq > 0xFFFFFFFFUL - kSeqReserveCount ? 0xFFFFFFFFUL : r.seq + kSeqReserveCount;
     if (seq_store_ != nullptr) seq_store_->persist_seq_floor(seq_reserved_);
   }
   last_seq_ = r.seq;
@@ -102,7 +106,8 @@ size_t Controller::handle_line(const char* line, size_t len, uint32_t now_ms, co
       rgbd_control::siphash24_tag_bytes(
           rgbd_control::siphash24(key_, reinterpret_cast<const uint8_t*>(line), r.signed_len), mac);
       uint8_t diff = 0;  // constant-time compare
-      for (size_t i = 0; i < sizeof(mac); ++i) diff = static_cast<uint8_t>(diff | (mac[i] ^ r.mac[i]));
+      for (size_t i = 0; i < sizeof(mac); ++i)
+        diff = static_cast<uint8_t>(diff | (mac[i] ^ r.mac[i]));
       if (diff != 0) {
         status = Status::kBadMac;
       } else if (r.value_overflow || r.seq <= last_seq_) {

@@ -6,8 +6,10 @@
 // States: kDisarmed -> (arm=1, throttle <= kArmThrottleMaxUs) -> kArmed
 //         kArmed    -> (arm=0) -> kDisarmed
 //         kArmed    -> (no valid command for kFailsafeTimeoutMs) -> kFailsafe
-//         kFailsafe -> (arm=0) -> kDisarmed ; arm=1 in kFailsafe is refused (403): a fresh arm is needed.
-// Request checks, in order: syntax (400/404/405) -> key present (503) -> MAC (401) -> sequence (409)
+//         kFailsafe -> (arm=0) -> kDisarmed ; arm=1 in kFailsafe is refused (403): a fresh arm is
+//         needed.
+// Request checks, in order: syntax (400/404/405) -> key present (503) -> MAC (401) -> sequence
+// (409)
 // -> ranges (422) -> state (403) -> applied (200). Only a 200 changes outputs, the last accepted
 // sequence number, or the failsafe timer. Sequence numbers stay stale across resets (seq_store.h).
 #ifndef FIRMWARE_CORE_CONTROLLER_H_
@@ -42,10 +44,11 @@ class Controller {
 
   /// Handles one complete request line received at now_ms and writes the reply line (ending in
   /// '\n', NUL-terminated) into reply[0..cap). Returns the reply length without the NUL.
-  size_t handle_line(const char* line, size_t len, uint32_t now_ms, const ImuCache& imu, char* reply,
-                     size_t cap);
+  size_t handle_line(const char* line, size_t len, uint32_t now_ms, const ImuCache& imu,
+                     char* reply, size_t cap);
   /// Writes an error reply for a line the assembler discarded (kTooLong / kStalled).
-  size_t reply_error(Status status, uint32_t now_ms, const ImuCache& imu, char* reply, size_t cap) const;
+  size_t reply_error(Status status, uint32_t now_ms, const ImuCache& imu, char* reply,
+                     size_t cap) const;
 
   /// Advances the failsafe state machine to now_ms (call every main-loop pass).
   void update(uint32_t now_ms);
@@ -63,7 +66,8 @@ class Controller {
 
  private:
   Status apply_control(const ParsedRequest& r, uint32_t now_ms);
-  size_t write_reply(Status status, uint32_t now_ms, const ImuCache& imu, char* reply, size_t cap) const;
+  size_t write_reply(Status status, uint32_t now_ms, const ImuCache& imu, char* reply,
+                     size_t cap) const;
 
   uint8_t key_[kKeyBytes];
   bool has_key_ = false;

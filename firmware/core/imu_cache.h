@@ -1,6 +1,6 @@
-// The latest attitude (MAVLink ATTITUDE) and raw IMU (MAVLink RAW_IMU) reading from the APM, with the
-// time each arrived, so every reply can carry the values and their age. Time is passed in.
-// Not thread-safe: written and read from the main loop only.
+// The latest attitude (MAVLink ATTITUDE) and raw IMU (MAVLink RAW_IMU) reading from the APM, with
+// the time each arrived, so every reply can carry the values and their age. Time is passed in. Not
+// thread-safe: written and read from the main loop only.
 #ifndef FIRMWARE_CORE_IMU_CACHE_H_
 #define FIRMWARE_CORE_IMU_CACHE_H_
 
@@ -21,7 +21,8 @@ struct RawImuSample {
 
 class ImuCache {
  public:
-  /// Stores an ATTITUDE reading in radians; non-finite or |angle| > 4 rad is ignored (returns false).
+  /// Stores an ATTITUDE reading in radians; non-finite or |angle| > 4 rad is ignored (returns
+  /// false).
   bool set_attitude_rad(float roll_rad, float pitch_rad, float yaw_rad, uint32_t now_ms);
   void set_raw_imu(const RawImuSample& s, uint32_t now_ms);
 

@@ -23,7 +23,8 @@ bool load_key_record(const uint8_t record[kKeyRecordBytes], uint8_t key_out[kKey
     if (record[i] != kMagic[i]) return false;
   }
   const uint16_t crc = crc16_ccitt(record, 20);
-  if (record[20] != static_cast<uint8_t>(crc & 0xFF) || record[21] != static_cast<uint8_t>(crc >> 8)) {
+  if (record[20] != static_cast<uint8_t>(crc & 0xFF) ||
+      record[21] != static_cast<uint8_t>(crc >> 8)) {
     return false;
   }
   bool all_zero = true;

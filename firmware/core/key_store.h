@@ -1,8 +1,9 @@
-// The per-craft MAC key as stored in EEPROM (written at flash time by firmware/tools/provision_key.py
-// through avrdude, or over the USB serial port; there is no code path that writes it from the WiFi
-// link). Record layout at EEPROM address 0, 22 bytes:
+// The per-craft MAC key as stored in EEPROM (written at flash time by
+// firmware/tools/provision_key.py through avrdude, or over the USB serial port; there is no code
+// path that writes it from the WiFi link). Record layout at EEPROM address 0, 22 bytes:
 //   "RGK1" | key[16] | CRC-16/CCITT-FALSE of the previous 20 bytes, little-endian.
-// An erased (all 0xFF), all-zero or corrupt record yields no key: every command is then refused (503).
+// An erased (all 0xFF), all-zero or corrupt record yields no key: every command is then refused
+// (503).
 #ifndef FIRMWARE_CORE_KEY_STORE_H_
 #define FIRMWARE_CORE_KEY_STORE_H_
 

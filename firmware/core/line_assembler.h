@@ -17,10 +17,11 @@
 namespace fw {
 
 enum class LineEvent : uint8_t {
-  kNone,      ///< nothing complete yet
-  kLine,      ///< a complete line is in line()/length()
-  kTooLong,   ///< the line exceeded kMaxRequestBytes; its rest is being discarded (reply 414)
-  kStalled,   ///< an incomplete line got no byte for kLineStallTimeoutMs and was discarded (reply 408)
+  kNone,     ///< nothing complete yet
+  kLine,     ///< a complete line is in line()/length()
+  kTooLong,  ///< the line exceeded kMaxRequestBytes; its rest is being discarded (reply 414)
+  kStalled,  ///< an incomplete line got no byte for kLineStallTimeoutMs and was discarded (reply
+             ///< 408)
 };
 
 class LineAssembler {

@@ -27,7 +27,7 @@ class Cursor {
     bool saturated = false;
     while (i_ < n_ && p_[i_] >= '0' && p_[i_] <= '9') {
       if (digits == 1 && p_[i_ - 1] == '0') return false;  // leading zero
-      if (digits == 10) return false;                       // longer than any u32
+      if (digits == 10) return false;                      // longer than any u32
       const uint32_t d = static_cast<uint32_t>(p_[i_] - '0');
       if (saturated || v > (0xFFFFFFFFUL - d) / 10UL) {
         saturated = true;

@@ -10,8 +10,9 @@
 //                    ("stack_free N"): the stack's high-water mark under the scenario's load
 //   --interactive    lock-step co-simulation: commands are applied as they are read, and
 //                    "run T" advances the simulation to T, then prints "at T" and flushes, so a
-//                    driver (e.g. a flight-controller model) can react to the pulses before it sends
-//                    the next inputs. Inputs must not be timed before the current simulated time.
+//                    driver (e.g. a flight-controller model) can react to the pulses before it
+//                    sends the next inputs. Inputs must not be timed before the current simulated
+//                    time.
 // Script (stdin), one command per line, times in simulated microseconds:
 //   req  T TEXT   send TEXT + '\n' on the bridge UART at T, or as soon as the previous request's
 //                 reply line has arrived (the bridge forwards one request at a time); a reply that
@@ -33,12 +34,12 @@
 //   stack_free N                 (with --stack-paint) bytes above ADDR never written
 //   done  END_US                 simulation finished
 // Time comes from simavr's cycle counter only; the harness never reads the wall clock.
-#include <sim_avr.h>
-#include <sim_elf.h>
-#include <sim_irq.h>
 #include <avr_eeprom.h>
 #include <avr_ioport.h>
 #include <avr_uart.h>
+#include <sim_avr.h>
+#include <sim_elf.h>
+#include <sim_irq.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -120,7 +121,8 @@ void on_pwm_pin(avr_irq_t* irq, uint32_t value, void* param) {
     sim->rise_cycle[idx] = now;
   } else if (!value && sim->high[idx]) {
     sim->high[idx] = false;
-    std::printf("pulse %d %.3f %.3f\n", idx + 1, us(sim->rise_cycle[idx]), us(now - sim->rise_cycle[idx]));
+    std::printf("pulse %d %.3f %.3f\n", idx + 1, us(sim->rise_cycle[idx]),
+                us(now - sim->rise_cycle[idx]));
   }
 }
 
@@ -133,7 +135,8 @@ void on_uart_out(avr_irq_t*, uint32_t value, void* param) {
   const char c = static_cast<char>(value & 0xFF);
   if (sim->reply.empty()) sim->reply_start = sim->avr->cycle;
   if (c == '\n') {
-    std::printf("reply %.3f %.3f %s\n", us(sim->reply_start), us(sim->avr->cycle), sim->reply.c_str());
+    std::printf("reply %.3f %.3f %s\n", us(sim->reply_start), us(sim->avr->cycle),
+                sim->reply.c_str());
     sim->reply.clear();
     sim->awaiting_reply = false;  // also when the line is still going out (a 414 on a long line)
   } else if (sim->reply.size() < 4096) {
@@ -143,7 +146,8 @@ void on_uart_out(avr_irq_t*, uint32_t value, void* param) {
 
 std::string from_hex(const std::string& h) {
   std::string out;
-  for (size_t i = 0; i + 1 < h.size(); i += 2) out += static_cast<char>(std::stoi(h.substr(i, 2), nullptr, 16));
+  for (size_t i = 0; i + 1 < h.size(); i += 2)
+    out += static_cast<char>(std::stoi(h.substr(i, 2), nullptr, 16));
   return out;
 }
 
@@ -163,32 +167,37 @@ void append_serial_edges(std::vector<PinEdge>* edges, uint64_t start, const std:
 }
 
 int usage(const char* msg) {
-  std::fprintf(stderr, "fw_sim: %s\nusage: fw_sim --elf FILE [--eeprom FILE] [--eeprom-out FILE] [--stack-paint ADDR] [--interactive] < script > log\n", msg);
+  std::fprintf(stderr,
+               "fw_sim: %s\nusage: fw_sim --elf FILE [--eeprom FILE] [--eeprom-out FILE] "
+               "[--stack-paint ADDR] [--interactive] < script > log\n",
+               msg);
   return 2;
 }
 
 /// Inputs waiting to be played into the simulated chip, and the playing state.
 struct Feeder {
-  std::deque<Request> requests;   // in script order
-  std::vector<Request> raws;      // sorted by time
+  std::deque<Request> requests;  // in script order
+  std::vector<Request> raws;     // sorted by time
   size_t raw_idx = 0;
-  std::vector<PinEdge> mav_edges; // sorted by time
+  std::vector<PinEdge> mav_edges;  // sorted by time
   size_t mav_idx = 0;
-  uint64_t mav_free_cycle = 0;    // when the telemetry wire is idle again
-  std::string tx;                 // bytes being fed into the bridge UART
+  uint64_t mav_free_cycle = 0;  // when the telemetry wire is idle again
+  std::string tx;               // bytes being fed into the bridge UART
   size_t tx_pos = 0;
   uint64_t tx_next = 0;
   uint64_t tx_start = 0;
   bool tx_is_request = false;
 
   void add_raw(const Request& r) {
-    auto it = std::upper_bound(raws.begin() + static_cast<long>(raw_idx), raws.end(), r,
-                               [](const Request& a, const Request& b) { return a.at_cycle < b.at_cycle; });
+    auto it = std::upper_bound(
+        raws.begin() + static_cast<long>(raw_idx), raws.end(), r,
+        [](const Request& a, const Request& b) { return a.at_cycle < b.at_cycle; });
     raws.insert(it, r);
   }
   void add_mav(uint64_t at, const std::string& bytes) {
     const uint64_t start = std::max(at, mav_free_cycle);
-    mav_free_cycle = start + static_cast<uint64_t>(static_cast<double>(bytes.size()) * 10 * kMavBitCycles + 0.5);
+    mav_free_cycle =
+        start + static_cast<uint64_t>(static_cast<double>(bytes.size()) * 10 * kMavBitCycles + 0.5);
     std::vector<PinEdge> e;
     append_serial_edges(&e, start, bytes);
     mav_edges.insert(mav_edges.end(), e.begin(), e.end());
@@ -197,8 +206,10 @@ struct Feeder {
   }
 };
 
-/// Parses one script line into the feeder. Returns 0 ok, 1 for "run"/"end" (with *at set), -1 on error.
-int apply_line(const std::string& line, int line_no, Feeder* f, std::string* cmd_out, uint64_t* at_out) {
+/// Parses one script line into the feeder. Returns 0 ok, 1 for "run"/"end" (with *at set), -1 on
+/// error.
+int apply_line(const std::string& line, int line_no, Feeder* f, std::string* cmd_out,
+               uint64_t* at_out) {
   std::istringstream in(line);
   std::string cmd;
   double t_us = -1;
@@ -256,7 +267,8 @@ int run_until(Sim* sim, Feeder* f, avr_irq_t* uart_in, avr_irq_t* mav_pin, uint6
         (f->requests.empty() || f->raws[f->raw_idx].at_cycle <= f->requests.front().at_cycle)) {
       f->tx = f->raws[f->raw_idx++].bytes;
       f->tx_is_request = false;
-    } else if (!f->requests.empty() && !sim->awaiting_reply && now >= f->requests.front().at_cycle) {
+    } else if (!f->requests.empty() && !sim->awaiting_reply &&
+               now >= f->requests.front().at_cycle) {
       f->tx = f->requests.front().bytes;
       f->requests.pop_front();
       f->tx_is_request = true;
@@ -291,13 +303,16 @@ int main(int argc, char** argv) {
       eeprom_out_path = argv[++i];
     } else if (a == "--stack-paint" && i + 1 < argc) {
       stack_paint_addr = std::strtol(argv[++i], nullptr, 0);
-      if (stack_paint_addr < 0x100 || stack_paint_addr > kRamEnd) return usage("--stack-paint: address outside SRAM");
+      if (stack_paint_addr < 0x100 || stack_paint_addr > kRamEnd)
+        return usage("--stack-paint: address outside SRAM");
     } else if (a == "--interactive") {
       interactive = true;
     } else if (a == "-h" || a == "--help") {
-      std::printf("usage: fw_sim --elf FILE [--eeprom FILE] [--eeprom-out FILE] [--stack-paint ADDR] [--interactive] < script > log\n"
-                  "Runs the firmware image on simavr (ATmega328P, 16 MHz) and plays the script;\n"
-                  "see the header of hil/arduino/fw_sim.cpp for the script and log formats.\n");
+      std::printf(
+          "usage: fw_sim --elf FILE [--eeprom FILE] [--eeprom-out FILE] [--stack-paint ADDR] "
+          "[--interactive] < script > log\n"
+          "Runs the firmware image on simavr (ATmega328P, 16 MHz) and plays the script;\n"
+          "see the header of hil/arduino/fw_sim.cpp for the script and log formats.\n");
       return 0;
     } else {
       return usage(("unknown argument " + a).c_str());
@@ -348,7 +363,8 @@ int main(int argc, char** argv) {
   avr_load_firmware(sim.avr, &fw);
   sim.avr->log = 0;
   if (stack_paint_addr >= 0) {
-    std::memset(sim.avr->data + stack_paint_addr, kStackPaint, static_cast<size_t>(kRamEnd + 1 - stack_paint_addr));
+    std::memset(sim.avr->data + stack_paint_addr, kStackPaint,
+                static_cast<size_t>(kRamEnd + 1 - stack_paint_addr));
   }
   if (!eeprom_path.empty()) {
     std::ifstream f(eeprom_path, std::ios::binary);
@@ -368,10 +384,13 @@ int main(int argc, char** argv) {
   flags &= ~static_cast<uint32_t>(AVR_UART_FLAG_STDIO);
   avr_ioctl(sim.avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
   for (int pin : kPwmPins) {
-    avr_irq_register_notify(avr_io_getirq(sim.avr, AVR_IOCTL_IOPORT_GETIRQ('B'), pin), on_pwm_pin, &sim);
+    avr_irq_register_notify(avr_io_getirq(sim.avr, AVR_IOCTL_IOPORT_GETIRQ('B'), pin), on_pwm_pin,
+                            &sim);
   }
-  avr_irq_register_notify(avr_io_getirq(sim.avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), on_uart_out, &sim);
-  avr_irq_register_notify(avr_io_getirq(sim.avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XOFF), on_uart_xoff, &sim);
+  avr_irq_register_notify(avr_io_getirq(sim.avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT),
+                          on_uart_out, &sim);
+  avr_irq_register_notify(avr_io_getirq(sim.avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XOFF),
+                          on_uart_xoff, &sim);
   avr_irq_t* uart_in = avr_io_getirq(sim.avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
   avr_irq_t* mav_pin = avr_io_getirq(sim.avr, AVR_IOCTL_IOPORT_GETIRQ('D'), 2);
   avr_raise_irq(mav_pin, 1);  // idle line high
@@ -413,7 +432,8 @@ int main(int argc, char** argv) {
   }
   if (stack_paint_addr >= 0) {
     long n = 0;
-    while (stack_paint_addr + n <= kRamEnd && sim.avr->data[stack_paint_addr + n] == kStackPaint) ++n;
+    while (stack_paint_addr + n <= kRamEnd && sim.avr->data[stack_paint_addr + n] == kStackPaint)
+      ++n;
     std::printf("stack_free %ld\n", n);
   }
   std::printf("done %.3f\n", us(sim.avr->cycle));
