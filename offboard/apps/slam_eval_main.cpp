@@ -251,7 +251,9 @@ int run_command(const RunArgs& a) {
     std::ofstream loops_csv(fs::path(a.out) / "loops.csv");
     loops_csv << "keyframe,searched,candidates,verified_ransac,accepted,loop_keyframe,ransac_inliers,fit_inliers,"
                  "correction_m,correction_deg,graph_keyframes,graph_edges,points_merged,points_attached,bow_ms,"
-                 "query_ms,verify_ms,posegraph_ms,snapshot_lock_ms,apply_lock_ms,fuse_lock_ms,total_ms,total_cpu_ms\n";
+                 "query_ms,verify_ms,posegraph_ms,snapshot_lock_ms,apply_lock_ms,fuse_lock_ms,total_ms,total_cpu_ms,"
+                 "consistent,verified_fit,refused_odometry,gate_keyframe,gate_path_m,gate_translation_m,"
+                 "gate_rotation_deg,gate_chi2\n";
     for (const auto& l : pipeline->loop_stats())
       loops_csv << l.keyframe << "," << l.searched << "," << l.candidates << "," << l.verified_ransac << ","
                 << l.accepted << "," << l.loop_keyframe << "," << l.ransac_inliers << "," << l.fit_inliers << ","
@@ -259,7 +261,9 @@ int run_command(const RunArgs& a) {
                 << l.graph_keyframes << "," << l.graph_edges << "," << l.points_merged << "," << l.points_attached
                 << "," << l.bow_ms << "," << l.query_ms << "," << l.verify_ms << "," << l.posegraph_ms << ","
                 << l.snapshot_lock_ms << "," << l.apply_lock_ms << "," << l.fuse_lock_ms << "," << l.total_ms << ","
-                << l.total_cpu_ms << "\n";
+                << l.total_cpu_ms << "," << l.consistent << "," << l.verified_fit << "," << l.refused_odometry
+                << "," << l.gate_keyframe << "," << l.gate_path_m << "," << l.gate_translation_m << ","
+                << l.gate_rotation_deg << "," << l.gate_chi2 << "\n";
     std::ofstream rss_csv(fs::path(a.out) / "rss.csv");
     rss_csv << "stamp_s,rss_mib\n";
     for (const auto& [t, mib] : rss_samples) rss_csv << std::fixed << std::setprecision(6) << t << "," << mib << "\n";

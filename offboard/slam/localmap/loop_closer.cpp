@@ -22,7 +22,9 @@ bool LoopCloserOptions::is_valid(std::string* error) const {
   if (max_candidates < 1) return fail("max_candidates must be >= 1");
   if (min_ransac_inliers < 3 || min_projection_inliers < 6) return fail("inlier bars too low");
   if (!(fit_first_radius_px > 0) || !(fuse_radius_px > 0)) return fail("radii must be positive");
-  return matching.is_valid(error) && ransac.is_valid(error) && posegraph.is_valid(error);
+  if (consistent_keyframes < 0) return fail("consistent_keyframes must be >= 0");
+  return drift.is_valid(error) && matching.is_valid(error) && ransac.is_valid(error) &&
+         posegraph.is_valid(error);
 }
 
 std::optional<LoopCloser> LoopCloser::create(const LoopCloserOptions& options,
@@ -104,9 +106,32 @@ std::optional<LoopCloser::Loop> LoopCloser::detect(std::int64_t kf_id, LoopStats
   database_.add(kf_id, std::move(bow));
   stats.query_ms = ms_since(t);
   stats.candidates = static_cast<int>(hits.size());
-  if (hits.empty()) return std::nullopt;
+  if (!stats.searched) return std::nullopt;  // ORB-SLAM2: no search leaves the chains untouched
+  // Temporal consistency: each hit stands for its covisibility group (the candidate and its
+  // connected keyframes); only hits continuing a chain of groups found for the previous keyframes
+  // go on to verification. No hit ends every chain.
+  std::vector<std::set<std::int64_t>> groups;
+  if (!hits.empty()) {
+    std::lock_guard<MapMutex> lock(map_->mutex);
+    const std::int64_t l0 = steady_now_ns();
+    for (const auto& h : hits) {
+      std::set<std::int64_t> g{h.keyframe};
+      for (const auto& [n, shared] :
+           map_->map.covisible(h.keyframe, options_.covisibility_min_shared))
+        g.insert(n);
+      groups.push_back(std::move(g));
+    }
+    stats.snapshot_lock_ms += ms_since(l0);
+  }
+  const std::vector<std::size_t> consistent = consistency_.update(groups);
   std::vector<std::int64_t> candidates;
-  for (const auto& h : hits) candidates.push_back(h.keyframe);
+  if (options_.temporal_consistency) {
+    for (std::size_t i : consistent) candidates.push_back(hits[i].keyframe);
+  } else {
+    for (const auto& h : hits) candidates.push_back(h.keyframe);
+  }
+  stats.consistent = static_cast<int>(candidates.size());
+  if (candidates.empty()) return std::nullopt;
   t = steady_now_ns();
   auto loop = verify(tf, candidates, kf_id, &stats);
   stats.verify_ms = ms_since(t);
@@ -146,6 +171,19 @@ std::optional<LoopCloser::Loop> LoopCloser::verify(const TrackedFeatures& frame,
     if (!fit.ok || static_cast<int>(fit.inliers) < options_.min_projection_inliers ||
         !fit.T_cam_world.matrix().allFinite())
       continue;
+    ++stats->verified_fit;
+    if (options_.odometry_gate) {
+      const OdometryConsistency gate = odometry_consistency(kf_id, cand, fit.T_cam_world.inverse());
+      stats->gate_keyframe = cand;
+      stats->gate_path_m = gate.path_m;
+      stats->gate_translation_m = gate.translation_m;
+      stats->gate_rotation_deg = gate.rotation_deg;
+      stats->gate_chi2 = gate.chi2;
+      if (!gate.consistent) {
+        ++stats->refused_odometry;
+        continue;
+      }
+    }
     Loop v;
     v.keyframe = kf_id;
     v.candidate = cand;
@@ -156,6 +194,38 @@ std::optional<LoopCloser::Loop> LoopCloser::verify(const TrackedFeatures& frame,
     return v;
   }
   return std::nullopt;
+}
+
+OdometryConsistency LoopCloser::odometry_consistency(
+    std::int64_t kf_id, std::int64_t candidate, const Eigen::Isometry3d& T_world_kf_loop) const {
+  KeyframeGraph graph;
+  Eigen::Isometry3d T_world_cand = Eigen::Isometry3d::Identity(),
+                    T_world_kf = Eigen::Isometry3d::Identity();
+  double chain_m = 0;  // fallback: the keyframes in creation order between the two
+  {
+    std::lock_guard<MapMutex> lock(map_->mutex);
+    const SlamMap& map = map_->map;
+    const MapKeyframe* a = map.keyframe(candidate);
+    const MapKeyframe* b = map.keyframe(kf_id);
+    if (!a || !b) return OdometryConsistency{};  // culled meanwhile: not consistent
+    T_world_cand = a->T_world_cam;
+    T_world_kf = b->T_world_cam;
+    const MapKeyframe* previous = nullptr;
+    for (const auto& [id, kf] : map.keyframes()) {
+      graph.position_m[id] = kf.T_world_cam.translation();
+      for (const auto& [n, shared] : map.covisible(id, options_.covisibility_min_shared))
+        if (n < id) graph.add_edge(n, id);
+      if (id >= std::min(candidate, kf_id) && id <= std::max(candidate, kf_id)) {
+        if (previous)
+          chain_m += (kf.T_world_cam.translation() - previous->T_world_cam.translation()).norm();
+        previous = &kf;
+      }
+    }
+  }
+  const double path_m = map_path_length_m(graph, candidate, kf_id).value_or(chain_m);
+  return check_odometry_consistency(T_world_cand.inverse() * T_world_kf,
+                                    T_world_cand.inverse() * T_world_kf_loop,
+                                    std::min(path_m, chain_m), options_.drift);
 }
 
 std::optional<LoopCloser::Correction> LoopCloser::optimise(const Loop& loop,
@@ -274,6 +344,7 @@ void LoopCloser::apply(const Correction& c, LoopStats* stats) {
   stats->correction_m = d_loop.translation().norm();
   stats->correction_deg = Eigen::AngleAxisd(d_loop.rotation()).angle() * 180.0 / M_PI;
   last_loop_at_ = processed_;
+  consistency_.reset();  // the chains described the map before the correction
   // Fuse the loop side's points into the keyframe and its neighbours, one keyframe per lock hold.
   std::vector<std::int64_t> targets{kf_id};
   {

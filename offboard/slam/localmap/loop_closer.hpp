@@ -5,16 +5,22 @@
 //     own weakest covisible neighbour (ORB-SLAM2's minScore), excluding the keyframes connected to
 //     it in the covisibility graph (>= 15 shared points, ORB-SLAM2's GetConnectedKeyFrames: those
 //     the local map already ties to it), best few first;
-//  3. geometric verification per candidate: descriptor matches against the candidate's points and
+//  3. temporal consistency (loop/loop_consistency.hpp, ORB-SLAM2 DetectLoop): only candidates
+//     whose covisibility group continues groups found for the 3 keyframes before are verified;
+//  4. geometric verification per candidate: descriptor matches against the candidate's points and
 //     3D-3D RANSAC (registration.hpp), then a two-pass projection fit against the candidate and its
 //     covisible neighbours' points; accepted with >= min_projection_inliers inliers;
-//  4. essential-graph optimisation with Ceres (posegraph/): all keyframes; spanning-tree edges
+//  5. odometry consistency (loop/loop_consistency.hpp, Kimera-RPGO / PCM): the verified relative
+//     pose must agree with the map's own relative pose of the two keyframes within a chi-square
+//     bound on the drift the map's covisibility chain between them can have accumulated - an
+//     identical-looking but different place (a repeated tile, a second door) is refused here;
+//  6. essential-graph optimisation with Ceres (posegraph/): all keyframes; spanning-tree edges
 //  (each
 //     keyframe to its most covisible older keyframe), strong covisibility edges (>= 100 shared
 //     points) with identity information, and every loop edge so far weighted as the 1 + 10
 //     keyframe-pair links it stands for (ORB-SLAM2's loop connections); the first keyframe (world
 //     frame) held fixed; solved on a snapshot, without the map lock;
-//  5. correction in one short step under the map lock: each keyframe is moved by its own pose-graph
+//  7. correction in one short step under the map lock: each keyframe is moved by its own pose-graph
 //     correction (applied to its current pose, so mapping done meanwhile is kept), each point with
 //     its first keyframe; SharedMap::corrections is bumped (the tracker re-anchors, a bundle
 //     adjustment in flight is dropped); then, in a second short step, the loop side's points are
@@ -36,6 +42,7 @@
 #include "slam/localmap/keyframe_database.hpp"
 #include "slam/localmap/registration.hpp"
 #include "slam/localmap/tracker.hpp"
+#include "slam/loop/loop_consistency.hpp"
 #include "slam/posegraph/posegraph.hpp"
 
 namespace slam {
@@ -58,15 +65,29 @@ struct LoopCloserOptions {
       100;  ///< ORB-SLAM2 essential graph: covisibility edges with >= 100 points
   double fuse_radius_px = 4.0;  ///< ORB-SLAM2 SearchAndFuse th = 4
   PoseGraphOptions posegraph;   ///< Ceres; max_iterations 20 as ORB-SLAM2's essential graph
+  /// ORB-SLAM2's temporal consistency (off only for ablations and the tests that show it matters):
+  /// a candidate is verified only when its covisibility group continues groups found for the
+  /// previous `consistent_keyframes` keyframes.
+  bool temporal_consistency = true;
+  int consistent_keyframes = CovisibilityConsistency::kOrbSlam2ConsecutiveKeyframes;
+  /// The odometry-consistency gate on a verified loop (off only for ablations and tests).
+  bool odometry_gate = true;
+  DriftModel drift;  ///< measured drift per metre of the map's chain (loop_consistency.hpp)
   LoopCloserOptions() { posegraph.max_iterations = 20; }
   bool is_valid(std::string* error) const;
 };
 
 struct LoopStats {
   std::int64_t keyframe = -1;
-  bool searched = false;    ///< the map was big enough and no loop closed recently
-  int candidates = 0;       ///< database hits passed to verification
-  int verified_ransac = 0;  ///< candidates whose RANSAC reached min_ransac_inliers
+  bool searched = false;     ///< the map was big enough and no loop closed recently
+  int candidates = 0;        ///< database hits
+  int consistent = 0;        ///< hits that passed temporal consistency (passed to verification)
+  int verified_ransac = 0;   ///< candidates whose RANSAC reached min_ransac_inliers
+  int verified_fit = 0;      ///< candidates that also reached min_projection_inliers
+  int refused_odometry = 0;  ///< verified candidates refused by the odometry-consistency gate
+  /// The gate's numbers for the last candidate it judged (accepted or refused).
+  std::int64_t gate_keyframe = -1;
+  double gate_path_m = 0, gate_translation_m = 0, gate_rotation_deg = 0, gate_chi2 = 0;
   bool accepted = false;
   std::int64_t loop_keyframe = -1;
   int ransac_inliers = 0, fit_inliers = 0;
@@ -116,7 +137,11 @@ class LoopCloser {
  private:
   LoopCloser(LoopCloserOptions o, CameraModel c, std::shared_ptr<SharedMap> m,
              std::shared_ptr<const BinaryVocabulary> v)
-      : options_(std::move(o)), camera_(c), map_(std::move(m)), vocabulary_(std::move(v)) {}
+      : options_(std::move(o)),
+        camera_(c),
+        map_(std::move(m)),
+        vocabulary_(std::move(v)),
+        consistency_(options_.consistent_keyframes) {}
   std::optional<Loop> verify(const TrackedFeatures& frame,
                              const std::vector<std::int64_t>& candidates, std::int64_t kf_id,
                              LoopStats* stats) const;
@@ -125,7 +150,12 @@ class LoopCloser {
   CameraModel camera_;
   std::shared_ptr<SharedMap> map_;
   std::shared_ptr<const BinaryVocabulary> vocabulary_;
+  /// The odometry-consistency gate for a verified loop (takes the map lock for a snapshot).
+  OdometryConsistency odometry_consistency(std::int64_t kf_id, std::int64_t candidate,
+                                           const Eigen::Isometry3d& T_world_kf_loop) const;
+
   KeyframeDatabase database_;
+  CovisibilityConsistency consistency_;
   std::int64_t processed_ = 0;
   std::int64_t last_loop_at_ = -1000000;  ///< `processed_` when the last loop closed
 };

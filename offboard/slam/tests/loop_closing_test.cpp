@@ -250,16 +250,33 @@ struct SyntheticWorld {
 };
 
 constexpr int kWalk = 11;
-constexpr double kDriftPerKeyframeM = 0.02;
+/// 6 mm per 0.25 m step = 2.4 % of the path: twice the drift rate the loop-off HIL flight showed
+/// (DriftModel: 1.05 %/m p95 over 8 m), so a true revisit tests the gate's tail, not its middle.
+constexpr double kDriftPerKeyframeM = 0.006;
+/// The revisit spans 1 + ORB-SLAM2's 3 consecutive keyframes, so temporal consistency can be met.
+constexpr int kRevisitKeyframes = 1 + CovisibilityConsistency::kOrbSlam2ConsecutiveKeyframes;
+/// The HIL room's wall tile (hil/kinect_emulator/room.py, tile_w_m): a photograph repeated one
+/// tile over looks the same from the same distance.
+constexpr double kHilTileWidthM = 1.2;
 
-/// Keyframes 0..10 walk along x (2 cm of drift per keyframe injected into the map poses), each
-/// sharing 60 landmarks with the previous one; keyframe 11 comes back to keyframe 0's place (140 of
-/// its landmarks, as new points: the map has not connected them) with 22 cm of drift, and shares
-/// 60 points with keyframe 10 (its covisible neighbour, which sets the detection bar).
-SyntheticWorld drifting_walk_with_revisit(std::vector<int>* last_walk_landmarks = nullptr) {
+/// Keyframes 0..10 walk along x (6 mm of drift per keyframe injected into the map poses), each
+/// sharing 60 landmarks with the previous one; keyframes 11.. come back to keyframe 0's place,
+/// `revisit_keyframes` of them, 3 cm apart, each seeing 120 of its 200 landmarks (a window that
+/// moves by 20 per keyframe) as new points (the map has not connected them), with the walk's 66 mm
+/// of drift, and 60 points shared with keyframe 10 (their covisible neighbour, which sets the
+/// detection bar).
+/// `aliased_shift_m` != 0: the revisit happens somewhere else - `aliased_shift_m` further along x
+/// - in front of an identical copy of keyframe 0's place (the same descriptors at the same relative
+/// positions: what the camera sees is exactly a true revisit's view), and the map, following the
+/// camera's own motion, places the keyframes there (plus the drift).
+SyntheticWorld drifting_walk_with_revisit(std::vector<int>* last_walk_landmarks = nullptr,
+                                          int revisit_keyframes = kRevisitKeyframes,
+                                          double aliased_shift_m = 0.0) {
   SyntheticWorld w;
   std::mt19937 rng(11);
   constexpr double kStepM = 0.25;
+  constexpr double kRevisitStepM = 0.03;
+  constexpr int kWindow = 120, kWindowStep = 20;
   std::map<int, std::int64_t> known;
   std::vector<int> previous;
   std::vector<int> first_place;
@@ -275,17 +292,23 @@ SyntheticWorld drifting_walk_with_revisit(std::vector<int>* last_walk_landmarks 
     w.add_keyframe(i, T_true, T_map, seen, &known);
     previous = fresh;
   }
-  // The revisit: keyframe 0's place from 2 cm beside it, plus 60 landmarks shared with keyframe 10.
-  const Eigen::Isometry3d T_true = pose_at(0.02, 0, 0);
-  const Eigen::Isometry3d T_map = pose_at(0.02 + kDriftPerKeyframeM * kWalk, 0, 0);
+  // The revisits: keyframe 0's place seen again (from where the features say: beside keyframe 0),
+  // plus 60 landmarks shared with keyframe 10.
   std::map<int, std::int64_t> fresh_points;  // place A seen again: new points, not yet connected
   for (int id : previous) fresh_points[id] = known[id];
-  std::vector<int> seen(first_place.begin(), first_place.begin() + 140);
   std::vector<int> near_previous(previous.begin(), previous.begin() + 60);
   std::map<int, Eigen::Isometry3d> view_from;
   for (int id : near_previous) view_from[id] = w.truth[10];
-  seen.insert(seen.end(), near_previous.begin(), near_previous.end());
-  w.add_keyframe(kWalk, T_true, T_map, seen, &fresh_points, view_from);
+  for (int k = 0; k < revisit_keyframes; ++k) {
+    const double x = 0.02 + kRevisitStepM * k;
+    const Eigen::Isometry3d T_view = pose_at(x, 0, 0);  // what the features show
+    const Eigen::Isometry3d T_map = pose_at(x + aliased_shift_m + kDriftPerKeyframeM * kWalk, 0, 0);
+    const int from = std::min(kWindowStep * k, static_cast<int>(first_place.size()) - kWindow);
+    std::vector<int> seen(first_place.begin() + from, first_place.begin() + from + kWindow);
+    seen.insert(seen.end(), near_previous.begin(), near_previous.end());
+    w.add_keyframe(kWalk + k, T_view, T_map, seen, &fresh_points, view_from);
+    w.truth.back() = pose_at(x + aliased_shift_m, 0, 0);  // where the camera really was
+  }
   if (last_walk_landmarks) *last_walk_landmarks = previous;
   return w;
 }
@@ -312,24 +335,42 @@ std::optional<LoopCloser> make_closer(const SyntheticWorld& w) {
   return c;
 }
 
+/// Runs every keyframe of `w` through `closer` in order.
+std::vector<LoopStats> process_all(const SyntheticWorld& w, LoopCloser* closer) {
+  std::vector<LoopStats> stats;
+  for (std::int64_t id = 0; id < static_cast<std::int64_t>(w.truth.size()); ++id)
+    stats.push_back(closer->process(id));
+  return stats;
+}
+
+int loops_accepted(const std::vector<LoopStats>& stats) {
+  int n = 0;
+  for (const LoopStats& s : stats) n += s.accepted ? 1 : 0;
+  return n;
+}
+
 TEST(LoopCloser, DetectsTheRevisitAndThePoseGraphRemovesTheInjectedDrift) {
-  // GIVEN a walk with 1 cm of drift per keyframe that returns to its start
+  // GIVEN a walk with 6 mm of drift per keyframe that returns to its start for 4 keyframes
   SyntheticWorld w = drifting_walk_with_revisit();
   auto closer = make_closer(w);
   ASSERT_TRUE(closer);
   const double before_m = position_rmse_m(w);
   const std::size_t points_before = w.map->map.points().size();
   // WHEN every keyframe goes through the loop closer in order
-  std::vector<LoopStats> stats;
-  for (std::int64_t id = 0; id <= 11; ++id) stats.push_back(closer->process(id));
-  // THEN no loop is claimed along the walk, and the revisit closes the loop with keyframe 0
+  const std::vector<LoopStats> stats = process_all(w, &*closer);
+  // THEN no loop is claimed along the walk or before the revisit is temporally consistent (its
+  // 4th keyframe), and then the loop with keyframe 0 closes
   for (std::size_t i = 0; i + 1 < stats.size(); ++i) EXPECT_FALSE(stats[i].accepted) << i;
   const LoopStats& last = stats.back();
-  ASSERT_TRUE(last.accepted) << "candidates " << last.candidates << ", ransac-verified "
-                             << last.verified_ransac;
+  ASSERT_TRUE(last.accepted) << "candidates " << last.candidates << ", consistent "
+                             << last.consistent << ", ransac-verified " << last.verified_ransac
+                             << ", refused by the odometry gate " << last.refused_odometry
+                             << " (chi2 " << last.gate_chi2 << ", path " << last.gate_path_m
+                             << " m)";
   EXPECT_EQ(last.loop_keyframe, 0);
   EXPECT_GE(last.fit_inliers, 100);
   EXPECT_NEAR(last.correction_m, kDriftPerKeyframeM * kWalk, 0.01);
+  EXPECT_LE(last.gate_chi2, DriftModel{}.chi2_bound);
   ASSERT_EQ(w.map->map.loop_edges().size(), 1u);
   EXPECT_EQ(w.map->corrections, 1u);
   // the drift (a linear ramp) is spread back over the walk: keyframe positions near the truth
@@ -351,14 +392,15 @@ TEST(LoopCloser, DetectsTheRevisitAndThePoseGraphRemovesTheInjectedDrift) {
 }
 
 TEST(LoopCloser, TrackingProceedsBetweenTheSolveAndTheCorrectionAndFollowsIt) {
-  // GIVEN the drifting walk, the revisit keyframe detected and its pose graph solved
+  // GIVEN the drifting walk, the revisit's last keyframe detected and its pose graph solved
   std::vector<int> walk_end;
   SyntheticWorld w = drifting_walk_with_revisit(&walk_end);
   auto closer = make_closer(w);
   ASSERT_TRUE(closer);
   LoopStats st;
-  for (std::int64_t id = 0; id <= 10; ++id) closer->process(id);
-  const auto loop = closer->detect(11, &st);
+  const std::int64_t last_revisit = kWalk + kRevisitKeyframes - 1;
+  for (std::int64_t id = 0; id < last_revisit; ++id) closer->process(id);
+  const auto loop = closer->detect(last_revisit, &st);
   ASSERT_TRUE(loop);
   const auto correction = closer->optimise(*loop, &st);
   ASSERT_TRUE(correction);
@@ -384,17 +426,150 @@ TEST(LoopCloser, TrackingProceedsBetweenTheSolveAndTheCorrectionAndFollowsIt) {
   EXPECT_LT((a.T_world_cam.translation() - kf10_before.translation()).norm(), 0.01);
   closer->apply(*correction, &st);
   const Eigen::Isometry3d kf10_after = w.map->map.keyframe(10)->T_world_cam;
-  ASSERT_GT((kf10_after.translation() - kf10_before.translation()).norm(), 0.15);
+  ASSERT_GT((kf10_after.translation() - kf10_before.translation()).norm(),
+            0.5 * kDriftPerKeyframeM * 10);
   f.index = 101;
   f.stamp_s = 10.033;
   const TrackResult b = tracker->track(f, view, fo, false);
   // THEN tracking continues without a loss or a relocalisation, in the corrected frame: the last
-  // pose moved with its reference keyframe (otherwise the 0.2 m step would be refused as a jump)
+  // pose moved with its reference keyframe
   ASSERT_EQ(b.state, TrackingState::kTracking);
   EXPECT_FALSE(b.relocalised);
   EXPECT_LT((b.T_world_cam.translation() - kf10_after.translation()).norm(), 0.01);
   EXPECT_LT((b.T_world_cam.translation() - w.truth[10].translation()).norm(), 0.03);
   EXPECT_GT(st.apply_lock_ms, 0.0);
+}
+
+LoopCloserOptions with_checks(bool temporal, bool gate) {
+  LoopCloserOptions o;
+  o.matching.lowe_ratio = 0.75;  // as make_closer
+  o.temporal_consistency = temporal;
+  o.odometry_gate = gate;
+  return o;
+}
+
+std::optional<LoopCloser> make_closer(const SyntheticWorld& w, const LoopCloserOptions& o) {
+  std::string err;
+  auto vocabulary = builtin_orb_vocabulary(&err);
+  EXPECT_TRUE(vocabulary) << err;
+  if (!vocabulary) return std::nullopt;
+  auto c = LoopCloser::create(
+      o, w.cam, w.map, std::make_shared<const BinaryVocabulary>(std::move(*vocabulary)), &err);
+  EXPECT_TRUE(c) << err;
+  return c;
+}
+
+TEST(LoopCloser, AnAliasedPlaceOneTileOverIsRefusedByTheOdometryGate) {
+  // GIVEN the walk returning not to its start but to an identical copy of it one HIL wall tile
+  // (1.2 m) further along: the views are exactly a true revisit's, the map's odometry is not
+  for (const bool gate : {false, true}) {
+    SCOPED_TRACE(gate ? "odometry gate on" : "odometry gate off");
+    SyntheticWorld w = drifting_walk_with_revisit(nullptr, kRevisitKeyframes, kHilTileWidthM);
+    auto closer = make_closer(w, with_checks(true, gate));
+    ASSERT_TRUE(closer);
+    // WHEN every keyframe goes through the loop closer
+    const std::vector<LoopStats> stats = process_all(w, &*closer);
+    const LoopStats& last = stats.back();
+    // THEN the place is recognised, consistent over 4 keyframes and geometrically verified ...
+    EXPECT_EQ(last.consistent, 1);
+    EXPECT_GE(last.verified_fit, 1);
+    if (!gate) {
+      // ... so without the gate the wrong loop closes, moving the map by a tile
+      ASSERT_EQ(loops_accepted(stats), 1);
+      EXPECT_GT(last.correction_m, kHilTileWidthM - 0.1);
+      continue;
+    }
+    // ... but the odometry cannot have drifted a tile over ~5 m of map: refused, map untouched
+    EXPECT_EQ(loops_accepted(stats), 0);
+    EXPECT_EQ(last.refused_odometry, 1);
+    EXPECT_NEAR(last.gate_translation_m, kHilTileWidthM + kDriftPerKeyframeM * kWalk, 0.02);
+    EXPECT_GT(last.gate_chi2, DriftModel{}.chi2_bound);
+    EXPECT_EQ(w.map->corrections, 0u);
+    EXPECT_TRUE(w.map->map.loop_edges().empty());
+  }
+}
+
+TEST(LoopCloser, ARevisitSeenByOneKeyframeIsNotTemporallyConsistent) {
+  // GIVEN the walk coming back to its start for a single keyframe (a glimpse: what one keyframe
+  // facing a look-alike wall also gives)
+  for (const bool temporal : {false, true}) {
+    SCOPED_TRACE(temporal ? "temporal consistency on" : "temporal consistency off");
+    SyntheticWorld w = drifting_walk_with_revisit(nullptr, 1);
+    auto closer = make_closer(w, with_checks(temporal, true));
+    ASSERT_TRUE(closer);
+    // WHEN every keyframe goes through the loop closer
+    const std::vector<LoopStats> stats = process_all(w, &*closer);
+    // THEN the glimpse is a database hit that geometry alone would accept; with ORB-SLAM2's
+    // temporal consistency it is not even verified
+    EXPECT_GE(stats.back().candidates, 1);
+    EXPECT_EQ(loops_accepted(stats), temporal ? 0 : 1);
+    EXPECT_EQ(stats.back().consistent, temporal ? 0 : stats.back().candidates);
+  }
+}
+
+TEST(CovisibilityConsistency, ACandidateGroupMustContinueChainsOfThreePreviousKeyframes) {
+  CovisibilityConsistency c;  // ORB-SLAM2's 3
+  using Groups = std::vector<std::set<std::int64_t>>;
+  // a place {1,2,3} seen from 4 keyframes in a row, each time through an overlapping group
+  EXPECT_TRUE(c.update(Groups{{1, 2}}).empty());            // chain 0
+  EXPECT_TRUE(c.update(Groups{{2, 3}}).empty());            // 1
+  EXPECT_TRUE(c.update(Groups{{3, 4}, {40, 41}}).empty());  // 2 (and a new chain for {40,41})
+  EXPECT_EQ(c.update(Groups{{3}, {41}}), (std::vector<std::size_t>{0}));  // 3: enough; {41}: 1
+  EXPECT_EQ(c.longest_chain(), 3);
+  // a keyframe without candidates ends every chain
+  EXPECT_TRUE(c.update(Groups{}).empty());
+  EXPECT_EQ(c.longest_chain(), 0);
+  // a group overlapping no previous one starts again at 0, as after reset()
+  for (int i = 0; i < 3; ++i) EXPECT_TRUE(c.update(Groups{{7, 8}}).empty()) << i;
+  c.reset();
+  EXPECT_TRUE(c.update(Groups{{7, 8}}).empty());
+  EXPECT_EQ(c.longest_chain(), 0);
+}
+
+TEST(OdometryConsistency, TheBoundGrowsWithTheMapPathAndRefusesATileWidth) {
+  const DriftModel m;
+  const Eigen::Isometry3d map = pose_at(2.0, 0, 0.3);
+  auto off_by = [&](double dx, double yaw_rad) {
+    return map * pose_at(dx, 0, yaw_rad);  // the loop puts b this far from where the map has it
+  };
+  // 5 cm after 5 m of map: sigma_t = sqrt(8.1^2 + 1.12e-4 * 5 * 1e6) = 25 mm, chi2 = 4.0
+  const OdometryConsistency small = check_odometry_consistency(map, off_by(0.05, 0), 5.0, m);
+  EXPECT_TRUE(small.consistent);
+  EXPECT_NEAR(small.chi2, 0.05 * 0.05 / (0.0081 * 0.0081 + 1.12e-4 * 5.0), 1e-9);
+  EXPECT_NEAR(small.translation_m, 0.05, 1e-12);
+  // the same 5 cm right next to the keyframe (0.1 m of map) is too much
+  EXPECT_FALSE(check_odometry_consistency(map, off_by(0.05, 0), 0.1, m).consistent);
+  // a tile width is refused even after the whole 80 m flight's path
+  EXPECT_FALSE(check_odometry_consistency(map, off_by(kHilTileWidthM, 0), 80.0, m).consistent);
+  // 3 degrees of rotation after 1 m (sigma_r 0.28 deg) is refused; after 80 m (1.7 deg) it passes
+  const double three_deg = 3.0 * M_PI / 180.0;
+  EXPECT_FALSE(check_odometry_consistency(map, off_by(0, three_deg), 1.0, m).consistent);
+  const OdometryConsistency turned = check_odometry_consistency(map, off_by(0, three_deg), 80.0, m);
+  EXPECT_TRUE(turned.consistent);
+  EXPECT_NEAR(turned.rotation_deg, 3.0, 1e-9);
+  // non-finite input is never consistent
+  Eigen::Isometry3d bad = map;
+  bad.translation().x() = std::nan("");
+  EXPECT_FALSE(check_odometry_consistency(map, bad, 5.0, m).consistent);
+}
+
+TEST(OdometryConsistency, MapPathIsTheShortestCovisibilityChain) {
+  // a chain 0-1-2-3 along x (1 m steps) and a shortcut 0-3 that is 3 m long in a straight line:
+  // the shortcut is as long as the chain here; a detour 0-4-3 via y = 5 is longer
+  KeyframeGraph g;
+  for (int i = 0; i < 4; ++i) g.position_m[i] = Eigen::Vector3d(i, 0, 0);
+  g.position_m[4] = Eigen::Vector3d(1.5, 5, 0);
+  g.position_m[5] = Eigen::Vector3d(9, 9, 9);  // not connected
+  g.add_edge(0, 1);
+  g.add_edge(1, 2);
+  g.add_edge(2, 3);
+  g.add_edge(0, 4);
+  g.add_edge(4, 3);
+  EXPECT_NEAR(*map_path_length_m(g, 0, 3), 3.0, 1e-12);
+  EXPECT_NEAR(*map_path_length_m(g, 3, 1), 2.0, 1e-12);
+  EXPECT_NEAR(*map_path_length_m(g, 4, 2), std::hypot(1.5, 5.0) + 1.0, 1e-12);
+  EXPECT_FALSE(map_path_length_m(g, 0, 5));
+  EXPECT_FALSE(map_path_length_m(g, 0, 42));
 }
 
 }  // namespace
