@@ -64,10 +64,14 @@ proto::PoseUpdate roundtrip(SlamLinkSession* s, const proto::RgbdFrame& m, std::
   return s->on_frame(f ? *f : m, err);
 }
 
-TEST(SlamLinkSession, GivenFramesWhenProcessedThenOnePoseUpdatePerFrame) {
+PipelineOptions orb_options() {
   PipelineOptions o;
   o.frontend.features.kind = DetectorKind::kOrb;
-  SlamLinkSession s(o);
+  return o;
+}
+
+TEST(SlamLinkSession, GivenFramesWhenProcessedThenOnePoseUpdatePerFrame) {
+  SlamLinkSession s(orb_options());
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
@@ -150,9 +154,7 @@ TEST(SlamLinkSession, GivenUnusableFramesThenEachStillGetsALostPoseUpdateWithARe
 }
 
 TEST(SlamLinkSession, GivenAFrameFromAnotherCameraMidSessionThenItIsRefusedWithBothCalibrations) {
-  PipelineOptions o;
-  o.frontend.features.kind = DetectorKind::kOrb;
-  SlamLinkSession s(o);
+  SlamLinkSession s(orb_options());
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
