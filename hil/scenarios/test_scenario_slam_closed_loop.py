@@ -185,8 +185,14 @@ def test_slam_loop_scenario4_stream_link_dropped_and_restored(tmp_path):
     assert _holding_or_landed(out), report
 
 
+class HoldTargetMissed(AssertionError):
+    """The one known failure of scenario 5 (its strict xfail): the hold error above the target.
+    Every other failure of the scenario (no take-off, SLAM ATE, a fly-away) fails for real."""
+
+
 @pytest.mark.xfail(
     strict=True,
+    raises=HoldTargetMissed,
     reason=(
         "known failure (measured 2026-12-02, local-map SLAM, load 8-11): without quad-control's IMU + pose "
         "estimator the hold error reached 0.34-0.37 m (rms 0.15 m; poses 200-400 ms late behind the stalls, "
@@ -210,6 +216,7 @@ def test_slam_loop_scenario5_degraded_stream_link(tmp_path):
         except (TimeoutError, RuntimeError) as e:  # the mission could not go on: how did it end?
             report["mission_aborted"] = str(e)[:300]
         _settle_outcome(flight)
+        took_off = start is not None
         if start is None:
             start = camera_room_position(flight.rig.history()[0], flight.options.mount)
         out = _fault_outcome(flight, start, t0)
@@ -218,11 +225,14 @@ def test_slam_loop_scenario5_degraded_stream_link(tmp_path):
         report["estimator"] = flight.state().get("estimator")
         report = _finish(flight, "slam_loop_scenario5", {
             **report, "touchdown_vertical_speed_mps": max(touchdowns) if touchdowns else None, **out})
+    # A craft that never took off holds perfectly: that is a failure of the flight, not a pass.
+    assert took_off, f"never took off: {report.get('mission_aborted')}"
     assert out["max_horizontal_from_hold_point_m"] < FLYAWAY_RADIUS_M
     assert _holding_or_landed(out), report
     # The targets of the real-time SLAM issue: SLAM holds through the stalls, and so does the craft.
     assert report["ate"].get("ate_rmse_m") is not None and report["ate"]["ate_rmse_m"] <= 0.030, report["ate"]
-    assert out["max_horizontal_from_hold_point_m"] <= HOLD_TOLERANCE_M, out
+    if out["max_horizontal_from_hold_point_m"] > HOLD_TOLERANCE_M:
+        raise HoldTargetMissed(out)
 
 
 def test_slam_loop_scenario6_blank_frames(tmp_path):
