@@ -8,4 +8,4 @@ here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/.." && pwd)
 "$here/build.sh" | grep '^firmware:'
 cd "$root"
-.venv/bin/python -m pytest -q -s firmware/tests/test_simavr.py 2>&1 | grep -E '^simavr|passed|failed'
+.venv/bin/python -m pytest -q -s hil/arduino/tests/test_simavr.py 2>&1 | grep -E '^simavr|passed|failed'

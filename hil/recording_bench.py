@@ -32,7 +32,7 @@ sys.path[:0] = [str(REPO / "offboard/dashboard/tests"), str(REPO / "protocol/pyt
 
 from dashboard_fixtures import KEY, QuadControl, write_config  # noqa: E402
 from firmware_double import FirmwareDouble  # noqa: E402
-from wifi_bridge import WifiBridgeEmulator  # noqa: E402
+from rgbd_protocol.control_bridge import WifiBridgeEmulator  # noqa: E402
 
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 

@@ -14,6 +14,8 @@
 #include <avr/io.h>
 #include <stdint.h>
 
+#include "rgbd_control/control_spec_generated.h"
+
 namespace board {
 
 /// PORTB bit of RC channel 1..4 (index 0..3, ArduPilot order).
@@ -24,8 +26,10 @@ constexpr uint8_t kPwmPortBMask = _BV(PB1) | _BV(PB2) | _BV(PB3) | _BV(PB4);
 /// ESP8266's UART runs it too). Issue 13: at 500000 a command cycle was 16.4 ms in simavr (request
 /// and reply bytes half of it); at 250000 a 243-byte reply alone took 10 ms. 2 Mbaud (UBRR0 = 0)
 /// would leave the RX ISR 80 cycles per byte, too few beside the soft-UART and PWM interrupts.
-constexpr uint32_t kBridgeBaud = 1000000;
+constexpr uint32_t kBridgeBaud = rgbd_control::kBridgeBaud;  // control_spec.json serial_link.baud
 constexpr uint16_t kBridgeUbrr = 1;
+static_assert(16000000UL / (8UL * kBridgeBaud) - 1 == kBridgeUbrr, "UBRR0 must match the baud");
+static_assert(16000000UL % (8UL * kBridgeBaud) == 0, "the bridge baud must be exact at 16 MHz");
 
 /// MAVLink telemetry baud: ArduCopter's default SERIAL1_BAUD (57 = 57600) on the APM 2.6 telemetry
 /// port.

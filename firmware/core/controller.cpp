@@ -161,7 +161,7 @@ size_t Controller::write_reply(Status status, uint32_t now_ms, const ImuCache& i
   uint16_t out[kChannelCount];
   outputs_us(out);
   w.u32(static_cast<uint16_t>(status));
-  w.str(" {\"err\":\"");
+  w.str(" {\"ver\":" RGBD_CONTROL_LINK_VERSION_STRING ",\"err\":\"");
   w.str(status_reason(status));
   w.str("\",\"fw\":\"" FW_VERSION_STRING "\",\"state\":\"");
   w.str(arm_state_name(state_));

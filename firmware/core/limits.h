@@ -1,12 +1,15 @@
 // Every numeric constant of the firmware's behaviour, defined once, with its unit in the name and the
-// reason for its value. The ground-station side never redefines these: the protocol's valid ranges
-// live in protocol/control/control_spec.json and a test checks this header agrees with that file.
+// reason for its value. The ground-station side never redefines these; tests read them from here
+// (firmware/tools/fw_limits.py). The protocol's valid ranges come from the generated
+// rgbd_control/control_spec_generated.h (protocol/control/control_spec.json).
 //
 // Channel order is ArduPilot's RC input order: 1 roll, 2 pitch, 3 throttle, 4 yaw.
 #ifndef FIRMWARE_CORE_LIMITS_H_
 #define FIRMWARE_CORE_LIMITS_H_
 
 #include <stdint.h>
+
+#include "rgbd_control/control_spec_generated.h"
 
 namespace fw {
 
@@ -24,8 +27,8 @@ constexpr uint8_t kChYaw = 3;       ///< APM RC input 4
 /// 50 Hz RC frame: the rate of a standard RC receiver, which the APM 2.6 RC input decoder expects.
 constexpr uint16_t kPwmFramePeriodUs = 20000;
 /// Protocol range of every commanded channel: the standard 1000-2000 us RC pulse (control_spec.json).
-constexpr uint16_t kCommandMinUs = 1000;
-constexpr uint16_t kCommandMaxUs = 2000;
+constexpr uint16_t kCommandMinUs = rgbd_control::kChannelMinUs;
+constexpr uint16_t kCommandMaxUs = rgbd_control::kChannelMaxUs;
 /// Stick centre: zero roll/pitch angle and zero yaw rate in ArduCopter (RCx_TRIM default 1500).
 constexpr uint16_t kNeutralUs = 1500;
 /// Throttle stick fully down: ArduCopter RC3_MIN default 1000 ("zero throttle"), above FS_THR_VALUE.
@@ -91,9 +94,11 @@ static_assert(kFailsafeThrottleUs > kApmRcPulseMinValidUs, "failsafe throttle mu
 static_assert(kThrottleLowUs > kApmFsThrValueUs, "disarmed/ground throttle must not trigger FS_THR");
 
 // ---- serial request link --------------------------------------------------------------------------
-/// Longest request line (bytes, without the newline). The longest valid control request is 93
-/// bytes (control_spec.json); 128 leaves margin and bounds the line buffer in the ATmega's 2 KB RAM.
-constexpr uint8_t kMaxRequestBytes = 128;
+/// Longest request line (bytes, without the newline; control_spec.json max_request_bytes). The
+/// longest valid control request is 93 bytes; 128 leaves margin and bounds the line buffer in the
+/// ATmega's 2 KB RAM.
+constexpr uint8_t kMaxRequestBytes = rgbd_control::kMaxRequestBytes;
+static_assert(rgbd_control::kMaxRequestBytes <= 255, "the line assembler counts in uint8_t");
 /// A request line that gets no byte for this long before its newline is discarded with a 408 reply
 /// (silence, not line duration: a long line arriving steadily is never cut). The bridge forwards
 /// whole requests back to back (10 us per byte at 1 Mbaud), so 100 ms of silence only happens to a

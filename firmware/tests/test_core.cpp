@@ -479,6 +479,10 @@ TEST(Reply, WorstCaseFitsBufferAndCarriesImu) {
   EXPECT_NE(r.find("\"att_mrad\":[-3142,-3142,-3142]"), std::string::npos) << r;
   EXPECT_NE(r.find("\"imu_raw\":[-32768,-32768,-32768,-32768,-32768,-32768]"), std::string::npos) << r;
   EXPECT_NE(r.find("\"att_age_ms\":4294967295"), std::string::npos) << r;
+  // The control-link schema version comes first (control_spec.json), and the line keeps the spec's
+  // bound that ground stations size their buffers from.
+  EXPECT_EQ(r.rfind("422 {\"ver\":" + std::to_string(rgbd_control::kControlLinkVersion) + ",", 0), 0u) << r;
+  EXPECT_LE(n - 1, rgbd_control::kMaxReplyBytes);
   std::printf("worst-case reply: %zu bytes\n", n);
 }
 

@@ -179,7 +179,7 @@ class SlamFlight:
         from hilrig.live_rig import LiveRig
         from kinect_emulator.live import LiveKinect
         from kinect_emulator.renderer import KinectOptions
-        from wifi_bridge import WifiBridgeEmulator
+        from rgbd_protocol.control_bridge import WifiBridgeEmulator
 
         o = self.options
         from hilrig import realtime

@@ -23,7 +23,8 @@ import numpy as np
 import pytest
 
 from fc_emulator import FlightControllerEmulator, fly
-from fc_emulator.emulator import LAND_SPEED_MPS, RC_READ_PERIOD_US
+from fc_emulator.emulator import FS_COUNTER, FS_THR_VALUE_US, LAND_SPEED_MPS, RC_READ_PERIOD_US
+from fw_limits import FW_LIMITS
 from hilrig.flight import Leg, fly_plan
 from arduino.simavr_session import Scenario, firmware_elf
 from hilrig.paths import artifacts_dir, find_binary
@@ -39,6 +40,10 @@ FLY_S = 14.0  # take off (~4 s) + hold; the ground station dies at the end
 AFTER_KILL_S = 14.0  # onset 0.25 s + APM Land from 1.7 m at 0.5 m/s (~4.6 s) + margin
 THROTTLE_CHANNEL = 3  # fw_sim numbers the RC outputs 1..4: roll, pitch, throttle, yaw
 FW_SIM_TIMEOUT_S = 300.0  # 28 simulated s run in ~8 s idle; a loaded machine may be 10x slower
+# The firmware's failsafe timing and RC frame (firmware/core/limits.h, read by fw_limits).
+FW_FAILSAFE_TIMEOUT_MS = FW_LIMITS["kFailsafeTimeoutMs"]
+FW_FRAME_MS = FW_LIMITS["kPwmFramePeriodUs"] / 1000
+APM_FS_COUNTER_MS = FS_COUNTER * RC_READ_PERIOD_US / 1000  # the emulated APM's low-throttle debounce
 
 
 def _ground_station_commands() -> list[tuple[int, tuple[int, int, int, int], bool]]:
@@ -128,7 +133,7 @@ def _metrics(sc) -> dict:
     last_thr = [c for t, c, _ in sc["cmds"] if t < kill_us][-1][2]
     thr = [p for p in sc["pass1"].pulses if p.channel == THROTTLE_CHANNEL and p.rise_us > last_cmd_us]
     onset = next(p for p in thr if abs(p.width_us - last_thr) > 3)  # first pulse off the command
-    below = next(p for p in thr if p.width_us < 975)
+    below = next(p for p in thr if p.width_us < FS_THR_VALUE_US)  # what the APM takes as failsafe
     fs_events = [t for t, e in fc.events if e.startswith("radio failsafe") and t > kill_us]
     disarm = [t for t, e in fc.events if e.startswith("disarmed") and t > kill_us]
     at_kill = min(trace, key=lambda r: abs(r[0] - kill_us))[1]
@@ -159,7 +164,8 @@ def test_scenario3_lands_safely(scenario):
     )
     assert m["altitude_at_kill_m"] == pytest.approx(HOLD_ALT_M, abs=0.15)
     # Firmware: 250 ms without a valid command (kFailsafeTimeoutMs), seen at the next 20 ms frame.
-    assert 250 <= m["firmware_failsafe_onset_after_last_command_ms"] <= 250 + 2 * 20 + 5
+    onset_ms = m["firmware_failsafe_onset_after_last_command_ms"]
+    assert FW_FAILSAFE_TIMEOUT_MS <= onset_ms <= FW_FAILSAFE_TIMEOUT_MS + 2 * FW_FRAME_MS + 5
     assert m["apm_radio_failsafe_after_kill_ms"] is not None
     assert m["disarmed_after_kill_s"] is not None and not scenario["fc"].armed
     assert scenario["fc"].snapshot().altitude_m == 0.0
@@ -169,11 +175,12 @@ def test_scenario3_lands_safely(scenario):
 
 
 def test_scenario3_touchdown_speed_within_target(scenario):
-    # The firmware steps to 950 us at the failsafe onset (firmware/core/limits.h): the APM's LAND
+    # The firmware steps to kFailsafeThrottleUs (950 us) at the failsafe onset: the APM's LAND
     # takes over after FS_COUNTER low frames and flies the whole descent at LAND_SPEED.
     m = _metrics(scenario)
     assert m["touchdown_vertical_speed_mps"] <= LAND_SPEED_MPS + 0.01, m
-    assert m["apm_radio_failsafe_after_kill_ms"] <= 250 + 2 * 20 + 3 * 20 + 5  # onset + FS_COUNTER
+    handover_ms = FW_FAILSAFE_TIMEOUT_MS + 2 * FW_FRAME_MS + APM_FS_COUNTER_MS + 5  # onset + FS_COUNTER
+    assert m["apm_radio_failsafe_after_kill_ms"] <= handover_ms
 
 
 # Stabilize: the same firmware failsafe output (the firmware does not know the APM's flight mode)

@@ -58,7 +58,7 @@ def _rig_and_bridge(tmp_path):
     from provision_key import key_record
 
     from hilrig.live_rig import LiveRig
-    from wifi_bridge import WifiBridgeEmulator
+    from rgbd_protocol.control_bridge import WifiBridgeEmulator
 
     rig = LiveRig(key_record(KEY), quad_params=DISTURBED, workdir=tmp_path)
     rig.start()

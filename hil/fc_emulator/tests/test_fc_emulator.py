@@ -11,13 +11,15 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from fc_emulator import FcOptions, FlightControllerEmulator, FlightMode, QuadModel, QuadParams, fly
-from fc_emulator.emulator import ARM_DELAY_US, LAND_SPEED_MPS
+from fc_emulator.emulator import ARM_DELAY_US, FS_COUNTER, FS_THR_VALUE_US, LAND_SPEED_MPS
 from fc_emulator.quad_model import GRAVITY_MSS
+from fw_limits import FW_LIMITS
 
 ARM = [1500, 1500, 1000, 2000]  # throttle zero, yaw full right
 MID = [1500, 1500, 1500, 1500]  # AltHold: hold altitude
 CLIMB = [1500, 1500, 1800, 1500]
-FS_LOW = [1500, 1500, 950, 1500]  # the firmware's final failsafe throttle (below FS_THR_VALUE)
+# The firmware's failsafe output: neutral sticks, kFailsafeThrottleUs (firmware/core/limits.h).
+FS_LOW = [1500, 1500, FW_LIMITS["kFailsafeThrottleUs"], 1500]
 
 
 def armed_and_hovering(altitude_m=1.7, **kw):
@@ -316,3 +318,11 @@ def test_gusts_push_a_hovering_craft_around():
     fly(fc, MID, 10.0)
     assert np.hypot(*fc.snapshot().pos_ned_m[:2]) > 0.05
     assert fc.snapshot().altitude_m == pytest.approx(alt0, abs=0.05)  # gusts are horizontal
+
+
+def test_emulated_apm_parameters_are_the_ones_the_firmware_assumes():
+    # The firmware's hand-over to the APM's radio failsafe (limits.h kApmFsThrValueUs,
+    # kApmFsCounterFrames) is designed against ArduCopter's FS_THR_VALUE and FS_COUNTER; the
+    # emulated APM must use the same values or the HIL failsafe scenarios test another hand-over.
+    assert FS_THR_VALUE_US == FW_LIMITS["kApmFsThrValueUs"]
+    assert FS_COUNTER == FW_LIMITS["kApmFsCounterFrames"]

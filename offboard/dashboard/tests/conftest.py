@@ -22,7 +22,7 @@ def binary() -> pathlib.Path:
 @pytest.fixture(scope="module")
 def firmware():
     from firmware_double import FirmwareDouble
-    from wifi_bridge import WifiBridgeEmulator
+    from rgbd_protocol.control_bridge import WifiBridgeEmulator
 
     double = FirmwareDouble(KEY)
     bridge = WifiBridgeEmulator(double.transact).start()

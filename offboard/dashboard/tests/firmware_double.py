@@ -3,7 +3,7 @@
 It answers the serial-link lines of protocol/control (`PUT /control?...&mac=..` and `GET /status`)
 using rgbd_protocol.control (MAC, field order, ranges and reply fields come from the spec), with
 the behaviour the browser tests need: MAC check (401), replay check (409), arming state, a fake
-attitude reading. It is fronted by the HIL WiFi-bridge emulator (hil/wifi_bridge), so quad-control
+attitude reading. It is fronted by the WiFi-bridge emulator (rgbd_protocol.control_bridge), so quad-control
 talks HTTP to it exactly as to the real bridge. Not the real firmware: the simavr harness
 (hil/arduino, hilrig.LiveRig) can replace it through the same `transact` callable.
 Thread-safe (one lock).
@@ -33,7 +33,7 @@ class FirmwareDouble:
 
     def _reply(self, status: int) -> str:
         age = int((time.monotonic() - self._start) * 1000) % 20  # a reading every 20 ms
-        obj = {"err": control.STATUS_REASONS[status], "fw": FW_VERSION, "state": self.state,
+        obj = {"ver": control.CONTROL_LINK_VERSION, "err": control.STATUS_REASONS[status], "fw": FW_VERSION, "state": self.state,
                "seq": self.seq, "out_us": list(self.out_us), "clamped": 0,
                "att_mrad": [12, -34, 1571], "att_age_ms": age,
                "imu_raw": [1, -2, -1000, 30, -40, 5], "imu_age_ms": age}

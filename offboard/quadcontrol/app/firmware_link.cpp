@@ -31,7 +31,7 @@ std::string FirmwareLinkOptions::validate() const {
   return {};
 }
 
-FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, ControlKey key, CommandProvider provider,
+FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, rgbd_control::Key key, CommandProvider provider,
                            ReplyCallback callback)
     : options_(std::move(options)),
       spec_(std::move(spec)),
@@ -218,7 +218,7 @@ void FirmwareLink::finish(Client& c, beast::error_code ec) {
     gap_causes_.waited_for_client_us += now - waiting_since_us_;
     asio::post(io_, [this] { on_scheduled(); });
   }
-  std::optional<ControlReply> reply;
+  std::optional<rgbd_control::Reply> reply;
   {
     std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
     if (ec == beast::error::timeout) {

@@ -64,7 +64,7 @@ struct FirmwareLinkStats {
   std::uint64_t sent = 0, ok = 0, timeouts = 0, http_errors = 0, stale = 0, connect_errors = 0;
   double last_latency_ms = 0.0;
   double mean_latency_ms = 0.0;  ///< exponential mean over ~10 replies
-  std::optional<ControlReply> last_reply;
+  std::optional<rgbd_control::Reply> last_reply;
   std::int64_t last_reply_us = 0;
   std::string last_error;
   std::uint32_t seq = 0;
@@ -79,14 +79,14 @@ struct FirmwareLinkStats {
 
 class FirmwareLink {
  public:
-  using ReplyCallback = std::function<void(std::int64_t received_us, const ControlReply& reply)>;
+  using ReplyCallback = std::function<void(std::int64_t received_us, const rgbd_control::Reply& reply)>;
   /// Called on the link's thread just before each command is sent: the command for `now_us`, which
   /// will carry sequence number `seq`, or nullopt to send nothing this period (a blind landing hands
   /// the craft to its own failsafe). Must not call back into the link.
   using CommandProvider = std::function<std::optional<PwmCommand>(std::int64_t now_us, std::uint32_t seq)>;
 
   /// Resolves host:port (numeric addresses never block); throws std::runtime_error on failure.
-  FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, ControlKey key, CommandProvider provider,
+  FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, rgbd_control::Key key, CommandProvider provider,
                ReplyCallback callback);
   ~FirmwareLink();
   FirmwareLink(const FirmwareLink&) = delete;
@@ -124,7 +124,7 @@ class FirmwareLink {
 
   FirmwareLinkOptions options_;
   ControlSpec spec_;
-  ControlKey key_;
+  rgbd_control::Key key_;
   CommandProvider provider_;
   ReplyCallback callback_;
   boost::asio::io_context io_;

@@ -46,7 +46,7 @@ std::string GroundStationOptions::validate() const {
 }
 
 GroundStation::GroundStation(GroundStationOptions options, std::unique_ptr<FrameSource> source,
-                             std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, ControlKey key,
+                             std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, rgbd_control::Key key,
                              std::unique_ptr<FlightLog> log, std::unique_ptr<FlightRecorder> recorder)
     : options_(options),
       spec_(spec),
@@ -64,7 +64,7 @@ GroundStation::GroundStation(GroundStationOptions options, std::unique_ptr<Frame
     firmware->thread_priority.rt_priority = std::min(kMaxRtPriority, options_.realtime.rt_priority + kCommandPriorityStep);
     firmware_ = std::make_unique<FirmwareLink>(
         *firmware, spec_, key, [this](std::int64_t t, std::uint32_t seq) { return command_at(t, seq); },
-        [this](std::int64_t t, const ControlReply& r) { on_reply(t, r); });
+        [this](std::int64_t t, const rgbd_control::Reply& r) { on_reply(t, r); });
   }
   frame_thread_ = std::thread([this] { frame_loop(); });
   if (!firmware_) control_thread_ = std::thread([this] { control_loop(); });
@@ -288,7 +288,7 @@ bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFram
   return true;
 }
 
-void GroundStation::on_reply(std::int64_t received_us, const ControlReply& reply) {
+void GroundStation::on_reply(std::int64_t received_us, const rgbd_control::Reply& reply) {
   if (recorder_) recorder_->reply(received_us, reply);
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   imu_replies_.push(received_us, reply);

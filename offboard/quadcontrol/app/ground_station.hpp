@@ -61,7 +61,7 @@ class GroundStation : public DashboardBackend {
   /// Starts every thread. `firmware` may be null options (no craft: commands are computed, not sent);
   /// `log` may be null (no flight recorder).
   GroundStation(GroundStationOptions options, std::unique_ptr<FrameSource> source,
-                std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, ControlKey key,
+                std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, rgbd_control::Key key,
                 std::unique_ptr<FlightLog> log = nullptr, std::unique_ptr<FlightRecorder> recorder = nullptr);
   ~GroundStation();
   GroundStation(const GroundStation&) = delete;
@@ -88,7 +88,7 @@ class GroundStation : public DashboardBackend {
   /// Takes a SLAM result into pose, floor frame and map; true when it gave the controller a fresh
   /// tracked pose (then the firmware link is told, outside the lock).
   bool apply_slam_result(const SlamResult& result, const CameraFrame& frame);
-  void on_reply(std::int64_t received_us, const ControlReply& reply);
+  void on_reply(std::int64_t received_us, const rgbd_control::Reply& reply);
   /// Feeds the controller the estimator's state at `now_us` (caller holds mutex_); false when the
   /// estimator is off or has no fresh IMU input (the raw poses drive the controller then).
   bool feed_estimate(std::int64_t now_us);
@@ -133,7 +133,7 @@ class GroundStation : public DashboardBackend {
   std::vector<std::array<double, 2>> trajectory_;
   StickCommand last_stick_;
   PwmCommand last_pwm_;
-  TimestampBuffer<ControlReply> imu_replies_{256};
+  TimestampBuffer<rgbd_control::Reply> imu_replies_{256};
   std::optional<double> imu_match_dt_ms_;
   /// IMU + delayed pose fusion (controller.estimator): the controller flies on its estimate now
   /// while the IMU telemetry is fresh, else on the raw poses as before.

@@ -104,7 +104,7 @@ int main(int argc, char** argv) {
     std::cerr << "quad-control: " << error << "\n";
     return 2;
   }
-  ControlKey key{};
+  rgbd_control::Key key{};
   std::optional<FirmwareLinkOptions> firmware;
   if (config->firmware_enabled) {
     auto k = parse_control_key(config->firmware_key_hex, &error);

@@ -76,7 +76,7 @@ nlohmann::json to_json(const EstimatorOptions& options) {
   return j;
 }
 
-std::optional<ImuSample> imu_sample_from_reply(const ControlReply& reply,
+std::optional<ImuSample> imu_sample_from_reply(const rgbd_control::Reply& reply,
                                                std::int64_t received_us) {
   if (!reply.imu_age_ms || !reply.att_age_ms) return std::nullopt;
   ImuSample s;

@@ -2,7 +2,6 @@
 // protocol/control's rgbd_control_client_codec; this file adds the spec-derived ranges and routes.
 #include "link/control_codec.hpp"
 
-#include <algorithm>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -16,7 +15,7 @@ constexpr const char* kFieldOrder[] = {"seq", "arm", "roll", "pitch", "thr", "ya
 constexpr const char* kRequestMethod = "PUT ";
 }  // namespace
 
-std::optional<ControlKey> parse_control_key(const std::string& hex, std::string* error) {
+std::optional<rgbd_control::Key> parse_control_key(const std::string& hex, std::string* error) {
   const auto key = rgbd_control::parse_key_hex(hex);
   if (!key) {
     *error = "control key must be 32 hex digits (16 bytes), got \"" + hex.substr(0, 40) + "\"";
@@ -35,7 +34,8 @@ std::optional<ControlSpec> load_control_spec(const std::string& spec_path, std::
     const auto j = nlohmann::json::parse(in);
     ControlSpec spec;
     std::map<std::string, nlohmann::json> ranges;
-    for (const auto& f : j.at("control_fields")) ranges[f.at("name").get<std::string>()] = f.at("range");
+    for (const auto& f : j.at("control_fields"))
+      ranges[f.at("name").get<std::string>()] = f.at("range");
     for (const char* name : kFieldOrder) {
       if (!ranges.count(name)) {
         *error = std::string("control spec lacks field ") + name;
@@ -59,10 +59,13 @@ std::optional<ControlSpec> load_control_spec(const std::string& spec_path, std::
   }
 }
 
-std::optional<std::string> build_control_target(const ControlSpec& spec, const ControlKey& key,
+std::optional<std::string> build_control_target(const ControlSpec& spec,
+                                                const rgbd_control::Key& key,
                                                 const ControlFields& f, std::string* error) {
-  const std::uint32_t values[] = {f.seq, f.arm ? 1u : 0u, f.roll_us, f.pitch_us, f.thr_us, f.yaw_us};
-  const PwmRange* pwm[] = {nullptr, nullptr, &spec.pwm.roll, &spec.pwm.pitch, &spec.pwm.throttle, &spec.pwm.yaw};
+  const std::uint32_t values[] = {f.seq,      f.arm ? 1u : 0u, f.roll_us,
+                                  f.pitch_us, f.thr_us,        f.yaw_us};
+  const PwmRange* pwm[] = {
+      nullptr, nullptr, &spec.pwm.roll, &spec.pwm.pitch, &spec.pwm.throttle, &spec.pwm.yaw};
   if (f.seq < spec.seq_min || f.seq > spec.seq_max) {
     *error = "seq outside the spec range";
     return std::nullopt;
@@ -83,31 +86,19 @@ std::optional<std::string> build_control_target(const ControlSpec& spec, const C
   auto line = rgbd_control::build_control_request(key, cmd, error);
   if (!line) return std::nullopt;
   // The shared codec returns the request line "PUT <target>"; Beast wants the target alone.
-  if (line->rfind(kRequestMethod, 0) != 0 || line->compare(4, spec.control_path.size(), spec.control_path) != 0) {
+  if (line->rfind(kRequestMethod, 0) != 0 ||
+      line->compare(4, spec.control_path.size(), spec.control_path) != 0) {
     *error = "control request does not match the spec's route " + spec.control_path;
     return std::nullopt;
   }
   return line->substr(4);
 }
 
-std::optional<ControlReply> parse_control_reply(int status, const std::string& body, std::string* error) {
+std::optional<rgbd_control::Reply> parse_control_reply(int status, const std::string& body,
+                                                       std::string* error) {
   // The bridge turns the firmware's reply line "<status> <json>" into an HTTP status and body;
   // rebuild the line and let the shared codec validate it exactly as the golden vectors do.
-  const auto reply = rgbd_control::parse_reply(std::to_string(status) + " " + body, error);
-  if (!reply) return std::nullopt;
-  ControlReply r;
-  r.status = reply->status;
-  r.err = reply->err;
-  r.fw = reply->fw;
-  r.state = reply->state;
-  r.seq = reply->seq;
-  r.clamped = reply->clamped;
-  std::copy(reply->out_us.begin(), reply->out_us.end(), r.out_us.begin());
-  std::copy(reply->att_mrad.begin(), reply->att_mrad.end(), r.att_mrad.begin());
-  std::copy(reply->imu_raw.begin(), reply->imu_raw.end(), r.imu_raw.begin());
-  r.att_age_ms = reply->att_age_ms;
-  r.imu_age_ms = reply->imu_age_ms;
-  return r;
+  return rgbd_control::parse_reply(std::to_string(status) + " " + body, error);
 }
 
 }  // namespace rgbdquad::quadcontrol

@@ -1,6 +1,7 @@
-// C++ ground-station side of the control link (protocol/control/control_spec.json, docs/protocol-control.md):
-// builds the authenticated "PUT /control?seq=..&arm=..&roll=..&pitch=..&thr=..&yaw=..&mac=.." target and
-// parses the "<status> <json>" reply. A thin adapter over protocol/control's shared C++ codec
+// C++ ground-station side of the control link (protocol/control/control_spec.json,
+// docs/protocol-control.md): builds the authenticated "PUT
+// /control?seq=..&arm=..&roll=..&pitch=..&thr=..&yaw=..&mac=.." target and parses the "<status>
+// <json>" reply. A thin adapter over protocol/control's shared C++ codec
 // (rgbd_control_client_codec: request line, SipHash-2-4 MAC, strict reply parsing) that adds the
 // ranges and routes read from the spec file (load_control_spec), never redefined here. Proven
 // against protocol/control/vectors/control_vectors.json in tests/control_codec_test.cpp.
@@ -13,18 +14,20 @@
 #include <string>
 
 #include "core/stick_mapping.hpp"
+#include "rgbd_control/control_types_generated.hpp"
 
 namespace rgbdquad::quadcontrol {
 
-using ControlKey = std::array<std::uint8_t, 16>;
+// The key and reply types are the control link's generated ones (rgbd_control::Key,
+// rgbd_control::Reply from protocol/control/control_spec.json); nothing is mirrored here.
 
 /// Parses 32 hex digits into a key; nullopt (error set) otherwise.
-std::optional<ControlKey> parse_control_key(const std::string& hex, std::string* error);
+std::optional<rgbd_control::Key> parse_control_key(const std::string& hex, std::string* error);
 
 /// Field ranges read from control_spec.json ("control_fields").
 struct ControlSpec {
   std::uint32_t seq_min = 0, seq_max = 0;
-  PwmRanges pwm;  ///< neutral = middle of each range (RC stick centre)
+  PwmRanges pwm;             ///< neutral = middle of each range (RC stick centre)
   std::string control_path;  ///< "/control"
   std::string status_path;   ///< "/status"
 };
@@ -38,23 +41,13 @@ struct ControlFields {
 
 /// HTTP target (path + query, MAC last) of an authenticated PUT /control. The MAC covers
 /// "PUT <target before &mac=>". Fails (error set) when a field is outside the spec's range.
-std::optional<std::string> build_control_target(const ControlSpec& spec, const ControlKey& key,
+std::optional<std::string> build_control_target(const ControlSpec& spec,
+                                                const rgbd_control::Key& key,
                                                 const ControlFields& fields, std::string* error);
 
-/// One reply of the firmware (fields of the spec's "reply").
-struct ControlReply {
-  int status = 0;
-  std::string err, fw, state;
-  std::uint32_t seq = 0;
-  std::array<int, 4> out_us{};
-  int clamped = 0;
-  std::array<int, 3> att_mrad{};
-  std::optional<std::uint32_t> att_age_ms;
-  std::array<int, 6> imu_raw{};
-  std::optional<std::uint32_t> imu_age_ms;
-};
-
-/// Parses the HTTP status and JSON body of a reply; nullopt (error set) when malformed.
-std::optional<ControlReply> parse_control_reply(int status, const std::string& json_body, std::string* error);
+/// Parses the HTTP status and JSON body of a reply; nullopt (error set) when malformed or of
+/// another control-link version.
+std::optional<rgbd_control::Reply> parse_control_reply(int status, const std::string& json_body,
+                                                       std::string* error);
 
 }  // namespace rgbdquad::quadcontrol

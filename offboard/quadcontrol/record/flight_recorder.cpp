@@ -426,7 +426,7 @@ void FlightRecorder::command(CommandRecord record) {
   push(std::move(record), false);
 }
 
-void FlightRecorder::reply(std::int64_t received_us, const ControlReply& reply) {
+void FlightRecorder::reply(std::int64_t received_us, const rgbd_control::Reply& reply) {
   push(ReplyRecord{received_us, reply}, false);
 }
 

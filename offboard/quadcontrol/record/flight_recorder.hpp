@@ -115,7 +115,7 @@ struct CommandRecord {
 };
 struct ReplyRecord {
   std::int64_t received_us = 0;
-  ControlReply reply;
+  rgbd_control::Reply reply;
 };
 struct EventRecord {
   std::int64_t t_us = 0;
@@ -165,7 +165,7 @@ class FlightRecorder {
              const EncodedImage& depth_encoded = {});
   void pose(PoseRecord record);
   void command(CommandRecord record);
-  void reply(std::int64_t received_us, const ControlReply& reply);
+  void reply(std::int64_t received_us, const rgbd_control::Reply& reply);
   /// Logs a transition once: called with the controller's state and last event on every command,
   /// records an event only when either changed.
   void status(std::int64_t now_us, const std::string& state, const std::string& last_event);

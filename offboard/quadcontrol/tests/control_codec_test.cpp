@@ -53,7 +53,7 @@ TEST(ControlCodec, RequestsMatchGoldenVectors) {
 
 TEST(ControlCodec, InvalidRequestsAreRefused) {
   const auto v = vectors();
-  ControlKey key{};
+  rgbd_control::Key key{};
   for (const auto& r : v["invalid_requests"]) {
     SCOPED_TRACE(r.dump());
     std::string error;

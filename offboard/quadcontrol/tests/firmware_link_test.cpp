@@ -74,7 +74,8 @@ class FakeFirmware {
       const std::string line = req.substr(0, req.find("\r\n"));
       unsigned long seq = 0;
       if (auto i = line.find("seq="); i != std::string::npos) seq = std::stoul(line.substr(i + 4));
-      const std::string body = R"({"err":"ok","fw":"0.1.0","state":"armed","seq":)" + std::to_string(seq) +
+      const std::string body = R"({"ver":)" + std::to_string(rgbd_control::kControlLinkVersion) +
+                               R"(,"err":"ok","fw":"0.1.0","state":"armed","seq":)" + std::to_string(seq) +
                                R"(,"out_us":[1500,1500,1000,1500],"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,)"
                                R"("imu_raw":[0,0,0,0,0,0],"imu_age_ms":null})";
       const std::string resp = "HTTP/1.1 200 OK\r\nContent-Length: " + std::to_string(body.size()) +
@@ -116,7 +117,7 @@ struct Fixture {
     o.port = firmware.port();
     o.timeout_ms = 1000;
     link = std::make_unique<FirmwareLink>(
-        o, *spec, ControlKey{},
+        o, *spec, rgbd_control::Key{},
         [this](std::int64_t, std::uint32_t) -> std::optional<PwmCommand> {
           ++provided;
           if (withhold) return std::nullopt;

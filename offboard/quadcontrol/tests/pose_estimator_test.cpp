@@ -360,7 +360,7 @@ TEST(PoseEstimator, GivenAPoseAfterTheEstimateExpiredThenItRestartsThere) {
 }
 
 TEST(ImuFromReply, GivenAReplyThenUnitsAndStampAreConverted) {
-  ControlReply r;
+  rgbd_control::Reply r;
   r.imu_raw = {0, 0, -1000, 0, 0, 0};  // mg: level at rest
   r.att_mrad = {100, -50, 3000};
   r.imu_age_ms = 60;

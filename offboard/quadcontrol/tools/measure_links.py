@@ -1,5 +1,5 @@
 """Prints quad-control's link figures over a fixed run: firmware command rate/latency/timeouts
-(firmware double behind the HIL WiFi-bridge emulator, loopback), stream fps, SLAM latency and
+(firmware double behind the control link's WiFi-bridge emulator, loopback), stream fps, SLAM latency and
 drops, on the TUM replay. A benchmark: it prints numbers and asserts nothing.
 
     .venv/bin/python offboard/quadcontrol/tools/measure_links.py [--seconds 20] [--bin build/bin/quad-control]
@@ -15,11 +15,11 @@ import time
 import urllib.request
 
 REPO = pathlib.Path(__file__).resolve().parents[3]
-sys.path[:0] = [str(REPO / "offboard/dashboard/tests"), str(REPO / "protocol/python"), str(REPO / "hil")]
+sys.path[:0] = [str(REPO / "offboard/dashboard/tests"), str(REPO / "protocol/python")]
 
 from dashboard_fixtures import KEY, QuadControl, write_config  # noqa: E402
 from firmware_double import FirmwareDouble  # noqa: E402
-from wifi_bridge import WifiBridgeEmulator  # noqa: E402
+from rgbd_protocol.control_bridge import WifiBridgeEmulator  # noqa: E402
 
 
 def main() -> int:

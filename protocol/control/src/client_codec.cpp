@@ -1,6 +1,7 @@
 // Ground-station control codec; see client_codec.h.
 #include "rgbd_control/client_codec.h"
 
+#include <algorithm>
 #include <charconv>
 
 #include "rgbd_control/siphash24.h"
@@ -18,23 +19,6 @@ int hex_value(char c) {
   if (c >= 'a' && c <= 'f') return c - 'a' + 10;
   if (c >= 'A' && c <= 'F') return c - 'A' + 10;
   return -1;
-}
-
-const char* status_reason(int status) {
-  switch (status) {
-    case 200: return "ok";
-    case 400: return "malformed";
-    case 401: return "bad_mac";
-    case 403: return "arm_refused";
-    case 404: return "no_route";
-    case 405: return "bad_method";
-    case 408: return "stalled";
-    case 409: return "stale_seq";
-    case 414: return "too_long";
-    case 422: return "out_of_range";
-    case 503: return "no_key";
-    default: return nullptr;
-  }
 }
 
 /// Strict left-to-right reader of the reply's fixed layout.
@@ -120,17 +104,22 @@ std::optional<std::string> build_control_request(const Key& key, const ControlCo
   const struct {
     const char* name;
     uint16_t v;
-  } ch[4] = {{"roll", cmd.roll_us}, {"pitch", cmd.pitch_us}, {"thr", cmd.thr_us}, {"yaw", cmd.yaw_us}};
-  std::string line = "PUT /control?seq=" + std::to_string(cmd.seq) + "&arm=" + (cmd.arm ? "1" : "0");
+  } ch[4] = {
+      {"roll", cmd.roll_us}, {"pitch", cmd.pitch_us}, {"thr", cmd.thr_us}, {"yaw", cmd.yaw_us}};
+  std::string line = std::string(kControlMethod) + " " + kControlPath +
+                     "?seq=" + std::to_string(cmd.seq) + "&arm=" + (cmd.arm ? "1" : "0");
   for (const auto& c : ch) {
     if (c.v < kChannelMinUs || c.v > kChannelMaxUs) {
-      fail(error, std::string(c.name) + "=" + std::to_string(c.v) + " outside [1000, 2000] us");
+      fail(error, std::string(c.name) + "=" + std::to_string(c.v) + " outside [" +
+                      std::to_string(kChannelMinUs) + ", " + std::to_string(kChannelMaxUs) +
+                      "] us");
       return std::nullopt;
     }
     line += std::string("&") + c.name + "=" + std::to_string(c.v);
   }
   uint8_t tag[kSipHashTagBytes];
-  siphash24_tag_bytes(siphash24(key.data(), reinterpret_cast<const uint8_t*>(line.data()), line.size()), tag);
+  siphash24_tag_bytes(
+      siphash24(key.data(), reinterpret_cast<const uint8_t*>(line.data()), line.size()), tag);
   static const char* kDigits = "0123456789abcdef";
   line += "&mac=";
   for (uint8_t b : tag) {
@@ -140,7 +129,7 @@ std::optional<std::string> build_control_request(const Key& key, const ControlCo
   return line;
 }
 
-std::string build_status_request() { return "GET /status"; }
+std::string build_status_request() { return std::string(kStatusMethod) + " " + kStatusPath; }
 
 std::optional<Reply> parse_reply(std::string_view line, std::string* error) {
   Reader r(line);
@@ -151,12 +140,24 @@ std::optional<Reply> parse_reply(std::string_view line, std::string* error) {
     return std::nullopt;
   }
   out.status = static_cast<int>(v);
-  const char* reason = status_reason(out.status);
-  if (reason == nullptr) {
+  if (!is_status_code(out.status)) {
     fail(error, "unknown status " + std::to_string(out.status));
     return std::nullopt;
   }
-  const bool ok = r.lit("{\"err\":") && r.word(&out.err) && r.lit(",\"fw\":") && r.word(&out.fw) &&
+  const char* reason = status_reason(static_cast<Status>(out.status));
+  // The version first: a peer of another version may have changed everything after it.
+  if (!r.lit("{\"ver\":") || !r.integer(0, 255, &v)) {
+    fail(error, "reply does not start with the control-link version (\"ver\")");
+    return std::nullopt;
+  }
+  out.ver = static_cast<uint8_t>(v);
+  if (out.ver != kControlLinkVersion) {
+    fail(error, "control-link version " + std::to_string(out.ver) + " from the firmware, " +
+                    std::to_string(kControlLinkVersion) +
+                    " here: update the firmware or the ground station");
+    return std::nullopt;
+  }
+  const bool ok = r.lit(",\"err\":") && r.word(&out.err) && r.lit(",\"fw\":") && r.word(&out.fw) &&
                   r.lit(",\"state\":") && r.word(&out.state) && r.lit(",\"seq\":") &&
                   r.integer(0, UINT32_MAX, &v) && ((out.seq = static_cast<uint32_t>(v)), true) &&
                   r.lit(",\"out_us\":") && r.int_array(0, 65535, &out.out_us) &&
@@ -174,7 +175,7 @@ std::optional<Reply> parse_reply(std::string_view line, std::string* error) {
     fail(error, "reason '" + out.err + "' does not match status " + std::to_string(out.status));
     return std::nullopt;
   }
-  if (out.state != "disarmed" && out.state != "armed" && out.state != "failsafe") {
+  if (std::find(kReplyStates.begin(), kReplyStates.end(), out.state) == kReplyStates.end()) {
     fail(error, "unknown state '" + out.state + "'");
     return std::nullopt;
   }

@@ -29,9 +29,11 @@ TEST(ClientCodec, SipHashVectors) {
     ASSERT_TRUE(key);
     const std::string mh = v["msg_hex"];
     std::vector<uint8_t> msg;
-    for (size_t i = 0; i < mh.size(); i += 2) msg.push_back(static_cast<uint8_t>(std::stoi(mh.substr(i, 2), nullptr, 16)));
+    for (size_t i = 0; i < mh.size(); i += 2)
+      msg.push_back(static_cast<uint8_t>(std::stoi(mh.substr(i, 2), nullptr, 16)));
     uint8_t tag[8];
-    rgbd_control::siphash24_tag_bytes(rgbd_control::siphash24(key->data(), msg.data(), msg.size()), tag);
+    rgbd_control::siphash24_tag_bytes(rgbd_control::siphash24(key->data(), msg.data(), msg.size()),
+                                      tag);
     char hex[17];
     for (int i = 0; i < 8; ++i) std::snprintf(hex + 2 * i, 3, "%02x", tag[i]);
     EXPECT_EQ(std::string(hex), v["tag_hex"].get<std::string>());
@@ -79,11 +81,15 @@ TEST(ClientCodec, ParsesGoldenReplies) {
     if (!rep["valid"].get<bool>()) {
       EXPECT_FALSE(p) << rep["line"];
       EXPECT_FALSE(err.empty());
+      if (rep.contains("error_mentions")) {
+        EXPECT_NE(err.find(rep["error_mentions"].get<std::string>()), std::string::npos) << err;
+      }
       continue;
     }
     ASSERT_TRUE(p) << err;
     const auto& f = rep["fields"];
     EXPECT_EQ(p->status, f["status"].get<int>());
+    EXPECT_EQ(p->ver, f["ver"].get<int>());
     EXPECT_EQ(p->err, f["err"].get<std::string>());
     EXPECT_EQ(p->state, f["state"].get<std::string>());
     EXPECT_EQ(p->seq, f["seq"].get<uint32_t>());
@@ -114,6 +120,7 @@ TEST(ClientCodec, ConstantsMatchSpec) {
     EXPECT_EQ(f["range"][1].get<int>(), rgbd_control::kChannelMaxUs);
   }
   EXPECT_EQ(spec["serial_link"]["max_request_bytes"].get<size_t>(), rgbd_control::kMaxRequestBytes);
+  EXPECT_EQ(spec["version"].get<int>(), rgbd_control::kControlLinkVersion);
 }
 
 TEST(ClientCodec, KeyHexAndSequenceCounter) {

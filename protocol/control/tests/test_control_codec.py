@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import pytest
+from fw_limits import FW_LIMITS
 from rgbd_protocol import control
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -83,7 +84,7 @@ def test_reply_parser_on_golden_replies(rep):
             got = getattr(parsed, k)
             assert (list(got) if isinstance(got, tuple) else got) == v, k
     else:
-        with pytest.raises(ValueError):
+        with pytest.raises(ValueError, match=rep.get("error_mentions")):
             control.parse_reply(rep["line"])
 
 
@@ -104,33 +105,31 @@ def test_golden_vectors_are_up_to_date():
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
-def _firmware_constant(name):
-    text = (REPO / "firmware" / "core" / "limits.h").read_text()
-    m = re.search(rf"constexpr \w+ {name} = (\d+);", text)
-    assert m, f"{name} not found in firmware/core/limits.h"
-    return int(m.group(1))
+def test_generated_constants_and_types_are_up_to_date():
+    gen = HERE.parent / "tools" / "gen_control.py"
+    proc = subprocess.run([sys.executable, str(gen), "--check"], capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
 def test_spec_ranges_and_limits_agree_with_the_firmware():
-    assert tuple(control.RANGES["roll"]) == (
-        _firmware_constant("kCommandMinUs"),
-        _firmware_constant("kCommandMaxUs"),
-    )
+    # The firmware takes the protocol range and the request bound from the generated header; its
+    # own hard limits (read from firmware/core/limits.h) must lie inside the protocol range.
+    lim = FW_LIMITS
+    assert (lim["kCommandMinUs"], lim["kCommandMaxUs"]) == control.RANGES["roll"]
     for ch in ("roll", "pitch", "thr", "yaw"):
-        assert control.RANGES[ch] == control.RANGES["roll"]
-    assert control.MAX_REQUEST_BYTES == _firmware_constant("kMaxRequestBytes")
+        assert control.RANGES[ch] == (control.CHANNEL_MIN_US, control.CHANNEL_MAX_US)
+    for name in ("Roll", "Pitch", "Yaw", "Throttle"):
+        assert control.CHANNEL_MIN_US <= lim[f"k{name}MinUs"] < lim[f"k{name}MaxUs"] <= control.CHANNEL_MAX_US
+    assert control.MAX_REQUEST_BYTES == lim["kMaxRequestBytes"]
+    # The firmware has no status table of its own any more: firmware/core/status.h aliases the
+    # generated one.
     status_h = (REPO / "firmware" / "core" / "status.h").read_text()
-    codes = [int(c) for c in re.findall(r"k\w+ = (\d+),", status_h)]
-    reasons = re.findall(r'case Status::k\w+: return "(\w+)";', status_h)
-    assert dict(zip(codes, reasons)) == control.STATUS_REASONS
+    assert "rgbd_control::Status" in status_h and not re.search(r"k\w+ = \d+,", status_h)
     board_h = (REPO / "firmware" / "avr" / "board.h").read_text()
-    assert (
-        int(re.search(r"kBridgeBaud = (\d+);", board_h).group(1))
-        == control.SPEC["serial_link"]["baud"]
-    )
+    assert "kBridgeBaud = rgbd_control::kBridgeBaud" in board_h
 
 
 def test_longest_reply_fits_the_spec_bound():
     # The firmware's worst-case reply (firmware test Reply.WorstCaseFitsBufferAndCarriesImu) is
-    # 249 bytes; the spec promises max_bytes, the ground station sizes buffers from it.
-    assert control.SPEC["reply"]["max_bytes"] >= 249
+    # 257 bytes; the spec promises max_bytes, the ground station sizes buffers from it.
+    assert control.MAX_REPLY_BYTES >= 257

@@ -303,12 +303,13 @@ def scenarios():
 def replies():
     return [
         {
-            "line": '200 {"err":"ok","fw":"0.1.0","state":"armed","seq":2,"out_us":[1600,1450,1500,1550],'
+            "line": '200 {"ver":2,"err":"ok","fw":"0.1.0","state":"armed","seq":2,"out_us":[1600,1450,1500,1550],'
             '"clamped":0,"att_mrad":[12,-34,3141],"att_age_ms":20,'
             '"imu_raw":[1,-2,-1000,30,-40,5],"imu_age_ms":21}\n',
             "valid": True,
             "fields": {
                 "status": 200,
+                "ver": 2,
                 "err": "ok",
                 "fw": "0.1.0",
                 "state": "armed",
@@ -322,12 +323,13 @@ def replies():
             },
         },
         {
-            "line": '409 {"err":"stale_seq","fw":"0.1.0","state":"failsafe","seq":4294967295,'
+            "line": '409 {"ver":2,"err":"stale_seq","fw":"0.1.0","state":"failsafe","seq":4294967295,'
             '"out_us":[1500,1500,950,1500],"clamped":15,"att_mrad":[0,0,0],"att_age_ms":null,'
             '"imu_raw":[0,0,0,0,0,0],"imu_age_ms":null}\n',
             "valid": True,
             "fields": {
                 "status": 409,
+                "ver": 2,
                 "err": "stale_seq",
                 "fw": "0.1.0",
                 "state": "failsafe",
@@ -340,29 +342,45 @@ def replies():
                 "imu_age_ms": None,
             },
         },
-        {"line": "", "valid": False},
-        {"line": "200", "valid": False},
-        {"line": '200 {"err":"ok"}\n', "valid": False},
+        # Another control-link version: refused by name, whatever follows the version.
         {
-            "line": '200 {"err":"bad_mac","fw":"0.1.0","state":"armed","seq":2,"out_us":[1,2,3,4],'
+            "line": '200 {"ver":3,"err":"ok","fw":"0.1.0","state":"armed","seq":2,"out_us":[1,2,3,4],'
             '"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,"imu_raw":[0,0,0,0,0,0],'
             '"imu_age_ms":null}\n',
             "valid": False,
+            "error_mentions": "version",
         },
-        {
-            "line": '200 {"err":"ok","fw":"0.1.0","state":"flying","seq":2,"out_us":[1,2,3,4],'
-            '"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,"imu_raw":[0,0,0,0,0,0],'
-            '"imu_age_ms":null}\n',
-            "valid": False,
-        },
-        {
-            "line": '200 {"err":"ok","fw":"0.1.0","state":"armed","seq":2,"out_us":[1,2,3],'
-            '"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,"imu_raw":[0,0,0,0,0,0],'
-            '"imu_age_ms":null}\n',
-            "valid": False,
-        },
+        {"line": '200 {"ver":1,"new_layout":true}\n', "valid": False, "error_mentions": "version"},
+        # A version-1 firmware's reply (no "ver" key): refused.
         {
             "line": '200 {"err":"ok","fw":"0.1.0","state":"armed","seq":2,"out_us":[1,2,3,4],'
+            '"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,"imu_raw":[0,0,0,0,0,0],'
+            '"imu_age_ms":null}\n',
+            "valid": False,
+        },
+        {"line": "", "valid": False},
+        {"line": "200", "valid": False},
+        {"line": '200 {"ver":2,"err":"ok"}\n', "valid": False},
+        {
+            "line": '200 {"ver":2,"err":"bad_mac","fw":"0.1.0","state":"armed","seq":2,"out_us":[1,2,3,4],'
+            '"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,"imu_raw":[0,0,0,0,0,0],'
+            '"imu_age_ms":null}\n',
+            "valid": False,
+        },
+        {
+            "line": '200 {"ver":2,"err":"ok","fw":"0.1.0","state":"flying","seq":2,"out_us":[1,2,3,4],'
+            '"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,"imu_raw":[0,0,0,0,0,0],'
+            '"imu_age_ms":null}\n',
+            "valid": False,
+        },
+        {
+            "line": '200 {"ver":2,"err":"ok","fw":"0.1.0","state":"armed","seq":2,"out_us":[1,2,3],'
+            '"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,"imu_raw":[0,0,0,0,0,0],'
+            '"imu_age_ms":null}\n',
+            "valid": False,
+        },
+        {
+            "line": '200 {"ver":2,"err":"ok","fw":"0.1.0","state":"armed","seq":2,"out_us":[1,2,3,4],'
             '"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,"imu_raw":[0,0,0,0,0,0],'
             '"imu_age_ms":null',
             "valid": False,

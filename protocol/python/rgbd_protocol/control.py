@@ -1,9 +1,10 @@
 """Ground-station codec of the control link (ground station -> WiFi bridge -> ATmega328P firmware).
 
-The link is defined once in protocol/control/control_spec.json; this module reads its ranges, field
-order and status codes from there (nothing is redefined here) and is proven against the golden
-vectors in protocol/control/vectors/control_vectors.json, which the firmware core and the C++
-ground-station codec replay too. See docs/protocol-control.md.
+The link is defined once in protocol/control/control_spec.json; its ranges, field order, status
+codes, schema version and the Reply type come from control_spec_generated.py (generated from the
+spec by protocol/control/tools/gen_control.py, re-exported here; nothing is redefined). Proven
+against the golden vectors in protocol/control/vectors/control_vectors.json, which the firmware
+core and the C++ ground-station codec replay too. See docs/protocol-control.md.
 
     key = bytes.fromhex(config["control_key_hex"])      # the craft's 16-byte secret
     seqs = SequenceCounter()
@@ -17,30 +18,27 @@ Pure functions plus one small counter class; thread-safe except SequenceCounter 
 from __future__ import annotations
 
 import json
-import pathlib
 import re
 import struct
-from dataclasses import dataclass
 
-SPEC_PATH = pathlib.Path(__file__).resolve().parents[2] / "control" / "control_spec.json"
-
-
-def load_spec(path: pathlib.Path = SPEC_PATH) -> dict:
-    """Returns the parsed control_spec.json."""
-    with open(path, encoding="utf-8") as f:
-        return json.load(f)
-
-
-SPEC = load_spec()
-FIELDS = [f["name"] for f in SPEC["control_fields"]]
-RANGES = {f["name"]: tuple(f["range"]) for f in SPEC["control_fields"]}
-STATUS_REASONS = {int(code): v["reason"] for code, v in SPEC["status_codes"].items()}
-KEY_BYTES = SPEC["mac"]["key_bytes"]
-MAX_REQUEST_BYTES = SPEC["serial_link"]["max_request_bytes"]
-CONTROL_PATH = SPEC["routes"]["control"]["path"]
-STATUS_PATH = SPEC["routes"]["status"]["path"]
-REPLY_FIELDS = [f["name"] for f in SPEC["reply"]["fields"]]
-STATES = next(f["values"] for f in SPEC["reply"]["fields"] if f["name"] == "state")
+from .control_spec_generated import (  # noqa: F401  (re-exported: the link's constants and types)
+    BRIDGE_BAUD,
+    CHANNEL_MAX_US,
+    CHANNEL_MIN_US,
+    CONTROL_LINK_VERSION,
+    CONTROL_PATH,
+    FIELDS,
+    KEY_BYTES,
+    MAX_REPLY_BYTES,
+    MAX_REQUEST_BYTES,
+    RANGES,
+    REPLY_FIELDS,
+    STATES,
+    STATUS_PATH,
+    STATUS_REASONS,
+    Reply,
+    Status,
+)
 
 _MASK64 = (1 << 64) - 1
 
@@ -150,21 +148,6 @@ class SequenceCounter:
         return self._last
 
 
-@dataclass(frozen=True)
-class Reply:
-    status: int
-    err: str
-    fw: str
-    state: str
-    seq: int
-    out_us: tuple[int, int, int, int]
-    clamped: int
-    att_mrad: tuple[int, int, int]
-    att_age_ms: int | None
-    imu_raw: tuple[int, int, int, int, int, int]
-    imu_age_ms: int | None
-
-
 _REPLY_RE = re.compile(r"^([1-5][0-9]{2}) (\{.*\})\r?\n?$", re.DOTALL)
 
 
@@ -200,6 +183,13 @@ def parse_reply(line: str) -> Reply:
         obj = json.loads(m.group(2))
     except json.JSONDecodeError as e:
         raise ValueError(f"reply JSON invalid: {e}") from e
+    ver = obj.get("ver") if isinstance(obj, dict) and next(iter(obj), None) == "ver" else None
+    if ver is not None and (type(ver) is not int or ver != CONTROL_LINK_VERSION):
+        # Checked before the layout: a peer of another version may have changed everything after it.
+        raise ValueError(
+            f"control-link version {obj['ver']!r} from the firmware, {CONTROL_LINK_VERSION} here: "
+            "update the firmware or the ground station"
+        )
     if not isinstance(obj, dict) or list(obj.keys()) != REPLY_FIELDS:
         raise ValueError(
             f"reply keys {list(obj) if isinstance(obj, dict) else obj!r} != {REPLY_FIELDS}"
@@ -218,6 +208,7 @@ def parse_reply(line: str) -> Reply:
         raise ValueError(f"clamped must be a 4-bit mask, got {clamped!r}")
     return Reply(
         status=status,
+        ver=obj["ver"],
         err=obj["err"],
         fw=obj["fw"],
         state=obj["state"],

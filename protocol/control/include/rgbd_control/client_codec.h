@@ -1,8 +1,8 @@
 // Ground-station codec of the control link (C++17): builds authenticated PUT /control request lines
 // and parses the firmware's reply lines. The link is defined in protocol/control/control_spec.json
-// (see docs/protocol-control.md); this codec, the Python one (rgbd_protocol.control) and the firmware
-// core all replay protocol/control/vectors/control_vectors.json.
-// Pure functions and value types; SequenceCounter is not thread-safe (one per sending thread).
+// (see docs/protocol-control.md); this codec, the Python one (rgbd_protocol.control) and the
+// firmware core all replay protocol/control/vectors/control_vectors.json. Pure functions and value
+// types; SequenceCounter is not thread-safe (one per sending thread).
 #ifndef RGBD_CONTROL_CLIENT_CODEC_H_
 #define RGBD_CONTROL_CLIENT_CODEC_H_
 
@@ -12,22 +12,20 @@
 #include <string>
 #include <string_view>
 
+#include "rgbd_control/control_spec_generated.h"
+#include "rgbd_control/control_types_generated.hpp"
+
 namespace rgbd_control {
 
-/// Protocol range of every channel value (control_spec.json "control_fields"; a test checks the
-/// two agree). The firmware's tighter hard limits are its own and are not repeated here.
-constexpr uint16_t kChannelMinUs = 1000;
-constexpr uint16_t kChannelMaxUs = 2000;
-/// Longest request line the firmware accepts (control_spec.json serial_link.max_request_bytes).
-constexpr size_t kMaxRequestBytes = 128;
-
-using Key = std::array<uint8_t, 16>;
+// Constants (schema version, ranges, kMaxRequestBytes, Status) and the value types Key and Reply
+// are generated from control_spec.json (protocol/control/tools/gen_control.py); the firmware's
+// tighter hard limits are its own (firmware/core/limits.h) and are not repeated here.
 
 /// Parses a 32-hex-digit key (the ground-station config's control_key_hex); nullopt if invalid.
 std::optional<Key> parse_key_hex(std::string_view hex);
 
 struct ControlCommand {
-  uint32_t seq = 0;          ///< strictly increasing, >= 1
+  uint32_t seq = 0;  ///< strictly increasing, >= 1
   bool arm = false;
   uint16_t roll_us = 1500;   ///< RC channel 1
   uint16_t pitch_us = 1500;  ///< RC channel 2
@@ -41,22 +39,10 @@ std::optional<std::string> build_control_request(const Key& key, const ControlCo
 /// "GET /status".
 std::string build_status_request();
 
-struct Reply {
-  int status = 0;
-  std::string err;
-  std::string fw;
-  std::string state;                  ///< "disarmed", "armed" or "failsafe"
-  uint32_t seq = 0;                   ///< last accepted sequence number
-  std::array<uint16_t, 4> out_us{};   ///< roll, pitch, throttle, yaw being output
-  uint8_t clamped = 0;
-  std::array<int16_t, 3> att_mrad{};  ///< ATTITUDE roll, pitch, yaw
-  std::optional<uint32_t> att_age_ms;
-  std::array<int16_t, 6> imu_raw{};   ///< RAW_IMU xacc, yacc, zacc, xgyro, ygyro, zgyro
-  std::optional<uint32_t> imu_age_ms;
-};
-
 /// Parses one reply line ("<status> <json>", optional trailing newline); nullopt with *error set
-/// on anything malformed (keys out of order, unknown status/state, values out of range, truncation).
+/// on anything malformed (keys out of order, unknown status/state, values out of range, truncation)
+/// and on a reply of another control-link version ("ver" != kControlLinkVersion: the firmware
+/// speaks another layout; the error names both versions).
 std::optional<Reply> parse_reply(std::string_view line, std::string* error = nullptr);
 
 /// Strictly increasing sequence numbers; resume after the craft's last accepted one (reply.seq).

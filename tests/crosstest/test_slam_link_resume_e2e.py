@@ -22,7 +22,7 @@ import pytest
 from hilrig.link_proxy import LinkProxy
 from hilrig.slam_flight import free_port
 
-REPO = Path(__file__).resolve().parents[3]
+REPO = Path(__file__).resolve().parents[2]
 BIN = REPO / "build" / "bin"
 SLAM_SERVER = Path(os.environ.get("SLAM_SERVER", BIN / "slam-server"))
 QUAD_CONTROL = Path(os.environ.get("QUAD_CONTROL_BIN", BIN / "quad-control"))

@@ -1,6 +1,9 @@
 """WiFi-bridge emulator: an HTTP server on loopback that speaks the bridge chip's link.
 
-As specified in docs/protocol-control.md: each HTTP request becomes ONE text line
+The reference of the control link's HTTP <-> serial-line mapping (control_spec.json serial_link),
+kept with the codec so every side's tests use the same one: the HIL rig fronts the firmware in
+simavr with it, the ground-station tests front a firmware double (moved here from hil/wifi_bridge,
+issue 14: deployables share only contracts). As specified in docs/protocol-control.md: each HTTP request becomes ONE text line
 `<METHOD> <target>` on the ATmega's serial link (no HTTP version, headers or body); the one reply
 line `<status> <json>` comes back as the HTTP response (status code + JSON body). One request at a
 time on the serial link. What the serial side is comes in as a callable

@@ -12,6 +12,7 @@ import subprocess
 
 import pytest
 from arduino.simavr_session import Scenario, firmware_elf_path
+from fw_limits import FW_LIMITS
 from provision_key import key_record
 from pymavlink.dialects.v10 import common as mavlink1
 from pymavlink.dialects.v20 import common as mavlink2
@@ -21,11 +22,13 @@ KEY = bytes(range(16))
 RECORD = key_record(KEY)
 #: Pulse-width tolerance (us) required by the firmware issue.
 PULSE_TOLERANCE_US = 4.0
-FRAME_US = 20000.0
 MS = 1000.0
-#: firmware/core/limits.h kFailsafeThrottleUs / kApmFsThrValueUs (docs/failsafe.md).
-FAILSAFE_THROTTLE_US = 950
-APM_FS_THR_VALUE_US = 975
+# The firmware's own constants (firmware/core/limits.h, read by fw_limits; docs/failsafe.md).
+FRAME_US = float(FW_LIMITS["kPwmFramePeriodUs"])
+FAILSAFE_TIMEOUT_US = FW_LIMITS["kFailsafeTimeoutMs"] * MS
+FAILSAFE_THROTTLE_US = FW_LIMITS["kFailsafeThrottleUs"]
+APM_FS_THR_VALUE_US = FW_LIMITS["kApmFsThrValueUs"]
+MAX_REQUEST_BYTES = FW_LIMITS["kMaxRequestBytes"]
 
 
 def cmd(seq, arm=True, roll=1500, pitch=1500, thr=1000, yaw=1500, key=KEY):
@@ -105,7 +108,7 @@ def test_failsafe_engages_within_timeout_and_steps_to_the_apm_handover_throttle(
     first_neutral = next(p for p in roll if abs(p.width_us - 1500) <= PULSE_TOLERANCE_US)
     thr = r.pulses_of(3, after_us=t_last_valid)
     first_low = next(p for p in thr if abs(p.width_us - FAILSAFE_THROTTLE_US) <= PULSE_TOLERANCE_US)
-    t_fs = t_last_valid + 250 * MS
+    t_fs = t_last_valid + FAILSAFE_TIMEOUT_US
     print(
         f"\nsimavr failsafe: still armed {still_armed / MS:.1f} ms after the last valid command, "
         f"failsafe seen by {engaged_by / MS:.1f} ms (10 ms status polling); first neutral roll "
@@ -114,8 +117,8 @@ def test_failsafe_engages_within_timeout_and_steps_to_the_apm_handover_throttle(
         f"{len([p for p in thr if p.rise_us >= first_low.rise_us])} throttle pulses after it"
     )
     # THEN failsafe engages within 250 ms (+ one 10 ms poll interval of observation granularity)
-    assert still_armed < 250 * MS
-    assert engaged_by <= 260 * MS
+    assert still_armed < FAILSAFE_TIMEOUT_US
+    assert engaged_by <= FAILSAFE_TIMEOUT_US + 10 * MS
     # and in the next 20 ms RC frame the sticks go neutral and the throttle steps straight from the
     # last command to below FS_THR_VALUE (the APM's LAND takes over; no intermediate throttle that
     # the APM would fly), and stays there
@@ -165,20 +168,21 @@ def test_bad_requests_get_error_replies_and_change_no_output():
     # the first failsafe pulse fell inside the window).
     t_last_valid = r.sent[1].end_us
     frames = [
-        p.width_us for p in r.pulses_of(3, r.replies[1].end_us + FRAME_US, t_last_valid + 250 * MS)
+        p.width_us
+        for p in r.pulses_of(3, r.replies[1].end_us + FRAME_US, t_last_valid + FAILSAFE_TIMEOUT_US)
     ]
     assert len(frames) >= 8 and all(abs(w - 1400) <= PULSE_TOLERANCE_US for w in frames)
     assert parse_reply(r.replies[-1].text + "\n").state == "failsafe"
 
 
 #: Lengths reported answered 408 (132, 272, 312) and 414 (152, 212, 612) by the old image.
-OVERLONG_LINE_BYTES = [129, 132, 152, 212, 272, 312, 612]
+OVERLONG_LINE_BYTES = [MAX_REQUEST_BYTES + 1, 132, 152, 212, 272, 312, 612]
 #: simavr delivers a bridge byte every 16 us at the firmware's 1 Mbaud (16 bit times per byte; 32 us
 #: at the earlier 500 kbaud): the 129th byte (the first one too many) has arrived 2.1 ms after the
 #: line started; 5 ms more covers the main-loop pass that formats the reply (measured 2.8 ms). The
 #: old image answered a 612-byte line only after its newline, at 22 ms.
 SIMAVR_BRIDGE_BYTE_US = 16
-OVERLONG_REPLY_DEADLINE_US = 129 * SIMAVR_BRIDGE_BYTE_US + 5 * MS
+OVERLONG_REPLY_DEADLINE_US = (MAX_REQUEST_BYTES + 1) * SIMAVR_BRIDGE_BYTE_US + 5 * MS
 
 
 def test_overlong_lines_of_any_length_get_414_promptly_and_one_reply_each():

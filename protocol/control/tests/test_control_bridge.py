@@ -1,4 +1,4 @@
-"""WiFi-bridge emulator against a scripted serial side (no simavr): line format, status mapping,
+"""WiFi-bridge emulator (rgbd_protocol.control_bridge) against a scripted serial side (no simavr): line format, status mapping,
 malformed HTTP, timeouts."""
 
 import http.client
@@ -7,7 +7,7 @@ import socket
 
 import pytest
 
-from wifi_bridge import BridgeOptions, WifiBridgeEmulator
+from rgbd_protocol.control_bridge import BridgeOptions, WifiBridgeEmulator
 
 
 class FakeSerial:
