@@ -406,8 +406,11 @@ class LiveKinect:
         import select
         import sys
 
+        import rgbd_protocol  # the renderer's camera model (protocol/camera): the child needs it too
+
         env = dict(os.environ)
         pkg_parent = str(Path(__file__).resolve().parents[1])
+        pkg_parent += os.pathsep + str(Path(rgbd_protocol.__file__).resolve().parents[1])
         env["PYTHONPATH"] = pkg_parent + (
             os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else ""
         )

@@ -38,6 +38,7 @@ import math
 import os
 
 import numpy as np
+from rgbd_protocol.tum_cameras import TUM_FR1
 
 from kinect_emulator.room import Room
 
@@ -81,14 +82,14 @@ log = logging.getLogger(__name__)
 @dataclass(frozen=True)
 class Intrinsics:
     """Pinhole intrinsics (pixels). Default: TUM Freiburg 1 colour camera (the real frames'
-    camera)."""
+    camera; protocol/camera/tum_cameras.json)."""
 
     width: int = 640
     height: int = 480
-    fx: float = 517.3
-    fy: float = 516.5
-    cx: float = 318.6
-    cy: float = 255.3
+    fx: float = TUM_FR1.fx_px
+    fy: float = TUM_FR1.fy_px
+    cx: float = TUM_FR1.cx_px
+    cy: float = TUM_FR1.cy_px
 
 
 @dataclass(frozen=True)

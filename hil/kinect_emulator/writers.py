@@ -19,11 +19,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from rgbd_protocol.tum_cameras import TUM_DEPTH_UNITS_PER_M  # noqa: F401  (re-exported)
 
 from kinect_emulator.poses import rotation_to_quaternion_xyzw
 from kinect_emulator.renderer import KinectFrame
-
-TUM_DEPTH_UNITS_PER_M = 5000  # TUM depth PNG scale (tests/data/README.md)
 # Raw 11-bit disparity <-> metres, libfreenect's documented approximation (Stephane Magnenat):
 #   z_m = 0.1236 * tan(raw / 2842.5 + 1.1863); 2047 = no reading.
 FREENECT_NO_READING = 2047

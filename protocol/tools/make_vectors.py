@@ -25,6 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
 from rgbd_protocol.codec import Codec, EncodeError, StreamDecoder, event_view, normalize_events  # noqa: E402
 from rgbd_protocol.stream_auth import ack_tag, handshake_tag  # noqa: E402
+from rgbd_protocol.tum_cameras import TUM_DEPTH_UNITS_PER_M, TUM_FR1  # noqa: E402
 
 VECTORS = ROOT / "vectors"
 # Fuzz targets and the message whose bodies seed them (scripts/fuzz.sh: corpus/<target>).
@@ -33,9 +34,8 @@ BODY_FUZZERS = {"Handshake": "handshake", "HandshakeAck": "handshake_ack", "Fram
                 "SlamHello": "slam_hello", "RgbdFrame": "rgbd_frame", "PoseUpdate": "pose_update",
                 "PoseGraph": "pose_graph", "FloorMap": "floor_map"}
 
-# TUM fr1 colour intrinsics (shared/data/README.md) and its depth scale.
-FR1 = {"fx_px": 517.3, "fy_px": 516.5, "cx_px": 318.6, "cy_px": 255.3,
-       "distortion": [0.2624, -0.9531, -0.0054, 0.0026, 1.1633]}
+# TUM fr1 colour intrinsics and its depth scale (protocol/camera/tum_cameras.json).
+FR1 = TUM_FR1.intrinsics()
 
 
 def unit_q(x, y, z, w):
@@ -58,7 +58,7 @@ def handshake(kind="DEPTH", **over):
     f = {"protocol_version": 1, "schema_hash": Codec().spec.schema_hash, "stream_kind": kind,
          "width": 640, "height": 480, "pixel_format": "DEPTH16" if kind == "DEPTH" else "RGB8",
          "encoding": "RAW", "intrinsics": FR1,
-         "depth_scale_units_per_m": 5000.0 if kind == "DEPTH" else 0.0,
+         "depth_scale_units_per_m": TUM_DEPTH_UNITS_PER_M if kind == "DEPTH" else 0.0,
          "device_id": "fakenect:tum-fr1-xyz", "sender_nonce": list(SENDER_NONCE), "mac": [0] * 8}
     f.update(over)
     if "mac" not in over:
@@ -82,7 +82,7 @@ def image(fmt="RGB8", w=4, h=3, seq=0, encoding="RAW", payload=None):
         if fmt == "RGB8":
             payload = bytes((i * 37 + seq) & 0xFF for i in range(w * h * bpp))
         else:  # depth in TUM units (5000/m): 1.0 m .. with one invalid (0) pixel
-            vals = [0] + [5000 + 17 * i for i in range(w * h - 1)]
+            vals = [0] + [int(TUM_DEPTH_UNITS_PER_M) + 17 * i for i in range(w * h - 1)]
             payload = b"".join(struct.pack("<H", v) for v in vals)
     return {"sequence": seq, "capture_timestamp_us": 1305031102175304 + 33333 * seq,
             "send_timestamp_us": 52_000_000 + 33_400 * seq, "width": w, "height": h,
@@ -123,7 +123,7 @@ def floor_map():
 
 
 def rgbd_frame():
-    return {"pair_sequence": 12, "intrinsics": FR1, "depth_scale_units_per_m": 5000.0,
+    return {"pair_sequence": 12, "intrinsics": FR1, "depth_scale_units_per_m": TUM_DEPTH_UNITS_PER_M,
             "rgb": image("RGB8", 2, 2, 12), "depth": image("DEPTH16", 2, 2, 12)}
 
 

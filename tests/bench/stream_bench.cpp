@@ -14,6 +14,7 @@
 #include <numeric>
 #include <thread>
 
+#include "rgbdquad/camera/tum_cameras.hpp"
 #include "rgbdquad/capture/tum_replay_source.h"
 #include "rgbdquad/encodings/depth_codec.h"
 #include "rgbdquad/encodings/jpeg_codec.h"
@@ -190,7 +191,8 @@ void end_to_end(const Frames& f, double link_mbps, double fps, double seconds) {
     stream::StreamSenderOptions so;
     so.key = key;
     so.host = "127.0.0.1";
-    so.intrinsics = {517.3, 516.5, 318.6, 255.3, {}};
+    const rgbdquad::camera::TumCamera& fr1 = rgbdquad::camera::kTumFr1;
+    so.intrinsics = {fr1.fx_px, fr1.fy_px, fr1.cx_px, fr1.cy_px, {}};
     so.depth_units_per_m = capture::kTumDepthUnitsPerM;
     if (mode.pair) {
       so.pair_hint = std::make_shared<stream::PairHint>();

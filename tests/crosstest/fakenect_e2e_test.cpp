@@ -15,6 +15,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "rgbdquad/camera/tum_cameras.hpp"
 #include "rgbdquad/capture/freenect_source.h"
 #include "rgbdquad/protocol/stream_auth_testing.hpp"
 #include "rgbdquad/receiver/stream_receiver.h"
@@ -65,7 +66,7 @@ Dump write_dump(const fs::path& dir) {
     cv::Mat d = cv::imread(std::string(kDesk) + "/" + depth_files[i].second, cv::IMREAD_UNCHANGED);
     std::vector<std::uint16_t> raw(640 * 480), mm(640 * 480);
     for (int k = 0; k < 640 * 480; ++k) {
-      raw[k] = mm_to_disparity(d.at<std::uint16_t>(k) / 5.0);  // TUM: 5000 units per metre
+      raw[k] = mm_to_disparity(d.at<std::uint16_t>(k) * 1000.0 / camera::kTumDepthUnitsPerM);
       mm[k] = capture::FreenectSource::disparity_to_mm(raw[k]);
     }
     char name[128];
@@ -105,9 +106,12 @@ TEST(FakenectEndToEnd, DumpReplaysThroughLibfreenectIntoTheReceiverBitExact) {
   // Registration identity: the dump's depth was made in the RGB camera's view.
   {
     std::ofstream config(dir / "streamer.yaml");
-    config << "depth_intrinsics: [525.0, 525.0, 319.5, 239.5]\n"
-              "rgb_intrinsics: [525.0, 525.0, 319.5, 239.5]\n"
-              "t_rgb_depth_m: [0, 0, 0]\n"
+    const camera::TumCamera& k = camera::kTumRosDefault;  // both cameras: the Kinect default model
+    const std::string model = "[" + std::to_string(k.fx_px) + ", " + std::to_string(k.fy_px) +
+                              ", " + std::to_string(k.cx_px) + ", " + std::to_string(k.cy_px) +
+                              "]\n";
+    config << "depth_intrinsics: " << model << "rgb_intrinsics: " << model
+           << "t_rgb_depth_m: [0, 0, 0]\n"
               "stats_period_s: 0\nlog_level: warn\nexit_linger_ms: 3000\n"
            << "stream_key_file: " << (dir / "stream.key").string() << "\n";
   }

@@ -3,6 +3,7 @@
 // receiver that withholds credits, a mismatched schema).
 #include <gtest/gtest.h>
 
+#include "rgbdquad/camera/tum_cameras.hpp"
 #include "rgbdquad/net/socket.h"
 #include "rgbdquad/protocol/codec.hpp"
 #include "rgbdquad/protocol/stream_auth_testing.hpp"
@@ -36,7 +37,8 @@ stream::StreamSenderOptions sender_options(StreamKind kind, std::uint16_t port, 
   o.port = port;
   o.kind = kind;
   o.encoding = encoding;
-  o.intrinsics = {517.3, 516.5, 318.6, 255.3, {}};
+  const camera::TumCamera& fr1 = camera::kTumFr1;
+  o.intrinsics = {fr1.fx_px, fr1.fy_px, fr1.cx_px, fr1.cy_px, {}};
   o.depth_units_per_m = capture::kTumDepthUnitsPerM;
   o.backoff_first_ms = 5;
   o.backoff_max_ms = 100;
@@ -85,7 +87,7 @@ TEST(StreamEndToEnd, RealFramesArriveDepthBitExactAndPaired) {
     const auto pair = rx.newest_pair();
     ASSERT_TRUE(pair.has_value());
     EXPECT_LE(pair->gap_us(), 20000);
-    EXPECT_DOUBLE_EQ(pair->intrinsics.fx_px, 517.3);
+    EXPECT_DOUBLE_EQ(pair->intrinsics.fx_px, camera::kTumFr1.fx_px);
     const auto c = rx.counters();
     EXPECT_EQ(c.rgb.frames, 9u);
     EXPECT_EQ(c.depth.frames, 9u);
@@ -368,8 +370,9 @@ protocol::Handshake depth_handshake() {
   h.height = 480;
   h.pixel_format = protocol::PixelFormat::kDepth16;
   h.encoding = Encoding::kRaw;
-  h.intrinsics = {517.3, 516.5, 318.6, 255.3, {}};
-  h.depth_scale_units_per_m = 5000;
+  const camera::TumCamera& fr1 = camera::kTumFr1;
+  h.intrinsics = {fr1.fx_px, fr1.fy_px, fr1.cx_px, fr1.cy_px, {}};
+  h.depth_scale_units_per_m = camera::kTumDepthUnitsPerM;
   h.device_id = "raw-peer";
   return h;
 }

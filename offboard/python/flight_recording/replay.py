@@ -1,6 +1,6 @@
 """Replays a quad-control MCAP recording through SLAM and compares with the poses recorded in flight.
 
-    python -m flight_recording.replay FLIGHT.mcap --out DIR [--slam-eval BIN] [--tum-score BIN]
+    PYTHONPATH=offboard/python:protocol/python python -m flight_recording.replay FLIGHT.mcap --out DIR [--slam-eval BIN] [--tum-score BIN]
 
   1. extracts the recorded frames into a TUM RGB-D folder DIR/tum: rgb/<t>.jpg (the recorded JPEG
      bytes, not re-encoded), depth/<t>.png (16-bit, decoded from /camera/depth/compressed - RVL or
@@ -29,15 +29,17 @@ import subprocess
 import sys
 
 import numpy as np
+from rgbd_protocol.tum_cameras import TUM_CAMERAS as _TUM_MODELS
+from rgbd_protocol.tum_cameras import TUM_DEPTH_UNITS_PER_M
 
 from flight_recording.depth import decode as decode_depth
 from flight_recording.reader import read
 
 ROOT = Path(__file__).resolve().parents[3]
-TUM_DEPTH_UNITS_PER_M = 5000.0  # TUM RGB-D depth PNG convention (slam-eval reads it so)
-# slam::Intrinsics::from_name (offboard/slam/core/types.cpp): fx fy cx cy of the TUM cameras.
-TUM_CAMERAS = {"fr1": (517.3, 516.5, 318.6, 255.3), "fr2": (520.9, 521.0, 325.1, 249.7),
-               "fr3": (535.4, 539.2, 320.1, 247.6)}
+# The Freiburg cameras slam-eval's --camera accepts (slam::Intrinsics::from_name), fx fy cx cy;
+# one definition: protocol/camera/tum_cameras.json. TUM_DEPTH_UNITS_PER_M is its depth scale.
+TUM_CAMERAS = {name: (c.fx_px, c.fy_px, c.cx_px, c.cy_px)
+               for name, c in _TUM_MODELS.items() if name.startswith("fr")}
 INTRINSICS_TOLERANCE_PX = 0.05
 
 

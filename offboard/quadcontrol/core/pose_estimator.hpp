@@ -58,7 +58,8 @@ struct ImuSample {
 /// The IMU content of a control reply (RAW_IMU in mg, ATTITUDE in mrad, ages in ms), stamped with
 /// the reply's arrival minus the newer of the two ages (the reply's transit back, ~2-5 ms, is
 /// not subtracted). nullopt when the reply carries no IMU or no attitude yet.
-std::optional<ImuSample> imu_sample_from_reply(const rgbd_control::Reply& reply, std::int64_t received_us);
+std::optional<ImuSample> imu_sample_from_reply(const rgbd_control::Reply& reply,
+                                               std::int64_t received_us);
 
 /// Maps the camera's capture stamps (the craft's clock, not synchronised with the ground
 /// station's) to the ground station's clock: capture + the smallest (received - capture) over the

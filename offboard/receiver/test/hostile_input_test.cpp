@@ -22,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "rgbdquad/camera/tum_cameras.hpp"
 #include "rgbdquad/protocol/codec.hpp"
 #include "rgbdquad/protocol/stream_auth_testing.hpp"
 #include "rgbdquad/receiver/log_throttle.h"
@@ -146,7 +147,8 @@ protocol::Handshake rgb_handshake(const char* device) {
   h.height = 480;
   h.pixel_format = protocol::PixelFormat::kRgb8;
   h.encoding = protocol::Encoding::kRaw;
-  h.intrinsics = {517.3, 516.5, 318.6, 255.3, {}};
+  const camera::TumCamera& fr1 = camera::kTumFr1;
+  h.intrinsics = {fr1.fx_px, fr1.fy_px, fr1.cx_px, fr1.cy_px, {}};
   h.device_id = device;
   return h;
 }

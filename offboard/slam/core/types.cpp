@@ -22,19 +22,17 @@ bool Intrinsics::is_valid(std::string* error) const {
 }
 
 bool Intrinsics::from_name(const std::string& name, Intrinsics* out, std::string* error) {
-  Intrinsics k;
-  if (name == "fr1") {
-    // defaults above
-  } else if (name == "fr2") {
-    k.fx_px = 520.9; k.fy_px = 521.0; k.cx_px = 325.1; k.cy_px = 249.7;
-    k.distortion = {0.2312, -0.7849, -0.0033, -0.0001, 0.9172};
-  } else if (name == "fr3") {
-    k.fx_px = 535.4; k.fy_px = 539.2; k.cx_px = 320.1; k.cy_px = 247.6;
-    k.distortion = {0, 0, 0, 0, 0};
-  } else {
-    if (error) *error = "unknown camera '" + name + "' (expected fr1, fr2 or fr3)";
+  const rgbdquad::camera::TumCamera* cam = rgbdquad::camera::find_tum_camera(name);
+  if (cam == nullptr) {
+    if (error) *error = "unknown camera '" + name + "' (expected fr1, fr2, fr3 or ros_default)";
     return false;
   }
+  Intrinsics k;
+  k.fx_px = cam->fx_px;
+  k.fy_px = cam->fy_px;
+  k.cx_px = cam->cx_px;
+  k.cy_px = cam->cy_px;
+  k.distortion = cam->distortion;
   *out = k;
   return true;
 }

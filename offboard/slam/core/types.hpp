@@ -8,21 +8,24 @@
 #include <opencv2/core.hpp>
 #include <string>
 
+#include "rgbdquad/camera/tum_cameras.hpp"
+
 namespace slam {
 
-/// Pinhole intrinsics of the colour camera (depth is registered to colour in TUM data).
+/// Pinhole intrinsics of the colour camera (depth is registered to colour in TUM data). Defaults:
+/// the TUM Freiburg 1 colour camera (protocol/camera/tum_cameras.json).
 struct Intrinsics {
-  double fx_px = 517.3;  ///< TUM Freiburg 1 colour camera (shared/data/README.md)
-  double fy_px = 516.5;
-  double cx_px = 318.6;
-  double cy_px = 255.3;
+  double fx_px = rgbdquad::camera::kTumFr1.fx_px;
+  double fy_px = rgbdquad::camera::kTumFr1.fy_px;
+  double cx_px = rgbdquad::camera::kTumFr1.cx_px;
+  double cy_px = rgbdquad::camera::kTumFr1.cy_px;
   /// OpenCV radial-tangential coefficients k1 k2 p1 p2 k3; used only when undistortion is on.
-  std::array<double, 5> distortion = {0.2624, -0.9531, -0.0054, 0.0026, 1.1633};
+  std::array<double, 5> distortion = rgbdquad::camera::kTumFr1.distortion;
   /// Raw depth units per metre: TUM/Kinect PNGs store 5000 units = 1 m.
-  double depth_units_per_m = 5000.0;
+  double depth_units_per_m = rgbdquad::camera::kTumDepthUnitsPerM;
 
   bool is_valid(std::string* error) const;
-  /// Named TUM cameras: "fr1", "fr2", "fr3" (values from the TUM benchmark page).
+  /// Named TUM cameras: "fr1", "fr2", "fr3", "ros_default" (protocol/camera/tum_cameras.json).
   static bool from_name(const std::string& name, Intrinsics* out, std::string* error);
 };
 

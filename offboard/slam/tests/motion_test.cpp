@@ -3,10 +3,13 @@
 
 #include <random>
 
+#include "rgbdquad/camera/tum_cameras.hpp"
 #include "slam/motion/motion.hpp"
 
 namespace slam {
 namespace {
+
+constexpr const rgbdquad::camera::TumCamera& kFr1 = rgbdquad::camera::kTumFr1;  // the test frames' camera
 
 Eigen::Isometry3d known_pose() {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
@@ -114,7 +117,7 @@ TEST(Ransac, GivenSameSeedThenSameResultAndTooFewPairsRejected) {
 TEST(ReprojectionRefine, GivenExactPixelsAndNoisyDepthThenRefinedPoseBeatsUmeyama) {
   // GIVEN points seen by two cameras with exact pixels but 1 % depth noise on both sides
   const Eigen::Isometry3d T = known_pose();
-  const RansacOptions::Pinhole cam{517.3, 516.5, 318.6, 255.3};
+  const RansacOptions::Pinhole cam{kFr1.fx_px, kFr1.fy_px, kFr1.cx_px, kFr1.cy_px};
   const auto pts = random_points(150, 31);
   std::mt19937_64 rng(32);
   std::normal_distribution<double> scale(1.0, 0.01);
@@ -169,7 +172,7 @@ double worst_jacobian_error(TermFn term, const Eigen::Isometry3d& T, const Eigen
 }
 
 TEST(ReprojectionRefine, GivenRandomPosesAndPointsThenAnalyticJacobiansMatchNumericDerivatives) {
-  const RansacOptions::Pinhole c{517.3, 516.5, 318.6, 255.3};
+  const RansacOptions::Pinhole c{kFr1.fx_px, kFr1.fy_px, kFr1.cx_px, kFr1.cy_px};
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> angle(-0.5, 0.5), shift(-0.3, 0.3);
   const auto src = random_points(20, 3);
@@ -190,7 +193,7 @@ TEST(ReprojectionRefine, GivenRandomPosesAndPointsThenAnalyticJacobiansMatchNume
 }
 
 TEST(ReprojectionRefine, GivenAPointBehindTheCameraThenTheTermCarriesNoInformation) {
-  const RansacOptions::Pinhole c{517.3, 516.5, 318.6, 255.3};
+  const RansacOptions::Pinhole c{kFr1.fx_px, kFr1.fy_px, kFr1.cx_px, kFr1.cy_px};
   const Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   EXPECT_FALSE(forward_reprojection_term(T, {0, 0, 0.05}, {0, 0, 1.0}, c).valid);
   EXPECT_FALSE(backward_reprojection_term(T, {0, 0, 1.0}, {0, 0, -1.0}, c).valid);

@@ -5,6 +5,7 @@
 
 #include <fstream>
 
+#include "rgbdquad/camera/tum_cameras.hpp"
 #include "rgbdquad/protocol/codec.hpp"
 #include "slam/dataset/tum_dataset.hpp"
 #include "slam_link_session.hpp"
@@ -20,8 +21,9 @@ const std::string kExcerpt = std::string(SLAM_REPO_DIR) + "/tests/data/fr1_xyz_f
 proto::RgbdFrame to_wire(const RgbdFrame& f, std::uint32_t seq) {
   proto::RgbdFrame m;
   m.pair_sequence = seq;
-  m.intrinsics = {517.3, 516.5, 318.6, 255.3, {0, 0, 0, 0, 0}};
-  m.depth_scale_units_per_m = 5000.0;
+  const rgbdquad::camera::TumCamera& fr1 = rgbdquad::camera::kTumFr1;
+  m.intrinsics = {fr1.fx_px, fr1.fy_px, fr1.cx_px, fr1.cy_px, {0, 0, 0, 0, 0}};
+  m.depth_scale_units_per_m = rgbdquad::camera::kTumDepthUnitsPerM;
   auto header = [&](proto::PixelFormat fmt, std::size_t bytes) {
     proto::FrameHeader h;
     h.sequence = seq;

@@ -17,11 +17,12 @@ import numpy as np
 import pytest
 
 from rgbd_protocol import Codec, StreamDecoder
+from rgbd_protocol.tum_cameras import TUM_DEPTH_UNITS_PER_M, TUM_FR1
 
 REPO = Path(__file__).resolve().parents[3]
 BINARY = Path(os.environ.get("SLAM_SERVER", REPO / "build" / "bin" / "slam-server"))
 W, H = 640, 480
-DEPTH_UNITS_PER_M = 5000  # TUM convention
+DEPTH_UNITS_PER_M = int(TUM_DEPTH_UNITS_PER_M)  # TUM convention: a flat wall at 1 m
 
 
 def free_port() -> int:
@@ -38,8 +39,7 @@ def frame_fields(seq: int, texture: np.ndarray) -> dict:
                 "send_timestamp_us": 0, "width": W, "height": H, "pixel_format": fmt,
                 "encoding": "RAW", "payload": payload}
     return {"pair_sequence": 10 + seq,
-            "intrinsics": {"fx_px": 517.3, "fy_px": 516.5, "cx_px": 318.6, "cy_px": 255.3,
-                           "distortion": [0.0] * 5},
+            "intrinsics": {**TUM_FR1.intrinsics(), "distortion": [0.0] * 5},
             "depth_scale_units_per_m": float(DEPTH_UNITS_PER_M),
             "rgb": image("RGB8", rgb.tobytes()), "depth": image("DEPTH16", depth.tobytes())}
 

@@ -27,11 +27,12 @@ import numpy as np
 import pytest
 
 from rgbd_protocol import Codec, StreamDecoder
+from rgbd_protocol.tum_cameras import TUM_DEPTH_UNITS_PER_M, TUM_FR1
 
 REPO = Path(__file__).resolve().parents[3]
 BINARY = Path(os.environ.get("SLAM_SERVER", REPO / "build" / "bin" / "slam-server"))
 W, H = 640, 480
-DEPTH_UNITS_PER_M = 5000
+DEPTH_UNITS_PER_M = int(TUM_DEPTH_UNITS_PER_M)  # TUM convention: a flat wall at 1 m
 DEADLINE_S = 30.0  # generous: the shared 2-core machine may be busy
 
 pytestmark = pytest.mark.skipif(not BINARY.exists(), reason=f"{BINARY} not built")
@@ -63,8 +64,7 @@ def frame_bytes(seq: int, tex: np.ndarray, encoding: str = "RAW") -> bytes:
         rgb_image = image("RGB8", b"\xff\xd8\xff\xe0" + bytes(60) + b"\xff\xd9", encoding)
     return CODEC.encode("RgbdFrame", {
         "pair_sequence": 10 + seq,
-        "intrinsics": {"fx_px": 517.3, "fy_px": 516.5, "cx_px": 318.6, "cy_px": 255.3,
-                       "distortion": [0.0] * 5},
+        "intrinsics": {**TUM_FR1.intrinsics(), "distortion": [0.0] * 5},
         "depth_scale_units_per_m": float(DEPTH_UNITS_PER_M),
         "rgb": rgb_image, "depth": image("DEPTH16", depth.tobytes())})
 

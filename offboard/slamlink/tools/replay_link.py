@@ -23,6 +23,7 @@ import numpy as np
 from PIL import Image
 
 from rgbd_protocol import Codec, StreamDecoder
+from rgbd_protocol.tum_cameras import TUM_DEPTH_UNITS_PER_M, TUM_FR1
 from rgbd_protocol.spec import load_spec
 
 
@@ -98,8 +99,9 @@ def main() -> int:
                     "height": h, "pixel_format": fmt, "encoding": "RAW", "payload": payload}
         sock.sendall(codec.encode("RgbdFrame", {
             "pair_sequence": n,
-            "intrinsics": {"fx_px": 517.3, "fy_px": 516.5, "cx_px": 318.6, "cy_px": 255.3, "distortion": [0.0] * 5},
-            "depth_scale_units_per_m": 5000.0, "rgb": image("RGB8", rgb), "depth": image("DEPTH16", depth)}))
+            "intrinsics": {**TUM_FR1.intrinsics(), "distortion": [0.0] * 5},  # no distortion sent
+            "depth_scale_units_per_m": TUM_DEPTH_UNITS_PER_M, "rgb": image("RGB8", rgb),
+            "depth": image("DEPTH16", depth)}))
         m = next_message()
         if m is None:
             print(f"slam-server closed the connection after {n} frames answered (frame {n}, folder index {idx}); "

@@ -16,18 +16,21 @@
 #include <string>
 #include <vector>
 
+#include "rgbdquad/camera/tum_cameras.hpp"
 #include "slam/eval/metrics.hpp"
 
 namespace slam::surf_test {
 
-/// Freiburg 1 colour camera (TUM RGB-D benchmark page / shared/data/README.md).
+/// Freiburg 1 colour camera (protocol/camera/tum_cameras.json).
 struct Fr1Camera {
-  cv::Matx33d K{517.3, 0.0, 318.6, 0.0, 516.5, 255.3, 0.0, 0.0, 1.0};
-  cv::Vec<double, 5> distortion{0.2624, -0.9531, -0.0054, 0.0026, 1.1633};
+  static constexpr const rgbdquad::camera::TumCamera& kCam = rgbdquad::camera::kTumFr1;
+  cv::Matx33d K{kCam.fx_px, 0.0, kCam.cx_px, 0.0, kCam.fy_px, kCam.cy_px, 0.0, 0.0, 1.0};
+  cv::Vec<double, 5> distortion{kCam.distortion[0], kCam.distortion[1], kCam.distortion[2],
+                                kCam.distortion[3], kCam.distortion[4]};
 };
 
 /// TUM depth PNGs store 5000 units per metre.
-constexpr double kDepthUnitsPerMetre = 5000.0;
+constexpr double kDepthUnitsPerMetre = rgbdquad::camera::kTumDepthUnitsPerM;
 /// The benchmark's association window between rgb, depth and ground truth.
 constexpr double kAssociationWindowS = 0.02;
 

@@ -6,12 +6,15 @@
 
 #include <cmath>
 
+#include "rgbdquad/camera/tum_cameras.hpp"
+
 namespace rgbdquad::capture {
 namespace {
 
 RegistrationOptions same_camera() {
   RegistrationOptions o;
-  o.depth = {525.0, 525.0, 319.5, 239.5};
+  const camera::TumCamera& kinect = camera::kTumRosDefault;
+  o.depth = {kinect.fx_px, kinect.fy_px, kinect.cx_px, kinect.cy_px};
   o.rgb = o.depth;
   o.t_rgb_depth_m = {0, 0, 0};
   return o;

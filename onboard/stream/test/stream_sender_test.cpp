@@ -8,6 +8,7 @@
 #include <chrono>
 #include <thread>
 
+#include "rgbdquad/camera/tum_cameras.hpp"
 #include "rgbdquad/encodings/depth_codec.h"
 #include "rgbdquad/net/socket.h"
 #include "rgbdquad/protocol/stream_auth_testing.hpp"
@@ -70,8 +71,9 @@ TEST(StreamSender, HandshakeDeadlineIsNotRestartedByADrippingReceiver) {
   o.port = net::local_port(listener);
   o.kind = protocol::StreamKind::kDepth;
   o.encoding = protocol::Encoding::kRaw;
-  o.intrinsics = {517.3, 516.5, 318.6, 255.3, {}};
-  o.depth_units_per_m = 5000;
+  const camera::TumCamera& fr1 = camera::kTumFr1;
+  o.intrinsics = {fr1.fx_px, fr1.fy_px, fr1.cx_px, fr1.cy_px, {}};
+  o.depth_units_per_m = camera::kTumDepthUnitsPerM;
   o.handshake_timeout_ms = 300;
   o.key = protocol::testing::kTestStreamKey;
   o.backoff_first_ms = 5;

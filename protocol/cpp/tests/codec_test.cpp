@@ -8,6 +8,7 @@
 #include <random>
 
 #include "json_view.hpp"
+#include "rgbdquad/camera/tum_cameras.hpp"
 
 namespace rgbdquad::protocol {
 namespace {
@@ -36,8 +37,9 @@ Handshake make_handshake() {
   h.height = 480;
   h.pixel_format = PixelFormat::kDepth16;
   h.encoding = Encoding::kRaw;
-  h.intrinsics = {517.3, 516.5, 318.6, 255.3, {0.2624, -0.9531, -0.0054, 0.0026, 1.1633}};
-  h.depth_scale_units_per_m = 5000.0;
+  const camera::TumCamera& fr1 = camera::kTumFr1;
+  h.intrinsics = {fr1.fx_px, fr1.fy_px, fr1.cx_px, fr1.cy_px, fr1.distortion};
+  h.depth_scale_units_per_m = camera::kTumDepthUnitsPerM;
   h.device_id = "kinect-A00364A09418042A";
   return h;
 }
@@ -74,7 +76,7 @@ std::vector<Message> all_message_kinds() {
   RgbdFrame pair;
   pair.pair_sequence = 9;
   pair.intrinsics = make_handshake().intrinsics;
-  pair.depth_scale_units_per_m = 5000.0;
+  pair.depth_scale_units_per_m = camera::kTumDepthUnitsPerM;
   pair.rgb = make_rgb_frame(2, 2, 1).image;
   pair.depth.header = {1, 5, 6, 2, 2, PixelFormat::kDepth16, Encoding::kRaw, 8};
   pair.depth.payload = {1, 2, 3, 4, 5, 6, 7, 8};

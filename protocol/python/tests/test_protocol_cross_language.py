@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from rgbd_protocol import Codec, StreamDecoder, event_view, normalize_events
+from rgbd_protocol.tum_cameras import TUM_DEPTH_UNITS_PER_M
 
 ROOT = Path(__file__).resolve().parents[3]
 BUILD = Path(os.environ.get("RGBD_BUILD_DIR", ROOT / "build"))
@@ -79,7 +80,7 @@ def random_messages(seed: int, count: int) -> list[tuple[str, dict]]:
                                "session_frames": rng.getrandbits(32),
                                "refusal": rng.choice(["", "slam-server busy: all 4 client slots in use"])}),
         lambda: ("RgbdFrame", {"pair_sequence": rng.getrandbits(32), "intrinsics": intr,
-                               "depth_scale_units_per_m": 5000.0, "rgb": image("RGB8", 8, 6),
+                               "depth_scale_units_per_m": TUM_DEPTH_UNITS_PER_M, "rgb": image("RGB8", 8, 6),
                                "depth": image("DEPTH16", 8, 6)}),
         lambda: ("PoseUpdate", {"pair_sequence": rng.getrandbits(32),
                                 "timestamp_us": rng.getrandbits(64),

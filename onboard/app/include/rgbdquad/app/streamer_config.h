@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <string>
 
+#include "rgbdquad/camera/tum_cameras.hpp"
+
 namespace rgbdquad::app {
 
 struct StreamerConfig {
@@ -39,9 +41,11 @@ struct StreamerConfig {
   bool pair_depth_with_rgb = true;
 
   // camera: intrinsics of the RGB image (what the depth is registered to). Defaults: the usual
-  // Kinect v1 colour camera values (fx = fy = 525 px, principal point at the centre).
+  // Kinect v1 colour camera values (fx = fy = 525 px, principal point at the centre: the ROS
+  // default model, protocol/camera/tum_cameras.json "ros_default").
   std::string device_id = "kinect-v1";
-  std::array<double, 4> rgb_intrinsics{525.0, 525.0, 319.5, 239.5};
+  std::array<double, 4> rgb_intrinsics{camera::kTumRosDefault.fx_px, camera::kTumRosDefault.fy_px,
+                                       camera::kTumRosDefault.cx_px, camera::kTumRosDefault.cy_px};
   std::array<double, 5> rgb_distortion{0, 0, 0, 0, 0};
 
   // software registration for sources whose driver does not register depth (OpenNI2 devices

@@ -9,14 +9,17 @@
 #include <variant>
 #include <vector>
 
+#include "rgbdquad/camera/tum_cameras.hpp"
+
 namespace rgbdquad::capture {
 
 // Kinect v1 native resolution, the size every source in this project delivers.
 constexpr int kKinectWidthPx = 640;
 constexpr int kKinectHeightPx = 480;
-// Depth units: Kinect drivers deliver millimetres; the TUM dataset stores 5000 units per metre.
+// Depth units: Kinect drivers deliver millimetres; the TUM dataset stores 5000 units per metre
+// (protocol/camera/tum_cameras.json, the one definition).
 constexpr double kMillimetreUnitsPerM = 1000.0;
-constexpr double kTumDepthUnitsPerM = 5000.0;
+constexpr double kTumDepthUnitsPerM = camera::kTumDepthUnitsPerM;
 
 struct RgbFrame {
   std::int64_t capture_timestamp_us = 0;
