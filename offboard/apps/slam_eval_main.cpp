@@ -20,10 +20,13 @@
 #include <optional>
 #include <thread>
 
+#include "slam/dataset/replay_schedule.hpp"
 #include "slam/dataset/tum_dataset.hpp"
 #include "slam/eval/metrics.hpp"
 #include "slam/pipeline/map_export.hpp"
 #include "slam/pipeline/pipeline.hpp"
+#include "slam/report/run_metrics.hpp"
+#include "slam/report/run_tables.hpp"
 
 namespace {
 
@@ -48,20 +51,6 @@ struct RunArgs {
   double depth_units_per_m = 0;
 };
 
-json stage_stats(std::vector<double> v) {
-  json j;
-  j["count"] = v.size();
-  if (v.empty()) return j;
-  std::sort(v.begin(), v.end());
-  double s = 0;
-  for (double x : v) s += x;
-  j["mean_ms"] = s / static_cast<double>(v.size());
-  j["median_ms"] = v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-  j["p95_ms"] = v[std::min(v.size() - 1, static_cast<std::size_t>(0.95 * static_cast<double>(v.size())))];
-  j["max_ms"] = v.back();
-  return j;
-}
-
 /// Resident set size of this process, MiB (Linux /proc; -1 when unavailable). Instrumentation.
 double rss_mib() {
   std::ifstream status("/proc/self/status");
@@ -79,15 +68,13 @@ std::string guess_camera(const std::string& folder) {
   return "fr1";
 }
 
-int run_command(const RunArgs& a) {
-  std::string err;
-  if (a.cv_threads >= 0) cv::setNumThreads(a.cv_threads);
+/// The pipeline options the command line asks for; nullopt with *err set on an unknown name.
+std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::string* err) {
   slam::PipelineOptions po;
-  if (!slam::parse_detector_kind(a.features, &po.frontend.features.kind, &err) ||
-      !slam::parse_backend_kind(a.backend, &po.backend.kind, &err) ||
-      !slam::parse_pipeline_mode(a.mode, &po.mode, &err)) {
-    std::cerr << "slam-eval: " << err << "\n";
-    return 2;
+  if (!slam::parse_detector_kind(a.features, &po.frontend.features.kind, err) ||
+      !slam::parse_backend_kind(a.backend, &po.backend.kind, err) ||
+      !slam::parse_pipeline_mode(a.mode, &po.mode, err)) {
+    return std::nullopt;
   }
   po.frontend.features.undistort = !a.no_undistort;
   po.reprojection_refine = !a.no_reprojection;
@@ -102,10 +89,9 @@ int run_command(const RunArgs& a) {
   po.tracker.keyframe_needs_new_content = a.keyframe_new_content == "on";
   po.map_lock_priority_inheritance = a.map_lock == "pi";
   po.mapper.bundle_adjustment = a.local_ba == "on";
-  if (!slam::parse_thread_policy(a.tracking_policy, &po.tracking_thread_policy, &err) ||
-      !slam::parse_depth_noise_model(a.depth_noise, &po.depth_noise, &err)) {
-    std::cerr << "slam-eval: " << err << "\n";
-    return 2;
+  if (!slam::parse_thread_policy(a.tracking_policy, &po.tracking_thread_policy, err) ||
+      !slam::parse_depth_noise_model(a.depth_noise, &po.depth_noise, err)) {
+    return std::nullopt;
   }
   po.backend.seed = a.seed + 1;
   const auto sampling = a.ransac == "thesis" ? slam::RansacSampling::kThesis : slam::RansacSampling::kRandom;
@@ -113,6 +99,76 @@ int run_command(const RunArgs& a) {
   po.backend.ransac.sampling = sampling;
   po.backend.keyframes.policy =
       a.keyframe_policy == "fixed" ? slam::KeyframePolicy::kFixedRate : slam::KeyframePolicy::kRansac;
+  return po;
+}
+
+/// The options a run used, the first keys of its metrics.json.
+json run_options_json(const RunArgs& a, const std::string& camera, const std::string& stamp,
+                      const slam::Intrinsics& intr) {
+  json m;
+  m["dataset"] = a.dataset;
+  m["camera"] = camera;
+  m["features"] = a.features;
+  m["backend"] = a.backend;
+  m["mode"] = a.mode;
+  m["rate_divisor"] = a.rate;
+  m["ransac_sampling"] = a.ransac;
+  m["keyframe_policy"] = a.keyframe_policy;
+  m["seed"] = a.seed;
+  m["sift_first_octave"] = a.sift_first_octave;
+  m["max_features"] = a.max_features;
+  m["undistort"] = !a.no_undistort;
+  m["stamp"] = stamp;
+  m["reprojection_refine"] = !a.no_reprojection;
+  m["cv_threads"] = a.cv_threads;
+  m["loop_closing_option"] = a.loop_closing;
+  m["keyframe_new_content"] = a.keyframe_new_content;
+  m["depth_noise"] = a.depth_noise;
+  m["map_lock"] = a.map_lock;
+  m["local_ba"] = a.local_ba;
+  m["depth_units_per_m"] = intr.depth_units_per_m;
+  m["tracking_policy"] = a.tracking_policy;
+  return m;
+}
+
+/// Writes the trajectories, the pose graphs, the map (unless --no-map; its point count goes into
+/// run->exported_map_points) and the saved map (--save-map).
+bool write_run_outputs(const RunArgs& a, const slam::Pipeline& pipeline, const slam::Intrinsics& intr,
+                       slam::RunOutcome* run, std::string* err) {
+  const fs::path out(a.out);
+  if (!slam::eval::write_tum_trajectory((out / "trajectory.tum").string(), run->final_trajectory, err) ||
+      !slam::eval::write_tum_trajectory((out / "trajectory_online.tum").string(), run->online_trajectory, err))
+    return false;
+  const auto& be = pipeline.backend();
+  if (!slam::write_text_file((out / "graph_before.g2o").string(), be.graph_before_optimisation().to_g2o(), err) ||
+      !slam::write_text_file((out / "graph_after.g2o").string(), be.graph().to_g2o(), err))
+    return false;
+  if (!a.no_map) {
+    slam::MapExportOptions mo;
+    mo.pixel_stride = a.map_stride;
+    const std::string ply = (out / "map.ply").string();
+    const long map_points = pipeline.is_local_map()
+                                ? slam::write_map_points_ply(ply, *pipeline.local_map(), err)
+                                : slam::write_keyframe_map_ply(ply, be, intr, mo, err);
+    if (map_points < 0) return false;
+    run->exported_map_points = map_points;
+  }
+  if (!a.save_map.empty()) {
+    if (!pipeline.save_map(a.save_map, err)) return false;
+    std::cerr << "slam-eval: map saved to " << a.save_map << "\n";
+  }
+  return true;
+}
+
+int run_command(const RunArgs& a) {
+  std::string err;
+  if (a.cv_threads >= 0) cv::setNumThreads(a.cv_threads);
+  const std::optional<slam::PipelineOptions> options = pipeline_options(a, &err);
+  if (!options) {
+    std::cerr << "slam-eval: " << err << "\n";
+    return 2;
+  }
+  const slam::PipelineOptions& po = *options;
 
   const std::string camera = a.camera == "auto" ? guess_camera(a.dataset) : a.camera;
   slam::Intrinsics intr;
@@ -155,11 +211,11 @@ int run_command(const RunArgs& a) {
             << ", rate 1/" << a.rate << ", ransac " << a.ransac << ", keyframes "
             << a.keyframe_policy << ")\n";
   const auto wall0 = std::chrono::steady_clock::now();
-  const double period_s = ds->frame_period_s();
+  const slam::ReplaySchedule schedule{ds->frame_period_s(), a.withhold_from_s, a.withhold_s};
   std::size_t load_failures = 0;
-  std::vector<std::pair<double, double>> rss_samples;
+  slam::RssSamples rss_samples;  // every 30 frames
   double first_stamp_s = -1;
-  std::size_t withheld = 0;  // (frame stamp s, RSS MiB), every 30 frames
+  std::size_t withheld = 0;
   for (std::size_t i = 0; i < ds->size(); ++i) {
     auto frame = ds->load(i, &err);
     if (!frame) {
@@ -175,13 +231,11 @@ int run_command(const RunArgs& a) {
     if (po.mode == slam::PipelineMode::kRealtime || po.mode == slam::PipelineMode::kLive) {
       // Real-time replay: frame i is due i * period after the start (application boundary: the
       // only place that reads the clock).
-      std::this_thread::sleep_until(wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                std::chrono::duration<double>(period_s * static_cast<double>(i))));
+      std::this_thread::sleep_until(wall0 + schedule.due(i));
     }
     const double stamp_s = frame->stamp_s;
     if (first_stamp_s < 0) first_stamp_s = stamp_s;
-    if (a.withhold_s > 0 && stamp_s - first_stamp_s >= a.withhold_from_s &&
-        stamp_s - first_stamp_s < a.withhold_from_s + a.withhold_s) {
+    if (schedule.withheld(stamp_s, first_stamp_s)) {
       ++withheld;  // a stalled link: the frame never reaches SLAM
       continue;
     }
@@ -193,221 +247,28 @@ int run_command(const RunArgs& a) {
   pipeline->finish();
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
 
-  const auto records = pipeline->records();
-  const auto summary = pipeline->summary();
-  slam::eval::Trajectory final_traj, online_traj;
-  for (const auto& [t, T] : pipeline->final_trajectory()) final_traj.push_back({t, T});
-  for (const auto& r : records) if (r.ok) online_traj.push_back({r.stamp_s, r.T_world_cam});
-  const std::string traj_path = (fs::path(a.out) / "trajectory.tum").string();
-  if (!slam::eval::write_tum_trajectory(traj_path, final_traj, &err) ||
-      !slam::eval::write_tum_trajectory((fs::path(a.out) / "trajectory_online.tum").string(), online_traj, &err)) {
+  slam::RunOutcome run = slam::collect_run_outcome(*pipeline);
+  run.glc_backend = po.backend.kind == slam::BackendKind::kGlc;
+  run.wall_s = wall_s;
+  run.frames_withheld = withheld;
+  run.first_stamp_s = first_stamp_s;
+  run.withhold_from_s = a.withhold_from_s;
+  run.withhold_s = a.withhold_s;
+  if (!write_run_outputs(a, *pipeline, intr, &run, &err)) {
     std::cerr << "slam-eval: " << err << "\n";
     return 1;
-  }
-  const auto& be = pipeline->backend();
-  if (!slam::write_text_file((fs::path(a.out) / "graph_before.g2o").string(), be.graph_before_optimisation().to_g2o(), &err) ||
-      !slam::write_text_file((fs::path(a.out) / "graph_after.g2o").string(), be.graph().to_g2o(), &err)) {
-    std::cerr << "slam-eval: " << err << "\n";
-    return 1;
-  }
-  long map_points = 0;
-  if (!a.no_map) {
-    slam::MapExportOptions mo;
-    mo.pixel_stride = a.map_stride;
-    const std::string ply = (fs::path(a.out) / "map.ply").string();
-    map_points = pipeline->is_local_map()
-                     ? slam::write_map_points_ply(ply, *pipeline->local_map(), &err)
-                     : slam::write_keyframe_map_ply(ply, be, intr, mo, &err);
-    if (map_points < 0) {
-      std::cerr << "slam-eval: " << err << "\n";
-      return 1;
-    }
-  }
-
-  if (!a.save_map.empty()) {
-    if (!pipeline->save_map(a.save_map, &err)) {
-      std::cerr << "slam-eval: " << err << "\n";
-      return 1;
-    }
-    std::cerr << "slam-eval: map saved to " << a.save_map << "\n";
   }
   // Per-frame and per-keyframe tables for long-run analysis (offboard/tools/longrun.py).
-  {
-    std::ofstream frames_csv(fs::path(a.out) / "frames.csv");
-    frames_csv << "index,stamp_s,state,keyframe,matches,inliers,frontend_ms,frontend_cpu_ms,map_keyframes,map_points,"
-                  "keyframe_wanted,ref_tracked,near_tracked,near_untracked,near_redundant,map_lock_wait_ms\n";
-    for (const auto& r : records)
-      frames_csv << r.index << "," << std::fixed << std::setprecision(6) << r.stamp_s << ","
-                 << slam::to_string(r.state) << "," << (r.keyframe ? 1 : 0) << "," << r.matches << "," << r.inliers << "," << std::setprecision(3)
-                 << r.frontend_ms << "," << r.frontend_cpu_ms << "," << r.map_keyframes << "," << r.map_points << ","
-                 << slam::to_string(r.keyframe_wanted) << "," << r.ref_tracked << "," << r.near_tracked << ","
-                 << r.near_untracked << "," << r.near_redundant << "," << r.map_lock_wait_ms << "\n";
-    std::ofstream mapping_csv(fs::path(a.out) / "mapping.csv");
-    mapping_csv << "keyframe,mapping_ms,mapping_cpu_ms,ba_ms,ba_points,points_culled,points_fused,keyframes_culled\n";
-    for (const auto& st : pipeline->mapper_stats())
-      mapping_csv << st.keyframe << "," << std::fixed << std::setprecision(3) << st.total_ms << ","
-                  << st.total_cpu_ms << "," << st.ba_ms << "," << st.ba_points << "," << st.points_culled << ","
-                  << st.points_fused << "," << st.keyframes_culled << "\n";
-    std::ofstream loops_csv(fs::path(a.out) / "loops.csv");
-    loops_csv << "keyframe,searched,candidates,verified_ransac,accepted,loop_keyframe,ransac_inliers,fit_inliers,"
-                 "correction_m,correction_deg,graph_keyframes,graph_edges,points_merged,points_attached,bow_ms,"
-                 "query_ms,verify_ms,posegraph_ms,snapshot_lock_ms,apply_lock_ms,fuse_lock_ms,total_ms,total_cpu_ms,"
-                 "consistent,verified_fit,refused_odometry,gate_keyframe,gate_path_m,gate_translation_m,"
-                 "gate_rotation_deg,gate_chi2\n";
-    for (const auto& l : pipeline->loop_stats())
-      loops_csv << l.keyframe << "," << l.searched << "," << l.candidates << "," << l.verified_ransac << ","
-                << l.accepted << "," << l.loop_keyframe << "," << l.ransac_inliers << "," << l.fit_inliers << ","
-                << std::fixed << std::setprecision(4) << l.correction_m << "," << l.correction_deg << ","
-                << l.graph_keyframes << "," << l.graph_edges << "," << l.points_merged << "," << l.points_attached
-                << "," << l.bow_ms << "," << l.query_ms << "," << l.verify_ms << "," << l.posegraph_ms << ","
-                << l.snapshot_lock_ms << "," << l.apply_lock_ms << "," << l.fuse_lock_ms << "," << l.total_ms << ","
-                << l.total_cpu_ms << "," << l.consistent << "," << l.verified_fit << "," << l.refused_odometry
-                << "," << l.gate_keyframe << "," << l.gate_path_m << "," << l.gate_translation_m << ","
-                << l.gate_rotation_deg << "," << l.gate_chi2 << "\n";
-    std::ofstream rss_csv(fs::path(a.out) / "rss.csv");
-    rss_csv << "stamp_s,rss_mib\n";
-    for (const auto& [t, mib] : rss_samples) rss_csv << std::fixed << std::setprecision(6) << t << "," << mib << "\n";
+  if (!slam::write_run_tables(a.out, run.records, run.mapper_stats, run.loop_stats, rss_samples, &err)) {
+    std::cerr << "slam-eval: " << err << "\n";
+    return 1;
   }
 
-  json m;
-  m["dataset"] = a.dataset;
-  m["camera"] = camera;
-  m["features"] = a.features;
-  m["backend"] = a.backend;
-  m["mode"] = a.mode;
-  m["rate_divisor"] = a.rate;
-  m["ransac_sampling"] = a.ransac;
-  m["keyframe_policy"] = a.keyframe_policy;
-  m["seed"] = a.seed;
-  m["sift_first_octave"] = a.sift_first_octave;
-  m["max_features"] = a.max_features;
-  m["undistort"] = !a.no_undistort;
-  m["stamp"] = stamp;
-  m["reprojection_refine"] = !a.no_reprojection;
-  m["cv_threads"] = a.cv_threads;
-  m["loop_closing_option"] = a.loop_closing;
-  m["keyframe_new_content"] = a.keyframe_new_content;
-  m["depth_noise"] = a.depth_noise;
-  m["map_lock"] = a.map_lock;
-  m["local_ba"] = a.local_ba;
-  m["depth_units_per_m"] = intr.depth_units_per_m;
-  m["tracking_policy"] = a.tracking_policy;
-  m["tracking_thread"] = summary.tracking_thread;
-  m["frames"] = records.size();
-  m["frames_submitted"] = summary.frames_submitted;
-  m["frames_failed"] = summary.frames_failed;
-  m["frontend_dropped"] = summary.frontend_dropped;
-  m["backend_skipped"] = summary.backend_skipped;
-  m["keyframes"] = summary.keyframes;
-  m["loop_closures"] = summary.loop_closures;
-  m["optimisations"] = summary.optimisations;
-  m["map_points"] = pipeline->is_local_map() ? static_cast<long>(summary.map_points) : map_points;
-  if (pipeline->is_local_map()) {
-    m["keyframes_culled"] = summary.keyframes_culled;
-    m["relocalisations"] = summary.relocalisations;
-    std::vector<double> map_ms, map_cpu, ba_ms;
-    for (const auto& st : pipeline->mapper_stats()) {
-      map_ms.push_back(st.total_ms);
-      map_cpu.push_back(st.total_cpu_ms);
-      ba_ms.push_back(st.ba_ms);
-    }
-    m["mapping"] = {{"keyframes_mapped", map_ms.size()}, {"mapping", stage_stats(map_ms)},
-                    {"mapping_cpu", stage_stats(map_cpu)}, {"bundle_adjustment", stage_stats(ba_ms)}};
-    std::vector<double> loop_ms, loop_cpu, pg_ms, snap_lock, apply_lock, fuse_lock;
-    std::size_t searched = 0, ransac_ok = 0, ba_discarded = 0;
-    for (const auto& l : pipeline->loop_stats()) {
-      loop_ms.push_back(l.total_ms);
-      loop_cpu.push_back(l.total_cpu_ms);
-      snap_lock.push_back(l.snapshot_lock_ms);
-      searched += l.searched ? 1 : 0;
-      ransac_ok += l.verified_ransac > 0 ? 1 : 0;
-      if (!l.accepted) continue;
-      pg_ms.push_back(l.posegraph_ms);
-      apply_lock.push_back(l.apply_lock_ms);
-      fuse_lock.push_back(l.fuse_lock_ms);
-    }
-    for (const auto& st : pipeline->mapper_stats()) ba_discarded += st.ba_discarded ? 1 : 0;
-    m["loop_closing"] = {{"active", summary.loop_closing_active}, {"keyframes_processed", loop_ms.size()},
-                         {"keyframes_searched", searched}, {"detections", summary.loop_detections},
-                         {"ransac_verified", ransac_ok}, {"accepted", summary.loop_closures},
-                         {"local_ba_discarded", ba_discarded},
-                         {"loop_closing", stage_stats(loop_ms)}, {"loop_closing_cpu", stage_stats(loop_cpu)},
-                         {"posegraph", stage_stats(pg_ms)}, {"snapshot_lock", stage_stats(snap_lock)},
-                         {"apply_lock", stage_stats(apply_lock)}, {"fuse_lock_max_per_keyframe", stage_stats(fuse_lock)}};
-  }
-  m["wall_s"] = wall_s;
-  m["frames_withheld"] = withheld;
-  {
-    // Frames until the pose is tracked: from the start (a loaded map) and after the withheld gap.
-    std::optional<std::size_t> first, after_gap, gap_start;
-    for (std::size_t i = 0; i < records.size(); ++i) {
-      const auto& r = records[i];
-      if (!first && r.ok && r.state == slam::TrackingState::kTracking) first = i;
-      if (a.withhold_s > 0 && !gap_start && r.stamp_s - first_stamp_s >= a.withhold_from_s) gap_start = i;
-      if (gap_start && !after_gap && r.ok && r.state == slam::TrackingState::kTracking) after_gap = i - *gap_start;
-    }
-    m["frames_until_first_tracked"] = first ? json(*first) : json(nullptr);
-    if (a.withhold_s > 0) m["frames_until_tracking_after_gap"] = after_gap ? json(*after_gap) : json(nullptr);
-  }
-  std::size_t lost = 0, llc = 0;
-  std::vector<double> feat, match, ransac, fe, kf, llc_ms, glc, pg, bend, nfeat, fe_cpu, be_cpu, lock_wait;
-  for (const auto& r : records) {
-    if (!r.ok) continue;
-    if (r.state == slam::TrackingState::kLost) ++lost;
-    feat.push_back(r.features_ms);
-    match.push_back(r.matching_ms);
-    ransac.push_back(r.ransac_ms);
-    fe.push_back(r.frontend_ms);
-    fe_cpu.push_back(r.frontend_cpu_ms);
-    nfeat.push_back(static_cast<double>(r.features));
-    if (pipeline->is_local_map()) lock_wait.push_back(r.map_lock_wait_ms);
-    if (!r.backend_processed) continue;
-    kf.push_back(r.keyframe_ms);
-    bend.push_back(r.backend_ms);
-    be_cpu.push_back(r.backend_cpu_ms);
-    if (r.llc_applied) { ++llc; llc_ms.push_back(r.llc_ms); }
-    if (po.backend.kind == slam::BackendKind::kGlc) glc.push_back(r.glc_ms);
-    if (r.loop_closed) pg.push_back(r.posegraph_ms);
-  }
-  m["tracking_lost_frames"] = lost;
-  m["llc_corrections"] = llc;
-  double mean_feat = 0;
-  for (double x : nfeat) mean_feat += x;
-  m["mean_features_with_depth"] = nfeat.empty() ? 0.0 : mean_feat / static_cast<double>(nfeat.size());
-  m["stages"] = {{"features", stage_stats(feat)},   {"matching", stage_stats(match)},
-                 {"ransac", stage_stats(ransac)},   {"frontend", stage_stats(fe)},
-                 {"keyframe", stage_stats(kf)},     {"llc", stage_stats(llc_ms)},
-                 {"glc", stage_stats(glc)},         {"posegraph", stage_stats(pg)},
-                 {"backend", stage_stats(bend)},    {"frontend_cpu", stage_stats(fe_cpu)},
-                 {"backend_cpu", stage_stats(be_cpu)}, {"map_lock_wait", stage_stats(lock_wait)}};
-  if (!ds->groundtruth_path().empty()) {
-    auto gt = slam::eval::read_tum_trajectory(ds->groundtruth_path(), &err);
-    if (!gt) {
-      std::cerr << "slam-eval: ground truth unreadable, not scored: " << err << "\n";
-      m["ground_truth"] = nullptr;
-    } else {
-      auto ate = slam::eval::compute_ate(*gt, final_traj, slam::eval::kDefaultMaxDtS, &err);
-      auto rpe = slam::eval::compute_rpe(*gt, final_traj, slam::eval::kDefaultMaxDtS, &err);
-      auto ate_online = slam::eval::compute_ate(*gt, online_traj, slam::eval::kDefaultMaxDtS, &err);
-      if (ate) {
-        m["ate_rmse_m"] = ate->trans_rmse_m;
-        m["ate_mean_m"] = ate->trans_mean_m;
-        m["ate_median_m"] = ate->trans_median_m;
-        m["ate_max_m"] = ate->trans_max_m;
-        m["ate_rot_rmse_deg"] = ate->rot_rmse_deg;
-        m["ate_pairs"] = ate->pairs;
-      }
-      if (ate_online) m["ate_online_rmse_m"] = ate_online->trans_rmse_m;
-      if (rpe) {
-        m["rpe_trans_rmse_mm"] = rpe->trans_rmse_mm;
-        m["rpe_trans_mean_mm"] = rpe->trans_mean_mm;
-        m["rpe_rot_rmse_deg"] = rpe->rot_rmse_deg;
-        m["rpe_rot_mean_deg"] = rpe->rot_mean_deg;
-        m["rpe_pairs"] = rpe->pairs;
-      }
-      if (!ate || !rpe) std::cerr << "slam-eval: scoring incomplete: " << err << "\n";
-    }
-  } else {
+  json m = run_options_json(a, camera, stamp, intr);
+  std::string warning;
+  slam::add_run_metrics(run, ds->groundtruth_path(), &m, &warning);
+  if (!warning.empty()) std::cerr << "slam-eval: " << warning << "\n";
+  if (ds->groundtruth_path().empty()) {
     std::cerr << "slam-eval: no groundtruth.txt in " << a.dataset << ": trajectory not scored\n";
     m["ground_truth"] = nullptr;
   }
@@ -417,8 +278,8 @@ int run_command(const RunArgs& a) {
     std::cerr << "slam-eval: cannot write metrics.json\n";
     return 1;
   }
-  std::cerr << "slam-eval: " << records.size() << " frames, " << summary.keyframes << " keyframes, "
-            << summary.loop_closures << " loop closures, " << wall_s << " s";
+  std::cerr << "slam-eval: " << run.records.size() << " frames, " << run.summary.keyframes << " keyframes, "
+            << run.summary.loop_closures << " loop closures, " << wall_s << " s";
   if (m.contains("ate_rmse_m"))
     std::cerr << ", ATE " << m["ate_rmse_m"].get<double>() << " m, RPE "
               << m.value("rpe_trans_rmse_mm", 0.0) << " mm / " << m.value("rpe_rot_rmse_deg", 0.0) << " deg";

@@ -1,0 +1,64 @@
+// Run tables; see run_tables.hpp. The column layouts are what slam-eval has always written.
+#include "slam/report/run_tables.hpp"
+
+#include <fstream>
+#include <iomanip>
+
+namespace slam {
+
+namespace fs = std::filesystem;
+
+bool write_run_tables(const fs::path& out_dir, const std::vector<FrameRecord>& records,
+                      const std::vector<MapperStats>& mapper_stats,
+                      const std::vector<LoopStats>& loop_stats, const RssSamples& rss_samples,
+                      std::string* error) {
+  std::ofstream frames_csv(out_dir / "frames.csv");
+  frames_csv
+      << "index,stamp_s,state,keyframe,matches,inliers,frontend_ms,frontend_cpu_ms,map_keyframes,"
+         "map_points,keyframe_wanted,ref_tracked,near_tracked,near_untracked,near_redundant,"
+         "map_lock_wait_ms\n";
+  for (const auto& r : records)
+    frames_csv << r.index << "," << std::fixed << std::setprecision(6) << r.stamp_s << ","
+               << to_string(r.state) << "," << (r.keyframe ? 1 : 0) << "," << r.matches << ","
+               << r.inliers << "," << std::setprecision(3) << r.frontend_ms << ","
+               << r.frontend_cpu_ms << "," << r.map_keyframes << "," << r.map_points << ","
+               << to_string(r.keyframe_wanted) << "," << r.ref_tracked << "," << r.near_tracked
+               << "," << r.near_untracked << "," << r.near_redundant << "," << r.map_lock_wait_ms
+               << "\n";
+  std::ofstream mapping_csv(out_dir / "mapping.csv");
+  mapping_csv << "keyframe,mapping_ms,mapping_cpu_ms,ba_ms,ba_points,points_culled,points_fused,"
+                 "keyframes_culled\n";
+  for (const auto& st : mapper_stats)
+    mapping_csv << st.keyframe << "," << std::fixed << std::setprecision(3) << st.total_ms << ","
+                << st.total_cpu_ms << "," << st.ba_ms << "," << st.ba_points << ","
+                << st.points_culled << "," << st.points_fused << "," << st.keyframes_culled << "\n";
+  std::ofstream loops_csv(out_dir / "loops.csv");
+  loops_csv
+      << "keyframe,searched,candidates,verified_ransac,accepted,loop_keyframe,ransac_inliers,"
+         "fit_inliers,correction_m,correction_deg,graph_keyframes,graph_edges,points_merged,"
+         "points_attached,bow_ms,query_ms,verify_ms,posegraph_ms,snapshot_lock_ms,apply_lock_ms,"
+         "fuse_lock_ms,total_ms,total_cpu_ms,consistent,verified_fit,refused_odometry,"
+         "gate_keyframe,gate_path_m,gate_translation_m,gate_rotation_deg,gate_chi2\n";
+  for (const auto& l : loop_stats)
+    loops_csv << l.keyframe << "," << l.searched << "," << l.candidates << "," << l.verified_ransac
+              << "," << l.accepted << "," << l.loop_keyframe << "," << l.ransac_inliers << ","
+              << l.fit_inliers << "," << std::fixed << std::setprecision(4) << l.correction_m << ","
+              << l.correction_deg << "," << l.graph_keyframes << "," << l.graph_edges << ","
+              << l.points_merged << "," << l.points_attached << "," << l.bow_ms << "," << l.query_ms
+              << "," << l.verify_ms << "," << l.posegraph_ms << "," << l.snapshot_lock_ms << ","
+              << l.apply_lock_ms << "," << l.fuse_lock_ms << "," << l.total_ms << ","
+              << l.total_cpu_ms << "," << l.consistent << "," << l.verified_fit << ","
+              << l.refused_odometry << "," << l.gate_keyframe << "," << l.gate_path_m << ","
+              << l.gate_translation_m << "," << l.gate_rotation_deg << "," << l.gate_chi2 << "\n";
+  std::ofstream rss_csv(out_dir / "rss.csv");
+  rss_csv << "stamp_s,rss_mib\n";
+  for (const auto& [t, mib] : rss_samples)
+    rss_csv << std::fixed << std::setprecision(6) << t << "," << mib << "\n";
+  if (!frames_csv || !mapping_csv || !loops_csv || !rss_csv) {
+    if (error) *error = "cannot write the run tables in " + out_dir.string();
+    return false;
+  }
+  return true;
+}
+
+}  // namespace slam
