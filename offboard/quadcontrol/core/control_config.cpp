@@ -21,6 +21,7 @@ std::map<std::string, double*> scalar_fields(ControlConfig& c) {
       {"pose_timeout_ms", &c.pose_timeout_ms},
       {"lost_hold_ms", &c.lost_hold_ms},
       {"max_pose_jump_m", &c.max_pose_jump_m},
+      {"max_map_correction_m", &c.max_map_correction_m},
       {"land_descent_rate_m_per_s", &c.land_descent_rate_m_per_s},
       {"motor_stop_height_m", &c.motor_stop_height_m},
       {"land_ground_settle_ms", &c.land_ground_settle_ms},
@@ -54,7 +55,8 @@ std::string ControlConfig::validate() const {
   }
   for (auto& [name, value] : scalar_fields(copy)) {
     if (name == "apm_stick_deadzone_us" || name == "apm_throttle_deadband_us") continue;  // 0: none
-    if (!std::isfinite(*value) || *value <= 0.0) return "controller." + name + " must be finite and > 0";
+    if (!std::isfinite(*value) || *value <= 0.0)
+      return "controller." + name + " must be finite and > 0";
   }
   if (!(apm_stick_deadzone_us >= 0.0 && apm_stick_deadzone_us <= 100.0)) {
     return "controller.apm_stick_deadzone_us must be in [0, 100]";
@@ -64,15 +66,20 @@ std::string ControlConfig::validate() const {
   }
   if (auto e = estimator.validate(); !e.empty()) return e;
   if (hover_throttle_pct >= 100.0) return "controller.hover_throttle_pct must be < 100";
-  if (motor_stop_height_m >= hold_height_m) return "controller.motor_stop_height_m must be below hold_height_m";
+  if (motor_stop_height_m >= hold_height_m)
+    return "controller.motor_stop_height_m must be below hold_height_m";
   if (hold_height_m > max_height_m) return "controller.hold_height_m must not exceed max_height_m";
   // Sanity bounds on the envelope itself: 120 m is the usual legal ceiling for small drones; 1 km
   // is far beyond the WiFi link's range. Larger values are typos, not envelopes.
   if (max_height_m > 120.0) return "controller.max_height_m must be <= 120";
-  if (max_distance_from_home_m > 1000.0) return "controller.max_distance_from_home_m must be <= 1000";
-  if (max_manual_step_m > max_distance_from_home_m) return "controller.max_manual_step_m must not exceed max_distance_from_home_m";
-  if (2.0 * motor_stop_height_m >= max_height_m) return "controller.max_height_m must exceed 2 x motor_stop_height_m";
-  if (manual_step_m > max_manual_step_m) return "controller.manual_step_m must not exceed max_manual_step_m";
+  if (max_distance_from_home_m > 1000.0)
+    return "controller.max_distance_from_home_m must be <= 1000";
+  if (max_manual_step_m > max_distance_from_home_m)
+    return "controller.max_manual_step_m must not exceed max_distance_from_home_m";
+  if (2.0 * motor_stop_height_m >= max_height_m)
+    return "controller.max_height_m must exceed 2 x motor_stop_height_m";
+  if (manual_step_m > max_manual_step_m)
+    return "controller.manual_step_m must not exceed max_manual_step_m";
   if (manual_yaw_step_deg > max_manual_yaw_step_deg || max_manual_yaw_step_deg > 180.0) {
     return "controller.max_manual_yaw_step_deg must be in [manual_yaw_step_deg, 180]";
   }
@@ -90,15 +97,21 @@ std::string load_control_config(const nlohmann::json& j, ControlConfig& config) 
     } else if (key == "estimator") {
       if (auto e = load_estimator_options(value, config.estimator); !e.empty()) return e;
     } else if (auto pit = pids.find(key); pit != pids.end()) {
-      if (!value.is_object()) return "controller." + key + ": expected an object {kp, ki, kd, output_limit_pct}";
+      if (!value.is_object())
+        return "controller." + key + ": expected an object {kp, ki, kd, output_limit_pct}";
       for (const auto& [gk, gv] : value.items()) {
         if (!gv.is_number()) return "controller." + key + "." + gk + ": expected a number";
         PidGains& g = *pit->second;
-        if (gk == "kp") g.kp = gv.get<double>();
-        else if (gk == "ki") g.ki = gv.get<double>();
-        else if (gk == "kd") g.kd = gv.get<double>();
-        else if (gk == "output_limit_pct") g.output_limit_pct = gv.get<double>();
-        else return "controller." + key + "." + gk + ": unknown key";
+        if (gk == "kp")
+          g.kp = gv.get<double>();
+        else if (gk == "ki")
+          g.ki = gv.get<double>();
+        else if (gk == "kd")
+          g.kd = gv.get<double>();
+        else if (gk == "output_limit_pct")
+          g.output_limit_pct = gv.get<double>();
+        else
+          return "controller." + key + "." + gk + ": unknown key";
       }
     } else {
       return "controller." + key + ": unknown key";
@@ -112,7 +125,10 @@ nlohmann::json to_json(const ControlConfig& config) {
   nlohmann::json j = nlohmann::json::object();
   for (auto& [name, value] : scalar_fields(copy)) j[name] = *value;
   for (auto& [name, pid] : pid_fields(copy)) {
-    j[name] = {{"kp", pid->kp}, {"ki", pid->ki}, {"kd", pid->kd}, {"output_limit_pct", pid->output_limit_pct}};
+    j[name] = {{"kp", pid->kp},
+               {"ki", pid->ki},
+               {"kd", pid->kd},
+               {"output_limit_pct", pid->output_limit_pct}};
   }
   j["estimator"] = to_json(config.estimator);
   return j;

@@ -1,12 +1,12 @@
 // Options of the position controller and flight state machine, with the thesis defaults
 // (Table 3.1 gains, 1.7 m hold height) and the reason for every other value. Loaded from the
-// "controller" object of the quad-control JSON config (offboard/quadcontrol/config/quad-control.json);
-// absent keys keep these defaults. validate() names the first bad field.
+// "controller" object of the quad-control JSON config
+// (offboard/quadcontrol/config/quad-control.json); absent keys keep these defaults. validate()
+// names the first bad field.
 #pragma once
 
-#include <string>
-
 #include <nlohmann/json_fwd.hpp>
+#include <string>
 
 #include "core/estimator_options.hpp"
 #include "core/pid.hpp"
@@ -14,34 +14,40 @@
 namespace rgbdquad::quadcontrol {
 
 struct ControlConfig {
-  // Table 3.1 (error in mm for roll/pitch/throttle, in degrees for yaw; output in percent of stick).
-  // Output limits: +-20 % roll/pitch stick (~9 deg of tilt with ArduCopter's 45 deg ANGLE_MAX)
-  // keeps an indoor craft slow; +-30 % yaw rate stick; +-30 % throttle around hover.
+  // Table 3.1 (error in mm for roll/pitch/throttle, in degrees for yaw; output in percent of
+  // stick). Output limits: +-20 % roll/pitch stick (~9 deg of tilt with ArduCopter's 45 deg
+  // ANGLE_MAX) keeps an indoor craft slow; +-30 % yaw rate stick; +-30 % throttle around hover.
   PidGains roll{0.015, 0.0, 0.01, 20.0};
   PidGains pitch{0.015, 0.0, 0.01, 20.0};
   PidGains yaw{0.06, 0.0, 0.02, 30.0};
   PidGains throttle{0.025, 0.013, 0.02, 30.0};
 
-  double hold_height_m = 1.7;             ///< thesis: hold at 1.7 m with no instruction
-  double hover_throttle_pct = 50.0;       ///< feed-forward; the throttle integrator absorbs the rest
-  double takeoff_climb_rate_m_per_s = 0.5;  ///< setpoint ramp: slow enough for a 30 Hz pose loop
-  double takeoff_reached_tolerance_m = 0.1;  ///< within 10 cm of hold height -> hold
+  double hold_height_m = 1.7;        ///< thesis: hold at 1.7 m with no instruction
+  double hover_throttle_pct = 50.0;  ///< feed-forward; the throttle integrator absorbs the rest
+  double takeoff_climb_rate_m_per_s = 0.5;    ///< setpoint ramp: slow enough for a 30 Hz pose loop
+  double takeoff_reached_tolerance_m = 0.1;   ///< within 10 cm of hold height -> hold
   double face_waypoint_tolerance_deg = 10.0;  ///< heading error below which the craft starts moving
-  double waypoint_reached_m = 0.15;       ///< ~ the SLAM drift over a short flight; then hold there
-  double turn_skip_distance_m = 0.3;      ///< closer goals are reached without turning
-  double pose_timeout_ms = 300.0;         ///< 9 frames at 30 Hz without a tracked pose = lost
-  double lost_hold_ms = 2000.0;           ///< neutral hover this long waiting for tracking, then land
+  double waypoint_reached_m = 0.15;   ///< ~ the SLAM drift over a short flight; then hold there
+  double turn_skip_distance_m = 0.3;  ///< closer goals are reached without turning
+  double pose_timeout_ms = 300.0;     ///< 9 frames at 30 Hz without a tracked pose = lost
+  double lost_hold_ms = 2000.0;       ///< neutral hover this long waiting for tracking, then land
   /// A pose estimate further than this from the last accepted one is rejected as a SLAM failure.
   /// Motion between two estimates is a few cm (1 m/s at 30 fps: 3 cm); measured in the HIL rig: a
   /// false loop closure jumped the estimate 1.5 m down to the take-off height and the height loop
   /// climbed at full throttle to 16 m. 0.5 m also passes a lost-hold's blind drift (~0.2 m in 2 s).
   double max_pose_jump_m = 0.5;
+  /// A declared map correction (PoseSample::map_correction_count changed: SLAM corrected its
+  /// trajectory, e.g. a loop closure) is accepted up to this size instead of max_pose_jump_m. The
+  /// loop-off 10-minute HIL flight drifted to a 0.37 m waypoint error (docs/hil.md); 1.5 m is 4x
+  /// that and still half the HIL room's 3 m: a larger "correction" is an aliased place, refused.
+  double max_map_correction_m = 1.5;
   /// Tracked landing: the height setpoint sinks this fast (ArduCopter's LAND_SPEED is 0.5 m/s;
   /// 0.3 m/s leaves margin for ~80 ms of camera-to-motor latency at touchdown).
   double land_descent_rate_m_per_s = 0.3;
-  double motor_stop_height_m = 0.15;      ///< camera height at which the motors are stopped
-  double land_ground_settle_ms = 500.0;   ///< ... once the estimate has stayed there this long
-  double land_floor_hold_ms = 3000.0;     ///< tracked landing: stop this long after the setpoint reached the floor
+  double motor_stop_height_m = 0.15;     ///< camera height at which the motors are stopped
+  double land_ground_settle_ms = 500.0;  ///< ... once the estimate has stayed there this long
+  double land_floor_hold_ms =
+      3000.0;  ///< tracked landing: stop this long after the setpoint reached the floor
   /// Blind landing (no pose): commands stop, the firmware's failsafe (250 ms) hands over to the
   /// APM's LAND at 0.5 m/s, which disarms ~1 s after touchdown: from 1.7 m ~5 s (measured 4.9 s
   /// in the HIL rig); 8 s leaves margin for 3 m. Then quad-control sends arm=0 (clears the latch).
@@ -54,8 +60,8 @@ struct ControlConfig {
   // start (map.size_m), rooms are below 3 m; one manual key press is manual_step_m (0.1 m) /
   // manual_yaw_step_deg (10 deg), so a larger single step is not a key press and is refused.
   double max_distance_from_home_m = 5.0;  ///< horizontal radius around the take-off point
-  double max_height_m = 3.0;              ///< height ceiling of every setpoint (hold_height_m below it)
-  double max_manual_step_m = 1.0;         ///< one manual step per axis, at most (10 key presses)
+  double max_height_m = 3.0;       ///< height ceiling of every setpoint (hold_height_m below it)
+  double max_manual_step_m = 1.0;  ///< one manual step per axis, at most (10 key presses)
   double max_manual_yaw_step_deg = 90.0;  ///< one manual turn, at most
   /// ArduCopter arms on throttle low + yaw full right held for 2 s, disarms on yaw full left for
   /// 2 s (docs/firmware.md); arming +1 s margin for pre-arm checks and the PWM frame delay;

@@ -15,7 +15,8 @@ constexpr double kUsPerMs = 1000.0;
 constexpr double kUsPerS = 1e6;
 
 bool finite_pose(const CraftPose& p) {
-  return std::isfinite(p.x_m) && std::isfinite(p.y_m) && std::isfinite(p.z_m) && std::isfinite(p.yaw_deg);
+  return std::isfinite(p.x_m) && std::isfinite(p.y_m) && std::isfinite(p.z_m) &&
+         std::isfinite(p.yaw_deg);
 }
 
 bool flying(FlightState s) {
@@ -26,23 +27,34 @@ bool flying(FlightState s) {
 
 const char* to_string(FlightState state) {
   switch (state) {
-    case FlightState::kDisarmed: return "disarmed";
-    case FlightState::kArmed: return "armed";
-    case FlightState::kTakeOff: return "take-off";
-    case FlightState::kHold: return "hold";
-    case FlightState::kGoToWaypoint: return "go-to-waypoint";
-    case FlightState::kLostHold: return "lost-hold";
-    case FlightState::kLand: return "land";
+    case FlightState::kDisarmed:
+      return "disarmed";
+    case FlightState::kArmed:
+      return "armed";
+    case FlightState::kTakeOff:
+      return "take-off";
+    case FlightState::kHold:
+      return "hold";
+    case FlightState::kGoToWaypoint:
+      return "go-to-waypoint";
+    case FlightState::kLostHold:
+      return "lost-hold";
+    case FlightState::kLand:
+      return "land";
   }
   return "?";
 }
 
 const char* to_string(OperatorCommand command) {
   switch (command) {
-    case OperatorCommand::kArm: return "arm";
-    case OperatorCommand::kDisarm: return "disarm";
-    case OperatorCommand::kTakeOff: return "takeoff";
-    case OperatorCommand::kLand: return "land";
+    case OperatorCommand::kArm:
+      return "arm";
+    case OperatorCommand::kDisarm:
+      return "disarm";
+    case OperatorCommand::kTakeOff:
+      return "takeoff";
+    case OperatorCommand::kLand:
+      return "land";
   }
   return "?";
 }
@@ -58,7 +70,12 @@ static EnvelopeLimits envelope_limits(const ControlConfig& c) {
 }
 
 FlightController::FlightController(ControlConfig config)
-    : config_(config), envelope_(envelope_limits(config)), roll_(config.roll), pitch_(config.pitch), yaw_(config.yaw), throttle_(config.throttle) {
+    : config_(config),
+      envelope_(envelope_limits(config)),
+      roll_(config.roll),
+      pitch_(config.pitch),
+      yaw_(config.yaw),
+      throttle_(config.throttle) {
   const std::string error = config_.validate();
   if (!error.empty()) throw std::invalid_argument(error);
   status_.last_event = "start-up";
@@ -138,7 +155,8 @@ std::string FlightController::command(std::int64_t now_us, OperatorCommand cmd) 
       envelope_.set_home(p.x_m, p.y_m);
       status_.setpoint.yaw_deg = p.yaw_deg;
       // The ramp starts where the craft is, kept inside [min, max] height of the envelope.
-      if (!set_setpoint_position(p.x_m, p.y_m, p.z_m, SetpointKind::kTakeOff)) return "takeoff: non-finite pose";
+      if (!set_setpoint_position(p.x_m, p.y_m, p.z_m, SetpointKind::kTakeOff))
+        return "takeoff: non-finite pose";
       takeoff_start_height_m_ = status_.setpoint.z_m;
       enter(FlightState::kTakeOff, now_us, "operator take-off");
       return {};
@@ -160,7 +178,8 @@ std::string FlightController::set_waypoint(std::int64_t now_us, double x_m, doub
   if (!has_fresh_pose(now_us)) return "waypoint: no tracked pose";
   const CraftPose& p = pose_->pose;
   const double distance_m = std::hypot(x_m - p.x_m, y_m - p.y_m);
-  if (distance_m > config_.max_waypoint_distance_m) return "waypoint: further than max_waypoint_distance_m";
+  if (distance_m > config_.max_waypoint_distance_m)
+    return "waypoint: further than max_waypoint_distance_m";
   if (std::string why = envelope_.check_waypoint(x_m, y_m); !why.empty()) return why;
   status_.waypoint = Waypoint{x_m, y_m};
   if (distance_m < config_.turn_skip_distance_m) {
@@ -185,32 +204,37 @@ std::string FlightController::nudge(std::int64_t, double forward_m, double left_
     if (!std::isfinite(v)) return "manual: non-finite step";
   }
   for (double v : {forward_m, left_m, up_m}) {
-    if (std::abs(v) > config_.max_manual_step_m) return "manual: step larger than max_manual_step_m";
+    if (std::abs(v) > config_.max_manual_step_m)
+      return "manual: step larger than max_manual_step_m";
   }
-  if (std::abs(yaw_ccw_deg) > config_.max_manual_yaw_step_deg) return "manual: turn larger than max_manual_yaw_step_deg";
+  if (std::abs(yaw_ccw_deg) > config_.max_manual_yaw_step_deg)
+    return "manual: turn larger than max_manual_yaw_step_deg";
   const FlightState s = status_.state;
-  if (s != FlightState::kHold && s != FlightState::kGoToWaypoint) return "manual: only in hold or go-to";
+  if (s != FlightState::kHold && s != FlightState::kGoToWaypoint)
+    return "manual: only in hold or go-to";
   const double c = std::cos(status_.setpoint.yaw_deg / kDegPerRad);
   const double sn = std::sin(status_.setpoint.yaw_deg / kDegPerRad);
   bool clamped = false;
   if (!set_setpoint_position(status_.setpoint.x_m + c * forward_m - sn * left_m,
-                             status_.setpoint.y_m + sn * forward_m + c * left_m, status_.setpoint.z_m + up_m,
-                             SetpointKind::kHold, &clamped)) {
+                             status_.setpoint.y_m + sn * forward_m + c * left_m,
+                             status_.setpoint.z_m + up_m, SetpointKind::kHold, &clamped)) {
     return "manual: step leads to a non-finite setpoint";
   }
   status_.setpoint.yaw_deg = wrap_deg(status_.setpoint.yaw_deg + yaw_ccw_deg);
   status_.state = FlightState::kHold;
   status_.waypoint.reset();
   status_.facing_waypoint = false;
-  status_.last_event = clamped ? "hold: manual step, clamped to the flight envelope" : "hold: manual step";
+  status_.last_event =
+      clamped ? "hold: manual step, clamped to the flight envelope" : "hold: manual step";
   return {};
 }
 
-void FlightController::on_pose(const PoseSample& sample, std::optional<Velocity3> velocity_m_per_s) {
+void FlightController::on_pose(const PoseSample& sample,
+                               std::optional<Velocity3> velocity_m_per_s) {
   PoseSample s = sample;
   if (!finite_pose(s.pose)) s.tracking = false;
-  if (velocity_m_per_s &&
-      !std::all_of(velocity_m_per_s->begin(), velocity_m_per_s->end(), [](double v) { return std::isfinite(v); })) {
+  if (velocity_m_per_s && !std::all_of(velocity_m_per_s->begin(), velocity_m_per_s->end(),
+                                       [](double v) { return std::isfinite(v); })) {
     velocity_m_per_s.reset();  // the derivative falls back to differencing poses
   }
   pose_velocity_ = velocity_m_per_s;
@@ -223,13 +247,32 @@ void FlightController::on_pose(const PoseSample& sample, std::optional<Velocity3
     const double jump_m = std::sqrt((s.pose.x_m - a.x_m) * (s.pose.x_m - a.x_m) +
                                     (s.pose.y_m - a.y_m) * (s.pose.y_m - a.y_m) +
                                     (s.pose.z_m - a.z_m) * (s.pose.z_m - a.z_m));
-    if (jump_m > config_.max_pose_jump_m) {
+    // A declared correction (the counter changed, PX4 EKF2's reset counter) is consumed once: the
+    // jump is the map moving under the craft, not motion. Setpoints stay in the world frame, so the
+    // craft flies to the corrected place under its usual output limits.
+    const bool declared = map_correction_count_ && s.map_correction_count != *map_correction_count_;
+    if (declared && jump_m <= config_.max_map_correction_m) {
+      ++status_.map_resets;
+      // No derivative across the jump (it would kick); the integrators keep the hover offset.
+      for (Pid* pid : {&roll_, &pitch_, &yaw_, &throttle_}) pid->restart();
+      status_.last_event = std::string(to_string(status_.state)) + ": map correction " +
+                           std::to_string(s.map_correction_count) + " declared, re-anchored " +
+                           std::to_string(jump_m).substr(0, 4) + " m";
+    } else if (declared) {
+      s.tracking = false;
+      ++status_.rejected_poses;
+      ++status_.refused_map_corrections;
+      status_.last_event =
+          std::string(to_string(status_.state)) + ": declared map correction refused, " +
+          std::to_string(jump_m).substr(0, 4) + " m > max_map_correction_m (aliased place?)";
+    } else if (jump_m > config_.max_pose_jump_m) {
       s.tracking = false;
       ++status_.rejected_poses;
       status_.last_event = std::string(to_string(status_.state)) + ": pose rejected, jumped " +
                            std::to_string(jump_m).substr(0, 4) + " m (SLAM failure?)";
     }
   }
+  if (sample.tracking && finite_pose(sample.pose)) map_correction_count_ = s.map_correction_count;
   if (s.tracking) last_accepted_pose_ = s.pose;
   pose_ = s;
 }
@@ -244,17 +287,20 @@ double FlightController::unwrap_yaw(double yaw_deg) {
   return *unwrapped_yaw_deg_;
 }
 
-StickCommand FlightController::position_control(const PoseSample& sample, double height_setpoint_m) {
-  // The PIDs run once per pose estimate, stamped with its arrival time. update() runs at the command
-  // rate (50 Hz) but estimates come at the camera's rate (6-30 Hz): re-running the PIDs on an
-  // unchanged measurement would turn the derivative into one spike per frame and zeros in between
-  // (and a spike clipped by the output limit loses damping), and would integrate a stale error.
+StickCommand FlightController::position_control(const PoseSample& sample,
+                                                double height_setpoint_m) {
+  // The PIDs run once per pose estimate, stamped with its arrival time. update() runs at the
+  // command rate (50 Hz) but estimates come at the camera's rate (6-30 Hz): re-running the PIDs on
+  // an unchanged measurement would turn the derivative into one spike per frame and zeros in
+  // between (and a spike clipped by the output limit loses damping), and would integrate a stale
+  // error.
   if (pid_pose_us_ && *pid_pose_us_ == sample.received_us) return pid_cmd_;
   const std::int64_t now_us = sample.received_us;
   const CraftPose& pose = sample.pose;
   StickCommand cmd;
   cmd.armed = true;
-  const BodyError e = world_to_body(status_.setpoint.x_m - pose.x_m, status_.setpoint.y_m - pose.y_m, pose.yaw_deg);
+  const BodyError e =
+      world_to_body(status_.setpoint.x_m - pose.x_m, status_.setpoint.y_m - pose.y_m, pose.yaw_deg);
   // Body-frame PIDs: measurement = craft position relative to the setpoint, in mm. With an
   // estimated velocity its body-frame components are the measurements' rates (mm/s).
   std::optional<double> forward_rate, left_rate, up_rate;
@@ -264,14 +310,18 @@ StickCommand FlightController::position_control(const PoseSample& sample, double
     left_rate = vb.left_m * kMmPerM;
     up_rate = (*v)[2] * kMmPerM;
   }
-  if (auto out = pitch_.update(now_us, 0.0, -e.forward_m * kMmPerM, forward_rate)) cmd.pitch_pct = *out;
-  if (auto out = roll_.update(now_us, 0.0, -e.left_m * kMmPerM, left_rate)) cmd.roll_pct = -*out;  // left error -> roll left
+  if (auto out = pitch_.update(now_us, 0.0, -e.forward_m * kMmPerM, forward_rate))
+    cmd.pitch_pct = *out;
+  if (auto out = roll_.update(now_us, 0.0, -e.left_m * kMmPerM, left_rate))
+    cmd.roll_pct = -*out;  // left error -> roll left
   // Yaw on a continuous (unwrapped) angle so the derivative never sees a 360 deg jump.
   const double yaw_cont = unwrap_yaw(pose.yaw_deg);
   const double yaw_target = yaw_cont + wrap_deg(status_.setpoint.yaw_deg - pose.yaw_deg);
-  if (auto out = yaw_.update(now_us, yaw_target, yaw_cont)) cmd.yaw_pct = -*out;  // ccw error -> stick left
+  if (auto out = yaw_.update(now_us, yaw_target, yaw_cont))
+    cmd.yaw_pct = -*out;  // ccw error -> stick left
   double throttle_out = 0.0;
-  if (auto out = throttle_.update(now_us, height_setpoint_m * kMmPerM, pose.z_m * kMmPerM, up_rate)) throttle_out = *out;
+  if (auto out = throttle_.update(now_us, height_setpoint_m * kMmPerM, pose.z_m * kMmPerM, up_rate))
+    throttle_out = *out;
   cmd.throttle_pct = std::clamp(config_.hover_throttle_pct + throttle_out, 0.0, 100.0);
   pid_pose_us_ = sample.received_us;
   pid_cmd_ = cmd;
@@ -283,7 +333,8 @@ StickCommand FlightController::update(std::int64_t now_us) {
   status_.tracking = fresh;
   FlightState s = status_.state;
 
-  if ((s == FlightState::kTakeOff || s == FlightState::kHold || s == FlightState::kGoToWaypoint) && !fresh) {
+  if ((s == FlightState::kTakeOff || s == FlightState::kHold || s == FlightState::kGoToWaypoint) &&
+      !fresh) {
     interrupted_takeoff_ = s == FlightState::kTakeOff;
     interrupted_waypoint_ = s == FlightState::kGoToWaypoint ? status_.waypoint : std::nullopt;
     enter(FlightState::kLostHold, now_us, "tracking lost, holding neutral");
@@ -328,21 +379,25 @@ StickCommand FlightController::update(std::int64_t now_us) {
       break;
     case FlightState::kArmed:
       cmd.armed = true;
-      if (in_state_ms < config_.arm_gesture_ms) cmd.yaw_pct = 100.0;  // arming gesture: yaw full right
+      if (in_state_ms < config_.arm_gesture_ms)
+        cmd.yaw_pct = 100.0;  // arming gesture: yaw full right
       break;
     case FlightState::kLostHold:
       cmd.armed = true;
-      // Hover as learned so far: the feed-forward plus the throttle integrator (battery sag, weight).
+      // Hover as learned so far: the feed-forward plus the throttle integrator (battery sag,
+      // weight).
       cmd.throttle_pct = std::clamp(config_.hover_throttle_pct + throttle_.integral(), 0.0, 100.0);
       break;
     case FlightState::kTakeOff: {
       const double elapsed_s = static_cast<double>(now_us - state_entered_us_) / kUsPerS;
-      const double ramp_m = takeoff_start_height_m_ + config_.takeoff_climb_rate_m_per_s * elapsed_s;
-      set_setpoint_position(status_.setpoint.x_m, status_.setpoint.y_m, std::min(ramp_m, config_.hold_height_m),
-                            SetpointKind::kTakeOff);
+      const double ramp_m =
+          takeoff_start_height_m_ + config_.takeoff_climb_rate_m_per_s * elapsed_s;
+      set_setpoint_position(status_.setpoint.x_m, status_.setpoint.y_m,
+                            std::min(ramp_m, config_.hold_height_m), SetpointKind::kTakeOff);
       cmd = position_control(*pose_, status_.setpoint.z_m);
       if (status_.setpoint.z_m >= config_.hold_height_m &&
-          std::abs(pose_->pose.z_m - config_.hold_height_m) <= config_.takeoff_reached_tolerance_m) {
+          std::abs(pose_->pose.z_m - config_.hold_height_m) <=
+              config_.takeoff_reached_tolerance_m) {
         enter(FlightState::kHold, now_us, "reached hold height");
       }
       break;
@@ -353,13 +408,14 @@ StickCommand FlightController::update(std::int64_t now_us) {
     case FlightState::kGoToWaypoint: {
       const CraftPose& p = pose_->pose;
       const Waypoint w = *status_.waypoint;
-      if (!status_.facing_waypoint &&
-          std::abs(wrap_deg(status_.setpoint.yaw_deg - p.yaw_deg)) <= config_.face_waypoint_tolerance_deg) {
+      if (!status_.facing_waypoint && std::abs(wrap_deg(status_.setpoint.yaw_deg - p.yaw_deg)) <=
+                                          config_.face_waypoint_tolerance_deg) {
         status_.facing_waypoint = true;  // turned: now move, heading stays fixed
         set_setpoint_position(w.x_m, w.y_m, status_.setpoint.z_m, SetpointKind::kHold);
       }
       cmd = position_control(*pose_, status_.setpoint.z_m);
-      if (status_.facing_waypoint && std::hypot(w.x_m - p.x_m, w.y_m - p.y_m) <= config_.waypoint_reached_m) {
+      if (status_.facing_waypoint &&
+          std::hypot(w.x_m - p.x_m, w.y_m - p.y_m) <= config_.waypoint_reached_m) {
         enter(FlightState::kHold, now_us, "waypoint reached");
       }
       break;
@@ -372,7 +428,8 @@ StickCommand FlightController::update(std::int64_t now_us) {
         // i.e. Stabilize: measured 1.8 m/s touchdowns in the HIL rig.) Below the ground the PID
         // keeps pushing down, so the craft stays put until the motors stop.
         const double elapsed_s = static_cast<double>(now_us - state_entered_us_) / kUsPerS;
-        status_.setpoint.z_m = std::max(0.0, land_start_height_m_ - config_.land_descent_rate_m_per_s * elapsed_s);
+        status_.setpoint.z_m =
+            std::max(0.0, land_start_height_m_ - config_.land_descent_rate_m_per_s * elapsed_s);
         cmd = position_control(*pose_, status_.setpoint.z_m);
         cmd.armed = true;
         if (status_.setpoint.z_m <= config_.motor_stop_height_m && !land_floor_reached_us_) {
@@ -394,13 +451,15 @@ StickCommand FlightController::update(std::int64_t now_us) {
       // motors the moment an estimate first reads that low drops the craft the rest of the way
       // whenever the estimate is a few cm low (measured: 0.82 m/s touchdowns in the HIL rig).
       const bool low = fresh && !handed_over_us_ && pose_->pose.z_m <= config_.motor_stop_height_m;
-      if (!low) low_since_us_.reset();
-      else if (!low_since_us_) low_since_us_ = now_us;
-      const bool near_ground =
-          low && static_cast<double>(now_us - *low_since_us_) >= config_.land_ground_settle_ms * kUsPerMs;
+      if (!low)
+        low_since_us_.reset();
+      else if (!low_since_us_)
+        low_since_us_ = now_us;
+      const bool near_ground = low && static_cast<double>(now_us - *low_since_us_) >=
+                                          config_.land_ground_settle_ms * kUsPerMs;
       const bool floor_long_enough =
-          land_floor_reached_us_ &&
-          static_cast<double>(now_us - *land_floor_reached_us_) >= config_.land_floor_hold_ms * kUsPerMs;
+          land_floor_reached_us_ && static_cast<double>(now_us - *land_floor_reached_us_) >=
+                                        config_.land_floor_hold_ms * kUsPerMs;
       const bool failsafe_landed =
           handed_over_us_ &&
           static_cast<double>(now_us - *handed_over_us_) >= config_.failsafe_landing_ms * kUsPerMs;
@@ -410,7 +469,8 @@ StickCommand FlightController::update(std::int64_t now_us) {
         disarm_gesture_pending_ = false;
         cmd = StickCommand{};
       } else if (near_ground || floor_long_enough) {
-        enter(FlightState::kDisarmed, now_us, near_ground ? "landed, motors stopped" : "landed at the floor, motors stopped");
+        enter(FlightState::kDisarmed, now_us,
+              near_ground ? "landed, motors stopped" : "landed at the floor, motors stopped");
         cmd = StickCommand{};
         cmd.armed = true;  // disarm gesture starts now (see kDisarmed)
         cmd.yaw_pct = -100.0;

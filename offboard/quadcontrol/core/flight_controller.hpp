@@ -22,9 +22,9 @@
 // (right stick); throttle_pct is absolute, 0..100. Conversion to the firmware's PWM units is
 // stick_mapping.hpp's job.
 //
-// Flight envelope: every setpoint this class writes goes through FlightEnvelope (non-finite refused,
-// distance from home and height clamped, waypoints outside refused); home is set at take-off.
-// Manual steps larger than max_manual_step_m / max_manual_yaw_step_deg are refused.
+// Flight envelope: every setpoint this class writes goes through FlightEnvelope (non-finite
+// refused, distance from home and height clamped, waypoints outside refused); home is set at
+// take-off. Manual steps larger than max_manual_step_m / max_manual_yaw_step_deg are refused.
 //
 // Time is passed in (monotonic microseconds, same clock for poses and update()). Not thread-safe:
 // the app owns one instance behind a mutex.
@@ -60,6 +60,9 @@ struct PoseSample {
   std::int64_t received_us = 0;  ///< controller clock when the estimate arrived
   bool tracking = false;         ///< false: SLAM lost track, `pose` is meaningless
   CraftPose pose;
+  /// SLAM's map-correction counter (PoseUpdate.map_correction_count): a change declares that a
+  /// jump since the previous sample is a correction of the world-frame estimate, not motion.
+  std::uint32_t map_correction_count = 0;
 };
 
 /// Floor-frame velocity (x, y, z), m/s.
@@ -86,10 +89,13 @@ struct ControllerStatus {
   FlightState state = FlightState::kDisarmed;
   bool facing_waypoint = false;  ///< go-to: false while turning, true while moving
   std::optional<Waypoint> waypoint;
-  CraftPose setpoint;            ///< target x, y, z (z = height setpoint) and yaw
+  CraftPose setpoint;  ///< target x, y, z (z = height setpoint) and yaw
   bool tracking = false;
-  std::string last_event;        ///< human-readable reason of the last transition
-  std::uint64_t rejected_poses = 0;  ///< estimates that jumped beyond max_pose_jump_m (SLAM failures)
+  std::string last_event;  ///< human-readable reason of the last transition
+  std::uint64_t rejected_poses =
+      0;                         ///< estimates that jumped beyond max_pose_jump_m (SLAM failures)
+  std::uint64_t map_resets = 0;  ///< declared map corrections accepted (re-anchored)
+  std::uint64_t refused_map_corrections = 0;  ///< declared corrections beyond max_map_correction_m
 };
 
 class FlightController {
@@ -105,7 +111,8 @@ class FlightController {
   /// Manual keys: move the setpoint by the given steps (forward/left in the body frame). Steps must
   /// be finite and within max_manual_step_m / max_manual_yaw_step_deg; the moved setpoint is
   /// clamped into the envelope (last_event says so).
-  std::string nudge(std::int64_t now_us, double forward_m, double left_m, double up_m, double yaw_ccw_deg);
+  std::string nudge(std::int64_t now_us, double forward_m, double left_m, double up_m,
+                    double yaw_ccw_deg);
 
   /// Newest pose estimate. Non-finite poses count as tracking lost. `velocity_m_per_s`: when an
   /// estimator provides one (core/pose_estimator.hpp), the roll/pitch/throttle derivative terms
@@ -128,7 +135,8 @@ class FlightController {
   double unwrap_yaw(double yaw_deg);
   /// Writes the setpoint's position through the envelope; false (setpoint unchanged) when refused.
   /// `clamped` (optional) tells whether it was moved in.
-  bool set_setpoint_position(double x_m, double y_m, double z_m, SetpointKind kind, bool* clamped = nullptr);
+  bool set_setpoint_position(double x_m, double y_m, double z_m, SetpointKind kind,
+                             bool* clamped = nullptr);
 
   ControlConfig config_;
   FlightEnvelope envelope_;
@@ -138,8 +146,9 @@ class FlightController {
   Pid throttle_;
   ControllerStatus status_;
   std::optional<PoseSample> pose_;
-  std::optional<Velocity3> pose_velocity_;  ///< with pose_, when the estimator gave one
-  std::optional<CraftPose> last_accepted_pose_;  ///< the jump gate's reference
+  std::optional<Velocity3> pose_velocity_;             ///< with pose_, when the estimator gave one
+  std::optional<CraftPose> last_accepted_pose_;        ///< the jump gate's reference
+  std::optional<std::uint32_t> map_correction_count_;  ///< the newest tracked sample's counter
   std::int64_t state_entered_us_ = 0;
   double takeoff_start_height_m_ = 0.0;
   double land_start_height_m_ = 0.0;  ///< tracked landing: the height the setpoint sinks from
@@ -152,8 +161,8 @@ class FlightController {
   bool disarm_gesture_pending_ = false;
   bool interrupted_takeoff_ = false;  ///< lost-hold was entered from take-off: resume it
   std::optional<Waypoint> interrupted_waypoint_;  ///< lost-hold was entered from go-to: resume it
-  std::optional<std::int64_t> pid_pose_us_;  ///< received_us of the pose the PIDs last ran on
-  StickCommand pid_cmd_;                     ///< their output, held until the next pose
+  std::optional<std::int64_t> pid_pose_us_;       ///< received_us of the pose the PIDs last ran on
+  StickCommand pid_cmd_;                          ///< their output, held until the next pose
 };
 
 }  // namespace rgbdquad::quadcontrol

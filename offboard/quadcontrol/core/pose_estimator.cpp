@@ -126,6 +126,25 @@ void PoseEstimator::reset() {
   yaw_offset_rad_.reset();
 }
 
+bool PoseEstimator::shift_frame(const Eigen::Vector3d& delta_m) {
+  if (history_.empty() || !delta_m.allFinite()) return false;
+  for (Event& e : history_) {
+    for (int k = 0; k < 3; ++k) e.posterior[k].x(0) += delta_m(k);
+    if (e.pose) {
+      e.pose->x_m += delta_m(0);
+      e.pose->y_m += delta_m(1);
+      e.pose->z_m += delta_m(2);
+    }
+  }
+  if (newest_pose_) {
+    newest_pose_->x_m += delta_m(0);
+    newest_pose_->y_m += delta_m(1);
+    newest_pose_->z_m += delta_m(2);
+  }
+  ++stats_.frame_shifts;
+  return true;
+}
+
 Eigen::Vector3d PoseEstimator::floor_accel(const LevelInput& in) const {
   // Level frame (forward, left, up) -> floor frame by the craft's heading in the floor frame:
   // SLAM yaw (ccw) = offset - APM yaw (cw).

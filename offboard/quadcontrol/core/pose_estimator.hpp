@@ -97,7 +97,8 @@ struct EstimatorStats {
   std::uint64_t imu_samples = 0,
                 imu_dropped = 0;  ///< dropped: duplicate, out of order or non-finite
   std::uint64_t poses_fused = 0, poses_out_of_order = 0, poses_rejected = 0, poses_too_old = 0;
-  std::uint64_t resets = 0;  ///< re-initialised on a pose after the estimate had expired
+  std::uint64_t resets = 0;        ///< re-initialised on a pose after the estimate had expired
+  std::uint64_t frame_shifts = 0;  ///< declared map corrections applied (shift_frame)
 };
 
 class PoseEstimator {
@@ -115,6 +116,12 @@ class PoseEstimator {
   StateEstimate estimate(std::int64_t now_us) const;
   /// Forget everything (e.g. a new SLAM world frame).
   void reset();
+  /// A declared map correction (SLAM moved its estimate of the trajectory by `delta`, e.g. a loop
+  /// correction; PX4 EKF2's local-position reset): every position in the history (posteriors and
+  /// the pose measurements replays fuse) is shifted by `delta`, velocity, bias and covariances are
+  /// kept, so the next pose in the corrected frame passes the innovation gate. False (nothing
+  /// changed) before the first pose or with a non-finite delta.
+  bool shift_frame(const Eigen::Vector3d& delta_m);
 
   const EstimatorStats& stats() const { return stats_; }
   const EstimatorOptions& options() const { return options_; }

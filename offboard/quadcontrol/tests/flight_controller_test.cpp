@@ -1,10 +1,10 @@
 // Flight state machine and position control: table-driven GIVEN/WHEN/THEN tests, time passed in.
+#include "core/flight_controller.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
-
-#include "core/flight_controller.hpp"
 
 namespace rgbdquad::quadcontrol {
 namespace {
@@ -25,7 +25,8 @@ class Flight : public ::testing::Test {
   }
   void arm_and_wait_gesture(bool tracking = true) {
     ASSERT_EQ(fc.command(now_us, OperatorCommand::kArm), "");
-    const std::int64_t until = now_us + static_cast<std::int64_t>(fc.config().arm_gesture_ms) * kMsUs;
+    const std::int64_t until =
+        now_us + static_cast<std::int64_t>(fc.config().arm_gesture_ms) * kMsUs;
     while (now_us < until) step(tracking);
   }
   void to_hold() {
@@ -50,17 +51,26 @@ TEST_F(Flight, CommandTransitionTable) {
     FlightState to;
   };
   const Row table[] = {
-      {"arm from disarmed", FlightState::kDisarmed, OperatorCommand::kArm, true, FlightState::kArmed},
-      {"takeoff needs armed", FlightState::kDisarmed, OperatorCommand::kTakeOff, false, FlightState::kDisarmed},
-      {"land when not flying", FlightState::kDisarmed, OperatorCommand::kLand, false, FlightState::kDisarmed},
-      {"disarm when disarmed", FlightState::kDisarmed, OperatorCommand::kDisarm, false, FlightState::kDisarmed},
-      {"disarm from armed", FlightState::kArmed, OperatorCommand::kDisarm, true, FlightState::kDisarmed},
+      {"arm from disarmed", FlightState::kDisarmed, OperatorCommand::kArm, true,
+       FlightState::kArmed},
+      {"takeoff needs armed", FlightState::kDisarmed, OperatorCommand::kTakeOff, false,
+       FlightState::kDisarmed},
+      {"land when not flying", FlightState::kDisarmed, OperatorCommand::kLand, false,
+       FlightState::kDisarmed},
+      {"disarm when disarmed", FlightState::kDisarmed, OperatorCommand::kDisarm, false,
+       FlightState::kDisarmed},
+      {"disarm from armed", FlightState::kArmed, OperatorCommand::kDisarm, true,
+       FlightState::kDisarmed},
       {"arm twice", FlightState::kArmed, OperatorCommand::kArm, false, FlightState::kArmed},
-      {"takeoff from armed", FlightState::kArmed, OperatorCommand::kTakeOff, true, FlightState::kTakeOff},
-      {"disarm refused in flight", FlightState::kHold, OperatorCommand::kDisarm, false, FlightState::kHold},
-      {"takeoff in flight", FlightState::kHold, OperatorCommand::kTakeOff, false, FlightState::kHold},
+      {"takeoff from armed", FlightState::kArmed, OperatorCommand::kTakeOff, true,
+       FlightState::kTakeOff},
+      {"disarm refused in flight", FlightState::kHold, OperatorCommand::kDisarm, false,
+       FlightState::kHold},
+      {"takeoff in flight", FlightState::kHold, OperatorCommand::kTakeOff, false,
+       FlightState::kHold},
       {"land from hold", FlightState::kHold, OperatorCommand::kLand, true, FlightState::kLand},
-      {"land from take-off", FlightState::kTakeOff, OperatorCommand::kLand, true, FlightState::kLand},
+      {"land from take-off", FlightState::kTakeOff, OperatorCommand::kLand, true,
+       FlightState::kLand},
   };
   for (const auto& row : table) {
     SCOPED_TRACE(row.name);
@@ -147,7 +157,8 @@ TEST_F(Flight, TakeoffRampsToHoldHeight) {
   step();
   arm_and_wait_gesture();
   ASSERT_EQ(fc.command(now_us, OperatorCommand::kTakeOff), "");
-  // GIVEN the craft does not climb yet WHEN 1 s passes THEN the setpoint rose 0.5 m and throttle > hover
+  // GIVEN the craft does not climb yet WHEN 1 s passes THEN the setpoint rose 0.5 m and throttle >
+  // hover
   StickCommand s;
   for (int i = 0; i < 50; ++i) s = step();
   EXPECT_NEAR(fc.status().setpoint.z_m, 0.3 + 0.5 * (51 * kStepUs) / 1e6, 0.02);
@@ -279,7 +290,8 @@ TEST_F(Flight, TrackingLostHoldsNeutralThenLands) {
   // AND after lost_hold_ms without tracking THEN land
   while (fc.status().state == FlightState::kLostHold) s = step(false);
   EXPECT_EQ(fc.status().state, FlightState::kLand);
-  EXPECT_NEAR(static_cast<double>(now_us - lost_at) / kMsUs, 2000.0 + kStepUs / kMsUs, 2.0 * kStepUs / kMsUs);
+  EXPECT_NEAR(static_cast<double>(now_us - lost_at) / kMsUs, 2000.0 + kStepUs / kMsUs,
+              2.0 * kStepUs / kMsUs);
 }
 
 TEST_F(Flight, TrackingBackResumesHold) {
@@ -427,8 +439,9 @@ TEST_F(Flight, TrackedLandingSinksTheHeightSetpointThenMotorsStop) {
     ++steps;
   }
   // 1.7 m at 0.3 m/s: ~5.2 s to the motor-stop height, then land_ground_settle_ms there
-  EXPECT_NEAR(steps * kStepUs / 1e6,
-              (1.7 - fc.config().motor_stop_height_m) / 0.3 + fc.config().land_ground_settle_ms / 1e3, 0.1);
+  EXPECT_NEAR(
+      steps * kStepUs / 1e6,
+      (1.7 - fc.config().motor_stop_height_m) / 0.3 + fc.config().land_ground_settle_ms / 1e3, 0.1);
   // THEN the motors stop once the craft is near the ground, with the disarm gesture
   EXPECT_EQ(fc.status().state, FlightState::kDisarmed);
   EXPECT_EQ(s.throttle_pct, 0.0);
@@ -495,6 +508,77 @@ TEST_F(Flight, ManualNudgeMovesSetpointInBodyFrame) {
   EXPECT_NEAR(fc.status().setpoint.x_m, -0.1, 1e-9);
   EXPECT_NEAR(fc.status().setpoint.z_m, 1.8, 1e-9);
   EXPECT_NE(fc.nudge(now_us, std::nan(""), 0.0, 0.0, 0.0), "");
+}
+
+// Declared map corrections (issue 13, PX4 EKF2 reset-counter style): a jump that arrives with a
+// changed map_correction_count is SLAM correcting its map, flown as a re-anchor; the same jump
+// without a count change is a SLAM failure, rejected as before.
+struct CorrectionCase {
+  const char* name;
+  double jump_x_m;           ///< the pose moves by this in one sample
+  bool declared;             ///< map_correction_count changes with it
+  FlightState expected;      ///< state 10 samples later (the pose stays corrected)
+  std::uint64_t map_resets;  ///< expected status
+  std::uint64_t refused;     ///< expected refused_map_corrections
+};
+
+class DeclaredCorrection : public Flight, public ::testing::WithParamInterface<CorrectionCase> {};
+
+TEST_P(DeclaredCorrection, GivenHoldWhenTheMapJumpsThenOnlyADeclaredBoundedCorrectionIsFlown) {
+  const CorrectionCase c = GetParam();
+  to_hold();
+  const CraftPose setpoint = fc.status().setpoint;
+  // WHEN the pose jumps by jump_x_m (count 0 -> 1 if declared) and stays there
+  std::uint32_t count = 0;
+  if (c.declared) count = 1;
+  pose.x_m += c.jump_x_m;
+  StickCommand s;
+  for (int i = 0; i < 10; ++i) {
+    now_us += kStepUs;
+    fc.on_pose(PoseSample{now_us, true, pose, count});
+    s = fc.update(now_us);
+  }
+  // THEN
+  EXPECT_EQ(fc.status().state, c.expected) << fc.status().last_event;
+  EXPECT_EQ(fc.status().map_resets, c.map_resets);
+  EXPECT_EQ(fc.status().refused_map_corrections, c.refused);
+  if (c.expected == FlightState::kHold) {
+    // the setpoint stays in the world frame: the craft is flown back to it (behind it: pitch back)
+    EXPECT_DOUBLE_EQ(fc.status().setpoint.x_m, setpoint.x_m);
+    EXPECT_LT(s.pitch_pct, 0.0);
+    EXPECT_EQ(fc.status().rejected_poses, 0u);
+  } else {
+    EXPECT_GE(fc.status().rejected_poses, 1u);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    MapCorrection, DeclaredCorrection,
+    ::testing::Values(
+        CorrectionCase{"declared_0_7m_flown", 0.7, true, FlightState::kHold, 1, 0},
+        CorrectionCase{"undeclared_0_7m_rejected", 0.7, false, FlightState::kLostHold, 0, 0},
+        CorrectionCase{"declared_2_0m_refused", 2.0, true, FlightState::kLostHold, 0, 1},
+        CorrectionCase{"declared_0_1m_flown", 0.1, true, FlightState::kHold, 1, 0}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST_F(Flight, DeclaredCorrectionDoesNotKickTheDerivative) {
+  // GIVEN two identical holds; WHEN the same 0.3 m jump (inside max_pose_jump_m) arrives once
+  // undeclared and once declared THEN the declared one commands no derivative spike: a smaller
+  // pitch than the undeclared one, which differentiates the jump over one pose interval.
+  struct Rig : Flight {
+    void TestBody() override {}
+    double pitch_after_jump(bool declared) {
+      to_hold();
+      pose.x_m += 0.3;
+      now_us += kStepUs;
+      fc.on_pose(PoseSample{now_us, true, pose, declared ? 1u : 0u});
+      return fc.update(now_us).pitch_pct;
+    }
+  };
+  const double undeclared = Rig{}.pitch_after_jump(false);
+  const double declared = Rig{}.pitch_after_jump(true);
+  EXPECT_LT(declared, 0.0);
+  EXPECT_LT(std::abs(declared), std::abs(undeclared));
 }
 
 TEST(FlightControllerConfig, InvalidConfigThrowsAtStartUp) {

@@ -398,5 +398,63 @@ TEST(EstimatorOptionsTest, GivenBadValuesThenValidateNamesThem) {
   EXPECT_THROW(PoseEstimator{o}, std::invalid_argument);
 }
 
+// Declared map correction (issue 13): SLAM moved its world-frame estimate by a known amount (a loop
+// correction); the estimator re-anchors instead of rejecting the jump at its innovation gate.
+struct ShiftCase {
+  const char* name;
+  bool declared;          ///< shift_frame called before the corrected pose
+  double correction_x_m;  ///< the map correction
+  FuseOutcome expected;   ///< of the first pose in the corrected frame
+};
+
+class FrameShift : public ::testing::TestWithParam<ShiftCase> {};
+
+TEST_P(FrameShift, GivenAMovingCraftWhenTheMapIsCorrectedThenOnlyADeclaredShiftIsFused) {
+  const ShiftCase c = GetParam();
+  // GIVEN a craft moving at 0.5 m/s along x, IMU at 25 Hz, poses at 33 Hz from 0.3 s to 1 s
+  PoseEstimator est(EstimatorOptions{});
+  const double v = 0.5;
+  for (std::int64_t t = 0; t <= 1000 * kMs; t += 10 * kMs) {
+    if (t % (40 * kMs) == 0) est.predict(level_imu(t, Eigen::Vector3d::Zero()));
+    if (t >= 300 * kMs && t % (30 * kMs) == 0) {
+      est.fuse_pose(CraftPose{v * static_cast<double>(t) / 1e6, 2, 1.7, 0}, t);
+    }
+  }
+  const StateEstimate before = est.estimate(1000 * kMs);
+  // WHEN the map is corrected by correction_x_m (declared or not) and the next pose is in it
+  if (c.declared) {
+    ASSERT_TRUE(est.shift_frame(Eigen::Vector3d(c.correction_x_m, 0, 0)));
+    const StateEstimate shifted = est.estimate(1000 * kMs);
+    // THEN the position moved by exactly the correction, the velocity is kept
+    EXPECT_NEAR(shifted.pose.x_m - before.pose.x_m, c.correction_x_m, 1e-9);
+    EXPECT_NEAR(shifted.velocity_m_per_s.x(), before.velocity_m_per_s.x(), 1e-9);
+  }
+  const std::int64_t t = 1020 * kMs;
+  EXPECT_EQ(est.fuse_pose(CraftPose{v * 1.02 + c.correction_x_m, 2, 1.7, 0}, t), c.expected);
+  // AND a late pose captured before the correction (replayed history) does not undo it
+  if (c.declared) {
+    est.fuse_pose(CraftPose{v * 0.99 + c.correction_x_m, 2, 1.7, 0}, 990 * kMs);
+    const StateEstimate after = est.estimate(1020 * kMs);
+    EXPECT_NEAR(after.pose.x_m, v * 1.02 + c.correction_x_m, 0.05);
+    EXPECT_NEAR(after.velocity_m_per_s.x(), v, 0.15);
+    EXPECT_EQ(est.stats().frame_shifts, 1u);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    MapCorrection, FrameShift,
+    ::testing::Values(ShiftCase{"declared_0_7m", true, 0.7, FuseOutcome::kFused},
+                      ShiftCase{"undeclared_0_7m", false, 0.7, FuseOutcome::kRejectedJump},
+                      ShiftCase{"declared_minus_1_2m", true, -1.2, FuseOutcome::kFused}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(PoseEstimator, GivenNoPoseYetThenAFrameShiftChangesNothing) {
+  PoseEstimator est(EstimatorOptions{});
+  EXPECT_FALSE(est.shift_frame(Eigen::Vector3d(0.7, 0, 0)));
+  est.fuse_pose(CraftPose{0, 0, 1, 0}, 0);
+  EXPECT_FALSE(est.shift_frame(Eigen::Vector3d(std::nan(""), 0, 0)));
+  EXPECT_EQ(est.stats().frame_shifts, 0u);
+}
+
 }  // namespace
 }  // namespace rgbdquad::quadcontrol
