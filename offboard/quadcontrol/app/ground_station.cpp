@@ -252,13 +252,21 @@ bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFram
     return false;
   }
   const Eigen::Isometry3d T_floor_cam = *T_floor_world_ * result.T_world_cam;
-  pose_ = craft_pose(T_floor_cam);
+  const CraftPose new_pose = craft_pose(T_floor_cam);
+  if (pose_ && result.map_correction_count != map_correction_count_) {
+    // A declared map correction: the estimator re-anchors by the jump (motion since the previous
+    // pose, a few cm, is included), the controller sees the count change and does not reject it.
+    estimator_.shift_frame(Eigen::Vector3d(new_pose.x_m - pose_->x_m, new_pose.y_m - pose_->y_m,
+                                           new_pose.z_m - pose_->z_m));
+  }
+  map_correction_count_ = result.map_correction_count;
+  pose_ = new_pose;
   last_T_floor_cam_ = T_floor_cam;
   pose_capture_us_ = frame.capture_us;
   pose_us_ = now;
   // The estimator takes the pose at its capture instant (on this clock) and carries it to now.
   estimator_.fuse_pose(*pose_, capture_clock_.to_local(frame.capture_us, frame.received_us));
-  if (!feed_estimate(now)) controller_.on_pose(PoseSample{now, true, *pose_});
+  if (!feed_estimate(now)) controller_.on_pose(PoseSample{now, true, *pose_, map_correction_count_});
   if (log_) {
     log_->pose(LoggedPose{frame.sequence, frame.capture_us, frame.received_us, now, true, T_floor_cam, pose_->yaw_deg});
   }
@@ -301,7 +309,8 @@ bool GroundStation::feed_estimate(std::int64_t now_us) {
   if (!last_estimate_->imu_aided) return false;
   const Eigen::Vector3d& v = last_estimate_->velocity_m_per_s;
   // Invalid (too old or too uncertain): tracking lost -> the controller's lost-hold / landing.
-  controller_.on_pose(PoseSample{now_us, last_estimate_->valid, last_estimate_->pose}, Velocity3{v.x(), v.y(), v.z()});
+  controller_.on_pose(PoseSample{now_us, last_estimate_->valid, last_estimate_->pose, map_correction_count_},
+                      Velocity3{v.x(), v.y(), v.z()});
   ++estimates_flown_;
   return true;
 }
@@ -319,6 +328,9 @@ nlohmann::json GroundStation::state_json() {
   j["last_event"] = st.last_event;
   j["tracking"] = st.tracking;
   j["rejected_poses"] = st.rejected_poses;
+  j["map_resets"] = st.map_resets;  // declared map corrections flown (issue 13)
+  j["refused_map_corrections"] = st.refused_map_corrections;
+  j["map_correction_count"] = map_correction_count_;
   j["facing_waypoint"] = st.facing_waypoint;
   j["pose"] = pose_ ? pose_json(*pose_) : nlohmann::json(nullptr);
   j["setpoint"] = pose_json(st.setpoint);

@@ -121,6 +121,7 @@ class GroundStation : public DashboardBackend {
   std::string source_error_;
   std::optional<SlamResult> last_slam_;
   std::optional<CraftPose> pose_;
+  std::uint32_t map_correction_count_ = 0;  ///< of the newest result (handed to the controller)
   std::int64_t pose_capture_us_ = -1;  ///< capture stamp of the frame behind pose_ (flight log)
   std::int64_t pose_us_ = -1;          ///< when pose_ became available
   std::optional<Eigen::Isometry3d> T_floor_world_;
