@@ -98,6 +98,7 @@ proto::PoseUpdate SlamLinkSession::lost_update(const proto::RgbdFrame& frame, st
   u.T_prev_cur = proto::Pose3{};  // identity: motion unknown
   u.is_keyframe = false;
   u.inlier_count = 0;
+  u.map_correction_count = map_corrections_;  // a fault is not a map correction
   return u;
 }
 
@@ -190,6 +191,8 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
   u.T_prev_cur = *T_prev_cur;
   u.is_keyframe = rec->keyframe;
   u.inlier_count = static_cast<std::uint32_t>(rec->inliers);
+  u.map_correction_count = static_cast<std::uint32_t>(rec->map_corrections);
+  map_corrections_ = u.map_correction_count;
   if (rec->state == TrackingState::kTracking) last_good_ = *T_world_cam;
   if (!raw_refusal.empty()) {
     ++repaired_;

@@ -102,6 +102,7 @@ class SlamLinkSession {
   std::size_t faulted_ = 0;
   std::size_t repaired_ = 0;
   rgbdquad::protocol::Pose3 last_good_;  ///< last pose sent while tracking (identity at start)
+  std::uint32_t map_corrections_ = 0;    ///< newest map-correction count sent (LOST answers repeat it)
 };
 
 }  // namespace slam

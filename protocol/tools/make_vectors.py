@@ -95,7 +95,7 @@ def pose_update(**over):
                          "q_xyzw": unit_q(0.6574, 0.6126, -0.2949, -0.3248)},
          "T_prev_cur": {"t_m": [0.0021, -0.0005, 0.0013], "q_xyzw": unit_q(0.001, -0.002, 0.0005,
                                                                            1.0)},
-         "is_keyframe": True, "inlier_count": 312}
+         "is_keyframe": True, "inlier_count": 312, "map_correction_count": 2}
     f.update(over)
     return f
 
@@ -228,7 +228,7 @@ class Builder:
                    pose_update())
         self.valid("pose_update_lost", "tracking lost: identity poses, no inliers", "PoseUpdate",
                    pose_update(tracking_state="LOST", T_world_cam=IDENTITY, T_prev_cur=IDENTITY,
-                               is_keyframe=False, inlier_count=0))
+                               is_keyframe=False, inlier_count=0, map_correction_count=0))
         self.valid("pose_graph_before", "3 nodes, 2 odometry edges + 1 loop closure, before "
                    "optimisation", "PoseGraph", pose_graph("BEFORE_OPTIMISATION"))
         self.valid("pose_graph_after", "the same graph after optimisation", "PoseGraph",
@@ -368,7 +368,7 @@ class Builder:
                                    depth=rgbd_frame()["rgb"]))),
         ]
         pu = bytearray(c.encode_body("PoseUpdate", pose_update()))
-        pu[-5] = 2  # is_keyframe = 2
+        pu[-9] = 2  # is_keyframe = 2 (before inlier_count and map_correction_count, u32 each)
         invalid.append(("bool_not_0_or_1", "is_keyframe byte 2", "PoseUpdate", bytes(pu)))
         for name, description, msg_name, body in invalid:
             self.hostile_body(name, description, msg_name, body, "invalid_value")

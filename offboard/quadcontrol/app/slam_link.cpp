@@ -66,6 +66,7 @@ void InProcessSlam::run() {
       result.tracking = rec->state == slam::TrackingState::kTracking;
       result.T_world_cam = rec->T_world_cam;
       result.inliers = rec->inliers;
+      result.map_correction_count = static_cast<std::uint32_t>(rec->map_corrections);
     } else {
       result.state = "lost";
     }

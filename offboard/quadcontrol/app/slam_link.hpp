@@ -33,7 +33,7 @@ struct SlamResult {
   /// new world frame (its first camera). A reconnect that resumes the map keeps the number.
   std::uint64_t session = 0;
   /// SLAM's map-correction counter (PoseUpdate.map_correction_count, issue 13): +1 each time SLAM
-  /// corrected its world-frame trajectory discontinuously. 0 until the link carries it.
+  /// corrected its world-frame trajectory discontinuously (a loop correction that moved the map).
   std::uint32_t map_correction_count = 0;
 };
 

@@ -248,6 +248,7 @@ std::optional<SlamResult> SlamServerClient::exchange(const CameraFrame& f, std::
                  pose->tracking_state == proto::TrackingState::kRelocalized;
     r.T_world_cam = to_isometry(pose->T_world_cam);
     r.inliers = pose->inlier_count;
+    r.map_correction_count = pose->map_correction_count;
     return r;
   }
 }

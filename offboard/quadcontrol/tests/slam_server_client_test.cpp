@@ -121,6 +121,7 @@ class FakeServer {
         proto::PoseUpdate u;
         u.pair_sequence = f->pair_sequence;
         u.tracking_state = proto::TrackingState::kTracking;
+        u.map_correction_count = static_cast<std::uint32_t>(frames / 2);  // a correction every 2nd frame
         const auto e = proto::encode(u);
         switch (behaviour_) {
           case Behaviour::kSilentAfterHello:
@@ -256,6 +257,8 @@ TEST(SlamServerClient, GivenAnAnsweringServerThenPosesArriveInOneSession) {
   EXPECT_EQ(h.client->link_status().disconnects, 0u);
   EXPECT_EQ(h.copy().back().session, 1u);
   EXPECT_TRUE(h.copy().back().tracking);
+  // the server's map-correction counter reaches the controller's input (3 answers: at least 1)
+  EXPECT_GE(h.copy().back().map_correction_count, 1u);
 }
 
 // Why the first design's 5 s timeout never fired: asio's synchronous read_some treats the EAGAIN

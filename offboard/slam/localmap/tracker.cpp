@@ -265,6 +265,7 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
       corrections_seen_ = map_->corrections;
       if (auto T_kf = map_->map.resolve_pose(reference_kf_)) T_world_last_ = *T_kf * T_ref_last_;
     }
+    out.map_corrections = corrections_seen_;
   }
 
   // 1. Prediction.

@@ -130,6 +130,9 @@ struct TrackResult {
   KeyframeReason keyframe_wanted = KeyframeReason::kNone;
   int ref_tracked = 0, near_tracked = 0, near_untracked = 0;
   double near_redundant = -1;  ///< fraction of tracked near points seen by >= 3 keyframes (-1: not computed)
+  /// SharedMap::corrections this pose is expressed after: a change from the previous frame's
+  /// declares that a loop correction moved the world frame under the craft in between.
+  std::uint64_t map_corrections = 0;
 };
 
 /// The projection-fit settings inside the tracker options.

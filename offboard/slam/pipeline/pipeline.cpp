@@ -246,6 +246,7 @@ void Pipeline::run_frontend(const RgbdFrame& frame) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     rec.T_world_cam = correction_ * out->T_odom_cam;  // replaced when the back-end processes it
+    rec.map_corrections = backend_loop_corrections_;
     records_.push_back(rec);
   }
   if (options_.mode == PipelineMode::kSequential) {
@@ -274,6 +275,7 @@ void Pipeline::run_backend(const FrontendOutput& in) {
   }
   std::lock_guard<std::mutex> lock(mutex_);
   correction_ = out.T_world_cam * in.T_odom_cam.inverse();
+  if (out.loop_closed) ++backend_loop_corrections_;
   for (auto it = records_.rbegin(); it != records_.rend(); ++it) {
     if (it->index != in.index) continue;
     it->backend_processed = true;
@@ -283,6 +285,7 @@ void Pipeline::run_backend(const FrontendOutput& in) {
     it->reference_keyframe = out.reference_keyframe;
     it->T_world_cam = out.T_world_cam;
     it->T_kf_cam = out.T_kf_cam;
+    it->map_corrections = backend_loop_corrections_;
     it->keyframe_ms = out.keyframe_ms;
     it->llc_ms = out.llc_ms;
     it->glc_ms = out.glc_ms;
@@ -442,6 +445,7 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   rec.matching_ms = tr.local_map_ms + tr.search_ms;
   rec.ransac_ms = tr.relocalise_ms;
   rec.map_lock_wait_ms = tr.map_lock_wait_ms;
+  rec.map_corrections = tr.map_corrections;
   rec.frontend_ms = ms_since(t0);
   rec.frontend_cpu_ms = (thread_cpu_now_ns() - c0) * 1e-6;
   {

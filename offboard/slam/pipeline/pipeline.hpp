@@ -108,6 +108,10 @@ struct FrameRecord {
   int ref_tracked = 0, near_tracked = 0, near_untracked = 0;
   double near_redundant = -1;
   double map_lock_wait_ms = 0;  ///< local-map system: the tracker's wait for the map lock (TrackResult)
+  /// Map corrections T_world_cam is expressed after: loop corrections of the local map (TrackResult),
+  /// or loop closures the VO back-end had applied when this pose was given. A change from one frame
+  /// to the next declares a jump of the world frame (PoseUpdate.map_correction_count on the wire).
+  std::uint64_t map_corrections = 0;
 };
 
 struct PipelineSummary {
@@ -189,6 +193,7 @@ class Pipeline {
   std::vector<FrameRecord> records_;
   // Latest back-end correction C = T_world_cam * T_odom_cam^-1 (used for skipped frames).
   Eigen::Isometry3d correction_ = Eigen::Isometry3d::Identity();
+  std::uint64_t backend_loop_corrections_ = 0;  // loop closures folded into correction_
   PipelineSummary summary_;
   // Local-map system (BackendKind::kLocalMap).
   std::optional<FeatureExtractor> extractor_;

@@ -432,9 +432,12 @@ TEST(LoopCloser, TrackingProceedsBetweenTheSolveAndTheCorrectionAndFollowsIt) {
   f.stamp_s = 10.033;
   const TrackResult b = tracker->track(f, view, fo, false);
   // THEN tracking continues without a loss or a relocalisation, in the corrected frame: the last
-  // pose moved with its reference keyframe
+  // pose moved with its reference keyframe, and the pose declares the correction it jumped with
+  // (what PoseUpdate.map_correction_count carries to the controller)
   ASSERT_EQ(b.state, TrackingState::kTracking);
   EXPECT_FALSE(b.relocalised);
+  EXPECT_EQ(a.map_corrections, 0u);
+  EXPECT_EQ(b.map_corrections, 1u);
   EXPECT_LT((b.T_world_cam.translation() - kf10_after.translation()).norm(), 0.01);
   EXPECT_LT((b.T_world_cam.translation() - w.truth[10].translation()).norm(), 0.03);
   EXPECT_GT(st.apply_lock_ms, 0.0);

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <map>
 
 #include "rgbdquad/camera/tum_cameras.hpp"
 #include "rgbdquad/protocol/codec.hpp"
@@ -153,6 +154,73 @@ TEST(SlamLinkSession, GivenUnusableFramesThenEachStillGetsALostPoseUpdateWithARe
     ++seq;
   }
   EXPECT_EQ(s.frames_faulted(), cases.size());
+}
+
+// A pipeline whose records are scripted per frame index: what the session puts on the wire is
+// compared with what the pipeline said.
+class ScriptedPipeline : public SessionPipeline {
+ public:
+  explicit ScriptedPipeline(std::map<std::int64_t, FrameRecord> script) : script_(std::move(script)) {}
+  void submit(RgbdFrame) override {}
+  std::optional<FrameRecord> record(std::int64_t index) const override {
+    const auto it = script_.find(index);
+    return it == script_.end() ? std::nullopt : std::optional<FrameRecord>(it->second);
+  }
+  bool load_map(const std::string&, std::string*) override { return true; }
+  bool save_map(const std::string&, std::string*) const override { return true; }
+  void finish() override {}
+  PipelineSummary summary() const override { return {}; }
+
+ private:
+  std::map<std::int64_t, FrameRecord> script_;
+};
+
+TEST(SlamLinkSession, GivenLoopCorrectionsThenEachPoseUpdateDeclaresTheCountItsPoseIsExpressedAfter) {
+  // GIVEN a pipeline that tracks frames 0-2 and 4, whose map is corrected before frame 2, and that
+  // rejects frame 3
+  std::map<std::int64_t, FrameRecord> script;
+  for (std::int64_t i = 0; i < 5; ++i) {
+    FrameRecord r;
+    r.index = i;
+    r.ok = i != 3;
+    r.error = r.ok ? "" : "scripted rejection";
+    r.state = TrackingState::kTracking;
+    r.inliers = 80;
+    r.map_corrections = i >= 2 ? 1 : 0;
+    r.T_world_cam.translation() = Eigen::Vector3d(0.1 * static_cast<double>(i), 0, i >= 2 ? 0.7 : 0.0);
+    script[i] = r;
+  }
+  auto factory = [&script](const PipelineOptions&, const Intrinsics&, std::string*) {
+    return std::unique_ptr<SessionPipeline>(new ScriptedPipeline(script));
+  };
+  SlamLinkSession s(orb_options(), {}, factory);
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  auto f = ds->load(0, &err);
+  ASSERT_TRUE(f) << err;
+  // WHEN five frames go through the session and the wire codec
+  std::vector<proto::PoseUpdate> updates;
+  for (std::uint32_t seq = 1; seq <= 5; ++seq) {
+    const proto::RgbdFrame frame = to_wire(*f, seq);
+    const proto::PoseUpdate u = s.on_frame(frame, &err);
+    const proto::EncodeResult e = proto::encode(proto::Message{u});
+    ASSERT_TRUE(e.ok()) << e.error;
+    proto::StreamDecoder dec;
+    dec.feed(e.bytes);
+    const proto::DecodeResult r = dec.next();
+    ASSERT_EQ(r.status, proto::DecodeStatus::kMessage) << r.detail;
+    updates.push_back(std::get<proto::PoseUpdate>(*r.message));
+  }
+  // THEN the count changes exactly with the corrected pose, and the rejected frame's LOST answer
+  // repeats the last count (a fault is not a map correction)
+  const std::vector<std::uint32_t> expected = {0, 0, 1, 1, 1};
+  for (std::size_t i = 0; i < updates.size(); ++i) {
+    EXPECT_EQ(updates[i].map_correction_count, expected[i]) << "frame " << i + 1;
+  }
+  EXPECT_EQ(updates[3].tracking_state, proto::TrackingState::kLost);
+  EXPECT_EQ(updates[2].tracking_state, proto::TrackingState::kTracking);
+  EXPECT_DOUBLE_EQ(updates[2].T_world_cam.t_m[2], 0.7);
 }
 
 TEST(SlamLinkSession, GivenAFrameFromAnotherCameraMidSessionThenItIsRefusedWithBothCalibrations) {

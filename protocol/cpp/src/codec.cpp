@@ -293,6 +293,7 @@ void put_body(Writer& w, const PoseUpdate& m) {
   put_pose(w, m.T_prev_cur);
   w.u8(m.is_keyframe ? 1 : 0);
   w.u32(m.inlier_count);
+  w.u32(m.map_correction_count);
 }
 void put_body(Writer& w, const PoseGraph& m) {
   w.u32(m.revision);
@@ -446,6 +447,7 @@ void get_body(Parse& p, PoseUpdate& m) {
   get_pose(p, m.T_prev_cur);
   m.is_keyframe = get_bool(p, "is_keyframe");
   m.inlier_count = p.r.u32();
+  m.map_correction_count = p.r.u32();
 }
 
 // Node/edge wire sizes: the remaining-bytes check before reserve() bounds the allocation.

@@ -88,6 +88,7 @@ std::vector<Message> all_message_kinds() {
   pose.T_world_cam = {{1.3405, 0.6266, 1.6575}, {0.6574, 0.6126, -0.2949, -0.3248}};
   pose.is_keyframe = true;
   pose.inlier_count = 312;
+  pose.map_correction_count = 2;
   const double n2 = 0.6574 * 0.6574 + 0.6126 * 0.6126 + 0.2949 * 0.2949 + 0.3248 * 0.3248;
   for (double& q : pose.T_world_cam.q_xyzw) q /= std::sqrt(n2);
   out.emplace_back(pose);

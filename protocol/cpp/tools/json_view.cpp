@@ -191,7 +191,8 @@ json fields_of(const PoseUpdate& m) {
           {"T_world_cam", pose_json(m.T_world_cam)},
           {"T_prev_cur", pose_json(m.T_prev_cur)},
           {"is_keyframe", m.is_keyframe},
-          {"inlier_count", m.inlier_count}};
+          {"inlier_count", m.inlier_count},
+          {"map_correction_count", m.map_correction_count}};
 }
 json fields_of(const PoseGraph& m) {
   json nodes = json::array();
@@ -294,6 +295,7 @@ Message from_fields(const std::string& type, const json& f) {
     m.T_prev_cur = pose_from(at(f, "T_prev_cur"));
     m.is_keyframe = boolean(f, "is_keyframe");
     m.inlier_count = num<std::uint32_t>(f, "inlier_count");
+    m.map_correction_count = num<std::uint32_t>(f, "map_correction_count");
     return m;
   }
   if (type == "PoseGraph") {

@@ -122,6 +122,9 @@ struct PoseUpdate {
   Pose3 T_prev_cur;   ///< egomotion: maps points in this camera frame to the previous one's
   bool is_keyframe = false;
   std::uint32_t inlier_count = 0;
+  /// Map corrections T_world_cam is expressed after (per session, from 0): a change from the
+  /// previous PoseUpdate declares that the world frame jumped in between (spec doc).
+  std::uint32_t map_correction_count = 0;
 };
 
 struct PoseGraphNode {

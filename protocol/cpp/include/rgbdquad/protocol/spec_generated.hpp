@@ -11,7 +11,7 @@ namespace rgbdquad::protocol {
 /// Protocol major version carried in every envelope; peers with another version refuse.
 inline constexpr std::uint8_t kProtocolVersion = 1;
 /// First 8 bytes (little-endian) of SHA-256 of the canonical spec (see docs/protocol.md).
-inline constexpr std::uint64_t kSchemaHash = 0x2eeedc3f3abf2f68ULL;
+inline constexpr std::uint64_t kSchemaHash = 0x58887b989251087aULL;
 /// Envelope magic, resynchronisation marker.
 inline constexpr std::uint8_t kMagic[4] = {0x52, 0x47, 0x42, 0x51};
 inline constexpr std::size_t kEnvelopeHeaderBytes = 16;
@@ -327,7 +327,7 @@ constexpr std::size_t max_body_bytes(std::uint8_t message_type) {
     case 17:  // RgbdFrame
       return 2097296;
     case 18:  // PoseUpdate
-      return 130;
+      return 134;
     case 19:  // PoseGraph
       return 5373973;
     case 20:  // FloorMap
