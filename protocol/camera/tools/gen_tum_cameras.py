@@ -12,12 +12,12 @@ Standard library and clang-format (the header is formatted in the repository sty
 
 from __future__ import annotations
 
-import argparse
 import json
-import shutil
-import subprocess
 import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))  # protocol/tools
+import codegen  # noqa: E402
 
 CAMERA = Path(__file__).resolve().parents[1]
 SPEC_PATH = CAMERA / "tum_cameras.json"
@@ -134,36 +134,12 @@ def generate_py(spec: dict) -> str:
     return "\n".join(out) + "\n"
 
 
-def clang_format(text: str, path: Path) -> str:
-    exe = shutil.which("clang-format")
-    if exe is None:
-        raise SystemExit("gen_tum_cameras.py: clang-format not found (make deps installs it)")
-    return subprocess.run([exe, f"--assume-filename={path}"], input=text, capture_output=True,
-                          text=True, check=True, cwd=CAMERA).stdout
-
-
 def outputs() -> dict[Path, str]:
     spec = load()
-    return {OUT_HPP: clang_format(generate_hpp(spec), OUT_HPP), OUT_PY: generate_py(spec)}
-
-
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--check", action="store_true",
-                        help="exit 1 if a committed file differs from what the spec generates")
-    args = parser.parse_args()
-    stale = []
-    for path, text in outputs().items():
-        if args.check:
-            if not path.exists() or path.read_text() != text:
-                stale.append(path)
-        else:
-            path.write_text(text)
-            print(f"wrote {path}")
-    for path in stale:
-        print(f"{path} is stale: run python3 protocol/camera/tools/gen_tum_cameras.py", file=sys.stderr)
-    return 1 if stale else 0
+    return {OUT_HPP: codegen.clang_format(generate_hpp(spec), OUT_HPP, "gen_tum_cameras.py"),
+            OUT_PY: generate_py(spec)}
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(codegen.main(__doc__.split("\n")[0], outputs,
+                          "python3 protocol/camera/tools/gen_tum_cameras.py"))

@@ -18,13 +18,13 @@ Standard library and clang-format (the generated C++ is formatted in the reposit
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
-import shutil
-import subprocess
 import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))  # protocol/tools
+import codegen  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 CONTROL = HERE.parent
@@ -293,38 +293,13 @@ def generate_py(spec: dict) -> str:
     return "\n".join(out) + "\n"
 
 
-def clang_format(text: str, path: Path) -> str:
-    """The repository's C++ style (.clang-format), so the generated headers pass scripts/lint.sh."""
-    exe = shutil.which("clang-format")
-    if exe is None:
-        raise SystemExit("gen_control.py: clang-format not found (make deps installs it)")
-    return subprocess.run([exe, f"--assume-filename={path}"], input=text, capture_output=True,
-                          text=True, check=True, cwd=CONTROL).stdout
-
-
 def outputs() -> dict[Path, str]:
     spec = load()
-    return {OUT_H: clang_format(generate_h(spec), OUT_H),
-            OUT_HPP: clang_format(generate_hpp(spec), OUT_HPP), OUT_PY: generate_py(spec)}
-
-
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--check", action="store_true",
-                        help="exit 1 if a committed file differs from what the spec generates")
-    args = parser.parse_args()
-    stale = []
-    for path, text in outputs().items():
-        if args.check:
-            if not path.exists() or path.read_text() != text:
-                stale.append(path)
-        else:
-            path.write_text(text)
-            print(f"wrote {path}")
-    for path in stale:
-        print(f"{path} is stale: run python3 protocol/control/tools/gen_control.py", file=sys.stderr)
-    return 1 if stale else 0
+    return {OUT_H: codegen.clang_format(generate_h(spec), OUT_H, "gen_control.py"),
+            OUT_HPP: codegen.clang_format(generate_hpp(spec), OUT_HPP, "gen_control.py"),
+            OUT_PY: generate_py(spec)}
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(codegen.main(__doc__.split("\n")[0], outputs,
+                          "python3 protocol/control/tools/gen_control.py"))
