@@ -162,6 +162,11 @@ def test_slam_long_flight_box_laps(tmp_path):
             "command_gap_log": _gap_lines(procs.get("quad-control")),
             "rig_injection_gaps": flight.rig.injection_gaps[:20],
             "rig_lag_dropped_s": round(flight.rig.lag_dropped_s, 3),
+            # SLAM's loop corrections as the controller saw them (PoseUpdate.map_correction_count):
+            # declared jumps flown as re-anchors, those refused as too large, undeclared jumps rejected.
+            "map_corrections": {k: state.get(k) for k in
+                                ("map_correction_count", "map_resets", "refused_map_corrections",
+                                 "rejected_poses")},
             "realtime_factor": round(flight.rig.realtime_factor, 3),
             **flight.scores(),
         }
