@@ -13,17 +13,35 @@
 namespace rgbdquad::quadcontrol {
 
 namespace {
-constexpr double kFpsEmaWeight = 0.2;       // frame-to-frame fps, smoothed over ~5 frames
-constexpr double kDepthDisplayMaxM = 5.0;   // greyscale: 0 m white .. 5 m black (Kinect range)
+constexpr double kFpsEmaWeight = 0.2;      // frame-to-frame fps, smoothed over ~5 frames
+constexpr double kDepthDisplayMaxM = 5.0;  // greyscale: 0 m white .. 5 m black (Kinect range)
 constexpr std::int64_t kUsPerMs = 1000;
 constexpr int kMaxRtPriority = 99;       // SCHED_RR's highest priority on Linux
 constexpr int kCommandPriorityStep = 2;  // firmware link above the SLAM link (and its tracking)
 
-CraftPose craft_pose(const Eigen::Isometry3d& T_floor_cam) {
-  const Eigen::Vector3d t = T_floor_cam.translation();
-  // Heading = optical axis (camera +z) projected on the floor.
-  const Eigen::Vector3d forward = T_floor_cam.linear().col(2);
-  return CraftPose{t.x(), t.y(), t.z(), std::atan2(forward.y(), forward.x()) * kDegPerRad};
+/// The map's points of one frame: camera points (m) into the floor frame, coloured by the RGB
+/// pixel they project to (grey where the projection leaves the image or the image is not BGR).
+std::vector<ColouredPoint> coloured_floor_points(const CameraFrame& frame,
+                                                 const std::vector<Eigen::Vector3d>& cam_points,
+                                                 const Eigen::Isometry3d& T_floor_cam) {
+  std::vector<ColouredPoint> world;
+  world.reserve(cam_points.size());
+  const auto& k = frame.intrinsics;
+  for (const auto& p : cam_points) {
+    const Eigen::Vector3d w = T_floor_cam * p;
+    const int u = static_cast<int>(std::lround(p.x() * k.fx_px / p.z() + k.cx_px));
+    const int v = static_cast<int>(std::lround(p.y() * k.fy_px / p.z() + k.cy_px));
+    ColouredPoint cp{w.cast<float>(), 128, 128, 128};
+    if (u >= 0 && v >= 0 && u < frame.rgb.cols && v < frame.rgb.rows &&
+        frame.rgb.type() == CV_8UC3) {
+      const auto& bgr = frame.rgb.at<cv::Vec3b>(v, u);
+      cp.r = bgr[2];
+      cp.g = bgr[1];
+      cp.b = bgr[0];
+    }
+    world.push_back(cp);
+  }
+  return world;
 }
 
 nlohmann::json pose_json(const CraftPose& p) {
@@ -31,27 +49,38 @@ nlohmann::json pose_json(const CraftPose& p) {
 }
 }  // namespace
 
+CraftPoseTrackerOptions GroundStationOptions::tracker() const {
+  return CraftPoseTrackerOptions{floor, mount_pitch_down_deg, floor_search_frames,
+                                 controller.estimator};
+}
+
 std::string GroundStationOptions::validate() const {
   if (auto e = controller.validate(); !e.empty()) return e;
   if (auto e = floor.validate(); !e.empty()) return e;
   if (auto e = map.validate(); !e.empty()) return e;
-  if (!(mount_pitch_down_deg >= 0.0 && mount_pitch_down_deg < 90.0)) return "camera.mount_pitch_down_deg must be in [0, 90)";
-  if (floor_search_frames < 1 || floor_pixel_step < 1 || map_pixel_step < 1) return "floor/map steps must be >= 1";
+  if (!(mount_pitch_down_deg >= 0.0 && mount_pitch_down_deg < 90.0))
+    return "camera.mount_pitch_down_deg must be in [0, 90)";
+  if (floor_search_frames < 1 || floor_pixel_step < 1 || map_pixel_step < 1)
+    return "floor/map steps must be >= 1";
   if (!(max_depth_m > 0.0)) return "map.max_depth_m must be > 0";
-  if (control_period_ms < 5 || control_period_ms > 200) return "control_period_ms must be in [5, 200]";
-  if (slam_mode != "server" && slam_mode != "in-process") return "slam.mode must be 'server' or 'in-process'";
+  if (control_period_ms < 5 || control_period_ms > 200)
+    return "control_period_ms must be in [5, 200]";
+  if (slam_mode != "server" && slam_mode != "in-process")
+    return "slam.mode must be 'server' or 'in-process'";
   if (auto e = slam_server.validate(); !e.empty()) return e;
   if (auto e = realtime.validate(); !e.empty()) return "realtime." + e;
   return {};
 }
 
 GroundStation::GroundStation(GroundStationOptions options, std::unique_ptr<FrameSource> source,
-                             std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, rgbd_control::Key key,
-                             std::unique_ptr<FlightLog> log, std::unique_ptr<FlightRecorder> recorder)
+                             std::optional<FirmwareLinkOptions> firmware, ControlSpec spec,
+                             rgbd_control::Key key, std::unique_ptr<FlightLog> log,
+                             std::unique_ptr<FlightRecorder> recorder)
     : options_(options),
       spec_(spec),
       source_(std::move(source)),
       controller_(options.controller),
+      tracker_(options.tracker()),
       map_(options.map),
       log_(std::move(log)),
       recorder_(std::move(recorder)) {
@@ -61,9 +90,11 @@ GroundStation::GroundStation(GroundStationOptions options, std::unique_ptr<Frame
     // Above the SLAM thread: SCHED_RR threads of equal priority take turns in 100 ms slices, so a
     // command (~1 ms of work, due every 11-50 ms, failsafe at 250 ms) must never wait behind a
     // CPU-bound tracker (seen under load: 170-270 ms without a command -> the firmware's failsafe).
-    firmware->thread_priority.rt_priority = std::min(kMaxRtPriority, options_.realtime.rt_priority + kCommandPriorityStep);
+    firmware->thread_priority.rt_priority =
+        std::min(kMaxRtPriority, options_.realtime.rt_priority + kCommandPriorityStep);
     firmware_ = std::make_unique<FirmwareLink>(
-        *firmware, spec_, key, [this](std::int64_t t, std::uint32_t seq) { return command_at(t, seq); },
+        *firmware, spec_, key,
+        [this](std::int64_t t, std::uint32_t seq) { return command_at(t, seq); },
         [this](std::int64_t t, const rgbd_control::Reply& r) { on_reply(t, r); });
   }
   frame_thread_ = std::thread([this] { frame_loop(); });
@@ -118,10 +149,12 @@ void GroundStation::frame_loop() {
       ++frames_;
       stream_latency_ms_ = frame->link_latency_ms;
       latest_frame_ = *frame;
-      if (log_) log_->frame(frame->sequence, frame->capture_us, frame->received_us, frame->link_latency_ms);
+      if (log_)
+        log_->frame(frame->sequence, frame->capture_us, frame->received_us, frame->link_latency_ms);
       if (recorder_) {
-        recorder_->frame(frame->sequence, frame->capture_us, frame->received_us, frame->link_latency_ms, fps_,
-                         frame->rgb, frame->depth, frame->intrinsics, frame->rgb_encoded, frame->depth_encoded);
+        recorder_->frame(frame->sequence, frame->capture_us, frame->received_us,
+                         frame->link_latency_ms, fps_, frame->rgb, frame->depth, frame->intrinsics,
+                         frame->rgb_encoded, frame->depth_encoded);
       }
       if (auto imu = imu_replies_.nearest(frame->received_us, options_.imu_match_window_us)) {
         imu_match_dt_ms_ = static_cast<double>(imu->first - frame->received_us) / kUsPerMs;
@@ -157,7 +190,8 @@ std::optional<PwmCommand> GroundStation::command_at(std::int64_t now_us, std::ui
     if (recorder_) record_command(now_us, seq, !last_stick_.hand_over_to_failsafe);
     if (last_stick_.hand_over_to_failsafe) return std::nullopt;
     if (!log_) return last_pwm_;
-    logged = LoggedCommand{seq, now_us, to_string(controller_.status().state), last_pwm_, pose_capture_us_, pose_us_};
+    logged = LoggedCommand{seq,       now_us,           to_string(controller_.status().state),
+                           last_pwm_, pose_capture_us_, pose_us_};
   }
   log_->command(logged);
   return logged.pwm;
@@ -167,15 +201,19 @@ void GroundStation::record_command(std::int64_t now_us, std::uint32_t seq, bool 
   const ControllerStatus& st = controller_.status();
   const std::string state = to_string(st.state);
   recorder_->status(now_us, state, st.last_event);
-  if (sent) recorder_->command(CommandRecord{seq, now_us, state, last_stick_, last_pwm_, pose_capture_us_, pose_us_});
+  if (sent)
+    recorder_->command(
+        CommandRecord{seq, now_us, state, last_stick_, last_pwm_, pose_capture_us_, pose_us_});
 }
 
-void GroundStation::record_pose(const SlamResult& result, const CameraFrame& frame, std::int64_t now_us, bool tracking,
+void GroundStation::record_pose(const SlamResult& result, const CameraFrame& frame,
+                                std::int64_t now_us, bool tracking,
                                 const Eigen::Isometry3d& T_floor_cam) {
   const ControllerStatus& st = controller_.status();
-  recorder_->pose(PoseRecord{frame.sequence, frame.capture_us, frame.received_us, now_us, tracking, result.state,
-                             result.inliers, result.latency_ms, result.session, T_floor_cam,
-                             pose_.value_or(CraftPose{}), st.setpoint, to_string(st.state)});
+  recorder_->pose(PoseRecord{frame.sequence, frame.capture_us, frame.received_us, now_us, tracking,
+                             result.state, result.inliers, result.latency_ms, result.session,
+                             T_floor_cam, tracker_.pose().value_or(CraftPose{}), st.setpoint,
+                             to_string(st.state)});
 }
 
 std::vector<Eigen::Vector3d> GroundStation::depth_points(const CameraFrame& f, int step) const {
@@ -200,97 +238,45 @@ void GroundStation::on_slam(const SlamResult& result, const CameraFrame& frame) 
 }
 
 bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFrame& frame) {
-  // Floor plane search on the first frames (outside the lock: RANSAC takes a few ms).
+  // Floor plane search on the first frames (outside the lock: RANSAC takes a few ms; fit_floor()
+  // reads only the tracker's options).
   std::optional<FloorPlane> found;
   bool need_floor;
   {
     std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-    need_floor = !T_floor_world_.has_value() && result.tracking;
+    need_floor = tracker_.searching_floor() && result.tracking;
   }
-  if (need_floor) {
-    found = fit_floor_plane(depth_points(frame, options_.floor_pixel_step),
-                            expected_up_in_camera(options_.mount_pitch_down_deg), options_.floor);
-  }
+  if (need_floor) found = tracker_.fit_floor(depth_points(frame, options_.floor_pixel_step));
   std::vector<Eigen::Vector3d> cam_points;
   if (result.tracking) cam_points = depth_points(frame, options_.map_pixel_step);
 
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   last_slam_ = result;
-  bool floor_set_now = false;
-  if (need_floor && !T_floor_world_) {
-    ++floor_attempts_;
-    if (found) {
-      floor_ = found;
-      // World = first SLAM camera; T_floor_world = T_floor_cam * T_world_cam^-1.
-      T_floor_world_ = floor_frame_from_plane(*found) * result.T_world_cam.inverse();
-      floor_set_now = true;
-    } else if (floor_attempts_ >= options_.floor_search_frames) {
-      // No floor in view: gravity from the mount angle, height counted from the start (0 m).
-      FloorPlane assumed{expected_up_in_camera(options_.mount_pitch_down_deg), 0.0, 0, 0.0};
-      T_floor_world_ = floor_frame_from_plane(assumed) * result.T_world_cam.inverse();
-      floor_fallback_ = true;
-      floor_set_now = true;
-    }
-  }
-  if (!T_floor_world_ || floor_set_now) {
-    // The floor frame belongs to the session it was found in (also when the very first result is
-    // already tracking: without this the session never matched and no pose was ever used).
-    slam_session_ = result.session;
-  } else if (result.session != slam_session_ && result.tracking && last_T_floor_cam_) {
-    // A new SLAM session (a new map: slam-server restarted or its grace period passed; a resumed
-    // reconnect keeps the session number) has a new world frame, its first camera.
-    // Re-anchor it on the last known camera pose: the craft hovered in lost-hold meanwhile.
-    T_floor_world_ = *last_T_floor_cam_ * result.T_world_cam.inverse();
-    slam_session_ = result.session;
-  }
   const std::int64_t now = monotonic_now_us();
-  if (!T_floor_world_ || !result.tracking || result.session != slam_session_) {
-    // With the estimator the IMU bridges the gap (up to its max_prediction_ms), else lost at once.
-    if (!feed_estimate(now)) controller_.on_pose(PoseSample{now, false, pose_.value_or(CraftPose{})});
-    if (log_) log_->pose(LoggedPose{frame.sequence, frame.capture_us, frame.received_us, now, false});
+  const CraftPoseUpdate update = tracker_.update(
+      now,
+      SlamPoseInput{result.tracking, result.T_world_cam, result.session,
+                    result.map_correction_count, frame.capture_us, frame.received_us},
+      found);
+  controller_.on_pose(update.controller.sample, update.controller.velocity_m_per_s);
+  if (!update.tracking) {
+    if (log_)
+      log_->pose(LoggedPose{frame.sequence, frame.capture_us, frame.received_us, now, false});
     if (recorder_) record_pose(result, frame, now, false, Eigen::Isometry3d::Identity());
     return false;
   }
-  const Eigen::Isometry3d T_floor_cam = *T_floor_world_ * result.T_world_cam;
-  const CraftPose new_pose = craft_pose(T_floor_cam);
-  if (pose_ && result.map_correction_count != map_correction_count_) {
-    // A declared map correction: the estimator re-anchors by the jump (motion since the previous
-    // pose, a few cm, is included), the controller sees the count change and does not reject it.
-    estimator_.shift_frame(Eigen::Vector3d(new_pose.x_m - pose_->x_m, new_pose.y_m - pose_->y_m,
-                                           new_pose.z_m - pose_->z_m));
-  }
-  map_correction_count_ = result.map_correction_count;
-  pose_ = new_pose;
-  last_T_floor_cam_ = T_floor_cam;
+  const Eigen::Isometry3d& T_floor_cam = update.T_floor_cam;
   pose_capture_us_ = frame.capture_us;
   pose_us_ = now;
-  // The estimator takes the pose at its capture instant (on this clock) and carries it to now.
-  estimator_.fuse_pose(*pose_, capture_clock_.to_local(frame.capture_us, frame.received_us));
-  if (!feed_estimate(now)) controller_.on_pose(PoseSample{now, true, *pose_, map_correction_count_});
   if (log_) {
-    log_->pose(LoggedPose{frame.sequence, frame.capture_us, frame.received_us, now, true, T_floor_cam, pose_->yaw_deg});
+    log_->pose(LoggedPose{frame.sequence, frame.capture_us, frame.received_us, now, true,
+                          T_floor_cam, update.pose.yaw_deg});
   }
   if (recorder_) record_pose(result, frame, now, true, T_floor_cam);
   if (trajectory_.size() >= options_.trajectory_max_points) trajectory_.erase(trajectory_.begin());
-  trajectory_.push_back({pose_->x_m, pose_->y_m});
+  trajectory_.push_back({update.pose.x_m, update.pose.y_m});
 
-  std::vector<ColouredPoint> world;
-  world.reserve(cam_points.size());
-  const auto& k = frame.intrinsics;
-  for (const auto& p : cam_points) {
-    const Eigen::Vector3d w = T_floor_cam * p;
-    const int u = static_cast<int>(std::lround(p.x() * k.fx_px / p.z() + k.cx_px));
-    const int v = static_cast<int>(std::lround(p.y() * k.fy_px / p.z() + k.cy_px));
-    ColouredPoint cp{w.cast<float>(), 128, 128, 128};
-    if (u >= 0 && v >= 0 && u < frame.rgb.cols && v < frame.rgb.rows && frame.rgb.type() == CV_8UC3) {
-      const auto& bgr = frame.rgb.at<cv::Vec3b>(v, u);
-      cp.r = bgr[2];
-      cp.g = bgr[1];
-      cp.b = bgr[0];
-    }
-    world.push_back(cp);
-  }
-  map_.add_points(world);
+  map_.add_points(coloured_floor_points(frame, cam_points, T_floor_cam));
   if (recorder_ && recorder_->map_due(now)) recorder_->map(MapRecord{now, map_.cloud()});
   ++map_revision_;
   return true;
@@ -300,29 +286,68 @@ void GroundStation::on_reply(std::int64_t received_us, const rgbd_control::Reply
   if (recorder_) recorder_->reply(received_us, reply);
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   imu_replies_.push(received_us, reply);
-  if (auto imu = imu_sample_from_reply(reply, received_us)) estimator_.predict(*imu);
+  if (auto imu = imu_sample_from_reply(reply, received_us)) tracker_.on_imu(*imu);
 }
 
-bool GroundStation::feed_estimate(std::int64_t now_us) {
-  if (!options_.controller.estimator.enabled) return false;
-  last_estimate_ = estimator_.estimate(now_us);
-  if (!last_estimate_->imu_aided) return false;
-  const Eigen::Vector3d& v = last_estimate_->velocity_m_per_s;
-  // Invalid (too old or too uncertain): tracking lost -> the controller's lost-hold / landing.
-  controller_.on_pose(PoseSample{now_us, last_estimate_->valid, last_estimate_->pose, map_correction_count_},
-                      Velocity3{v.x(), v.y(), v.z()});
-  ++estimates_flown_;
-  return true;
+void GroundStation::feed_estimate(std::int64_t now_us) {
+  if (auto feed = tracker_.estimate_feed(now_us))
+    controller_.on_pose(feed->sample, feed->velocity_m_per_s);
 }
 
 nlohmann::json GroundStation::state_json() {
+  StationSnapshot snap;
+  // The links' own stats (thread-safe copies) outside the lock, then one copy of the hub's state
+  // under it; the JSON is built after the lock is released.
   const bool slam_ready = slam_ready_.load();
-  const SlamStats slam_stats = slam_ready ? slam_->stats() : SlamStats{};
-  const SlamLinkStatus slam_link = slam_ready ? slam_->link_status() : SlamLinkStatus{};
-  std::optional<FirmwareLinkStats> fw;
-  if (firmware_) fw = firmware_->stats();
-  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-  const auto& st = controller_.status();
+  snap.slam_link_name = slam_ready ? slam_->name() : "starting";
+  if (slam_ready) {
+    snap.slam_stats = slam_->stats();
+    snap.slam_link = slam_->link_status();
+  }
+  if (firmware_) snap.firmware = firmware_->stats();
+  snap.taken_us = monotonic_now_us();
+  {
+    std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
+    snap.controller = controller_.status();
+    snap.pose = tracker_.pose();
+    snap.map_correction_count = tracker_.map_correction_count();
+    snap.stick = last_stick_;
+    snap.pwm = last_pwm_;
+    snap.source = source_->describe();
+    snap.frames = frames_;
+    snap.fps = fps_;
+    snap.sequence = latest_frame_ ? latest_frame_->sequence : -1;
+    snap.stream_latency_ms = stream_latency_ms_;
+    snap.source_error = source_error_;
+    if (last_slam_) {
+      snap.slam_state = last_slam_->state;
+      snap.slam_inliers = last_slam_->inliers;
+    }
+    snap.imu_match_dt_ms = imu_match_dt_ms_;
+    snap.estimator_enabled = options_.controller.estimator.enabled;
+    snap.estimate = tracker_.last_estimate();
+    snap.estimator_stats = tracker_.estimator().stats();
+    snap.estimates_flown = tracker_.estimates_flown();
+    if (recorder_) snap.recording = recorder_->stats();
+    snap.floor = tracker_.floor();
+    snap.floor_fallback = tracker_.floor_fallback();
+    snap.map_origin_x_m = map_.origin_x_m();
+    snap.map_origin_y_m = map_.origin_y_m();
+    snap.map_resolution_m = map_.resolution_m();
+    snap.map_width_cells = map_.width_cells();
+    snap.map_height_cells = map_.height_cells();
+    snap.map_revision = map_revision_;
+    snap.cloud_points = map_.cloud().size();
+    const std::size_t stride = std::max<std::size_t>(1, trajectory_.size() / 500);
+    snap.trajectory.reserve(trajectory_.size() / stride + 1);
+    for (std::size_t i = 0; i < trajectory_.size(); i += stride)
+      snap.trajectory.push_back(trajectory_[i]);
+  }
+  return to_json(snap);
+}
+
+nlohmann::json to_json(const StationSnapshot& snap) {
+  const ControllerStatus& st = snap.controller;
   nlohmann::json j;
   j["state"] = to_string(st.state);
   j["last_event"] = st.last_event;
@@ -330,25 +355,31 @@ nlohmann::json GroundStation::state_json() {
   j["rejected_poses"] = st.rejected_poses;
   j["map_resets"] = st.map_resets;  // declared map corrections flown (issue 13)
   j["refused_map_corrections"] = st.refused_map_corrections;
-  j["map_correction_count"] = map_correction_count_;
+  j["map_correction_count"] = snap.map_correction_count;
   j["facing_waypoint"] = st.facing_waypoint;
-  j["pose"] = pose_ ? pose_json(*pose_) : nlohmann::json(nullptr);
+  j["pose"] = snap.pose ? pose_json(*snap.pose) : nlohmann::json(nullptr);
   j["setpoint"] = pose_json(st.setpoint);
   j["waypoint"] = st.waypoint ? nlohmann::json{{"x_m", st.waypoint->x_m}, {"y_m", st.waypoint->y_m}}
                               : nlohmann::json(nullptr);
-  j["command"] = {{"roll_pct", last_stick_.roll_pct},     {"pitch_pct", last_stick_.pitch_pct},
-                  {"yaw_pct", last_stick_.yaw_pct},       {"throttle_pct", last_stick_.throttle_pct},
-                  {"armed", last_stick_.armed},
-                  {"pwm_us", {last_pwm_.roll_us, last_pwm_.pitch_us, last_pwm_.throttle_us, last_pwm_.yaw_us}}};
-  j["stream"] = {{"source", source_->describe()},
-                 {"frames", frames_},
-                 {"fps", fps_},
-                 {"sequence", latest_frame_ ? latest_frame_->sequence : -1},
-                 {"latency_ms", stream_latency_ms_},
-                 {"error", source_error_}};
-  j["slam"] = {{"link", slam_ready ? slam_->name() : "starting"},
-               {"state", last_slam_ ? last_slam_->state : "waiting"},
-               {"inliers", last_slam_ ? last_slam_->inliers : 0},
+  const StickCommand& stick = snap.stick;
+  const PwmCommand& pwm = snap.pwm;
+  j["command"] = {{"roll_pct", stick.roll_pct},
+                  {"pitch_pct", stick.pitch_pct},
+                  {"yaw_pct", stick.yaw_pct},
+                  {"throttle_pct", stick.throttle_pct},
+                  {"armed", stick.armed},
+                  {"pwm_us", {pwm.roll_us, pwm.pitch_us, pwm.throttle_us, pwm.yaw_us}}};
+  j["stream"] = {{"source", snap.source},
+                 {"frames", snap.frames},
+                 {"fps", snap.fps},
+                 {"sequence", snap.sequence},
+                 {"latency_ms", snap.stream_latency_ms},
+                 {"error", snap.source_error}};
+  const SlamStats& slam_stats = snap.slam_stats;
+  const SlamLinkStatus& slam_link = snap.slam_link;
+  j["slam"] = {{"link", snap.slam_link_name},
+               {"state", snap.slam_state},
+               {"inliers", snap.slam_inliers},
                {"submitted", slam_stats.submitted},
                {"processed", slam_stats.processed},
                {"dropped_busy", slam_stats.dropped_busy},
@@ -360,9 +391,11 @@ nlohmann::json GroundStation::state_json() {
                {"resumes", slam_link.resumes},
                {"disconnects", slam_link.disconnects},
                {"last_disconnect", slam_link.last_disconnect}};
+  const std::optional<FirmwareLinkStats>& fw = snap.firmware;
   nlohmann::json fwj = {{"enabled", fw.has_value()}};
   if (fw) {
-    const bool connected = fw->last_reply_us > 0 && monotonic_now_us() - fw->last_reply_us < 1000 * kUsPerMs;
+    const bool connected =
+        fw->last_reply_us > 0 && snap.taken_us - fw->last_reply_us < 1000 * kUsPerMs;
     fwj.update({{"connected", connected},
                 {"latency_ms", fw->last_latency_ms},
                 {"mean_latency_ms", fw->mean_latency_ms},
@@ -381,25 +414,32 @@ nlohmann::json GroundStation::state_json() {
                 {"last_error", fw->last_error}});
     if (fw->last_reply) {
       const auto& r = *fw->last_reply;
-      fwj["reply"] = {{"status", r.status}, {"state", r.state}, {"fw", r.fw}, {"out_us", r.out_us},
-                      {"att_mrad", r.att_mrad}, {"att_age_ms", r.att_age_ms ? nlohmann::json(*r.att_age_ms) : nullptr},
+      fwj["reply"] = {{"status", r.status},
+                      {"state", r.state},
+                      {"fw", r.fw},
+                      {"out_us", r.out_us},
+                      {"att_mrad", r.att_mrad},
+                      {"att_age_ms", r.att_age_ms ? nlohmann::json(*r.att_age_ms) : nullptr},
                       {"imu_raw", r.imu_raw}};
     }
-    fwj["imu_match_dt_ms"] = imu_match_dt_ms_ ? nlohmann::json(*imu_match_dt_ms_) : nlohmann::json(nullptr);
+    fwj["imu_match_dt_ms"] =
+        snap.imu_match_dt_ms ? nlohmann::json(*snap.imu_match_dt_ms) : nlohmann::json(nullptr);
   }
   j["firmware"] = fwj;
-  if (last_estimate_) {
-    const StateEstimate& e = *last_estimate_;
-    const EstimatorStats& es = estimator_.stats();
-    j["estimator"] = {{"enabled", options_.controller.estimator.enabled},
+  if (snap.estimate) {
+    const StateEstimate& e = *snap.estimate;
+    const EstimatorStats& es = snap.estimator_stats;
+    j["estimator"] = {{"enabled", snap.estimator_enabled},
                       {"valid", e.valid},
                       {"why_invalid", e.why_invalid},
                       {"imu_aided", e.imu_aided},
                       {"age_ms", e.age_ms},
                       {"pose", pose_json(e.pose)},
-                      {"velocity_m_per_s", {e.velocity_m_per_s.x(), e.velocity_m_per_s.y(), e.velocity_m_per_s.z()}},
-                      {"position_sigma_m", {e.position_sigma_m.x(), e.position_sigma_m.y(), e.position_sigma_m.z()}},
-                      {"steps_flown", estimates_flown_},
+                      {"velocity_m_per_s",
+                       {e.velocity_m_per_s.x(), e.velocity_m_per_s.y(), e.velocity_m_per_s.z()}},
+                      {"position_sigma_m",
+                       {e.position_sigma_m.x(), e.position_sigma_m.y(), e.position_sigma_m.z()}},
+                      {"steps_flown", snap.estimates_flown},
                       {"imu_samples", es.imu_samples},
                       {"poses_fused", es.poses_fused},
                       {"poses_out_of_order", es.poses_out_of_order},
@@ -407,20 +447,20 @@ nlohmann::json GroundStation::state_json() {
                       {"poses_too_old", es.poses_too_old},
                       {"resets", es.resets}};
   } else {
-    j["estimator"] = {{"enabled", options_.controller.estimator.enabled}};
+    j["estimator"] = {{"enabled", snap.estimator_enabled}};
   }
-  j["recording"] = recorder_ ? to_json(recorder_->stats()) : nlohmann::json{{"enabled", false}};
-  j["floor"] = {{"found", floor_.has_value()},
-                {"fallback", floor_fallback_},
-                {"height_m", floor_ ? floor_->d_m : 0.0},
-                {"inlier_fraction", floor_ ? floor_->inlier_fraction : 0.0}};
-  j["map"] = {{"origin_x_m", map_.origin_x_m()},   {"origin_y_m", map_.origin_y_m()},
-              {"resolution_m", map_.resolution_m()}, {"width_cells", map_.width_cells()},
-              {"height_cells", map_.height_cells()}, {"revision", map_revision_},
-              {"cloud_points", map_.cloud().size()}};
+  j["recording"] = snap.recording ? to_json(*snap.recording) : nlohmann::json{{"enabled", false}};
+  const std::optional<FloorPlane>& floor = snap.floor;
+  j["floor"] = {{"found", floor.has_value()},
+                {"fallback", snap.floor_fallback},
+                {"height_m", floor ? floor->d_m : 0.0},
+                {"inlier_fraction", floor ? floor->inlier_fraction : 0.0}};
+  j["map"] = {{"origin_x_m", snap.map_origin_x_m},     {"origin_y_m", snap.map_origin_y_m},
+              {"resolution_m", snap.map_resolution_m}, {"width_cells", snap.map_width_cells},
+              {"height_cells", snap.map_height_cells}, {"revision", snap.map_revision},
+              {"cloud_points", snap.cloud_points}};
   nlohmann::json traj = nlohmann::json::array();
-  const std::size_t stride = std::max<std::size_t>(1, trajectory_.size() / 500);
-  for (std::size_t i = 0; i < trajectory_.size(); i += stride) traj.push_back(trajectory_[i]);
+  for (const auto& p : snap.trajectory) traj.push_back(p);
   j["trajectory"] = traj;
   return j;
 }
@@ -443,7 +483,8 @@ std::optional<std::string> GroundStation::rgb_jpeg() {
   invalidate_image_caches_if_new_frame();
   if (!rgb_jpeg_cache_) {
     std::vector<std::uint8_t> buf;
-    if (!cv::imencode(".jpg", latest_frame_->rgb, buf, {cv::IMWRITE_JPEG_QUALITY, 80})) return std::nullopt;
+    if (!cv::imencode(".jpg", latest_frame_->rgb, buf, {cv::IMWRITE_JPEG_QUALITY, 80}))
+      return std::nullopt;
     rgb_jpeg_cache_ = std::string(buf.begin(), buf.end());
   }
   return rgb_jpeg_cache_;
@@ -462,7 +503,9 @@ std::optional<std::string> GroundStation::depth_png() {
       const auto* in = d.ptr<std::uint16_t>(v);
       auto* out = grey.ptr<std::uint8_t>(v);
       for (int u = 0; u < d.cols; ++u) {
-        out[u] = in[u] == 0 ? 0 : static_cast<std::uint8_t>(255.0 - 235.0 * std::min(1.0, in[u] / units_max));
+        out[u] = in[u] == 0
+                     ? 0
+                     : static_cast<std::uint8_t>(255.0 - 235.0 * std::min(1.0, in[u] / units_max));
       }
     }
     std::vector<std::uint8_t> buf;
@@ -492,13 +535,14 @@ nlohmann::json GroundStation::cloud_json(std::size_t max_points) {
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   const auto& cloud = map_.cloud();
   nlohmann::json pts = nlohmann::json::array();
-  const std::size_t stride = std::max<std::size_t>(1, (cloud.size() + max_points - 1) / std::max<std::size_t>(1, max_points));
+  const std::size_t stride = std::max<std::size_t>(
+      1, (cloud.size() + max_points - 1) / std::max<std::size_t>(1, max_points));
   for (std::size_t i = 0; i < cloud.size(); i += stride) {
     const auto& p = cloud[i];
     pts.push_back({std::round(p.p_world.x() * 1000) / 1000, std::round(p.p_world.y() * 1000) / 1000,
                    std::round(p.p_world.z() * 1000) / 1000, p.r, p.g, p.b});
   }
-  nlohmann::json pose = pose_ ? pose_json(*pose_) : nlohmann::json(nullptr);
+  nlohmann::json pose = tracker_.pose() ? pose_json(*tracker_.pose()) : nlohmann::json(nullptr);
   return {{"points", pts}, {"total", cloud.size()}, {"pose", pose}};
 }
 
@@ -517,7 +561,8 @@ std::string GroundStation::waypoint(double x_m, double y_m) {
   return controller_.set_waypoint(monotonic_now_us(), x_m, y_m);
 }
 
-std::string GroundStation::manual(double forward_m, double left_m, double up_m, double yaw_ccw_deg) {
+std::string GroundStation::manual(double forward_m, double left_m, double up_m,
+                                  double yaw_ccw_deg) {
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   return controller_.nudge(monotonic_now_us(), forward_m, left_m, up_m, yaw_ccw_deg);
 }

@@ -1,25 +1,30 @@
-// The hub of quad-control: joins the frame source, the SLAM link, the flight controller, the floor
-// map and the firmware link, and exposes snapshots for the dashboard.
+// The hub of quad-control: joins the frame source, the SLAM link, the craft-pose tracker (SLAM
+// results -> the craft's pose in the floor frame -> the controller's input; floor search, SLAM
+// sessions, declared map corrections, IMU + pose estimator: core/craft_pose_tracker.hpp), the
+// flight controller, the floor map and the firmware link, and exposes snapshots for the dashboard.
 //
 // Threads (all owned here, joined in the destructor): the frame thread (source -> latest frame ->
-// SLAM hand-over), the SLAM thread (inside SlamLink; its results update pose, floor frame and map),
-// and either the firmware link's I/O thread, which runs controller.update(now) just before each
-// command it sends (every firmware.period_ms, or with firmware.send_on_pose on each fresh tracked
-// pose, rate-limited, plus keep-alives), or, with no firmware, the
-// control thread (controller.update(now) every control_period_ms, for the dashboard). The SLAM link is created on the first frame (it needs the intrinsics). Shared state is guarded by one mutex; the controller is only touched
-// under it. This is the only place that reads the clock and passes it into the logic.
+// SLAM hand-over), the SLAM thread (inside SlamLink; its results go through the tracker into the
+// controller, the logs and the map), and either the firmware link's I/O thread, which runs
+// controller.update(now) just before each command it sends (every firmware.period_ms, or with
+// firmware.send_on_pose on each fresh tracked pose, rate-limited, plus keep-alives), or, with no
+// firmware, the control thread (controller.update(now) every control_period_ms, for the
+// dashboard). The SLAM link is created on the first frame (it needs the intrinsics). Shared state
+// is guarded by one mutex; the tracker and the controller are only touched under it.
+// The logic (tracker, estimator, controller, map) is pure; the hub keeps the threads, the lock, the
+// clock (it reads monotonic_now_us() and passes the time in), the flight log and MCAP recorder
+// calls, the depth sub-sampling, the map colouring and the dashboard's image caches.
 #pragma once
 
 #include <atomic>
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "app/dashboard_backend.hpp"
 #include "app/firmware_link.hpp"
@@ -27,8 +32,8 @@
 #include "app/frame_source.hpp"
 #include "app/slam_link.hpp"
 #include "app/slam_server_client.hpp"
+#include "core/craft_pose_tracker.hpp"
 #include "core/flight_controller.hpp"
-#include "core/pose_estimator.hpp"
 #include "core/timestamp_buffer.hpp"
 #include "map/floor_map.hpp"
 #include "map/floor_plane.hpp"
@@ -48,21 +53,65 @@ struct GroundStationOptions {
   int control_period_ms = 20;          ///< 50 Hz, the firmware command rate
   std::size_t trajectory_max_points = 5000;
   std::int64_t imu_match_window_us = 20000;  ///< TUM's association rule: nearest within 20 ms
-  std::string slam_mode = "server";  ///< "server": slam-server over the SLAM link; "in-process": local-map SLAM here
+  std::string slam_mode =
+      "server";  ///< "server": slam-server over the SLAM link; "in-process": local-map SLAM here
   SlamServerOptions slam_server;
   /// Scheduling of the real-time path (frame, SLAM link and firmware link threads; config key
   /// "realtime"): SCHED_RR 10 by default, nice -10 where refused, each thread logs what it got.
   slam::ThreadPriorityOptions realtime;
   std::string validate() const;
+  /// The craft-pose tracker's part (floor search, mount angle, estimator).
+  CraftPoseTrackerOptions tracker() const;
 };
+
+/// What /api/state shows: copied under the hub's lock (and from the links' own thread-safe stats),
+/// serialised by to_json() after the lock is released.
+struct StationSnapshot {
+  std::int64_t taken_us = 0;  ///< monotonic clock when taken ("connected": a reply within 1 s)
+  ControllerStatus controller;
+  std::optional<CraftPose> pose;  ///< the tracker's newest tracked pose
+  std::uint32_t map_correction_count = 0;
+  StickCommand stick;
+  PwmCommand pwm;
+  std::string source;  ///< the frame source's description
+  std::int64_t frames = 0;
+  double fps = 0.0;
+  std::int64_t sequence = -1;  ///< of the newest frame; -1 before the first
+  double stream_latency_ms = 0.0;
+  std::string source_error;
+  std::string slam_link_name;
+  std::string slam_state = "waiting";  ///< of the newest SLAM result
+  std::size_t slam_inliers = 0;
+  SlamStats slam_stats;
+  SlamLinkStatus slam_link;
+  std::optional<FirmwareLinkStats> firmware;  ///< nullopt: no firmware link
+  std::optional<double> imu_match_dt_ms;
+  bool estimator_enabled = false;
+  std::optional<StateEstimate> estimate;  ///< the newest the controller was offered
+  EstimatorStats estimator_stats;
+  std::uint64_t estimates_flown = 0;
+  std::optional<RecorderStats> recording;  ///< nullopt: not recording
+  std::optional<FloorPlane> floor;
+  bool floor_fallback = false;
+  double map_origin_x_m = 0.0, map_origin_y_m = 0.0, map_resolution_m = 0.0;
+  int map_width_cells = 0, map_height_cells = 0;
+  std::int64_t map_revision = 0;
+  std::size_t cloud_points = 0;
+  std::vector<std::array<double, 2>>
+      trajectory;  ///< x, y (m); decimated to every n-th point, n = size / 500
+};
+
+/// The dashboard's /api/state body (docs/control.md, "Dashboard and API").
+nlohmann::json to_json(const StationSnapshot& snapshot);
 
 class GroundStation : public DashboardBackend {
  public:
-  /// Starts every thread. `firmware` may be null options (no craft: commands are computed, not sent);
-  /// `log` may be null (no flight recorder).
+  /// Starts every thread. `firmware` may be null options (no craft: commands are computed, not
+  /// sent); `log` may be null (no flight recorder).
   GroundStation(GroundStationOptions options, std::unique_ptr<FrameSource> source,
-                std::optional<FirmwareLinkOptions> firmware, ControlSpec spec, rgbd_control::Key key,
-                std::unique_ptr<FlightLog> log = nullptr, std::unique_ptr<FlightRecorder> recorder = nullptr);
+                std::optional<FirmwareLinkOptions> firmware, ControlSpec spec,
+                rgbd_control::Key key, std::unique_ptr<FlightLog> log = nullptr,
+                std::unique_ptr<FlightRecorder> recorder = nullptr);
   ~GroundStation();
   GroundStation(const GroundStation&) = delete;
   GroundStation& operator=(const GroundStation&) = delete;
@@ -85,22 +134,24 @@ class GroundStation : public DashboardBackend {
   /// nullopt while the controller hands the craft over to its failsafe (nothing is sent).
   std::optional<PwmCommand> command_at(std::int64_t now_us, std::uint32_t seq);
   void on_slam(const SlamResult& result, const CameraFrame& frame);
-  /// Takes a SLAM result into pose, floor frame and map; true when it gave the controller a fresh
-  /// tracked pose (then the firmware link is told, outside the lock).
+  /// Takes a SLAM result through the tracker into the controller, the logs and the map; true when
+  /// it gave the controller a fresh tracked pose (then the firmware link is told, outside the
+  /// lock).
   bool apply_slam_result(const SlamResult& result, const CameraFrame& frame);
   void on_reply(std::int64_t received_us, const rgbd_control::Reply& reply);
-  /// Feeds the controller the estimator's state at `now_us` (caller holds mutex_); false when the
-  /// estimator is off or has no fresh IMU input (the raw poses drive the controller then).
-  bool feed_estimate(std::int64_t now_us);
+  /// Feeds the controller the estimator's state at `now_us` (caller holds mutex_) when the
+  /// estimator is on and has fresh IMU input; else nothing (the raw poses drive the controller).
+  void feed_estimate(std::int64_t now_us);
   /// MCAP recorder hooks (caller holds mutex_; recorder_ set): the controller's status, and the
   /// command when one is sent; a SLAM result as a PoseRecord.
   void record_command(std::int64_t now_us, std::uint32_t seq, bool sent);
-  void record_pose(const SlamResult& result, const CameraFrame& frame, std::int64_t now_us, bool tracking,
-                   const Eigen::Isometry3d& T_floor_cam);
+  void record_pose(const SlamResult& result, const CameraFrame& frame, std::int64_t now_us,
+                   bool tracking, const Eigen::Isometry3d& T_floor_cam);
   std::vector<Eigen::Vector3d> depth_points(const CameraFrame& frame, int step) const;
   /// How the APM reads the sticks (dead zones from the controller config).
   ApmStickInput apm_input() const;
-  /// Drops the encoded RGB/depth images when latest_frame_ changed. Caller holds mutex_ and has a frame.
+  /// Drops the encoded RGB/depth images when latest_frame_ changed. Caller holds mutex_ and has a
+  /// frame.
   void invalidate_image_caches_if_new_frame();
 
   GroundStationOptions options_;
@@ -110,6 +161,9 @@ class GroundStation : public DashboardBackend {
 
   slam::PriorityInheritanceMutex mutex_;  ///< taken by real-time threads and the dashboard
   FlightController controller_;
+  /// SLAM results -> the craft's pose in the floor frame and the controller's input (floor search,
+  /// SLAM sessions, declared map corrections, the IMU + pose estimator).
+  CraftPoseTracker tracker_;
   FloorMap map_;
   std::optional<CameraFrame> latest_frame_;
   std::optional<std::string> rgb_jpeg_cache_, depth_png_cache_;
@@ -120,33 +174,20 @@ class GroundStation : public DashboardBackend {
   double stream_latency_ms_ = 0.0;
   std::string source_error_;
   std::optional<SlamResult> last_slam_;
-  std::optional<CraftPose> pose_;
-  std::uint32_t map_correction_count_ = 0;  ///< of the newest result (handed to the controller)
-  std::int64_t pose_capture_us_ = -1;  ///< capture stamp of the frame behind pose_ (flight log)
-  std::int64_t pose_us_ = -1;          ///< when pose_ became available
-  std::optional<Eigen::Isometry3d> T_floor_world_;
-  std::optional<Eigen::Isometry3d> last_T_floor_cam_;  ///< re-anchors a new SLAM session
-  std::uint64_t slam_session_ = 0;                      ///< session T_floor_world_ belongs to
-  std::optional<FloorPlane> floor_;
-  bool floor_fallback_ = false;
-  int floor_attempts_ = 0;
+  std::int64_t pose_capture_us_ = -1;  ///< capture stamp of the frame behind the pose (flight log)
+  std::int64_t pose_us_ = -1;          ///< when the tracker's pose became available
   std::int64_t map_revision_ = 0;
   std::vector<std::array<double, 2>> trajectory_;
   StickCommand last_stick_;
   PwmCommand last_pwm_;
   TimestampBuffer<rgbd_control::Reply> imu_replies_{256};
   std::optional<double> imu_match_dt_ms_;
-  /// IMU + delayed pose fusion (controller.estimator): the controller flies on its estimate now
-  /// while the IMU telemetry is fresh, else on the raw poses as before.
-  PoseEstimator estimator_{options_.controller.estimator};
-  CaptureClock capture_clock_;          ///< the craft's capture stamps -> this clock
-  std::optional<StateEstimate> last_estimate_;
-  std::uint64_t estimates_flown_ = 0;   ///< controller steps fed from the estimator
 
   std::unique_ptr<SlamLink> slam_;  ///< set once by the frame thread, then slam_ready_
   std::atomic<bool> slam_ready_{false};
   std::unique_ptr<FlightLog> log_;  ///< null: no flight recorder
-  std::unique_ptr<FlightRecorder> recorder_;  ///< null: not recording MCAP (never blocks: bounded queue)
+  std::unique_ptr<FlightRecorder>
+      recorder_;  ///< null: not recording MCAP (never blocks: bounded queue)
   std::unique_ptr<FirmwareLink> firmware_;
   std::thread frame_thread_;
   std::thread control_thread_;
