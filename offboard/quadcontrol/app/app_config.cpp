@@ -71,7 +71,6 @@ bool read_recording(const json& r, RecorderOptions& o, std::string* error) {
 AppConfig default_app_config(const std::string& repo_dir) {
   AppConfig c;
   c.dashboard_static_dir = repo_dir + "/offboard/dashboard/static";
-  c.control_spec_path = repo_dir + "/protocol/control/control_spec.json";
   c.replay.folder = repo_dir + "/tests/data/fr1_xyz_first30";
   return c;
 }
@@ -114,8 +113,7 @@ nlohmann::json AppConfig::to_json_redacted() const {
                         {"timeout_ms", firmware.timeout_ms}, {"period_ms", firmware.period_ms},
                         {"send_on_pose", firmware.send_on_pose}, {"min_interval_ms", firmware.min_interval_ms},
                         {"keep_alive_ms", firmware.keep_alive_ms},
-                        {"key_hex", firmware_key_hex.empty() ? "" : "<redacted>"},
-                        {"control_spec", control_spec_path}}},
+                        {"key_hex", firmware_key_hex.empty() ? "" : "<redacted>"}}},
           {"camera", {{"mount_pitch_down_deg", station.mount_pitch_down_deg}}},
           {"realtime", {{"policy", slam::to_string(station.realtime.policy)}, {"priority", station.realtime.rt_priority},
                         {"fallback_nice", station.realtime.fallback_nice}}},
@@ -148,6 +146,13 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
   const json& fl = j.value("floor", empty);
   const json& m = j.value("map", empty);
   const json& rt = j.value("realtime", empty);
+  if (f.is_object() && f.contains("control_spec")) {
+    // Removed (issue 14): the ranges and routes are compiled in from the generated
+    // contract, the same the firmware is built with; a file could only disagree with both.
+    *error = "firmware.control_spec: no longer read - the control link's ranges and routes are compiled in "
+             "(generated from protocol/control/control_spec.json); delete the key";
+    return std::nullopt;
+  }
   std::string loop = "bounce";
   std::string thread_policy = slam::to_string(c.station.realtime.policy);
   if (!check_keys(d, "dashboard", {"bind_address", "port", "token", "static_dir", "allowed_hosts"}, error) ||
@@ -169,7 +174,7 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
       !read(sl, "slam", "port", c.station.slam_server.port, error) ||
       !read(sl, "slam", "timeout_ms", c.station.slam_server.reply_timeout_ms, error) ||
       !check_keys(f, "firmware", {"enabled", "host", "port", "timeout_ms", "period_ms", "send_on_pose", "min_interval_ms",
-                                  "keep_alive_ms", "key_hex", "control_spec"}, error) ||
+                                  "keep_alive_ms", "key_hex"}, error) ||
       !read(f, "firmware", "enabled", c.firmware_enabled, error) || !read(f, "firmware", "host", c.firmware.host, error) ||
       !read(f, "firmware", "port", c.firmware.port, error) ||
       !read(f, "firmware", "timeout_ms", c.firmware.timeout_ms, error) ||
@@ -178,7 +183,6 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
       !read(f, "firmware", "min_interval_ms", c.firmware.min_interval_ms, error) ||
       !read(f, "firmware", "keep_alive_ms", c.firmware.keep_alive_ms, error) ||
       !read(f, "firmware", "key_hex", c.firmware_key_hex, error) ||
-      !read(f, "firmware", "control_spec", c.control_spec_path, error) ||
       !check_keys(cam, "camera", {"mount_pitch_down_deg"}, error) ||
       !read(cam, "camera", "mount_pitch_down_deg", c.station.mount_pitch_down_deg, error) ||
       !check_keys(fl, "floor", {"iterations", "inlier_distance_m", "max_tilt_deg", "min_inlier_fraction", "seed", "search_frames"}, error) ||
@@ -202,7 +206,6 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
   const AppConfig defaults = default_app_config(repo_dir);
   if (c.dashboard_static_dir.empty()) c.dashboard_static_dir = defaults.dashboard_static_dir;
   if (c.replay.folder.empty()) c.replay.folder = defaults.replay.folder;
-  if (c.control_spec_path.empty()) c.control_spec_path = defaults.control_spec_path;
   if (!slam::parse_thread_policy(thread_policy, &c.station.realtime.policy, error)) {
     *error = "realtime.policy: " + *error;
     return std::nullopt;

@@ -38,7 +38,7 @@ struct AppConfig {
   bool firmware_enabled = true;
   FirmwareLinkOptions firmware;
   std::string firmware_key_hex;  ///< 32 hex digits, the craft's SipHash key (same as provisioned)
-  std::string control_spec_path;  ///< default: the repo's protocol/control/control_spec.json
+  // The control link's ranges and routes are compiled in (generated_control_spec()): no spec file.
   // control + map
   GroundStationOptions station;
   // MCAP flight recorder (section "recording"; docs/recording.md). "~/" in dir = $HOME.

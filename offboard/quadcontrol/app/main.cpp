@@ -99,11 +99,6 @@ int main(int argc, char** argv) {
   std::cout << "quad-control: configuration " << config->to_json_redacted().dump() << std::endl;
   if (print_config) return 0;
 
-  auto spec = load_control_spec(config->control_spec_path, &error);
-  if (!spec) {
-    std::cerr << "quad-control: " << error << "\n";
-    return 2;
-  }
   rgbd_control::Key key{};
   std::optional<FirmwareLinkOptions> firmware;
   if (config->firmware_enabled) {
@@ -171,8 +166,8 @@ int main(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   try {
-    GroundStation station(config->station, std::move(source), firmware, *spec, key, std::move(flight_log),
-                          std::move(recorder));
+    GroundStation station(config->station, std::move(source), firmware, generated_control_spec(), key,
+                          std::move(flight_log), std::move(recorder));
     DashboardApi api(station, config->dashboard_static_dir,
                      AccessPolicy{config->dashboard_token, config->dashboard_allowed_hosts});
     HttpServer server(config->dashboard_bind_address, config->dashboard_port,

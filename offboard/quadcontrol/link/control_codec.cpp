@@ -1,10 +1,9 @@
 // Control-link adapter: see control_codec.hpp. Encoding, MAC and reply validation are
-// protocol/control's rgbd_control_client_codec; this file adds the spec-derived ranges and routes.
+// protocol/control's rgbd_control_client_codec; this file adds the spec's ranges and routes (from
+// the generated constants).
 #include "link/control_codec.hpp"
 
-#include <fstream>
-#include <map>
-#include <nlohmann/json.hpp>
+#include <cstdint>
 
 #include "rgbd_control/client_codec.h"
 
@@ -24,39 +23,23 @@ std::optional<rgbd_control::Key> parse_control_key(const std::string& hex, std::
   return *key;
 }
 
-std::optional<ControlSpec> load_control_spec(const std::string& spec_path, std::string* error) {
-  std::ifstream in(spec_path);
-  if (!in) {
-    *error = "cannot read control spec " + spec_path;
-    return std::nullopt;
-  }
-  try {
-    const auto j = nlohmann::json::parse(in);
-    ControlSpec spec;
-    std::map<std::string, nlohmann::json> ranges;
-    for (const auto& f : j.at("control_fields"))
-      ranges[f.at("name").get<std::string>()] = f.at("range");
-    for (const char* name : kFieldOrder) {
-      if (!ranges.count(name)) {
-        *error = std::string("control spec lacks field ") + name;
-        return std::nullopt;
-      }
-    }
-    spec.seq_min = ranges["seq"][0].get<std::uint32_t>();
-    spec.seq_max = ranges["seq"][1].get<std::uint32_t>();
-    auto pwm = [&](const char* name) {
-      const auto lo = ranges[name][0].get<std::uint16_t>();
-      const auto hi = ranges[name][1].get<std::uint16_t>();
-      return PwmRange{lo, static_cast<std::uint16_t>((lo + hi) / 2), hi};
-    };
-    spec.pwm = PwmRanges{pwm("roll"), pwm("pitch"), pwm("yaw"), pwm("thr")};
-    spec.control_path = j.at("routes").at("control").at("path").get<std::string>();
-    spec.status_path = j.at("routes").at("status").at("path").get<std::string>();
-    return spec;
-  } catch (const std::exception& e) {
-    *error = "control spec " + spec_path + ": " + e.what();
-    return std::nullopt;
-  }
+ControlSpec generated_control_spec() {
+  using namespace rgbd_control;
+  static_assert(kRollMaxUs <= UINT16_MAX && kPitchMaxUs <= UINT16_MAX && kThrMaxUs <= UINT16_MAX &&
+                    kYawMaxUs <= UINT16_MAX,
+                "PwmRange holds 16-bit pulse widths");
+  const auto pwm = [](std::uint32_t lo, std::uint32_t hi) {
+    return PwmRange{static_cast<std::uint16_t>(lo), static_cast<std::uint16_t>((lo + hi) / 2),
+                    static_cast<std::uint16_t>(hi)};
+  };
+  ControlSpec spec;
+  spec.seq_min = kSeqMin;
+  spec.seq_max = kSeqMax;
+  spec.pwm = PwmRanges{pwm(kRollMinUs, kRollMaxUs), pwm(kPitchMinUs, kPitchMaxUs),
+                       pwm(kYawMinUs, kYawMaxUs), pwm(kThrMinUs, kThrMaxUs)};
+  spec.control_path = kControlPath;
+  spec.status_path = kStatusPath;
+  return spec;
 }
 
 std::optional<std::string> build_control_target(const ControlSpec& spec,

@@ -3,9 +3,10 @@
 // /control?seq=..&arm=..&roll=..&pitch=..&thr=..&yaw=..&mac=.." target and parses the "<status>
 // <json>" reply. A thin adapter over protocol/control's shared C++ codec
 // (rgbd_control_client_codec: request line, SipHash-2-4 MAC, strict reply parsing) that adds the
-// ranges and routes read from the spec file (load_control_spec), never redefined here. Proven
-// against protocol/control/vectors/control_vectors.json in tests/control_codec_test.cpp.
-// Pure functions; thread-safe.
+// spec's ranges and routes, taken from the constants gen_control.py generates from it
+// (rgbd_control/control_spec_generated.h: compiled in, no spec file is read at run time), never
+// redefined here. Proven against protocol/control/vectors/control_vectors.json and the spec file
+// itself in tests/control_codec_test.cpp. Pure functions; thread-safe.
 #pragma once
 
 #include <array>
@@ -24,14 +25,18 @@ namespace rgbdquad::quadcontrol {
 /// Parses 32 hex digits into a key; nullopt (error set) otherwise.
 std::optional<rgbd_control::Key> parse_control_key(const std::string& hex, std::string* error);
 
-/// Field ranges read from control_spec.json ("control_fields").
+/// The field ranges ("control_fields") and routes of control_spec.json.
 struct ControlSpec {
   std::uint32_t seq_min = 0, seq_max = 0;
   PwmRanges pwm;             ///< neutral = middle of each range (RC stick centre)
   std::string control_path;  ///< "/control"
   std::string status_path;   ///< "/status"
 };
-std::optional<ControlSpec> load_control_spec(const std::string& spec_path, std::string* error);
+
+/// The spec as generated into rgbd_control/control_spec_generated.h: the one the firmware and the
+/// shared codec are built with (pytest's gen_control.py --check keeps the header equal to the
+/// spec file; tests/control_codec_test.cpp compares this value with the file).
+ControlSpec generated_control_spec();
 
 struct ControlFields {
   std::uint32_t seq = 0;

@@ -1,11 +1,16 @@
-// The control-link codec against protocol/control's golden vectors, and the timestamp matcher.
+// The control-link codec against protocol/control's golden vectors and spec file (the compiled-in
+// ranges and routes equal the file's), and the timestamp matcher.
+#include "link/control_codec.hpp"
+
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
+#include <string>
+#include <utility>
 
 #include "core/timestamp_buffer.hpp"
-#include "link/control_codec.hpp"
 
 namespace rgbdquad::quadcontrol {
 namespace {
@@ -17,22 +22,48 @@ nlohmann::json vectors() {
   return nlohmann::json::parse(in);
 }
 
-ControlSpec spec() {
-  std::string error;
-  auto s = load_control_spec(kRepo + "/protocol/control/control_spec.json", &error);
-  EXPECT_TRUE(s) << error;
-  return *s;
+ControlSpec spec() { return generated_control_spec(); }
+
+/// The spec file's PUT /control field ranges by name, and its routes.
+struct FileSpec {
+  std::map<std::string, std::pair<std::uint32_t, std::uint32_t>> ranges;
+  std::string control_path, status_path;
+};
+
+FileSpec read_spec_file() {
+  std::ifstream in(kRepo + "/protocol/control/control_spec.json");
+  const auto j = nlohmann::json::parse(in);
+  FileSpec f;
+  for (const auto& field : j.at("control_fields")) {
+    f.ranges[field.at("name").get<std::string>()] = {field.at("range")[0].get<std::uint32_t>(),
+                                                     field.at("range")[1].get<std::uint32_t>()};
+  }
+  f.control_path = j.at("routes").at("control").at("path").get<std::string>();
+  f.status_path = j.at("routes").at("status").at("path").get<std::string>();
+  return f;
 }
 
-TEST(ControlCodec, SpecRangesComeFromTheSpecFile) {
+TEST(ControlCodec, GivenTheSpecFileThenTheCompiledInSpecHasItsRangesAndRoutes) {
+  const FileSpec file = read_spec_file();
   const ControlSpec s = spec();
-  EXPECT_EQ(s.pwm.roll.min_us, 1000);
-  EXPECT_EQ(s.pwm.roll.neutral_us, 1500);
-  EXPECT_EQ(s.pwm.throttle.max_us, 2000);
-  EXPECT_EQ(s.control_path, "/control");
-  std::string error;
-  EXPECT_FALSE(load_control_spec("/nonexistent.json", &error));
-  EXPECT_NE(error, "");
+  ASSERT_EQ(file.ranges.size(), 6u);
+  EXPECT_EQ(s.seq_min, file.ranges.at("seq").first);
+  EXPECT_EQ(s.seq_max, file.ranges.at("seq").second);
+  struct Row {
+    const char* name;
+    const PwmRange& range;
+  };
+  const Row table[] = {
+      {"roll", s.pwm.roll}, {"pitch", s.pwm.pitch}, {"thr", s.pwm.throttle}, {"yaw", s.pwm.yaw}};
+  for (const auto& row : table) {
+    SCOPED_TRACE(row.name);
+    const auto [lo, hi] = file.ranges.at(row.name);
+    EXPECT_EQ(row.range.min_us, lo);
+    EXPECT_EQ(row.range.max_us, hi);
+    EXPECT_EQ(row.range.neutral_us, (lo + hi) / 2);  // the RC stick centre
+  }
+  EXPECT_EQ(s.control_path, file.control_path);
+  EXPECT_EQ(s.status_path, file.status_path);
 }
 
 TEST(ControlCodec, RequestsMatchGoldenVectors) {
@@ -43,8 +74,9 @@ TEST(ControlCodec, RequestsMatchGoldenVectors) {
     std::string error;
     const auto key = parse_control_key(r["key_hex"].get<std::string>(), &error);
     ASSERT_TRUE(key) << error;
-    ControlFields f{r["seq"].get<std::uint32_t>(), r["arm"].get<int>() == 1, r["roll"].get<std::uint16_t>(),
-                    r["pitch"].get<std::uint16_t>(), r["thr"].get<std::uint16_t>(), r["yaw"].get<std::uint16_t>()};
+    ControlFields f{r["seq"].get<std::uint32_t>(),  r["arm"].get<int>() == 1,
+                    r["roll"].get<std::uint16_t>(), r["pitch"].get<std::uint16_t>(),
+                    r["thr"].get<std::uint16_t>(),  r["yaw"].get<std::uint16_t>()};
     const auto target = build_control_target(spec(), *key, f, &error);
     ASSERT_TRUE(target) << error;
     EXPECT_EQ("PUT " + *target, r["line"].get<std::string>());
@@ -57,8 +89,9 @@ TEST(ControlCodec, InvalidRequestsAreRefused) {
   for (const auto& r : v["invalid_requests"]) {
     SCOPED_TRACE(r.dump());
     std::string error;
-    ControlFields f{r["seq"].get<std::uint32_t>(), r["arm"].get<int>() == 1, r["roll"].get<std::uint16_t>(),
-                    r["pitch"].get<std::uint16_t>(), r["thr"].get<std::uint16_t>(), r["yaw"].get<std::uint16_t>()};
+    ControlFields f{r["seq"].get<std::uint32_t>(),  r["arm"].get<int>() == 1,
+                    r["roll"].get<std::uint16_t>(), r["pitch"].get<std::uint16_t>(),
+                    r["thr"].get<std::uint16_t>(),  r["yaw"].get<std::uint16_t>()};
     if (r["arm"].get<int>() > 1) continue;  // arm is a bool on this side: cannot be out of range
     EXPECT_FALSE(build_control_target(spec(), key, f, &error));
     EXPECT_NE(error, "");
@@ -77,8 +110,10 @@ TEST(ControlCodec, RepliesMatchGoldenVectors) {
       continue;
     }
     std::string error;
-    const auto reply = parse_control_reply(std::atoi(line.substr(0, 3).c_str()), line.substr(4), &error);
-    if (!r["valid"].get<bool>()) continue;  // our parser is lenient on some classes; valid ones must parse
+    const auto reply =
+        parse_control_reply(std::atoi(line.substr(0, 3).c_str()), line.substr(4), &error);
+    if (!r["valid"].get<bool>())
+      continue;  // our parser is lenient on some classes; valid ones must parse
     ASSERT_TRUE(reply) << error;
     const auto& f = r["fields"];
     EXPECT_EQ(reply->state, f["state"].get<std::string>());
@@ -105,7 +140,10 @@ TEST(TimestampBuffer, NearestWithinWindow) {
     std::int64_t t_us, max_dt_us;
     std::optional<int> expected;
   };
-  const Row table[] = {{0, 20000, 1}, {12000, 20000, 2}, {11000, 20000, 1}, {100000, 20000, std::nullopt},
+  const Row table[] = {{0, 20000, 1},
+                       {12000, 20000, 2},
+                       {11000, 20000, 1},
+                       {100000, 20000, std::nullopt},
                        {41000, 0, 3}};
   for (const auto& row : table) {
     SCOPED_TRACE(row.t_us);

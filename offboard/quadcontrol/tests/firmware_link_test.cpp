@@ -23,7 +23,6 @@
 namespace rgbdquad::quadcontrol {
 namespace {
 
-const std::string kRepo = QC_REPO_DIR;
 constexpr auto kDeadline = std::chrono::seconds(10);  // generous: the machine may be loaded
 
 /// Answers every HTTP request like the WiFi bridge + firmware: 200 with a valid reply line echoing
@@ -110,14 +109,11 @@ struct Fixture {
   std::unique_ptr<FirmwareLink> link;
 
   explicit Fixture(FirmwareLinkOptions o) {
-    std::string error;
-    auto spec = load_control_spec(kRepo + "/protocol/control/control_spec.json", &error);
-    if (!spec) throw std::runtime_error(error);
     o.host = "127.0.0.1";
     o.port = firmware.port();
     o.timeout_ms = 1000;
     link = std::make_unique<FirmwareLink>(
-        o, *spec, rgbd_control::Key{},
+        o, generated_control_spec(), rgbd_control::Key{},
         [this](std::int64_t, std::uint32_t) -> std::optional<PwmCommand> {
           ++provided;
           if (withhold) return std::nullopt;
