@@ -5,6 +5,7 @@
 #include <fstream>
 #include <set>
 
+#include "app/data_paths.hpp"
 #include "app/http_server.hpp"
 #include "app/request_guard.hpp"
 
@@ -68,11 +69,21 @@ bool read_recording(const json& r, RecorderOptions& o, std::string* error) {
 
 }  // namespace
 
-AppConfig default_app_config(const std::string& repo_dir) {
-  AppConfig c;
-  c.dashboard_static_dir = repo_dir + "/offboard/dashboard/static";
-  c.replay.folder = repo_dir + "/tests/data/fr1_xyz_first30";
-  return c;
+AppConfig default_app_config() { return AppConfig{}; }
+
+bool resolve_data_dirs(AppConfig& config, const std::filesystem::path& exe_path,
+                       const std::function<bool(const std::filesystem::path&)>& is_file, std::string* error) {
+  if (config.dashboard_static_dir.empty()) {
+    const auto dir = find_data_dir(exe_path, kDashboardStaticDir, is_file, error);
+    if (!dir) return false;
+    config.dashboard_static_dir = dir->string();
+  }
+  if (config.stream_source == "tum" && config.replay.folder.empty()) {
+    const auto dir = find_data_dir(exe_path, kDefaultReplayDir, is_file, error);
+    if (!dir) return false;
+    config.replay.folder = dir->string();
+  }
+  return true;
 }
 
 std::string AppConfig::validate() const {
@@ -121,8 +132,8 @@ nlohmann::json AppConfig::to_json_redacted() const {
           {"recording", recording.to_json()}};
 }
 
-std::optional<AppConfig> load_app_config(const std::string& path, const std::string& repo_dir, std::string* error) {
-  AppConfig c = default_app_config(repo_dir);
+std::optional<AppConfig> load_app_config(const std::string& path, std::string* error) {
+  AppConfig c = default_app_config();
   std::ifstream in(path);
   if (!in) {
     *error = "cannot read config file " + path;
@@ -202,10 +213,6 @@ std::optional<AppConfig> load_app_config(const std::string& path, const std::str
       !read(rt, "realtime", "fallback_nice", c.station.realtime.fallback_nice, error)) {
     return std::nullopt;
   }
-  // "" means the repo default (the shipped config file leaves these empty).
-  const AppConfig defaults = default_app_config(repo_dir);
-  if (c.dashboard_static_dir.empty()) c.dashboard_static_dir = defaults.dashboard_static_dir;
-  if (c.replay.folder.empty()) c.replay.folder = defaults.replay.folder;
   if (!slam::parse_thread_policy(thread_policy, &c.station.realtime.policy, error)) {
     *error = "realtime.policy: " + *error;
     return std::nullopt;

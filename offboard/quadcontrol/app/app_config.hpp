@@ -4,6 +4,8 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -25,10 +27,11 @@ struct AppConfig {
   std::string dashboard_token;   ///< required, and strong (check_token_strength), to bind a non-loopback address
   /// Host names the dashboard answers to besides IP literals and "localhost" (DNS-rebinding guard).
   std::vector<std::string> dashboard_allowed_hosts;
-  std::string dashboard_static_dir;  ///< default: the repo's offboard/dashboard/static
+  /// "" = the shipped files, found next to the executable (resolve_data_dirs, app/data_paths.hpp)
+  std::string dashboard_static_dir;
   // stream
   std::string stream_source = "tum";  ///< "tum" (dataset replay) or "receiver" (rgbd-streamer, live)
-  TumReplayOptions replay;
+  TumReplayOptions replay;  ///< folder "" = the shipped excerpt, found like dashboard_static_dir
   receiver::ReceiverOptions receiver;  ///< bind address and RGB/depth ports (offboard/receiver defaults)
   /// The craft's stream key file (stream.key_file; mode 0600, the streamer's stream_key_file):
   /// read when the config is loaded into receiver.key; required for stream.source "receiver".
@@ -48,9 +51,17 @@ struct AppConfig {
   nlohmann::json to_json_redacted() const;
 };
 
-/// Reads `path` over the defaults; nullopt with `error` naming the bad key.
-std::optional<AppConfig> load_app_config(const std::string& path, const std::string& repo_dir, std::string* error);
+/// Reads `path` over the defaults; nullopt with `error` naming the bad key. Data folders left ""
+/// stay "" (resolve_data_dirs fills them in).
+std::optional<AppConfig> load_app_config(const std::string& path, std::string* error);
 /// Defaults only (no file).
-AppConfig default_app_config(const std::string& repo_dir);
+AppConfig default_app_config();
+
+/// Fills the data folders left "" with the shipped ones found relative to `exe_path`
+/// (find_data_dir): the dashboard's static files always, the replay excerpt only when the stream
+/// is a TUM replay. False with `error` naming every path tried when one is missing.
+bool resolve_data_dirs(AppConfig& config, const std::filesystem::path& exe_path,
+                       const std::function<bool(const std::filesystem::path&)>& is_file,
+                       std::string* error);
 
 }  // namespace rgbdquad::quadcontrol

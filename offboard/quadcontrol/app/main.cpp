@@ -10,6 +10,7 @@
 
 #include "app/app_config.hpp"
 #include "app/dashboard_api.hpp"
+#include "app/data_paths.hpp"
 #include "app/ground_station.hpp"
 #include "app/http_server.hpp"
 #include "app/receiver_source.hpp"
@@ -23,7 +24,11 @@ int main(int argc, char** argv) {
       "Joins the RGB-D frame source, SLAM, the flight controller (PID position control, take-off / hold at\n"
       "1.7 m / waypoint / land) and the firmware REST link, and serves the dashboard on\n"
       "http://127.0.0.1:8080/ by default. Every setting and its default is in the config file\n"
-      "(offboard/quadcontrol/config/quad-control.json); command-line options override it.\n"
+      "template (<prefix>/share/rgbdquad/config/quad-control.json when installed,\n"
+      "offboard/quadcontrol/config/quad-control.json in the source tree); command-line options\n"
+      "override it. The dashboard's files and the default replay are found next to this program:\n"
+      "<bin>/../share/rgbdquad/{dashboard,data/fr1_xyz_first30} when installed, else the source\n"
+      "tree above a build folder (docs/control.md, Installing).\n"
       "Frame sources: stream.source=receiver (rgbd-streamer, RGB port 5600 / depth port 5601) or\n"
       "tum (TUM dataset replay, the default). SLAM: slam.mode=server (slam-server on\n"
       "127.0.0.1:5700, the default; frames still show while it is down) or in-process (the SLAM\n"
@@ -35,7 +40,9 @@ int main(int argc, char** argv) {
   cli.add_option("--bind", bind_address, "dashboard address (default 127.0.0.1; non-loopback needs --token)");
   cli.add_option("--port", port, "dashboard TCP port (default 8080; 0 = any free port, printed)");
   cli.add_option("--token", token, "dashboard access token (required for a non-loopback --bind)");
-  cli.add_option("--tum", tum_folder, "replay this TUM RGB-D folder as the camera (sets stream.source=tum)");
+  cli.add_option("--tum", tum_folder,
+                 "replay this TUM RGB-D folder as the camera (sets stream.source=tum; default: the shipped "
+                 "fr1_xyz_first30 excerpt)");
   bool live = false;
   cli.add_flag("--live", live, "take frames from rgbd-streamer (sets stream.source=receiver)");
   cli.add_option("--firmware-host", firmware_host, "firmware (WiFi bridge) address");
@@ -56,10 +63,9 @@ int main(int argc, char** argv) {
   cli.add_flag("--no-record", no_record, "do not record MCAP (overrides recording.enabled in the config)");
   CLI11_PARSE(cli, argc, argv);
 
-  const std::string repo_dir = QC_REPO_DIR;
   std::string error;
-  std::optional<AppConfig> config = config_path.empty() ? default_app_config(repo_dir)
-                                                        : load_app_config(config_path, repo_dir, &error);
+  std::optional<AppConfig> config =
+      config_path.empty() ? default_app_config() : load_app_config(config_path, &error);
   if (!config) {
     std::cerr << "quad-control: " << error << "\n";
     return 2;
@@ -96,6 +102,11 @@ int main(int argc, char** argv) {
     return 2;
   }
   config->dashboard_port = wanted_port;
+  const auto exe = current_executable(&error);
+  if (!exe || !resolve_data_dirs(*config, *exe, is_regular_file_noexcept, &error)) {
+    std::cerr << "quad-control: " << error << "\n";
+    return 2;
+  }
   std::cout << "quad-control: configuration " << config->to_json_redacted().dump() << std::endl;
   if (print_config) return 0;
 
