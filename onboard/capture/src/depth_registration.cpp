@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <limits>
+#include <vector>
 
 namespace rgbdquad::capture {
 namespace {
@@ -54,24 +55,44 @@ std::optional<DepthFrame> DepthRegistration::register_depth(const DepthFrame& in
   out.units_per_m = in.units_per_m;
   out.registered_to_rgb = true;
   out.depth.assign(static_cast<std::size_t>(out.width) * out.height, 0);
+  // Identity extrinsics and one camera model: every pixel stays where it is (a driver that
+  // registers in hardware, or an emulated sensor); no per-pixel work.
+  const bool same_camera = kd.fx_px == kc.fx_px && kd.fy_px == kc.fy_px && kd.cx_px == kc.cx_px &&
+                           kd.cy_px == kc.cy_px && in.width == out.width && in.height == out.height;
+  if (same_camera && R == std::array<double, 9>{1, 0, 0, 0, 1, 0, 0, 0, 1} && t[0] == 0 &&
+      t[1] == 0 && t[2] == 0) {
+    out.depth = in.depth;
+    return out;
+  }
+  // p_depth = z * K_depth^-1 [u v 1]^T, p_rgb = R p_depth + t = z * (R K_depth^-1 [u v 1]^T) + t:
+  // the rotated ray of each pixel is a_u * R.col(0) + b_v * R.col(1) + R.col(2), with a_u and b_v
+  // per column and per row, so the per-pixel cost is three multiply-adds and a projection (this
+  // runs on the companion board at 30 fps: 9.2 M pixels/s).
   const double metres_per_unit = 1.0 / in.units_per_m;
+  std::vector<double> a_u(static_cast<std::size_t>(in.width));
+  for (int u = 0; u < in.width; ++u) a_u[static_cast<std::size_t>(u)] = (u - kd.cx_px) / kd.fx_px;
   for (int v = 0; v < in.height; ++v) {
+    const double b_v = (v - kd.cy_px) / kd.fy_px;
+    const double row_x = R[1] * b_v + R[2], row_y = R[4] * b_v + R[5], row_z = R[7] * b_v + R[8];
+    const std::uint16_t* row = &in.depth[static_cast<std::size_t>(v) * in.width];
     for (int u = 0; u < in.width; ++u) {
-      const std::uint16_t d = in.depth[static_cast<std::size_t>(v) * in.width + u];
+      const std::uint16_t d = row[u];
       if (d == 0) continue;
-      // p_depth = z * K_depth^-1 [u v 1]^T ; p_rgb = R p_depth + t
       const double z = d * metres_per_unit;
-      const double x = (u - kd.cx_px) / kd.fx_px * z;
-      const double y = (v - kd.cy_px) / kd.fy_px * z;
-      const double xr = R[0] * x + R[1] * y + R[2] * z + t[0];
-      const double yr = R[3] * x + R[4] * y + R[5] * z + t[1];
-      const double zr = R[6] * x + R[7] * y + R[8] * z + t[2];
+      const double a = a_u[static_cast<std::size_t>(u)];
+      const double xr = z * (R[0] * a + row_x) + t[0];
+      const double yr = z * (R[3] * a + row_y) + t[1];
+      const double zr = z * (R[6] * a + row_z) + t[2];
       if (!(zr > 0)) continue;
-      const long ur = std::lround(kc.fx_px * xr / zr + kc.cx_px);
-      const long vr = std::lround(kc.fy_px * yr / zr + kc.cy_px);
-      if (ur < 0 || vr < 0 || ur >= out.width || vr >= out.height) continue;
-      const double units = std::round(zr * in.units_per_m);
-      if (units < 1 || units > std::numeric_limits<std::uint16_t>::max()) continue;
+      const double uf = kc.fx_px * xr / zr + kc.cx_px + 0.5;
+      const double vf = kc.fy_px * yr / zr + kc.cy_px + 0.5;
+      // Rounded to the nearest pixel: truncation of x + 0.5 once x + 0.5 is known to be >= 0
+      // (std::lround's libm call was a sixth of the streamer's CPU).
+      if (!(uf >= 0 && vf >= 0 && uf < out.width && vf < out.height)) continue;
+      const int ur = static_cast<int>(uf);
+      const int vr = static_cast<int>(vf);
+      const double units = zr * in.units_per_m + 0.5;
+      if (!(units >= 1 && units < std::numeric_limits<std::uint16_t>::max() + 1.0)) continue;
       auto& slot = out.depth[static_cast<std::size_t>(vr) * out.width + ur];
       const auto value = static_cast<std::uint16_t>(units);
       if (slot == 0 || value < slot) slot = value;  // nearest surface occludes farther ones

@@ -104,7 +104,7 @@ void FreenectSource::on_depth(const void* data) {
   f.depth.resize(static_cast<std::size_t>(f.width) * f.height);
   std::memcpy(f.depth.data(), data, f.depth.size() * sizeof(std::uint16_t));
   if (options_.disparity_depth) {
-    for (auto& v : f.depth) v = disparity_to_mm(v);
+    for (auto& v : f.depth) v = v < disparity_mm_.size() ? disparity_mm_[v] : 0;
   }
   push(std::move(f));
 }
@@ -168,6 +168,13 @@ std::uint16_t FreenectSource::disparity_to_mm(std::uint16_t raw) {
   // raw >= ~1084 gives negative or huge values (tan beyond pi/2): not a measurable depth.
   if (!(z_m > 0) || z_m > 10.0) return 0;
   return static_cast<std::uint16_t>(std::lround(z_m * 1000.0));
+}
+
+FreenectSource::DisparityTable FreenectSource::disparity_to_mm_table() {
+  DisparityTable table{};
+  for (std::size_t raw = 0; raw < table.size(); ++raw)
+    table[raw] = disparity_to_mm(static_cast<std::uint16_t>(raw));
+  return table;
 }
 
 }  // namespace rgbdquad::capture

@@ -14,6 +14,7 @@
 // cross to the consumer through a small queue (the newest kept when the consumer falls behind).
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <condition_variable>
 #include <deque>
@@ -58,6 +59,10 @@ class FreenectSource final : public FrameSource {
 
   // The disparity -> millimetre conversion used in disparity mode (0 for no reading).
   static std::uint16_t disparity_to_mm(std::uint16_t raw);
+  // disparity_to_mm of every 11-bit raw value (index = raw; raw >= 2048 is no reading): what a
+  // frame is converted with - 307 200 tan() calls per frame were a fifth of the streamer's CPU.
+  using DisparityTable = std::array<std::uint16_t, 2048>;
+  static DisparityTable disparity_to_mm_table();
   void on_video(const void* data);
 
  private:
@@ -65,6 +70,7 @@ class FreenectSource final : public FrameSource {
   void event_loop();
 
   FreenectOptions options_;
+  DisparityTable disparity_mm_ = disparity_to_mm_table();
   Clock* clock_;
   _freenect_context* context_ = nullptr;
   _freenect_device* device_ = nullptr;
