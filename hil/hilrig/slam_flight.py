@@ -214,6 +214,10 @@ class SlamFlight:
                     o.features,
                     "--backend",
                     o.backend,
+                    # Each session's per-frame tracking stages (frames.csv: wall and CPU ms, lock
+                    # waits, relocalised), written when the session ends: where SLAM spent a flight.
+                    "--tables-dir",
+                    str(self.workdir / "slam-tables"),
                 ],
                 system=True,
             )
@@ -322,6 +326,10 @@ class SlamFlight:
         if not old or old[-1].alive():
             raise RuntimeError("slam-server is still running: kill_slam_server() first")
         argv = list(old[-1].argv)
+        restarts = len(list(self.workdir.glob("slam-server*.log")))
+        if "--tables-dir" in argv:  # the new server numbers its sessions from 1 again
+            i = argv.index("--tables-dir") + 1
+            argv[i] = str(self.workdir / f"slam-tables-{restarts}")
         self._procs = [(n, p) for n, p in self._procs if p is not old[-1]]
         old[-1].stop()
         log = self.workdir / "slam-server.log"

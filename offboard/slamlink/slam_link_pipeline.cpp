@@ -3,6 +3,7 @@
 #include <string>
 #include <utility>
 
+#include "slam/report/run_tables.hpp"
 #include "slam_link_session.hpp"
 
 namespace slam {
@@ -24,6 +25,10 @@ class LivePipeline final : public SessionPipeline {
   }
   void finish() override { pipeline_->finish(); }
   PipelineSummary summary() const override { return pipeline_->summary(); }
+  bool write_tables(const std::string& dir, std::string* error) const override {
+    return write_run_tables(dir, pipeline_->records(), pipeline_->mapper_stats(),
+                            pipeline_->loop_stats(), {}, error);
+  }
 
  private:
   std::unique_ptr<Pipeline> pipeline_;

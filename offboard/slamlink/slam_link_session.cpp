@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
@@ -223,6 +224,16 @@ std::string SlamLinkSession::finish_summary() {
       std::string err;
       if (pipeline_->save_map(map_files_.save_path, &err)) m << "; map saved to " << map_files_.save_path;
       else m << "; map NOT saved: " << err;
+    }
+    if (!map_files_.tables_dir.empty()) {
+      std::string err;
+      std::error_code ec;
+      std::filesystem::create_directories(map_files_.tables_dir, ec);
+      if (ec) err = "cannot create " + map_files_.tables_dir + ": " + ec.message();
+      if (!ec && pipeline_->write_tables(map_files_.tables_dir, &err))
+        m << "; tables written to " << map_files_.tables_dir;
+      else
+        m << "; tables NOT written: " << err;
     }
   }
   return m.str();

@@ -41,6 +41,10 @@ std::optional<rgbdquad::protocol::Pose3> pose_to_wire(const Eigen::Isometry3d& T
 struct SessionMapFiles {
   std::string load_path;
   std::string save_path;
+  /// When set: the session's per-frame, per-keyframe and loop tables (frames.csv with each frame's
+  /// tracking stages in ms, mapping.csv, loops.csv; slam/report/run_tables.hpp) are written into
+  /// this folder (created) when the session ends - what slam-eval writes for a dataset, for a flight.
+  std::string tables_dir;
 };
 
 /// What a session asks of the SLAM pipeline (the subset of Pipeline it uses, same contracts).
@@ -55,6 +59,8 @@ class SessionPipeline {
   /// Drains and joins the pipeline's threads. Idempotent.
   virtual void finish() = 0;
   virtual PipelineSummary summary() const = 0;
+  /// Writes the run tables into `dir` (exists); after finish(). False with `error` on failure.
+  virtual bool write_tables(const std::string& dir, std::string* error) const = 0;
 };
 
 /// Starts a pipeline for the camera a client's first frame describes; null with `error` when the

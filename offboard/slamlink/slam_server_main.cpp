@@ -241,7 +241,7 @@ class Server {
 int main(int argc, char** argv) {
   CLI::App app{"slam-server: RGB-D SLAM on the SLAM link (SlamHello, RgbdFrame -> PoseUpdate)"};
   std::string bind = "127.0.0.1", features = "orb", backend = "localmap";
-  std::string load_map, save_map;
+  std::string load_map, save_map, tables_dir;
   int port = 5700;
   std::size_t max_clients = 4;
   slam::ConnectionOptions copt;
@@ -254,6 +254,9 @@ int main(int argc, char** argv) {
                  "world frame); a map of another camera/detector/version is refused and logged")
       ->check(CLI::ExistingFile);
   app.add_option("--save-map", save_map, "localmap: write each session's map here when it ends");
+  app.add_option("--tables-dir", tables_dir,
+                 "write each session's per-frame tables (frames.csv: tracking stages in ms, wall and CPU; "
+                 "mapping.csv, loops.csv) into DIR/session-N (N from 1 in the order sessions start) when it ends");
   app.add_option("--backend", backend, "localmap (tracking against a local map, the default) | vo | llc | glc (thesis)")->check(CLI::IsMember({"localmap", "vo", "llc", "glc"}))->capture_default_str();
   app.add_option("--max-clients", max_clients, "connections served at once")->check(CLI::Range(1, 64))->capture_default_str();
   app.add_option("--hello-timeout-ms", copt.hello_timeout_ms, "SlamHello due within this of connecting")->capture_default_str();
@@ -319,9 +322,13 @@ int main(int argc, char** argv) {
   // Tracking runs on this (the poll) thread: it is the real-time path; sessions' mappers lower
   // themselves (slam::lower_current_thread).
   log_line(slam::raise_current_thread(priority).describe("serving"));
-  const slam::SessionMapFiles map_files{load_map, save_map};
-  slam::SessionRegistry registry(
-      ropt, [options, map_files] { return std::make_unique<slam::SlamLinkSession>(options, map_files); });
+  slam::SessionRegistry registry(ropt, [options, load_map, save_map, tables_dir,
+                                        sessions = std::make_shared<int>(0)] {
+    slam::SessionMapFiles files{load_map, save_map, ""};
+    ++*sessions;
+    if (!tables_dir.empty()) files.tables_dir = tables_dir + "/session-" + std::to_string(*sessions);
+    return std::make_unique<slam::SlamLinkSession>(options, files);
+  });
   Server(lfd, sigfd, max_clients, copt, std::move(registry)).run();
   ::close(lfd);
   ::close(sigfd);

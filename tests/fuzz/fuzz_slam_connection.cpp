@@ -105,6 +105,10 @@ class FakePipeline final : public slam::SessionPipeline {
   }
   void finish() override {}
   slam::PipelineSummary summary() const override { return {}; }
+  bool write_tables(const std::string&, std::string* error) const override {
+    if (error) *error = "fake: no tables";
+    return false;
+  }
 
   /// Set by the harness before a frame is processed: its first pixel as sent.
   static inline std::optional<std::array<std::uint8_t, 5>> next_first_pixel;

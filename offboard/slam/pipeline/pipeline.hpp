@@ -94,12 +94,14 @@ struct FrameRecord {
   bool keyframe = false;
   bool llc_applied = false;
   bool loop_closed = false;
+  bool relocalised = false;  ///< local-map system: the pose came from the keyframe database (TrackResult)
   std::int64_t reference_keyframe = -1;
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< as estimated online
   Eigen::Isometry3d T_prev_cur = Eigen::Isometry3d::Identity();   ///< front-end egomotion
   Eigen::Isometry3d T_kf_cam = Eigen::Isometry3d::Identity();
   std::size_t features = 0, matches = 0, inliers = 0;
   double features_ms = 0, matching_ms = 0, ransac_ms = 0, frontend_ms = 0;
+  double optimise_ms = 0;  ///< local-map system: the tracker's motion-only pose optimisations (TrackResult)
   double keyframe_ms = 0, llc_ms = 0, glc_ms = 0, posegraph_ms = 0, backend_ms = 0;
   double frontend_cpu_ms = 0, backend_cpu_ms = 0;
   std::size_t map_keyframes = 0, map_points = 0;  ///< local-map system: map size after this frame

@@ -3,6 +3,7 @@
 // that cannot be used - and every pose put on the wire passes the codec's checks (pose_to_wire).
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 #include <map>
 
@@ -104,12 +105,12 @@ TEST(SlamLinkSession, GivenMapFilesThenASessionSavesItsMapAndTheNextStartsInIt) 
   ASSERT_TRUE(ds) << err;
   {
     // GIVEN a session that saves its map
-    SlamLinkSession first(o, SessionMapFiles{"", map_path});
+    SlamLinkSession first(o, SessionMapFiles{"", map_path, ""});
     for (std::uint32_t i = 0; i < 10; ++i) roundtrip(&first, to_wire(*ds->load(i, &err), i), &err);
     EXPECT_NE(first.finish_summary().find("map saved to"), std::string::npos);
   }
   // WHEN a new session starts from it, on later frames
-  SlamLinkSession second(o, SessionMapFiles{map_path, ""});
+  SlamLinkSession second(o, SessionMapFiles{map_path, "", ""});
   const proto::PoseUpdate u = roundtrip(&second, to_wire(*ds->load(12, &err), 0), &err);
   // THEN its first frame is tracked in the saved map's world frame (relocalised, not a new map)
   EXPECT_TRUE(err.empty()) << err;
@@ -118,10 +119,44 @@ TEST(SlamLinkSession, GivenMapFilesThenASessionSavesItsMapAndTheNextStartsInIt) 
   // AND a session given a file that is no map says so on its first answer and goes on in a new map
   const std::string junk = ::testing::TempDir() + "/junk.map";
   { std::ofstream(junk) << "not a map"; }
-  SlamLinkSession third(o, SessionMapFiles{junk, ""});
+  SlamLinkSession third(o, SessionMapFiles{junk, "", ""});
   roundtrip(&third, to_wire(*ds->load(0, &err), 0), &err);
   EXPECT_NE(err.find("map not loaded"), std::string::npos) << err;
   EXPECT_NE(third.finish_summary().find("bad magic"), std::string::npos);
+}
+
+TEST(SlamLinkSession, GivenATablesFolderThenTheEndedSessionWritesOneFrameRowPerFrameWithItsStages) {
+  // GIVEN a session told to write its tables into a folder that does not exist yet
+  const std::string dir = ::testing::TempDir() + "/slam_link_tables/session-1";
+  std::filesystem::remove_all(dir);
+  SlamLinkSession s(orb_options(), SessionMapFiles{"", "", dir});
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  // WHEN it tracks 6 frames and ends
+  for (std::uint32_t i = 0; i < 6; ++i) roundtrip(&s, to_wire(*ds->load(i, &err), i), &err);
+  const std::string summary = s.finish_summary();
+  // THEN it says where the tables went, and frames.csv has its header and one row per frame, the
+  // frames after the first tracked, with their stage times and a relocalised flag
+  EXPECT_NE(summary.find("tables written to " + dir), std::string::npos) << summary;
+  std::ifstream in(dir + "/frames.csv");
+  ASSERT_TRUE(in) << dir;
+  std::string header, line;
+  std::getline(in, header);
+  EXPECT_NE(header.find("relocalised,features_ms,matching_ms,optimise_ms,relocalise_ms"), std::string::npos)
+      << header;
+  int rows = 0, tracked = 0;
+  while (std::getline(in, line)) {
+    ++rows;
+    if (line.find(",tracking,") != std::string::npos) ++tracked;
+  }
+  EXPECT_EQ(rows, 6);
+  EXPECT_EQ(tracked, 5);  // the first frame initialises the map
+  EXPECT_TRUE(std::filesystem::exists(dir + "/mapping.csv"));
+  // AND a folder that cannot be made is reported, not thrown
+  SlamLinkSession blocked(orb_options(), SessionMapFiles{"", "", "/proc/no/such/dir"});
+  roundtrip(&blocked, to_wire(*ds->load(0, &err), 0), &err);
+  EXPECT_NE(blocked.finish_summary().find("tables NOT written"), std::string::npos);
 }
 
 TEST(SlamLinkSession, GivenUnusableFramesThenEachStillGetsALostPoseUpdateWithAReason) {
@@ -170,6 +205,7 @@ class ScriptedPipeline : public SessionPipeline {
   bool save_map(const std::string&, std::string*) const override { return true; }
   void finish() override {}
   PipelineSummary summary() const override { return {}; }
+  bool write_tables(const std::string&, std::string*) const override { return true; }
 
  private:
   std::map<std::int64_t, FrameRecord> script_;
