@@ -255,7 +255,7 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_option("--save-map", save_map, "localmap: write each session's map here when it ends");
   app.add_option("--tables-dir", tables_dir,
-                 "write each session's per-frame tables (frames.csv: tracking stages in ms, wall and CPU; "
+                 "write each session's per-frame tables (frames.csv: tracking wall and CPU ms, features / matching / relocalisation ms, map-lock wait; "
                  "mapping.csv, loops.csv) into DIR/session-N (N from 1 in the order sessions start) when it ends");
   app.add_option("--backend", backend, "localmap (tracking against a local map, the default) | vo | llc | glc (thesis)")->check(CLI::IsMember({"localmap", "vo", "llc", "glc"}))->capture_default_str();
   app.add_option("--max-clients", max_clients, "connections served at once")->check(CLI::Range(1, 64))->capture_default_str();

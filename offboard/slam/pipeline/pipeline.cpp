@@ -444,7 +444,6 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   rec.near_redundant = tr.near_redundant;
   rec.matching_ms = tr.local_map_ms + tr.search_ms;
   rec.ransac_ms = tr.relocalise_ms;
-  rec.optimise_ms = tr.optimise_ms;
   rec.relocalised = tr.relocalised;
   rec.map_lock_wait_ms = tr.map_lock_wait_ms;
   rec.map_corrections = tr.map_corrections;

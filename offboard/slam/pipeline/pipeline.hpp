@@ -100,8 +100,9 @@ struct FrameRecord {
   Eigen::Isometry3d T_prev_cur = Eigen::Isometry3d::Identity();   ///< front-end egomotion
   Eigen::Isometry3d T_kf_cam = Eigen::Isometry3d::Identity();
   std::size_t features = 0, matches = 0, inliers = 0;
+  /// Local-map system: matching_ms = local map + projection search with its pose optimisations,
+  /// ransac_ms = relocalisation (TrackResult).
   double features_ms = 0, matching_ms = 0, ransac_ms = 0, frontend_ms = 0;
-  double optimise_ms = 0;  ///< local-map system: the tracker's motion-only pose optimisations (TrackResult)
   double keyframe_ms = 0, llc_ms = 0, glc_ms = 0, posegraph_ms = 0, backend_ms = 0;
   double frontend_cpu_ms = 0, backend_cpu_ms = 0;
   std::size_t map_keyframes = 0, map_points = 0;  ///< local-map system: map size after this frame
