@@ -83,12 +83,17 @@ def free_port() -> int:
 #    band left a 0.3-0.4 m height error.
 #  * Roll/pitch: Table 3.1's gains in our assumed unit (percent of stick per mm; docs/control.md)
 #    give a ~1 rad/s loop with 0.36 damping: the craft wandered 0.3-0.7 m in 0.15 m/s^2 gusts;
-#    kp 0.05 / kd 0.035 oscillated (2 s period); kp 0.03 / kd 0.03 holds ~0.15 m.
+#    kp 0.05 / kd 0.035 oscillated (2 s period); kp 0.03 / kd 0.03 held ~0.15 m. Those trials
+#    flew with camera->PWM p95 of 150-270 ms; since the rig's streamer stopped starving the ground
+#    station (3 Dec 2026) it is 75-95 ms, and a loop with less delay takes more gain at the same
+#    phase margin: kp 0.04 / kd 0.04 (the same kd/kp ratio, i.e. the same zero of the PD at 1 rad/s)
+#    held 0.105 m (scenario 1), 0.115 m (scenario 2) and 0.118 m through scenario 5's stalls,
+#    against 0.136 / 0.151 / 0.208 m with 0.03 in the same session (docs/hil.md).
 #  * Yaw: Table 3.1's kp 0.06 %/deg turns with an 8 s time constant (a 90 deg turn took 19 s);
 #    0.15 gives ~3 s and a peak rate near fr1/desk's 23 deg/s, which the front end tracks.
 HIL_CONTROLLER_GAINS = {
-    "roll": {"kp": 0.03, "kd": 0.03},
-    "pitch": {"kp": 0.03, "kd": 0.03},
+    "roll": {"kp": 0.04, "kd": 0.04},
+    "pitch": {"kp": 0.04, "kd": 0.04},
     "yaw": {"kp": 0.15},
     "throttle": {"kp": 0.025, "ki": 0.0, "kd": 0.0},
     "apm_throttle_deadband_us": 100.0,
