@@ -401,8 +401,9 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   run->add_option("--depth-noise", a.depth_noise,
                   "localmap: sigma of the depth residual - kinect (the sensor's axial noise, Nguyen et al. 2012) | "
-                  "keypoint (ORB-SLAM2: the keypoint's pixel sigma on the virtual-stereo disparity)")
-      ->check(CLI::IsMember({"kinect", "keypoint"}))->capture_default_str();
+                  "keypoint (ORB-SLAM2: the keypoint's pixel sigma on the virtual-stereo disparity) | "
+                  "kinect-edge (kinect plus the depth image's slope times the keypoint's pixel sigma)")
+      ->check(CLI::IsMember({"kinect", "keypoint", "kinect-edge"}))->capture_default_str();
   run->add_option("--depth-units-per-m", a.depth_units_per_m,
                   "raw depth units per metre (0: the camera's, TUM 5000; ORB-SLAM2's TUM2.yaml uses 5208 for fr2) - "
                   "for calibration ablations");

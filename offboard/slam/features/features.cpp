@@ -12,6 +12,23 @@
 
 namespace slam {
 
+double depth_slope_m_per_px(const cv::Mat& depth, int u, int v, double units_per_m) {
+  const auto at = [&](int x, int y) -> double {
+    if (x < 0 || y < 0 || x >= depth.cols || y >= depth.rows) return 0;
+    return depth.at<std::uint16_t>(y, x) / units_per_m;
+  };
+  const double z = at(u, v);
+  if (!(z > 0)) return 0;
+  // Central difference where both neighbours have a reading, else one-sided, else none.
+  const auto slope = [&](double a, double b) {
+    if (a > 0 && b > 0) return std::abs(b - a) / 2;
+    if (a > 0) return std::abs(z - a);
+    if (b > 0) return std::abs(b - z);
+    return 0.0;
+  };
+  return std::max(slope(at(u - 1, v), at(u + 1, v)), slope(at(u, v - 1), at(u, v + 1)));
+}
+
 bool parse_detector_kind(const std::string& name, DetectorKind* out, std::string* error) {
   if (name == "sift") { *out = DetectorKind::kSift; return true; }
   if (name == "surf") { *out = DetectorKind::kSurf; return true; }
@@ -150,6 +167,8 @@ std::optional<FrameFeatures> FeatureExtractor::extract(const RgbdFrame& frame,
     out.points_cam_m.push_back(back_project(intrinsics_, undist[i].x, undist[i].y, z));
     out.colours_bgr.push_back(frame.rgb.channels() == 3 ? frame.rgb.at<cv::Vec3b>(v, u)
                                                         : cv::Vec3b::all(grey.at<std::uint8_t>(v, u)));
+    out.depth_slope_m_per_px.push_back(
+        static_cast<float>(depth_slope_m_per_px(frame.depth, u, v, intrinsics_.depth_units_per_m)));
   }
   out.descriptors.create(static_cast<int>(keep.size()), desc.cols, desc.type());
   for (std::size_t r = 0; r < keep.size(); ++r) desc.row(keep[r]).copyTo(out.descriptors.row(static_cast<int>(r)));

@@ -66,8 +66,16 @@ struct FrameFeatures {
   cv::Mat descriptors;  ///< CV_32F (SIFT/SURF) or CV_8U (ORB)
   std::vector<Eigen::Vector3d> points_cam_m;
   std::vector<cv::Vec3b> colours_bgr;  ///< pixel colour at each keypoint, for the map
-  std::size_t detected = 0;            ///< keypoints found before the depth filter
+  /// Depth slope at each keypoint's pixel, m per px: the larger central difference of the depth
+  /// image along u and v (one-sided where a neighbour has no reading). How far the depth read moves
+  /// when the keypoint's pixel is off by one: large at occluding edges and on oblique surfaces.
+  std::vector<float> depth_slope_m_per_px;
+  std::size_t detected = 0;  ///< keypoints found before the depth filter
 };
+
+/// FrameFeatures::depth_slope_m_per_px at pixel (u, v) of a 16-bit depth image; 0 where the
+/// pixel has no reading.
+double depth_slope_m_per_px(const cv::Mat& depth, int u, int v, double units_per_m);
 
 class FeatureExtractor {
  public:

@@ -25,7 +25,8 @@ double keypoint_level_scale(const cv::KeyPoint& kp, const FeatureOptions& o) {
 bool parse_depth_noise_model(const std::string& name, DepthNoiseModel* out, std::string* error) {
   if (name == "keypoint") { *out = DepthNoiseModel::kKeypointSigma; return true; }
   if (name == "kinect") { *out = DepthNoiseModel::kKinectAxial; return true; }
-  if (error) *error = "unknown depth noise model '" + name + "' (expected kinect or keypoint)";
+  if (name == "kinect-edge") { *out = DepthNoiseModel::kKinectEdge; return true; }
+  if (error) *error = "unknown depth noise model '" + name + "' (expected keypoint, kinect or kinect-edge)";
   return false;
 }
 
@@ -33,16 +34,19 @@ const char* to_string(DepthNoiseModel m) {
   switch (m) {
     case DepthNoiseModel::kKeypointSigma: return "keypoint";
     case DepthNoiseModel::kKinectAxial: return "kinect";
+    case DepthNoiseModel::kKinectEdge: return "kinect-edge";
   }
   return "?";
 }
 
-double CameraModel::disparity_sigma_px(double depth_m, double kp_sigma_px) const {
+double CameraModel::disparity_sigma_px(double depth_m, double kp_sigma_px, double slope_m_per_px) const {
   if (depth_noise == DepthNoiseModel::kKeypointSigma) return kp_sigma_px;
   // Nguyen et al. 2012, Eq. 1 (metres).
   constexpr double kSigmaZ0M = 0.0012, kSigmaZ2PerM2 = 0.0019, kZOffsetM = 0.4;
   const double dz = depth_m - kZOffsetM;
-  const double sigma_z_m = kSigmaZ0M + kSigmaZ2PerM2 * dz * dz;
+  double sigma_z_m = kSigmaZ0M + kSigmaZ2PerM2 * dz * dz;
+  if (depth_noise == DepthNoiseModel::kKinectEdge)
+    sigma_z_m = std::hypot(sigma_z_m, slope_m_per_px * kp_sigma_px);
   return std::max(kMinDisparitySigmaPx, bf_px_m * sigma_z_m / (depth_m * depth_m));
 }
 
@@ -87,7 +91,9 @@ TrackedFeatures TrackedFeatures::from(std::shared_ptr<const FrameFeatures> f, co
     t.pixels.emplace_back(uvd.x(), uvd.y());
     t.depth_m.push_back(f->points_cam_m[i].z());
     t.sigma_px.push_back(keypoint_level_scale(f->keypoints[i], options));
-    t.disparity_sigma_px.push_back(cam.disparity_sigma_px(t.depth_m.back(), t.sigma_px.back()));
+    // Maps saved before the slope existed load without it: axial noise only there.
+    const double slope = i < f->depth_slope_m_per_px.size() ? f->depth_slope_m_per_px[i] : 0.0;
+    t.disparity_sigma_px.push_back(cam.disparity_sigma_px(t.depth_m.back(), t.sigma_px.back(), slope));
   }
   t.grid = KeypointGrid(t.pixels, cam.width_px, cam.height_px);
   t.features = std::move(f);

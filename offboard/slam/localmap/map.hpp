@@ -39,6 +39,11 @@ enum class DepthNoiseModel {
   /// sigma_d = bf sigma_z / z^2 (0.08 px at 1 m, 0.06 px at 2 m), never below
   /// `kMinDisparitySigmaPx`.
   kKinectAxial,
+  /// kKinectAxial plus the depth image's slope at the keypoint times the keypoint's pixel sigma,
+  /// in quadrature: sigma_z^2 = sigma_axial(z)^2 + (slope * sigma_px)^2. A keypoint on an occluding
+  /// edge or an oblique surface reads a depth that moves by `slope` per pixel of position error, so
+  /// its depth is as uncertain as its position (no constant of its own: both terms are measured).
+  kKinectEdge,
 };
 bool parse_depth_noise_model(const std::string& name, DepthNoiseModel* out, std::string* error);
 const char* to_string(DepthNoiseModel m);
@@ -51,8 +56,9 @@ struct CameraModel {
   /// Floor of the disparity sigma: the Kinect reports disparity in 1/8 px steps (Khoshelham and
   /// Elberink 2012), whose quantisation alone is 1/8 / sqrt(12) = 0.036 px.
   static constexpr double kMinDisparitySigmaPx = 0.125 / 3.4641016151377544;
-  /// Disparity sigma, px, of a depth reading `depth_m` at a keypoint of pixel sigma `kp_sigma_px`.
-  double disparity_sigma_px(double depth_m, double kp_sigma_px) const;
+  /// Disparity sigma, px, of a depth reading `depth_m` at a keypoint of pixel sigma `kp_sigma_px`
+  /// where the depth image's slope is `slope_m_per_px` (used by kKinectEdge only).
+  double disparity_sigma_px(double depth_m, double kp_sigma_px, double slope_m_per_px = 0) const;
   static CameraModel from(const Intrinsics& k) {
     CameraModel c;
     c.fx_px = k.fx_px;

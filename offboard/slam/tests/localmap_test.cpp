@@ -2,8 +2,10 @@
 // matching by projection, the map store (observations, fusion, culling chains), thumbnails.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
+#include "slam/features/features.hpp"
 #include "slam/localmap/map.hpp"
 #include "slam/localmap/place_index.hpp"
 #include "slam/localmap/pose_optimizer.hpp"
@@ -96,6 +98,36 @@ TEST(CameraModel, DisparitySigmaFollowsTheChosenDepthNoiseModel) {
   EXPECT_TRUE(parse_depth_noise_model("kinect", &m, &err));
   EXPECT_EQ(m, DepthNoiseModel::kKinectAxial);
   EXPECT_FALSE(parse_depth_noise_model("sonar", &m, &err));
+}
+
+TEST(CameraModel, GivenTheEdgeModelThenTheDepthSlopeTimesThePixelSigmaAddsInQuadrature) {
+  CameraModel cam = fr1_camera();
+  cam.depth_noise = DepthNoiseModel::kKinectEdge;
+  // a flat patch: the axial noise alone (as kKinectAxial)
+  EXPECT_NEAR(cam.disparity_sigma_px(1.0, 1.0, 0.0), 40.0 * 0.001884, 1e-12);
+  // 5 mm per px at a keypoint of sigma 2 px: sigma_z = hypot(1.884, 10) mm at 1 m
+  EXPECT_NEAR(cam.disparity_sigma_px(1.0, 2.0, 0.005), 40.0 * std::hypot(0.001884, 0.010), 1e-12);
+  // the slope does nothing under the other models
+  cam.depth_noise = DepthNoiseModel::kKinectAxial;
+  EXPECT_NEAR(cam.disparity_sigma_px(1.0, 2.0, 0.005), 40.0 * 0.001884, 1e-12);
+  DepthNoiseModel m;
+  std::string err;
+  EXPECT_TRUE(parse_depth_noise_model("kinect-edge", &m, &err));
+  EXPECT_EQ(m, DepthNoiseModel::kKinectEdge);
+  EXPECT_STREQ(to_string(m), "kinect-edge");
+}
+
+TEST(DepthSlope, GivenAStepARampAndHolesThenTheSlopeIsTheLargerNeighbourDifference) {
+  // 5000 units per metre (TUM); a ramp along u of 2 mm per px, a 0.5 m step along v at row 3
+  cv::Mat depth(6, 6, CV_16UC1);
+  for (int v = 0; v < 6; ++v)
+    for (int u = 0; u < 6; ++u) depth.at<std::uint16_t>(v, u) = static_cast<std::uint16_t>(5000 + 10 * u + (v >= 3 ? 2500 : 0));
+  EXPECT_NEAR(depth_slope_m_per_px(depth, 2, 1, 5000.0), 0.002, 1e-9);  // the ramp (central)
+  EXPECT_NEAR(depth_slope_m_per_px(depth, 2, 3, 5000.0), 0.25, 1e-9);  // the step: central, 0.5 m / 2 px
+  depth.at<std::uint16_t>(1, 1) = 0;  // a hole left of (2, 1): one-sided along u
+  EXPECT_NEAR(depth_slope_m_per_px(depth, 2, 1, 5000.0), 0.002, 1e-9);
+  EXPECT_EQ(depth_slope_m_per_px(depth, 1, 1, 5000.0), 0.0);  // no reading: no slope
+  EXPECT_NEAR(depth_slope_m_per_px(depth, 0, 0, 5000.0), 0.002, 1e-9);  // image border: one-sided
 }
 
 TEST(PoseOptimizer, TooFewObservationsIsNotOk) {
