@@ -331,14 +331,14 @@ class SlamFlight:
         if not old or old[-1].alive():
             raise RuntimeError("slam-server is still running: kill_slam_server() first")
         argv = list(old[-1].argv)
-        restarts = len(list(self.workdir.glob("slam-server*.log")))
+        restarts = len(list(self.workdir.glob("slam-server*.log")))  # names this server's log and tables
         if "--tables-dir" in argv:  # the new server numbers its sessions from 1 again
             i = argv.index("--tables-dir") + 1
             argv[i] = str(self.workdir / f"slam-tables-{restarts}")
         self._procs = [(n, p) for n, p in self._procs if p is not old[-1]]
         old[-1].stop()
         log = self.workdir / "slam-server.log"
-        log.rename(self.workdir / f"slam-server-{len(list(self.workdir.glob('slam-server*.log')))}.log")
+        log.rename(self.workdir / f"slam-server-{restarts}.log")
         p = ManagedProcess(argv, log)
         self._procs.append(("slam-server", p))
         self._killed_on_purpose.discard("slam-server")
