@@ -74,6 +74,7 @@ bool TrackerOptions::is_valid(std::string* error) const {
   if (pose.rounds < 1 || pose.iterations_per_round < 1)
     return fail("pose optimiser needs >= 1 round and iteration");
   if (!(max_velocity_scale >= 1)) return fail("max_velocity_scale must be >= 1");
+  if (!(max_predicted_gap_s > 0)) return fail("max_predicted_gap_s must be positive");
   if (!(max_speed_m_per_s > 0) || !(max_rate_rad_per_s > 0) || !(motion_margin_m >= 0) ||
       !(motion_margin_rad >= 0))
     return fail("motion bounds must be positive");
@@ -293,10 +294,15 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
   if (state_ == TrackingState::kTracking)
     fit = fit_local_map(local, tf, T_world_pred.inverse(), options_.search.radius_px);
   out.search_ms = ms_since(t0);
-  int needed = options_.min_inliers_tracking;
+  // After a gap the prediction cannot vouch for, a projection fit is held to the relocalisation
+  // bar: the pose is as unconstrained as a keyframe-database guess.
+  out.prediction_stale = state_ == TrackingState::kTracking &&
+                         frame.stamp_s - last_stamp_s_ > options_.max_predicted_gap_s;
+  int needed =
+      out.prediction_stale ? options_.min_inliers_relocalised : options_.min_inliers_tracking;
 
   // 4. Recovery from the keyframe database (lost, or the prediction found too little).
-  if (!fit.ok || static_cast<int>(fit.inliers) < options_.min_inliers_tracking) {
+  if (!fit.ok || static_cast<int>(fit.inliers) < needed) {
     t0 = steady_now_ns();
     std::vector<std::int64_t> candidates;
     {

@@ -6,7 +6,8 @@
 //     their covisible neighbours, bounded in count, and the points they see;
 //  3. match those points by projection (wide radius), optimise the pose, match again with a narrow
 //     radius around the refined projection, optimise again (motion-only, RGB-D residual);
-//  4. when projection finds too little (a long gap, fast rotation) or tracking was lost: recover the
+//  4. when projection finds too little (fast rotation; after a gap longer than the prediction
+//     vouches for, less than the relocalisation bar) or tracking was lost: recover the
 //     pose from descriptor matches against keyframes ranked by appearance (thumbnails) with 3D-3D
 //     RANSAC, then refine against the local map (relocalisation, same map and world frame);
 //  5. decide a keyframe by view change (tracked points fall below a fraction of the reference
@@ -107,6 +108,14 @@ struct TrackerOptions {
   double motion_margin_m = 0.05;
   double motion_margin_rad = 0.0873;  ///< 5 deg
   double max_velocity_scale = 5.0;             ///< a gap of more than 5 frame intervals is not extrapolated further
+  /// Beyond this gap since the last tracked frame the prediction no longer vouches for the pose:
+  /// the projection fit must then meet the relocalisation bar (`min_inliers_relocalised`), as
+  /// ORB-SLAM2 demands 50 inliers right after a relocalisation, and below it the keyframe database
+  /// is tried. 0.2 s: 6 frame intervals at 30 fps, just past what `max_velocity_scale`
+  /// extrapolates; over 0.2 s the TUM fr1 camera moves up to ~7 cm, the HIL craft at waypoint speed
+  /// ~10 cm: enough for a projection search at the wrong offset in a room of repeated texture to
+  /// reach the tracking bar (HIL scenario 4, 1.7 s link stall: a 45-inlier fit 0.4 m off).
+  double max_predicted_gap_s = 0.2;
   bool is_valid(std::string* error) const;
 };
 
@@ -118,6 +127,7 @@ struct TrackResult {
   bool keyframe = false;          ///< this frame became a keyframe `keyframe_id`
   std::int64_t keyframe_id = -1;  ///< the frame index, unless a loaded map already uses it
   bool relocalised = false;       ///< the pose came from the keyframe database, not the prediction
+  bool prediction_stale = false;  ///< the gap since the last tracked frame exceeded max_predicted_gap_s
   std::size_t local_points = 0;   ///< points in the local map this frame was matched against
   std::size_t matches = 0;        ///< projection matches before the final optimisation
   std::size_t inliers = 0;

@@ -445,6 +445,7 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   rec.matching_ms = tr.local_map_ms + tr.search_ms;
   rec.ransac_ms = tr.relocalise_ms;
   rec.relocalised = tr.relocalised;
+  rec.prediction_stale = tr.prediction_stale;
   rec.map_lock_wait_ms = tr.map_lock_wait_ms;
   rec.map_corrections = tr.map_corrections;
   rec.frontend_ms = ms_since(t0);

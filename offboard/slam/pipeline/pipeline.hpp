@@ -95,6 +95,7 @@ struct FrameRecord {
   bool llc_applied = false;
   bool loop_closed = false;
   bool relocalised = false;  ///< local-map system: the pose came from the keyframe database (TrackResult)
+  bool prediction_stale = false;  ///< local-map system: the gap exceeded the tracker's max_predicted_gap_s
   std::int64_t reference_keyframe = -1;
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< as estimated online
   Eigen::Isometry3d T_prev_cur = Eigen::Isometry3d::Identity();   ///< front-end egomotion

@@ -627,9 +627,10 @@ TEST(Relocalisation, RefitsAroundTheKeyframeRansacFoundNotTheFirstCandidate) {
 namespace slam {
 namespace {
 
-/// One keyframe seeing 200 near landmarks; a tracker tracking it; then a frame 1 cm away that sees
-/// `still_seen` of them plus 150 landmarks beyond the near depth (so the near rule stays quiet).
-TrackResult track_view_change(int still_seen, bool mapper_idle) {
+/// One keyframe seeing 200 near landmarks; a tracker tracking it; then a frame 1 cm away, `gap_s`
+/// later, that sees `still_seen` of them plus 150 landmarks beyond the near depth (so the near rule
+/// stays quiet).
+TrackResult track_view_change(int still_seen, bool mapper_idle, double gap_s = 0.033) {
   SyntheticWorld w;
   std::mt19937 rng(41);
   const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity();
@@ -660,7 +661,7 @@ TrackResult track_view_change(int still_seen, bool mapper_idle) {
   std::vector<int> seen(near.begin(), near.begin() + still_seen);
   seen.insert(seen.end(), far.begin(), far.end());
   f.index = 101;
-  f.stamp_s = 1.033;
+  f.stamp_s = 1.0 + gap_s;
   return tracker->track(f, w.features_of(T1, seen), fo, true, mapper_idle);
 }
 
@@ -681,6 +682,33 @@ TEST(KeyframeGate, WhileTheMapperIsBusyOnlyWeakTrackingMakesAKeyframe) {
   const TrackResult weak = track_view_change(40, false);
   ASSERT_EQ(weak.state, TrackingState::kTracking);
   EXPECT_TRUE(weak.keyframe);
+}
+
+TEST(TrackingGap, AfterAGapThePredictionCannotVouchForAFitMustMeetTheRelocalisationBar) {
+  // GIVEN a frame that matches 40 map points (above the tracking bar 30, below the relocalisation
+  // bar 50) WHEN it follows the last tracked frame by one frame interval THEN it is tracked
+  const TrackResult next = track_view_change(40, true, 0.033);
+  ASSERT_EQ(next.state, TrackingState::kTracking);
+  EXPECT_FALSE(next.prediction_stale);
+  EXPECT_GE(next.inliers, 30u);
+  // WHEN the same frame follows a 1.7 s stall (HIL scenario 4's link outage), where a projection
+  // search can land at a wrong offset THEN 40 inliers are not enough: the keyframe database finds
+  // no better fit either, and tracking is declared lost rather than handing on an unvouched pose
+  const TrackResult stalled = track_view_change(40, true, 1.7);
+  EXPECT_TRUE(stalled.prediction_stale);
+  EXPECT_EQ(stalled.state, TrackingState::kLost);
+  EXPECT_GE(stalled.inliers, 30u);
+  EXPECT_LT(stalled.inliers, 50u);
+  // WHEN the stalled frame sees 120 of the points THEN it clears the bar and tracking goes on
+  const TrackResult seen_well = track_view_change(120, true, 1.7);
+  EXPECT_TRUE(seen_well.prediction_stale);
+  EXPECT_EQ(seen_well.state, TrackingState::kTracking);
+  // AND the bound is validated
+  TrackerOptions o;
+  o.max_predicted_gap_s = 0;
+  std::string err;
+  EXPECT_FALSE(o.is_valid(&err));
+  EXPECT_NE(err.find("max_predicted_gap_s"), std::string::npos);
 }
 
 }  // namespace
