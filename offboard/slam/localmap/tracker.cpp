@@ -75,6 +75,8 @@ bool TrackerOptions::is_valid(std::string* error) const {
     return fail("pose optimiser needs >= 1 round and iteration");
   if (!(max_velocity_scale >= 1)) return fail("max_velocity_scale must be >= 1");
   if (!(max_predicted_gap_s > 0)) return fail("max_predicted_gap_s must be positive");
+  if (!(max_acceleration_m_per_s2 > 0) || !(motion_bound_baseline_s > 0))
+    return fail("max_acceleration_m_per_s2 and motion_bound_baseline_s must be positive");
   if (!(max_speed_m_per_s > 0) || !(max_rate_rad_per_s > 0) || !(motion_margin_m >= 0) ||
       !(motion_margin_rad >= 0))
     return fail("motion bounds must be positive");
@@ -245,6 +247,8 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     T_world_last_ = T_world_cam;
     last_stamp_s_ = frame.stamp_s;
     have_velocity_ = false;
+    motion_bound_.reset();
+    motion_bound_.add(frame.stamp_s, T_world_cam.translation());
     last_points_.clear();
     out.state = TrackingState::kTracking;
     out.T_world_cam = T_world_cam;
@@ -264,6 +268,7 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     const auto lock = lock_map();
     if (map_->corrections != corrections_seen_) {
       corrections_seen_ = map_->corrections;
+      motion_bound_.reset();  // its positions are in the world frame before the correction
       if (auto T_kf = map_->map.resolve_pose(reference_kf_)) T_world_last_ = *T_kf * T_ref_last_;
     }
     out.map_corrections = corrections_seen_;
@@ -342,6 +347,7 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
   out.inliers = fit.inliers;
   // While tracking, the camera cannot have moved faster than the plausible motion bounds since the
   // last tracked frame: a larger step is a wrong fit, never handed on as a pose.
+  // Nor can it have left the constant-velocity path by more than the acceleration bound allows.
   bool implausible = false;
   if (fit.ok && state_ == TrackingState::kTracking) {
     const Eigen::Isometry3d step = T_world_last_.inverse() * fit.T_cam_world.inverse();
@@ -349,6 +355,13 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     implausible =
         step.translation().norm() > options_.max_speed_m_per_s * dt + options_.motion_margin_m ||
         rotation_angle_rad(step) > options_.max_rate_rad_per_s * dt + options_.motion_margin_rad;
+    const MotionBoundCheck bound =
+        motion_bound_.check(frame.stamp_s, fit.T_cam_world.inverse().translation());
+    if (bound.checked) {
+      out.prediction_deviation_m = bound.deviation_m;
+      out.prediction_deviation_bound_m = bound.bound_m;
+      implausible = implausible || (options_.motion_bound && !bound.within());
+    }
   }
   if (!fit.ok || implausible || static_cast<int>(fit.inliers) < needed ||
       !fit.T_cam_world.matrix().allFinite()) {
@@ -475,7 +488,9 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     have_velocity_ = true;
   } else {
     have_velocity_ = false;
+    motion_bound_.reset();
   }
+  motion_bound_.add(frame.stamp_s, T_world_cam.translation());
   state_ = TrackingState::kTracking;
   T_world_last_ = T_world_cam;
   T_ref_last_ = out.T_kf_cam;

@@ -446,6 +446,8 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   rec.ransac_ms = tr.relocalise_ms;
   rec.relocalised = tr.relocalised;
   rec.prediction_stale = tr.prediction_stale;
+  rec.prediction_deviation_m = tr.prediction_deviation_m;
+  rec.prediction_deviation_bound_m = tr.prediction_deviation_bound_m;
   rec.map_lock_wait_ms = tr.map_lock_wait_ms;
   rec.map_corrections = tr.map_corrections;
   rec.frontend_ms = ms_since(t0);

@@ -96,6 +96,7 @@ struct FrameRecord {
   bool loop_closed = false;
   bool relocalised = false;  ///< local-map system: the pose came from the keyframe database (TrackResult)
   bool prediction_stale = false;  ///< local-map system: the gap exceeded the tracker's max_predicted_gap_s
+  double prediction_deviation_m = -1, prediction_deviation_bound_m = -1;  ///< local-map system (TrackResult)
   std::int64_t reference_keyframe = -1;
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< as estimated online
   Eigen::Isometry3d T_prev_cur = Eigen::Isometry3d::Identity();   ///< front-end egomotion

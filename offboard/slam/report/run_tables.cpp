@@ -16,7 +16,8 @@ bool write_run_tables(const fs::path& out_dir, const std::vector<FrameRecord>& r
   frames_csv
       << "index,stamp_s,state,keyframe,matches,inliers,frontend_ms,frontend_cpu_ms,map_keyframes,"
          "map_points,keyframe_wanted,ref_tracked,near_tracked,near_untracked,near_redundant,"
-         "map_lock_wait_ms,relocalised,features_ms,matching_ms,relocalise_ms,prediction_stale\n";
+         "map_lock_wait_ms,relocalised,features_ms,matching_ms,relocalise_ms,prediction_stale,"
+         "prediction_deviation_m,prediction_deviation_bound_m\n";
   for (const auto& r : records)
     frames_csv << r.index << "," << std::fixed << std::setprecision(6) << r.stamp_s << ","
                << to_string(r.state) << "," << (r.keyframe ? 1 : 0) << "," << r.matches << ","
@@ -25,7 +26,8 @@ bool write_run_tables(const fs::path& out_dir, const std::vector<FrameRecord>& r
                << to_string(r.keyframe_wanted) << "," << r.ref_tracked << "," << r.near_tracked
                << "," << r.near_untracked << "," << r.near_redundant << "," << r.map_lock_wait_ms
                << "," << (r.relocalised ? 1 : 0) << "," << r.features_ms << "," << r.matching_ms
-               << "," << r.ransac_ms << "," << (r.prediction_stale ? 1 : 0) << "\n";
+               << "," << r.ransac_ms << "," << (r.prediction_stale ? 1 : 0) << "," << std::setprecision(4)
+               << r.prediction_deviation_m << "," << r.prediction_deviation_bound_m << "\n";
   std::ofstream mapping_csv(out_dir / "mapping.csv");
   mapping_csv << "keyframe,mapping_ms,mapping_cpu_ms,ba_ms,ba_points,points_culled,points_fused,"
                  "keyframes_culled\n";

@@ -7,6 +7,7 @@
 
 #include "slam/features/features.hpp"
 #include "slam/localmap/map.hpp"
+#include "slam/localmap/motion_bound.hpp"
 #include "slam/localmap/place_index.hpp"
 #include "slam/localmap/pose_optimizer.hpp"
 #include "slam/localmap/projection_search.hpp"
@@ -128,6 +129,47 @@ TEST(DepthSlope, GivenAStepARampAndHolesThenTheSlopeIsTheLargerNeighbourDifferen
   EXPECT_NEAR(depth_slope_m_per_px(depth, 2, 1, 5000.0), 0.002, 1e-9);
   EXPECT_EQ(depth_slope_m_per_px(depth, 1, 1, 5000.0), 0.0);  // no reading: no slope
   EXPECT_NEAR(depth_slope_m_per_px(depth, 0, 0, 5000.0), 0.002, 1e-9);  // image border: one-sided
+}
+
+TEST(MotionBound, ExtrapolatesTheMeanVelocityOverTheBaselineAndBoundsTheDeviation) {
+  MotionBound b;  // margin 0.05 m, 5 m/s^2, baseline 0.1 s
+  // GIVEN fewer than two positions THEN nothing is checked (and anything is within)
+  EXPECT_FALSE(b.check(0.0, Eigen::Vector3d::Zero()).checked);
+  b.add(0.0, Eigen::Vector3d::Zero());
+  EXPECT_TRUE(b.check(1.0, Eigen::Vector3d(100, 0, 0)).within());
+  // GIVEN positions at 1 m/s along x every 33 ms, the last at t = 0.198 s, with 1 cm of noise on
+  // the one 33 ms before the last (a one-interval velocity would be off by 0.3 m/s)
+  for (int k = 1; k <= 6; ++k)
+    b.add(0.033 * k, Eigen::Vector3d(0.033 * k + (k == 5 ? 0.01 : 0.0), 0, 0));
+  // WHEN checked 0.1 s later on the path THEN the deviation is zero (the velocity is taken over
+  // 0.132 s back to the newest position at least 0.1 s old, not over the noisy last interval)
+  const MotionBoundCheck on = b.check(0.298, Eigen::Vector3d(0.298, 0, 0));
+  ASSERT_TRUE(on.checked);
+  EXPECT_NEAR(on.deviation_m, 0.0, 1e-9);
+  EXPECT_NEAR(on.bound_m, 0.05 + 0.5 * 5.0 * 0.1 * (0.1 + 0.132), 1e-9);
+  // WHEN 0.2 m off the path THEN it is beyond the 0.108 m bound
+  const MotionBoundCheck off = b.check(0.298, Eigen::Vector3d(0.298, 0.2, 0));
+  EXPECT_NEAR(off.deviation_m, 0.2, 1e-9);
+  EXPECT_FALSE(off.within());
+  // WHEN a stamp does not increase THEN the history restarts from it
+  b.add(0.1, Eigen::Vector3d::Zero());
+  EXPECT_FALSE(b.check(0.2, Eigen::Vector3d::Zero()).checked);
+  // WHEN reset THEN nothing is checked
+  b.add(0.2, Eigen::Vector3d::Zero());
+  EXPECT_TRUE(b.check(0.3, Eigen::Vector3d::Zero()).checked);
+  b.reset();
+  EXPECT_FALSE(b.check(0.3, Eigen::Vector3d::Zero()).checked);
+}
+
+TEST(MotionBound, KeepsABoundedHistory) {
+  MotionBoundOptions o;
+  o.capacity = 4;
+  o.baseline_s = 10.0;  // longer than the history: the oldest kept position is used
+  MotionBound b(o);
+  for (int k = 0; k < 100; ++k) b.add(0.1 * k, Eigen::Vector3d(k < 96 ? 5.0 : 0.1 * k, 0, 0));
+  // only the last 4 (t 9.6-9.9 s, x = t) are kept: 1 m/s, so 10.0 s extrapolates to x = 10 m
+  // (with the older positions at x = 5 m the mean velocity would be far lower)
+  EXPECT_NEAR(b.check(10.0, Eigen::Vector3d(10.0, 0, 0)).deviation_m, 0.0, 1e-9);
 }
 
 TEST(PoseOptimizer, TooFewObservationsIsNotOk) {

@@ -684,6 +684,71 @@ TEST(KeyframeGate, WhileTheMapperIsBusyOnlyWeakTrackingMakesAKeyframe) {
   EXPECT_TRUE(weak.keyframe);
 }
 
+/// One keyframe seeing 200 landmarks at the origin; a tracker that tracks it at t = 1 s and 1 cm
+/// along x at t = 1.033 s (0.3 m/s); then a frame `gap_s` later that sees all the landmarks from
+/// the constant-velocity position displaced by `off_path_m` along y.
+TrackResult track_off_the_velocity_path(double gap_s, double off_path_m) {
+  SyntheticWorld w;
+  std::mt19937 rng(43);
+  const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity();
+  const std::vector<int> seen = w.make_landmarks(T0, 200, &rng);
+  std::map<int, std::int64_t> known;
+  w.add_keyframe(0, T0, T0, seen, &known);
+  std::string err;
+  TrackerOptions to;
+  to.matching.lowe_ratio = 0.75;
+  auto tracker = Tracker::create(to, w.cam, w.map, &err);
+  EXPECT_TRUE(tracker) << err;
+  FeatureOptions fo;
+  fo.kind = DetectorKind::kOrb;
+  RgbdFrame f;
+  f.rgb = image_of(0);
+  auto at = [](double x, double y) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(x, y, 0);
+    return T;
+  };
+  tracker->set_lost();
+  const double speed_m_per_s = 0.01 / 0.033;
+  f.index = 100;
+  f.stamp_s = 1.0;
+  EXPECT_EQ(tracker->track(f, w.features_of(at(0, 0), seen), fo, false).state,
+            TrackingState::kTracking);
+  f.index = 101;
+  f.stamp_s = 1.033;
+  const TrackResult second = tracker->track(f, w.features_of(at(0.01, 0), seen), fo, false);
+  EXPECT_EQ(second.state, TrackingState::kTracking);
+  EXPECT_FALSE(second.relocalised);
+  f.index = 102;
+  f.stamp_s = 1.033 + gap_s;
+  return tracker->track(f, w.features_of(at(0.01 + speed_m_per_s * gap_s, off_path_m), seen), fo,
+                        false);
+}
+
+TEST(TrackingGap, APoseOffTheConstantVelocityPathBeyondTheAccelerationBoundIsRefused) {
+  // GIVEN 260 ms without a frame (the gap before a 0.32 m wrong fit in a demo-loop run) after two
+  // tracked frames 33 ms apart: the bound is 0.05 m + 0.5 x 5 m/s^2 x 0.26 x (0.26 + 0.033) = 0.24 m
+  const double bound_m = 0.05 + 0.5 * 5.0 * 0.26 * (0.26 + 0.033);
+  // WHEN the camera is found 0.1 m off the constant-velocity path THEN it is tracked
+  const TrackResult near = track_off_the_velocity_path(0.26, 0.1);
+  ASSERT_EQ(near.state, TrackingState::kTracking);
+  EXPECT_NEAR(near.prediction_deviation_m, 0.1, 0.01);
+  EXPECT_NEAR(near.prediction_deviation_bound_m, bound_m, 1e-9);
+  // WHEN it is found 0.32 m off (within the 2 m/s speed bound: 0.57 m) THEN the fit is refused and
+  // tracking is lost (the next frame relocalises) rather than handing on a jump
+  const TrackResult far = track_off_the_velocity_path(0.26, 0.32);
+  EXPECT_EQ(far.state, TrackingState::kLost);
+  EXPECT_NEAR(far.prediction_deviation_m, 0.32, 0.01);
+  // WHEN the same 0.32 m comes after a 0.5 s gap (bound 0.72 m) THEN it is tracked
+  EXPECT_EQ(track_off_the_velocity_path(0.5, 0.32).state, TrackingState::kTracking);
+  // AND the bound is validated
+  TrackerOptions o;
+  o.max_acceleration_m_per_s2 = 0;
+  std::string err;
+  EXPECT_FALSE(o.is_valid(&err));
+  EXPECT_NE(err.find("max_acceleration_m_per_s2"), std::string::npos);
+}
+
 TEST(TrackingGap, AfterAGapThePredictionCannotVouchForAFitMustMeetTheRelocalisationBar) {
   // GIVEN a frame that matches 40 map points (above the tracking bar 30, below the relocalisation
   // bar 50) WHEN it follows the last tracked frame by one frame interval THEN it is tracked
