@@ -12,7 +12,16 @@ namespace {
 
 class LivePipeline final : public SessionPipeline {
  public:
-  explicit LivePipeline(std::unique_ptr<Pipeline> pipeline) : pipeline_(std::move(pipeline)) {}
+  /// A kLive record is final when submit() returns and the session reads it at once: one second at
+  /// 30 fps is held for record() lookups, older records go to frames.csv (or are dropped without
+  /// tables), so a flight's memory does not grow per frame (was ~0.8 MiB a minute at 30 fps).
+  static constexpr std::size_t kRetainedRecords = 30;
+
+  explicit LivePipeline(std::unique_ptr<Pipeline> pipeline) : pipeline_(std::move(pipeline)) {
+    pipeline_->retire_records(kRetainedRecords, [this](const FrameRecord& r) {
+      if (frames_) frames_->append(r);
+    });
+  }
   void submit(RgbdFrame frame) override { pipeline_->submit(std::move(frame)); }
   std::optional<FrameRecord> record(std::int64_t index) const override {
     return pipeline_->record(index);
@@ -25,13 +34,27 @@ class LivePipeline final : public SessionPipeline {
   }
   void finish() override { pipeline_->finish(); }
   PipelineSummary summary() const override { return pipeline_->summary(); }
-  bool write_tables(const std::string& dir, std::string* error) const override {
-    return write_run_tables(dir, pipeline_->records(), pipeline_->mapper_stats(),
-                            pipeline_->loop_stats(), {}, error);
+  bool start_tables(const std::string& dir, std::string* error) override {
+    tables_dir_ = dir;
+    frames_ = FramesTable::create(std::filesystem::path(dir) / "frames.csv", error);
+    return frames_.has_value();
+  }
+  bool finish_tables(std::string* error) override {
+    if (!frames_) {
+      if (error) *error = "the tables were not started";
+      return false;
+    }
+    for (const FrameRecord& r : pipeline_->records()) frames_->append(r);
+    const bool frames_ok = frames_->close(error);
+    frames_.reset();
+    return frames_ok && write_keyframe_tables(tables_dir_, pipeline_->mapper_stats(),
+                                              pipeline_->loop_stats(), nullptr, error);
   }
 
  private:
   std::unique_ptr<Pipeline> pipeline_;
+  std::string tables_dir_;
+  std::optional<FramesTable> frames_;
 };
 
 }  // namespace

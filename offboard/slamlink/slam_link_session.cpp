@@ -142,6 +142,14 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
       // The flight goes on in a new map: say so on every frame's first answer, never silently.
       map_load_error_ = "slam-link: map not loaded, starting a new map: " + err;
     }
+    if (!map_files_.tables_dir.empty()) {
+      std::error_code ec;
+      std::filesystem::create_directories(map_files_.tables_dir, ec);
+      if (ec)
+        tables_error_ = "cannot create " + map_files_.tables_dir + ": " + ec.message();
+      else if (!pipeline_->start_tables(map_files_.tables_dir, &err))
+        tables_error_ = err;
+    }
   }
   if (!same_camera(k, intrinsics_)) {
     // The map is built with the first frame's camera model: a frame with another one (a streamer
@@ -226,11 +234,8 @@ std::string SlamLinkSession::finish_summary() {
       else m << "; map NOT saved: " << err;
     }
     if (!map_files_.tables_dir.empty()) {
-      std::string err;
-      std::error_code ec;
-      std::filesystem::create_directories(map_files_.tables_dir, ec);
-      if (ec) err = "cannot create " + map_files_.tables_dir + ": " + ec.message();
-      if (!ec && pipeline_->write_tables(map_files_.tables_dir, &err))
+      std::string err = tables_error_;
+      if (err.empty() && pipeline_->finish_tables(&err))
         m << "; tables written to " << map_files_.tables_dir;
       else
         m << "; tables NOT written: " << err;

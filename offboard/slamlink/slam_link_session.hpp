@@ -43,7 +43,8 @@ struct SessionMapFiles {
   std::string save_path;
   /// When set: the session's per-frame, per-keyframe and loop tables (frames.csv with each frame's
   /// tracking stages in ms, mapping.csv, loops.csv; slam/report/run_tables.hpp) are written into
-  /// this folder (created) when the session ends - what slam-eval writes for a dataset, for a flight.
+  /// this folder (created with the pipeline; frames.csv grows during the flight, the others are
+  /// written when the session ends) - what slam-eval writes for a dataset, for a flight.
   std::string tables_dir;
 };
 
@@ -59,8 +60,13 @@ class SessionPipeline {
   /// Drains and joins the pipeline's threads. Idempotent.
   virtual void finish() = 0;
   virtual PipelineSummary summary() const = 0;
-  /// Writes the run tables into `dir` (exists); after finish(). False with `error` on failure.
-  virtual bool write_tables(const std::string& dir, std::string* error) const = 0;
+  /// Before the first frame: starts the run tables in `dir` (exists). frames.csv then grows row by
+  /// row as the pipeline retires records, so that a flight's memory does not grow per frame.
+  /// False with `error` when the table cannot be created.
+  virtual bool start_tables(const std::string& dir, std::string* error) = 0;
+  /// After finish(): appends the records still held and writes mapping.csv and loops.csv. False
+  /// with `error` on failure (or when start_tables was not called or failed).
+  virtual bool finish_tables(std::string* error) = 0;
 };
 
 /// Starts a pipeline for the camera a client's first frame describes; null with `error` when the
@@ -101,6 +107,7 @@ class SlamLinkSession {
   PipelineOptions options_;
   SessionMapFiles map_files_;
   std::string map_load_error_;  ///< why the configured map could not be loaded ("" = loaded or none)
+  std::string tables_error_;    ///< why the tables could not be started ("" = started or none)
   PipelineFactory factory_;
   std::unique_ptr<SessionPipeline> pipeline_;
   Intrinsics intrinsics_;  ///< what the pipeline was created with (the session's first frame)

@@ -105,7 +105,11 @@ class FakePipeline final : public slam::SessionPipeline {
   }
   void finish() override {}
   slam::PipelineSummary summary() const override { return {}; }
-  bool write_tables(const std::string&, std::string* error) const override {
+  bool start_tables(const std::string&, std::string* error) override {
+    if (error) *error = "fake: no tables";
+    return false;
+  }
+  bool finish_tables(std::string* error) override {
     if (error) *error = "fake: no tables";
     return false;
   }

@@ -160,7 +160,31 @@ void Pipeline::finish() {
     summary_.loop_closures = backend_->loop_closures();
     summary_.optimisations = backend_->optimisations();
   }
-  for (const auto& r : records_) if (!r.ok) ++summary_.frames_failed;
+}
+
+void Pipeline::retire_records(std::size_t retained, RecordSink sink) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  retained_records_ = std::max<std::size_t>(retained, 1);
+  record_sink_ = std::move(sink);
+}
+
+void Pipeline::push_record_locked(FrameRecord rec) {
+  if (!rec.ok) ++summary_.frames_failed;
+  records_.push_back(std::move(rec));
+  while (retained_records_ > 0 && records_.size() > retained_records_) {
+    retired_.push_back(std::move(records_.front()));
+    records_.pop_front();
+  }
+}
+
+void Pipeline::hand_retired() {
+  std::vector<FrameRecord> retired;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    retired.swap(retired_);
+  }
+  if (record_sink_)
+    for (const FrameRecord& r : retired) record_sink_(r);
 }
 
 void Pipeline::frontend_loop() {
@@ -228,8 +252,11 @@ void Pipeline::run_frontend(const RgbdFrame& frame) {
   if (!out) {
     rec.ok = false;
     rec.error = error;
-    std::lock_guard<std::mutex> lock(mutex_);
-    records_.push_back(rec);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      push_record_locked(std::move(rec));
+    }
+    hand_retired();
     return;
   }
   rec.ok = true;
@@ -247,8 +274,9 @@ void Pipeline::run_frontend(const RgbdFrame& frame) {
     std::lock_guard<std::mutex> lock(mutex_);
     rec.T_world_cam = correction_ * out->T_odom_cam;  // replaced when the back-end processes it
     rec.map_corrections = backend_loop_corrections_;
-    records_.push_back(rec);
+    push_record_locked(std::move(rec));
   }
+  hand_retired();
   if (options_.mode == PipelineMode::kSequential) {
     run_backend(*out);
     return;
@@ -298,7 +326,7 @@ void Pipeline::run_backend(const FrontendOutput& in) {
 
 std::vector<FrameRecord> Pipeline::records() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  return records_;
+  return {records_.begin(), records_.end()};
 }
 
 std::optional<FrameRecord> Pipeline::record(std::int64_t index) const {
@@ -405,8 +433,11 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   if (!feats) {
     rec.ok = false;
     rec.error = error;
-    std::lock_guard<std::mutex> lock(mutex_);
-    records_.push_back(rec);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      push_record_locked(std::move(rec));
+    }
+    hand_retired();
     return;
   }
   rec.features_ms = ms_since(t0);
@@ -456,8 +487,9 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (tr.relocalised) ++summary_.relocalisations;
     if (tr.state == TrackingState::kLost) ++summary_.frames_lost;
-    records_.push_back(rec);
+    push_record_locked(std::move(rec));
   }
+  hand_retired();
   if (!tr.keyframe) return;
   if (options_.mode == PipelineMode::kSequential) {
     const MapperStats st = mapper_->process(tr.keyframe_id);

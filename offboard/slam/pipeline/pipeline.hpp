@@ -24,6 +24,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -150,8 +151,18 @@ class Pipeline {
   /// Drains both stages and joins the threads. Idempotent.
   void finish();
 
-  /// Valid after finish(): records in index order, and the final trajectory where each frame is
-  /// re-anchored to the optimised pose of its reference keyframe.
+  /// Where a record goes when it is retired (see retire_records).
+  using RecordSink = std::function<void(const FrameRecord&)>;
+  /// Keeps only the newest `retained` (>= 1) records; older ones are handed to `sink` (empty:
+  /// dropped) on the thread that made the newer record, outside the pipeline's locks. For a
+  /// service that runs for a whole flight (slam-server): its memory does not grow per frame. Call
+  /// before the first frame; by default every record is kept (slam-eval: ATE and tables).
+  /// A record is retired as made: keep `retained` above the frames a back-end may still update.
+  void retire_records(std::size_t retained, RecordSink sink);
+
+  /// Valid after finish(): records in index order (the retained ones, see retire_records), and the
+  /// final trajectory where each frame is re-anchored to the optimised pose of its reference
+  /// keyframe.
   std::vector<FrameRecord> records() const;
   std::vector<std::pair<double, Eigen::Isometry3d>> final_trajectory() const;
   PipelineSummary summary() const;
@@ -179,6 +190,10 @@ class Pipeline {
   void run_frontend(const RgbdFrame& frame);
   void run_backend(const FrontendOutput& out);
   void run_tracker(const RgbdFrame& frame);
+  /// Appends a record (caller holds mutex_), retiring the oldest beyond retained_records_.
+  void push_record_locked(FrameRecord rec);
+  /// Hands the retired records to the sink (caller does not hold mutex_).
+  void hand_retired();
   void mapper_loop();
   void loop_closing_loop();
   /// Loop-closes keyframe `kf` and records its stats (the loop thread, or inline in sequential mode).
@@ -195,7 +210,10 @@ class Pipeline {
   bool input_closed_ = false;
   bool handover_closed_ = false;
   std::atomic<bool> finished_{false};
-  std::vector<FrameRecord> records_;
+  std::deque<FrameRecord> records_;
+  std::size_t retained_records_ = 0;  ///< 0: all (retire_records)
+  RecordSink record_sink_;
+  std::vector<FrameRecord> retired_;  ///< retired under mutex_, handed to record_sink_ outside it
   // Latest back-end correction C = T_world_cam * T_odom_cam^-1 (used for skipped frames).
   Eigen::Isometry3d correction_ = Eigen::Isometry3d::Identity();
   std::uint64_t backend_loop_corrections_ = 0;  // loop closures folded into correction_

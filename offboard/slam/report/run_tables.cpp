@@ -8,26 +8,52 @@ namespace slam {
 
 namespace fs = std::filesystem;
 
+std::optional<FramesTable> FramesTable::create(const fs::path& path, std::string* error) {
+  std::ofstream out(path);
+  out << "index,stamp_s,state,keyframe,matches,inliers,frontend_ms,frontend_cpu_ms,map_keyframes,"
+         "map_points,keyframe_wanted,ref_tracked,near_tracked,near_untracked,near_redundant,"
+         "map_lock_wait_ms,relocalised,features_ms,matching_ms,relocalise_ms,prediction_stale,"
+         "prediction_deviation_m,prediction_deviation_bound_m\n";
+  if (!out) {
+    if (error) *error = "cannot write " + path.string();
+    return std::nullopt;
+  }
+  return FramesTable(path, std::move(out));
+}
+
+void FramesTable::append(const FrameRecord& r) {
+  out_ << r.index << "," << std::fixed << std::setprecision(6) << r.stamp_s << ","
+       << to_string(r.state) << "," << (r.keyframe ? 1 : 0) << "," << r.matches << "," << r.inliers
+       << "," << std::setprecision(3) << r.frontend_ms << "," << r.frontend_cpu_ms << ","
+       << r.map_keyframes << "," << r.map_points << "," << to_string(r.keyframe_wanted) << ","
+       << r.ref_tracked << "," << r.near_tracked << "," << r.near_untracked << ","
+       << r.near_redundant << "," << r.map_lock_wait_ms << "," << (r.relocalised ? 1 : 0) << ","
+       << r.features_ms << "," << r.matching_ms << "," << r.ransac_ms << ","
+       << (r.prediction_stale ? 1 : 0) << "," << std::setprecision(4) << r.prediction_deviation_m
+       << "," << r.prediction_deviation_bound_m << "\n";
+}
+
+bool FramesTable::close(std::string* error) {
+  out_.close();
+  if (out_) return true;
+  if (error) *error = "cannot write " + path_.string();
+  return false;
+}
+
 bool write_run_tables(const fs::path& out_dir, const std::vector<FrameRecord>& records,
                       const std::vector<MapperStats>& mapper_stats,
                       const std::vector<LoopStats>& loop_stats, const RssSamples& rss_samples,
                       std::string* error) {
-  std::ofstream frames_csv(out_dir / "frames.csv");
-  frames_csv
-      << "index,stamp_s,state,keyframe,matches,inliers,frontend_ms,frontend_cpu_ms,map_keyframes,"
-         "map_points,keyframe_wanted,ref_tracked,near_tracked,near_untracked,near_redundant,"
-         "map_lock_wait_ms,relocalised,features_ms,matching_ms,relocalise_ms,prediction_stale,"
-         "prediction_deviation_m,prediction_deviation_bound_m\n";
-  for (const auto& r : records)
-    frames_csv << r.index << "," << std::fixed << std::setprecision(6) << r.stamp_s << ","
-               << to_string(r.state) << "," << (r.keyframe ? 1 : 0) << "," << r.matches << ","
-               << r.inliers << "," << std::setprecision(3) << r.frontend_ms << ","
-               << r.frontend_cpu_ms << "," << r.map_keyframes << "," << r.map_points << ","
-               << to_string(r.keyframe_wanted) << "," << r.ref_tracked << "," << r.near_tracked
-               << "," << r.near_untracked << "," << r.near_redundant << "," << r.map_lock_wait_ms
-               << "," << (r.relocalised ? 1 : 0) << "," << r.features_ms << "," << r.matching_ms
-               << "," << r.ransac_ms << "," << (r.prediction_stale ? 1 : 0) << "," << std::setprecision(4)
-               << r.prediction_deviation_m << "," << r.prediction_deviation_bound_m << "\n";
+  auto frames = FramesTable::create(out_dir / "frames.csv", error);
+  if (!frames) return false;
+  for (const auto& r : records) frames->append(r);
+  return frames->close(error) &&
+         write_keyframe_tables(out_dir, mapper_stats, loop_stats, &rss_samples, error);
+}
+
+bool write_keyframe_tables(const fs::path& out_dir, const std::vector<MapperStats>& mapper_stats,
+                           const std::vector<LoopStats>& loop_stats,
+                           const RssSamples* rss_samples, std::string* error) {
   std::ofstream mapping_csv(out_dir / "mapping.csv");
   mapping_csv << "keyframe,mapping_ms,mapping_cpu_ms,ba_ms,ba_points,points_culled,points_fused,"
                  "keyframes_culled\n";
@@ -53,11 +79,15 @@ bool write_run_tables(const fs::path& out_dir, const std::vector<FrameRecord>& r
               << l.total_cpu_ms << "," << l.consistent << "," << l.verified_fit << ","
               << l.refused_odometry << "," << l.gate_keyframe << "," << l.gate_path_m << ","
               << l.gate_translation_m << "," << l.gate_rotation_deg << "," << l.gate_chi2 << "\n";
-  std::ofstream rss_csv(out_dir / "rss.csv");
-  rss_csv << "stamp_s,rss_mib\n";
-  for (const auto& [t, mib] : rss_samples)
-    rss_csv << std::fixed << std::setprecision(6) << t << "," << mib << "\n";
-  if (!frames_csv || !mapping_csv || !loops_csv || !rss_csv) {
+  bool rss_ok = true;
+  if (rss_samples) {
+    std::ofstream rss_csv(out_dir / "rss.csv");
+    rss_csv << "stamp_s,rss_mib\n";
+    for (const auto& [t, mib] : *rss_samples)
+      rss_csv << std::fixed << std::setprecision(6) << t << "," << mib << "\n";
+    rss_ok = static_cast<bool>(rss_csv);
+  }
+  if (!mapping_csv || !loops_csv || !rss_ok) {
     if (error) *error = "cannot write the run tables in " + out_dir.string();
     return false;
   }

@@ -101,6 +101,45 @@ TEST(Regression, LocalMapWaitModeEqualsSequentialModeAndIsAccurate) {
   EXPECT_LT(a.rpe_mm, 11.0);
 }
 
+TEST(Pipeline, RetiredRecordsGoToTheSinkInOrderAndOnlyTheNewestAreHeld) {
+  // GIVEN a local-map pipeline that keeps its 5 newest records (slam-server keeps a second's)
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  PipelineOptions o;
+  o.frontend.features.kind = DetectorKind::kOrb;
+  o.backend.kind = BackendKind::kLocalMap;
+  o.mode = PipelineMode::kSequential;
+  auto p = Pipeline::create(o, Intrinsics{}, &err);
+  ASSERT_TRUE(p) << err;
+  std::vector<std::int64_t> retired;
+  std::size_t retired_tracked = 0;
+  p->retire_records(5, [&](const FrameRecord& r) {
+    retired.push_back(r.index);
+    retired_tracked += r.state == TrackingState::kTracking ? 1 : 0;
+  });
+  // WHEN the 30 frames go through it
+  for (std::size_t i = 0; i < ds->size(); ++i) {
+    auto f = ds->load(i, &err);
+    ASSERT_TRUE(f) << err;
+    const std::int64_t index = f->index;
+    p->submit(std::move(*f));
+    // THEN the newest record is always there to answer the frame
+    ASSERT_TRUE(p->record(index)) << index;
+  }
+  p->finish();
+  // AND the 25 older ones went to the sink once each, in order, complete (all tracked)
+  ASSERT_EQ(retired.size(), ds->size() - 5);
+  for (std::size_t k = 0; k < retired.size(); ++k) EXPECT_EQ(retired[k], static_cast<std::int64_t>(k));
+  EXPECT_EQ(retired_tracked, retired.size());
+  // AND only the 5 newest are held
+  const std::vector<FrameRecord> held = p->records();
+  ASSERT_EQ(held.size(), 5u);
+  EXPECT_EQ(held.front().index, static_cast<std::int64_t>(ds->size() - 5));
+  EXPECT_FALSE(p->record(0));
+  EXPECT_EQ(p->summary().frames_failed, 0u);
+}
+
 TEST(Regression, LocalMapBridgesAGapOfWithheldFrames) {
   // GIVEN frames 10-19 withheld (a third of a second: a stalled link)
   std::vector<FrameRecord> recs;

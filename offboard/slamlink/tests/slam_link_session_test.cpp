@@ -133,11 +133,13 @@ TEST(SlamLinkSession, GivenATablesFolderThenTheEndedSessionWritesOneFrameRowPerF
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
-  // WHEN it tracks 6 frames and ends
-  for (std::uint32_t i = 0; i < 6; ++i) roundtrip(&s, to_wire(*ds->load(i, &err), i), &err);
+  // WHEN it tracks the 30 frames, then 10 more (the first 10 again, at later indices: more than
+  // the second of records a session holds, so that the oldest rows are streamed during the flight)
+  // and ends
+  for (std::uint32_t i = 0; i < 40; ++i) roundtrip(&s, to_wire(*ds->load(i % 30, &err), i), &err);
   const std::string summary = s.finish_summary();
-  // THEN it says where the tables went, and frames.csv has its header and one row per frame, the
-  // frames after the first tracked, with their stage times and a relocalised flag
+  // THEN it says where the tables went, and frames.csv has its header and one row per frame, in
+  // order, the first 30 frames after the first tracked, with their stage times and flags
   EXPECT_NE(summary.find("tables written to " + dir), std::string::npos) << summary;
   std::ifstream in(dir + "/frames.csv");
   ASSERT_TRUE(in) << dir;
@@ -147,12 +149,15 @@ TEST(SlamLinkSession, GivenATablesFolderThenTheEndedSessionWritesOneFrameRowPerF
       << header;
   int rows = 0, tracked = 0;
   while (std::getline(in, line)) {
+    EXPECT_EQ(line.substr(0, line.find(',')), std::to_string(rows));
+    if (rows < 30 && line.find(",tracking,") != std::string::npos) ++tracked;
     ++rows;
-    if (line.find(",tracking,") != std::string::npos) ++tracked;
   }
-  EXPECT_EQ(rows, 6);
-  EXPECT_EQ(tracked, 5);  // the first frame initialises the map
+  EXPECT_EQ(rows, 40);
+  EXPECT_EQ(tracked, 29);  // the first frame initialises the map
   EXPECT_TRUE(std::filesystem::exists(dir + "/mapping.csv"));
+  EXPECT_TRUE(std::filesystem::exists(dir + "/loops.csv"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/rss.csv"));  // slam-server samples no RSS
   // AND a folder that cannot be made is reported, not thrown
   SlamLinkSession blocked(orb_options(), SessionMapFiles{"", "", "/proc/no/such/dir"});
   roundtrip(&blocked, to_wire(*ds->load(0, &err), 0), &err);
@@ -205,7 +210,8 @@ class ScriptedPipeline : public SessionPipeline {
   bool save_map(const std::string&, std::string*) const override { return true; }
   void finish() override {}
   PipelineSummary summary() const override { return {}; }
-  bool write_tables(const std::string&, std::string*) const override { return true; }
+  bool start_tables(const std::string&, std::string*) override { return true; }
+  bool finish_tables(std::string*) override { return true; }
 
  private:
   std::map<std::int64_t, FrameRecord> script_;
