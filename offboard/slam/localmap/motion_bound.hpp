@@ -14,15 +14,15 @@
 namespace slam {
 
 struct MotionBoundOptions {
-  double margin_m = 0.05;                  ///< pose noise of the new fit (TrackerOptions::motion_margin_m)
+  double margin_m = 0.05;  ///< pose noise of the new fit (TrackerOptions::motion_margin_m)
   double max_acceleration_m_per_s2 = 5.0;  ///< see TrackerOptions::max_acceleration_m_per_s2
   double baseline_s = 0.1;                 ///< 3 frame intervals at 30 fps: velocity noise / 3
   std::size_t capacity = 16;               ///< positions kept (bounded; > baseline at 30 fps)
 };
 
 struct MotionBoundCheck {
-  bool checked = false;      ///< false: fewer than two positions since the last reset
-  double deviation_m = -1;   ///< distance of the position from the extrapolated path
+  bool checked = false;     ///< false: fewer than two positions since the last reset
+  double deviation_m = -1;  ///< distance of the position from the extrapolated path
   double bound_m = -1;
   bool within() const { return !checked || deviation_m <= bound_m; }
 };

@@ -52,8 +52,8 @@ bool write_run_tables(const fs::path& out_dir, const std::vector<FrameRecord>& r
 }
 
 bool write_keyframe_tables(const fs::path& out_dir, const std::vector<MapperStats>& mapper_stats,
-                           const std::vector<LoopStats>& loop_stats,
-                           const RssSamples* rss_samples, std::string* error) {
+                           const std::vector<LoopStats>& loop_stats, const RssSamples* rss_samples,
+                           std::string* error) {
   std::ofstream mapping_csv(out_dir / "mapping.csv");
   mapping_csv << "keyframe,mapping_ms,mapping_cpu_ms,ba_ms,ba_points,points_culled,points_fused,"
                  "keyframes_culled\n";

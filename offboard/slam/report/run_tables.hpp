@@ -40,8 +40,8 @@ class FramesTable {
 /// into out_dir (which must exist); false with *error set when a file cannot be written.
 bool write_keyframe_tables(const std::filesystem::path& out_dir,
                            const std::vector<MapperStats>& mapper_stats,
-                           const std::vector<LoopStats>& loop_stats,
-                           const RssSamples* rss_samples, std::string* error);
+                           const std::vector<LoopStats>& loop_stats, const RssSamples* rss_samples,
+                           std::string* error);
 
 /// Writes the four tables (frames.csv and write_keyframe_tables) into out_dir (which must exist);
 /// false with *error set when a file cannot be written.

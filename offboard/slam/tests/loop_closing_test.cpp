@@ -727,7 +727,8 @@ TrackResult track_off_the_velocity_path(double gap_s, double off_path_m) {
 
 TEST(TrackingGap, APoseOffTheConstantVelocityPathBeyondTheAccelerationBoundIsRefused) {
   // GIVEN 260 ms without a frame (the gap before a 0.32 m wrong fit in a demo-loop run) after two
-  // tracked frames 33 ms apart: the bound is 0.05 m + 0.5 x 5 m/s^2 x 0.26 x (0.26 + 0.033) = 0.24 m
+  // tracked frames 33 ms apart: the bound is 0.05 m + 0.5 x 5 m/s^2 x 0.26 x (0.26 + 0.033) = 0.24
+  // m
   const double bound_m = 0.05 + 0.5 * 5.0 * 0.26 * (0.26 + 0.033);
   // WHEN the camera is found 0.1 m off the constant-velocity path THEN it is tracked
   const TrackResult near = track_off_the_velocity_path(0.26, 0.1);
