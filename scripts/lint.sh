@@ -1,8 +1,7 @@
 #!/usr/bin/env bash
 # Lint: ruff on every Python file (rules in pyproject.toml [tool.ruff]) and a clang-format check
-# (.clang-format, Google style at 100 columns) on every tracked C/C++ file outside
-# scripts/clang-format-pending.txt. A pending file that is already clean fails too (remove it from
-# the list), so the list only shrinks.
+# (.clang-format, Google style at 100 columns) on every tracked C/C++ file (generated headers
+# included: their generators format them the same way).
 set -uo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
@@ -15,24 +14,15 @@ if ! command -v clang-format >/dev/null; then
   echo "lint: clang-format is not installed (make deps installs it from deps/apt/base.txt)"
   exit 1
 fi
-pending=$(sed -e 's/#.*//' -e '/^[[:space:]]*$/d' scripts/clang-format-pending.txt | sort -u)
-checked=0; unformatted=(); cleaned=()
+checked=0; unformatted=()
 while IFS= read -r f; do
   [ -f "$f" ] || continue
-  if grep -qxF "$f" <<<"$pending"; then
-    clang-format --dry-run -Werror "$f" >/dev/null 2>&1 && cleaned+=("$f")
-    continue
-  fi
   checked=$((checked + 1))
   clang-format --dry-run -Werror "$f" >/dev/null 2>&1 || unformatted+=("$f")
 done < <(git ls-files '*.c' '*.cc' '*.cpp' '*.h' '*.hpp')
-echo "lint: clang-format: $checked files checked, $(wc -l <<<"$pending") still pending"
+echo "lint: clang-format: $checked files checked"
 if [ "${#unformatted[@]}" -gt 0 ]; then
   echo "lint: not in clang-format style (run clang-format -i on them):"; printf '  %s\n' "${unformatted[@]}"
-  status=1
-fi
-if [ "${#cleaned[@]}" -gt 0 ]; then
-  echo "lint: now formatted, delete from scripts/clang-format-pending.txt:"; printf '  %s\n' "${cleaned[@]}"
   status=1
 fi
 exit $status

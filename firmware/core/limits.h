@@ -1,6 +1,6 @@
-// Every numeric constant of the firmware's behaviour, defined once, with its unit in the name and the
-// reason for its value. The ground-station side never redefines these; tests read them from here
-// (firmware/tools/fw_limits.py). The protocol's valid ranges come from the generated
+// Every numeric constant of the firmware's behaviour, defined once, with its unit in the name and
+// the reason for its value. The ground-station side never redefines these; tests read them from
+// here (firmware/tools/fw_limits.py). The protocol's valid ranges come from the generated
 // rgbd_control/control_spec_generated.h (protocol/control/control_spec.json).
 //
 // Channel order is ArduPilot's RC input order: 1 roll, 2 pitch, 3 throttle, 4 yaw.
@@ -16,39 +16,46 @@ namespace fw {
 /// Firmware version reported in every reply ("fw" field).
 #define FW_VERSION_STRING "0.1.0"
 
-// ---- channels -------------------------------------------------------------------------------------
+// ---- channels
+// -------------------------------------------------------------------------------------
 constexpr uint8_t kChannelCount = 4;
 constexpr uint8_t kChRoll = 0;      ///< APM RC input 1
 constexpr uint8_t kChPitch = 1;     ///< APM RC input 2
 constexpr uint8_t kChThrottle = 2;  ///< APM RC input 3
 constexpr uint8_t kChYaw = 3;       ///< APM RC input 4
 
-// ---- PWM frame -----------------------------------------------------------------------------------
+// ---- PWM frame
+// -----------------------------------------------------------------------------------
 /// 50 Hz RC frame: the rate of a standard RC receiver, which the APM 2.6 RC input decoder expects.
 constexpr uint16_t kPwmFramePeriodUs = 20000;
-/// Protocol range of every commanded channel: the standard 1000-2000 us RC pulse (control_spec.json).
+/// Protocol range of every commanded channel: the standard 1000-2000 us RC pulse
+/// (control_spec.json).
 constexpr uint16_t kCommandMinUs = rgbd_control::kChannelMinUs;
 constexpr uint16_t kCommandMaxUs = rgbd_control::kChannelMaxUs;
 /// Stick centre: zero roll/pitch angle and zero yaw rate in ArduCopter (RCx_TRIM default 1500).
 constexpr uint16_t kNeutralUs = 1500;
-/// Throttle stick fully down: ArduCopter RC3_MIN default 1000 ("zero throttle"), above FS_THR_VALUE.
+/// Throttle stick fully down: ArduCopter RC3_MIN default 1000 ("zero throttle"), above
+/// FS_THR_VALUE.
 constexpr uint16_t kThrottleLowUs = 1000;
 
-// ---- hard limits while armed (clamped, never rejected) --------------------------------------------
+// ---- hard limits while armed (clamped, never rejected)
+// --------------------------------------------
 /// Roll/pitch +-250 us = +-50 % stick = +-22.5 deg lean with ArduCopter's default ANGLE_MAX 45 deg:
-/// far more than the indoor position controller needs (thesis: small corrections around hover), but a
-/// runaway controller cannot command a lean that loses altitude or flips the craft in a small room.
+/// far more than the indoor position controller needs (thesis: small corrections around hover), but
+/// a runaway controller cannot command a lean that loses altitude or flips the craft in a small
+/// room.
 constexpr uint16_t kRollMinUs = 1250;
 constexpr uint16_t kRollMaxUs = 1750;
 constexpr uint16_t kPitchMinUs = 1250;
 constexpr uint16_t kPitchMaxUs = 1750;
-/// Yaw +-250 us = +-50 % of ArduCopter's default 200 deg/s full-stick yaw rate (100 deg/s): enough to
-/// turn towards a target, not enough to spin the Kinect's view into motion blur.
+/// Yaw +-250 us = +-50 % of ArduCopter's default 200 deg/s full-stick yaw rate (100 deg/s): enough
+/// to turn towards a target, not enough to spin the Kinect's view into motion blur.
 constexpr uint16_t kYawMinUs = 1250;
 constexpr uint16_t kYawMaxUs = 1750;
-/// Below this throttle the craft cannot be airborne (motors at or near idle), so the full yaw range is
-/// allowed: ArduCopter arms/disarms on the stick gesture throttle low + yaw fully right/left held for
-/// a few seconds (yaw > ~1900 us / < ~1100 us), which the yaw limit above would otherwise block.
+/// Below this throttle the craft cannot be airborne (motors at or near idle), so the full yaw range
+/// is allowed: ArduCopter arms/disarms on the stick gesture throttle low + yaw fully right/left
+/// held for a few seconds (yaw > ~1900 us / < ~1100 us), which the yaw limit above would otherwise
+/// block.
 constexpr uint16_t kGroundThrottleMaxUs = 1100;
 /// Throttle ceiling 1750 us: the thesis craft hovers near mid-stick (~1500 us); 1750 still climbs
 /// briskly but a faulty controller cannot slam full power into an indoor ceiling.
@@ -68,15 +75,16 @@ constexpr uint16_t kArmThrottleMaxUs = kGroundThrottleMaxUs;
 // (FS_THR_ENABLE = 3, LAND_SPEED 50 cm/s) in every flight mode. Required APM parameters are listed
 // in docs/firmware.md.
 /// No valid command for this long -> failsafe. 250 ms = 12 missed commands at the thesis's ~50 Hz
-/// command rate: long enough to ride out WiFi jitter, short enough that the craft has not drifted far.
+/// command rate: long enough to ride out WiFi jitter, short enough that the craft has not drifted
+/// far.
 constexpr uint32_t kFailsafeTimeoutMs = 250;
 /// ArduCopter's radio failsafe threshold FS_THR_VALUE (default 975 us, required setting).
 constexpr uint16_t kApmFsThrValueUs = 975;
 /// Consecutive RC reads below FS_THR_VALUE ArduCopter needs before its radio failsafe (radio.cpp
 /// FS_COUNTER = 3, one read per 20 ms frame = 60 ms). Until then set_throttle_and_failsafe() keeps
-/// the last throttle above the threshold and does not pass the low pulse on to the flight mode; then
-/// it switches to LAND. So the step to kFailsafeThrottleUs is never seen as a throttle cut by any
-/// flight mode (Stabilize or AltHold) while FS_THR_ENABLE != 0: it is the hand-over signal.
+/// the last throttle above the threshold and does not pass the low pulse on to the flight mode;
+/// then it switches to LAND. So the step to kFailsafeThrottleUs is never seen as a throttle cut by
+/// any flight mode (Stabilize or AltHold) while FS_THR_ENABLE != 0: it is the hand-over signal.
 constexpr uint8_t kApmFsCounterFrames = 3;
 /// The APM's LAND takes over this long after the failsafe throttle is first output.
 constexpr uint32_t kApmLandHandoverMs = kApmFsCounterFrames * (kPwmFramePeriodUs / 1000);
@@ -90,10 +98,13 @@ constexpr uint16_t kApmRcPulseMinValidUs = 900;
 /// step hands over to LAND 60 ms after engage, measured 0.49 m/s touchdown in both modes.
 constexpr uint16_t kFailsafeThrottleUs = 950;
 static_assert(kFailsafeThrottleUs < kApmFsThrValueUs, "failsafe throttle must trigger FS_THR");
-static_assert(kFailsafeThrottleUs > kApmRcPulseMinValidUs, "failsafe throttle must be a valid pulse");
-static_assert(kThrottleLowUs > kApmFsThrValueUs, "disarmed/ground throttle must not trigger FS_THR");
+static_assert(kFailsafeThrottleUs > kApmRcPulseMinValidUs,
+              "failsafe throttle must be a valid pulse");
+static_assert(kThrottleLowUs > kApmFsThrValueUs,
+              "disarmed/ground throttle must not trigger FS_THR");
 
-// ---- serial request link --------------------------------------------------------------------------
+// ---- serial request link
+// --------------------------------------------------------------------------
 /// Longest request line (bytes, without the newline; control_spec.json max_request_bytes). The
 /// longest valid control request is 93 bytes; 128 leaves margin and bounds the line buffer in the
 /// ATmega's 2 KB RAM.

@@ -1,8 +1,8 @@
 // libFuzzer target: arbitrary bytes on the bridge link through the line assembler and the
 // controller (with a key, armed first), plus each chunk as a reply line to the ground-station
 // parser. Checks: no crash/UB/overflow (ASan/UBSan), every reply is one complete bounded line,
-// and a control line is applied (200) only if it is exactly what the ground-station codec builds for
-// those values under the key (canonical and correctly signed).
+// and a control line is applied (200) only if it is exactly what the ground-station codec builds
+// for those values under the key (canonical and correctly signed).
 #include <stddef.h>
 #include <stdint.h>
 

@@ -15,8 +15,8 @@
 #include "mavlink_imu_reader.h"
 #include "pwm_schedule.h"
 #include "request_parser.h"
-#include "seq_store.h"
 #include "rgbd_control/siphash24.h"
+#include "seq_store.h"
 
 namespace {
 
@@ -50,7 +50,8 @@ int send(fw::Controller& c, const std::string& line, uint32_t now_ms) {
   return std::atoi(reply);
 }
 
-// ---- failsafe outputs -------------------------------------------------------------------------------
+// ---- failsafe outputs
+// -------------------------------------------------------------------------------
 struct FailsafeRow {
   const char* name;
   int roll, pitch, thr, yaw;  ///< last valid command before the link went silent
@@ -82,7 +83,8 @@ TEST(FailsafeOutputs, StepToNeutralAndBelowFsThrValueAtTheEngageInstantForEveryL
     for (uint32_t t : {1250u, 1251u, 1310u, 5000u, 3601250u}) {
       c.update(t);
       c.outputs_us(out);
-      for (int ch = 0; ch < 4; ++ch) EXPECT_EQ(out[ch], fs[ch]) << r.name << " @" << t << " ch" << ch + 1;
+      for (int ch = 0; ch < 4; ++ch)
+        EXPECT_EQ(out[ch], fs[ch]) << r.name << " @" << t << " ch" << ch + 1;
     }
   }
 }
@@ -133,7 +135,8 @@ TEST(Failsafe, SurvivesClockWrap) {
   EXPECT_EQ(c.state(), fw::ArmState::kFailsafe);
 }
 
-// ---- arming and clamping ----------------------------------------------------------------------------
+// ---- arming and clamping
+// ----------------------------------------------------------------------------
 struct ClampRow {
   const char* name;
   int roll, pitch, thr, yaw;
@@ -214,7 +217,8 @@ TEST(Arming, TransitionTable) {
   }
 }
 
-// ---- authentication -----------------------------------------------------------------------------------
+// ---- authentication
+// -----------------------------------------------------------------------------------
 TEST(Auth, ReplayOldSeqForgedAndWrongKeyAreRejectedAndChangeNothing) {
   fw::Controller c(kKey);
   ASSERT_EQ(send(c, cmd(10, 1, 1500, 1500, 1000, 1500), 0), 200);
@@ -233,7 +237,8 @@ TEST(Auth, ReplayOldSeqForgedAndWrongKeyAreRejectedAndChangeNothing) {
       {"older seq", cmd(3, 1, 1700, 1500, 1700, 1500), 409},
       {"forged field", forged, 401},
       {"one MAC bit flipped", flipped, 401},
-      {"other craft's key", sign("PUT /control?seq=12&arm=1&roll=1500&pitch=1500&thr=1700&yaw=1500", other), 401},
+      {"other craft's key",
+       sign("PUT /control?seq=12&arm=1&roll=1500&pitch=1500&thr=1700&yaw=1500", other), 401},
   };
   for (const auto& r : rows) {
     EXPECT_EQ(send(c, r.line, 100), r.want) << r.name;
@@ -256,7 +261,8 @@ TEST(Auth, NoKeyRefusesEverything) {
   EXPECT_EQ(c.state(), fw::ArmState::kDisarmed);
 }
 
-// ---- parser details -----------------------------------------------------------------------------------
+// ---- parser details
+// -----------------------------------------------------------------------------------
 TEST(Parser, ReadsNoByteBeyondLength) {
   // GIVEN a valid line followed by garbage in the same buffer, WHEN parsed with the exact length,
   // THEN it is valid; with any shorter length it is rejected (never reads past len).
@@ -269,14 +275,18 @@ TEST(Parser, ReadsNoByteBeyondLength) {
 }
 
 TEST(Parser, SaturatesOverflowingValues) {
-  const std::string line = "PUT /control?seq=4294967296&arm=1&roll=9999999999&pitch=1500&thr=1000&yaw=1500&mac=0000000000000000";
+  const std::string line =
+      "PUT "
+      "/control?seq=4294967296&arm=1&roll=9999999999&pitch=1500&thr=1000&yaw=1500&mac="
+      "0000000000000000";
   const fw::ParsedRequest r = fw::parse_request(line.data(), line.size());
   EXPECT_EQ(r.status, fw::Status::kOk);
   EXPECT_TRUE(r.value_overflow);
   EXPECT_EQ(r.seq, 0xFFFFFFFFu);
 }
 
-// ---- line assembler -------------------------------------------------------------------------------------
+// ---- line assembler
+// -------------------------------------------------------------------------------------
 TEST(LineAssembler, LinesOverlongAndStall) {
   fw::LineAssembler a;
   const std::string l = "GET /status\r\n";
@@ -294,7 +304,8 @@ TEST(LineAssembler, LinesOverlongAndStall) {
     ev = a.feed('\n', 1);
     if (ev != fw::LineEvent::kNone) events.push_back(ev);
     ASSERT_EQ(events.size(), 1u) << n;
-    EXPECT_EQ(events[0], n <= fw::kMaxRequestBytes ? fw::LineEvent::kLine : fw::LineEvent::kTooLong) << n;
+    EXPECT_EQ(events[0], n <= fw::kMaxRequestBytes ? fw::LineEvent::kLine : fw::LineEvent::kTooLong)
+        << n;
   }
   // A partial line stalls kLineStallTimeoutMs after its last byte.
   a.feed('P', 100);
@@ -310,7 +321,8 @@ TEST(LineAssembler, LinesOverlongAndStall) {
 struct OverlongRow {
   const char* name;
   size_t bytes;          ///< line length without the newline
-  uint32_t byte_gap_us;  ///< time between bytes (20 us = 500 kbaud back to back; the link runs 1 Mbaud, 10 us)
+  uint32_t byte_gap_us;  ///< time between bytes (20 us = 500 kbaud back to back; the link runs 1
+                         ///< Mbaud, 10 us)
   bool newline;          ///< false: the newline was lost in transit
 };
 
@@ -352,7 +364,8 @@ TEST(LineAssembler, OverlongLineIsAnswered414OnItsFirstExcessByteWhateverItsLeng
     EXPECT_FALSE(a.discarding()) << r.name;
     // AND the next line is assembled normally
     fw::LineEvent ev = fw::LineEvent::kNone;
-    for (char ch : std::string("GET /status\n")) ev = a.feed(static_cast<uint8_t>(ch), t_us / 1000 + 600);
+    for (char ch : std::string("GET /status\n"))
+      ev = a.feed(static_cast<uint8_t>(ch), t_us / 1000 + 600);
     ASSERT_EQ(ev, fw::LineEvent::kLine) << r.name;
     EXPECT_EQ(std::string(a.line(), a.length()), "GET /status") << r.name;
   }
@@ -386,7 +399,8 @@ TEST(LineAssembler, SlowButSteadyLineIsNotStalled) {
   EXPECT_EQ(std::string(a.line(), a.length()), "GET /status");
 }
 
-// ---- key store -------------------------------------------------------------------------------------------
+// ---- key store
+// -------------------------------------------------------------------------------------------
 TEST(KeyStore, RecordRoundTripAndCorruption) {
   const uint8_t check[] = {'1', '2', '3', '4', '5', '6', '7', '8', '9'};
   EXPECT_EQ(fw::crc16_ccitt(check, sizeof(check)), 0x29B1);
@@ -409,7 +423,8 @@ TEST(KeyStore, RecordRoundTripAndCorruption) {
   EXPECT_FALSE(fw::load_key_record(rec, key)) << "all-zero key";
 }
 
-// ---- IMU cache, MAVLink reader, replies ------------------------------------------------------------------
+// ---- IMU cache, MAVLink reader, replies
+// ------------------------------------------------------------------
 TEST(ImuCache, RejectsNonFiniteAndReportsAge) {
   fw::ImuCache c;
   EXPECT_FALSE(c.has_attitude());
@@ -477,11 +492,14 @@ TEST(Reply, WorstCaseFitsBufferAndCarriesImu) {
   EXPECT_EQ(reply[n - 1], '\n');
   const std::string r(reply, n);
   EXPECT_NE(r.find("\"att_mrad\":[-3142,-3142,-3142]"), std::string::npos) << r;
-  EXPECT_NE(r.find("\"imu_raw\":[-32768,-32768,-32768,-32768,-32768,-32768]"), std::string::npos) << r;
+  EXPECT_NE(r.find("\"imu_raw\":[-32768,-32768,-32768,-32768,-32768,-32768]"), std::string::npos)
+      << r;
   EXPECT_NE(r.find("\"att_age_ms\":4294967295"), std::string::npos) << r;
   // The control-link schema version comes first (control_spec.json), and the line keeps the spec's
   // bound that ground stations size their buffers from.
-  EXPECT_EQ(r.rfind("422 {\"ver\":" + std::to_string(rgbd_control::kControlLinkVersion) + ",", 0), 0u) << r;
+  EXPECT_EQ(r.rfind("422 {\"ver\":" + std::to_string(rgbd_control::kControlLinkVersion) + ",", 0),
+            0u)
+      << r;
   EXPECT_LE(n - 1, rgbd_control::kMaxReplyBytes);
   std::printf("worst-case reply: %zu bytes\n", n);
 }
@@ -497,7 +515,8 @@ TEST(Reply, TruncatesSafelyInASmallBuffer) {
   EXPECT_EQ(small[10], 'Z');
 }
 
-// ---- PWM schedule -----------------------------------------------------------------------------------------
+// ---- PWM schedule
+// -----------------------------------------------------------------------------------------
 TEST(PwmSchedule, FrameIs20msAndPulsesAreBounded) {
   const struct {
     uint16_t in[4];
@@ -521,7 +540,8 @@ TEST(PwmSchedule, FrameIs20msAndPulsesAreBounded) {
 
 }  // namespace
 
-// ---- robustness -------------------------------------------------------------------------------------------
+// ---- robustness
+// -------------------------------------------------------------------------------------------
 namespace {
 
 /// Deterministic xorshift32 (seeded): the same byte streams on every run.
@@ -543,9 +563,9 @@ class Rng {
 
 TEST(Robustness, MutatedAndRandomStreamsNeverApplyAnythingOrOverflow) {
   // GIVEN an armed controller holding a known command, WHEN 20000 mutated copies of valid lines and
-  // random byte runs (seeded) arrive through the line assembler, THEN no reply overflows its buffer,
-  // every reply is a complete line, and none of them is a 200 for a control request (a mutation
-  // cannot carry a valid MAC) - checked under ASan/UBSan in build-asan as well.
+  // random byte runs (seeded) arrive through the line assembler, THEN no reply overflows its
+  // buffer, every reply is a complete line, and none of them is a 200 for a control request (a
+  // mutation cannot carry a valid MAC) - checked under ASan/UBSan in build-asan as well.
   fw::Controller c(kKey);
   fw::LineAssembler a;
   fw::ImuCache imu;
@@ -563,9 +583,15 @@ TEST(Robustness, MutatedAndRandomStreamsNeverApplyAnythingOrOverflow) {
       for (int e = 0; e < edits; ++e) {
         const size_t pos = rng.next() % s.size();
         switch (rng.next() % 3) {
-          case 0: s[pos] = static_cast<char>(rng.next() & 0xFF); break;
-          case 1: s.erase(pos, 1 + rng.next() % 4); break;
-          default: s.insert(pos, 1, static_cast<char>(rng.next() & 0xFF)); break;
+          case 0:
+            s[pos] = static_cast<char>(rng.next() & 0xFF);
+            break;
+          case 1:
+            s.erase(pos, 1 + rng.next() % 4);
+            break;
+          default:
+            s.insert(pos, 1, static_cast<char>(rng.next() & 0xFF));
+            break;
         }
         if (s.empty()) s = "x";
       }
@@ -605,7 +631,8 @@ TEST(Robustness, MutatedAndRandomStreamsNeverApplyAnythingOrOverflow) {
   EXPECT_GT(replies, 10000);
 }
 
-// ---- replay protection across resets ------------------------------------------------------------------------
+// ---- replay protection across resets
+// ------------------------------------------------------------------------
 namespace {
 
 /// EEPROM stand-in: two slots, records every write.
@@ -653,7 +680,8 @@ TEST(SeqStore, ReservationIsWrittenOncePerWindowAndBeforeItIsUsed) {
   uint32_t seq = 1;
   for (int i = 0; i < 300; ++i, seq += 1000) {
     ASSERT_EQ(send(c, cmd(seq, 0, 1500, 1500, 1000, 1500), static_cast<uint32_t>(i)), 200);
-    ASSERT_GE(fw::load_seq_floor(store.slots), seq) << "accepted a number not yet covered in EEPROM";
+    ASSERT_GE(fw::load_seq_floor(store.slots), seq)
+        << "accepted a number not yet covered in EEPROM";
   }
   EXPECT_EQ(store.writes, 5);  // 299001 / 65536 -> windows starting at 1, 65537+.., ...
 }

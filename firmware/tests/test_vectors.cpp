@@ -29,7 +29,8 @@ const json& vectors() {
 
 std::vector<uint8_t> from_hex(const std::string& h) {
   std::vector<uint8_t> out;
-  for (size_t i = 0; i + 1 < h.size(); i += 2) out.push_back(static_cast<uint8_t>(std::stoi(h.substr(i, 2), nullptr, 16)));
+  for (size_t i = 0; i + 1 < h.size(); i += 2)
+    out.push_back(static_cast<uint8_t>(std::stoi(h.substr(i, 2), nullptr, 16)));
   return out;
 }
 
@@ -49,7 +50,8 @@ std::string wire_bytes(const std::string& utf8) {
   for (size_t i = 0; i < utf8.size(); ++i) {
     const auto c = static_cast<unsigned char>(utf8[i]);
     if (c >= 0xC0 && c < 0xE0 && i + 1 < utf8.size()) {
-      out += static_cast<char>(((c & 0x1F) << 6) | (static_cast<unsigned char>(utf8[i + 1]) & 0x3F));
+      out +=
+          static_cast<char>(((c & 0x1F) << 6) | (static_cast<unsigned char>(utf8[i + 1]) & 0x3F));
       ++i;
     } else {
       out += static_cast<char>(c);
@@ -65,7 +67,8 @@ TEST(ControlVectors, SipHashMatchesAllVectors) {
     const auto key = from_hex(v["key_hex"]);
     const auto msg = from_hex(v["msg_hex"]);
     uint8_t tag[8];
-    rgbd_control::siphash24_tag_bytes(rgbd_control::siphash24(key.data(), msg.data(), msg.size()), tag);
+    rgbd_control::siphash24_tag_bytes(rgbd_control::siphash24(key.data(), msg.data(), msg.size()),
+                                      tag);
     EXPECT_EQ(to_hex(tag, 8), v["tag_hex"].get<std::string>()) << "message length " << msg.size();
   }
 }
@@ -140,7 +143,8 @@ TEST_P(ScenarioTest, Replays) {
     if (st.contains("out_us")) {
       uint16_t out[4];
       c.outputs_us(out);
-      for (int ch = 0; ch < 4; ++ch) EXPECT_EQ(out[ch], st["out_us"][ch].get<int>()) << where << " ch" << ch + 1;
+      for (int ch = 0; ch < 4; ++ch)
+        EXPECT_EQ(out[ch], st["out_us"][ch].get<int>()) << where << " ch" << ch + 1;
     }
     if (st.contains("clamped")) {
       EXPECT_EQ(c.clamped_mask(), st["clamped"].get<int>()) << where;

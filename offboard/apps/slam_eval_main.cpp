@@ -46,8 +46,9 @@ struct RunArgs {
   std::string save_map, load_map;
   double withhold_from_s = -1, withhold_s = 0;
   std::string keyframe_gate = slam::PipelineOptions{}.keyframe_gate_mapper_busy ? "on" : "off";
-  std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off", keyframe_new_content = "on", depth_noise = "keypoint",
-              map_lock = "pi", tracking_policy = "off", local_ba = "on";
+  std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off",
+              keyframe_new_content = "on", depth_noise = "keypoint", map_lock = "pi",
+              tracking_policy = "off", local_ba = "on";
   double depth_units_per_m = 0;
 };
 
@@ -61,10 +62,12 @@ double rss_mib() {
 }
 
 std::string guess_camera(const std::string& folder) {
-  const std::string name = fs::path(folder).lexically_normal().filename().string() +
-                           fs::absolute(folder).string();
-  if (name.find("fr2") != std::string::npos || name.find("freiburg2") != std::string::npos) return "fr2";
-  if (name.find("fr3") != std::string::npos || name.find("freiburg3") != std::string::npos) return "fr3";
+  const std::string name =
+      fs::path(folder).lexically_normal().filename().string() + fs::absolute(folder).string();
+  if (name.find("fr2") != std::string::npos || name.find("freiburg2") != std::string::npos)
+    return "fr2";
+  if (name.find("fr3") != std::string::npos || name.find("freiburg3") != std::string::npos)
+    return "fr3";
   return "fr1";
 }
 
@@ -94,11 +97,12 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
     return std::nullopt;
   }
   po.backend.seed = a.seed + 1;
-  const auto sampling = a.ransac == "thesis" ? slam::RansacSampling::kThesis : slam::RansacSampling::kRandom;
+  const auto sampling =
+      a.ransac == "thesis" ? slam::RansacSampling::kThesis : slam::RansacSampling::kRandom;
   po.frontend.ransac.sampling = sampling;
   po.backend.ransac.sampling = sampling;
-  po.backend.keyframes.policy =
-      a.keyframe_policy == "fixed" ? slam::KeyframePolicy::kFixedRate : slam::KeyframePolicy::kRansac;
+  po.backend.keyframes.policy = a.keyframe_policy == "fixed" ? slam::KeyframePolicy::kFixedRate
+                                                             : slam::KeyframePolicy::kRansac;
   return po;
 }
 
@@ -133,14 +137,17 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
 
 /// Writes the trajectories, the pose graphs, the map (unless --no-map; its point count goes into
 /// run->exported_map_points) and the saved map (--save-map).
-bool write_run_outputs(const RunArgs& a, const slam::Pipeline& pipeline, const slam::Intrinsics& intr,
-                       slam::RunOutcome* run, std::string* err) {
+bool write_run_outputs(const RunArgs& a, const slam::Pipeline& pipeline,
+                       const slam::Intrinsics& intr, slam::RunOutcome* run, std::string* err) {
   const fs::path out(a.out);
-  if (!slam::eval::write_tum_trajectory((out / "trajectory.tum").string(), run->final_trajectory, err) ||
-      !slam::eval::write_tum_trajectory((out / "trajectory_online.tum").string(), run->online_trajectory, err))
+  if (!slam::eval::write_tum_trajectory((out / "trajectory.tum").string(), run->final_trajectory,
+                                        err) ||
+      !slam::eval::write_tum_trajectory((out / "trajectory_online.tum").string(),
+                                        run->online_trajectory, err))
     return false;
   const auto& be = pipeline.backend();
-  if (!slam::write_text_file((out / "graph_before.g2o").string(), be.graph_before_optimisation().to_g2o(), err) ||
+  if (!slam::write_text_file((out / "graph_before.g2o").string(),
+                             be.graph_before_optimisation().to_g2o(), err) ||
       !slam::write_text_file((out / "graph_after.g2o").string(), be.graph().to_g2o(), err))
     return false;
   if (!a.no_map) {
@@ -184,7 +191,8 @@ int run_command(const RunArgs& a) {
   // time (ORB-SLAM2's rgbd_tum does the same); the thesis back-ends align 3D points from the depth
   // image, so they carry the depth time (RGBD-SLAM's convention, which the thesis follows).
   const std::string stamp =
-      a.stamp != "auto" ? a.stamp : (po.backend.kind == slam::BackendKind::kLocalMap ? "rgb" : "depth");
+      a.stamp != "auto" ? a.stamp
+                        : (po.backend.kind == slam::BackendKind::kLocalMap ? "rgb" : "depth");
   dso.stamp_from_depth = stamp == "depth";
   auto ds = slam::TumDataset::open(a.dataset, dso, &err);
   if (!ds) {
@@ -245,7 +253,8 @@ int run_command(const RunArgs& a) {
       std::cerr << "slam-eval: submitted " << (i + 1) << "/" << ds->size() << "\n";
   }
   pipeline->finish();
-  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
 
   slam::RunOutcome run = slam::collect_run_outcome(*pipeline);
   run.glc_backend = po.backend.kind == slam::BackendKind::kGlc;
@@ -259,7 +268,8 @@ int run_command(const RunArgs& a) {
     return 1;
   }
   // Per-frame and per-keyframe tables for long-run analysis (offboard/tools/longrun.py).
-  if (!slam::write_run_tables(a.out, run.records, run.mapper_stats, run.loop_stats, rss_samples, &err)) {
+  if (!slam::write_run_tables(a.out, run.records, run.mapper_stats, run.loop_stats, rss_samples,
+                              &err)) {
     std::cerr << "slam-eval: " << err << "\n";
     return 1;
   }
@@ -278,12 +288,14 @@ int run_command(const RunArgs& a) {
     std::cerr << "slam-eval: cannot write metrics.json\n";
     return 1;
   }
-  std::cerr << "slam-eval: " << run.records.size() << " frames, " << run.summary.keyframes << " keyframes, "
-            << run.summary.loop_closures << " loop closures, " << wall_s << " s";
+  std::cerr << "slam-eval: " << run.records.size() << " frames, " << run.summary.keyframes
+            << " keyframes, " << run.summary.loop_closures << " loop closures, " << wall_s << " s";
   if (m.contains("ate_rmse_m"))
     std::cerr << ", ATE " << m["ate_rmse_m"].get<double>() << " m, RPE "
-              << m.value("rpe_trans_rmse_mm", 0.0) << " mm / " << m.value("rpe_rot_rmse_deg", 0.0) << " deg";
-  std::cerr << "\nslam-eval: wrote " << a.out << "/{trajectory.tum,trajectory_online.tum,metrics.json,"
+              << m.value("rpe_trans_rmse_mm", 0.0) << " mm / " << m.value("rpe_rot_rmse_deg", 0.0)
+              << " deg";
+  std::cerr << "\nslam-eval: wrote " << a.out
+            << "/{trajectory.tum,trajectory_online.tum,metrics.json,"
             << (a.no_map ? "" : "map.ply,") << "graph_before.g2o,graph_after.g2o}\n";
   return 0;
 }
@@ -330,9 +342,9 @@ int vocab_command(const std::vector<std::string>& datasets, const std::string& o
   }
   std::size_t descriptors = 0;
   for (const cv::Mat& m : images) descriptors += static_cast<std::size_t>(m.rows);
-  std::cerr << "slam-eval vocab: " << images.size() << " images, " << descriptors << " descriptors -> " << v->words()
-            << " words (k " << options.branching << ", L " << options.levels << "), " << bytes.size()
-            << " bytes to " << out << "\n";
+  std::cerr << "slam-eval vocab: " << images.size() << " images, " << descriptors
+            << " descriptors -> " << v->words() << " words (k " << options.branching << ", L "
+            << options.levels << "), " << bytes.size() << " bytes to " << out << "\n";
   return 0;
 }
 
@@ -342,90 +354,141 @@ int main(int argc, char** argv) {
   CLI::App app{"slam-eval: run the RGB-D SLAM engine on a TUM folder and score it"};
   app.require_subcommand(1);
   RunArgs a;
-  auto* run = app.add_subcommand("run", "run SLAM on a TUM RGB-D folder, write trajectory + metrics");
-  run->add_option("--dataset", a.dataset, "TUM folder (rgb.txt, depth.txt, optional groundtruth.txt)")->required();
+  auto* run =
+      app.add_subcommand("run", "run SLAM on a TUM RGB-D folder, write trajectory + metrics");
+  run->add_option("--dataset", a.dataset,
+                  "TUM folder (rgb.txt, depth.txt, optional groundtruth.txt)")
+      ->required();
   run->add_option("--out", a.out, "output folder (created)")->required();
-  run->add_option("--features", a.features, "sift | surf | orb (orb keeps up at 30 fps)")->check(CLI::IsMember({"sift", "surf", "orb"}))->capture_default_str();
-  run->add_option("--backend", a.backend,
-                  "localmap (tracking against a local map + local mapping: the system that flies) | "
-                  "vo | llc | glc (the thesis back-ends)")
-      ->check(CLI::IsMember({"localmap", "vo", "llc", "glc"}))->capture_default_str();
-  run->add_option("--rate", a.rate, "keep every K-th frame (frame-rate reduction 1/K)")->check(CLI::PositiveNumber)->capture_default_str();
-  run->add_option("--mode", a.mode, "wait (deterministic) | realtime (paced, back-end skips) | sequential (one thread)")
-      ->check(CLI::IsMember({"wait", "realtime", "live", "sequential"}))->capture_default_str();
+  run->add_option("--features", a.features, "sift | surf | orb (orb keeps up at 30 fps)")
+      ->check(CLI::IsMember({"sift", "surf", "orb"}))
+      ->capture_default_str();
+  run->add_option(
+         "--backend", a.backend,
+         "localmap (tracking against a local map + local mapping: the system that flies) | "
+         "vo | llc | glc (the thesis back-ends)")
+      ->check(CLI::IsMember({"localmap", "vo", "llc", "glc"}))
+      ->capture_default_str();
+  run->add_option("--rate", a.rate, "keep every K-th frame (frame-rate reduction 1/K)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  run->add_option(
+         "--mode", a.mode,
+         "wait (deterministic) | realtime (paced, back-end skips) | sequential (one thread)")
+      ->check(CLI::IsMember({"wait", "realtime", "live", "sequential"}))
+      ->capture_default_str();
   run->add_option("--camera", a.camera, "intrinsics: auto (from folder name) | fr1 | fr2 | fr3")
-      ->check(CLI::IsMember({"auto", "fr1", "fr2", "fr3"}))->capture_default_str();
-  run->add_option("--ransac", a.ransac, "random (seeded, adaptive) | thesis (4 best pairs, 10 tries)")
-      ->check(CLI::IsMember({"random", "thesis"}))->capture_default_str();
-  run->add_option("--keyframes", a.keyframe_policy, "ransac (thesis default) | fixed (3 per second)")
-      ->check(CLI::IsMember({"ransac", "fixed"}))->capture_default_str();
-  run->add_option("--max-frames", a.max_frames, "stop after N frames (0 = all)")->check(CLI::NonNegativeNumber)->capture_default_str();
+      ->check(CLI::IsMember({"auto", "fr1", "fr2", "fr3"}))
+      ->capture_default_str();
+  run->add_option("--ransac", a.ransac,
+                  "random (seeded, adaptive) | thesis (4 best pairs, 10 tries)")
+      ->check(CLI::IsMember({"random", "thesis"}))
+      ->capture_default_str();
+  run->add_option("--keyframes", a.keyframe_policy,
+                  "ransac (thesis default) | fixed (3 per second)")
+      ->check(CLI::IsMember({"ransac", "fixed"}))
+      ->capture_default_str();
+  run->add_option("--max-frames", a.max_frames, "stop after N frames (0 = all)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   run->add_option("--seed", a.seed, "RANSAC seed")->capture_default_str();
-  run->add_option("--map-stride", a.map_stride, "PLY map: every N-th pixel")->check(CLI::PositiveNumber)->capture_default_str();
+  run->add_option("--map-stride", a.map_stride, "PLY map: every N-th pixel")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   run->add_option("--sift-first-octave", a.sift_first_octave,
                   "-1: OpenCV's upsampled first octave; 0: start at input resolution (~4x faster)")
-      ->check(CLI::IsMember({-1, 0}))->capture_default_str();
+      ->check(CLI::IsMember({-1, 0}))
+      ->capture_default_str();
   run->add_option("--max-features", a.max_features, "SIFT: keep the N strongest (0 = all)")
-      ->check(CLI::NonNegativeNumber)->capture_default_str();
-  run->add_option("--stamp", a.stamp,
-                  "pose time: auto (rgb for localmap, whose poses rest on colour-image pixels; depth for "
-                  "vo/llc/glc, which align depth-image points) | depth | rgb")
-      ->check(CLI::IsMember({"auto", "depth", "rgb"}))->capture_default_str();
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  run->add_option(
+         "--stamp", a.stamp,
+         "pose time: auto (rgb for localmap, whose poses rest on colour-image pixels; depth for "
+         "vo/llc/glc, which align depth-image points) | depth | rgb")
+      ->check(CLI::IsMember({"auto", "depth", "rgb"}))
+      ->capture_default_str();
   run->add_flag("--no-reprojection-refine", a.no_reprojection,
                 "skip the Gauss-Newton reprojection refinement after RANSAC");
   run->add_option("--cv-threads", a.cv_threads,
                   "OpenCV worker threads (-1 = OpenCV default; 1 makes *_cpu timings complete)")
       ->capture_default_str();
   run->add_flag("--no-undistort", a.no_undistort,
-                "use keypoints as detected (default: undistort them with the camera's coefficients before lifting to 3D)");
+                "use keypoints as detected (default: undistort them with the camera's coefficients "
+                "before lifting to 3D)");
   run->add_flag("--no-map", a.no_map, "do not write map.ply");
-  run->add_option("--withhold", a.withhold_s, "seconds of frames withheld (a stalled link), see --withhold-from");
-  run->add_option("--withhold-from", a.withhold_from_s, "start of the withheld span, seconds after the first frame");
+  run->add_option("--withhold", a.withhold_s,
+                  "seconds of frames withheld (a stalled link), see --withhold-from");
+  run->add_option("--withhold-from", a.withhold_from_s,
+                  "start of the withheld span, seconds after the first frame");
   run->add_option("--save-map", a.save_map, "localmap: write the final map to this file");
-  run->add_option("--load-map", a.load_map,
-                  "localmap: start from this saved map (relocalise in it; poses in its world frame)");
-  run->add_option("--orb-features", a.orb_features, "ORB feature count (0: default, thesis Table 4.3: 1024)");
+  run->add_option(
+      "--load-map", a.load_map,
+      "localmap: start from this saved map (relocalise in it; poses in its world frame)");
+  run->add_option("--orb-features", a.orb_features,
+                  "ORB feature count (0: default, thesis Table 4.3: 1024)");
   run->add_option("--orb-levels", a.orb_levels, "ORB pyramid levels (0: default, thesis: 6)");
-  run->add_option("--orb-scale-factor", a.orb_scale_factor, "ORB pyramid scale factor (0: default, thesis: 2)");
+  run->add_option("--orb-scale-factor", a.orb_scale_factor,
+                  "ORB pyramid scale factor (0: default, thesis: 2)");
   run->add_flag("--quiet", a.quiet, "no per-25-frame progress");
   run->add_option("--keyframe-gate", a.keyframe_gate,
-                  "localmap, realtime: ORB-SLAM2's c1b/c1c rule - while the mapper is busy only weak tracking "
+                  "localmap, realtime: ORB-SLAM2's c1b/c1c rule - while the mapper is busy only "
+                  "weak tracking "
                   "makes a keyframe (docs/slam.md)")
-      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   run->add_option("--loop-closing", a.loop_closing,
                   "localmap: loop closing on its own thread (ORB only: the vocabulary is ORB's)")
-      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   run->add_option("--keyframe-new-content", a.keyframe_new_content,
-                  "localmap: a view change makes no keyframe that would be culled as redundant at once (>= 90 % of "
+                  "localmap: a view change makes no keyframe that would be culled as redundant at "
+                  "once (>= 90 % of "
                   "its tracked near points seen by >= 3 keyframes); off: ORB-SLAM2's rule as is")
-      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
-  run->add_option("--depth-noise", a.depth_noise,
-                  "localmap: sigma of the depth residual - kinect (the sensor's axial noise, Nguyen et al. 2012) | "
-                  "keypoint (ORB-SLAM2: the keypoint's pixel sigma on the virtual-stereo disparity) | "
-                  "kinect-edge (kinect plus the depth image's slope times the keypoint's pixel sigma)")
-      ->check(CLI::IsMember({"kinect", "keypoint", "kinect-edge"}))->capture_default_str();
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  run->add_option(
+         "--depth-noise", a.depth_noise,
+         "localmap: sigma of the depth residual - kinect (the sensor's axial noise, Nguyen et al. "
+         "2012) | "
+         "keypoint (ORB-SLAM2: the keypoint's pixel sigma on the virtual-stereo disparity) | "
+         "kinect-edge (kinect plus the depth image's slope times the keypoint's pixel sigma)")
+      ->check(CLI::IsMember({"kinect", "keypoint", "kinect-edge"}))
+      ->capture_default_str();
   run->add_option("--depth-units-per-m", a.depth_units_per_m,
-                  "raw depth units per metre (0: the camera's, TUM 5000; ORB-SLAM2's TUM2.yaml uses 5208 for fr2) - "
+                  "raw depth units per metre (0: the camera's, TUM 5000; ORB-SLAM2's TUM2.yaml "
+                  "uses 5208 for fr2) - "
                   "for calibration ablations");
-  run->add_option("--local-ba", a.local_ba,
-                  "localmap: the mapper's local bundle adjustment (poses and points); off for ablations")
-      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
+  run->add_option(
+         "--local-ba", a.local_ba,
+         "localmap: the mapper's local bundle adjustment (poses and points); off for ablations")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   run->add_option("--map-lock", a.map_lock,
-                  "localmap: pi (the map lock inherits a waiting real-time tracker's priority) | plain (to compare)")
-      ->check(CLI::IsMember({"pi", "plain"}))->capture_default_str();
-  run->add_option("--tracking-policy", a.tracking_policy,
-                  "realtime mode: scheduling of the tracking thread - off (as created) | nice | rr | fifo "
-                  "(slam-server's and quad-control's real-time path)")
-      ->check(CLI::IsMember({"off", "nice", "rr", "fifo"}))->capture_default_str();
+                  "localmap: pi (the map lock inherits a waiting real-time tracker's priority) | "
+                  "plain (to compare)")
+      ->check(CLI::IsMember({"pi", "plain"}))
+      ->capture_default_str();
+  run->add_option(
+         "--tracking-policy", a.tracking_policy,
+         "realtime mode: scheduling of the tracking thread - off (as created) | nice | rr | fifo "
+         "(slam-server's and quad-control's real-time path)")
+      ->check(CLI::IsMember({"off", "nice", "rr", "fifo"}))
+      ->capture_default_str();
   std::string gt, est;
-  auto* score = app.add_subcommand("score", "print ATE/RPE of EST against GT as JSON (TUM definitions, 20 ms association)");
+  auto* score = app.add_subcommand(
+      "score", "print ATE/RPE of EST against GT as JSON (TUM definitions, 20 ms association)");
   score->add_option("--gt", gt, "ground truth, TUM format")->required();
   score->add_option("--est", est, "estimate, TUM format")->required();
   std::vector<std::string> vocab_datasets;
   std::string vocab_out;
   slam::VocabularyOptions vocab_options;
-  auto* vocab = app.add_subcommand("vocab", "train the ORB bag-of-words vocabulary on TUM folders (deterministic)");
-  vocab->add_option("--dataset", vocab_datasets, "TUM folder(s) whose frames are the training images")->required();
+  auto* vocab = app.add_subcommand(
+      "vocab", "train the ORB bag-of-words vocabulary on TUM folders (deterministic)");
+  vocab
+      ->add_option("--dataset", vocab_datasets,
+                   "TUM folder(s) whose frames are the training images")
+      ->required();
   vocab->add_option("--out", vocab_out, "vocabulary file to write")->required();
   vocab->add_option("--branching", vocab_options.branching, "k")->capture_default_str();
   vocab->add_option("--levels", vocab_options.levels, "L")->capture_default_str();

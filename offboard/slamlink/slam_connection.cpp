@@ -10,8 +10,9 @@ namespace proto = rgbdquad::protocol;
 
 namespace {
 constexpr const char* kServerName = "slam-server";
-constexpr std::size_t kMaxFaultLogs = 20;  // then counted: a stream of bad frames must not flood the log
-}
+constexpr std::size_t kMaxFaultLogs =
+    20;  // then counted: a stream of bad frames must not flood the log
+}  // namespace
 
 std::string ConnectionOptions::validate() const {
   if (hello_timeout_ms < 1 || idle_timeout_ms < 1 || message_timeout_ms < 1 || write_timeout_ms < 1)
@@ -19,8 +20,13 @@ std::string ConnectionOptions::validate() const {
   return {};
 }
 
-SlamConnection::SlamConnection(int id, std::string peer, ConnectionOptions options, std::int64_t now_ms)
-    : id_(id), peer_(std::move(peer)), options_(options), connected_ms_(now_ms), last_byte_ms_(now_ms) {}
+SlamConnection::SlamConnection(int id, std::string peer, ConnectionOptions options,
+                               std::int64_t now_ms)
+    : id_(id),
+      peer_(std::move(peer)),
+      options_(options),
+      connected_ms_(now_ms),
+      last_byte_ms_(now_ms) {}
 
 void SlamConnection::on_bytes(const std::uint8_t* data, std::size_t size, std::int64_t now_ms) {
   if (size == 0) return;
@@ -52,7 +58,8 @@ void SlamConnection::consumed_output(std::size_t n, std::int64_t now_ms) {
 }
 
 std::optional<std::string> SlamConnection::process(SessionRegistry& registry, std::int64_t now_ms,
-                                                   std::vector<int>* displaced, std::vector<std::string>* log,
+                                                   std::vector<int>* displaced,
+                                                   std::vector<std::string>* log,
                                                    bool* flush_first) {
   *flush_first = false;
   const std::size_t out_before = out_.size();
@@ -62,8 +69,9 @@ std::optional<std::string> SlamConnection::process(SessionRegistry& registry, st
     if (r.status == proto::DecodeStatus::kNeedMoreBytes) break;
     if (r.status == proto::DecodeStatus::kError) {
       if (decode_errors_++ == 0 && log)
-        log->push_back("client #" + std::to_string(id_) + ": undecodable bytes skipped: " + proto::to_string(r.error) +
-                       " " + r.detail + " (further ones counted, reported at close)");
+        log->push_back("client #" + std::to_string(id_) +
+                       ": undecodable bytes skipped: " + proto::to_string(r.error) + " " +
+                       r.detail + " (further ones counted, reported at close)");
       continue;
     }
     partial_since_ms_ = now_ms;  // a message ended here: the next one starts at the latest now
@@ -91,8 +99,9 @@ std::optional<std::string> SlamConnection::process(SessionRegistry& registry, st
           a.session->frames_processed(), std::numeric_limits<std::uint32_t>::max()));
       queue(reply);
       if (log)
-        log->push_back("client #" + std::to_string(id_) + " (" + hello->peer_name + ", " + peer_ + "): session " +
-                       SessionRegistry::id_text(a.session_id) + (a.resumed ? " resumed" : " new"));
+        log->push_back("client #" + std::to_string(id_) + " (" + hello->peer_name + ", " + peer_ +
+                       "): session " + SessionRegistry::id_text(a.session_id) +
+                       (a.resumed ? " resumed" : " new"));
       continue;
     }
     const auto* frame = std::get_if<proto::RgbdFrame>(&*r.message);
@@ -112,9 +121,12 @@ std::optional<std::string> SlamConnection::process(SessionRegistry& registry, st
     ++frames_;
     // Faults are logged, the first kMaxFaultLogs per connection in full, the rest counted.
     if (!err.empty() && log && faults_logged_++ < kMaxFaultLogs)
-      log->push_back("client #" + std::to_string(id_) + ": frame " + std::to_string(frame->pair_sequence) +
-                     (update.tracking_state == proto::TrackingState::kLost && update.inlier_count == 0
-                          ? " answered LOST: " : ": ") + err);
+      log->push_back(
+          "client #" + std::to_string(id_) + ": frame " + std::to_string(frame->pair_sequence) +
+          (update.tracking_state == proto::TrackingState::kLost && update.inlier_count == 0
+               ? " answered LOST: "
+               : ": ") +
+          err);
   }
   track_partial(now_ms);
   if (out_before == 0 && !out_.empty()) output_since_ms_ = now_ms;
@@ -125,8 +137,10 @@ std::optional<std::string> SlamConnection::timed_out(std::int64_t now_ms) const 
   if (!session_id_ && now_ms - connected_ms_ >= options_.hello_timeout_ms)
     return "no SlamHello within " + std::to_string(options_.hello_timeout_ms) + " ms of connecting";
   if (partial_since_ms_ && now_ms - *partial_since_ms_ >= options_.message_timeout_ms)
-    return "a message begun and not finished within " + std::to_string(options_.message_timeout_ms) + " ms (" +
-           std::to_string(decoder_.buffered_bytes()) + " bytes of it received; peer stalled or dripping)";
+    return "a message begun and not finished within " +
+           std::to_string(options_.message_timeout_ms) + " ms (" +
+           std::to_string(decoder_.buffered_bytes()) +
+           " bytes of it received; peer stalled or dripping)";
   if (output_since_ms_ && now_ms - *output_since_ms_ >= options_.write_timeout_ms)
     return "peer took no reply bytes for " + std::to_string(options_.write_timeout_ms) + " ms (" +
            std::to_string(out_.size()) + " bytes waiting)";
@@ -146,8 +160,10 @@ std::int64_t SlamConnection::next_deadline_ms() const {
 std::string SlamConnection::summary() const {
   std::string s = std::to_string(frames_) + " frames on this connection";
   if (session_id_) s += ", session " + SessionRegistry::id_text(*session_id_);
-  if (decode_errors_ > 0) s += ", " + std::to_string(decode_errors_) + " undecodable byte runs skipped";
-  if (faults_logged_ > 0) s += ", " + std::to_string(faults_logged_) + " frames with a fault or a repaired pose";
+  if (decode_errors_ > 0)
+    s += ", " + std::to_string(decode_errors_) + " undecodable byte runs skipped";
+  if (faults_logged_ > 0)
+    s += ", " + std::to_string(faults_logged_) + " frames with a fault or a repaired pose";
   return s;
 }
 

@@ -20,13 +20,17 @@ constexpr double kMaxQuaternionNormError = 1e-3;
 
 proto::TrackingState to_wire(TrackingState s) {
   switch (s) {
-    case TrackingState::kInitialising: return proto::TrackingState::kInitializing;
-    case TrackingState::kTracking: return proto::TrackingState::kTracking;
-    case TrackingState::kLost: return proto::TrackingState::kLost;
+    case TrackingState::kInitialising:
+      return proto::TrackingState::kInitializing;
+    case TrackingState::kTracking:
+      return proto::TrackingState::kTracking;
+    case TrackingState::kLost:
+      return proto::TrackingState::kLost;
   }
   return proto::TrackingState::kLost;
 }
-// The conversion slam-server used before pose_to_wire, kept to recognise the poses it could not send.
+// The conversion slam-server used before pose_to_wire, kept to recognise the poses it could not
+// send.
 proto::Pose3 raw_pose(const Eigen::Isometry3d& T) {
   proto::Pose3 p;
   const Eigen::Quaterniond q(T.rotation());
@@ -52,21 +56,24 @@ std::optional<proto::Pose3> pose_to_wire(const Eigen::Isometry3d& T) {
   return p;
 }
 
-SlamLinkSession::SlamLinkSession(PipelineOptions options, SessionMapFiles map_files, PipelineFactory factory)
+SlamLinkSession::SlamLinkSession(PipelineOptions options, SessionMapFiles map_files,
+                                 PipelineFactory factory)
     : options_(std::move(options)), map_files_(std::move(map_files)), factory_(std::move(factory)) {
   // Tracking answers each frame on the caller's thread; local mapping runs on its own thread.
   options_.mode = PipelineMode::kLive;
 }
 
-std::optional<RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame& m, std::string* error) const {
+std::optional<RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame& m,
+                                                   std::string* error) const {
   const auto& rh = m.rgb.header;
   const auto& dh = m.depth.header;
   if (rh.encoding != proto::Encoding::kRaw || dh.encoding != proto::Encoding::kRaw) {
     if (error) *error = "slam-link: only RAW image encodings are supported by slam-server";
     return std::nullopt;
   }
-  if (rh.pixel_format != proto::PixelFormat::kRgb8 || dh.pixel_format != proto::PixelFormat::kDepth16 ||
-      rh.width != dh.width || rh.height != dh.height || rh.width == 0 || rh.height == 0) {
+  if (rh.pixel_format != proto::PixelFormat::kRgb8 ||
+      dh.pixel_format != proto::PixelFormat::kDepth16 || rh.width != dh.width ||
+      rh.height != dh.height || rh.width == 0 || rh.height == 0) {
     if (error) *error = "slam-link: need RGB8 and DEPTH16 images of the same non-zero size";
     return std::nullopt;
   }
@@ -83,7 +90,8 @@ std::optional<RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame& m, st
   f.depth.create(dh.height, dh.width, CV_16UC1);
   const std::uint8_t* src = m.depth.payload.data();
   for (std::size_t i = 0; i < n; ++i)  // little-endian on the wire
-    f.depth.ptr<std::uint16_t>()[i] = static_cast<std::uint16_t>(src[2 * i] | (src[2 * i + 1] << 8));
+    f.depth.ptr<std::uint16_t>()[i] =
+        static_cast<std::uint16_t>(src[2 * i] | (src[2 * i + 1] << 8));
   return f;
 }
 
@@ -136,7 +144,8 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
   if (!pipeline_) {
     std::string err;
     pipeline_ = factory_(options_, k, &err);
-    if (!pipeline_) return lost_update(frame, "slam-link: cannot start the pipeline: " + err, error);
+    if (!pipeline_)
+      return lost_update(frame, "slam-link: cannot start the pipeline: " + err, error);
     intrinsics_ = k;
     if (!map_files_.load_path.empty() && !pipeline_->load_map(map_files_.load_path, &err)) {
       // The flight goes on in a new map: say so on every frame's first answer, never silently.
@@ -154,11 +163,12 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
   if (!same_camera(k, intrinsics_)) {
     // The map is built with the first frame's camera model: a frame with another one (a streamer
     // restarted with another calibration) would be tracked with the wrong projection and its error
-    // would be put silently into the map. Refused with the reason; a new session takes the new camera.
+    // would be put silently into the map. Refused with the reason; a new session takes the new
+    // camera.
     return lost_update(frame,
                        "slam-link: frame refused: its camera (" + describe(k) +
-                           ") is not the one this session's map is built with (" + describe(intrinsics_) +
-                           "); start a new session for a new camera",
+                           ") is not the one this session's map is built with (" +
+                           describe(intrinsics_) + "); start a new session for a new camera",
                        error);
   }
   if (!map_load_error_.empty() && frames_ == 0 && error) *error = map_load_error_;
@@ -174,7 +184,9 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
   ++frames_;
   auto rec = pipeline_->record(index);
   if (!rec || !rec->ok)
-    return lost_update(frame, "slam-link: frame rejected: " + (rec ? rec->error : std::string("no record")), error);
+    return lost_update(
+        frame, "slam-link: frame rejected: " + (rec ? rec->error : std::string("no record")),
+        error);
   const auto T_world_cam = pose_to_wire(rec->T_world_cam);
   const auto T_prev_cur = pose_to_wire(rec->T_prev_cur);
   // The pose as put on the wire before pose_to_wire (quaternion straight from the matrix): when
@@ -188,8 +200,10 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
   }
   if (!T_world_cam || !T_prev_cur) {
     std::ostringstream m;
-    m << "slam-link: pose of frame " << index << " cannot be sent (non-finite or not a rotation): T_world_cam\n"
-      << rec->T_world_cam.matrix() << "\nT_prev_cur\n" << rec->T_prev_cur.matrix();
+    m << "slam-link: pose of frame " << index
+      << " cannot be sent (non-finite or not a rotation): T_world_cam\n"
+      << rec->T_world_cam.matrix() << "\nT_prev_cur\n"
+      << rec->T_prev_cur.matrix();
     return lost_update(frame, m.str(), error);
   }
   proto::PoseUpdate u;
@@ -208,12 +222,13 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
     if (error) {
       std::ostringstream m;
       m.precision(17);
-      m << "slam-link: pose of frame " << index << " re-normalised for the wire (as computed the codec refuses it: "
-        << raw_refusal << "; T_world_cam q_xyzw " << raw_pose(rec->T_world_cam).q_xyzw[0] << " "
-        << raw_pose(rec->T_world_cam).q_xyzw[1] << " " << raw_pose(rec->T_world_cam).q_xyzw[2] << " "
-        << raw_pose(rec->T_world_cam).q_xyzw[3] << ", T_prev_cur q_xyzw " << raw_pose(rec->T_prev_cur).q_xyzw[0]
-        << " " << raw_pose(rec->T_prev_cur).q_xyzw[1] << " " << raw_pose(rec->T_prev_cur).q_xyzw[2] << " "
-        << raw_pose(rec->T_prev_cur).q_xyzw[3] << ")";
+      m << "slam-link: pose of frame " << index
+        << " re-normalised for the wire (as computed the codec refuses it: " << raw_refusal
+        << "; T_world_cam q_xyzw " << raw_pose(rec->T_world_cam).q_xyzw[0] << " "
+        << raw_pose(rec->T_world_cam).q_xyzw[1] << " " << raw_pose(rec->T_world_cam).q_xyzw[2]
+        << " " << raw_pose(rec->T_world_cam).q_xyzw[3] << ", T_prev_cur q_xyzw "
+        << raw_pose(rec->T_prev_cur).q_xyzw[0] << " " << raw_pose(rec->T_prev_cur).q_xyzw[1] << " "
+        << raw_pose(rec->T_prev_cur).q_xyzw[2] << " " << raw_pose(rec->T_prev_cur).q_xyzw[3] << ")";
       *error = m.str();
     }
   }
@@ -230,8 +245,10 @@ std::string SlamLinkSession::finish_summary() {
     if (!map_load_error_.empty()) m << "; " << map_load_error_;
     if (!map_files_.save_path.empty()) {
       std::string err;
-      if (pipeline_->save_map(map_files_.save_path, &err)) m << "; map saved to " << map_files_.save_path;
-      else m << "; map NOT saved: " << err;
+      if (pipeline_->save_map(map_files_.save_path, &err))
+        m << "; map saved to " << map_files_.save_path;
+      else
+        m << "; map NOT saved: " << err;
     }
     if (!map_files_.tables_dir.empty()) {
       std::string err = tables_error_;

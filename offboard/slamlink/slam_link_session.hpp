@@ -1,13 +1,14 @@
 // SLAM-link session (protocol/spec/messages.json, link "slam"): one flight's map, socket-free.
 // It answers every RgbdFrame with exactly one PoseUpdate (the spec's rule): the pose computed by
-// the SLAM pipeline (live mode: tracked on this thread, so the answer belongs to that very frame; mapping on its own thread), or - when the
-// frame cannot be used (unsupported encoding, inconsistent sizes, the front end rejected it) or
-// the estimate cannot be put on the wire (non-finite, not a rotation) - a LOST update carrying the
-// last good pose, with the reason in `error`. The pipeline is created on the first frame from the
-// intrinsics and depth scale the frame carries; a later frame with another camera model is
-// answered LOST with both calibrations in the reason (the map holds one camera). The SlamHello exchange and the choice of session
-// belong to the connection (slam_connection.hpp) and the registry (slam_sessions.hpp): a session
-// outlives a connection, so a client that reconnects continues the same map and world frame.
+// the SLAM pipeline (live mode: tracked on this thread, so the answer belongs to that very frame;
+// mapping on its own thread), or - when the frame cannot be used (unsupported encoding,
+// inconsistent sizes, the front end rejected it) or the estimate cannot be put on the wire
+// (non-finite, not a rotation) - a LOST update carrying the last good pose, with the reason in
+// `error`. The pipeline is created on the first frame from the intrinsics and depth scale the frame
+// carries; a later frame with another camera model is answered LOST with both calibrations in the
+// reason (the map holds one camera). The SlamHello exchange and the choice of session belong to the
+// connection (slam_connection.hpp) and the registry (slam_sessions.hpp): a session outlives a
+// connection, so a client that reconnects continues the same map and world frame.
 //
 // The pipeline sits behind SessionPipeline (the calls a session makes): slam-server uses the real
 // Pipeline through live_pipeline_factory() (slam_link_pipeline.cpp); the libFuzzer target
@@ -17,12 +18,11 @@
 // Not thread-safe: used by slam-server's single loop.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <functional>
 #include <memory>
 #include <optional>
 #include <string>
-
-#include <Eigen/Geometry>
 
 #include "rgbdquad/protocol/messages.hpp"
 #include "slam/pipeline/pipeline.hpp"
@@ -71,9 +71,8 @@ class SessionPipeline {
 
 /// Starts a pipeline for the camera a client's first frame describes; null with `error` when the
 /// options or the intrinsics are refused.
-using PipelineFactory = std::function<std::unique_ptr<SessionPipeline>(const PipelineOptions& options,
-                                                                       const Intrinsics& intrinsics,
-                                                                       std::string* error)>;
+using PipelineFactory = std::function<std::unique_ptr<SessionPipeline>(
+    const PipelineOptions& options, const Intrinsics& intrinsics, std::string* error)>;
 
 /// The real SLAM pipeline (Pipeline::create) behind SessionPipeline.
 PipelineFactory live_pipeline_factory();
@@ -87,7 +86,8 @@ class SlamLinkSession {
   /// Handles one RgbdFrame; always returns its PoseUpdate (see the file comment). `error` is set
   /// (else cleared) when the update is LOST because of a fault rather than the tracking itself,
   /// or when the pose as computed had to be re-normalised to pass the codec's checks (counted).
-  rgbdquad::protocol::PoseUpdate on_frame(const rgbdquad::protocol::RgbdFrame& frame, std::string* error);
+  rgbdquad::protocol::PoseUpdate on_frame(const rgbdquad::protocol::RgbdFrame& frame,
+                                          std::string* error);
 
   std::size_t frames_processed() const { return frames_; }
   /// Frames answered LOST because of a fault (bad frame, pipeline error, unencodable pose).
@@ -100,14 +100,16 @@ class SlamLinkSession {
   std::string finish_summary();
 
  private:
-  std::optional<RgbdFrame> to_frame(const rgbdquad::protocol::RgbdFrame& m, std::string* error) const;
-  rgbdquad::protocol::PoseUpdate lost_update(const rgbdquad::protocol::RgbdFrame& frame, std::string reason,
-                                             std::string* error);
+  std::optional<RgbdFrame> to_frame(const rgbdquad::protocol::RgbdFrame& m,
+                                    std::string* error) const;
+  rgbdquad::protocol::PoseUpdate lost_update(const rgbdquad::protocol::RgbdFrame& frame,
+                                             std::string reason, std::string* error);
 
   PipelineOptions options_;
   SessionMapFiles map_files_;
-  std::string map_load_error_;  ///< why the configured map could not be loaded ("" = loaded or none)
-  std::string tables_error_;    ///< why the tables could not be started ("" = started or none)
+  std::string
+      map_load_error_;        ///< why the configured map could not be loaded ("" = loaded or none)
+  std::string tables_error_;  ///< why the tables could not be started ("" = started or none)
   PipelineFactory factory_;
   std::unique_ptr<SessionPipeline> pipeline_;
   Intrinsics intrinsics_;  ///< what the pipeline was created with (the session's first frame)
@@ -115,7 +117,8 @@ class SlamLinkSession {
   std::size_t faulted_ = 0;
   std::size_t repaired_ = 0;
   rgbdquad::protocol::Pose3 last_good_;  ///< last pose sent while tracking (identity at start)
-  std::uint32_t map_corrections_ = 0;    ///< newest map-correction count sent (LOST answers repeat it)
+  std::uint32_t map_corrections_ =
+      0;  ///< newest map-correction count sent (LOST answers repeat it)
 };
 
 }  // namespace slam

@@ -39,7 +39,8 @@ constexpr std::size_t kReadChunkBytes = 1u << 16;
 constexpr std::int64_t kEvictIdleMs = 2000;
 
 std::int64_t now_ms() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now().time_since_epoch())
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
       .count();
 }
 
@@ -56,7 +57,11 @@ class Server {
  public:
   Server(int listen_fd, int sig_fd, std::size_t max_clients, slam::ConnectionOptions copt,
          slam::SessionRegistry registry)
-      : lfd_(listen_fd), sigfd_(sig_fd), max_clients_(max_clients), copt_(copt), registry_(std::move(registry)) {}
+      : lfd_(listen_fd),
+        sigfd_(sig_fd),
+        max_clients_(max_clients),
+        copt_(copt),
+        registry_(std::move(registry)) {}
 
   void run() {
     for (;;) {
@@ -147,9 +152,11 @@ class Server {
   void accept_one(std::int64_t t) {
     sockaddr_in addr{};
     socklen_t len = sizeof addr;
-    const int fd = ::accept4(lfd_, reinterpret_cast<sockaddr*>(&addr), &len, SOCK_CLOEXEC | SOCK_NONBLOCK);
+    const int fd =
+        ::accept4(lfd_, reinterpret_cast<sockaddr*>(&addr), &len, SOCK_CLOEXEC | SOCK_NONBLOCK);
     if (fd < 0) {
-      if (errno != EAGAIN && errno != EINTR) log_line(std::string("accept failed: ") + std::strerror(errno));
+      if (errno != EAGAIN && errno != EINTR)
+        log_line(std::string("accept failed: ") + std::strerror(errno));
       return;
     }
     char ip[INET_ADDRSTRLEN] = "?";
@@ -169,11 +176,12 @@ class Server {
                                   std::to_string(t - idlest->conn->last_byte_ms()) + " ms)");
         clients_.erase(idlest->conn->id());
       } else {
-        log_line("client #" + std::to_string(id) + " from " + peer + " refused: all " + std::to_string(max_clients_) +
-                 " slots busy");
+        log_line("client #" + std::to_string(id) + " from " + peer + " refused: all " +
+                 std::to_string(max_clients_) + " slots busy");
         rgbdquad::protocol::SlamHello refusal;
         refusal.peer_name = "slam-server";
-        refusal.refusal = "slam-server busy: all " + std::to_string(max_clients_) + " client slots in use";
+        refusal.refusal =
+            "slam-server busy: all " + std::to_string(max_clients_) + " client slots in use";
         const auto e = rgbdquad::protocol::encode(refusal);
         if (e.ok()) (void)::send(fd, e.bytes.data(), e.bytes.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
         ::close(fd);
@@ -198,7 +206,8 @@ class Server {
       }
       if (n < 0 && errno == EINTR) continue;
       if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) break;  // POLLOUT next turn
-      if (c.close_cause.empty()) c.close_cause = std::string("send failed: ") + std::strerror(errno);
+      if (c.close_cause.empty())
+        c.close_cause = std::string("send failed: ") + std::strerror(errno);
       c.closing_after_flush = false;
       break;
     }
@@ -220,8 +229,8 @@ class Server {
   void close_client(Client& c, const std::string& cause) {
     const bool had_session = c.conn->hello_done() && registry_.session_of(c.conn->id()) != nullptr;
     registry_.detach(c.conn->id(), now_ms());
-    log_line("client #" + std::to_string(c.conn->id()) + " (" + c.conn->peer() + ") closed: " + cause + "; " +
-             c.conn->summary() +
+    log_line("client #" + std::to_string(c.conn->id()) + " (" + c.conn->peer() +
+             ") closed: " + cause + "; " + c.conn->summary() +
              (had_session ? "; its session is kept for a reconnect" : ""));
     ::close(c.fd);
     c.fd = -1;
@@ -248,34 +257,60 @@ int main(int argc, char** argv) {
   slam::SessionRegistryOptions ropt;
   app.add_option("--bind", bind, "IPv4 address to listen on")->capture_default_str();
   app.add_option("--port", port, "TCP port")->check(CLI::Range(1, 65535))->capture_default_str();
-  app.add_option("--features", features, "sift | surf | orb")->check(CLI::IsMember({"sift", "surf", "orb"}))->capture_default_str();
-  app.add_option("--load-map", load_map,
-                 "localmap: every new session starts from this saved map (relocalises in it, poses in its "
-                 "world frame); a map of another camera/detector/version is refused and logged")
+  app.add_option("--features", features, "sift | surf | orb")
+      ->check(CLI::IsMember({"sift", "surf", "orb"}))
+      ->capture_default_str();
+  app.add_option(
+         "--load-map", load_map,
+         "localmap: every new session starts from this saved map (relocalises in it, poses in its "
+         "world frame); a map of another camera/detector/version is refused and logged")
       ->check(CLI::ExistingFile);
   app.add_option("--save-map", save_map, "localmap: write each session's map here when it ends");
   app.add_option("--tables-dir", tables_dir,
-                 "write each session's per-frame tables (frames.csv: tracking wall and CPU ms, features / matching / relocalisation ms, map-lock wait; "
-                 "mapping.csv, loops.csv) into DIR/session-N (N from 1 in the order sessions start) when it ends");
-  app.add_option("--backend", backend, "localmap (tracking against a local map, the default) | vo | llc | glc (thesis)")->check(CLI::IsMember({"localmap", "vo", "llc", "glc"}))->capture_default_str();
-  app.add_option("--max-clients", max_clients, "connections served at once")->check(CLI::Range(1, 64))->capture_default_str();
-  app.add_option("--hello-timeout-ms", copt.hello_timeout_ms, "SlamHello due within this of connecting")->capture_default_str();
-  app.add_option("--idle-timeout-ms", copt.idle_timeout_ms, "close a connection silent this long")->capture_default_str();
-  app.add_option("--message-timeout-ms", copt.message_timeout_ms, "a begun message must be complete within this")->capture_default_str();
-  app.add_option("--write-timeout-ms", copt.write_timeout_ms, "the peer must take reply bytes within this")->capture_default_str();
-  app.add_option("--resume-grace-ms", ropt.resume_grace_ms, "a session without its client is kept this long")->capture_default_str();
-  app.add_option("--max-sessions", ropt.max_sessions, "maps held at once (attached + parked)")->capture_default_str();
+                 "write each session's per-frame tables (frames.csv: tracking wall and CPU ms, "
+                 "features / matching / relocalisation ms, map-lock wait; "
+                 "mapping.csv, loops.csv) into DIR/session-N (N from 1 in the order sessions "
+                 "start) when it ends");
+  app.add_option("--backend", backend,
+                 "localmap (tracking against a local map, the default) | vo | llc | glc (thesis)")
+      ->check(CLI::IsMember({"localmap", "vo", "llc", "glc"}))
+      ->capture_default_str();
+  app.add_option("--max-clients", max_clients, "connections served at once")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+  app.add_option("--hello-timeout-ms", copt.hello_timeout_ms,
+                 "SlamHello due within this of connecting")
+      ->capture_default_str();
+  app.add_option("--idle-timeout-ms", copt.idle_timeout_ms, "close a connection silent this long")
+      ->capture_default_str();
+  app.add_option("--message-timeout-ms", copt.message_timeout_ms,
+                 "a begun message must be complete within this")
+      ->capture_default_str();
+  app.add_option("--write-timeout-ms", copt.write_timeout_ms,
+                 "the peer must take reply bytes within this")
+      ->capture_default_str();
+  app.add_option("--resume-grace-ms", ropt.resume_grace_ms,
+                 "a session without its client is kept this long")
+      ->capture_default_str();
+  app.add_option("--max-sessions", ropt.max_sessions, "maps held at once (attached + parked)")
+      ->capture_default_str();
   std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off";
-  app.add_option("--loop-closing", loop_closing, "localmap: loop closing on its own thread (docs/slam.md)")
-      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
+  app.add_option("--loop-closing", loop_closing,
+                 "localmap: loop closing on its own thread (docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   std::string thread_policy = "rr";
   slam::ThreadPriorityOptions priority;
-  app.add_option("--thread-policy", thread_policy,
-                 "scheduling of the serving (tracking) thread: rr | fifo (real-time, falls back to nice with a "
-                 "logged reason) | nice | off; local mapping always yields (normal policy, nice 10)")
-      ->check(CLI::IsMember({"rr", "fifo", "nice", "off"}))->capture_default_str();
+  app.add_option(
+         "--thread-policy", thread_policy,
+         "scheduling of the serving (tracking) thread: rr | fifo (real-time, falls back to nice "
+         "with a "
+         "logged reason) | nice | off; local mapping always yields (normal policy, nice 10)")
+      ->check(CLI::IsMember({"rr", "fifo", "nice", "off"}))
+      ->capture_default_str();
   app.add_option("--rt-priority", priority.rt_priority, "real-time priority of the serving thread")
-      ->check(CLI::Range(1, 99))->capture_default_str();
+      ->check(CLI::Range(1, 99))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   slam::parse_thread_policy(thread_policy, &priority.policy, nullptr);
   slam::PipelineOptions options;
@@ -315,20 +350,23 @@ int main(int argc, char** argv) {
     log_line("cannot listen on " + bind + ":" + std::to_string(port) + ": " + std::strerror(errno));
     return 1;
   }
-  std::cerr << "slam-server: listening on " << bind << ":" << port << " (features " << features << ", backend "
-            << backend << ", max " << max_clients << " clients, hello/idle/message/write timeouts "
-            << copt.hello_timeout_ms << "/" << copt.idle_timeout_ms << "/" << copt.message_timeout_ms << "/"
-            << copt.write_timeout_ms << " ms, resume grace " << ropt.resume_grace_ms << " ms)" << std::endl;
+  std::cerr << "slam-server: listening on " << bind << ":" << port << " (features " << features
+            << ", backend " << backend << ", max " << max_clients
+            << " clients, hello/idle/message/write timeouts " << copt.hello_timeout_ms << "/"
+            << copt.idle_timeout_ms << "/" << copt.message_timeout_ms << "/"
+            << copt.write_timeout_ms << " ms, resume grace " << ropt.resume_grace_ms << " ms)"
+            << std::endl;
   // Tracking runs on this (the poll) thread: it is the real-time path; sessions' mappers lower
   // themselves (slam::lower_current_thread).
   log_line(slam::raise_current_thread(priority).describe("serving"));
-  slam::SessionRegistry registry(ropt, [options, load_map, save_map, tables_dir,
-                                        sessions = std::make_shared<int>(0)] {
-    slam::SessionMapFiles files{load_map, save_map, ""};
-    ++*sessions;
-    if (!tables_dir.empty()) files.tables_dir = tables_dir + "/session-" + std::to_string(*sessions);
-    return std::make_unique<slam::SlamLinkSession>(options, files);
-  });
+  slam::SessionRegistry registry(
+      ropt, [options, load_map, save_map, tables_dir, sessions = std::make_shared<int>(0)] {
+        slam::SessionMapFiles files{load_map, save_map, ""};
+        ++*sessions;
+        if (!tables_dir.empty())
+          files.tables_dir = tables_dir + "/session-" + std::to_string(*sessions);
+        return std::make_unique<slam::SlamLinkSession>(options, files);
+      });
   Server(lfd, sigfd, max_clients, copt, std::move(registry)).run();
   ::close(lfd);
   ::close(sigfd);

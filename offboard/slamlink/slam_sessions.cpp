@@ -46,8 +46,9 @@ AttachResult SessionRegistry::attach(std::uint64_t session_id, int connection, s
       if (log)
         log->push_back("session " + id_text(session_id) + " resumed (map and world frame kept, " +
                        std::to_string(e.session->frames_processed()) + " frames" +
-                       (r.displaced_connection ? ", taken over from client #" + std::to_string(*r.displaced_connection)
-                                               : ", parked " + std::to_string(now_ms - e.parked_since_ms) + " ms") +
+                       (r.displaced_connection
+                            ? ", taken over from client #" + std::to_string(*r.displaced_connection)
+                            : ", parked " + std::to_string(now_ms - e.parked_since_ms) + " ms") +
                        ")");
       return r;
     }
@@ -56,14 +57,18 @@ AttachResult SessionRegistry::attach(std::uint64_t session_id, int connection, s
     // Room for a new map: drop the map parked the longest; refuse if every map has its client.
     auto victim = sessions_.end();
     for (auto it = sessions_.begin(); it != sessions_.end(); ++it)
-      if (!it->second.connection && (victim == sessions_.end() || it->second.parked_since_ms < victim->second.parked_since_ms))
+      if (!it->second.connection && (victim == sessions_.end() ||
+                                     it->second.parked_since_ms < victim->second.parked_since_ms))
         victim = it;
     if (victim == sessions_.end()) {
-      r.refusal = "slam-server busy: " + std::to_string(sessions_.size()) + " sessions with a client each (max " +
-                  std::to_string(options_.max_sessions) + ")";
+      r.refusal = "slam-server busy: " + std::to_string(sessions_.size()) +
+                  " sessions with a client each (max " + std::to_string(options_.max_sessions) +
+                  ")";
       return r;
     }
-    if (log) log->push_back(end_line(victim->first, victim->second, "dropped to make room for a new session"));
+    if (log)
+      log->push_back(
+          end_line(victim->first, victim->second, "dropped to make room for a new session"));
     sessions_.erase(victim);
   }
   if (session_id == 0) {
@@ -95,7 +100,8 @@ std::vector<std::string> SessionRegistry::expire(std::int64_t now_ms) {
   for (auto it = sessions_.begin(); it != sessions_.end();) {
     Entry& e = it->second;
     if (!e.connection && now_ms - e.parked_since_ms >= options_.resume_grace_ms) {
-      lines.push_back(end_line(it->first, e, "no client for " + std::to_string(options_.resume_grace_ms) + " ms"));
+      lines.push_back(end_line(
+          it->first, e, "no client for " + std::to_string(options_.resume_grace_ms) + " ms"));
       it = sessions_.erase(it);
     } else {
       ++it;

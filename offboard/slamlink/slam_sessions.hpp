@@ -4,8 +4,8 @@
 // so that a reconnecting client of the same flight continues the same map and world frame (a broken
 // link must not discard the map); after that it is finished and dropped. A connection that
 // presents the id of a session another connection still holds takes it over (the caller closes the
-// old connection): a client that timed out reconnects before the server noticed the old socket died.
-// session_id 0 asks for a new map that cannot be resumed; the registry then names it itself.
+// old connection): a client that timed out reconnects before the server noticed the old socket
+// died. session_id 0 asks for a new map that cannot be resumed; the registry then names it itself.
 //
 // Time is passed in (now_ms, any monotonic origin). Not thread-safe (slam-server's single loop).
 #pragma once
@@ -34,9 +34,9 @@ struct SessionRegistryOptions {
 };
 
 struct AttachResult {
-  SlamLinkSession* session = nullptr;  ///< null: refused (see refusal)
-  std::uint64_t session_id = 0;        ///< the id served (the registry's own when 0 was asked)
-  bool resumed = false;                ///< an existing map continues
+  SlamLinkSession* session = nullptr;       ///< null: refused (see refusal)
+  std::uint64_t session_id = 0;             ///< the id served (the registry's own when 0 was asked)
+  bool resumed = false;                     ///< an existing map continues
   std::optional<int> displaced_connection;  ///< held the session until now: close it
   std::string refusal;
 };
@@ -67,7 +67,7 @@ class SessionRegistry {
  private:
   struct Entry {
     std::unique_ptr<SlamLinkSession> session;
-    std::optional<int> connection;   ///< attached connection
+    std::optional<int> connection;  ///< attached connection
     std::int64_t parked_since_ms = 0;
     std::int64_t started_ms = 0;
   };

@@ -6,12 +6,11 @@ with the spec on any of these; field layouts are proven by the golden vectors.
 
 Usage: gen_cpp.py            rewrite the header
        gen_cpp.py --check    exit 1 if the committed header is stale (run by pytest)
-Standard library only (runs with the system python3).
+Standard library and clang-format (the generated C++ is formatted in the repository style).
 """
 
 from __future__ import annotations
 
-import argparse
 import re
 import sys
 from pathlib import Path
@@ -19,6 +18,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
 from rgbd_protocol.spec import load_spec  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import codegen  # noqa: E402
 
 OUT = ROOT / "cpp" / "include" / "rgbdquad" / "protocol" / "spec_generated.hpp"
 _CPP_TYPES = {"u8": "std::uint8_t", "u16": "std::uint16_t", "u32": "std::uint32_t"}
@@ -156,21 +158,9 @@ def generate() -> str:
     return "\n".join(out) + "\n"
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--check", action="store_true",
-                        help="exit 1 if the committed header differs from what the spec generates")
-    args = parser.parse_args()
-    text = generate()
-    if args.check:
-        if not OUT.exists() or OUT.read_text() != text:
-            print(f"{OUT} is stale: run python3 protocol/tools/gen_cpp.py", file=sys.stderr)
-            return 1
-        return 0
-    OUT.write_text(text)
-    print(f"wrote {OUT}")
-    return 0
+def outputs() -> dict[Path, str]:
+    return {OUT: codegen.clang_format(generate(), OUT, "gen_cpp.py")}
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(codegen.main(__doc__.split("\n")[0], outputs, "python3 protocol/tools/gen_cpp.py"))

@@ -15,7 +15,8 @@ namespace {
 
 using nlohmann::json;
 
-bool check_keys(const json& obj, const std::string& section, const std::set<std::string>& allowed, std::string* error) {
+bool check_keys(const json& obj, const std::string& section, const std::set<std::string>& allowed,
+                std::string* error) {
   if (!obj.is_object()) {
     *error = section + ": expected an object";
     return false;
@@ -31,7 +32,8 @@ bool check_keys(const json& obj, const std::string& section, const std::set<std:
 }
 
 template <typename T>
-bool read(const json& obj, const std::string& section, const char* key, T& out, std::string* error) {
+bool read(const json& obj, const std::string& section, const char* key, T& out,
+          std::string* error) {
   if (!obj.contains(key)) return true;
   try {
     out = obj.at(key).get<T>();
@@ -44,16 +46,20 @@ bool read(const json& obj, const std::string& section, const char* key, T& out, 
 
 bool read_recording(const json& r, RecorderOptions& o, std::string* error) {
   const char* s = "recording";
-  if (!check_keys(r, s, {"enabled", "dir", "image_every_n_frames", "depth_preview_every_n_frames", "jpeg_quality",
-                         "map_period_ms", "map_max_points", "flush_period_ms", "max_file_mb", "max_total_mb",
-                         "queue_max_events", "queue_max_frames", "queue_max_mb", "zstd"},
-                  error) ||
+  if (!check_keys(
+          r, s,
+          {"enabled", "dir", "image_every_n_frames", "depth_preview_every_n_frames", "jpeg_quality",
+           "map_period_ms", "map_max_points", "flush_period_ms", "max_file_mb", "max_total_mb",
+           "queue_max_events", "queue_max_frames", "queue_max_mb", "zstd"},
+          error) ||
       !read(r, s, "enabled", o.enabled, error) || !read(r, s, "dir", o.dir, error) ||
       !read(r, s, "image_every_n_frames", o.image_every_n_frames, error) ||
       !read(r, s, "depth_preview_every_n_frames", o.depth_preview_every_n_frames, error) ||
-      !read(r, s, "jpeg_quality", o.jpeg_quality, error) || !read(r, s, "map_period_ms", o.map_period_ms, error) ||
+      !read(r, s, "jpeg_quality", o.jpeg_quality, error) ||
+      !read(r, s, "map_period_ms", o.map_period_ms, error) ||
       !read(r, s, "map_max_points", o.map_max_points, error) ||
-      !read(r, s, "flush_period_ms", o.flush_period_ms, error) || !read(r, s, "max_file_mb", o.max_file_mb, error) ||
+      !read(r, s, "flush_period_ms", o.flush_period_ms, error) ||
+      !read(r, s, "max_file_mb", o.max_file_mb, error) ||
       !read(r, s, "max_total_mb", o.max_total_mb, error) ||
       !read(r, s, "queue_max_events", o.queue_max_events, error) ||
       !read(r, s, "queue_max_frames", o.queue_max_frames, error) ||
@@ -72,7 +78,8 @@ bool read_recording(const json& r, RecorderOptions& o, std::string* error) {
 AppConfig default_app_config() { return AppConfig{}; }
 
 bool resolve_data_dirs(AppConfig& config, const std::filesystem::path& exe_path,
-                       const std::function<bool(const std::filesystem::path&)>& is_file, std::string* error) {
+                       const std::function<bool(const std::filesystem::path&)>& is_file,
+                       std::string* error) {
   if (config.dashboard_static_dir.empty()) {
     const auto dir = find_data_dir(exe_path, kDashboardStaticDir, is_file, error);
     if (!dir) return false;
@@ -93,7 +100,8 @@ std::string AppConfig::validate() const {
       return "dashboard.bind_address " + dashboard_bind_address +
              " is not loopback: set dashboard.token (or --token) to expose the dashboard";
     }
-    if (const std::string e = check_token_strength(dashboard_token); !e.empty()) return "dashboard.token: " + e;
+    if (const std::string e = check_token_strength(dashboard_token); !e.empty())
+      return "dashboard.token: " + e;
   }
   if (stream_source != "tum" && stream_source != "receiver") {
     return "stream.source must be 'tum' or 'receiver', not '" + stream_source + "'";
@@ -104,30 +112,50 @@ std::string AppConfig::validate() const {
   }
   if (firmware_enabled) {
     if (auto e = firmware.validate(); !e.empty()) return e;
-    if (firmware_key_hex.empty()) return "firmware.key_hex is empty: set the craft's 32-hex-digit key (or disable the firmware link)";
+    if (firmware_key_hex.empty())
+      return "firmware.key_hex is empty: set the craft's 32-hex-digit key (or disable the firmware "
+             "link)";
   }
   if (auto e = recording.validate(); !e.empty()) return e;
   return station.validate();
 }
 
 nlohmann::json AppConfig::to_json_redacted() const {
-  return {{"dashboard", {{"bind_address", dashboard_bind_address}, {"port", dashboard_port},
-                         {"token", dashboard_token.empty() ? "" : "<set>"}, {"static_dir", dashboard_static_dir},
-                         {"allowed_hosts", dashboard_allowed_hosts}}},
-          {"stream", {{"source", stream_source}, {"tum_folder", replay.folder}, {"speed", replay.speed},
-                      {"camera", replay.camera}, {"bind_address", receiver.bind_address},
-                      {"rgb_port", receiver.rgb_port}, {"depth_port", receiver.depth_port},
-                      {"key_file", stream_key_file}}},
-          {"slam", {{"mode", station.slam_mode}, {"host", station.slam_server.host}, {"port", station.slam_server.port},
-                    {"timeout_ms", station.slam_server.reply_timeout_ms}}},
-          {"firmware", {{"enabled", firmware_enabled}, {"host", firmware.host}, {"port", firmware.port},
-                        {"timeout_ms", firmware.timeout_ms}, {"period_ms", firmware.period_ms},
-                        {"send_on_pose", firmware.send_on_pose}, {"min_interval_ms", firmware.min_interval_ms},
-                        {"keep_alive_ms", firmware.keep_alive_ms},
-                        {"key_hex", firmware_key_hex.empty() ? "" : "<redacted>"}}},
+  return {{"dashboard",
+           {{"bind_address", dashboard_bind_address},
+            {"port", dashboard_port},
+            {"token", dashboard_token.empty() ? "" : "<set>"},
+            {"static_dir", dashboard_static_dir},
+            {"allowed_hosts", dashboard_allowed_hosts}}},
+          {"stream",
+           {{"source", stream_source},
+            {"tum_folder", replay.folder},
+            {"speed", replay.speed},
+            {"camera", replay.camera},
+            {"bind_address", receiver.bind_address},
+            {"rgb_port", receiver.rgb_port},
+            {"depth_port", receiver.depth_port},
+            {"key_file", stream_key_file}}},
+          {"slam",
+           {{"mode", station.slam_mode},
+            {"host", station.slam_server.host},
+            {"port", station.slam_server.port},
+            {"timeout_ms", station.slam_server.reply_timeout_ms}}},
+          {"firmware",
+           {{"enabled", firmware_enabled},
+            {"host", firmware.host},
+            {"port", firmware.port},
+            {"timeout_ms", firmware.timeout_ms},
+            {"period_ms", firmware.period_ms},
+            {"send_on_pose", firmware.send_on_pose},
+            {"min_interval_ms", firmware.min_interval_ms},
+            {"keep_alive_ms", firmware.keep_alive_ms},
+            {"key_hex", firmware_key_hex.empty() ? "" : "<redacted>"}}},
           {"camera", {{"mount_pitch_down_deg", station.mount_pitch_down_deg}}},
-          {"realtime", {{"policy", slam::to_string(station.realtime.policy)}, {"priority", station.realtime.rt_priority},
-                        {"fallback_nice", station.realtime.fallback_nice}}},
+          {"realtime",
+           {{"policy", slam::to_string(station.realtime.policy)},
+            {"priority", station.realtime.rt_priority},
+            {"fallback_nice", station.realtime.fallback_nice}}},
           {"controller", to_json(station.controller)},
           {"recording", recording.to_json()}};
 }
@@ -144,8 +172,10 @@ std::optional<AppConfig> load_app_config(const std::string& path, std::string* e
     *error = "config file " + path + " is not valid JSON";
     return std::nullopt;
   }
-  if (!check_keys(j, "config", {"about", "dashboard", "stream", "slam", "firmware", "camera", "floor", "map", "controller",
-                           "realtime", "recording"}, error)) {
+  if (!check_keys(j, "config",
+                  {"about", "dashboard", "stream", "slam", "firmware", "camera", "floor", "map",
+                   "controller", "realtime", "recording"},
+                  error)) {
     return std::nullopt;
   }
   const json empty = json::object();
@@ -160,33 +190,45 @@ std::optional<AppConfig> load_app_config(const std::string& path, std::string* e
   if (f.is_object() && f.contains("control_spec")) {
     // Removed (issue 14): the ranges and routes are compiled in from the generated
     // contract, the same the firmware is built with; a file could only disagree with both.
-    *error = "firmware.control_spec: no longer read - the control link's ranges and routes are compiled in "
-             "(generated from protocol/control/control_spec.json); delete the key";
+    *error =
+        "firmware.control_spec: no longer read - the control link's ranges and routes are compiled "
+        "in "
+        "(generated from protocol/control/control_spec.json); delete the key";
     return std::nullopt;
   }
   std::string loop = "bounce";
   std::string thread_policy = slam::to_string(c.station.realtime.policy);
-  if (!check_keys(d, "dashboard", {"bind_address", "port", "token", "static_dir", "allowed_hosts"}, error) ||
+  if (!check_keys(d, "dashboard", {"bind_address", "port", "token", "static_dir", "allowed_hosts"},
+                  error) ||
       !read(d, "dashboard", "allowed_hosts", c.dashboard_allowed_hosts, error) ||
       !read(d, "dashboard", "bind_address", c.dashboard_bind_address, error) ||
-      !read(d, "dashboard", "port", c.dashboard_port, error) || !read(d, "dashboard", "token", c.dashboard_token, error) ||
+      !read(d, "dashboard", "port", c.dashboard_port, error) ||
+      !read(d, "dashboard", "token", c.dashboard_token, error) ||
       !read(d, "dashboard", "static_dir", c.dashboard_static_dir, error) ||
-      !check_keys(s, "stream", {"source", "tum_folder", "loop", "speed", "camera", "bind_address", "rgb_port", "depth_port",
-                                "key_file"}, error) ||
+      !check_keys(s, "stream",
+                  {"source", "tum_folder", "loop", "speed", "camera", "bind_address", "rgb_port",
+                   "depth_port", "key_file"},
+                  error) ||
       !read(s, "stream", "key_file", c.stream_key_file, error) ||
       !read(s, "stream", "bind_address", c.receiver.bind_address, error) ||
       !read(s, "stream", "rgb_port", c.receiver.rgb_port, error) ||
       !read(s, "stream", "depth_port", c.receiver.depth_port, error) ||
-      !read(s, "stream", "source", c.stream_source, error) || !read(s, "stream", "tum_folder", c.replay.folder, error) ||
-      !read(s, "stream", "loop", loop, error) || !read(s, "stream", "speed", c.replay.speed, error) ||
+      !read(s, "stream", "source", c.stream_source, error) ||
+      !read(s, "stream", "tum_folder", c.replay.folder, error) ||
+      !read(s, "stream", "loop", loop, error) ||
+      !read(s, "stream", "speed", c.replay.speed, error) ||
       !read(s, "stream", "camera", c.replay.camera, error) ||
       !check_keys(sl, "slam", {"mode", "host", "port", "timeout_ms"}, error) ||
-      !read(sl, "slam", "mode", c.station.slam_mode, error) || !read(sl, "slam", "host", c.station.slam_server.host, error) ||
+      !read(sl, "slam", "mode", c.station.slam_mode, error) ||
+      !read(sl, "slam", "host", c.station.slam_server.host, error) ||
       !read(sl, "slam", "port", c.station.slam_server.port, error) ||
       !read(sl, "slam", "timeout_ms", c.station.slam_server.reply_timeout_ms, error) ||
-      !check_keys(f, "firmware", {"enabled", "host", "port", "timeout_ms", "period_ms", "send_on_pose", "min_interval_ms",
-                                  "keep_alive_ms", "key_hex"}, error) ||
-      !read(f, "firmware", "enabled", c.firmware_enabled, error) || !read(f, "firmware", "host", c.firmware.host, error) ||
+      !check_keys(f, "firmware",
+                  {"enabled", "host", "port", "timeout_ms", "period_ms", "send_on_pose",
+                   "min_interval_ms", "keep_alive_ms", "key_hex"},
+                  error) ||
+      !read(f, "firmware", "enabled", c.firmware_enabled, error) ||
+      !read(f, "firmware", "host", c.firmware.host, error) ||
       !read(f, "firmware", "port", c.firmware.port, error) ||
       !read(f, "firmware", "timeout_ms", c.firmware.timeout_ms, error) ||
       !read(f, "firmware", "period_ms", c.firmware.period_ms, error) ||
@@ -196,7 +238,10 @@ std::optional<AppConfig> load_app_config(const std::string& path, std::string* e
       !read(f, "firmware", "key_hex", c.firmware_key_hex, error) ||
       !check_keys(cam, "camera", {"mount_pitch_down_deg"}, error) ||
       !read(cam, "camera", "mount_pitch_down_deg", c.station.mount_pitch_down_deg, error) ||
-      !check_keys(fl, "floor", {"iterations", "inlier_distance_m", "max_tilt_deg", "min_inlier_fraction", "seed", "search_frames"}, error) ||
+      !check_keys(fl, "floor",
+                  {"iterations", "inlier_distance_m", "max_tilt_deg", "min_inlier_fraction", "seed",
+                   "search_frames"},
+                  error) ||
       !read(fl, "floor", "iterations", c.station.floor.iterations, error) ||
       !read(fl, "floor", "inlier_distance_m", c.station.floor.inlier_distance_m, error) ||
       !read(fl, "floor", "max_tilt_deg", c.station.floor.max_tilt_deg, error) ||

@@ -6,11 +6,10 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "app/firmware_link.hpp"
 #include "app/frame_source.hpp"
@@ -24,15 +23,18 @@ struct AppConfig {
   // dashboard
   std::string dashboard_bind_address = "127.0.0.1";  ///< loopback: only this machine sees the UI
   std::uint16_t dashboard_port = 8080;
-  std::string dashboard_token;   ///< required, and strong (check_token_strength), to bind a non-loopback address
+  std::string dashboard_token;  ///< required, and strong (check_token_strength), to bind a
+                                ///< non-loopback address
   /// Host names the dashboard answers to besides IP literals and "localhost" (DNS-rebinding guard).
   std::vector<std::string> dashboard_allowed_hosts;
   /// "" = the shipped files, found next to the executable (resolve_data_dirs, app/data_paths.hpp)
   std::string dashboard_static_dir;
   // stream
-  std::string stream_source = "tum";  ///< "tum" (dataset replay) or "receiver" (rgbd-streamer, live)
+  std::string stream_source =
+      "tum";                ///< "tum" (dataset replay) or "receiver" (rgbd-streamer, live)
   TumReplayOptions replay;  ///< folder "" = the shipped excerpt, found like dashboard_static_dir
-  receiver::ReceiverOptions receiver;  ///< bind address and RGB/depth ports (offboard/receiver defaults)
+  receiver::ReceiverOptions
+      receiver;  ///< bind address and RGB/depth ports (offboard/receiver defaults)
   /// The craft's stream key file (stream.key_file; mode 0600, the streamer's stream_key_file):
   /// read when the config is loaded into receiver.key; required for stream.source "receiver".
   std::string stream_key_file;

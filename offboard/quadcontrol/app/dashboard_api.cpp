@@ -26,7 +26,8 @@ std::string content_type_for(const std::string& name) {
   return "application/octet-stream";
 }
 
-HttpResponse make(const HttpRequest& req, http::status status, const std::string& type, std::string body) {
+HttpResponse make(const HttpRequest& req, http::status status, const std::string& type,
+                  std::string body) {
   HttpResponse res{status, req.version()};
   res.set(http::field::content_type, type);
   res.set(http::field::cache_control, "no-store");
@@ -34,7 +35,8 @@ HttpResponse make(const HttpRequest& req, http::status status, const std::string
   return res;
 }
 
-HttpResponse json_reply(const HttpRequest& req, const nlohmann::json& j, http::status status = http::status::ok) {
+HttpResponse json_reply(const HttpRequest& req, const nlohmann::json& j,
+                        http::status status = http::status::ok) {
   return make(req, status, "application/json", j.dump());
 }
 
@@ -56,8 +58,8 @@ std::string query_param(const std::string& target, const std::string& name) {
 }
 
 std::optional<OperatorCommand> operator_command_named(const std::string& name) {
-  for (const OperatorCommand c :
-       {OperatorCommand::kArm, OperatorCommand::kDisarm, OperatorCommand::kTakeOff, OperatorCommand::kLand}) {
+  for (const OperatorCommand c : {OperatorCommand::kArm, OperatorCommand::kDisarm,
+                                  OperatorCommand::kTakeOff, OperatorCommand::kLand}) {
     if (name == to_string(c)) return c;
   }
   return std::nullopt;
@@ -74,11 +76,13 @@ bool number(const nlohmann::json& j, const char* key, double* out) {
 }
 }  // namespace
 
-DashboardApi::DashboardApi(DashboardBackend& station, const std::string& static_dir, AccessPolicy policy)
+DashboardApi::DashboardApi(DashboardBackend& station, const std::string& static_dir,
+                           AccessPolicy policy)
     : station_(station), policy_(std::move(policy)) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (!fs::is_directory(static_dir, ec)) throw std::runtime_error("dashboard static dir not found: " + static_dir);
+  if (!fs::is_directory(static_dir, ec))
+    throw std::runtime_error("dashboard static dir not found: " + static_dir);
   for (const auto& entry : fs::directory_iterator(static_dir)) {
     if (!entry.is_regular_file()) continue;
     std::ifstream in(entry.path(), std::ios::binary);
@@ -87,7 +91,8 @@ DashboardApi::DashboardApi(DashboardBackend& station, const std::string& static_
     const std::string name = entry.path().filename().string();
     files_["/" + name] = {content_type_for(name), bytes.str()};
   }
-  if (!files_.count("/index.html")) throw std::runtime_error("dashboard: " + static_dir + "/index.html missing");
+  if (!files_.count("/index.html"))
+    throw std::runtime_error("dashboard: " + static_dir + "/index.html missing");
   files_["/"] = files_["/index.html"];
 }
 
@@ -118,7 +123,8 @@ HttpResponse DashboardApi::handle(const HttpRequest& req) {
     if (!png) return make(req, http::status::service_unavailable, "text/plain", "no frame yet\n");
     return make(req, http::status::ok, "image/png", std::move(*png));
   }
-  if (get && path == "/api/map.png") return make(req, http::status::ok, "image/png", station_.map_png());
+  if (get && path == "/api/map.png")
+    return make(req, http::status::ok, "image/png", station_.map_png());
   if (get && path == "/api/map.ply") {
     auto res = make(req, http::status::ok, "application/octet-stream", station_.map_ply());
     res.set(http::field::content_disposition, "attachment; filename=\"quad-control-map.ply\"");
@@ -131,7 +137,8 @@ HttpResponse DashboardApi::handle(const HttpRequest& req) {
       char* end = nullptr;
       const long v = std::strtol(m.c_str(), &end, 10);
       if (end == m.c_str() || *end != '\0' || v < 1) {
-        return json_reply(req, {{"ok", false}, {"error", "max must be a positive integer"}}, http::status::bad_request);
+        return json_reply(req, {{"ok", false}, {"error", "max must be a positive integer"}},
+                          http::status::bad_request);
       }
       max_points = std::min<std::size_t>(static_cast<std::size_t>(v), kMaxCloudPoints);
     }
@@ -140,28 +147,34 @@ HttpResponse DashboardApi::handle(const HttpRequest& req) {
   if (post && (path == "/api/command" || path == "/api/waypoint" || path == "/api/manual")) {
     const auto body = nlohmann::json::parse(req.body(), nullptr, false);
     if (body.is_discarded() || !body.is_object()) {
-      return json_reply(req, {{"ok", false}, {"error", "body must be a JSON object"}}, http::status::bad_request);
+      return json_reply(req, {{"ok", false}, {"error", "body must be a JSON object"}},
+                        http::status::bad_request);
     }
     if (path == "/api/command") {
       if (!body.contains("command") || !body["command"].is_string()) {
-        return json_reply(req, {{"ok", false}, {"error", "expected {\"command\": \"arm\"|...}"}}, http::status::bad_request);
+        return json_reply(req, {{"ok", false}, {"error", "expected {\"command\": \"arm\"|...}"}},
+                          http::status::bad_request);
       }
       const std::string name = body["command"].get<std::string>();
       const auto command = operator_command_named(name);
-      if (!command) return result_reply(req, "unknown command '" + name + "' (arm, disarm, takeoff, land)");
+      if (!command)
+        return result_reply(req, "unknown command '" + name + "' (arm, disarm, takeoff, land)");
       return result_reply(req, station_.command(*command));
     }
     if (path == "/api/waypoint") {
       double x, y;
-      if (!body.contains("x_m") || !body.contains("y_m") || !number(body, "x_m", &x) || !number(body, "y_m", &y)) {
-        return json_reply(req, {{"ok", false}, {"error", "expected finite numbers x_m, y_m"}}, http::status::bad_request);
+      if (!body.contains("x_m") || !body.contains("y_m") || !number(body, "x_m", &x) ||
+          !number(body, "y_m", &y)) {
+        return json_reply(req, {{"ok", false}, {"error", "expected finite numbers x_m, y_m"}},
+                          http::status::bad_request);
       }
       return result_reply(req, station_.waypoint(x, y));
     }
     double f, l, u, yaw;
-    if (!number(body, "forward_m", &f) || !number(body, "left_m", &l) || !number(body, "up_m", &u) ||
-        !number(body, "yaw_ccw_deg", &yaw)) {
-      return json_reply(req, {{"ok", false}, {"error", "manual steps must be finite numbers"}}, http::status::bad_request);
+    if (!number(body, "forward_m", &f) || !number(body, "left_m", &l) ||
+        !number(body, "up_m", &u) || !number(body, "yaw_ccw_deg", &yaw)) {
+      return json_reply(req, {{"ok", false}, {"error", "manual steps must be finite numbers"}},
+                        http::status::bad_request);
     }
     return result_reply(req, station_.manual(f, l, u, yaw));
   }

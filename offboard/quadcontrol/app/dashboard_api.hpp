@@ -2,13 +2,13 @@
 // DashboardBackend (the GroundStation in quad-control; dashboard_backend.hpp).
 //   GET  /                   index.html (and the other files of the static dir, loaded at start-up)
 //   GET  /api/state          JSON snapshot: flight state, pose, setpoint, waypoint, links, fps, map
-//   GET  /api/rgb.jpg        newest RGB frame, JPEG;   GET /api/depth.png  newest depth, greyscale PNG
-//   GET  /api/map.png        2D floor map (north up; geometry in /api/state "map")
-//   GET  /api/cloud?max=N    sub-sampled coloured point cloud (JSON [x,y,z,r,g,b]...)
-//   GET  /api/map.ply        the whole coloured point-cloud map, ASCII PLY
-//   POST /api/command        {"command": "arm" | "disarm" | "takeoff" | "land"}
-//   POST /api/waypoint       {"x_m": .., "y_m": ..}   (floor-aligned world frame)
-//   POST /api/manual         {"forward_m", "left_m", "up_m", "yaw_ccw_deg"} (setpoint steps)
+//   GET  /api/rgb.jpg        newest RGB frame, JPEG;   GET /api/depth.png  newest depth, greyscale
+//   PNG GET  /api/map.png        2D floor map (north up; geometry in /api/state "map") GET
+//   /api/cloud?max=N    sub-sampled coloured point cloud (JSON [x,y,z,r,g,b]...) GET  /api/map.ply
+//   the whole coloured point-cloud map, ASCII PLY POST /api/command        {"command": "arm" |
+//   "disarm" | "takeoff" | "land"} POST /api/waypoint       {"x_m": .., "y_m": ..}   (floor-aligned
+//   world frame) POST /api/manual         {"forward_m", "left_m", "up_m", "yaw_ccw_deg"} (setpoint
+//   steps)
 // Every /api/ request passes check_api_request() first (request_guard.hpp: Host, Origin,
 // Sec-Fetch-Site, a JSON Content-Type for POST, and the token when one is configured).
 #pragma once
@@ -31,7 +31,8 @@ class DashboardApi {
 
  private:
   DashboardBackend& station_;
-  std::map<std::string, std::pair<std::string, std::string>> files_;  // path -> (content type, bytes)
+  std::map<std::string, std::pair<std::string, std::string>>
+      files_;  // path -> (content type, bytes)
   AccessPolicy policy_;
 };
 

@@ -2,10 +2,9 @@
 #include "app/firmware_link.hpp"
 
 #include <algorithm>
+#include <boost/asio/post.hpp>
 #include <iostream>
 #include <stdexcept>
-
-#include <boost/asio/post.hpp>
 
 #include "app/frame_source.hpp"
 #include "app/thread_setup.hpp"
@@ -17,7 +16,8 @@ namespace beast = boost::beast;
 namespace http = beast::http;
 
 namespace {
-constexpr double kLatencyEmaWeight = 0.1;  // ~10-reply memory: smooth yet responsive on the dashboard
+constexpr double kLatencyEmaWeight =
+    0.1;  // ~10-reply memory: smooth yet responsive on the dashboard
 }
 
 std::string FirmwareLinkOptions::validate() const {
@@ -31,8 +31,8 @@ std::string FirmwareLinkOptions::validate() const {
   return {};
 }
 
-FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, rgbd_control::Key key, CommandProvider provider,
-                           ReplyCallback callback)
+FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, rgbd_control::Key key,
+                           CommandProvider provider, ReplyCallback callback)
     : options_(std::move(options)),
       spec_(std::move(spec)),
       key_(key),
@@ -45,7 +45,8 @@ FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, rgbd_c
   asio::ip::tcp::resolver resolver(io_);
   beast::error_code ec;
   endpoints_ = resolver.resolve(options_.host, std::to_string(options_.port), ec);
-  if (ec) throw std::runtime_error("firmware: cannot resolve " + options_.host + ": " + ec.message());
+  if (ec)
+    throw std::runtime_error("firmware: cannot resolve " + options_.host + ": " + ec.message());
   if (options_.send_on_pose) {
     asio::post(io_, [this] { arm_scheduled(); });
   } else {
@@ -74,7 +75,9 @@ void FirmwareLink::schedule() {
   next_tick_ = next_tick_.time_since_epoch().count() == 0 ? now + period : next_tick_ + period;
   if (next_tick_ < now - 5 * period) next_tick_ = now + period;  // far behind: restart the grid
   timer_.expires_at(next_tick_);
-  timer_target_us_ = monotonic_now_us() + std::chrono::duration_cast<std::chrono::microseconds>(next_tick_ - now).count();
+  timer_target_us_ =
+      monotonic_now_us() +
+      std::chrono::duration_cast<std::chrono::microseconds>(next_tick_ - now).count();
   timer_.async_wait([this](beast::error_code ec) {
     if (ec) return;
     gap_causes_.late_us = std::max(gap_causes_.late_us, monotonic_now_us() - timer_target_us_);
@@ -170,8 +173,8 @@ void FirmwareLink::start(Client& c) {
         stats_.last_error = "sequence numbers exhausted: provision a new key";
         return;
       }
-      ControlFields f{next_seq, command->armed, command->roll_us, command->pitch_us, command->throttle_us,
-                      command->yaw_us};
+      ControlFields f{next_seq,          command->armed,       command->roll_us,
+                      command->pitch_us, command->throttle_us, command->yaw_us};
       std::string error;
       auto t = build_control_target(spec_, key_, f, &error);
       if (!t) {
@@ -197,14 +200,15 @@ void FirmwareLink::start(Client& c) {
   c.buffer.clear();
   c.stream = std::make_unique<beast::tcp_stream>(io_);
   c.stream->expires_after(std::chrono::milliseconds(options_.timeout_ms));
-  c.stream->async_connect(endpoints_, [this, &c](beast::error_code ec, const asio::ip::tcp::endpoint&) {
-    if (ec) return finish(c, ec);
-    http::async_write(*c.stream, c.request, [this, &c](beast::error_code ec2, std::size_t) {
-      if (ec2) return finish(c, ec2);
-      http::async_read(*c.stream, c.buffer, c.response,
-                       [this, &c](beast::error_code ec3, std::size_t) { finish(c, ec3); });
-    });
-  });
+  c.stream->async_connect(
+      endpoints_, [this, &c](beast::error_code ec, const asio::ip::tcp::endpoint&) {
+        if (ec) return finish(c, ec);
+        http::async_write(*c.stream, c.request, [this, &c](beast::error_code ec2, std::size_t) {
+          if (ec2) return finish(c, ec2);
+          http::async_read(*c.stream, c.buffer, c.response,
+                           [this, &c](beast::error_code ec3, std::size_t) { finish(c, ec3); });
+        });
+      });
 }
 
 void FirmwareLink::finish(Client& c, beast::error_code ec) {
@@ -232,7 +236,8 @@ void FirmwareLink::finish(Client& c, beast::error_code ec) {
       return;
     }
     std::string error;
-    reply = parse_control_reply(static_cast<int>(c.response.result_int()), c.response.body(), &error);
+    reply =
+        parse_control_reply(static_cast<int>(c.response.result_int()), c.response.body(), &error);
     if (!reply) {
       ++stats_.http_errors;
       stats_.last_error = "bad reply: " + error;
@@ -261,7 +266,8 @@ void FirmwareLink::finish(Client& c, beast::error_code ec) {
   }
   if (callback_) {
     callback_(now, *reply);
-    gap_causes_.max_reply_callback_us = std::max(gap_causes_.max_reply_callback_us, monotonic_now_us() - now);
+    gap_causes_.max_reply_callback_us =
+        std::max(gap_causes_.max_reply_callback_us, monotonic_now_us() - now);
   }
 }
 
@@ -277,7 +283,8 @@ void FirmwareLink::note_command_sent(std::int64_t now_us, std::int64_t provider_
   gap_causes_.errors = failures - failures_at_last_send_;
   timeouts_at_last_send_ = timeouts;
   failures_at_last_send_ = failures;
-  const std::optional<std::string> gap = gap_monitor_.on_sent(now_us, read_thread_cpu_times(), gap_causes_);
+  const std::optional<std::string> gap =
+      gap_monitor_.on_sent(now_us, read_thread_cpu_times(), gap_causes_);
   gap_causes_ = {};
   {
     std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);

@@ -4,17 +4,23 @@
 // Every period_ms the link picks the next idle client (round robin), asks the command provider for
 // the command of this instant (the controller runs at send time, on the newest pose: no extra wait
 // between computing and sending) and sends it (protocol/control: PUT /control?...&mac=...,
-// SipHash-2-4 under the craft key, strictly increasing sequence). Before the first command it reads GET /status to continue above the sequence number
-// the craft last accepted. Each request has its own deadline (timeout_ms); a client still waiting
-// is skipped. With send_on_pose (issue 13 item 2) the fixed period is replaced by a CommandScheduler:
-// notify_pose() makes the next command go out at once, no sooner than min_interval_ms after the
-// previous one (what the firmware sustains), and with no new pose a keep-alive goes out every
-// keep_alive_ms (the firmware's 250 ms failsafe never fires while poses stop); a pose that finds
-// both clients waiting goes out as soon as one is free. Replies (with the craft's IMU reading) are timestamped on arrival and passed to the
-// callback on the link's thread. Owns one io_context thread; joined in the destructor.
+// SipHash-2-4 under the craft key, strictly increasing sequence). Before the first command it reads
+// GET /status to continue above the sequence number the craft last accepted. Each request has its
+// own deadline (timeout_ms); a client still waiting is skipped. With send_on_pose (issue 13 item 2)
+// the fixed period is replaced by a CommandScheduler: notify_pose() makes the next command go out
+// at once, no sooner than min_interval_ms after the previous one (what the firmware sustains), and
+// with no new pose a keep-alive goes out every keep_alive_ms (the firmware's 250 ms failsafe never
+// fires while poses stop); a pose that finds both clients waiting goes out as soon as one is free.
+// Replies (with the craft's IMU reading) are timestamped on arrival and passed to the callback on
+// the link's thread. Owns one io_context thread; joined in the destructor.
 #pragma once
 
 #include <array>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -23,12 +29,6 @@
 #include <optional>
 #include <string>
 #include <thread>
-
-#include <boost/asio/io_context.hpp>
-#include <boost/asio/ip/tcp.hpp>
-#include <boost/asio/steady_timer.hpp>
-#include <boost/beast/core.hpp>
-#include <boost/beast/http.hpp>
 
 #include "app/command_gap.hpp"
 #include "core/command_scheduler.hpp"
@@ -42,7 +42,7 @@ struct FirmwareLinkOptions {
   std::string host = "192.168.240.1";  ///< Arduino Uno WiFi in its own access-point mode
   std::uint16_t port = 80;
   int timeout_ms = 100;  ///< > 2 periods: a reply later than this is useless for control
-  int period_ms = 20;    ///< 50 commands/s, the rate the thesis' firmware handled (send_on_pose off)
+  int period_ms = 20;  ///< 50 commands/s, the rate the thesis' firmware handled (send_on_pose off)
   /// Issue 13 item 2: send on each new pose (rate-limited, with keep-alives) instead of every
   /// period_ms. Saves ~half a command period of camera->PWM latency (HIL make demo: pose ->
   /// command 9.9 -> 1.2 ms median); on by default since measured (docs/control.md).
@@ -52,7 +52,8 @@ struct FirmwareLinkOptions {
   int min_interval_ms = 11;
   /// With send_on_pose: longest gap without a command (5 per firmware failsafe of 250 ms).
   int keep_alive_ms = 50;
-  /// The I/O thread (control step + send) is on the real-time path (GroundStationOptions::realtime).
+  /// The I/O thread (control step + send) is on the real-time path
+  /// (GroundStationOptions::realtime).
   slam::ThreadPriorityOptions thread_priority;
   CommandScheduleOptions schedule() const {
     return {std::int64_t{min_interval_ms} * 1000, std::int64_t{keep_alive_ms} * 1000};
@@ -69,8 +70,10 @@ struct FirmwareLinkStats {
   std::string last_error;
   std::uint32_t seq = 0;
   std::uint64_t pose_driven = 0;  ///< send_on_pose: commands sent for a fresh pose
-  std::uint64_t keep_alives = 0;  ///< send_on_pose: commands sent because no pose came for keep_alive_ms
-  std::uint64_t withheld = 0;     ///< sends the provider withheld (the controller handed over to the failsafe)
+  std::uint64_t keep_alives =
+      0;  ///< send_on_pose: commands sent because no pose came for keep_alive_ms
+  std::uint64_t withheld =
+      0;  ///< sends the provider withheld (the controller handed over to the failsafe)
   /// Gaps between two commands longer than CommandGapMonitor's threshold (each logged with its
   /// causes), and the longest gap so far.
   std::uint64_t command_gaps = 0;
@@ -79,15 +82,17 @@ struct FirmwareLinkStats {
 
 class FirmwareLink {
  public:
-  using ReplyCallback = std::function<void(std::int64_t received_us, const rgbd_control::Reply& reply)>;
+  using ReplyCallback =
+      std::function<void(std::int64_t received_us, const rgbd_control::Reply& reply)>;
   /// Called on the link's thread just before each command is sent: the command for `now_us`, which
-  /// will carry sequence number `seq`, or nullopt to send nothing this period (a blind landing hands
-  /// the craft to its own failsafe). Must not call back into the link.
-  using CommandProvider = std::function<std::optional<PwmCommand>(std::int64_t now_us, std::uint32_t seq)>;
+  /// will carry sequence number `seq`, or nullopt to send nothing this period (a blind landing
+  /// hands the craft to its own failsafe). Must not call back into the link.
+  using CommandProvider =
+      std::function<std::optional<PwmCommand>(std::int64_t now_us, std::uint32_t seq)>;
 
   /// Resolves host:port (numeric addresses never block); throws std::runtime_error on failure.
-  FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, rgbd_control::Key key, CommandProvider provider,
-               ReplyCallback callback);
+  FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, rgbd_control::Key key,
+               CommandProvider provider, ReplyCallback callback);
   ~FirmwareLink();
   FirmwareLink(const FirmwareLink&) = delete;
   FirmwareLink& operator=(const FirmwareLink&) = delete;
@@ -133,17 +138,19 @@ class FirmwareLink {
   boost::asio::ip::tcp::resolver::results_type endpoints_;
   std::array<Client, 2> clients_;
   std::size_t next_client_ = 0;
-  CommandScheduler scheduler_;      ///< send_on_pose only; the link's thread only
+  CommandScheduler scheduler_;       ///< send_on_pose only; the link's thread only
   bool waiting_for_client_ = false;  ///< a due command waits for a reply to free a client
   bool seq_known_ = false;
   // Command gap diagnosis (the link's thread only).
   CommandGapMonitor gap_monitor_;
-  CommandGapCauses gap_causes_;              ///< accumulated since the previous command
-  std::int64_t timer_target_us_ = 0;         ///< when the armed timer should fire
-  std::int64_t waiting_since_us_ = 0;        ///< a due send found both clients busy at this time
-  std::uint64_t failures_at_last_send_ = 0;  ///< timeouts + errors when the previous command went out
+  CommandGapCauses gap_causes_;        ///< accumulated since the previous command
+  std::int64_t timer_target_us_ = 0;   ///< when the armed timer should fire
+  std::int64_t waiting_since_us_ = 0;  ///< a due send found both clients busy at this time
+  std::uint64_t failures_at_last_send_ =
+      0;  ///< timeouts + errors when the previous command went out
   std::uint64_t timeouts_at_last_send_ = 0;
-  mutable slam::PriorityInheritanceMutex mutex_;  ///< the I/O thread (real-time) and stats() readers
+  mutable slam::PriorityInheritanceMutex
+      mutex_;  ///< the I/O thread (real-time) and stats() readers
   FirmwareLinkStats stats_;
   std::thread thread_;
 };

@@ -2,7 +2,8 @@
 // thread, with the thesis's semantics (Section 3.3.3): the newest frame is handed over, and a frame
 // offered while the worker is busy - or while one is already waiting - is dropped and counted.
 // Shared by every SlamLink implementation so they differ only in what "process a frame" means.
-// Thread-safe: offer()/stats()/note_error()/close() from any thread, take()/finish() from the worker.
+// Thread-safe: offer()/stats()/note_error()/close() from any thread, take()/finish() from the
+// worker.
 #pragma once
 
 #include <condition_variable>

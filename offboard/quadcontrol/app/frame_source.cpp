@@ -7,19 +7,25 @@
 namespace rgbdquad::quadcontrol {
 
 std::int64_t monotonic_now_us() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now().time_since_epoch())
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
       .count();
 }
 
 bool parse_replay_loop(const std::string& name, ReplayLoop* out) {
-  if (name == "once") *out = ReplayLoop::kOnce;
-  else if (name == "wrap") *out = ReplayLoop::kWrap;
-  else if (name == "bounce") *out = ReplayLoop::kBounce;
-  else return false;
+  if (name == "once")
+    *out = ReplayLoop::kOnce;
+  else if (name == "wrap")
+    *out = ReplayLoop::kWrap;
+  else if (name == "bounce")
+    *out = ReplayLoop::kBounce;
+  else
+    return false;
   return true;
 }
 
-std::unique_ptr<TumReplaySource> TumReplaySource::open(const TumReplayOptions& options, std::string* error) {
+std::unique_ptr<TumReplaySource> TumReplaySource::open(const TumReplayOptions& options,
+                                                       std::string* error) {
   if (!(options.speed > 0.0 && options.speed <= 100.0)) {
     *error = "stream.speed must be in (0, 100]";
     return nullptr;
@@ -32,17 +38,20 @@ std::unique_ptr<TumReplaySource> TumReplaySource::open(const TumReplayOptions& o
     *error = "TUM folder " + options.folder + " has fewer than 2 associated frames";
     return nullptr;
   }
-  return std::unique_ptr<TumReplaySource>(new TumReplaySource(options, std::move(*dataset), intrinsics));
+  return std::unique_ptr<TumReplaySource>(
+      new TumReplaySource(options, std::move(*dataset), intrinsics));
 }
 
-TumReplaySource::TumReplaySource(TumReplayOptions options, slam::TumDataset dataset, slam::Intrinsics intrinsics)
+TumReplaySource::TumReplaySource(TumReplayOptions options, slam::TumDataset dataset,
+                                 slam::Intrinsics intrinsics)
     : options_(std::move(options)), dataset_(std::move(dataset)), intrinsics_(intrinsics) {}
 
 std::string TumReplaySource::describe() const {
   return "TUM replay of " + options_.folder + " (" + std::to_string(dataset_.size()) + " frames)";
 }
 
-std::optional<CameraFrame> TumReplaySource::next(const std::atomic<bool>& stop, std::string* error) {
+std::optional<CameraFrame> TumReplaySource::next(const std::atomic<bool>& stop,
+                                                 std::string* error) {
   const auto n = static_cast<std::int64_t>(dataset_.size());
   if (position_ >= n || position_ < 0) {
     if (options_.loop == ReplayLoop::kOnce) {
@@ -56,7 +65,8 @@ std::optional<CameraFrame> TumReplaySource::next(const std::atomic<bool>& stop, 
       position_ = direction_ > 0 ? 1 : n - 2;
     }
   }
-  const auto period_us = static_cast<std::int64_t>(dataset_.frame_period_s() * 1e6 / options_.speed);
+  const auto period_us =
+      static_cast<std::int64_t>(dataset_.frame_period_s() * 1e6 / options_.speed);
   const std::int64_t now = monotonic_now_us();
   if (!next_due_us_) next_due_us_ = now;
   while (!stop.load() && monotonic_now_us() < *next_due_us_) {
@@ -64,7 +74,8 @@ std::optional<CameraFrame> TumReplaySource::next(const std::atomic<bool>& stop, 
   }
   if (stop.load()) return std::nullopt;
   *next_due_us_ += period_us;
-  if (*next_due_us_ < monotonic_now_us() - 10 * period_us) *next_due_us_ = monotonic_now_us();  // fell behind
+  if (*next_due_us_ < monotonic_now_us() - 10 * period_us)
+    *next_due_us_ = monotonic_now_us();  // fell behind
 
   const std::int64_t load_start = monotonic_now_us();
   auto frame = dataset_.load(static_cast<std::size_t>(position_), error);

@@ -8,10 +8,9 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
-
-#include <opencv2/core.hpp>
 
 #include "record/encoded_image.hpp"
 #include "slam/core/types.hpp"
@@ -21,12 +20,12 @@ namespace rgbdquad::quadcontrol {
 
 /// One registered RGB-D frame as it reached the ground station.
 struct CameraFrame {
-  std::int64_t sequence = 0;       ///< +1 per delivered frame
-  std::int64_t capture_us = 0;     ///< sensor clock (dataset timestamp)
-  std::int64_t received_us = 0;    ///< ground-station monotonic clock
-  double link_latency_ms = 0.0;    ///< time the frame spent on its link (replay: load + decode time)
-  cv::Mat rgb;                     ///< CV_8UC3, BGR
-  cv::Mat depth;                   ///< CV_16UC1, intrinsics.depth_units_per_m units, 0 = none
+  std::int64_t sequence = 0;     ///< +1 per delivered frame
+  std::int64_t capture_us = 0;   ///< sensor clock (dataset timestamp)
+  std::int64_t received_us = 0;  ///< ground-station monotonic clock
+  double link_latency_ms = 0.0;  ///< time the frame spent on its link (replay: load + decode time)
+  cv::Mat rgb;                   ///< CV_8UC3, BGR
+  cv::Mat depth;                 ///< CV_16UC1, intrinsics.depth_units_per_m units, 0 = none
   slam::Intrinsics intrinsics;
   /// The link's payloads when the stream was encoded (live source; empty for the dataset replay),
   /// for the flight recorder to store without re-encoding.
@@ -47,9 +46,10 @@ bool parse_replay_loop(const std::string& name, ReplayLoop* out);
 
 struct TumReplayOptions {
   std::string folder;
-  ReplayLoop loop = ReplayLoop::kBounce;  ///< bounce: forward then backward, no jump for the tracker
-  double speed = 1.0;                     ///< 1 = original timing
-  std::string camera = "fr1";             ///< TUM intrinsics name
+  ReplayLoop loop =
+      ReplayLoop::kBounce;     ///< bounce: forward then backward, no jump for the tracker
+  double speed = 1.0;          ///< 1 = original timing
+  std::string camera = "fr1";  ///< TUM intrinsics name
 };
 
 class TumReplaySource : public FrameSource {

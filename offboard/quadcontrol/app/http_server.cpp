@@ -5,12 +5,11 @@
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <boost/asio/ip/address.hpp>
+#include <boost/beast/core.hpp>
 #include <iostream>
 #include <optional>
 #include <stdexcept>
-
-#include <boost/asio/ip/address.hpp>
-#include <boost/beast/core.hpp>
 
 namespace rgbdquad::quadcontrol {
 
@@ -21,8 +20,9 @@ using tcp = asio::ip::tcp;
 using Clock = std::chrono::steady_clock;
 
 namespace {
-constexpr auto kIdleTimeout = std::chrono::seconds(30);  // browsers keep connections; free idle ones
-constexpr std::size_t kMaxBodyBytes = 64 * 1024;          // the API's JSON bodies are tiny
+constexpr auto kIdleTimeout =
+    std::chrono::seconds(30);                     // browsers keep connections; free idle ones
+constexpr std::size_t kMaxBodyBytes = 64 * 1024;  // the API's JSON bodies are tiny
 // Accept back-off: the first retry soon (a descriptor is often freed within milliseconds), then
 // doubling to 1 s, which bounds both the wasted CPU (a few wake-ups per second) and the delay a
 // real client sees once descriptors are free again.
@@ -36,7 +36,8 @@ constexpr std::size_t kMaxSessions = 256;
 std::size_t sessions_for_fd_limit() {
   rlimit limit{};
   if (getrlimit(RLIMIT_NOFILE, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) return kMaxSessions;
-  return std::clamp<std::size_t>(static_cast<std::size_t>(limit.rlim_cur) / 4, kMinSessions, kMaxSessions);
+  return std::clamp<std::size_t>(static_cast<std::size_t>(limit.rlim_cur) / 4, kMinSessions,
+                                 kMaxSessions);
 }
 
 bool is_parse_error(const beast::error_code& ec) {
@@ -47,7 +48,8 @@ bool is_parse_error(const beast::error_code& ec) {
 
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
-  HttpSession(tcp::socket socket, const HttpServer::Handler& handler) : stream_(std::move(socket)), handler_(handler) {}
+  HttpSession(tcp::socket socket, const HttpServer::Handler& handler)
+      : stream_(std::move(socket)), handler_(handler) {}
   void run() { read(); }
   /// Waiting for the next request (no request being handled or answered).
   bool idle() const { return idle_; }
@@ -64,8 +66,9 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     stream_.expires_after(kIdleTimeout);
     idle_ = true;
     idle_since_ = Clock::now();
-    http::async_read(stream_, buffer_, *parser_,
-                     [self = shared_from_this()](beast::error_code ec, std::size_t) { self->on_read(ec); });
+    http::async_read(
+        stream_, buffer_, *parser_,
+        [self = shared_from_this()](beast::error_code ec, std::size_t) { self->on_read(ec); });
   }
   void on_read(beast::error_code ec) {
     idle_ = false;
@@ -101,15 +104,16 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   void respond(HttpResponse response) {
     response_ = std::make_shared<HttpResponse>(std::move(response));
     stream_.expires_after(kIdleTimeout);
-    http::async_write(stream_, *response_, [self = shared_from_this()](beast::error_code ec2, std::size_t) {
-      if (ec2) return;
-      if (!self->response_->keep_alive()) {
-        beast::error_code ignored;
-        self->stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
-        return;
-      }
-      self->read();
-    });
+    http::async_write(stream_, *response_,
+                      [self = shared_from_this()](beast::error_code ec2, std::size_t) {
+                        if (ec2) return;
+                        if (!self->response_->keep_alive()) {
+                          beast::error_code ignored;
+                          self->stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+                          return;
+                        }
+                        self->read();
+                      });
   }
 
   beast::tcp_stream stream_;
@@ -127,8 +131,11 @@ bool is_loopback_address(const std::string& address) {
   return !ec && a.is_loopback();
 }
 
-HttpServer::HttpServer(const std::string& address, std::uint16_t port, Handler handler, std::size_t max_sessions)
-    : acceptor_(io_), retry_timer_(io_), handler_(std::move(handler)),
+HttpServer::HttpServer(const std::string& address, std::uint16_t port, Handler handler,
+                       std::size_t max_sessions)
+    : acceptor_(io_),
+      retry_timer_(io_),
+      handler_(std::move(handler)),
       max_sessions_(max_sessions > 0 ? max_sessions : sessions_for_fd_limit()) {
   beast::error_code ec;
   const auto addr = asio::ip::make_address(address, ec);
@@ -138,11 +145,14 @@ HttpServer::HttpServer(const std::string& address, std::uint16_t port, Handler h
   if (!ec) acceptor_.set_option(asio::socket_base::reuse_address(true), ec);
   if (!ec) acceptor_.bind(endpoint, ec);
   if (!ec) acceptor_.listen(asio::socket_base::max_listen_connections, ec);
-  if (ec) throw std::runtime_error("dashboard: cannot listen on " + address + ":" + std::to_string(port) + ": " + ec.message());
+  if (ec)
+    throw std::runtime_error("dashboard: cannot listen on " + address + ":" + std::to_string(port) +
+                             ": " + ec.message());
   port_ = acceptor_.local_endpoint().port();
   accept();
   thread_ = std::thread([this] { io_.run(); });
-  pthread_setname_np(thread_.native_handle(), "qc-dashboard");  // found by name in /proc (tests, top -H)
+  pthread_setname_np(thread_.native_handle(),
+                     "qc-dashboard");  // found by name in /proc (tests, top -H)
 }
 
 HttpServer::~HttpServer() {
@@ -165,8 +175,9 @@ void HttpServer::on_accept_error(const boost::system::error_code& ec) {
   ++failed_accepts_;
   if (backoff_.count() == 0) {
     backoff_ = kFirstBackoff;
-    std::cerr << "quad-control: dashboard: accept failed (" << ec.message() << "); backing off up to "
-              << kMaxBackoff.count() << " ms between retries" << std::endl;
+    std::cerr << "quad-control: dashboard: accept failed (" << ec.message()
+              << "); backing off up to " << kMaxBackoff.count() << " ms between retries"
+              << std::endl;
   } else {
     backoff_ = std::min(backoff_ * 2, std::chrono::milliseconds(kMaxBackoff));
   }
@@ -186,8 +197,8 @@ void HttpServer::accept() {
       return;
     }
     if (backoff_.count() != 0) {
-      std::cerr << "quad-control: dashboard: accepting again after " << failed_accepts_ << " failed accepts"
-                << std::endl;
+      std::cerr << "quad-control: dashboard: accepting again after " << failed_accepts_
+                << " failed accepts" << std::endl;
       backoff_ = std::chrono::milliseconds(0);
       failed_accepts_ = 0;
     }

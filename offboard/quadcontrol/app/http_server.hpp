@@ -9,20 +9,20 @@
 //   - an accept that fails (EMFILE/ENFILE: descriptor limit; ENOBUFS/ENOMEM) is retried after a
 //     back-off of 10 ms doubling to 1 s instead of at once (which spun one core at 100 %); one log
 //     line when it starts failing and one when it accepts again;
-//   - a malformed request is answered 400 (413 for a body over 64 KiB) before the connection closes.
+//   - a malformed request is answered 400 (413 for a body over 64 KiB) before the connection
+//   closes.
 #pragma once
 
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/beast/http.hpp>
 #include <cstdint>
 #include <functional>
 #include <list>
 #include <memory>
 #include <string>
 #include <thread>
-
-#include <boost/asio/io_context.hpp>
-#include <boost/asio/ip/tcp.hpp>
-#include <boost/asio/steady_timer.hpp>
-#include <boost/beast/http.hpp>
 
 namespace rgbdquad::quadcontrol {
 
@@ -36,7 +36,8 @@ class HttpServer {
   using Handler = std::function<HttpResponse(const HttpRequest&)>;
   /// Binds and starts serving; throws std::runtime_error when the address/port cannot be bound.
   /// `max_sessions` 0: a quarter of the soft RLIMIT_NOFILE, within [4, 256].
-  HttpServer(const std::string& address, std::uint16_t port, Handler handler, std::size_t max_sessions = 0);
+  HttpServer(const std::string& address, std::uint16_t port, Handler handler,
+             std::size_t max_sessions = 0);
   ~HttpServer();
   HttpServer(const HttpServer&) = delete;
   HttpServer& operator=(const HttpServer&) = delete;
@@ -55,7 +56,7 @@ class HttpServer {
   std::uint16_t port_ = 0;
   std::size_t max_sessions_ = 0;
   std::list<std::weak_ptr<HttpSession>> sessions_;  // I/O thread only
-  std::chrono::milliseconds backoff_{0};           // 0: accepting normally
+  std::chrono::milliseconds backoff_{0};            // 0: accepting normally
   std::uint64_t failed_accepts_ = 0;                // in the current back-off episode
   std::thread thread_;
 };

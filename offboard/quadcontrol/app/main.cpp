@@ -1,12 +1,11 @@
 // quad-control: the ground-station hub (thesis Section 3.3.3). Wiring only: configuration, links,
 // the control loop and the web dashboard; the logic lives in core/, map/ and link/.
+#include <CLI/CLI.hpp>
 #include <csignal>
 #include <cstdio>
 #include <ctime>
 #include <iostream>
 #include <memory>
-
-#include <CLI/CLI.hpp>
 
 #include "app/app_config.hpp"
 #include "app/dashboard_api.hpp"
@@ -21,7 +20,8 @@ using namespace rgbdquad::quadcontrol;
 int main(int argc, char** argv) {
   CLI::App cli{
       "quad-control: ground-station control loop and web dashboard.\n"
-      "Joins the RGB-D frame source, SLAM, the flight controller (PID position control, take-off / hold at\n"
+      "Joins the RGB-D frame source, SLAM, the flight controller (PID position control, take-off / "
+      "hold at\n"
       "1.7 m / waypoint / land) and the firmware REST link, and serves the dashboard on\n"
       "http://127.0.0.1:8080/ by default. Every setting and its default is in the config file\n"
       "template (<prefix>/share/rgbdquad/config/quad-control.json when installed,\n"
@@ -37,12 +37,14 @@ int main(int argc, char** argv) {
   int port = -1, firmware_port = -1;
   bool no_firmware = false, print_config = false;
   cli.add_option("-c,--config", config_path, "JSON config file (default: built-in defaults)");
-  cli.add_option("--bind", bind_address, "dashboard address (default 127.0.0.1; non-loopback needs --token)");
+  cli.add_option("--bind", bind_address,
+                 "dashboard address (default 127.0.0.1; non-loopback needs --token)");
   cli.add_option("--port", port, "dashboard TCP port (default 8080; 0 = any free port, printed)");
   cli.add_option("--token", token, "dashboard access token (required for a non-loopback --bind)");
-  cli.add_option("--tum", tum_folder,
-                 "replay this TUM RGB-D folder as the camera (sets stream.source=tum; default: the shipped "
-                 "fr1_xyz_first30 excerpt)");
+  cli.add_option(
+      "--tum", tum_folder,
+      "replay this TUM RGB-D folder as the camera (sets stream.source=tum; default: the shipped "
+      "fr1_xyz_first30 excerpt)");
   bool live = false;
   cli.add_flag("--live", live, "take frames from rgbd-streamer (sets stream.source=receiver)");
   cli.add_option("--firmware-host", firmware_host, "firmware (WiFi bridge) address");
@@ -50,7 +52,8 @@ int main(int argc, char** argv) {
   cli.add_option("--key", key_hex, "craft control key, 32 hex digits (prefer the config file)");
   std::string slam_mode;
   cli.add_option("--slam", slam_mode, "SLAM link: server (slam-server, default) or in-process");
-  cli.add_flag("--no-firmware", no_firmware, "do not talk to the firmware (commands are computed only)");
+  cli.add_flag("--no-firmware", no_firmware,
+               "do not talk to the firmware (commands are computed only)");
   cli.add_flag("--print-config", print_config, "print the effective configuration and exit");
   std::string flight_log_dir;
   cli.add_option("--flight-log", flight_log_dir,
@@ -58,9 +61,11 @@ int main(int argc, char** argv) {
                  "(monotonic us stamps; created if missing)");
   std::string record_dir;
   bool no_record = false;
-  cli.add_option("--record", record_dir,
-                 "record the flight as MCAP in this folder (sets recording.enabled; docs/recording.md)");
-  cli.add_flag("--no-record", no_record, "do not record MCAP (overrides recording.enabled in the config)");
+  cli.add_option(
+      "--record", record_dir,
+      "record the flight as MCAP in this folder (sets recording.enabled; docs/recording.md)");
+  cli.add_flag("--no-record", no_record,
+               "do not record MCAP (overrides recording.enabled in the config)");
   CLI11_PARSE(cli, argc, argv);
 
   std::string error;
@@ -85,7 +90,8 @@ int main(int argc, char** argv) {
   }
   if (live) config->stream_source = "receiver";
   if (!firmware_host.empty()) config->firmware.host = firmware_host;
-  if (firmware_port > 0 && firmware_port <= 65535) config->firmware.port = static_cast<std::uint16_t>(firmware_port);
+  if (firmware_port > 0 && firmware_port <= 65535)
+    config->firmware.port = static_cast<std::uint16_t>(firmware_port);
   if (!key_hex.empty()) config->firmware_key_hex = key_hex;
   if (no_firmware) config->firmware_enabled = false;
   if (!slam_mode.empty()) config->station.slam_mode = slam_mode;
@@ -128,7 +134,8 @@ int main(int argc, char** argv) {
     try {
       // The receiver's two socket threads are on the real-time path: created while this thread is
       // raised, they inherit its scheduling (offboard/receiver stays free of it).
-      const ScopedThreadRaise raised(config->station.realtime, "stream receiver (its socket threads)");
+      const ScopedThreadRaise raised(config->station.realtime,
+                                     "stream receiver (its socket threads)");
       source = std::make_unique<ReceiverSource>(config->receiver);
     } catch (const std::exception& e) {
       error = e.what();
@@ -152,7 +159,8 @@ int main(int argc, char** argv) {
 
   std::unique_ptr<FlightRecorder> recorder;
   if (config->recording.enabled) {
-    // A file-size limit (RLIMIT_FSIZE) must fail the write (EFBIG), as a full disk does, not kill the flight.
+    // A file-size limit (RLIMIT_FSIZE) must fail the write (EFBIG), as a full disk does, not kill
+    // the flight.
     std::signal(SIGXFSZ, SIG_IGN);
     char stem[64];
     const std::time_t now = std::time(nullptr);
@@ -160,7 +168,8 @@ int main(int argc, char** argv) {
     gmtime_r(&now, &utc);
     std::strftime(stem, sizeof stem, "flight-%Y%m%d-%H%M%S", &utc);
     recorder = FlightRecorder::open(
-        config->recording, stem, [](const std::string& line) { std::cerr << "quad-control: " << line << std::endl; },
+        config->recording, stem,
+        [](const std::string& line) { std::cerr << "quad-control: " << line << std::endl; },
         &error);
     if (!recorder) {
       std::cerr << "quad-control: " << error << "\n";
@@ -177,14 +186,14 @@ int main(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   try {
-    GroundStation station(config->station, std::move(source), firmware, generated_control_spec(), key,
-                          std::move(flight_log), std::move(recorder));
+    GroundStation station(config->station, std::move(source), firmware, generated_control_spec(),
+                          key, std::move(flight_log), std::move(recorder));
     DashboardApi api(station, config->dashboard_static_dir,
                      AccessPolicy{config->dashboard_token, config->dashboard_allowed_hosts});
     HttpServer server(config->dashboard_bind_address, config->dashboard_port,
                       [&api](const HttpRequest& r) { return api.handle(r); });
-    std::cout << "quad-control: dashboard on http://" << config->dashboard_bind_address << ":" << server.port()
-              << "/" << std::endl;
+    std::cout << "quad-control: dashboard on http://" << config->dashboard_bind_address << ":"
+              << server.port() << "/" << std::endl;
     int sig = 0;
     sigwait(&signals, &sig);
     std::cout << "quad-control: stopping (signal " << sig << ")" << std::endl;

@@ -2,11 +2,10 @@
 #include "app/request_guard.hpp"
 
 #include <algorithm>
+#include <boost/asio/ip/address.hpp>
 #include <cctype>
 #include <set>
 #include <sstream>
-
-#include <boost/asio/ip/address.hpp>
 
 namespace rgbdquad::quadcontrol {
 
@@ -20,7 +19,8 @@ constexpr std::size_t kMinTokenChars = 16;
 constexpr std::size_t kMinDistinctTokenChars = 8;
 
 std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(s.begin(), s.end(), s.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return s;
 }
 
@@ -62,21 +62,25 @@ std::string host_without_port(const std::string& host_header) {
     return end == std::string::npos ? h : h.substr(1, end - 1);
   }
   const auto colon = h.find(':');
-  if (colon != std::string::npos && h.find(':', colon + 1) == std::string::npos) h = h.substr(0, colon);
+  if (colon != std::string::npos && h.find(':', colon + 1) == std::string::npos)
+    h = h.substr(0, colon);
   return h;
 }
 
 std::optional<Refusal> check_api_request(const HttpRequest& req, const AccessPolicy& policy) {
   const std::string host_header = header(req, "Host");
   if (host_header.empty() && req.version() >= 11) {
-    return Refusal{http::status::bad_request, "HTTP/1.1 request without a Host header (RFC 9112 section 3.2)"};
+    return Refusal{http::status::bad_request,
+                   "HTTP/1.1 request without a Host header (RFC 9112 section 3.2)"};
   }
   if (!host_header.empty()) {
     const std::string host = host_without_port(host_header);
     const bool known = is_ip_literal(host) || host == "localhost" ||
                        std::any_of(policy.allowed_hosts.begin(), policy.allowed_hosts.end(),
                                    [&](const std::string& a) { return lower(a) == host; });
-    if (!known) return Refusal{http::status::forbidden, "Host '" + host_header + "' is not this server (dashboard.allowed_hosts)"};
+    if (!known)
+      return Refusal{http::status::forbidden,
+                     "Host '" + host_header + "' is not this server (dashboard.allowed_hosts)"};
   }
   const std::string origin = header(req, "Origin");
   if (!origin.empty() && lower(origin) != "http://" + lower(host_header)) {
@@ -84,7 +88,8 @@ std::optional<Refusal> check_api_request(const HttpRequest& req, const AccessPol
   }
   const std::string fetch_site = lower(header(req, "Sec-Fetch-Site"));
   if (!fetch_site.empty() && fetch_site != "same-origin" && fetch_site != "none") {
-    return Refusal{http::status::forbidden, "cross-site request refused (Sec-Fetch-Site " + fetch_site + ")"};
+    return Refusal{http::status::forbidden,
+                   "cross-site request refused (Sec-Fetch-Site " + fetch_site + ")"};
   }
   if (req.method() != http::verb::get && req.method() != http::verb::head) {
     std::string type = lower(header(req, "Content-Type"));
@@ -96,8 +101,10 @@ std::optional<Refusal> check_api_request(const HttpRequest& req, const AccessPol
   }
   if (!policy.token.empty()) {
     const std::string from_header = header(req, "X-Dashboard-Token");
-    const std::string given = !from_header.empty() ? from_header : query_param(std::string(req.target()), "token");
-    if (!equal_constant_time(given, policy.token)) return Refusal{http::status::unauthorized, "missing or wrong token"};
+    const std::string given =
+        !from_header.empty() ? from_header : query_param(std::string(req.target()), "token");
+    if (!equal_constant_time(given, policy.token))
+      return Refusal{http::status::unauthorized, "missing or wrong token"};
   }
   return std::nullopt;
 }
@@ -108,7 +115,8 @@ std::string check_token_strength(const std::string& token) {
            " characters for a non-loopback bind (e.g. `openssl rand -hex 16`)";
   }
   if (std::set<char>(token.begin(), token.end()).size() < kMinDistinctTokenChars) {
-    return "token not random enough: fewer than " + std::to_string(kMinDistinctTokenChars) + " distinct characters";
+    return "token not random enough: fewer than " + std::to_string(kMinDistinctTokenChars) +
+           " distinct characters";
   }
   return {};
 }

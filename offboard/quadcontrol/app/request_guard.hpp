@@ -12,8 +12,8 @@
 //      cross-site only after a CORS preflight, which this server never grants -> else 415;
 //   4. with a token configured it must be given (X-Dashboard-Token header or ?token=), compared
 //      in constant time -> else 401.
-// Clients that are not browsers (curl, the HIL rig, tests) send no Origin and pass with a JSON body.
-// Pure functions, thread-safe.
+// Clients that are not browsers (curl, the HIL rig, tests) send no Origin and pass with a JSON
+// body. Pure functions, thread-safe.
 #pragma once
 
 #include <optional>
@@ -25,8 +25,9 @@
 namespace rgbdquad::quadcontrol {
 
 struct AccessPolicy {
-  std::string token;                       ///< empty: no token asked (loopback binds only)
-  std::vector<std::string> allowed_hosts;  ///< host names accepted in Host besides IP literals and localhost
+  std::string token;  ///< empty: no token asked (loopback binds only)
+  std::vector<std::string>
+      allowed_hosts;  ///< host names accepted in Host besides IP literals and localhost
 };
 
 struct Refusal {

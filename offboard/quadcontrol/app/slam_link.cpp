@@ -5,7 +5,8 @@
 
 namespace rgbdquad::quadcontrol {
 
-std::unique_ptr<InProcessSlam> InProcessSlam::create(const slam::Intrinsics& intrinsics, Callback callback,
+std::unique_ptr<InProcessSlam> InProcessSlam::create(const slam::Intrinsics& intrinsics,
+                                                     Callback callback,
                                                      const slam::ThreadPriorityOptions& priority,
                                                      std::string* error) {
   // The system that flies (as slam-server's default): ORB, tracking against a local map on this
@@ -16,7 +17,8 @@ std::unique_ptr<InProcessSlam> InProcessSlam::create(const slam::Intrinsics& int
   options.mode = slam::PipelineMode::kLive;
   auto pipeline = slam::Pipeline::create(options, intrinsics, error);
   if (!pipeline) return nullptr;
-  return std::unique_ptr<InProcessSlam>(new InProcessSlam(std::move(pipeline), std::move(callback), priority));
+  return std::unique_ptr<InProcessSlam>(
+      new InProcessSlam(std::move(pipeline), std::move(callback), priority));
 }
 
 InProcessSlam::InProcessSlam(std::unique_ptr<slam::Pipeline> pipeline, Callback callback,

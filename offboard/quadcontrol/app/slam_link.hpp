@@ -6,13 +6,12 @@
 // is dropped (counted). Results are delivered through the callback on the SLAM thread.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <functional>
 #include <memory>
 #include <optional>
 #include <string>
 #include <thread>
-
-#include <Eigen/Geometry>
 
 #include "app/frame_mailbox.hpp"
 #include "app/frame_source.hpp"
@@ -25,7 +24,7 @@ struct SlamResult {
   std::int64_t frame_sequence = 0;
   std::int64_t capture_us = 0;
   bool tracking = false;
-  std::string state;                                              ///< "initialising", "tracking", "lost"
+  std::string state;  ///< "initialising", "tracking", "lost"
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< world = first camera frame
   std::size_t inliers = 0;
   double latency_ms = 0.0;  ///< hand-over to result
@@ -39,11 +38,12 @@ struct SlamResult {
 
 /// The link's own health, for the dashboard and the demo's verdict (thread-safe copy).
 struct SlamLinkStatus {
-  std::uint64_t sessions_started = 0;  ///< new maps (1 in a healthy flight; more = SLAM session resets)
-  std::uint64_t resumes = 0;           ///< reconnects that continued the same map and world frame
-  std::uint64_t disconnects = 0;       ///< connections that broke (each logged with its cause)
-  std::string session_id;              ///< hex; "" for the in-process link
-  std::string last_disconnect;         ///< cause of the last one
+  std::uint64_t sessions_started =
+      0;                          ///< new maps (1 in a healthy flight; more = SLAM session resets)
+  std::uint64_t resumes = 0;      ///< reconnects that continued the same map and world frame
+  std::uint64_t disconnects = 0;  ///< connections that broke (each logged with its cause)
+  std::string session_id;         ///< hex; "" for the in-process link
+  std::string last_disconnect;    ///< cause of the last one
 };
 
 class SlamLink {
@@ -60,15 +60,18 @@ class SlamLink {
 class InProcessSlam : public SlamLink {
  public:
   /// `priority`: the tracking thread's scheduling (the real-time path).
-  static std::unique_ptr<InProcessSlam> create(const slam::Intrinsics& intrinsics, Callback callback,
-                                               const slam::ThreadPriorityOptions& priority, std::string* error);
+  static std::unique_ptr<InProcessSlam> create(const slam::Intrinsics& intrinsics,
+                                               Callback callback,
+                                               const slam::ThreadPriorityOptions& priority,
+                                               std::string* error);
   ~InProcessSlam() override;
   bool submit(const CameraFrame& frame) override;
   SlamStats stats() const override;
   std::string name() const override { return "in-process local-map SLAM (offboard/slam)"; }
 
  private:
-  InProcessSlam(std::unique_ptr<slam::Pipeline> pipeline, Callback callback, slam::ThreadPriorityOptions priority);
+  InProcessSlam(std::unique_ptr<slam::Pipeline> pipeline, Callback callback,
+                slam::ThreadPriorityOptions priority);
   void run();
 
   std::unique_ptr<slam::Pipeline> pipeline_;

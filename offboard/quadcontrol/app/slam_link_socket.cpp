@@ -26,7 +26,8 @@ int SlamLinkSocket::wait(short events, Clock::time_point deadline) {
       errno = EBADF;
       return -1;
     }
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
     if (left <= 0) return 0;
     pollfd p{fd, events, 0};
     const int r = ::poll(&p, 1, static_cast<int>(std::min<long long>(left, 1000 * 1000)));
@@ -36,8 +37,8 @@ int SlamLinkSocket::wait(short events, Clock::time_point deadline) {
   }
 }
 
-bool SlamLinkSocket::connect(const std::string& host, std::uint16_t port, Clock::time_point deadline,
-                             std::string* error) {
+bool SlamLinkSocket::connect(const std::string& host, std::uint16_t port,
+                             Clock::time_point deadline, std::string* error) {
   close();
   addrinfo hints{};
   hints.ai_family = AF_UNSPEC;
@@ -50,7 +51,8 @@ bool SlamLinkSocket::connect(const std::string& host, std::uint16_t port, Clock:
   }
   std::string last = "no address";
   for (addrinfo* a = res; a != nullptr; a = a->ai_next) {
-    const int fd = ::socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC | SOCK_NONBLOCK, a->ai_protocol);
+    const int fd =
+        ::socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC | SOCK_NONBLOCK, a->ai_protocol);
     if (fd < 0) {
       last = errno_text("socket");
       continue;
@@ -83,8 +85,8 @@ bool SlamLinkSocket::connect(const std::string& host, std::uint16_t port, Clock:
   return false;
 }
 
-bool SlamLinkSocket::write_all(const std::uint8_t* data, std::size_t size, Clock::time_point deadline,
-                               std::string* error) {
+bool SlamLinkSocket::write_all(const std::uint8_t* data, std::size_t size,
+                               Clock::time_point deadline, std::string* error) {
   std::size_t off = 0;
   while (off < size) {
     const int fd = fd_.load();

@@ -26,16 +26,18 @@ class SlamLinkSocket {
   SlamLinkSocket& operator=(const SlamLinkSocket&) = delete;
 
   /// Resolves host (IPv4/IPv6 or a name) and connects before `deadline`. TCP_NODELAY is set.
-  bool connect(const std::string& host, std::uint16_t port, Clock::time_point deadline, std::string* error);
+  bool connect(const std::string& host, std::uint16_t port, Clock::time_point deadline,
+               std::string* error);
   /// Sends every byte before `deadline`.
-  bool write_all(const std::uint8_t* data, std::size_t size, Clock::time_point deadline, std::string* error);
+  bool write_all(const std::uint8_t* data, std::size_t size, Clock::time_point deadline,
+                 std::string* error);
 
   enum class ReadStatus { kData, kTimeout, kClosed, kError };
   /// Reads what is there (up to `capacity`), waiting until `deadline` for the first byte.
   /// kData: *n > 0 bytes; kTimeout: nothing before the deadline; kClosed: the peer closed (end of
   /// file); kError: *error says why.
-  ReadStatus read_some(std::uint8_t* buffer, std::size_t capacity, Clock::time_point deadline, std::size_t* n,
-                       std::string* error);
+  ReadStatus read_some(std::uint8_t* buffer, std::size_t capacity, Clock::time_point deadline,
+                       std::size_t* n, std::string* error);
 
   void close();
   bool is_open() const { return fd_.load() >= 0; }

@@ -1,11 +1,10 @@
 // slam-server client: see slam_server_client.hpp.
 #include "app/slam_server_client.hpp"
 
+#include <Eigen/Geometry>
 #include <cstdio>
 #include <iostream>
 #include <random>
-
-#include <Eigen/Geometry>
 
 #include "app/thread_setup.hpp"
 
@@ -34,22 +33,29 @@ std::uint64_t random_session_id() {
 
 Eigen::Isometry3d to_isometry(const proto::Pose3& p) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = Eigen::Quaterniond(p.q_xyzw[3], p.q_xyzw[0], p.q_xyzw[1], p.q_xyzw[2]).normalized().toRotationMatrix();
+  T.linear() = Eigen::Quaterniond(p.q_xyzw[3], p.q_xyzw[0], p.q_xyzw[1], p.q_xyzw[2])
+                   .normalized()
+                   .toRotationMatrix();
   T.translation() = Eigen::Vector3d(p.t_m[0], p.t_m[1], p.t_m[2]);
   return T;
 }
 
 const char* state_name(proto::TrackingState s) {
   switch (s) {
-    case proto::TrackingState::kInitializing: return "initialising";
-    case proto::TrackingState::kTracking: return "tracking";
-    case proto::TrackingState::kLost: return "lost";
-    case proto::TrackingState::kRelocalized: return "relocalised";
+    case proto::TrackingState::kInitializing:
+      return "initialising";
+    case proto::TrackingState::kTracking:
+      return "tracking";
+    case proto::TrackingState::kLost:
+      return "lost";
+    case proto::TrackingState::kRelocalized:
+      return "relocalised";
   }
   return "?";
 }
 
-proto::ImageFrame image(const CameraFrame& f, proto::PixelFormat format, std::vector<std::uint8_t> payload) {
+proto::ImageFrame image(const CameraFrame& f, proto::PixelFormat format,
+                        std::vector<std::uint8_t> payload) {
   proto::ImageFrame im;
   im.header.sequence = static_cast<std::uint32_t>(f.sequence);
   im.header.capture_timestamp_us = static_cast<std::uint64_t>(f.capture_us);
@@ -103,7 +109,8 @@ void SlamServerClient::disconnect() {
   decoder_ = proto::StreamDecoder{};
 }
 
-bool SlamServerClient::send(const proto::Message& message, Clock::time_point deadline, std::string* error) {
+bool SlamServerClient::send(const proto::Message& message, Clock::time_point deadline,
+                            std::string* error) {
   const auto encoded = proto::encode(message);
   if (!encoded.ok()) {
     *error = "encode: " + encoded.error;
@@ -112,14 +119,16 @@ bool SlamServerClient::send(const proto::Message& message, Clock::time_point dea
   return socket_.write_all(encoded.bytes.data(), encoded.bytes.size(), deadline, error);
 }
 
-std::optional<proto::Message> SlamServerClient::receive(Clock::time_point deadline, const std::string& what,
+std::optional<proto::Message> SlamServerClient::receive(Clock::time_point deadline,
+                                                        const std::string& what,
                                                         std::string* error) {
   std::vector<std::uint8_t> buf(kReadChunkBytes);
   while (!stop_) {
     auto r = decoder_.next();
     if (r.status == proto::DecodeStatus::kMessage) return r.message;
     if (r.status == proto::DecodeStatus::kError) {
-      const std::string e = std::string("dropped bytes: ") + proto::to_string(r.error) + " " + r.detail;
+      const std::string e =
+          std::string("dropped bytes: ") + proto::to_string(r.error) + " " + r.detail;
       if (decode_errors_++ == 0) log_line(e + " (further ones counted)");
       mailbox_.note_error(e);
       continue;
@@ -135,8 +144,11 @@ std::optional<proto::Message> SlamServerClient::receive(Clock::time_point deadli
                  std::to_string(decoder_.buffered_bytes()) + " bytes of a message received)";
         return std::nullopt;
       case SlamLinkSocket::ReadStatus::kClosed:
-        *error = stop_ ? "stopping"
-                       : "slam-server closed the connection (end of file) while quad-control waited for " + what;
+        *error =
+            stop_
+                ? "stopping"
+                : "slam-server closed the connection (end of file) while quad-control waited for " +
+                      what;
         return std::nullopt;
       case SlamLinkSocket::ReadStatus::kError:
         *error = read_error;
@@ -194,11 +206,15 @@ bool SlamServerClient::connect(std::string* error) {
     }
   }
   if (peer->resumed && session_ > 0)
-    log_line("connected to " + name() + ": session " + hex_id(peer->session_id) + " resumed (map and world frame kept, " +
-             std::to_string(peer->session_frames) + " frames)");
+    log_line("connected to " + name() + ": session " + hex_id(peer->session_id) +
+             " resumed (map and world frame kept, " + std::to_string(peer->session_frames) +
+             " frames)");
   else
-    log_line("connected to " + name() + ": session " + hex_id(peer->session_id) + " started (a new map" +
-             (session_ > 1 ? ", new world frame: SLAM session reset #" + std::to_string(session_ - 1) : "") + ")");
+    log_line(
+        "connected to " + name() + ": session " + hex_id(peer->session_id) + " started (a new map" +
+        (session_ > 1 ? ", new world frame: SLAM session reset #" + std::to_string(session_ - 1)
+                      : "") +
+        ")");
   return true;
 }
 
@@ -260,12 +276,14 @@ void SlamServerClient::run() {
     std::string error;
     std::optional<SlamResult> result;
     const std::int64_t now = monotonic_now_us();
-    if (!connected_ && (reconnect_now_ || now - last_attempt_us_ >= options_.reconnect_interval_ms * 1000LL)) {
+    if (!connected_ &&
+        (reconnect_now_ || now - last_attempt_us_ >= options_.reconnect_interval_ms * 1000LL)) {
       reconnect_now_ = false;
       last_attempt_us_ = now;
       if (!connect(&error)) {
-        if (error != last_connect_error_) log_line(error + " (retrying every " +
-                                                   std::to_string(options_.reconnect_interval_ms) + " ms)");
+        if (error != last_connect_error_)
+          log_line(error + " (retrying every " + std::to_string(options_.reconnect_interval_ms) +
+                   " ms)");
         last_connect_error_ = error;
       } else {
         last_connect_error_.clear();
@@ -274,8 +292,8 @@ void SlamServerClient::run() {
     if (connected_) {
       result = exchange(frame, &error);
       if (!result && !stop_) {
-        log_line("disconnected: " + error + "; reconnecting with session " + hex_id(options_.session_id) +
-                 " (slam-server keeps its map for a resume)");
+        log_line("disconnected: " + error + "; reconnecting with session " +
+                 hex_id(options_.session_id) + " (slam-server keeps its map for a resume)");
         {
           std::lock_guard<std::mutex> lock(status_mutex_);
           ++status_.disconnects;

@@ -35,10 +35,10 @@ namespace rgbdquad::quadcontrol {
 
 struct SlamServerOptions {
   std::string host = "127.0.0.1";
-  std::uint16_t port = 5700;       ///< slam-server's default
-  int reply_timeout_ms = 5000;     ///< one frame's SLAM, generous for a loaded machine
+  std::uint16_t port = 5700;    ///< slam-server's default
+  int reply_timeout_ms = 5000;  ///< one frame's SLAM, generous for a loaded machine
   int reconnect_interval_ms = 1000;
-  std::uint64_t session_id = 0;    ///< 0: a random id per client (one flight per quad-control run)
+  std::uint64_t session_id = 0;  ///< 0: a random id per client (one flight per quad-control run)
   slam::ThreadPriorityOptions thread_priority;  ///< the link thread is on the real-time path
   std::string validate() const;
 };
@@ -57,7 +57,8 @@ class SlamServerClient : public SlamLink {
   void run();
   bool connect(std::string* error);
   bool send(const protocol::Message& message, Clock::time_point deadline, std::string* error);
-  std::optional<protocol::Message> receive(Clock::time_point deadline, const std::string& what, std::string* error);
+  std::optional<protocol::Message> receive(Clock::time_point deadline, const std::string& what,
+                                           std::string* error);
   std::optional<SlamResult> exchange(const CameraFrame& frame, std::string* error);
   void disconnect();
 

@@ -14,7 +14,8 @@ constexpr std::int64_t kMinIntervalFloorUs = 1000;  // below 1 ms the timer reso
 
 std::string CommandScheduleOptions::validate() const {
   if (min_interval_us < kMinIntervalFloorUs) return "firmware.min_interval_ms must be >= 1";
-  if (keep_alive_us < min_interval_us) return "firmware.keep_alive_ms must be >= firmware.min_interval_ms";
+  if (keep_alive_us < min_interval_us)
+    return "firmware.keep_alive_ms must be >= firmware.min_interval_ms";
   if (keep_alive_us > kFirmwareFailsafeUs / 2) {
     return "firmware.keep_alive_ms must be <= 125 (half the firmware's 250 ms failsafe)";
   }

@@ -3,9 +3,10 @@
 //
 // A new pose is sent at once, but never sooner than min_interval after the previous command (what
 // the firmware sustains); with no new pose a keep-alive goes out keep_alive after the previous
-// command, so the firmware's 250 ms failsafe (docs/failsafe.md) never fires while the ground station
-// runs, even when SLAM stops producing poses. Poses arriving while a command waits for its slot are
-// coalesced: the one command sent carries the newest pose (the controller runs at send time).
+// command, so the firmware's 250 ms failsafe (docs/failsafe.md) never fires while the ground
+// station runs, even when SLAM stops producing poses. Poses arriving while a command waits for its
+// slot are coalesced: the one command sent carries the newest pose (the controller runs at send
+// time).
 //
 // Time is passed in (monotonic microseconds); no clock, no threads. Not thread-safe: one owner
 // (FirmwareLink's I/O thread).

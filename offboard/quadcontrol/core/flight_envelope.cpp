@@ -7,12 +7,15 @@
 namespace rgbdquad::quadcontrol {
 
 namespace {
-bool finite(const SetpointPosition& p) { return std::isfinite(p.x_m) && std::isfinite(p.y_m) && std::isfinite(p.z_m); }
+bool finite(const SetpointPosition& p) {
+  return std::isfinite(p.x_m) && std::isfinite(p.y_m) && std::isfinite(p.z_m);
+}
 }  // namespace
 
 void FlightEnvelope::set_home(double x_m, double y_m) { home_ = SetpointPosition{x_m, y_m, 0.0}; }
 
-std::optional<Contained> FlightEnvelope::contain(const SetpointPosition& wanted, SetpointKind kind) const {
+std::optional<Contained> FlightEnvelope::contain(const SetpointPosition& wanted,
+                                                 SetpointKind kind) const {
   if (!finite(wanted)) return std::nullopt;
   Contained out{wanted, false};
   if (home_ && kind != SetpointKind::kLanding) {
@@ -44,7 +47,8 @@ std::string FlightEnvelope::check_waypoint(double x_m, double y_m) const {
   if (!home_) return "waypoint: no home (take off first)";
   const double d = std::hypot(x_m - home_->x_m, y_m - home_->y_m);
   if (!std::isfinite(d) || d > limits_.max_distance_from_home_m) {
-    return "waypoint: outside the flight envelope (further than max_distance_from_home_m from home)";
+    return "waypoint: outside the flight envelope (further than max_distance_from_home_m from "
+           "home)";
   }
   return {};
 }

@@ -4,8 +4,10 @@
 //   - non-finite values are refused (a NaN or inf setpoint stops the PIDs acting, see pid.hpp);
 //   - a waypoint further than max_distance_from_home_m from home is refused (a click is explicit:
 //     moving it silently would fly somewhere the operator did not ask for);
-//   - any other setpoint is clamped: horizontally onto the circle of max_distance_from_home_m around
-//     home, vertically into [min_height_m, max_height_m] (a manual key held at the fence stops there).
+//   - any other setpoint is clamped: horizontally onto the circle of max_distance_from_home_m
+//   around
+//     home, vertically into [min_height_m, max_height_m] (a manual key held at the fence stops
+//     there).
 // Home is the craft's x/y at take-off (ArduPilot's home is the arming position; ours needs a
 // tracked pose, which take-off has). Before take-off there is no home and nothing is flown.
 // Units: metres in the floor-aligned world frame (z = height above the floor). Not thread-safe:
@@ -55,7 +57,8 @@ class FlightEnvelope {
 
   /// The wanted position moved into the envelope; nullopt when it is not finite (refused).
   /// Without a home only the height limits apply.
-  std::optional<Contained> contain(const SetpointPosition& wanted, SetpointKind kind = SetpointKind::kHold) const;
+  std::optional<Contained> contain(const SetpointPosition& wanted,
+                                   SetpointKind kind = SetpointKind::kHold) const;
   /// Empty when a waypoint at (x_m, y_m) may be flown, else why not.
   std::string check_waypoint(double x_m, double y_m) const;
 

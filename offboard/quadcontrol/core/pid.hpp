@@ -15,12 +15,13 @@
 namespace rgbdquad::quadcontrol {
 
 /// Gains and limit of one axis. Units: error in the axis' unit (mm or deg), output in percent of
-/// stick deflection (see docs/control.md). Defaults are zero; Table 3.1 values live in ControlConfig.
+/// stick deflection (see docs/control.md). Defaults are zero; Table 3.1 values live in
+/// ControlConfig.
 struct PidGains {
   double kp = 0.0;
-  double ki = 0.0;                 ///< per second
-  double kd = 0.0;                 ///< seconds
-  double output_limit_pct = 0.0;   ///< |output| <= this
+  double ki = 0.0;                ///< per second
+  double kd = 0.0;                ///< seconds
+  double output_limit_pct = 0.0;  ///< |output| <= this
   /// Empty when valid, else the reason (gains finite and >= 0, limit finite and > 0).
   std::string validate() const;
 };

@@ -49,7 +49,8 @@ inline std::uint16_t centred_to_us(double pct, const PwmRange& r, double deadzon
 /// THR_DZ, where the stick around hover_pct commands zero climb), a throttle off hover_pct starts
 /// just outside it, so the climb rate the APM commands is proportional to the offset; 0 % and
 /// 100 % still map to min_us and max_us.
-inline std::uint16_t throttle_to_us(double pct, const PwmRange& r, double hover_pct = 50.0, double deadband_us = 0.0) {
+inline std::uint16_t throttle_to_us(double pct, const PwmRange& r, double hover_pct = 50.0,
+                                    double deadband_us = 0.0) {
   if (!std::isfinite(pct)) return r.min_us;
   const double p = std::clamp(pct, 0.0, 100.0);
   const double span = r.max_us - r.min_us;
@@ -59,29 +60,33 @@ inline std::uint16_t throttle_to_us(double pct, const PwmRange& r, double hover_
   const double hover_us = r.min_us + hover_pct / 100.0 * span;
   if (p > hover_pct) {
     const double room = std::max(0.0, r.max_us - hover_us - deadband_us);
-    return static_cast<std::uint16_t>(std::lround(hover_us + deadband_us + (p - hover_pct) / (100.0 - hover_pct) * room));
+    return static_cast<std::uint16_t>(
+        std::lround(hover_us + deadband_us + (p - hover_pct) / (100.0 - hover_pct) * room));
   }
   const double room = std::max(0.0, hover_us - r.min_us - deadband_us);
-  return static_cast<std::uint16_t>(std::lround(hover_us - deadband_us - (hover_pct - p) / hover_pct * room));
+  return static_cast<std::uint16_t>(
+      std::lround(hover_us - deadband_us - (hover_pct - p) / hover_pct * room));
 }
 
 /// How the APM reads the sticks (its parameters; 0 = no dead zone / band to step over).
 struct ApmStickInput {
-  double stick_deadzone_us = 0.0;      ///< RC1/2/4_DZ
-  double throttle_deadband_us = 0.0;   ///< AltHold's THR_DZ around hover_throttle_pct
+  double stick_deadzone_us = 0.0;     ///< RC1/2/4_DZ
+  double throttle_deadband_us = 0.0;  ///< AltHold's THR_DZ around hover_throttle_pct
   double hover_throttle_pct = 50.0;
 };
 
 /// Stick percent -> RC pulse widths in ArduCopter's conventions: roll + (right) -> RC1 above
-/// neutral; pitch + (forward, nose down) -> RC2 BELOW neutral (ArduCopter pitches nose up for a high
-/// RC2, as a mode-2 transmitter whose stick pushed forward lowers the pulse); yaw + (clockwise) ->
-/// RC4 above neutral; throttle 0..100 % -> RC3 min..max.
-inline PwmCommand to_pwm(const StickCommand& s, const PwmRanges& ranges, const ApmStickInput& apm = {}) {
+/// neutral; pitch + (forward, nose down) -> RC2 BELOW neutral (ArduCopter pitches nose up for a
+/// high RC2, as a mode-2 transmitter whose stick pushed forward lowers the pulse); yaw +
+/// (clockwise) -> RC4 above neutral; throttle 0..100 % -> RC3 min..max.
+inline PwmCommand to_pwm(const StickCommand& s, const PwmRanges& ranges,
+                         const ApmStickInput& apm = {}) {
   PwmCommand c;
   c.roll_us = centred_to_us(s.roll_pct, ranges.roll, apm.stick_deadzone_us);
   c.pitch_us = centred_to_us(-s.pitch_pct, ranges.pitch, apm.stick_deadzone_us);
   c.yaw_us = centred_to_us(s.yaw_pct, ranges.yaw, apm.stick_deadzone_us);
-  c.throttle_us = throttle_to_us(s.throttle_pct, ranges.throttle, apm.hover_throttle_pct, apm.throttle_deadband_us);
+  c.throttle_us = throttle_to_us(s.throttle_pct, ranges.throttle, apm.hover_throttle_pct,
+                                 apm.throttle_deadband_us);
   c.armed = s.armed;
   return c;
 }

@@ -26,7 +26,8 @@ class TimestampBuffer {
   }
 
   /// The sample nearest to t_us if within max_dt_us (ties: the earlier one).
-  std::optional<std::pair<std::int64_t, T>> nearest(std::int64_t t_us, std::int64_t max_dt_us) const {
+  std::optional<std::pair<std::int64_t, T>> nearest(std::int64_t t_us,
+                                                    std::int64_t max_dt_us) const {
     std::optional<std::pair<std::int64_t, T>> best;
     std::int64_t best_dt = 0;
     for (const auto& s : samples_) {

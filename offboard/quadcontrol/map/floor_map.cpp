@@ -8,7 +8,7 @@
 namespace rgbdquad::quadcontrol {
 
 namespace {
-constexpr int kMaxCellsPerSide = 4096;  // protocol limit max_map_dimension_cells
+constexpr int kMaxCellsPerSide = 4096;             // protocol limit max_map_dimension_cells
 constexpr std::int64_t kVoxelAxisRange = 1 << 20;  // +-2^19 voxels per axis fit the key
 
 void bump(std::uint8_t& c) {
@@ -42,8 +42,10 @@ void FloorMap::add_points(const std::vector<ColouredPoint>& points) {
     const int row = static_cast<int>(std::floor((y - origin_y_m()) / options_.resolution_m));
     if (col >= 0 && row >= 0 && col < cells_per_side_ && row < cells_per_side_) {
       const std::size_t idx = static_cast<std::size_t>(row) * cells_per_side_ + col;
-      if (std::abs(z) <= options_.floor_band_m) bump(floor_counts_[idx]);
-      else if (z >= options_.obstacle_min_height_m && z <= options_.obstacle_max_height_m) bump(obstacle_counts_[idx]);
+      if (std::abs(z) <= options_.floor_band_m)
+        bump(floor_counts_[idx]);
+      else if (z >= options_.obstacle_min_height_m && z <= options_.obstacle_max_height_m)
+        bump(obstacle_counts_[idx]);
     }
     if (cloud_.size() >= options_.max_cloud_points) continue;
     const auto vx = static_cast<std::int64_t>(std::floor(x / options_.voxel_m));
@@ -51,7 +53,8 @@ void FloorMap::add_points(const std::vector<ColouredPoint>& points) {
     const auto vz = static_cast<std::int64_t>(std::floor(z / options_.voxel_m));
     const std::int64_t half = kVoxelAxisRange / 2;
     if (std::abs(vx) >= half || std::abs(vy) >= half || std::abs(vz) >= half) continue;
-    const std::int64_t key = ((vx + half) * kVoxelAxisRange + (vy + half)) * kVoxelAxisRange + (vz + half);
+    const std::int64_t key =
+        ((vx + half) * kVoxelAxisRange + (vy + half)) * kVoxelAxisRange + (vz + half);
     if (voxels_.emplace(key, cloud_.size()).second) cloud_.push_back(pt);
   }
 }
@@ -65,7 +68,9 @@ std::vector<std::uint8_t> FloorMap::render_rgb() const {
       // Image row 0 is the top = largest y (north up).
       std::uint8_t* px = &img[(static_cast<std::size_t>(n - 1 - row) * n + col) * 3];
       if (obstacle_counts_[cell] > 0) {
-        px[0] = 170; px[1] = 40; px[2] = 40;
+        px[0] = 170;
+        px[1] = 40;
+        px[2] = 40;
       } else if (floor_counts_[cell] > 0) {
         const int v = std::min(250, 150 + 10 * floor_counts_[cell]);
         px[0] = px[1] = px[2] = static_cast<std::uint8_t>(v);
@@ -79,12 +84,14 @@ std::vector<std::uint8_t> FloorMap::render_rgb() const {
 
 std::string FloorMap::to_ply() const {
   std::ostringstream out;
-  out << "ply\nformat ascii 1.0\ncomment quad-control point-cloud map, floor-aligned world frame, metres\n"
-      << "element vertex " << cloud_.size() << "\nproperty float x\nproperty float y\nproperty float z\n"
+  out << "ply\nformat ascii 1.0\ncomment quad-control point-cloud map, floor-aligned world frame, "
+         "metres\n"
+      << "element vertex " << cloud_.size()
+      << "\nproperty float x\nproperty float y\nproperty float z\n"
       << "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n";
   for (const auto& p : cloud_) {
-    out << p.p_world.x() << ' ' << p.p_world.y() << ' ' << p.p_world.z() << ' ' << int(p.r) << ' ' << int(p.g)
-        << ' ' << int(p.b) << '\n';
+    out << p.p_world.x() << ' ' << p.p_world.y() << ' ' << p.p_world.z() << ' ' << int(p.r) << ' '
+        << int(p.g) << ' ' << int(p.b) << '\n';
   }
   return out.str();
 }

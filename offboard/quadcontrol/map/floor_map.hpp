@@ -4,27 +4,26 @@
 // Points arrive in the floor-aligned world frame (z = height above the floor). A point within
 // floor_band_m of z = 0 marks its cell as floor; a point between obstacle_min_height_m and
 // obstacle_max_height_m marks it as an obstacle. Counts saturate at 255 (the protocol's
-// POINT_COUNT_U8 cell format). The cloud keeps one coloured point per voxel, up to max_cloud_points.
-// Grid: cell (row, col) covers x in [origin_x + col*res, +res), y in [origin_y + row*res, +res).
-// Not thread-safe: the app guards the instance with a mutex.
+// POINT_COUNT_U8 cell format). The cloud keeps one coloured point per voxel, up to
+// max_cloud_points. Grid: cell (row, col) covers x in [origin_x + col*res, +res), y in [origin_y +
+// row*res, +res). Not thread-safe: the app guards the instance with a mutex.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <string>
 #include <unordered_map>
 #include <vector>
 
-#include <Eigen/Core>
-
 namespace rgbdquad::quadcontrol {
 
 struct FloorMapOptions {
-  double resolution_m = 0.05;        ///< 5 cm cells: finer than the craft's ~0.5 m span
-  double size_m = 10.0;              ///< 10 m x 10 m around the take-off point: a large room
-  double floor_band_m = 0.05;        ///< 2.5x the floor-plane RANSAC inlier distance
-  double obstacle_min_height_m = 0.15;  ///< above floor noise and carpet
-  double obstacle_max_height_m = 2.2;   ///< below a typical ceiling
-  double voxel_m = 0.03;             ///< cloud sub-sampling: one point per 3 cm voxel
+  double resolution_m = 0.05;             ///< 5 cm cells: finer than the craft's ~0.5 m span
+  double size_m = 10.0;                   ///< 10 m x 10 m around the take-off point: a large room
+  double floor_band_m = 0.05;             ///< 2.5x the floor-plane RANSAC inlier distance
+  double obstacle_min_height_m = 0.15;    ///< above floor noise and carpet
+  double obstacle_max_height_m = 2.2;     ///< below a typical ceiling
+  double voxel_m = 0.03;                  ///< cloud sub-sampling: one point per 3 cm voxel
   std::size_t max_cloud_points = 200000;  ///< ~5 MB of points: bounded memory for long flights
   std::string validate() const;
 };

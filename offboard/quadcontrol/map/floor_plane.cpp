@@ -1,10 +1,9 @@
 // RANSAC floor plane and floor-aligned frame: see floor_plane.hpp.
 #include "map/floor_plane.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <random>
-
-#include <Eigen/Eigenvalues>
 
 namespace rgbdquad::quadcontrol {
 
@@ -17,7 +16,8 @@ std::string FloorPlaneOptions::validate() const {
   if (iterations < 1) return "floor.iterations must be >= 1";
   if (!(inlier_distance_m > 0.0)) return "floor.inlier_distance_m must be > 0";
   if (!(max_tilt_deg > 0.0 && max_tilt_deg < 90.0)) return "floor.max_tilt_deg must be in (0, 90)";
-  if (!(min_inlier_fraction > 0.0 && min_inlier_fraction <= 1.0)) return "floor.min_inlier_fraction must be in (0, 1]";
+  if (!(min_inlier_fraction > 0.0 && min_inlier_fraction <= 1.0))
+    return "floor.min_inlier_fraction must be in (0, 1]";
   return {};
 }
 
@@ -65,7 +65,8 @@ std::optional<FloorPlane> fit_floor_plane(const std::vector<Eigen::Vector3d>& po
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   std::vector<Eigen::Vector3d> inl;
   for (const auto& p : points) {
-    if (std::abs(best->normal_cam.dot(p) + best->d_m) <= options.inlier_distance_m) inl.push_back(p);
+    if (std::abs(best->normal_cam.dot(p) + best->d_m) <= options.inlier_distance_m)
+      inl.push_back(p);
   }
   for (const auto& p : inl) centroid += p;
   centroid /= static_cast<double>(inl.size());
@@ -74,7 +75,8 @@ std::optional<FloorPlane> fit_floor_plane(const std::vector<Eigen::Vector3d>& po
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(cov);
   Eigen::Vector3d n = solver.eigenvectors().col(0).normalized();
   if (n.dot(up) < 0.0) n = -n;
-  FloorPlane plane{n, -n.dot(centroid), inl.size(), static_cast<double>(inl.size()) / points.size()};
+  FloorPlane plane{n, -n.dot(centroid), inl.size(),
+                   static_cast<double>(inl.size()) / points.size()};
   if (plane.inlier_fraction < options.min_inlier_fraction || plane.d_m <= 0.0) return std::nullopt;
   return plane;
 }

@@ -1,22 +1,21 @@
 // Floor detection and the floor-aligned world frame (thesis Section 3.3.3: at start-up the craft
 // is elevated with a clear view of the floor; the Kinect is mounted at an angle).
 //
-// fit_floor_plane(): RANSAC (seeded, deterministic) over 3D points in the camera frame, keeping only
-// planes whose normal is within max_tilt_deg of the expected "up" direction in the camera frame
-// (from the mount angle), so a wall is never taken for the floor. Among those, the plane farthest
-// below the camera wins ties of similar support (a table top is above the floor).
+// fit_floor_plane(): RANSAC (seeded, deterministic) over 3D points in the camera frame, keeping
+// only planes whose normal is within max_tilt_deg of the expected "up" direction in the camera
+// frame (from the mount angle), so a wall is never taken for the floor. Among those, the plane
+// farthest below the camera wins ties of similar support (a table top is above the floor).
 // floor_frame_from_plane(): T_floor_cam, mapping camera points to a world frame with z up (height
 // above the floor), origin under the camera, x along the optical axis projected on the floor.
 // Pure functions; thread-safe.
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 namespace rgbdquad::quadcontrol {
 

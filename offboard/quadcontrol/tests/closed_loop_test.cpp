@@ -38,7 +38,8 @@ struct Craft {
     p.y_m += vy * dt;
     p.z_m = std::max(0.0, p.z_m + vz * dt);
     if (p.z_m == 0.0 && vz < 0) vz = 0;
-    p.yaw_deg = wrap_deg(p.yaw_deg - s.yaw_pct / 100.0 * kYawRateMaxDegS * dt);  // + stick = clockwise
+    p.yaw_deg =
+        wrap_deg(p.yaw_deg - s.yaw_pct / 100.0 * kYawRateMaxDegS * dt);  // + stick = clockwise
   }
 };
 

@@ -1,13 +1,13 @@
 // Pose-driven command schedule (issue 13 item 2): GIVEN/WHEN/THEN with time passed in, driven by an
 // event simulation of the firmware link's timer (no clock, no threads).
+#include "core/command_scheduler.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <vector>
-
-#include "core/command_scheduler.hpp"
 
 namespace rgbdquad::quadcontrol {
 namespace {
@@ -22,14 +22,15 @@ struct SendLog {
 /// Feeds poses at their times and "sends" whenever the scheduler says a command is due, the way
 /// FirmwareLink's timer does, until end_us. A pose and a due keep-alive at the same instant: the
 /// pose is seen first (it rides on that command).
-SendLog simulate(CommandScheduler& s, const std::vector<std::int64_t>& poses_us, std::int64_t end_us,
-             std::int64_t start_us = 0) {
+SendLog simulate(CommandScheduler& s, const std::vector<std::int64_t>& poses_us,
+                 std::int64_t end_us, std::int64_t start_us = 0) {
   SendLog run;
   std::size_t i = 0;
   std::int64_t now = start_us;
   for (;;) {
     const std::int64_t next_send = s.next_send_us().value_or(now);
-    const std::int64_t next_pose = i < poses_us.size() ? poses_us[i] : std::numeric_limits<std::int64_t>::max();
+    const std::int64_t next_pose =
+        i < poses_us.size() ? poses_us[i] : std::numeric_limits<std::int64_t>::max();
     if (std::min(next_send, next_pose) > end_us) break;
     if (next_pose <= next_send) {
       now = next_pose;
@@ -56,7 +57,8 @@ TEST(CommandScheduler, GivenNoPosesThenKeepAlivesGoOutAtTheKeepAlivePeriod) {
   // WHEN 300 ms pass
   const SendLog run = simulate(s, {}, 300 * kMs);
   // THEN a command every 50 ms (the first at once): the 250 ms firmware failsafe never fires
-  const std::vector<std::int64_t> expected{0, 50 * kMs, 100 * kMs, 150 * kMs, 200 * kMs, 250 * kMs, 300 * kMs};
+  const std::vector<std::int64_t> expected{0,         50 * kMs,  100 * kMs, 150 * kMs,
+                                           200 * kMs, 250 * kMs, 300 * kMs};
   EXPECT_EQ(run.sent_us, expected);
   EXPECT_EQ(run.pose_driven, 0);
 }
@@ -79,7 +81,8 @@ TEST(CommandScheduler, GivenAPoseBurstThenCommandsAreRateLimitedAndTheBurstCoale
 }
 
 TEST(CommandScheduler, PoseTimingTable) {
-  // GIVEN a command sent at t = 0, WHEN one pose arrives at `pose_ms`, THEN its command goes at `sent_ms`.
+  // GIVEN a command sent at t = 0, WHEN one pose arrives at `pose_ms`, THEN its command goes at
+  // `sent_ms`.
   struct Row {
     const char* name;
     std::int64_t min_interval_ms, keep_alive_ms, pose_ms, sent_ms;
@@ -109,7 +112,8 @@ TEST(CommandScheduler, PoseTimingTable) {
 }
 
 TEST(CommandScheduler, GivenPosesAt30FpsThenEachIsSentOnArrivalAndNoKeepAliveIsNeeded) {
-  // GIVEN poses every 33.333 ms (a 30 fps camera, SLAM keeping up), starting 20 ms after a first command
+  // GIVEN poses every 33.333 ms (a 30 fps camera, SLAM keeping up), starting 20 ms after a first
+  // command
   CommandScheduler s;
   std::vector<std::int64_t> poses;
   for (int k = 0; k < 30; ++k) poses.push_back(20 * kMs + k * 33333);
@@ -127,8 +131,10 @@ TEST(CommandScheduler, GivenPosesThatStopThenKeepAlivesTakeOverAtThePeriod) {
   const std::vector<std::int64_t> poses{20 * kMs, 53 * kMs, 86 * kMs};
   // WHEN the link runs to 300 ms
   const SendLog run = simulate(s, poses, 300 * kMs);
-  // THEN after the last pose's command, keep-alives every 50 ms: the largest gap stays far below 250 ms
-  const std::vector<std::int64_t> expected{0, 20 * kMs, 53 * kMs, 86 * kMs, 136 * kMs, 186 * kMs, 236 * kMs, 286 * kMs};
+  // THEN after the last pose's command, keep-alives every 50 ms: the largest gap stays far below
+  // 250 ms
+  const std::vector<std::int64_t> expected{0,         20 * kMs,  53 * kMs,  86 * kMs,
+                                           136 * kMs, 186 * kMs, 236 * kMs, 286 * kMs};
   EXPECT_EQ(run.sent_us, expected);
   EXPECT_EQ(run.pose_driven, 3);
 }

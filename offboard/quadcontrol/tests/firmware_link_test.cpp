@@ -1,14 +1,16 @@
 // FirmwareLink with send_on_pose against a fake firmware (bridge) on loopback: the asio wiring of
 // CommandScheduler (notify_pose -> a pose-driven command; no poses -> keep-alives; a withheld
 // command uses its slot). The schedule's timing itself is tested with time passed in
-// (command_scheduler_test.cpp); here only counts are asserted, waited for up to a generous deadline.
+// (command_scheduler_test.cpp); here only counts are asserted, waited for up to a generous
+// deadline.
+#include "app/firmware_link.hpp"
+
 #include <arpa/inet.h>
+#include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
-
-#include <gtest/gtest.h>
 
 #include <atomic>
 #include <chrono>
@@ -17,8 +19,6 @@
 #include <string>
 #include <thread>
 #include <vector>
-
-#include "app/firmware_link.hpp"
 
 namespace rgbdquad::quadcontrol {
 namespace {
@@ -73,10 +73,11 @@ class FakeFirmware {
       const std::string line = req.substr(0, req.find("\r\n"));
       unsigned long seq = 0;
       if (auto i = line.find("seq="); i != std::string::npos) seq = std::stoul(line.substr(i + 4));
-      const std::string body = R"({"ver":)" + std::to_string(rgbd_control::kControlLinkVersion) +
-                               R"(,"err":"ok","fw":"0.1.0","state":"armed","seq":)" + std::to_string(seq) +
-                               R"(,"out_us":[1500,1500,1000,1500],"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,)"
-                               R"("imu_raw":[0,0,0,0,0,0],"imu_age_ms":null})";
+      const std::string body =
+          R"({"ver":)" + std::to_string(rgbd_control::kControlLinkVersion) +
+          R"(,"err":"ok","fw":"0.1.0","state":"armed","seq":)" + std::to_string(seq) +
+          R"(,"out_us":[1500,1500,1000,1500],"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,)"
+          R"("imu_raw":[0,0,0,0,0,0],"imu_age_ms":null})";
       const std::string resp = "HTTP/1.1 200 OK\r\nContent-Length: " + std::to_string(body.size()) +
                                "\r\nConnection: close\r\n\r\n" + body;
       (void)::send(c, resp.data(), resp.size(), MSG_NOSIGNAL);
@@ -138,7 +139,8 @@ TEST(FirmwareLinkOnPose, GivenAFreshPoseThenAPoseDrivenCommandIsSent) {
   // WHEN poses arrive
   for (int i = 0; i < 3; ++i) {
     f.link->notify_pose();
-    ASSERT_TRUE(wait_for([&] { return f.link->stats().pose_driven >= static_cast<std::uint64_t>(i + 1); }));
+    ASSERT_TRUE(
+        wait_for([&] { return f.link->stats().pose_driven >= static_cast<std::uint64_t>(i + 1); }));
   }
   // THEN each one went out as a signed PUT /control carrying the controller's command (the link
   // counts a send before the fake firmware's thread has recorded it: wait for the recording)
@@ -148,7 +150,8 @@ TEST(FirmwareLinkOnPose, GivenAFreshPoseThenAPoseDrivenCommandIsSent) {
     for (const auto& r : f.firmware.requests())
       puts += r.rfind("PUT /control?", 0) == 0 && r.find("&mac=") != std::string::npos;
     return puts >= 3;
-  })) << puts << " signed PUTs recorded";
+  })) << puts
+      << " signed PUTs recorded";
   const auto reqs = f.firmware.requests();
   ASSERT_FALSE(reqs.empty());
   EXPECT_EQ(reqs.front().rfind("GET ", 0), 0U);
@@ -158,7 +161,8 @@ TEST(FirmwareLinkOnPose, GivenAFreshPoseThenAPoseDrivenCommandIsSent) {
 TEST(FirmwareLinkOnPose, GivenNoPosesThenKeepAlivesAreSent) {
   // GIVEN a link and no poses at all, WHEN it runs, THEN keep-alives carry commands
   Fixture f(on_pose(20));
-  ASSERT_TRUE(wait_for([&] { return f.link->stats().keep_alives >= 5 && f.link->stats().ok >= 4; }));
+  ASSERT_TRUE(
+      wait_for([&] { return f.link->stats().keep_alives >= 5 && f.link->stats().ok >= 4; }));
   EXPECT_EQ(f.link->stats().pose_driven, 0U);
 }
 
@@ -172,7 +176,8 @@ TEST(FirmwareLinkOnPose, GivenAWithheldCommandThenNothingIsSentButTheScheduleGoe
   const auto sent = f.link->stats().sent;
   f.link->notify_pose();
   ASSERT_TRUE(wait_for([&] { return f.provided >= asked + 3; }));
-  EXPECT_LE(f.link->stats().sent, sent + 1);  // at most one already in flight when withholding began
+  EXPECT_LE(f.link->stats().sent,
+            sent + 1);  // at most one already in flight when withholding began
 }
 
 TEST(FirmwareLinkOnPose, OptionsAreValidated) {

@@ -1,6 +1,8 @@
 // The flight envelope as one contract (issue 17, finding 3): every path that writes a setpoint
 // (manual steps, waypoints, take-off, landing) with NaN, inf, huge and negative values.
 // Table-driven, GIVEN/WHEN/THEN, time passed in, seeded.
+#include "core/flight_envelope.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,7 +10,6 @@
 #include <random>
 
 #include "core/flight_controller.hpp"
-#include "core/flight_envelope.hpp"
 
 namespace rgbdquad::quadcontrol {
 namespace {
@@ -36,17 +37,31 @@ TEST(FlightEnvelope, ContainTable) {
       {"inside", {2, 2, 1.7}, SetpointKind::kHold, true, {2, 2, 1.7}, false},
       {"on the fence", {6, 1, 1.7}, SetpointKind::kHold, true, {6, 1, 1.7}, false},
       {"50 m east", {51, 1, 1.7}, SetpointKind::kHold, true, {6, 1, 1.7}, true},
-      {"50 m south-west", {1 - 30, 1 - 40, 1.7}, SetpointKind::kHold, true, {1 - 3, 1 - 4, 1.7}, true},
+      {"50 m south-west",
+       {1 - 30, 1 - 40, 1.7},
+       SetpointKind::kHold,
+       true,
+       {1 - 3, 1 - 4, 1.7},
+       true},
       {"huge x", {kHuge, 1, 1.7}, SetpointKind::kHold, true, {6, 1, 1.7}, true},
-      {"max x and y (hypot overflows)", {kMax, kMax, 1.7}, SetpointKind::kHold, true,
-       {1 + 5 / std::sqrt(2.0), 1 + 5 / std::sqrt(2.0), 1.7}, true},
+      {"max x and y (hypot overflows)",
+       {kMax, kMax, 1.7},
+       SetpointKind::kHold,
+       true,
+       {1 + 5 / std::sqrt(2.0), 1 + 5 / std::sqrt(2.0), 1.7},
+       true},
       {"huge negative x", {-kHuge, 1, 1.7}, SetpointKind::kHold, true, {-4, 1, 1.7}, true},
       {"101 m up", {1, 1, 101}, SetpointKind::kHold, true, {1, 1, 3}, true},
       {"huge height", {1, 1, kHuge}, SetpointKind::kHold, true, {1, 1, 3}, true},
       {"negative height", {1, 1, -5}, SetpointKind::kHold, true, {1, 1, 0.3}, true},
       {"take-off from the floor", {1, 1, 0.05}, SetpointKind::kTakeOff, true, {1, 1, 0.05}, false},
       {"take-off below the floor", {1, 1, -0.2}, SetpointKind::kTakeOff, true, {1, 1, 0}, true},
-      {"landing outside the fence stays", {30, 1, 1.0}, SetpointKind::kLanding, true, {30, 1, 1.0}, false},
+      {"landing outside the fence stays",
+       {30, 1, 1.0},
+       SetpointKind::kLanding,
+       true,
+       {30, 1, 1.0},
+       false},
       {"landing above the ceiling", {30, 1, 9.0}, SetpointKind::kLanding, true, {30, 1, 3.0}, true},
       {"NaN x", {kNaN, 1, 1.7}, SetpointKind::kHold, false, {}, false},
       {"inf y", {1, kInf, 1.7}, SetpointKind::kHold, false, {}, false},
@@ -77,10 +92,17 @@ TEST(FlightEnvelope, WaypointTable) {
     bool accepted;
   };
   const Row table[] = {
-      {"inside", 2, 0, true},       {"on the fence (3,4)", 3, 4, true}, {"negative inside", -3, -3, true},
-      {"just outside", 5.01, 0, false}, {"negative outside", -50, 0, false}, {"huge", kHuge, 0, false},
-      {"max both", kMax, kMax, false},  {"-huge", 0, -kHuge, false},      {"NaN", kNaN, 0, false},
-      {"inf", 0, kInf, false},          {"-inf", -kInf, 0, false},
+      {"inside", 2, 0, true},
+      {"on the fence (3,4)", 3, 4, true},
+      {"negative inside", -3, -3, true},
+      {"just outside", 5.01, 0, false},
+      {"negative outside", -50, 0, false},
+      {"huge", kHuge, 0, false},
+      {"max both", kMax, kMax, false},
+      {"-huge", 0, -kHuge, false},
+      {"NaN", kNaN, 0, false},
+      {"inf", 0, kInf, false},
+      {"-inf", -kInf, 0, false},
   };
   FlightEnvelope envelope(EnvelopeLimits{5.0, 0.3, 3.0});
   EXPECT_NE(envelope.check_waypoint(1.0, 0.0), "");  // GIVEN no home THEN nothing is flown
@@ -107,7 +129,8 @@ class EnvelopeFlight : public ::testing::Test {
   void to_hold() {
     step();
     ASSERT_EQ(fc.command(now_us, OperatorCommand::kArm), "");
-    const std::int64_t until = now_us + static_cast<std::int64_t>(fc.config().arm_gesture_ms) * kMsUs;
+    const std::int64_t until =
+        now_us + static_cast<std::int64_t>(fc.config().arm_gesture_ms) * kMsUs;
     while (now_us < until) step();
     ASSERT_EQ(fc.command(now_us, OperatorCommand::kTakeOff), "");
     for (int i = 0; i < 500 && fc.status().state == FlightState::kTakeOff; ++i) {
@@ -120,7 +143,8 @@ class EnvelopeFlight : public ::testing::Test {
   void expect_inside_envelope() const {
     const CraftPose& sp = fc.status().setpoint;
     const ControlConfig& c = fc.config();
-    ASSERT_TRUE(std::isfinite(sp.x_m) && std::isfinite(sp.y_m) && std::isfinite(sp.z_m) && std::isfinite(sp.yaw_deg));
+    ASSERT_TRUE(std::isfinite(sp.x_m) && std::isfinite(sp.y_m) && std::isfinite(sp.z_m) &&
+                std::isfinite(sp.yaw_deg));
     EXPECT_LE(std::hypot(sp.x_m, sp.y_m), c.max_distance_from_home_m + 1e-9);  // home = (0, 0) here
     EXPECT_LE(sp.z_m, c.max_height_m + 1e-9);
     EXPECT_GE(sp.z_m, 0.0);
@@ -261,10 +285,17 @@ TEST(EnvelopeConfig, TakeOffHeightAndLimitsValidated) {
       {"fence huge", [](ControlConfig& c) { c.max_distance_from_home_m = kHuge; }, false},
       {"fence 0", [](ControlConfig& c) { c.max_distance_from_home_m = 0.0; }, false},
       {"fence negative", [](ControlConfig& c) { c.max_distance_from_home_m = -5.0; }, false},
-      {"manual step limit below one key press", [](ControlConfig& c) { c.max_manual_step_m = 0.05; }, false},
+      {"manual step limit below one key press",
+       [](ControlConfig& c) { c.max_manual_step_m = 0.05; }, false},
       {"manual step limit inf", [](ControlConfig& c) { c.max_manual_step_m = kInf; }, false},
-      {"manual turn limit over 180", [](ControlConfig& c) { c.max_manual_yaw_step_deg = 360.0; }, false},
-      {"a 20 m room", [](ControlConfig& c) { c.max_distance_from_home_m = 20.0; c.max_height_m = 6.0; }, true},
+      {"manual turn limit over 180", [](ControlConfig& c) { c.max_manual_yaw_step_deg = 360.0; },
+       false},
+      {"a 20 m room",
+       [](ControlConfig& c) {
+         c.max_distance_from_home_m = 20.0;
+         c.max_height_m = 6.0;
+       },
+       true},
   };
   for (const auto& row : table) {
     SCOPED_TRACE(row.name);
@@ -317,14 +348,22 @@ TEST_F(EnvelopeFlight, RandomHostileOperatorNeverLeavesTheEnvelope) {
   // between control steps THEN after each one the setpoint is finite and inside the envelope
   to_hold();
   std::mt19937 rng(17);
-  const double values[] = {kNaN, kInf, -kInf, kHuge, -kHuge, kMax, -kMax, 50.0, -50.0, 6.0, -6.0,
-                           1.0, -1.0, 0.1, -0.1, 0.0, 3.0, -3.0, 90.0, -90.0};
-  auto pick = [&] { return values[std::uniform_int_distribution<std::size_t>(0, std::size(values) - 1)(rng)]; };
+  const double values[] = {kNaN, kInf, -kInf, kHuge, -kHuge, kMax, -kMax, 50.0, -50.0, 6.0,
+                           -6.0, 1.0,  -1.0,  0.1,   -0.1,   0.0,  3.0,   -3.0, 90.0,  -90.0};
+  auto pick = [&] {
+    return values[std::uniform_int_distribution<std::size_t>(0, std::size(values) - 1)(rng)];
+  };
   for (int i = 0; i < 3000; ++i) {
     switch (std::uniform_int_distribution<int>(0, 9)(rng)) {
-      case 0: fc.set_waypoint(now_us, pick(), pick()); break;
-      case 1: fc.command(now_us, OperatorCommand::kTakeOff); break;
-      default: fc.nudge(now_us, pick(), pick(), pick(), pick()); break;
+      case 0:
+        fc.set_waypoint(now_us, pick(), pick());
+        break;
+      case 1:
+        fc.command(now_us, OperatorCommand::kTakeOff);
+        break;
+      default:
+        fc.nudge(now_us, pick(), pick(), pick(), pick());
+        break;
     }
     // the ideal craft follows the setpoint, 5 cm per step
     const CraftPose& sp = fc.status().setpoint;
@@ -333,7 +372,8 @@ TEST_F(EnvelopeFlight, RandomHostileOperatorNeverLeavesTheEnvelope) {
     pose.z_m += std::clamp(sp.z_m - pose.z_m, -0.05, 0.05);
     step();
     ASSERT_NO_FATAL_FAILURE(expect_inside_envelope());
-    ASSERT_TRUE(fc.status().state == FlightState::kHold || fc.status().state == FlightState::kGoToWaypoint)
+    ASSERT_TRUE(fc.status().state == FlightState::kHold ||
+                fc.status().state == FlightState::kGoToWaypoint)
         << to_string(fc.status().state);
   }
 }

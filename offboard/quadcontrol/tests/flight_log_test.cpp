@@ -22,9 +22,10 @@ std::vector<std::string> lines_of(const std::filesystem::path& p) {
 
 class FlightLogTest : public ::testing::Test {
  protected:
-  std::filesystem::path dir_ = std::filesystem::temp_directory_path() /
-                               ("flight_log_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
-                                "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  std::filesystem::path dir_ =
+      std::filesystem::temp_directory_path() /
+      ("flight_log_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+       "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
   void TearDown() override { std::filesystem::remove_all(dir_); }
 };
 
@@ -38,7 +39,8 @@ TEST_F(FlightLogTest, RowsAreOnDiskAsSoonAsWritten) {
   T.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   log->pose(LoggedPose{7, 1000000, 1012000, 1030000, true, T, 90.0});
   log->pose(LoggedPose{8, 1033333, 1045000, 1060000, false});
-  log->command(LoggedCommand{42, 1070000, "hold", PwmCommand{1510, 1490, 1550, 1500, true}, 1000000, 1030000});
+  log->command(LoggedCommand{42, 1070000, "hold", PwmCommand{1510, 1490, 1550, 1500, true}, 1000000,
+                             1030000});
 
   // Checked while the log is still open: nothing waits for a buffer flush.
   const auto frames = lines_of(dir_ / "nested" / "frames.csv");

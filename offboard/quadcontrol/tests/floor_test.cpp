@@ -17,7 +17,8 @@ struct Scene {
   double height_m;
   double pitch_deg;
   Eigen::Isometry3d T_floor_cam() const {
-    // Camera axes in the floor frame: z_cam forward-down, x_cam = -y_floor (right), y_cam = down-ish.
+    // Camera axes in the floor frame: z_cam forward-down, x_cam = -y_floor (right), y_cam =
+    // down-ish.
     const double a = pitch_deg * kDegToRad;
     const Eigen::Vector3d z_cam(std::cos(a), 0.0, -std::sin(a));
     const Eigen::Vector3d x_cam(0.0, -1.0, 0.0);
@@ -37,9 +38,12 @@ std::vector<Eigen::Vector3d> make_points(const Scene& scene, int floor_n, int wa
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::normal_distribution<double> noise(0.0, 0.005);
   std::vector<Eigen::Vector3d> floor_pts;
-  for (int i = 0; i < floor_n; ++i) floor_pts.emplace_back(2.5 + 1.5 * u(rng), 1.5 * u(rng), noise(rng));
-  for (int i = 0; i < wall_n; ++i) floor_pts.emplace_back(4.0 + noise(rng), 1.5 * u(rng), 1.0 + u(rng));
-  for (int i = 0; i < table_n; ++i) floor_pts.emplace_back(2.0 + 0.4 * u(rng), 0.4 * u(rng), 0.75 + noise(rng));
+  for (int i = 0; i < floor_n; ++i)
+    floor_pts.emplace_back(2.5 + 1.5 * u(rng), 1.5 * u(rng), noise(rng));
+  for (int i = 0; i < wall_n; ++i)
+    floor_pts.emplace_back(4.0 + noise(rng), 1.5 * u(rng), 1.0 + u(rng));
+  for (int i = 0; i < table_n; ++i)
+    floor_pts.emplace_back(2.0 + 0.4 * u(rng), 0.4 * u(rng), 0.75 + noise(rng));
   const Eigen::Isometry3d T_cam_floor = scene.T_floor_cam().inverse();
   std::vector<Eigen::Vector3d> cam;
   for (const auto& p : floor_pts) cam.push_back(T_cam_floor * p);
@@ -55,7 +59,8 @@ TEST(FloorPlane, FindsFloorUnderWallAndTable) {
     const auto plane = fit_floor_plane(pts, expected_up_in_camera(scene.pitch_deg), opt);
     ASSERT_TRUE(plane.has_value());
     EXPECT_NEAR(plane->d_m, scene.height_m, 0.01);
-    const Eigen::Vector3d up_true = scene.T_floor_cam().linear().transpose() * Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d up_true =
+        scene.T_floor_cam().linear().transpose() * Eigen::Vector3d::UnitZ();
     EXPECT_GT(plane->normal_cam.dot(up_true), std::cos(1.0 * kDegToRad));
     // The floor frame puts the camera at its height and floor points at z = 0.
     const Eigen::Isometry3d T = floor_frame_from_plane(*plane);
@@ -71,7 +76,8 @@ TEST(FloorPlane, FindsFloorUnderWallAndTable) {
 TEST(FloorPlane, WallAloneIsNotAFloor) {
   const Scene scene{1.7, 30.0};
   const auto pts = make_points(scene, 0, 2000, 0, 3);
-  EXPECT_FALSE(fit_floor_plane(pts, expected_up_in_camera(scene.pitch_deg), FloorPlaneOptions{}).has_value());
+  EXPECT_FALSE(fit_floor_plane(pts, expected_up_in_camera(scene.pitch_deg), FloorPlaneOptions{})
+                   .has_value());
 }
 
 TEST(FloorPlane, DeterministicForASeed) {
@@ -101,11 +107,11 @@ TEST(FloorMap, ClassifiesCellsAndRendersNorthUp) {
   FloorMap map(opt);
   ASSERT_EQ(map.width_cells(), 4);
   std::vector<ColouredPoint> pts = {
-      {Eigen::Vector3f(-0.9f, -0.9f, 0.01f), 10, 20, 30},   // floor, cell (0,0)
-      {Eigen::Vector3f(0.6f, 0.6f, 1.0f), 200, 0, 0},       // obstacle, cell (3,3)
-      {Eigen::Vector3f(0.1f, 0.1f, 3.0f), 1, 1, 1},         // above obstacle band: cloud only
-      {Eigen::Vector3f(9.0f, 9.0f, 0.0f), 1, 1, 1},         // outside the grid: cloud only
-      {Eigen::Vector3f(NAN, 0.0f, 0.0f), 1, 1, 1},          // skipped
+      {Eigen::Vector3f(-0.9f, -0.9f, 0.01f), 10, 20, 30},  // floor, cell (0,0)
+      {Eigen::Vector3f(0.6f, 0.6f, 1.0f), 200, 0, 0},      // obstacle, cell (3,3)
+      {Eigen::Vector3f(0.1f, 0.1f, 3.0f), 1, 1, 1},        // above obstacle band: cloud only
+      {Eigen::Vector3f(9.0f, 9.0f, 0.0f), 1, 1, 1},        // outside the grid: cloud only
+      {Eigen::Vector3f(NAN, 0.0f, 0.0f), 1, 1, 1},         // skipped
   };
   map.add_points(pts);
   EXPECT_EQ(map.floor_counts()[0], 1);
@@ -126,7 +132,8 @@ TEST(FloorMap, ClassifiesCellsAndRendersNorthUp) {
 
 TEST(FloorMap, PlyHeaderMatchesVertexCount) {
   FloorMap map(FloorMapOptions{});
-  map.add_points({{Eigen::Vector3f(0.0f, 0.0f, 0.0f), 1, 2, 3}, {Eigen::Vector3f(1.0f, 0.0f, 0.0f), 4, 5, 6}});
+  map.add_points(
+      {{Eigen::Vector3f(0.0f, 0.0f, 0.0f), 1, 2, 3}, {Eigen::Vector3f(1.0f, 0.0f, 0.0f), 4, 5, 6}});
   const std::string ply = map.to_ply();
   EXPECT_EQ(ply.rfind("ply\nformat ascii 1.0\n", 0), 0u);
   EXPECT_NE(ply.find("element vertex 2\n"), std::string::npos);

@@ -7,6 +7,7 @@
 
 #include <arpa/inet.h>
 #include <dirent.h>
+#include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
@@ -14,8 +15,6 @@
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
-
-#include <gtest/gtest.h>
 
 #include <chrono>
 #include <cstdio>
@@ -52,18 +51,22 @@ int connect_loopback(std::uint16_t port) {
 /// Sends `request` and returns what arrives within `timeout_ms` (until the peer closes or the
 /// reply's headers and a little body are in).
 std::string exchange(int fd, const std::string& request, int timeout_ms) {
-  if (::send(fd, request.data(), request.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(request.size())) return {};
+  if (::send(fd, request.data(), request.size(), MSG_NOSIGNAL) !=
+      static_cast<ssize_t>(request.size()))
+    return {};
   std::string reply;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
   while (std::chrono::steady_clock::now() < deadline) {
     pollfd p{fd, POLLIN, 0};
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+        deadline - std::chrono::steady_clock::now());
     if (::poll(&p, 1, static_cast<int>(std::max<long>(1, left.count()))) <= 0) break;
     char buf[4096];
     const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
     if (n <= 0) break;
     reply.append(buf, static_cast<std::size_t>(n));
-    if (reply.find("\r\n\r\n") != std::string::npos && reply.find("ok\n") != std::string::npos) break;
+    if (reply.find("\r\n\r\n") != std::string::npos && reply.find("ok\n") != std::string::npos)
+      break;
   }
   return reply;
 }
@@ -136,22 +139,26 @@ TEST(HttpServer, AcceptLoopBacksOffAtTheDescriptorLimit) {
           clients.push_back(fd);
           std::this_thread::sleep_for(std::chrono::milliseconds(20));  // let the server accept it
         }
-        if (clients.size() < 4) return std::string("too few clients: ") + std::to_string(clients.size());
+        if (clients.size() < 4)
+          return std::string("too few clients: ") + std::to_string(clients.size());
         std::this_thread::sleep_for(std::chrono::milliseconds(200));
         const double cpu0 = cpu_seconds();
         std::this_thread::sleep_for(std::chrono::milliseconds(1500));
         const double cpu_s = cpu_seconds() - cpu0;
         const int waiting = clients.back();
         for (int i = 0; i < 4; ++i) ::close(clients[static_cast<std::size_t>(i)]);
-        const std::string reply = exchange(waiting, "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", 4000);
+        const std::string reply =
+            exchange(waiting, "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", 4000);
         const bool served = reply.rfind("HTTP/1.1 200", 0) == 0;
-        return "cpu_ms " + std::to_string(static_cast<int>(cpu_s * 1000)) + " served " + (served ? "1" : "0") +
-               " clients " + std::to_string(clients.size());
+        return "cpu_ms " + std::to_string(static_cast<int>(cpu_s * 1000)) + " served " +
+               (served ? "1" : "0") + " clients " + std::to_string(clients.size());
       },
       30);
   RecordProperty("child", result);
   int cpu_ms = -1, served = -1, clients = -1;
-  ASSERT_EQ(std::sscanf(result.c_str(), "cpu_ms %d served %d clients %d", &cpu_ms, &served, &clients), 3) << result;
+  ASSERT_EQ(
+      std::sscanf(result.c_str(), "cpu_ms %d served %d clients %d", &cpu_ms, &served, &clients), 3)
+      << result;
   std::printf("at the descriptor limit: %d ms of CPU in 1500 ms (%d clients)\n", cpu_ms, clients);
   EXPECT_LT(cpu_ms, 300) << "the accept loop spins at the descriptor limit";
   EXPECT_EQ(served, 1) << "not serving again once descriptors were free";
@@ -169,7 +176,8 @@ TEST(HttpServer, IdleConnectionsBeyondTheCapAreEvicted) {
   }
   const int fd = connect_loopback(server.port());
   ASSERT_GE(fd, 0);
-  EXPECT_EQ(exchange(fd, "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", 3000).rfind("HTTP/1.1 200", 0), 0u);
+  EXPECT_EQ(
+      exchange(fd, "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", 3000).rfind("HTTP/1.1 200", 0), 0u);
   // AND the first idle connections were closed by the server (EOF on read)
   pollfd p{idle.front(), POLLIN, 0};
   ASSERT_EQ(::poll(&p, 1, 2000), 1);
@@ -189,7 +197,8 @@ TEST(HttpServer, MalformedRequestsGetA4xxBeforeTheClose) {
       {"garbage", "\x01\x02garbage\r\n\r\n", "HTTP/1.1 400"},
       {"bad version", "GET / HTTP/9\r\n\r\n", "HTTP/1.1 400"},
       {"bad header", "GET / HTTP/1.1\r\nno colon here\r\n\r\n", "HTTP/1.1 400"},
-      {"body over 64 KiB", "POST /api/command HTTP/1.1\r\nHost: x\r\nContent-Length: 100000\r\n\r\n", "HTTP/1.1 413"},
+      {"body over 64 KiB",
+       "POST /api/command HTTP/1.1\r\nHost: x\r\nContent-Length: 100000\r\n\r\n", "HTTP/1.1 413"},
   };
   for (const auto& row : table) {
     SCOPED_TRACE(row.name);

@@ -1,4 +1,6 @@
 // Per-axis PID: table-driven GIVEN/WHEN/THEN tests with time passed in.
+#include "core/pid.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -6,7 +8,6 @@
 #include <nlohmann/json.hpp>
 
 #include "core/control_config.hpp"
-#include "core/pid.hpp"
 
 namespace rgbdquad::quadcontrol {
 namespace {
@@ -26,7 +27,11 @@ TEST(Pid, FirstStepIsProportionalOnlyAndClamped) {
       {"roll saturates high", {0.015, 0.0, 0.01, 20.0}, 5000.0, 0.0, 20.0},
       {"roll saturates low", {0.015, 0.0, 0.01, 20.0}, -5000.0, 0.0, -20.0},
       {"yaw 90 deg", {0.06, 0.0, 0.02, 30.0}, 90.0, 0.0, 5.4},
-      {"throttle 200 mm, no integral on first step", {0.025, 0.013, 0.02, 30.0}, 1700.0, 1500.0, 5.0},
+      {"throttle 200 mm, no integral on first step",
+       {0.025, 0.013, 0.02, 30.0},
+       1700.0,
+       1500.0,
+       5.0},
   };
   for (const auto& row : table) {
     SCOPED_TRACE(row.name);
@@ -38,7 +43,8 @@ TEST(Pid, FirstStepIsProportionalOnlyAndClamped) {
 }
 
 TEST(Pid, RejectsNonFiniteInputAndKeepsState) {
-  const double bad[] = {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(),
+  const double bad[] = {std::numeric_limits<double>::quiet_NaN(),
+                        std::numeric_limits<double>::infinity(),
                         -std::numeric_limits<double>::infinity()};
   for (double b : bad) {
     Pid pid({0.025, 0.013, 0.02, 30.0});
@@ -96,7 +102,8 @@ TEST(Pid, GivenAMeasuredRateThenTheDerivativeUsesItInsteadOfDifferences) {
     EXPECT_NEAR(*out, r.expected, 1e-9) << r.name;
   }
   Pid pid({0.03, 0.0, 0.03, 20.0});
-  EXPECT_FALSE(pid.update(0, 0.0, 1.0, std::numeric_limits<double>::quiet_NaN()));  // non-finite rate refused
+  EXPECT_FALSE(pid.update(0, 0.0, 1.0,
+                          std::numeric_limits<double>::quiet_NaN()));  // non-finite rate refused
 }
 
 TEST(Pid, IntegratesOverTime) {
@@ -126,7 +133,8 @@ TEST(Pid, AntiWindupOnlyWhileSaturated) {
   ASSERT_TRUE(neg.update(t, 0.0, 0.0));
   for (int i = 0; i < 50; ++i) ASSERT_TRUE(neg.update(t += kStepUs, 100.0, 0.0));  // integral +1.3
   const double before = neg.integral();
-  ASSERT_TRUE(neg.update(t += kStepUs, -2000.0, 0.0));  // output saturated low, error negative: frozen
+  ASSERT_TRUE(
+      neg.update(t += kStepUs, -2000.0, 0.0));  // output saturated low, error negative: frozen
   EXPECT_DOUBLE_EQ(neg.integral(), before);
 }
 

@@ -5,25 +5,24 @@
 // Deadlines are generous (a shared machine); the client's own timeout is short (300 ms).
 // Also a characterisation of the first design's bug (issue 17): SO_RCVTIMEO does not bound asio's
 // synchronous read_some.
+#include "app/slam_server_client.hpp"
+
 #include <arpa/inet.h>
+#include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 #include <unistd.h>
 
-#include <gtest/gtest.h>
-#include <sys/time.h>
-
+#include <atomic>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
-
-#include <atomic>
 #include <chrono>
 #include <functional>
 #include <mutex>
 #include <thread>
 #include <vector>
 
-#include "app/slam_server_client.hpp"
 #include "rgbdquad/protocol/codec.hpp"
 
 namespace rgbdquad::quadcontrol {
@@ -33,7 +32,14 @@ namespace proto = rgbdquad::protocol;
 using namespace std::chrono_literals;
 constexpr auto kTestDeadline = 20s;
 
-enum class Behaviour { kAnswer, kSilentAfterHello, kDripReply, kStopMidReply, kCloseAfterFirstFrame, kRefuse };
+enum class Behaviour {
+  kAnswer,
+  kSilentAfterHello,
+  kDripReply,
+  kStopMidReply,
+  kCloseAfterFirstFrame,
+  kRefuse
+};
 
 // One-thread fake slam-server: accepts connections one after the other and plays `behaviour`.
 class FakeServer {
@@ -121,7 +127,8 @@ class FakeServer {
         proto::PoseUpdate u;
         u.pair_sequence = f->pair_sequence;
         u.tracking_state = proto::TrackingState::kTracking;
-        u.map_correction_count = static_cast<std::uint32_t>(frames / 2);  // a correction every 2nd frame
+        u.map_correction_count =
+            static_cast<std::uint32_t>(frames / 2);  // a correction every 2nd frame
         const auto e = proto::encode(u);
         switch (behaviour_) {
           case Behaviour::kSilentAfterHello:
@@ -206,16 +213,20 @@ struct TimeoutCase {
 
 class ReplyTimeout : public ::testing::TestWithParam<TimeoutCase> {};
 
-TEST_P(ReplyTimeout, GivenAPeerThatNeverCompletesAReplyWhenAFrameIsSentThenTheTimeoutFiresAndTheLinkReconnects) {
+TEST_P(ReplyTimeout,
+       GivenAPeerThatNeverCompletesAReplyWhenAFrameIsSentThenTheTimeoutFiresAndTheLinkReconnects) {
   FakeServer server(GetParam().behaviour);
   Harness h(server.port());
   // THEN the 300 ms reply timeout fires (the disconnect is counted, with its cause) and the client
   // connects again.
-  ASSERT_TRUE(h.feed_until([&] { return h.client->link_status().disconnects >= 1 && server.connections() >= 2; }))
-      << "disconnects " << h.client->link_status().disconnects << ", connections " << server.connections()
+  ASSERT_TRUE(h.feed_until([&] {
+    return h.client->link_status().disconnects >= 1 && server.connections() >= 2;
+  })) << "disconnects "
+      << h.client->link_status().disconnects << ", connections " << server.connections()
       << ", last error: " << h.client->stats().last_error;
   const SlamLinkStatus st = h.client->link_status();
-  EXPECT_NE(st.last_disconnect.find("no PoseUpdate for frame"), std::string::npos) << st.last_disconnect;
+  EXPECT_NE(st.last_disconnect.find("no PoseUpdate for frame"), std::string::npos)
+      << st.last_disconnect;
   EXPECT_NE(st.last_disconnect.find("within 300 ms"), std::string::npos) << st.last_disconnect;
   EXPECT_TRUE(h.copy().empty());
 }
@@ -223,7 +234,8 @@ TEST_P(ReplyTimeout, GivenAPeerThatNeverCompletesAReplyWhenAFrameIsSentThenTheTi
 INSTANTIATE_TEST_SUITE_P(SlamServerClient, ReplyTimeout,
                          ::testing::Values(TimeoutCase{"silent", Behaviour::kSilentAfterHello},
                                            TimeoutCase{"dripping", Behaviour::kDripReply},
-                                           TimeoutCase{"stops_mid_message", Behaviour::kStopMidReply}),
+                                           TimeoutCase{"stops_mid_message",
+                                                       Behaviour::kStopMidReply}),
                          [](const auto& info) { return std::string(info.param.name); });
 
 TEST(SlamServerClient, GivenALinkThatBreaksWhenTheClientReconnectsThenItResumesTheSameSession) {
@@ -234,8 +246,10 @@ TEST(SlamServerClient, GivenALinkThatBreaksWhenTheClientReconnectsThenItResumesT
   EXPECT_EQ(st.sessions_started, 1u);
   EXPECT_EQ(st.resumes, 1u);
   EXPECT_EQ(st.disconnects, 1u);
-  EXPECT_NE(st.last_disconnect.find("closed the connection (end of file)"), std::string::npos) << st.last_disconnect;
-  for (const SlamResult& r : h.copy()) EXPECT_EQ(r.session, 1u);  // same world frame: no re-anchoring
+  EXPECT_NE(st.last_disconnect.find("closed the connection (end of file)"), std::string::npos)
+      << st.last_disconnect;
+  for (const SlamResult& r : h.copy())
+    EXPECT_EQ(r.session, 1u);  // same world frame: no re-anchoring
   const auto ids = server.session_ids();
   ASSERT_GE(ids.size(), 2u);
   EXPECT_NE(ids[0], 0u);
@@ -245,8 +259,9 @@ TEST(SlamServerClient, GivenALinkThatBreaksWhenTheClientReconnectsThenItResumesT
 TEST(SlamServerClient, GivenAServerThatRefusesWhenConnectingThenTheReasonIsReported) {
   FakeServer server(Behaviour::kRefuse);
   Harness h(server.port());
-  ASSERT_TRUE(h.feed_until([&] { return h.client->stats().last_error.find("fake busy") != std::string::npos; }))
-      << h.client->stats().last_error;
+  ASSERT_TRUE(h.feed_until([&] {
+    return h.client->stats().last_error.find("fake busy") != std::string::npos;
+  })) << h.client->stats().last_error;
   EXPECT_NE(h.client->stats().last_error.find("refused"), std::string::npos);
 }
 

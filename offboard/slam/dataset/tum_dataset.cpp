@@ -85,8 +85,9 @@ std::optional<TumDataset> TumDataset::open(const std::string& folder, const TumD
                    (fs::path(folder) / best->second).string()});
   }
   if (all.empty()) {
-    if (error) *error = "dataset: no colour frame has a depth frame within " +
-                        std::to_string(o.max_dt_s * 1000) + " ms";
+    if (error)
+      *error = "dataset: no colour frame has a depth frame within " +
+               std::to_string(o.max_dt_s * 1000) + " ms";
     return std::nullopt;
   }
   for (std::size_t i = 0; i < all.size(); i += static_cast<std::size_t>(o.rate_divisor)) {

@@ -17,7 +17,7 @@ namespace slam {
 
 struct TumEntry {
   double rgb_stamp_s = 0;
-  std::string rgb_path;    ///< absolute or relative to the working directory
+  std::string rgb_path;  ///< absolute or relative to the working directory
   double depth_stamp_s = 0;
   std::string depth_path;
 };

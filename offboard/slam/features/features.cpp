@@ -30,24 +30,39 @@ double depth_slope_m_per_px(const cv::Mat& depth, int u, int v, double units_per
 }
 
 bool parse_detector_kind(const std::string& name, DetectorKind* out, std::string* error) {
-  if (name == "sift") { *out = DetectorKind::kSift; return true; }
-  if (name == "surf") { *out = DetectorKind::kSurf; return true; }
-  if (name == "orb") { *out = DetectorKind::kOrb; return true; }
+  if (name == "sift") {
+    *out = DetectorKind::kSift;
+    return true;
+  }
+  if (name == "surf") {
+    *out = DetectorKind::kSurf;
+    return true;
+  }
+  if (name == "orb") {
+    *out = DetectorKind::kOrb;
+    return true;
+  }
   if (error) *error = "unknown feature detector '" + name + "' (expected sift, surf or orb)";
   return false;
 }
 
 const char* to_string(DetectorKind kind) {
   switch (kind) {
-    case DetectorKind::kSift: return "sift";
-    case DetectorKind::kSurf: return "surf";
-    case DetectorKind::kOrb: return "orb";
+    case DetectorKind::kSift:
+      return "sift";
+    case DetectorKind::kSurf:
+      return "surf";
+    case DetectorKind::kOrb:
+      return "orb";
   }
   return "?";
 }
 
 bool FeatureOptions::is_valid(std::string* error) const {
-  auto fail = [&](const char* msg) { if (error) *error = msg; return false; };
+  auto fail = [&](const char* msg) {
+    if (error) *error = msg;
+    return false;
+  };
   if (sift_scales_per_octave < 1 || !(sift_contrast_threshold > 0) || !(sift_edge_threshold > 0) ||
       !(sift_sigma > 0) || sift_max_features < 0)
     return fail("features: SIFT parameters must be positive");
@@ -88,8 +103,9 @@ std::optional<FeatureExtractor> FeatureExtractor::create(const FeatureOptions& o
       det = create_surf(so);
 #else
       if (error)
-        *error = "features: SURF is not available in this build (the slam_surf library in "
-                 "offboard/surf is missing); use sift or orb";
+        *error =
+            "features: SURF is not available in this build (the slam_surf library in "
+            "offboard/surf is missing); use sift or orb";
       return std::nullopt;
 #endif
       break;
@@ -108,7 +124,8 @@ std::optional<FrameFeatures> FeatureExtractor::extract(const RgbdFrame& frame,
     if (error) *error = "features: empty colour or depth image";
     return std::nullopt;
   }
-  if (frame.depth.type() != CV_16UC1 || (frame.rgb.type() != CV_8UC3 && frame.rgb.type() != CV_8UC1)) {
+  if (frame.depth.type() != CV_16UC1 ||
+      (frame.rgb.type() != CV_8UC3 && frame.rgb.type() != CV_8UC1)) {
     if (error) *error = "features: expected 8-bit colour and 16-bit depth images";
     return std::nullopt;
   }
@@ -117,8 +134,10 @@ std::optional<FrameFeatures> FeatureExtractor::extract(const RgbdFrame& frame,
     return std::nullopt;
   }
   cv::Mat grey;
-  if (frame.rgb.channels() == 3) cv::cvtColor(frame.rgb, grey, cv::COLOR_BGR2GRAY);
-  else grey = frame.rgb;
+  if (frame.rgb.channels() == 3)
+    cv::cvtColor(frame.rgb, grey, cv::COLOR_BGR2GRAY);
+  else
+    grey = frame.rgb;
 
   std::vector<cv::KeyPoint> kps;
   cv::Mat desc;
@@ -165,13 +184,15 @@ std::optional<FrameFeatures> FeatureExtractor::extract(const RgbdFrame& frame,
     keep.push_back(static_cast<int>(i));
     out.keypoints.push_back(kps[i]);
     out.points_cam_m.push_back(back_project(intrinsics_, undist[i].x, undist[i].y, z));
-    out.colours_bgr.push_back(frame.rgb.channels() == 3 ? frame.rgb.at<cv::Vec3b>(v, u)
-                                                        : cv::Vec3b::all(grey.at<std::uint8_t>(v, u)));
+    out.colours_bgr.push_back(frame.rgb.channels() == 3
+                                  ? frame.rgb.at<cv::Vec3b>(v, u)
+                                  : cv::Vec3b::all(grey.at<std::uint8_t>(v, u)));
     out.depth_slope_m_per_px.push_back(
         static_cast<float>(depth_slope_m_per_px(frame.depth, u, v, intrinsics_.depth_units_per_m)));
   }
   out.descriptors.create(static_cast<int>(keep.size()), desc.cols, desc.type());
-  for (std::size_t r = 0; r < keep.size(); ++r) desc.row(keep[r]).copyTo(out.descriptors.row(static_cast<int>(r)));
+  for (std::size_t r = 0; r < keep.size(); ++r)
+    desc.row(keep[r]).copyTo(out.descriptors.row(static_cast<int>(r)));
   return out;
 }
 

@@ -16,10 +16,10 @@ enum class KeyframePolicy { kFixedRate, kRansac };
 
 struct KeyframeOptions {
   KeyframePolicy policy = KeyframePolicy::kRansac;
-  double fixed_rate_hz = 3.0;           ///< thesis: 3 keyframes per second
-  double min_match_fraction = 0.15;     ///< thesis Table 4.4
-  double min_inlier_fraction = 0.45;    ///< thesis Table 4.4
-  int recent_keyframes = 3;             ///< thesis: compare with the 3 most recent keyframes
+  double fixed_rate_hz = 3.0;         ///< thesis: 3 keyframes per second
+  double min_match_fraction = 0.15;   ///< thesis Table 4.4
+  double min_inlier_fraction = 0.45;  ///< thesis Table 4.4
+  int recent_keyframes = 3;           ///< thesis: compare with the 3 most recent keyframes
   bool is_valid(std::string* error) const;
 };
 
@@ -33,7 +33,8 @@ struct KeyframeEvidence {
 
 /// Decides whether the current frame becomes a keyframe.
 /// `since_last_keyframe_s`: time since the latest keyframe, nullopt when there is none yet.
-bool decide_new_keyframe(const KeyframeOptions& options, std::optional<double> since_last_keyframe_s,
+bool decide_new_keyframe(const KeyframeOptions& options,
+                         std::optional<double> since_last_keyframe_s,
                          const std::optional<KeyframeEvidence>& best_recent);
 
 }  // namespace slam

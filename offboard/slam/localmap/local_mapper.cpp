@@ -18,7 +18,8 @@ namespace {
 /// Whitened RGB-D reprojection residual of one observation. Pose block: angle-axis (3) and
 /// translation (3) of T_cam_world; point block: world position (3).
 struct RgbdReprojectionCost {
-  RgbdReprojectionCost(const Eigen::Vector3d& measurement, const Eigen::Vector3d& sigma_px, const CameraModel& cam)
+  RgbdReprojectionCost(const Eigen::Vector3d& measurement, const Eigen::Vector3d& sigma_px,
+                       const CameraModel& cam)
       : z_(measurement), inv_sigma_(sigma_px.cwiseInverse()), cam_(cam) {}
   template <typename T>
   bool operator()(const T* pose, const T* point, T* residual) const {
@@ -55,18 +56,20 @@ Eigen::Isometry3d from_block(const std::array<double, 6>& b) {
   return T;
 }
 
-double chi2_of(const MapKeyframe& kf, int kp, const Eigen::Vector3d& p_world, const CameraModel& cam) {
+double chi2_of(const MapKeyframe& kf, int kp, const Eigen::Vector3d& p_world,
+               const CameraModel& cam) {
   const Eigen::Vector3d pc = kf.T_world_cam.inverse() * p_world;
   if (pc.z() <= 1e-3) return 1e9;
   const auto k = static_cast<std::size_t>(kp);
-  const Eigen::Vector3d e = (cam.project(pc) - kf.features.measurement(k, cam)).cwiseQuotient(kf.features.sigma(k));
+  const Eigen::Vector3d e =
+      (cam.project(pc) - kf.features.measurement(k, cam)).cwiseQuotient(kf.features.sigma(k));
   return e.squaredNorm();
 }
 
 }  // namespace
 
-FuseCounts fuse_into_keyframe(SlamMap& map, const CameraModel& camera, double radius_px, std::int64_t target,
-                              const std::vector<std::int64_t>& pids) {
+FuseCounts fuse_into_keyframe(SlamMap& map, const CameraModel& camera, double radius_px,
+                              std::int64_t target, const std::vector<std::int64_t>& pids) {
   FuseCounts counts;
   const MapKeyframe* kf = map.keyframe(target);
   if (!kf) return counts;
@@ -86,7 +89,8 @@ FuseCounts fuse_into_keyframe(SlamMap& map, const CameraModel& camera, double ra
     int best_k = -1;
     for (int k : cand) {
       const auto ks = static_cast<std::size_t>(k);
-      const Eigen::Vector3d e = (uvd - kf->features.measurement(ks, camera)).cwiseQuotient(kf->features.sigma(ks));
+      const Eigen::Vector3d e =
+          (uvd - kf->features.measurement(ks, camera)).cwiseQuotient(kf->features.sigma(ks));
       if (e.head<2>().norm() > radius_px || e.squaredNorm() > kChi2Rgbd95) continue;
       const double d = descriptor_distance(p->descriptor, desc.row(k));
       if (d < best) {
@@ -105,8 +109,10 @@ FuseCounts fuse_into_keyframe(SlamMap& map, const CameraModel& camera, double ra
       // Keep the point with more observations (ties: the older one).
       const bool keep_q = q->observations.size() > p->observations.size() ||
                           (q->observations.size() == p->observations.size() && there < pid);
-      if (keep_q) map.replace_point(pid, there);
-      else map.replace_point(there, pid);
+      if (keep_q)
+        map.replace_point(pid, there);
+      else
+        map.replace_point(there, pid);
       ++counts.merged;
     } else if (there < 0) {
       map.add_observation(pid, target, best_k);
@@ -123,16 +129,20 @@ bool LocalMapperOptions::is_valid(std::string* error) const {
     if (error) *error = std::string("local mapper: ") + m;
     return false;
   };
-  if (!(min_found_ratio >= 0 && min_found_ratio < 1)) return fail("min_found_ratio must be in [0, 1)");
-  if (cull_after_keyframes < 1 || min_observing_keyframes < 1) return fail("culling counts must be >= 1");
+  if (!(min_found_ratio >= 0 && min_found_ratio < 1))
+    return fail("min_found_ratio must be in [0, 1)");
+  if (cull_after_keyframes < 1 || min_observing_keyframes < 1)
+    return fail("culling counts must be >= 1");
   if (fuse_neighbours < 0 || !(fuse_radius_px > 0)) return fail("fuse settings must be positive");
-  if (ba_window < 2 || ba_max_fixed < 0 || ba_iterations < 1) return fail("BA window >= 2, iterations >= 1");
+  if (ba_window < 2 || ba_max_fixed < 0 || ba_iterations < 1)
+    return fail("BA window >= 2, iterations >= 1");
   if (!(redundant_fraction > 0 && redundant_fraction <= 1) || redundant_observers < 1)
     return fail("redundancy settings out of range");
   return true;
 }
 
-std::optional<LocalMapper> LocalMapper::create(const LocalMapperOptions& options, const CameraModel& camera,
+std::optional<LocalMapper> LocalMapper::create(const LocalMapperOptions& options,
+                                               const CameraModel& camera,
                                                std::shared_ptr<SharedMap> map, std::string* error) {
   if (!options.is_valid(error)) return std::nullopt;
   if (!map) {
@@ -169,15 +179,16 @@ int LocalMapper::cull_points(std::int64_t kf_id) {
   const MapKeyframe* kf = map.keyframe(kf_id);
   for (std::int64_t pid : kf->point_ids)
     if (pid >= 0)
-      if (const MapPoint* p = map.point(pid); p && p->first_keyframe == kf_id) recent_points_.push_back(pid);
+      if (const MapPoint* p = map.point(pid); p && p->first_keyframe == kf_id)
+        recent_points_.push_back(pid);
   int culled = 0;
   std::vector<std::int64_t> keep;
   for (std::int64_t pid : recent_points_) {
     MapPoint* p = map.point(pid);
     if (!p) continue;
     const std::int64_t age = serial_now - p->first_keyframe_serial;
-    const bool rarely_found = p->visible >= 1 &&
-                              static_cast<double>(p->found) < options_.min_found_ratio * p->visible;
+    const bool rarely_found =
+        p->visible >= 1 && static_cast<double>(p->found) < options_.min_found_ratio * p->visible;
     if (rarely_found ||
         (age >= options_.cull_after_keyframes &&
          static_cast<int>(p->observations.size()) < options_.min_observing_keyframes)) {
@@ -201,7 +212,8 @@ void LocalMapper::fuse(std::int64_t kf_id, MapperStats* stats) {
   auto own_points = [&]() {
     std::vector<std::int64_t> v;
     if (const MapKeyframe* kf = map.keyframe(kf_id))
-      for (std::int64_t pid : kf->point_ids) if (pid >= 0) v.push_back(pid);
+      for (std::int64_t pid : kf->point_ids)
+        if (pid >= 0) v.push_back(pid);
     return v;
   };
   auto fuse_into = [&](std::int64_t target, const std::vector<std::int64_t>& pids) {
@@ -286,7 +298,8 @@ void LocalMapper::bundle_adjust(std::int64_t kf_id, MapperStats* stats) {
     problem.AddResidualBlock(cost, &huber, poses[o.kf].data(), points[o.pid].data());
   }
   for (std::int64_t k : fixed)
-    if (problem.HasParameterBlock(poses[k].data())) problem.SetParameterBlockConstant(poses[k].data());
+    if (problem.HasParameterBlock(poses[k].data()))
+      problem.SetParameterBlockConstant(poses[k].data());
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::SPARSE_SCHUR;
   so.max_num_iterations = options_.ba_iterations;
@@ -357,7 +370,10 @@ int LocalMapper::cull_keyframes(std::int64_t kf_id) {
     const auto cov = map.covisible(n, 1);
     std::int64_t parent = -1;
     for (const auto& [c, s] : cov)
-      if (c != n) { parent = c; break; }
+      if (c != n) {
+        parent = c;
+        break;
+      }
     if (parent < 0) continue;
     map.cull_keyframe(n, parent);
     ++culled;

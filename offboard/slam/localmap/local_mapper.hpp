@@ -27,18 +27,19 @@
 namespace slam {
 
 struct LocalMapperOptions {
-  double min_found_ratio = 0.25;      ///< ORB-SLAM2 MapPointCulling
-  int cull_after_keyframes = 2;       ///< ORB-SLAM2: judged 2 keyframes after creation...
-  int min_observing_keyframes = 2;    ///< ...must be seen by 2 keyframes (3 "observations", stereo counts 2)
-  int fuse_neighbours = 10;           ///< ORB-SLAM2 SearchInNeighbors (monocular 20 -> we keep it bounded)
-  double fuse_radius_px = 3.0;        ///< ORB-SLAM2 Fuse th = 3 (times the keypoint sigma)
-  int ba_window = 10;                 ///< keyframes optimised per run
-  int ba_max_fixed = 20;              ///< fixed keyframes that anchor the window
-  int ba_iterations = 10;             ///< ORB-SLAM2: 5 robust + 10 refinement; we do one robust pass
-  int covisibility_min_shared = 15;   ///< ORB-SLAM2's threshold for a covisibility edge
-  double redundant_fraction = 0.9;    ///< ORB-SLAM2 KeyFrameCulling
+  double min_found_ratio = 0.25;  ///< ORB-SLAM2 MapPointCulling
+  int cull_after_keyframes = 2;   ///< ORB-SLAM2: judged 2 keyframes after creation...
+  int min_observing_keyframes =
+      2;                     ///< ...must be seen by 2 keyframes (3 "observations", stereo counts 2)
+  int fuse_neighbours = 10;  ///< ORB-SLAM2 SearchInNeighbors (monocular 20 -> we keep it bounded)
+  double fuse_radius_px = 3.0;       ///< ORB-SLAM2 Fuse th = 3 (times the keypoint sigma)
+  int ba_window = 10;                ///< keyframes optimised per run
+  int ba_max_fixed = 20;             ///< fixed keyframes that anchor the window
+  int ba_iterations = 10;            ///< ORB-SLAM2: 5 robust + 10 refinement; we do one robust pass
+  int covisibility_min_shared = 15;  ///< ORB-SLAM2's threshold for a covisibility edge
+  double redundant_fraction = 0.9;   ///< ORB-SLAM2 KeyFrameCulling
   int redundant_observers = 3;
-  double near_depth_m = 3.1;          ///< as TrackerOptions::near_depth_m
+  double near_depth_m = 3.1;  ///< as TrackerOptions::near_depth_m
   bool bundle_adjustment = true;
   bool is_valid(std::string* error) const;
 };
@@ -59,12 +60,13 @@ struct FuseCounts {
 /// `radius_px` x its sigma (and the RGB-D chi-square gate) whose descriptor passes the fusion gate:
 /// a keypoint seeing another point merges the two (the one with more observations stays), a free
 /// keypoint gains the observation. Call with the map locked. Shared by mapping and loop closing.
-FuseCounts fuse_into_keyframe(SlamMap& map, const CameraModel& camera, double radius_px, std::int64_t target,
-                              const std::vector<std::int64_t>& pids);
+FuseCounts fuse_into_keyframe(SlamMap& map, const CameraModel& camera, double radius_px,
+                              std::int64_t target, const std::vector<std::int64_t>& pids);
 
 class LocalMapper {
  public:
-  static std::optional<LocalMapper> create(const LocalMapperOptions& options, const CameraModel& camera,
+  static std::optional<LocalMapper> create(const LocalMapperOptions& options,
+                                           const CameraModel& camera,
                                            std::shared_ptr<SharedMap> map, std::string* error);
   /// Processes keyframe `kf_id` (already inserted by the tracker).
   MapperStats process(std::int64_t kf_id);

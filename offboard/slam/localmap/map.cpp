@@ -15,31 +15,51 @@ double keypoint_level_scale(const cv::KeyPoint& kp, const FeatureOptions& o) {
   //  SURF: the 9x9 box filter of the first octave corresponds to a 1.2 scale, size ~ 12 px.
   double finest_px = 12.0;
   switch (o.kind) {
-    case DetectorKind::kOrb: finest_px = o.orb_patch_size; break;
-    case DetectorKind::kSift: finest_px = o.sift_upsample_first_octave ? o.sift_sigma : 2.0 * o.sift_sigma; break;
-    case DetectorKind::kSurf: finest_px = 12.0; break;
+    case DetectorKind::kOrb:
+      finest_px = o.orb_patch_size;
+      break;
+    case DetectorKind::kSift:
+      finest_px = o.sift_upsample_first_octave ? o.sift_sigma : 2.0 * o.sift_sigma;
+      break;
+    case DetectorKind::kSurf:
+      finest_px = 12.0;
+      break;
   }
   return std::max(1.0, static_cast<double>(kp.size) / finest_px);
 }
 
 bool parse_depth_noise_model(const std::string& name, DepthNoiseModel* out, std::string* error) {
-  if (name == "keypoint") { *out = DepthNoiseModel::kKeypointSigma; return true; }
-  if (name == "kinect") { *out = DepthNoiseModel::kKinectAxial; return true; }
-  if (name == "kinect-edge") { *out = DepthNoiseModel::kKinectEdge; return true; }
-  if (error) *error = "unknown depth noise model '" + name + "' (expected keypoint, kinect or kinect-edge)";
+  if (name == "keypoint") {
+    *out = DepthNoiseModel::kKeypointSigma;
+    return true;
+  }
+  if (name == "kinect") {
+    *out = DepthNoiseModel::kKinectAxial;
+    return true;
+  }
+  if (name == "kinect-edge") {
+    *out = DepthNoiseModel::kKinectEdge;
+    return true;
+  }
+  if (error)
+    *error = "unknown depth noise model '" + name + "' (expected keypoint, kinect or kinect-edge)";
   return false;
 }
 
 const char* to_string(DepthNoiseModel m) {
   switch (m) {
-    case DepthNoiseModel::kKeypointSigma: return "keypoint";
-    case DepthNoiseModel::kKinectAxial: return "kinect";
-    case DepthNoiseModel::kKinectEdge: return "kinect-edge";
+    case DepthNoiseModel::kKeypointSigma:
+      return "keypoint";
+    case DepthNoiseModel::kKinectAxial:
+      return "kinect";
+    case DepthNoiseModel::kKinectEdge:
+      return "kinect-edge";
   }
   return "?";
 }
 
-double CameraModel::disparity_sigma_px(double depth_m, double kp_sigma_px, double slope_m_per_px) const {
+double CameraModel::disparity_sigma_px(double depth_m, double kp_sigma_px,
+                                       double slope_m_per_px) const {
   if (depth_noise == DepthNoiseModel::kKeypointSigma) return kp_sigma_px;
   // Nguyen et al. 2012, Eq. 1 (metres).
   constexpr double kSigmaZ0M = 0.0012, kSigmaZ2PerM2 = 0.0019, kZOffsetM = 0.4;
@@ -78,8 +98,8 @@ void KeypointGrid::query(double u, double v, double radius_px, std::vector<int>*
       }
 }
 
-TrackedFeatures TrackedFeatures::from(std::shared_ptr<const FrameFeatures> f, const CameraModel& cam,
-                                      const FeatureOptions& options) {
+TrackedFeatures TrackedFeatures::from(std::shared_ptr<const FrameFeatures> f,
+                                      const CameraModel& cam, const FeatureOptions& options) {
   TrackedFeatures t;
   const std::size_t n = f->points_cam_m.size();
   t.pixels.reserve(n);
@@ -93,7 +113,8 @@ TrackedFeatures TrackedFeatures::from(std::shared_ptr<const FrameFeatures> f, co
     t.sigma_px.push_back(keypoint_level_scale(f->keypoints[i], options));
     // Maps saved before the slope existed load without it: axial noise only there.
     const double slope = i < f->depth_slope_m_per_px.size() ? f->depth_slope_m_per_px[i] : 0.0;
-    t.disparity_sigma_px.push_back(cam.disparity_sigma_px(t.depth_m.back(), t.sigma_px.back(), slope));
+    t.disparity_sigma_px.push_back(
+        cam.disparity_sigma_px(t.depth_m.back(), t.sigma_px.back(), slope));
   }
   t.grid = KeypointGrid(t.pixels, cam.width_px, cam.height_px);
   t.features = std::move(f);
@@ -226,7 +247,8 @@ void SlamMap::replace_point(std::int64_t from, std::int64_t into) {
   b->found += found;
 }
 
-std::vector<std::pair<std::int64_t, int>> SlamMap::covisible(std::int64_t kf_id, int min_shared) const {
+std::vector<std::pair<std::int64_t, int>> SlamMap::covisible(std::int64_t kf_id,
+                                                             int min_shared) const {
   std::vector<std::pair<std::int64_t, int>> out;
   const MapKeyframe* kf = keyframe(kf_id);
   if (!kf) return out;
@@ -264,7 +286,8 @@ bool SlamMap::in_loop_edge(std::int64_t kf_id) const {
 }
 
 void SlamMap::restore(std::map<std::int64_t, MapKeyframe> kfs, std::map<std::int64_t, MapPoint> pts,
-                      std::map<std::int64_t, CulledKeyframe> culled, std::vector<LoopEdge> loop_edges) {
+                      std::map<std::int64_t, CulledKeyframe> culled,
+                      std::vector<LoopEdge> loop_edges) {
   keyframes_ = std::move(kfs);
   points_ = std::move(pts);
   culled_ = std::move(culled);

@@ -105,10 +105,11 @@ class KeypointGrid {
 /// Features of a frame in the form tracking and mapping use: undistorted pixels, depths, sigmas.
 struct TrackedFeatures {
   std::shared_ptr<const FrameFeatures> features;
-  std::vector<Eigen::Vector2d> pixels;   ///< undistorted pixel of each keypoint
+  std::vector<Eigen::Vector2d> pixels;  ///< undistorted pixel of each keypoint
   std::vector<double> depth_m;
-  std::vector<double> sigma_px;            ///< pixel sigma of (u, v)
-  std::vector<double> disparity_sigma_px;  ///< sigma of the disparity (CameraModel::disparity_sigma_px)
+  std::vector<double> sigma_px;  ///< pixel sigma of (u, v)
+  std::vector<double>
+      disparity_sigma_px;  ///< sigma of the disparity (CameraModel::disparity_sigma_px)
   KeypointGrid grid;
   static TrackedFeatures from(std::shared_ptr<const FrameFeatures> f, const CameraModel& cam,
                               const FeatureOptions& options);
@@ -118,22 +119,24 @@ struct TrackedFeatures {
     return {pixels[i].x(), pixels[i].y(), cam.bf_px_m / depth_m[i]};
   }
   /// Sigmas of (u, v, disparity) for keypoint i, px.
-  Eigen::Vector3d sigma(std::size_t i) const { return {sigma_px[i], sigma_px[i], disparity_sigma_px[i]}; }
+  Eigen::Vector3d sigma(std::size_t i) const {
+    return {sigma_px[i], sigma_px[i], disparity_sigma_px[i]};
+  }
 };
 
 struct MapPoint {
   std::int64_t id = -1;
   Eigen::Vector3d p_world_m = Eigen::Vector3d::Zero();
-  cv::Mat descriptor;                       ///< one row; replaced, never written in place
-  std::map<std::int64_t, int> observations; ///< keyframe id -> keypoint index
+  cv::Mat descriptor;                        ///< one row; replaced, never written in place
+  std::map<std::int64_t, int> observations;  ///< keyframe id -> keypoint index
   std::int64_t first_keyframe = -1;
-  std::int64_t first_keyframe_serial = 0;   ///< how many keyframes existed when it was made
-  int visible = 0;  ///< frames where it projected inside the image
-  int found = 0;    ///< frames where it was matched as an inlier
+  std::int64_t first_keyframe_serial = 0;  ///< how many keyframes existed when it was made
+  int visible = 0;                         ///< frames where it projected inside the image
+  int found = 0;                           ///< frames where it was matched as an inlier
 };
 
 struct MapKeyframe {
-  std::int64_t id = -1;           ///< index of the frame it was made from
+  std::int64_t id = -1;  ///< index of the frame it was made from
   double stamp_s = 0;
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
   TrackedFeatures features;
@@ -200,7 +203,8 @@ class SlamMap {
   std::int64_t next_point_id() const { return next_point_id_; }
   /// Replaces the whole content (map loading). Ids continue after the largest loaded one.
   void restore(std::map<std::int64_t, MapKeyframe> kfs, std::map<std::int64_t, MapPoint> pts,
-               std::map<std::int64_t, CulledKeyframe> culled, std::vector<LoopEdge> loop_edges = {});
+               std::map<std::int64_t, CulledKeyframe> culled,
+               std::vector<LoopEdge> loop_edges = {});
 
  private:
   std::map<std::int64_t, MapKeyframe> keyframes_;

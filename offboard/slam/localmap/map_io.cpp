@@ -20,7 +20,9 @@ constexpr std::uint64_t kMaxPoints = 50000000;
 constexpr std::uint64_t kMaxObservations = 100000;
 constexpr int kThumbnailCols = 40, kThumbnailRows = 30;
 
-std::uint64_t fnv1a(const std::vector<std::uint8_t>& bytes, std::size_t n) { return fnv1a64(bytes.data(), n); }
+std::uint64_t fnv1a(const std::vector<std::uint8_t>& bytes, std::size_t n) {
+  return fnv1a64(bytes.data(), n);
+}
 
 class Writer {
  public:
@@ -80,9 +82,12 @@ class Reader {
 
 std::uint8_t kind_code(DetectorKind k) {
   switch (k) {
-    case DetectorKind::kSift: return 0;
-    case DetectorKind::kSurf: return 1;
-    case DetectorKind::kOrb: return 2;
+    case DetectorKind::kSift:
+      return 0;
+    case DetectorKind::kSurf:
+      return 1;
+    case DetectorKind::kOrb:
+      return 2;
   }
   return 255;
 }
@@ -103,7 +108,8 @@ std::uint64_t fnv1a64(const std::uint8_t* data, std::size_t n) {
   return h;
 }
 
-bool save_map(const std::string& path, const SlamMap& map, const MapFileContext& ctx, std::string* error) {
+bool save_map(const std::string& path, const SlamMap& map, const MapFileContext& ctx,
+              std::string* error) {
   const std::uint16_t probe = 1;
   if (*reinterpret_cast<const std::uint8_t*>(&probe) != 1)
     return fail(error, path, "this host is big-endian; the format is little-endian");
@@ -181,7 +187,8 @@ bool save_map(const std::string& path, const SlamMap& map, const MapFileContext&
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) return fail(error, path, "cannot write " + tmp);
-    out.write(reinterpret_cast<const char*>(w.bytes().data()), static_cast<std::streamsize>(w.bytes().size()));
+    out.write(reinterpret_cast<const char*>(w.bytes().data()),
+              static_cast<std::streamsize>(w.bytes().size()));
     out.flush();
     if (!out) return fail(error, path, "write failed");
   }
@@ -189,13 +196,15 @@ bool save_map(const std::string& path, const SlamMap& map, const MapFileContext&
   return true;
 }
 
-std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& ctx, std::string* error) {
+std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& ctx,
+                                std::string* error) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     fail(error, path, "cannot open");
     return std::nullopt;
   }
-  const std::vector<std::uint8_t> b((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::vector<std::uint8_t> b((std::istreambuf_iterator<char>(in)),
+                                    std::istreambuf_iterator<char>());
   if (b.size() < sizeof kMagic + 4 + 8 || std::memcmp(b.data(), kMagic, sizeof kMagic) != 0) {
     fail(error, path, "not an rgbdquad map file (bad magic)");
     return std::nullopt;
@@ -203,8 +212,9 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
   std::uint32_t version = 0;
   std::memcpy(&version, b.data() + sizeof kMagic, 4);
   if (version != kMapFileVersion) {
-    fail(error, path, "format version " + std::to_string(version) + ", this build reads version " +
-                          std::to_string(kMapFileVersion));
+    fail(error, path,
+         "format version " + std::to_string(version) + ", this build reads version " +
+             std::to_string(kMapFileVersion));
     return std::nullopt;
   }
   std::uint64_t stored = 0;
@@ -227,15 +237,18 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
   std::uint8_t kind = 0;
   for (double& x : cam)
     if (!r.get(&x)) return corrupt("camera");
-  if (!r.get(&w) || !r.get(&h) || !r.get(&kind) || !r.get(&cols) || !r.get(&type)) return corrupt("header");
+  if (!r.get(&w) || !r.get(&h) || !r.get(&kind) || !r.get(&cols) || !r.get(&type))
+    return corrupt("header");
   const CameraModel& c = ctx.camera;
   const double expect[5] = {c.fx_px, c.fy_px, c.cx_px, c.cy_px, c.bf_px_m};
   for (int i = 0; i < 5; ++i)
     if (!(std::abs(cam[i] - expect[i]) <= 1e-6)) {
-      fail(error, path, "made with another camera (fx " + std::to_string(cam[0]) + " fy " + std::to_string(cam[1]) +
-                            " cx " + std::to_string(cam[2]) + " cy " + std::to_string(cam[3]) + "; this run has fx " +
-                            std::to_string(c.fx_px) + " fy " + std::to_string(c.fy_px) + " cx " +
-                            std::to_string(c.cx_px) + " cy " + std::to_string(c.cy_px) + ")");
+      fail(error, path,
+           "made with another camera (fx " + std::to_string(cam[0]) + " fy " +
+               std::to_string(cam[1]) + " cx " + std::to_string(cam[2]) + " cy " +
+               std::to_string(cam[3]) + "; this run has fx " + std::to_string(c.fx_px) + " fy " +
+               std::to_string(c.fy_px) + " cx " + std::to_string(c.cx_px) + " cy " +
+               std::to_string(c.cy_px) + ")");
       return std::nullopt;
     }
   if (w != c.width_px || h != c.height_px) {
@@ -243,11 +256,13 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
     return std::nullopt;
   }
   if (kind != kind_code(ctx.features.kind)) {
-    fail(error, path, "made with another feature detector (code " + std::to_string(kind) + ", this run uses " +
-                          to_string(ctx.features.kind) + ")");
+    fail(error, path,
+         "made with another feature detector (code " + std::to_string(kind) + ", this run uses " +
+             to_string(ctx.features.kind) + ")");
     return std::nullopt;
   }
-  if (cols < 0 || cols > 1024 || (type != CV_8U && type != CV_32F && cols > 0)) return corrupt("descriptor shape");
+  if (cols < 0 || cols > 1024 || (type != CV_8U && type != CV_32F && cols > 0))
+    return corrupt("descriptor shape");
   const std::size_t elem = type == CV_32F ? 4 : 1;
   const std::size_t desc_bytes = static_cast<std::size_t>(cols) * elem;
 
@@ -268,9 +283,10 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
       std::int32_t octave;
       Eigen::Vector3d p;
       cv::Vec3b col;
-      if (!r.get(&x) || !r.get(&y) || !r.get(&size) || !r.get(&angle) || !r.get(&response) || !r.get(&octave) ||
-          !r.get(&p[0]) || !r.get(&p[1]) || !r.get(&p[2]) || !r.raw(&col[0], 3) ||
-          !r.raw(f->descriptors.ptr(static_cast<int>(k)), desc_bytes) || !r.get(&kf.point_ids[k]))
+      if (!r.get(&x) || !r.get(&y) || !r.get(&size) || !r.get(&angle) || !r.get(&response) ||
+          !r.get(&octave) || !r.get(&p[0]) || !r.get(&p[1]) || !r.get(&p[2]) ||
+          !r.raw(&col[0], 3) || !r.raw(f->descriptors.ptr(static_cast<int>(k)), desc_bytes) ||
+          !r.get(&kf.point_ids[k]))
         return corrupt("keypoint");
       if (!p.allFinite() || !(p.z() > 0)) return corrupt("keypoint depth");
       f->keypoints.emplace_back(cv::Point2f(x, y), size, angle, response, octave);
@@ -283,7 +299,8 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
     if (!r.get(&thumb)) return corrupt("thumbnail flag");
     if (thumb) {
       kf.thumbnail.create(kThumbnailRows, kThumbnailCols, CV_32F);
-      if (!r.raw(kf.thumbnail.ptr(), kThumbnailCols * kThumbnailRows * sizeof(float))) return corrupt("thumbnail");
+      if (!r.raw(kf.thumbnail.ptr(), kThumbnailCols * kThumbnailRows * sizeof(float)))
+        return corrupt("thumbnail");
     }
     const std::int64_t id = kf.id;
     kfs[id] = std::move(kf);
@@ -295,9 +312,10 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
     MapPoint p;
     std::uint64_t nobs = 0;
     p.descriptor.create(1, cols, type == CV_32F ? CV_32F : CV_8U);
-    if (!r.get(&p.id) || !r.get(&p.p_world_m[0]) || !r.get(&p.p_world_m[1]) || !r.get(&p.p_world_m[2]) ||
-        !r.raw(p.descriptor.ptr(), desc_bytes) || !r.get(&p.first_keyframe) || !r.get(&p.first_keyframe_serial) ||
-        !r.get(&p.visible) || !r.get(&p.found) || !r.get(&nobs) || nobs > kMaxObservations)
+    if (!r.get(&p.id) || !r.get(&p.p_world_m[0]) || !r.get(&p.p_world_m[1]) ||
+        !r.get(&p.p_world_m[2]) || !r.raw(p.descriptor.ptr(), desc_bytes) ||
+        !r.get(&p.first_keyframe) || !r.get(&p.first_keyframe_serial) || !r.get(&p.visible) ||
+        !r.get(&p.found) || !r.get(&nobs) || nobs > kMaxObservations)
       return corrupt("point");
     if (!p.p_world_m.allFinite()) return corrupt("point position");
     for (std::uint64_t o = 0; o < nobs; ++o) {
@@ -305,7 +323,8 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
       std::int32_t kp;
       if (!r.get(&kf) || !r.get(&kp)) return corrupt("observation");
       auto it = kfs.find(kf);
-      if (it == kfs.end() || kp < 0 || static_cast<std::size_t>(kp) >= it->second.point_ids.size() ||
+      if (it == kfs.end() || kp < 0 ||
+          static_cast<std::size_t>(kp) >= it->second.point_ids.size() ||
           it->second.point_ids[static_cast<std::size_t>(kp)] != p.id)
         return corrupt("observation does not match its keyframe");
       p.observations[kf] = kp;
@@ -319,7 +338,8 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
       const std::int64_t pid = kf.point_ids[k];
       if (pid < 0) continue;
       auto it = pts.find(pid);
-      if (it == pts.end() || !it->second.observations.count(id)) return corrupt("keypoint refers to a missing point");
+      if (it == pts.end() || !it->second.observations.count(id))
+        return corrupt("keypoint refers to a missing point");
     }
   std::map<std::int64_t, CulledKeyframe> culled;
   std::uint64_t nc = 0;
@@ -327,7 +347,8 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
   for (std::uint64_t i = 0; i < nc; ++i) {
     std::int64_t id;
     CulledKeyframe ck;
-    if (!r.get(&id) || !r.get(&ck.parent) || !r.pose(&ck.T_parent_kf)) return corrupt("culled keyframe");
+    if (!r.get(&id) || !r.get(&ck.parent) || !r.pose(&ck.T_parent_kf))
+      return corrupt("culled keyframe");
     culled[id] = ck;
   }
   std::vector<LoopEdge> loops;

@@ -5,7 +5,8 @@
 // File format (all little-endian, written field by field, never a struct memcpy):
 //   "RGBDQMAP" | u32 version (kMapFileVersion) | camera fx fy cx cy bf (f64) width height (i32)
 //   | detector kind (u8: 0 sift, 1 surf, 2 orb) | descriptor cols (i32) and OpenCV type (i32)
-//   | keyframes | points | culled keyframes | loop edges (v2) | u64 FNV-1a hash of every byte before it.
+//   | keyframes | points | culled keyframes | loop edges (v2) | u64 FNV-1a hash of every byte
+//   before it.
 // A file of another version, another camera or detector, a bad hash (corrupt or truncated) or
 // counts beyond the sanity bounds is refused with a message; loading never trusts a size field
 // before checking it against the bytes left.
@@ -34,9 +35,12 @@ struct MapFileContext {
 
 /// Writes `map` to `path` (through a temporary file renamed into place: a crash never leaves a
 /// half-written map under the name). False with `error` on I/O failure.
-bool save_map(const std::string& path, const SlamMap& map, const MapFileContext& context, std::string* error);
+bool save_map(const std::string& path, const SlamMap& map, const MapFileContext& context,
+              std::string* error);
 
-/// Reads a map written by save_map for the same camera and detector. nullopt with `error` otherwise.
-std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& context, std::string* error);
+/// Reads a map written by save_map for the same camera and detector. nullopt with `error`
+/// otherwise.
+std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& context,
+                                std::string* error);
 
 }  // namespace slam

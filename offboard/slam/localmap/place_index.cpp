@@ -9,8 +9,10 @@ namespace slam {
 cv::Mat make_thumbnail(const cv::Mat& image) {
   if (image.empty()) return {};
   cv::Mat grey;
-  if (image.channels() == 3) cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
-  else grey = image;
+  if (image.channels() == 3)
+    cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  else
+    grey = image;
   cv::Mat small, f;
   cv::resize(grey, small, cv::Size(40, 30), 0, 0, cv::INTER_AREA);
   small.convertTo(f, CV_32F);

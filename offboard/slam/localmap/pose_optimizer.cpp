@@ -10,7 +10,8 @@
 
 namespace slam {
 
-Eigen::Isometry3d apply_left_increment(const Eigen::Matrix<double, 6, 1>& delta, const Eigen::Isometry3d& T) {
+Eigen::Isometry3d apply_left_increment(const Eigen::Matrix<double, 6, 1>& delta,
+                                       const Eigen::Isometry3d& T) {
   const Eigen::Vector3d w = delta.head<3>();
   const double angle = w.norm();
   Eigen::Isometry3d inc = Eigen::Isometry3d::Identity();
@@ -41,11 +42,11 @@ PoseOptimizerResult optimize_pose(const Eigen::Isometry3d& T_init,
         const Eigen::Vector3d pc = T * obs[i].p_world_m;
         if (pc.z() <= 1e-3) continue;
         const double iz = 1.0 / pc.z(), iz2 = iz * iz;
-        const Eigen::Vector3d e = (cam.project(pc) - obs[i].measurement).cwiseQuotient(obs[i].sigma_px);
+        const Eigen::Vector3d e =
+            (cam.project(pc) - obs[i].measurement).cwiseQuotient(obs[i].sigma_px);
         Eigen::Matrix3d Jp;
-        Jp << cam.fx_px * iz, 0, -cam.fx_px * pc.x() * iz2,
-              0, cam.fy_px * iz, -cam.fy_px * pc.y() * iz2,
-              0, 0, -cam.bf_px_m * iz2;
+        Jp << cam.fx_px * iz, 0, -cam.fx_px * pc.x() * iz2, 0, cam.fy_px * iz,
+            -cam.fy_px * pc.y() * iz2, 0, 0, -cam.bf_px_m * iz2;
         Jp = obs[i].sigma_px.cwiseInverse().asDiagonal() * Jp;
         Eigen::Matrix<double, 3, 6> Jt;
         Eigen::Matrix3d skew;
@@ -73,7 +74,8 @@ PoseOptimizerResult optimize_pose(const Eigen::Isometry3d& T_init,
       const Eigen::Vector3d pc = T * obs[i].p_world_m;
       bool in = pc.z() > 1e-3;
       if (in) {
-        const Eigen::Vector3d e = (cam.project(pc) - obs[i].measurement).cwiseQuotient(obs[i].sigma_px);
+        const Eigen::Vector3d e =
+            (cam.project(pc) - obs[i].measurement).cwiseQuotient(obs[i].sigma_px);
         in = e.squaredNorm() <= o.chi2_outlier;
       }
       r.inlier[i] = in;

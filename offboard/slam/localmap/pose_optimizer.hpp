@@ -16,7 +16,7 @@ namespace slam {
 struct PoseObservation {
   Eigen::Vector3d p_world_m = Eigen::Vector3d::Zero();
   Eigen::Vector3d measurement = Eigen::Vector3d::Zero();  ///< (u px, v px, disparity px)
-  Eigen::Vector3d sigma_px = Eigen::Vector3d::Ones();  ///< sigmas of (u, v, disparity)
+  Eigen::Vector3d sigma_px = Eigen::Vector3d::Ones();     ///< sigmas of (u, v, disparity)
 };
 
 struct PoseOptimizerOptions {
@@ -29,14 +29,17 @@ struct PoseOptimizerResult {
   Eigen::Isometry3d T_cam_world = Eigen::Isometry3d::Identity();
   std::vector<bool> inlier;
   int inliers = 0;
-  bool ok = false;  ///< false when degenerate (fewer than 3 usable observations or a singular system)
+  bool ok =
+      false;  ///< false when degenerate (fewer than 3 usable observations or a singular system)
 };
 
 PoseOptimizerResult optimize_pose(const Eigen::Isometry3d& T_cam_world_init,
                                   const std::vector<PoseObservation>& observations,
-                                  const CameraModel& camera, const PoseOptimizerOptions& options = {});
+                                  const CameraModel& camera,
+                                  const PoseOptimizerOptions& options = {});
 
 /// Applies a left increment: exp(delta) * T, delta = (rotation vector rad, translation m).
-Eigen::Isometry3d apply_left_increment(const Eigen::Matrix<double, 6, 1>& delta, const Eigen::Isometry3d& T);
+Eigen::Isometry3d apply_left_increment(const Eigen::Matrix<double, 6, 1>& delta,
+                                       const Eigen::Isometry3d& T);
 
 }  // namespace slam

@@ -11,8 +11,10 @@ namespace slam {
 
 double descriptor_distance(const cv::Mat& a, const cv::Mat& b) {
   // Raw-pointer kernels: this runs tens of thousands of times per frame.
-  if (a.type() == CV_8U) return cv::hal::normHamming(a.ptr<std::uint8_t>(), b.ptr<std::uint8_t>(), a.cols);
-  return std::sqrt(static_cast<double>(cv::hal::normL2Sqr_(a.ptr<float>(), b.ptr<float>(), a.cols)));
+  if (a.type() == CV_8U)
+    return cv::hal::normHamming(a.ptr<std::uint8_t>(), b.ptr<std::uint8_t>(), a.cols);
+  return std::sqrt(
+      static_cast<double>(cv::hal::normL2Sqr_(a.ptr<float>(), b.ptr<float>(), a.cols)));
 }
 
 ProjectionMatches search_by_projection(const std::vector<LocalPoint>& points,
@@ -68,7 +70,9 @@ ProjectionMatches search_by_projection(const std::vector<LocalPoint>& points,
       }
     }
     if (best_k < 0) continue;
-    const double gate = binary ? o.max_hamming : o.nnmmt_fraction * distance_to_origin(rows[static_cast<std::size_t>(best_k)]);
+    const double gate =
+        binary ? o.max_hamming
+               : o.nnmmt_fraction * distance_to_origin(rows[static_cast<std::size_t>(best_k)]);
     if (best > gate) continue;
     if (second < std::numeric_limits<double>::infinity() && best > o.ratio * second) continue;
     const auto bk = static_cast<std::size_t>(best_k);

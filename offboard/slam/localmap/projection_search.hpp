@@ -25,11 +25,11 @@ struct LocalPoint {
 };
 
 struct ProjectionSearchOptions {
-  double radius_px = 15.0;          ///< search radius at the finest level; scaled by keypoint sigma
-  int max_hamming = 100;            ///< ORB-SLAM2 TH_HIGH
-  double nnmmt_fraction = 0.5;      ///< thesis Sec. 3.4
-  double ratio = 0.8;               ///< ORB-SLAM2 SearchByProjection(local map) nnratio
-  double min_depth_m = 0.1;         ///< points behind or too near the camera are not projected
+  double radius_px = 15.0;      ///< search radius at the finest level; scaled by keypoint sigma
+  int max_hamming = 100;        ///< ORB-SLAM2 TH_HIGH
+  double nnmmt_fraction = 0.5;  ///< thesis Sec. 3.4
+  double ratio = 0.8;           ///< ORB-SLAM2 SearchByProjection(local map) nnratio
+  double min_depth_m = 0.1;     ///< points behind or too near the camera are not projected
 };
 
 /// Descriptor distance: Hamming for CV_8U rows, L2 for CV_32F rows.

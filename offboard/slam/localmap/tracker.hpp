@@ -63,31 +63,43 @@ struct SharedMap {
 /// Why the keyframe rule asked for a keyframe (logged per frame; see Tracker::track step 5).
 /// kRedundant: the view changed, but the map already sees this view from enough keyframes (a
 /// revisit): the keyframe would be culled as redundant at once, so none was made.
-/// kMapperBusy: the view changed, but the mapper was still busy and tracking was not weak (ORB-SLAM2
-/// NeedNewKeyFrame c1b/c1c): the keyframe is left to a later frame.
-enum class KeyframeReason { kNone, kFirst, kViewChanged, kNeedNear, kBoth, kRedundant, kMapperBusy };
+/// kMapperBusy: the view changed, but the mapper was still busy and tracking was not weak
+/// (ORB-SLAM2 NeedNewKeyFrame c1b/c1c): the keyframe is left to a later frame.
+enum class KeyframeReason {
+  kNone,
+  kFirst,
+  kViewChanged,
+  kNeedNear,
+  kBoth,
+  kRedundant,
+  kMapperBusy
+};
 const char* to_string(KeyframeReason r);
 
 struct TrackerOptions {
-  ProjectionSearchOptions search;              ///< first pass: radius 15 px (ORB-SLAM2 motion model)
-  double refine_radius_px = 3.0;               ///< second pass around the refined pose (ORB-SLAM2: 3 after relocalisation, 1 otherwise; 3 tolerates our coarser ORB levels)
-  double wide_radius_factor = 3.0;             ///< when the first pass finds too little (gaps)
+  ProjectionSearchOptions search;  ///< first pass: radius 15 px (ORB-SLAM2 motion model)
+  double refine_radius_px =
+      3.0;  ///< second pass around the refined pose (ORB-SLAM2: 3 after relocalisation, 1
+            ///< otherwise; 3 tolerates our coarser ORB levels)
+  double wide_radius_factor = 3.0;  ///< when the first pass finds too little (gaps)
   PoseOptimizerOptions pose;
-  int min_matches_first_pass = 20;             ///< ORB-SLAM2 TrackWithMotionModel: < 20 -> wider search
-  int min_inliers_tracking = 30;               ///< ORB-SLAM2 TrackLocalMap: >= 30 inliers
-  int min_inliers_relocalised = 50;            ///< ORB-SLAM2 Relocalization / after it: >= 50
-  int max_local_keyframes = 30;                ///< bounds the per-frame cost (ORB-SLAM2: 80)
-  int covisible_per_keyframe = 10;             ///< ORB-SLAM2 UpdateLocalKeyFrames: best 10 neighbours
-  double keyframe_tracked_ratio = 0.75;        ///< ORB-SLAM2 RGB-D thRefRatio
-  double keyframe_tracked_ratio_first = 0.4;   ///< ORB-SLAM2 thRefRatio while the map has one keyframe
+  int min_matches_first_pass = 20;       ///< ORB-SLAM2 TrackWithMotionModel: < 20 -> wider search
+  int min_inliers_tracking = 30;         ///< ORB-SLAM2 TrackLocalMap: >= 30 inliers
+  int min_inliers_relocalised = 50;      ///< ORB-SLAM2 Relocalization / after it: >= 50
+  int max_local_keyframes = 30;          ///< bounds the per-frame cost (ORB-SLAM2: 80)
+  int covisible_per_keyframe = 10;       ///< ORB-SLAM2 UpdateLocalKeyFrames: best 10 neighbours
+  double keyframe_tracked_ratio = 0.75;  ///< ORB-SLAM2 RGB-D thRefRatio
+  double keyframe_tracked_ratio_first =
+      0.4;  ///< ORB-SLAM2 thRefRatio while the map has one keyframe
   /// While the mapper is busy (ORB-SLAM2 NeedNewKeyFrame c1b false) only weak tracking makes a
-  /// keyframe: inliers < this x the reference keyframe's tracked points (c1c: 0.25), or the near rule.
+  /// keyframe: inliers < this x the reference keyframe's tracked points (c1c: 0.25), or the near
+  /// rule.
   double keyframe_busy_tracked_ratio = 0.25;
-  double near_depth_m = 3.1;                   ///< ORB-SLAM2 ThDepth: 40 baselines of the Kinect (bf 40 / fx 517)
-  int near_tracked_min = 100;                  ///< ORB-SLAM2 bNeedToInsertClose: < 100 near tracked...
-  int near_untracked_min = 70;                 ///< ...and > 70 near untracked -> keyframe
-  int min_new_points = 100;                    ///< ORB-SLAM2 CreateNewKeyFrame: at least the 100 nearest
-  int min_init_features = 100;                 ///< a first keyframe needs this many features with depth
+  double near_depth_m = 3.1;    ///< ORB-SLAM2 ThDepth: 40 baselines of the Kinect (bf 40 / fx 517)
+  int near_tracked_min = 100;   ///< ORB-SLAM2 bNeedToInsertClose: < 100 near tracked...
+  int near_untracked_min = 70;  ///< ...and > 70 near untracked -> keyframe
+  int min_new_points = 100;     ///< ORB-SLAM2 CreateNewKeyFrame: at least the 100 nearest
+  int min_init_features = 100;  ///< a first keyframe needs this many features with depth
   /// Revisits: a view change alone does not make a keyframe that the mapper's culling would judge
   /// redundant at once - when >= `redundant_fraction` of the frame's tracked near points are
   /// already observed by >= `redundant_observers` keyframes (ORB-SLAM2 KeyFrameCulling's test, the
@@ -96,14 +108,17 @@ struct TrackerOptions {
   bool keyframe_needs_new_content = true;
   double redundant_fraction = 0.9;
   int redundant_observers = 3;
-  std::size_t relocalisation_candidates = 4;   ///< keyframes tried, by appearance
-  MatchOptions matching;                       ///< descriptor matching for relocalisation (thesis NNMMT...
-  double relocalisation_ratio = 0.75;          ///< ...with ORB-SLAM2's Relocalization ratio: views far apart match fewer pairs than consecutive frames)
-  int min_relocalisation_ransac_inliers = 10;  ///< a guess only (ORB-SLAM2: 10 PnP inliers); the local-map refit needs min_inliers_relocalised
+  std::size_t relocalisation_candidates = 4;  ///< keyframes tried, by appearance
+  MatchOptions matching;               ///< descriptor matching for relocalisation (thesis NNMMT...
+  double relocalisation_ratio = 0.75;  ///< ...with ORB-SLAM2's Relocalization ratio: views far
+                                       ///< apart match fewer pairs than consecutive frames)
+  int min_relocalisation_ransac_inliers = 10;  ///< a guess only (ORB-SLAM2: 10 PnP inliers); the
+                                               ///< local-map refit needs min_inliers_relocalised
   RansacOptions ransac;                        ///< 3D-3D RANSAC for relocalisation (thesis values)
   /// Motion bounds between two tracked frames: an indoor quadcopter (and a hand-held Kinect in the
   /// TUM sequences, 0.4 m/s and 40 deg/s on average) stays well below 2 m/s and 180 deg/s; a pose
-  /// step beyond them plus a margin for estimation noise is a wrong fit (tracking is declared lost).
+  /// step beyond them plus a margin for estimation noise is a wrong fit (tracking is declared
+  /// lost).
   double max_speed_m_per_s = 2.0;
   double max_rate_rad_per_s = 3.14159;
   double motion_margin_m = 0.05;
@@ -118,7 +133,8 @@ struct TrackerOptions {
   double max_acceleration_m_per_s2 = 5.0;
   double motion_bound_baseline_s = 0.1;  ///< MotionBoundOptions::baseline_s
   bool motion_bound = true;              ///< false: the bound is computed and logged, not enforced
-  double max_velocity_scale = 5.0;             ///< a gap of more than 5 frame intervals is not extrapolated further
+  double max_velocity_scale =
+      5.0;  ///< a gap of more than 5 frame intervals is not extrapolated further
   /// Beyond this gap since the last tracked frame the prediction no longer vouches for the pose:
   /// the projection fit must then meet the relocalisation bar (`min_inliers_relocalised`), as
   /// ORB-SLAM2 demands 50 inliers right after a relocalisation, and below it the keyframe database
@@ -138,22 +154,25 @@ struct TrackResult {
   bool keyframe = false;          ///< this frame became a keyframe `keyframe_id`
   std::int64_t keyframe_id = -1;  ///< the frame index, unless a loaded map already uses it
   bool relocalised = false;       ///< the pose came from the keyframe database, not the prediction
-  bool prediction_stale = false;  ///< the gap since the last tracked frame exceeded max_predicted_gap_s
+  bool prediction_stale =
+      false;  ///< the gap since the last tracked frame exceeded max_predicted_gap_s
   /// Distance of the fitted position from the recent constant-velocity path, and its bound
   /// (MotionBound); -1 when not checked.
   double prediction_deviation_m = -1, prediction_deviation_bound_m = -1;
-  std::size_t local_points = 0;   ///< points in the local map this frame was matched against
-  std::size_t matches = 0;        ///< projection matches before the final optimisation
+  std::size_t local_points = 0;  ///< points in the local map this frame was matched against
+  std::size_t matches = 0;       ///< projection matches before the final optimisation
   std::size_t inliers = 0;
   double local_map_ms = 0, search_ms = 0, optimise_ms = 0, relocalise_ms = 0;
   /// Wall time this frame spent waiting to acquire the map lock (all acquisitions summed): what a
   /// mapper or loop closer holding it costs the camera-to-command path.
   double map_lock_wait_ms = 0;
   std::size_t map_keyframes = 0, map_points = 0;  ///< map size after this frame
-  /// The keyframe rule's verdict and inputs (also when the keyframe was deferred: `keyframe` false).
+  /// The keyframe rule's verdict and inputs (also when the keyframe was deferred: `keyframe`
+  /// false).
   KeyframeReason keyframe_wanted = KeyframeReason::kNone;
   int ref_tracked = 0, near_tracked = 0, near_untracked = 0;
-  double near_redundant = -1;  ///< fraction of tracked near points seen by >= 3 keyframes (-1: not computed)
+  double near_redundant =
+      -1;  ///< fraction of tracked near points seen by >= 3 keyframes (-1: not computed)
   /// SharedMap::corrections this pose is expressed after: a change from the previous frame's
   /// declares that a loop correction moved the world frame under the craft in between.
   std::uint64_t map_corrections = 0;
@@ -172,7 +191,8 @@ class Tracker {
   /// true when the caller waits for mapping); while false only weak tracking makes a keyframe.
   /// `R_world_cam_prior`: optional rotation prior.
   TrackResult track(const RgbdFrame& frame, std::shared_ptr<const FrameFeatures> features,
-                    const FeatureOptions& feature_options, bool keyframe_allowed, bool mapper_idle = true,
+                    const FeatureOptions& feature_options, bool keyframe_allowed,
+                    bool mapper_idle = true,
                     const std::optional<Eigen::Quaterniond>& R_world_cam_prior = std::nullopt);
 
   /// Forget the motion model and start from relocalisation (after a map load, or a reset).
@@ -193,7 +213,8 @@ class Tracker {
     std::vector<std::int64_t> keyframes;
   };
   /// Local keyframes and their points (locks the map). `seed_points`: points of the last frame.
-  LocalMap build_local_map(const std::vector<std::int64_t>& seed_points, std::int64_t fallback_kf) const;
+  LocalMap build_local_map(const std::vector<std::int64_t>& seed_points,
+                           std::int64_t fallback_kf) const;
   using Fit = ProjectionFit;
   /// Two-pass projection matching and pose optimisation from a pose guess.
   Fit fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
@@ -209,9 +230,9 @@ class Tracker {
                                                    const std::vector<std::int64_t>& candidates,
                                                    std::uint64_t seed) const;
   /// Inserts the keyframe and its new points; returns its id.
-  std::int64_t insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf, const cv::Mat& thumbnail,
-                       const Eigen::Isometry3d& T_world_cam, const LocalMap& local,
-                       const std::vector<int>& point_of_keypoint);
+  std::int64_t insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf,
+                               const cv::Mat& thumbnail, const Eigen::Isometry3d& T_world_cam,
+                               const LocalMap& local, const std::vector<int>& point_of_keypoint);
 
   /// Locks the map, adding the wait to `lock_wait_ms_` (reset per frame by track()).
   std::unique_lock<MapMutex> lock_map() const;
@@ -222,13 +243,16 @@ class Tracker {
   std::shared_ptr<SharedMap> map_;
   TrackingState state_ = TrackingState::kInitialising;
   Eigen::Isometry3d T_world_last_ = Eigen::Isometry3d::Identity();
-  Eigen::Isometry3d T_last_cur_velocity_ = Eigen::Isometry3d::Identity();  ///< motion over one interval
+  Eigen::Isometry3d T_last_cur_velocity_ =
+      Eigen::Isometry3d::Identity();  ///< motion over one interval
   double last_stamp_s_ = 0, last_interval_s_ = 0;
   bool have_velocity_ = false;
   std::vector<std::int64_t> last_points_;  ///< map points matched in the last tracked frame
   std::int64_t reference_kf_ = -1;
-  Eigen::Isometry3d T_ref_last_ = Eigen::Isometry3d::Identity();  ///< last pose relative to reference_kf_
-  std::uint64_t corrections_seen_ = 0;  ///< SharedMap::corrections when T_world_last_ was last anchored
+  Eigen::Isometry3d T_ref_last_ =
+      Eigen::Isometry3d::Identity();  ///< last pose relative to reference_kf_
+  std::uint64_t corrections_seen_ =
+      0;                      ///< SharedMap::corrections when T_world_last_ was last anchored
   MotionBound motion_bound_;  ///< tracked positions since the last relocalisation or correction
 };
 

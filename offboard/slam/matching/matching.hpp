@@ -14,17 +14,17 @@
 namespace slam {
 
 struct MatchOptions {
-  double lowe_ratio = 0.6;        ///< thesis Table 4.4
-  double nnmmt_fraction = 0.5;    ///< "half the distance to the origin", thesis Sec. 3.4
+  double lowe_ratio = 0.6;      ///< thesis Table 4.4
+  double nnmmt_fraction = 0.5;  ///< "half the distance to the origin", thesis Sec. 3.4
   bool use_nnmmt = true;
   bool use_ratio_test = true;
   bool is_valid(std::string* error) const;
 };
 
 struct Match {
-  int query = 0;        ///< row in the current frame's descriptors
-  int train = 0;        ///< row in the reference frame's descriptors
-  float distance = 0;   ///< descriptor distance
+  int query = 0;       ///< row in the current frame's descriptors
+  int train = 0;       ///< row in the reference frame's descriptors
+  float distance = 0;  ///< descriptor distance
 };
 
 /// Matches `query` against `train`. Both must have the same type and width (CV_32F or CV_8U);

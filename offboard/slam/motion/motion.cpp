@@ -184,10 +184,12 @@ std::optional<MotionEstimate> estimate_motion_ransac(const std::vector<Eigen::Ve
     if (same) break;
   }
   if (o.depth_weighted_refine) {
-    // Kinect depth sigma ~ z^2 (Khoshelham & Elberink 2012): weight each pair by 1/(z_src^2 z_dst^2).
+    // Kinect depth sigma ~ z^2 (Khoshelham & Elberink 2012): weight each pair by 1/(z_src^2
+    // z_dst^2).
     std::vector<double> w(n, 1.0);
     for (std::size_t i = 0; i < n; ++i) {
-      const double zs = std::max(0.3, std::abs(src[i].z())), zd = std::max(0.3, std::abs(dst[i].z()));
+      const double zs = std::max(0.3, std::abs(src[i].z())),
+                   zd = std::max(0.3, std::abs(dst[i].z()));
       w[i] = 1.0 / (zs * zs * zd * zd);
     }
     if (auto T = fit_subset(best.inliers, src, dst, &w)) {
@@ -199,10 +201,9 @@ std::optional<MotionEstimate> estimate_motion_ransac(const std::vector<Eigen::Ve
     }
   }
   if (o.reprojection_camera.fx_px > 0 && o.reprojection_iterations > 0) {
-    const Eigen::Isometry3d T = refine_reprojection(best_T, src, dst, best.inliers,
-                                                    o.reprojection_camera,
-                                                    o.reprojection_iterations,
-                                                    o.reprojection_huber_px);
+    const Eigen::Isometry3d T =
+        refine_reprojection(best_T, src, dst, best.inliers, o.reprojection_camera,
+                            o.reprojection_iterations, o.reprojection_huber_px);
     Scored s = score(T, src, dst, o.inlier_threshold_m);
     if (s.inliers.size() >= 3) {
       best = std::move(s);
@@ -233,12 +234,14 @@ Eigen::Vector2d project(const Eigen::Vector3d& p, const RansacOptions::Pinhole& 
 
 // Residual of point q (camera coords, already transformed) against pixel uv, with dq/ddelta = J_q.
 ReprojectionTerm make_term(const Eigen::Vector3d& q, const Eigen::Vector2d& uv,
-                           const Eigen::Matrix<double, 3, 6>& J_q, const RansacOptions::Pinhole& c) {
+                           const Eigen::Matrix<double, 3, 6>& J_q,
+                           const RansacOptions::Pinhole& c) {
   constexpr double kMinDepthM = 0.1;  // points behind or at the camera give no information
   ReprojectionTerm t;
   if (q.z() < kMinDepthM) return t;
   const double iz = 1.0 / q.z();
-  t.residual_px = {c.fx_px * q.x() * iz + c.cx_px - uv.x(), c.fy_px * q.y() * iz + c.cy_px - uv.y()};
+  t.residual_px = {c.fx_px * q.x() * iz + c.cx_px - uv.x(),
+                   c.fy_px * q.y() * iz + c.cy_px - uv.y()};
   Eigen::Matrix<double, 2, 3> Jp;
   Jp << c.fx_px * iz, 0, -c.fx_px * q.x() * iz * iz, 0, c.fy_px * iz, -c.fy_px * q.y() * iz * iz;
   t.jacobian = Jp * J_q;

@@ -35,17 +35,17 @@ std::optional<Eigen::Isometry3d> umeyama_rigid(const std::vector<Eigen::Vector3d
 enum class RansacSampling { kThesis, kRandom };
 
 struct RansacOptions {
-  double inlier_threshold_m = 0.03;    ///< thesis Table 4.4
-  double accept_inlier_ratio = 0.60;   ///< thesis Table 4.4
+  double inlier_threshold_m = 0.03;   ///< thesis Table 4.4
+  double accept_inlier_ratio = 0.60;  ///< thesis Table 4.4
   RansacSampling sampling = RansacSampling::kRandom;
-  int thesis_sample_size = 4;          ///< thesis: 4 pairs closest in descriptor space
-  int thesis_max_attempts = 10;        ///< thesis: up to 10 retries
-  int max_iterations = 300;            ///< cap on random samples (kRandom)
-  int min_iterations = 20;             ///< random samples drawn even when the first looks perfect
-  double confidence = 0.995;           ///< adaptive stop: P(at least one all-inlier sample)
-  int refit_rounds = 4;                ///< LS refit / re-classify rounds after the best sample
-  bool depth_weighted_refine = true;   ///< final refit weighted by 1/z^2 (Kinect noise model)
-  std::size_t min_pairs = 6;           ///< fewer pairs: no estimate
+  int thesis_sample_size = 4;         ///< thesis: 4 pairs closest in descriptor space
+  int thesis_max_attempts = 10;       ///< thesis: up to 10 retries
+  int max_iterations = 300;           ///< cap on random samples (kRandom)
+  int min_iterations = 20;            ///< random samples drawn even when the first looks perfect
+  double confidence = 0.995;          ///< adaptive stop: P(at least one all-inlier sample)
+  int refit_rounds = 4;               ///< LS refit / re-classify rounds after the best sample
+  bool depth_weighted_refine = true;  ///< final refit weighted by 1/z^2 (Kinect noise model)
+  std::size_t min_pairs = 6;          ///< fewer pairs: no estimate
   /// Optional final refinement: Gauss-Newton on the symmetric reprojection error of the inliers
   /// (pixels are precise, Kinect depth is not). Needs the pinhole intrinsics; off when fx_px = 0.
   struct Pinhole {
@@ -58,7 +58,8 @@ struct RansacOptions {
 
 /// One residual of refine_reprojection with its analytic Jacobian, exposed so tests can check the
 /// Jacobian against numeric derivatives. `jacobian` is d(residual)/d(delta) for the left increment
-/// T' = exp(delta) * T, delta = (translation m, rotation vector rad), the update the solver applies.
+/// T' = exp(delta) * T, delta = (translation m, rotation vector rad), the update the solver
+/// applies.
 struct ReprojectionTerm {
   Eigen::Vector2d residual_px = Eigen::Vector2d::Zero();
   Eigen::Matrix<double, 2, 6> jacobian = Eigen::Matrix<double, 2, 6>::Zero();
@@ -86,11 +87,11 @@ Eigen::Isometry3d refine_reprojection(const Eigen::Isometry3d& T_dst_src,
 
 struct MotionEstimate {
   Eigen::Isometry3d T_dst_src = Eigen::Isometry3d::Identity();
-  std::vector<int> inliers;      ///< indices into the pair list
-  double inlier_ratio = 0.0;     ///< inliers / pairs
-  double rms_error_m = 0.0;      ///< RMS alignment error over inliers
-  bool accepted = false;         ///< inlier_ratio >= accept_inlier_ratio
-  int iterations = 0;            ///< samples evaluated
+  std::vector<int> inliers;   ///< indices into the pair list
+  double inlier_ratio = 0.0;  ///< inliers / pairs
+  double rms_error_m = 0.0;   ///< RMS alignment error over inliers
+  bool accepted = false;      ///< inlier_ratio >= accept_inlier_ratio
+  int iterations = 0;         ///< samples evaluated
 };
 
 /// RANSAC rigid alignment. `order` (optional) lists pair indices best-first by descriptor distance,

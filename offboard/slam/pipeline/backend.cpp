@@ -7,20 +7,36 @@
 namespace slam {
 
 bool parse_backend_kind(const std::string& name, BackendKind* out, std::string* error) {
-  if (name == "vo") { *out = BackendKind::kVo; return true; }
-  if (name == "llc") { *out = BackendKind::kLlc; return true; }
-  if (name == "glc") { *out = BackendKind::kGlc; return true; }
-  if (name == "localmap") { *out = BackendKind::kLocalMap; return true; }
+  if (name == "vo") {
+    *out = BackendKind::kVo;
+    return true;
+  }
+  if (name == "llc") {
+    *out = BackendKind::kLlc;
+    return true;
+  }
+  if (name == "glc") {
+    *out = BackendKind::kGlc;
+    return true;
+  }
+  if (name == "localmap") {
+    *out = BackendKind::kLocalMap;
+    return true;
+  }
   if (error) *error = "unknown backend '" + name + "' (expected localmap, vo, llc or glc)";
   return false;
 }
 
 const char* to_string(BackendKind k) {
   switch (k) {
-    case BackendKind::kVo: return "vo";
-    case BackendKind::kLlc: return "llc";
-    case BackendKind::kGlc: return "glc";
-    case BackendKind::kLocalMap: return "localmap";
+    case BackendKind::kVo:
+      return "vo";
+    case BackendKind::kLlc:
+      return "llc";
+    case BackendKind::kGlc:
+      return "glc";
+    case BackendKind::kLocalMap:
+      return "localmap";
   }
   return "?";
 }
@@ -53,7 +69,8 @@ BackEnd::Comparison BackEnd::compare(const FrontendOutput& in, std::int64_t kf_i
   Comparison c;
   c.kf = kf_id;
   const Keyframe& kf = keyframes_.at(kf_id);
-  const std::uint64_t seed = options_.seed ^ (static_cast<std::uint64_t>(in.index) * 0x9E3779B97F4A7C15ull) ^
+  const std::uint64_t seed = options_.seed ^
+                             (static_cast<std::uint64_t>(in.index) * 0x9E3779B97F4A7C15ull) ^
                              (static_cast<std::uint64_t>(kf_id) * 0xC2B2AE3D27D4EB4Full) ^ salt;
   c.est = estimate_between(*in.features, *kf.features, options_.matching, options_.ransac, seed,
                            &c.matches);
@@ -88,7 +105,8 @@ void BackEnd::add_keyframe(const FrontendOutput& in, const Eigen::Isometry3d& T_
     const double frames = std::max<double>(1.0, static_cast<double>(in.index - prev.id));
     e.sqrt_information =
         edge_sqrt_information(std::max<std::size_t>(in.inliers, options_.min_inliers),
-                              in.rms_error_m, depth) / std::sqrt(frames);
+                              in.rms_error_m, depth) /
+        std::sqrt(frames);
     graph_.add_edge(e);
   }
   // Direct edges to the recent keyframes the frame was registered against.
@@ -121,21 +139,24 @@ BackendOutput BackEnd::process(const FrontendOutput& in) {
   // Prediction: the VO motion since the last processed frame, applied to that frame's pose.
   const Eigen::Isometry3d edge =
       have_last_ ? last_T_odom_cam_.inverse() * in.T_odom_cam : Eigen::Isometry3d::Identity();
-  const Eigen::Isometry3d pred = have_last_ ? last_T_world_cam_ * edge : Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d pred =
+      have_last_ ? last_T_world_cam_ * edge : Eigen::Isometry3d::Identity();
   Eigen::Isometry3d pose = pred;
 
   // 1. Compare with the most recent keyframes.
   const std::int64_t tk = steady_now_ns();
   std::vector<Comparison> recent;
-  const std::size_t n_recent = std::min<std::size_t>(recency_.size(),
-                                                     static_cast<std::size_t>(options_.keyframes.recent_keyframes));
+  const std::size_t n_recent = std::min<std::size_t>(
+      recency_.size(), static_cast<std::size_t>(options_.keyframes.recent_keyframes));
   for (std::size_t i = 0; i < n_recent; ++i)
     recent.push_back(compare(in, recency_[recency_.size() - 1 - i], 1));
   const Comparison* best = nullptr;
   for (const Comparison& c : recent)
     if (c.est && (!best || c.est->inliers.size() > best->est->inliers.size())) best = &c;
   std::optional<KeyframeEvidence> evidence;
-  if (best) evidence = KeyframeEvidence{in.features->points_cam_m.size(), best->matches, best->est->inliers.size()};
+  if (best)
+    evidence = KeyframeEvidence{in.features->points_cam_m.size(), best->matches,
+                                best->est->inliers.size()};
   std::optional<double> since;
   if (last_created_kf_ >= 0) since = in.stamp_s - keyframes_.at(last_created_kf_).stamp_s;
   const bool new_kf = decide_new_keyframe(options_.keyframes, since, evidence);
@@ -153,7 +174,9 @@ BackendOutput BackEnd::process(const FrontendOutput& in) {
   if (new_kf) add_keyframe(in, pose, recent);
 
   // 3. Global loop closure.
-  if (options_.kind == BackendKind::kGlc && recency_.size() > static_cast<std::size_t>(options_.loop.glc_exclude_latest) + (new_kf ? 1 : 0)) {
+  if (options_.kind == BackendKind::kGlc &&
+      recency_.size() >
+          static_cast<std::size_t>(options_.loop.glc_exclude_latest) + (new_kf ? 1 : 0)) {
     const std::int64_t tg = steady_now_ns();
     const std::size_t n_features = in.features->points_cam_m.size();
     auto accept = [&](const Comparison& c) {
@@ -173,7 +196,8 @@ BackendOutput BackEnd::process(const FrontendOutput& in) {
       if (std::next(it) != keyframes_.end()) neigh.push_back(std::next(it)->first);
       for (std::int64_t nid : neigh) {
         if (nid == in.index) continue;
-        if (std::any_of(recent.begin(), recent.end(), [&](const Comparison& r) { return r.kf == nid; }))
+        if (std::any_of(recent.begin(), recent.end(),
+                        [&](const Comparison& r) { return r.kf == nid; }))
           continue;
         Comparison c = compare(in, nid, 3);
         if (accept(c) && c.est->inliers.size() > found->est->inliers.size()) found = c;
@@ -189,8 +213,8 @@ BackendOutput BackEnd::process(const FrontendOutput& in) {
       e.from = found->kf;
       e.to = in.index;
       e.T_from_to = found->est->T_dst_src;
-      e.sqrt_information = edge_sqrt_information(found->est->inliers.size(), found->est->rms_error_m,
-                                                 mean_depth_m(*in.features));
+      e.sqrt_information = edge_sqrt_information(
+          found->est->inliers.size(), found->est->rms_error_m, mean_depth_m(*in.features));
       e.loop = true;
       if (graph_.add_edge(e)) {
         const std::int64_t tp = steady_now_ns();

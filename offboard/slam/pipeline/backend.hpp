@@ -48,7 +48,7 @@ struct BackendOptions {
 struct Keyframe {
   std::int64_t id = 0;  ///< index of the frame it was made from
   double stamp_s = 0;
-  RgbdFrame frame;      ///< images, for the map
+  RgbdFrame frame;  ///< images, for the map
   std::shared_ptr<const FrameFeatures> features;
   Eigen::Isometry3d T_odom_cam = Eigen::Isometry3d::Identity();
 };

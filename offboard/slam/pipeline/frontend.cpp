@@ -22,15 +22,19 @@ std::int64_t thread_cpu_now_ns() {
 
 const char* to_string(TrackingState s) {
   switch (s) {
-    case TrackingState::kInitialising: return "initialising";
-    case TrackingState::kTracking: return "tracking";
-    case TrackingState::kLost: return "lost";
+    case TrackingState::kInitialising:
+      return "initialising";
+    case TrackingState::kTracking:
+      return "tracking";
+    case TrackingState::kLost:
+      return "lost";
   }
   return "?";
 }
 
 bool FrontendOptions::is_valid(std::string* error) const {
-  if (!features.is_valid(error) || !matching.is_valid(error) || !ransac.is_valid(error)) return false;
+  if (!features.is_valid(error) || !matching.is_valid(error) || !ransac.is_valid(error))
+    return false;
   if (min_inliers < 3) {
     if (error) *error = "frontend: min_inliers must be >= 3";
     return false;
@@ -56,9 +60,9 @@ std::optional<MotionEstimate> estimate_between(const FrameFeatures& cur, const F
   }
   std::vector<int> order(m.size());
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(),
-                   [&](int a, int b) { return m[static_cast<std::size_t>(a)].distance <
-                                              m[static_cast<std::size_t>(b)].distance; });
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+    return m[static_cast<std::size_t>(a)].distance < m[static_cast<std::size_t>(b)].distance;
+  });
   auto est = estimate_motion_ransac(src, dst, order, ro, seed, nullptr);
   if (ransac_ms) *ransac_ms += ms_since(t1);
   return est;
@@ -89,7 +93,8 @@ std::optional<FrontendOutput> FrontEnd::process(const RgbdFrame& frame, std::str
   if (!prev_) {
     out.state = TrackingState::kInitialising;
   } else {
-    const std::uint64_t seed = options_.seed ^ (static_cast<std::uint64_t>(frame.index) * 0x9E3779B97F4A7C15ull);
+    const std::uint64_t seed =
+        options_.seed ^ (static_cast<std::uint64_t>(frame.index) * 0x9E3779B97F4A7C15ull);
     auto est = estimate_between(*out.features, *prev_, options_.matching, options_.ransac, seed,
                                 &out.matches, &out.matching_ms, &out.ransac_ms);
     if (est && est->inliers.size() >= options_.min_inliers) {

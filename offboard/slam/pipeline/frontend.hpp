@@ -46,13 +46,14 @@ struct FrontendOutput {
   std::size_t inliers = 0;
   double rms_error_m = 0;
   double features_ms = 0, matching_ms = 0, ransac_ms = 0, total_ms = 0;
-  double total_cpu_ms = 0;  ///< CPU time of the calling thread (load-independent when OpenCV runs single-threaded)
+  double total_cpu_ms =
+      0;  ///< CPU time of the calling thread (load-independent when OpenCV runs single-threaded)
 };
 
 class FrontEnd {
  public:
-  static std::optional<FrontEnd> create(const FrontendOptions& options, const Intrinsics& intrinsics,
-                                        std::string* error);
+  static std::optional<FrontEnd> create(const FrontendOptions& options,
+                                        const Intrinsics& intrinsics, std::string* error);
   /// Processes the next frame. Fails only on unusable images (message in `error`).
   std::optional<FrontendOutput> process(const RgbdFrame& frame, std::string* error);
   bool binary_descriptors() const { return extractor_.binary_descriptors(); }

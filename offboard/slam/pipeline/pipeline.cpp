@@ -1,32 +1,48 @@
 // Pipeline threads and hand-over slots; see pipeline.hpp.
 #include "slam/pipeline/pipeline.hpp"
 
-#include "slam/localmap/map_io.hpp"
-#include "slam/pipeline/thread_priority.hpp"
-
-#include <algorithm>
-
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <algorithm>
+
+#include "slam/localmap/map_io.hpp"
+#include "slam/pipeline/thread_priority.hpp"
+
 namespace slam {
 
 bool parse_pipeline_mode(const std::string& name, PipelineMode* out, std::string* error) {
-  if (name == "sequential") { *out = PipelineMode::kSequential; return true; }
-  if (name == "wait") { *out = PipelineMode::kWait; return true; }
-  if (name == "realtime") { *out = PipelineMode::kRealtime; return true; }
-  if (name == "live") { *out = PipelineMode::kLive; return true; }
+  if (name == "sequential") {
+    *out = PipelineMode::kSequential;
+    return true;
+  }
+  if (name == "wait") {
+    *out = PipelineMode::kWait;
+    return true;
+  }
+  if (name == "realtime") {
+    *out = PipelineMode::kRealtime;
+    return true;
+  }
+  if (name == "live") {
+    *out = PipelineMode::kLive;
+    return true;
+  }
   if (error) *error = "unknown mode '" + name + "' (expected wait, realtime, live or sequential)";
   return false;
 }
 
 const char* to_string(PipelineMode m) {
   switch (m) {
-    case PipelineMode::kSequential: return "sequential";
-    case PipelineMode::kWait: return "wait";
-    case PipelineMode::kRealtime: return "realtime";
-    case PipelineMode::kLive: return "live";
+    case PipelineMode::kSequential:
+      return "sequential";
+    case PipelineMode::kWait:
+      return "wait";
+    case PipelineMode::kRealtime:
+      return "realtime";
+    case PipelineMode::kLive:
+      return "live";
   }
   return "?";
 }
@@ -34,7 +50,8 @@ const char* to_string(PipelineMode m) {
 bool PipelineOptions::is_valid(std::string* error) const {
   if (!frontend.is_valid(error) || !backend.is_valid(error)) return false;
   if (backend.kind == BackendKind::kLocalMap)
-    return tracker.is_valid(error) && mapper.is_valid(error) && (!loop_closing || loop.is_valid(error));
+    return tracker.is_valid(error) && mapper.is_valid(error) &&
+           (!loop_closing || loop.is_valid(error));
   return true;
 }
 
@@ -78,7 +95,8 @@ std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intri
       lo.ransac = to.ransac;
       lo.fit = projection_fit_options(to);
       p->loop_closer_ = LoopCloser::create(
-          lo, cam, p->map_, std::make_shared<const BinaryVocabulary>(std::move(*vocabulary)), error);
+          lo, cam, p->map_, std::make_shared<const BinaryVocabulary>(std::move(*vocabulary)),
+          error);
       if (!p->loop_closer_) return nullptr;
       p->summary_.loop_closing_active = true;
     }
@@ -87,8 +105,10 @@ std::unique_ptr<Pipeline> Pipeline::create(const PipelineOptions& o, const Intri
     p->backend_thread_ = std::thread([q = p.get()] { q->mapper_loop(); });
   } else if (opts.mode != PipelineMode::kSequential) {
     p->frontend_thread_ = std::thread([q = p.get()] { q->frontend_loop(); });
-    if (local_map) p->backend_thread_ = std::thread([q = p.get()] { q->mapper_loop(); });
-    else p->backend_thread_ = std::thread([q = p.get()] { q->backend_loop(); });
+    if (local_map)
+      p->backend_thread_ = std::thread([q = p.get()] { q->mapper_loop(); });
+    else
+      p->backend_thread_ = std::thread([q = p.get()] { q->backend_loop(); });
   }
   if (p->loop_closer_ && opts.mode != PipelineMode::kSequential)
     p->loop_thread_ = std::thread([q = p.get()] { q->loop_closing_loop(); });
@@ -188,7 +208,8 @@ void Pipeline::hand_retired() {
 }
 
 void Pipeline::frontend_loop() {
-  if (options_.mode == PipelineMode::kRealtime && options_.tracking_thread_policy != ThreadPolicy::kOff) {
+  if (options_.mode == PipelineMode::kRealtime &&
+      options_.tracking_thread_policy != ThreadPolicy::kOff) {
     ThreadPriorityOptions tp;
     tp.policy = options_.tracking_thread_policy;
     const ThreadPriorityResult r = raise_current_thread(tp);
@@ -367,7 +388,8 @@ bool Pipeline::save_map(const std::string& path, std::string* error) const {
     return false;
   }
   std::lock_guard<MapMutex> lock(map_->mutex);
-  return slam::save_map(path, map_->map, MapFileContext{camera_, options_.frontend.features}, error);
+  return slam::save_map(path, map_->map, MapFileContext{camera_, options_.frontend.features},
+                        error);
 }
 
 std::vector<MapperStats> Pipeline::mapper_stats() const {
@@ -442,7 +464,8 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   }
   rec.features_ms = ms_since(t0);
   rec.features = feats->points_cam_m.size();
-  bool keyframe_allowed = true, mapper_idle = true;  // wait/sequential: mapping is done before the next frame
+  bool keyframe_allowed = true,
+       mapper_idle = true;  // wait/sequential: mapping is done before the next frame
   if (options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive) {
     std::lock_guard<std::mutex> lock(mutex_);
     keyframe_allowed = keyframe_queue_.size() + (mapper_busy_ ? 1 : 0) < kMaxQueuedKeyframes;
@@ -541,7 +564,8 @@ void Pipeline::mapper_loop() {
       std::lock_guard<std::mutex> lock(mutex_);
       mapper_stats_.push_back(st);
       mapper_busy_ = false;
-      if (loop_closer_) loop_queue_.push_back(kf);  // same step: wait mode never sees both idle early
+      if (loop_closer_)
+        loop_queue_.push_back(kf);  // same step: wait mode never sees both idle early
     }
     cv_.notify_all();
   }
@@ -555,8 +579,8 @@ std::vector<std::pair<double, Eigen::Isometry3d>> Pipeline::final_trajectory() c
     std::lock_guard<MapMutex> map_lock(map_->mutex);
     for (const auto& r : records_) {
       if (!r.ok) continue;
-      const auto T_kf = r.reference_keyframe >= 0 ? map_->map.resolve_pose(r.reference_keyframe)
-                                                  : std::nullopt;
+      const auto T_kf =
+          r.reference_keyframe >= 0 ? map_->map.resolve_pose(r.reference_keyframe) : std::nullopt;
       out.emplace_back(r.stamp_s, T_kf && r.state == TrackingState::kTracking ? *T_kf * r.T_kf_cam
                                                                               : r.T_world_cam);
     }

@@ -14,9 +14,10 @@
 // With BackendKind::kLocalMap the front-end thread runs feature extraction and the Tracker (pose
 // against the local map, the camera-to-command path), the back-end thread runs the LocalMapper
 // on keyframes and a third thread the LoopCloser on each mapped keyframe (wait mode waits for
-// both, sequential mode runs both inline). wait: the tracker waits for each keyframe to be mapped (deterministic, equals
-// sequential); realtime: keyframes queue for the mapper (at most kMaxQueuedKeyframes, beyond which
-// the tracker defers its keyframe), tracking never waits for mapping.
+// both, sequential mode runs both inline). wait: the tracker waits for each keyframe to be mapped
+// (deterministic, equals sequential); realtime: keyframes queue for the mapper (at most
+// kMaxQueuedKeyframes, beyond which the tracker defers its keyframe), tracking never waits for
+// mapping.
 //
 // Thread safety: submit()/finish() from one producer thread; results after finish().
 #pragma once
@@ -55,7 +56,7 @@ struct PipelineOptions {
   /// Refine every RANSAC estimate on the reprojection error (RansacOptions::reprojection_camera is
   /// filled from the intrinsics when true).
   bool reprojection_refine = true;
-  TrackerOptions tracker;          ///< BackendKind::kLocalMap only
+  TrackerOptions tracker;  ///< BackendKind::kLocalMap only
   /// BackendKind::kLocalMap: sigma of the depth (disparity) residual (see DepthNoiseModel).
   DepthNoiseModel depth_noise = DepthNoiseModel::kKeypointSigma;
   /// BackendKind::kLocalMap: the map lock inherits the priority of a waiting real-time tracker
@@ -64,7 +65,7 @@ struct PipelineOptions {
   /// kRealtime: scheduling of the tracking thread (slam-server and quad-control raise theirs; off
   /// leaves it as created). Lets `slam-eval --mode realtime` measure the real-time path.
   ThreadPolicy tracking_thread_policy = ThreadPolicy::kOff;
-  LocalMapperOptions mapper;       ///< BackendKind::kLocalMap only
+  LocalMapperOptions mapper;  ///< BackendKind::kLocalMap only
   /// BackendKind::kLocalMap: loop closing on its own thread (binary descriptors only: the
   /// vocabulary is ORB's; with SIFT/SURF it stays off and PipelineSummary says so). On by default
   /// since session 6: with ORB-SLAM2's temporal consistency and the odometry-consistency gate
@@ -80,7 +81,8 @@ struct PipelineOptions {
   /// niced below a real-time tracker, so "busy" is most of the time in flight, and the gate then
   /// withholds the keyframes the map needs; ORB-SLAM2's mapper is not starved that way.
   bool keyframe_gate_mapper_busy = false;
-  LoopCloserOptions loop;          ///< matching, RANSAC and projection settings are filled in from the tracker's
+  LoopCloserOptions
+      loop;  ///< matching, RANSAC and projection settings are filled in from the tracker's
   bool is_valid(std::string* error) const;
 };
 
@@ -88,16 +90,19 @@ struct PipelineOptions {
 struct FrameRecord {
   std::int64_t index = 0;
   double stamp_s = 0;
-  bool ok = false;                  ///< false: the front-end rejected the frame (see error)
+  bool ok = false;  ///< false: the front-end rejected the frame (see error)
   std::string error;
   TrackingState state = TrackingState::kInitialising;
   bool backend_processed = false;
   bool keyframe = false;
   bool llc_applied = false;
   bool loop_closed = false;
-  bool relocalised = false;  ///< local-map system: the pose came from the keyframe database (TrackResult)
-  bool prediction_stale = false;  ///< local-map system: the gap exceeded the tracker's max_predicted_gap_s
-  double prediction_deviation_m = -1, prediction_deviation_bound_m = -1;  ///< local-map system (TrackResult)
+  bool relocalised =
+      false;  ///< local-map system: the pose came from the keyframe database (TrackResult)
+  bool prediction_stale =
+      false;  ///< local-map system: the gap exceeded the tracker's max_predicted_gap_s
+  double prediction_deviation_m = -1,
+         prediction_deviation_bound_m = -1;  ///< local-map system (TrackResult)
   std::int64_t reference_keyframe = -1;
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< as estimated online
   Eigen::Isometry3d T_prev_cur = Eigen::Isometry3d::Identity();   ///< front-end egomotion
@@ -113,17 +118,20 @@ struct FrameRecord {
   KeyframeReason keyframe_wanted = KeyframeReason::kNone;
   int ref_tracked = 0, near_tracked = 0, near_untracked = 0;
   double near_redundant = -1;
-  double map_lock_wait_ms = 0;  ///< local-map system: the tracker's wait for the map lock (TrackResult)
-  /// Map corrections T_world_cam is expressed after: loop corrections of the local map (TrackResult),
-  /// or loop closures the VO back-end had applied when this pose was given. A change from one frame
-  /// to the next declares a jump of the world frame (PoseUpdate.map_correction_count on the wire).
+  double map_lock_wait_ms =
+      0;  ///< local-map system: the tracker's wait for the map lock (TrackResult)
+  /// Map corrections T_world_cam is expressed after: loop corrections of the local map
+  /// (TrackResult), or loop closures the VO back-end had applied when this pose was given. A change
+  /// from one frame to the next declares a jump of the world frame (PoseUpdate.map_correction_count
+  /// on the wire).
   std::uint64_t map_corrections = 0;
 };
 
 struct PipelineSummary {
   std::size_t frames_submitted = 0;
-  std::size_t frontend_dropped = 0;  ///< real-time mode: frames replaced before the front-end took them
-  std::size_t backend_skipped = 0;   ///< real-time mode: front-end outputs the back-end never saw
+  std::size_t frontend_dropped =
+      0;  ///< real-time mode: frames replaced before the front-end took them
+  std::size_t backend_skipped = 0;  ///< real-time mode: front-end outputs the back-end never saw
   std::size_t frames_failed = 0;
   std::size_t keyframes = 0;
   std::size_t loop_closures = 0;
@@ -131,11 +139,13 @@ struct PipelineSummary {
   // Local-map system only:
   std::size_t map_points = 0;
   std::size_t keyframes_culled = 0;
-  std::size_t relocalisations = 0;   ///< frames whose pose came from the keyframe database
+  std::size_t relocalisations = 0;  ///< frames whose pose came from the keyframe database
   std::size_t frames_lost = 0;
-  bool loop_closing_active = false;  ///< the loop closer ran (option on and a vocabulary for the detector)
-  std::size_t loop_detections = 0;   ///< keyframes with database candidates passed to verification
-  std::string tracking_thread;       ///< the tracking thread's scheduling, when PipelineOptions asked for one
+  bool loop_closing_active =
+      false;  ///< the loop closer ran (option on and a vocabulary for the detector)
+  std::size_t loop_detections = 0;  ///< keyframes with database candidates passed to verification
+  std::string
+      tracking_thread;  ///< the tracking thread's scheduling, when PipelineOptions asked for one
 };
 
 class Pipeline {
@@ -169,7 +179,8 @@ class Pipeline {
   /// Record of frame `index` as it stands now (sequential mode: final once submit() returned).
   std::optional<FrameRecord> record(std::int64_t index) const;
   const BackEnd& backend() const { return *backend_; }
-  /// Local-map system: the map (lock `mutex` to read while running), and per-keyframe mapping stats.
+  /// Local-map system: the map (lock `mutex` to read while running), and per-keyframe mapping
+  /// stats.
   std::shared_ptr<SharedMap> local_map() const { return map_; }
   std::vector<MapperStats> mapper_stats() const;
   std::vector<LoopStats> loop_stats() const;
@@ -196,7 +207,8 @@ class Pipeline {
   void hand_retired();
   void mapper_loop();
   void loop_closing_loop();
-  /// Loop-closes keyframe `kf` and records its stats (the loop thread, or inline in sequential mode).
+  /// Loop-closes keyframe `kf` and records its stats (the loop thread, or inline in sequential
+  /// mode).
   void close_loops(std::int64_t kf);
 
   PipelineOptions options_;
@@ -205,8 +217,8 @@ class Pipeline {
 
   mutable std::mutex mutex_;
   std::condition_variable cv_;
-  std::deque<RgbdFrame> input_;                   // capacity 1
-  std::deque<FrontendOutput> handover_;           // capacity 1
+  std::deque<RgbdFrame> input_;          // capacity 1
+  std::deque<FrontendOutput> handover_;  // capacity 1
   bool input_closed_ = false;
   bool handover_closed_ = false;
   std::atomic<bool> finished_{false};
@@ -229,7 +241,8 @@ class Pipeline {
   bool keyframes_closed_ = false;
   std::vector<MapperStats> mapper_stats_;
   std::optional<LoopCloser> loop_closer_;
-  std::deque<std::int64_t> loop_queue_;  // mapped keyframes waiting for loop closing (one per keyframe)
+  std::deque<std::int64_t>
+      loop_queue_;  // mapped keyframes waiting for loop closing (one per keyframe)
   bool loop_busy_ = false;
   bool loop_closed_ = false;
   std::vector<LoopStats> loop_stats_;

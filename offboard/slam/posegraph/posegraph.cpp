@@ -17,7 +17,8 @@ namespace {
 //   r = S * [ p_ab_est - p_ab ; 2 vec(q_ab q_ab_est^-1) ],  S = diag(sqrt information)
 struct RelativePoseError {
   RelativePoseError(const Eigen::Isometry3d& T_ab, const Eigen::Matrix<double, 6, 1>& sqrt_info)
-      : p_ab(T_ab.translation()), q_ab(Eigen::Quaterniond(T_ab.rotation()).normalized()),
+      : p_ab(T_ab.translation()),
+        q_ab(Eigen::Quaterniond(T_ab.rotation()).normalized()),
         sqrt_info(sqrt_info) {}
 
   template <typename T>
@@ -51,13 +52,15 @@ bool PoseGraphOptions::is_valid(std::string* error) const {
   return true;
 }
 
-Eigen::Matrix<double, 6, 1> edge_sqrt_information(std::size_t inliers, double rms_m, double depth_m) {
+Eigen::Matrix<double, 6, 1> edge_sqrt_information(std::size_t inliers, double rms_m,
+                                                  double depth_m) {
   constexpr double kMinSigmaM = 0.005;  // Kinect depth noise floor near 1 m is a few mm
   // Inlier errors are correlated (depth calibration, shared pose of the frame), so information
   // stops growing after ~25 independent-looking pairs: sigma_t >= 1 mm.
   constexpr std::size_t kMaxEffectiveInliers = 25;
   const double n = static_cast<double>(std::clamp<std::size_t>(inliers, 3, kMaxEffectiveInliers));
-  const double sigma_t = std::max(std::isfinite(rms_m) ? rms_m : kMinSigmaM, kMinSigmaM) / std::sqrt(n);
+  const double sigma_t =
+      std::max(std::isfinite(rms_m) ? rms_m : kMinSigmaM, kMinSigmaM) / std::sqrt(n);
   const double sigma_r = sigma_t / std::max(std::isfinite(depth_m) ? depth_m : 1.0, 0.5);
   Eigen::Matrix<double, 6, 1> s;
   s << 1 / sigma_t, 1 / sigma_t, 1 / sigma_t, 1 / sigma_r, 1 / sigma_r, 1 / sigma_r;

@@ -36,7 +36,8 @@ struct PoseGraphOptions {
 /// rms_m at a mean depth of depth_m. Translation sigma = max(rms, 5 mm)/sqrt(n); rotation sigma =
 /// translation sigma / depth (a point error e at depth z tilts the view by about e/z). n is capped
 /// at 25 (correlated errors), so sigma >= 1 mm.
-Eigen::Matrix<double, 6, 1> edge_sqrt_information(std::size_t inliers, double rms_m, double depth_m);
+Eigen::Matrix<double, 6, 1> edge_sqrt_information(std::size_t inliers, double rms_m,
+                                                  double depth_m);
 
 class PoseGraph {
  public:

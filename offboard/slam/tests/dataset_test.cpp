@@ -1,9 +1,9 @@
 // Dataset reader: association within 20 ms, rate reduction, clear errors for bad folders.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 #include "slam/dataset/tum_dataset.hpp"
 

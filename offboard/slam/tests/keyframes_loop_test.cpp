@@ -20,12 +20,14 @@ TEST(KeyframePolicy, TableOfDecisions) {
       {"first frame", KeyframePolicy::kRansac, std::nullopt, std::nullopt, true},
       {"no evidence", KeyframePolicy::kRansac, 0.1, std::nullopt, true},
       {"good overlap", KeyframePolicy::kRansac, 0.1, KeyframeEvidence{1000, 400, 300}, false},
-      {"matches just under 15 %", KeyframePolicy::kRansac, 0.1, KeyframeEvidence{1000, 149, 149}, true},
+      {"matches just under 15 %", KeyframePolicy::kRansac, 0.1, KeyframeEvidence{1000, 149, 149},
+       true},
       {"matches at 15 %", KeyframePolicy::kRansac, 0.1, KeyframeEvidence{1000, 150, 150}, false},
       {"inliers under 45 %", KeyframePolicy::kRansac, 0.1, KeyframeEvidence{1000, 400, 179}, true},
       {"inliers at 45 %", KeyframePolicy::kRansac, 0.1, KeyframeEvidence{1000, 400, 180}, false},
       {"fixed: 0.2 s after", KeyframePolicy::kFixedRate, 0.2, KeyframeEvidence{1000, 0, 0}, false},
-      {"fixed: 1/3 s after (30 Hz, 10 frames)", KeyframePolicy::kFixedRate, 10 * 0.0333, std::nullopt, true},
+      {"fixed: 1/3 s after (30 Hz, 10 frames)", KeyframePolicy::kFixedRate, 10 * 0.0333,
+       std::nullopt, true},
       {"fixed: first frame", KeyframePolicy::kFixedRate, std::nullopt, std::nullopt, true},
   };
   for (const auto& c : cases) {
@@ -56,11 +58,13 @@ TEST(LocalLoopClosure, GivenSmallCorrectionThenAppliedFully) {
 }
 
 TEST(LocalLoopClosure, GivenStillCameraOrNonFiniteThenPredictionKept) {
-  const auto still = clamp_llc_correction(pose(1.0, 0.0), pose(1.1, 0.1), Eigen::Isometry3d::Identity(), 0.25);
+  const auto still =
+      clamp_llc_correction(pose(1.0, 0.0), pose(1.1, 0.1), Eigen::Isometry3d::Identity(), 0.25);
   EXPECT_TRUE(still.isApprox(pose(1.0, 0.0)));
   Eigen::Isometry3d nan = pose(1.0, 0.0);
   nan.translation().x() = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_TRUE(clamp_llc_correction(pose(1.0, 0.0), nan, pose(0.04, 0), 0.25).isApprox(pose(1.0, 0.0)));
+  EXPECT_TRUE(
+      clamp_llc_correction(pose(1.0, 0.0), nan, pose(0.04, 0), 0.25).isApprox(pose(1.0, 0.0)));
 }
 
 TEST(GlobalLoopClosure, GivenFewOlderKeyframesThenAllTested) {

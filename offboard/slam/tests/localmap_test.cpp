@@ -19,7 +19,8 @@ CameraModel fr1_camera() { return CameraModel::from(Intrinsics{}); }
 
 Eigen::Isometry3d pose(double rx, double ry, double rz, double tx, double ty, double tz) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = (Eigen::AngleAxisd(rz, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(ry, Eigen::Vector3d::UnitY()) *
+  T.linear() = (Eigen::AngleAxisd(rz, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(ry, Eigen::Vector3d::UnitY()) *
                 Eigen::AngleAxisd(rx, Eigen::Vector3d::UnitX()))
                    .toRotationMatrix();
   T.translation() = Eigen::Vector3d(tx, ty, tz);
@@ -35,13 +36,15 @@ std::vector<Eigen::Vector3d> scene(int n, std::uint32_t seed) {
   return pts;
 }
 
-std::vector<PoseObservation> observe(const std::vector<Eigen::Vector3d>& pts, const Eigen::Isometry3d& T_cam_world,
-                                     const CameraModel& cam, double noise_px, std::uint32_t seed) {
+std::vector<PoseObservation> observe(const std::vector<Eigen::Vector3d>& pts,
+                                     const Eigen::Isometry3d& T_cam_world, const CameraModel& cam,
+                                     double noise_px, std::uint32_t seed) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> n(0.0, noise_px);
   std::vector<PoseObservation> obs;
   for (const auto& p : pts) {
-    const Eigen::Vector3d z = cam.project(T_cam_world * p) + Eigen::Vector3d(n(rng), n(rng), 0.1 * n(rng));
+    const Eigen::Vector3d z =
+        cam.project(T_cam_world * p) + Eigen::Vector3d(n(rng), n(rng), 0.1 * n(rng));
     obs.push_back(PoseObservation{p, z, Eigen::Vector3d::Ones()});
   }
   return obs;
@@ -58,7 +61,8 @@ TEST(PoseOptimizer, RecoversThePoseFromAPerturbedStartWithNoiseFreeObservations)
   ASSERT_TRUE(r.ok);
   EXPECT_EQ(r.inliers, 200);
   EXPECT_LT((r.T_cam_world.translation() - truth.translation()).norm(), 1e-6);
-  EXPECT_LT(Eigen::AngleAxisd(r.T_cam_world.rotation().transpose() * truth.rotation()).angle(), 1e-6);
+  EXPECT_LT(Eigen::AngleAxisd(r.T_cam_world.rotation().transpose() * truth.rotation()).angle(),
+            1e-6);
 }
 
 TEST(PoseOptimizer, RejectsGrossOutliersAndStaysAccurate) {
@@ -122,12 +126,15 @@ TEST(DepthSlope, GivenAStepARampAndHolesThenTheSlopeIsTheLargerNeighbourDifferen
   // 5000 units per metre (TUM); a ramp along u of 2 mm per px, a 0.5 m step along v at row 3
   cv::Mat depth(6, 6, CV_16UC1);
   for (int v = 0; v < 6; ++v)
-    for (int u = 0; u < 6; ++u) depth.at<std::uint16_t>(v, u) = static_cast<std::uint16_t>(5000 + 10 * u + (v >= 3 ? 2500 : 0));
+    for (int u = 0; u < 6; ++u)
+      depth.at<std::uint16_t>(v, u) =
+          static_cast<std::uint16_t>(5000 + 10 * u + (v >= 3 ? 2500 : 0));
   EXPECT_NEAR(depth_slope_m_per_px(depth, 2, 1, 5000.0), 0.002, 1e-9);  // the ramp (central)
-  EXPECT_NEAR(depth_slope_m_per_px(depth, 2, 3, 5000.0), 0.25, 1e-9);  // the step: central, 0.5 m / 2 px
+  EXPECT_NEAR(depth_slope_m_per_px(depth, 2, 3, 5000.0), 0.25,
+              1e-9);                  // the step: central, 0.5 m / 2 px
   depth.at<std::uint16_t>(1, 1) = 0;  // a hole left of (2, 1): one-sided along u
   EXPECT_NEAR(depth_slope_m_per_px(depth, 2, 1, 5000.0), 0.002, 1e-9);
-  EXPECT_EQ(depth_slope_m_per_px(depth, 1, 1, 5000.0), 0.0);  // no reading: no slope
+  EXPECT_EQ(depth_slope_m_per_px(depth, 1, 1, 5000.0), 0.0);            // no reading: no slope
   EXPECT_NEAR(depth_slope_m_per_px(depth, 0, 0, 5000.0), 0.002, 1e-9);  // image border: one-sided
 }
 
@@ -191,8 +198,9 @@ cv::Mat random_descriptors(int n, std::uint32_t seed) {
   return d;
 }
 
-SyntheticFrame make_frame(const std::vector<Eigen::Vector3d>& pts, const Eigen::Isometry3d& T_cam_world,
-                          const cv::Mat& desc, const CameraModel& cam) {
+SyntheticFrame make_frame(const std::vector<Eigen::Vector3d>& pts,
+                          const Eigen::Isometry3d& T_cam_world, const cv::Mat& desc,
+                          const CameraModel& cam) {
   SyntheticFrame f;
   FeatureOptions fo;
   fo.kind = DetectorKind::kOrb;
@@ -201,14 +209,16 @@ SyntheticFrame make_frame(const std::vector<Eigen::Vector3d>& pts, const Eigen::
     const Eigen::Vector3d pc = T_cam_world * pts[i];
     const Eigen::Vector3d uvd = cam.project(pc);
     if (pc.z() <= 0 || !cam.in_image(uvd.x(), uvd.y())) continue;
-    f.features->keypoints.emplace_back(cv::Point2f(static_cast<float>(uvd.x()), static_cast<float>(uvd.y())),
-                                       static_cast<float>(fo.orb_patch_size));
+    f.features->keypoints.emplace_back(
+        cv::Point2f(static_cast<float>(uvd.x()), static_cast<float>(uvd.y())),
+        static_cast<float>(fo.orb_patch_size));
     f.features->points_cam_m.push_back(pc);
     f.features->colours_bgr.emplace_back(0, 0, 0);
     rows.push_back(static_cast<int>(i));
   }
   f.features->descriptors.create(static_cast<int>(rows.size()), desc.cols, desc.type());
-  for (std::size_t r = 0; r < rows.size(); ++r) desc.row(rows[r]).copyTo(f.features->descriptors.row(static_cast<int>(r)));
+  for (std::size_t r = 0; r < rows.size(); ++r)
+    desc.row(rows[r]).copyTo(f.features->descriptors.row(static_cast<int>(r)));
   f.tracked = TrackedFeatures::from(f.features, cam, fo);
   return f;
 }
@@ -221,16 +231,20 @@ TEST(ProjectionSearch, MatchesEachPointToItsOwnKeypointUnderASmallPoseError) {
   const Eigen::Isometry3d truth = pose(0, 0.02, 0, 0.05, 0, 0);
   const SyntheticFrame f = make_frame(pts, truth, desc, cam);
   std::vector<LocalPoint> local;
-  for (int i = 0; i < 150; ++i) local.push_back(LocalPoint{i, pts[static_cast<std::size_t>(i)], desc.row(i)});
+  for (int i = 0; i < 150; ++i)
+    local.push_back(LocalPoint{i, pts[static_cast<std::size_t>(i)], desc.row(i)});
   // WHEN searched from the predicted pose
-  const ProjectionMatches m =
-      search_by_projection(local, truth * pose(0, 0, 0, 0.01, 0, 0), f.tracked, cam, ProjectionSearchOptions{});
+  const ProjectionMatches m = search_by_projection(local, truth * pose(0, 0, 0, 0.01, 0, 0),
+                                                   f.tracked, cam, ProjectionSearchOptions{});
   // THEN every visible keypoint finds its own point and nothing else
   ASSERT_EQ(m.matches, static_cast<int>(f.tracked.size()));
   for (std::size_t k = 0; k < f.tracked.size(); ++k) {
     const int p = m.point_of_keypoint[k];
     ASSERT_GE(p, 0);
-    EXPECT_LT((cam.project(truth * pts[static_cast<std::size_t>(p)]).head<2>() - f.tracked.pixels[k]).norm(), 1e-6);
+    EXPECT_LT(
+        (cam.project(truth * pts[static_cast<std::size_t>(p)]).head<2>() - f.tracked.pixels[k])
+            .norm(),
+        1e-6);
   }
 }
 
@@ -245,7 +259,8 @@ TEST(ProjectionSearch, ADescriptorTooFarAwayIsNotMatched) {
     cv::bitwise_not(other, other);  // 256 bits away
     local.push_back(LocalPoint{i, pts[static_cast<std::size_t>(i)], other});
   }
-  EXPECT_EQ(search_by_projection(local, Eigen::Isometry3d::Identity(), f.tracked, cam, {}).matches, 0);
+  EXPECT_EQ(search_by_projection(local, Eigen::Isometry3d::Identity(), f.tracked, cam, {}).matches,
+            0);
 }
 
 TEST(SlamMap, ObservationsPointsAndCulledKeyframeChains) {

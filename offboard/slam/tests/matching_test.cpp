@@ -1,7 +1,7 @@
 // Matching stage: Lowe's ratio test and NNMMT on crafted descriptors (float and binary).
-#include <gtest/gtest.h>
-
 #include "slam/matching/matching.hpp"
+
+#include <gtest/gtest.h>
 
 namespace slam {
 namespace {

@@ -1,19 +1,22 @@
 // Motion stage: Umeyama recovers a known SE(3); RANSAC survives 50 % outliers; seeds reproduce.
+#include "slam/motion/motion.hpp"
+
 #include <gtest/gtest.h>
 
 #include <random>
 
 #include "rgbdquad/camera/tum_cameras.hpp"
-#include "slam/motion/motion.hpp"
 
 namespace slam {
 namespace {
 
-constexpr const rgbdquad::camera::TumCamera& kFr1 = rgbdquad::camera::kTumFr1;  // the test frames' camera
+constexpr const rgbdquad::camera::TumCamera& kFr1 =
+    rgbdquad::camera::kTumFr1;  // the test frames' camera
 
 Eigen::Isometry3d known_pose() {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, -1.0, 0.4).normalized()).toRotationMatrix();
+  T.linear() =
+      Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, -1.0, 0.4).normalized()).toRotationMatrix();
   T.translation() = Eigen::Vector3d(0.12, -0.05, 0.31);
   return T;
 }
@@ -44,12 +47,12 @@ TEST(Umeyama, GivenExactPairsWhenAlignedThenRecoversTransformTo1e9) {
 
 TEST(Umeyama, GivenDegenerateInputThenNoEstimate) {
   std::vector<Eigen::Vector3d> line = {{0, 0, 1}, {0, 0, 2}, {0, 0, 3}, {0, 0, 4}};
-  EXPECT_FALSE(umeyama_rigid(line, line));                        // collinear
+  EXPECT_FALSE(umeyama_rigid(line, line));  // collinear
   EXPECT_FALSE(umeyama_rigid({{1, 1, 1}, {1, 1, 1}, {1, 1, 1}}, {{1, 1, 1}, {1, 1, 1}, {1, 1, 1}}));
   EXPECT_FALSE(umeyama_rigid(random_points(2, 3), random_points(2, 4)));  // too few
   auto bad = random_points(5, 5);
   bad[2].x() = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_FALSE(umeyama_rigid(bad, random_points(5, 6)));          // non-finite
+  EXPECT_FALSE(umeyama_rigid(bad, random_points(5, 6)));  // non-finite
 }
 
 struct RansacCase {
@@ -85,8 +88,8 @@ TEST_P(RansacOutliers, GivenHalfOutliersWhenEstimatingThenInliersFoundAndPoseAcc
   ASSERT_TRUE(est) << why;
   std::size_t true_inliers = 0;
   for (int i : est->inliers) true_inliers += is_inlier[static_cast<std::size_t>(i)];
-  EXPECT_GE(true_inliers, 95u);                         // nearly all 100 real inliers
-  EXPECT_LE(est->inliers.size() - true_inliers, 3u);    // junk rarely lands within 3 cm
+  EXPECT_GE(true_inliers, 95u);                       // nearly all 100 real inliers
+  EXPECT_LE(est->inliers.size() - true_inliers, 3u);  // junk rarely lands within 3 cm
   EXPECT_TRUE(est->accepted);
   EXPECT_LT((est->T_dst_src.translation() - T.translation()).norm(), 0.002);
   EXPECT_LT(Eigen::AngleAxisd(est->T_dst_src.rotation().transpose() * T.rotation()).angle(), 0.002);
@@ -139,15 +142,19 @@ TEST(ReprojectionRefine, GivenExactPixelsAndNoisyDepthThenRefinedPoseBeatsUmeyam
   const double err_ref = (refined.translation() - T.translation()).norm();
   EXPECT_LT(err_ref, 0.5 * err_ls) << "ls " << err_ls << " refined " << err_ref;
   // and a camera without intrinsics leaves the input unchanged
-  EXPECT_TRUE(refine_reprojection(*ls, src, dst, all, RansacOptions::Pinhole{}, 10, 2.0).isApprox(*ls));
+  EXPECT_TRUE(
+      refine_reprojection(*ls, src, dst, all, RansacOptions::Pinhole{}, 10, 2.0).isApprox(*ls));
 }
 
 // The analytic Jacobians of the reprojection refinement against central differences of the
-// residual under the solver's own update T' = exp(delta) * T (delta = translation, rotation vector).
-Eigen::Isometry3d left_increment(const Eigen::Matrix<double, 6, 1>& delta, const Eigen::Isometry3d& T) {
+// residual under the solver's own update T' = exp(delta) * T (delta = translation, rotation
+// vector).
+Eigen::Isometry3d left_increment(const Eigen::Matrix<double, 6, 1>& delta,
+                                 const Eigen::Isometry3d& T) {
   Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
   const double angle = delta.tail<3>().norm();
-  if (angle > 0) step.linear() = Eigen::AngleAxisd(angle, delta.tail<3>() / angle).toRotationMatrix();
+  if (angle > 0)
+    step.linear() = Eigen::AngleAxisd(angle, delta.tail<3>() / angle).toRotationMatrix();
   step.translation() = delta.head<3>();
   return step * T;
 }
@@ -180,7 +187,8 @@ TEST(ReprojectionRefine, GivenRandomPosesAndPointsThenAnalyticJacobiansMatchNume
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.linear() = (Eigen::AngleAxisd(angle(rng), Eigen::Vector3d::UnitX()) *
                   Eigen::AngleAxisd(angle(rng), Eigen::Vector3d::UnitY()) *
-                  Eigen::AngleAxisd(angle(rng), Eigen::Vector3d::UnitZ())).toRotationMatrix();
+                  Eigen::AngleAxisd(angle(rng), Eigen::Vector3d::UnitZ()))
+                     .toRotationMatrix();
     T.translation() = Eigen::Vector3d(shift(rng), shift(rng), shift(rng));
     for (const auto& s : src) {
       // A destination near T*s (not equal: residuals must be non-zero to exercise every term).

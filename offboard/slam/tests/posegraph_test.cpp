@@ -1,10 +1,10 @@
 // Pose graph: a synthetic loop with injected odometry drift is corrected by one loop edge; a
 // false loop closure does not wreck the map thanks to the robust loss; g2o export.
+#include "slam/posegraph/posegraph.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
-
-#include "slam/posegraph/posegraph.hpp"
 
 namespace slam {
 namespace {
@@ -29,7 +29,8 @@ double max_position_error(const PoseGraph& g, int n) {
 
 Eigen::Matrix<double, 6, 1> sqrt_info(double sigma_t_m, double sigma_r_rad) {
   Eigen::Matrix<double, 6, 1> s;
-  s << 1 / sigma_t_m, 1 / sigma_t_m, 1 / sigma_t_m, 1 / sigma_r_rad, 1 / sigma_r_rad, 1 / sigma_r_rad;
+  s << 1 / sigma_t_m, 1 / sigma_t_m, 1 / sigma_t_m, 1 / sigma_r_rad, 1 / sigma_r_rad,
+      1 / sigma_r_rad;
   return s;
 }
 

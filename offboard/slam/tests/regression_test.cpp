@@ -130,7 +130,8 @@ TEST(Pipeline, RetiredRecordsGoToTheSinkInOrderAndOnlyTheNewestAreHeld) {
   p->finish();
   // AND the 25 older ones went to the sink once each, in order, complete (all tracked)
   ASSERT_EQ(retired.size(), ds->size() - 5);
-  for (std::size_t k = 0; k < retired.size(); ++k) EXPECT_EQ(retired[k], static_cast<std::int64_t>(k));
+  for (std::size_t k = 0; k < retired.size(); ++k)
+    EXPECT_EQ(retired[k], static_cast<std::int64_t>(k));
   EXPECT_EQ(retired_tracked, retired.size());
   // AND only the 5 newest are held
   const std::vector<FrameRecord> held = p->records();
@@ -143,8 +144,9 @@ TEST(Pipeline, RetiredRecordsGoToTheSinkInOrderAndOnlyTheNewestAreHeld) {
 TEST(Regression, LocalMapBridgesAGapOfWithheldFrames) {
   // GIVEN frames 10-19 withheld (a third of a second: a stalled link)
   std::vector<FrameRecord> recs;
-  const RunResult r = run(DetectorKind::kOrb, BackendKind::kLocalMap, PipelineMode::kSequential,
-                          [](RgbdFrame* f) { return f->index < 10 || f->index >= 20; }, &recs);
+  const RunResult r = run(
+      DetectorKind::kOrb, BackendKind::kLocalMap, PipelineMode::kSequential,
+      [](RgbdFrame* f) { return f->index < 10 || f->index >= 20; }, &recs);
   // THEN every frame after the gap is tracked in the same map (no new world frame) and accurate
   ASSERT_EQ(r.trajectory.size(), 20u);
   for (const auto& rec : recs) EXPECT_EQ(rec.state, TrackingState::kTracking) << rec.index;
@@ -154,21 +156,24 @@ TEST(Regression, LocalMapBridgesAGapOfWithheldFrames) {
 TEST(Regression, LocalMapSurvivesBlankAndDepthlessFramesWithoutAPoseJump) {
   // GIVEN frame 12 black, frame 13 without depth, frame 14 with NaN-free but all-zero depth + image
   std::vector<FrameRecord> recs;
-  const RunResult r = run(DetectorKind::kOrb, BackendKind::kLocalMap, PipelineMode::kSequential,
-                          [](RgbdFrame* f) {
-                            if (f->index == 12) f->rgb.setTo(cv::Scalar::all(0));
-                            if (f->index == 13 || f->index == 14) f->depth.setTo(0);
-                            if (f->index == 14) f->rgb.setTo(cv::Scalar::all(0));
-                            return true;
-                          },
-                          &recs);
+  const RunResult r = run(
+      DetectorKind::kOrb, BackendKind::kLocalMap, PipelineMode::kSequential,
+      [](RgbdFrame* f) {
+        if (f->index == 12) f->rgb.setTo(cv::Scalar::all(0));
+        if (f->index == 13 || f->index == 14) f->depth.setTo(0);
+        if (f->index == 14) f->rgb.setTo(cv::Scalar::all(0));
+        return true;
+      },
+      &recs);
   // THEN the bad frames are lost (held at the last pose, never a jump) and tracking resumes after
   ASSERT_EQ(recs.size(), 30u);
   for (std::int64_t i : {12, 13, 14}) {
     EXPECT_EQ(recs[static_cast<std::size_t>(i)].state, TrackingState::kLost) << i;
-    EXPECT_TRUE(recs[static_cast<std::size_t>(i)].T_world_cam.isApprox(recs[11].T_world_cam, 1e-12)) << i;
+    EXPECT_TRUE(recs[static_cast<std::size_t>(i)].T_world_cam.isApprox(recs[11].T_world_cam, 1e-12))
+        << i;
   }
-  for (std::size_t i = 16; i < recs.size(); ++i) EXPECT_EQ(recs[i].state, TrackingState::kTracking) << i;
+  for (std::size_t i = 16; i < recs.size(); ++i)
+    EXPECT_EQ(recs[i].state, TrackingState::kTracking) << i;
   EXPECT_GE(r.summary.relocalisations, 1u);
   EXPECT_LT(r.ate_m, 0.015);
 }
@@ -244,7 +249,8 @@ TEST(Regression, LocalMapWithLoopClosingWaitModeEqualsSequentialOnAForwardBackwa
   // THEN both give the same trajectory bit for bit and the same loop-closing decisions
   ASSERT_EQ(a.size(), 60u);
   ASSERT_EQ(a.size(), b.size());
-  for (std::size_t i = 0; i < a.size(); ++i) EXPECT_TRUE(a[i].second.isApprox(b[i].second, 1e-12)) << i;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    EXPECT_TRUE(a[i].second.isApprox(b[i].second, 1e-12)) << i;
   ASSERT_EQ(la.size(), lb.size());
   ASSERT_GE(la.size(), 2u);
   int searched = 0;
@@ -288,7 +294,8 @@ TEST(Regression, LocalMapSavedThenReloadedRelocalisesInTheSameWorldFrame) {
   ASSERT_EQ(recs.size(), 10u);
   EXPECT_EQ(recs[0].state, TrackingState::kTracking);
   EXPECT_GE(p->summary().relocalisations, 1u);
-  const double step_m = (recs[0].T_world_cam.translation() - first.back().T_world_cam.translation()).norm();
+  const double step_m =
+      (recs[0].T_world_cam.translation() - first.back().T_world_cam.translation()).norm();
   EXPECT_LT(step_m, 0.05) << "frame 20 lies " << step_m << " m from frame 19: another world frame?";
   for (const auto& r : recs) EXPECT_EQ(r.state, TrackingState::kTracking) << r.index;
 }

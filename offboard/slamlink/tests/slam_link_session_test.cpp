@@ -1,8 +1,11 @@
 // SLAM-link session on real frames from tests/data, through the real protocol codec: each
 // RgbdFrame gets exactly one PoseUpdate for that pair_sequence - LOST with a reason for a frame
 // that cannot be used - and every pose put on the wire passes the codec's checks (pose_to_wire).
+#include "slam_link_session.hpp"
+
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -10,9 +13,6 @@
 #include "rgbdquad/camera/tum_cameras.hpp"
 #include "rgbdquad/protocol/codec.hpp"
 #include "slam/dataset/tum_dataset.hpp"
-#include "slam_link_session.hpp"
-
-#include <cmath>
 
 namespace slam {
 namespace {
@@ -85,7 +85,8 @@ TEST(SlamLinkSession, GivenFramesWhenProcessedThenOnePoseUpdatePerFrame) {
     const proto::PoseUpdate u = roundtrip(&s, to_wire(*f, 100 + i), &err);
     EXPECT_TRUE(err.empty()) << err;
     EXPECT_EQ(u.pair_sequence, 100 + i);
-    EXPECT_EQ(u.tracking_state, i == 0 ? proto::TrackingState::kInitializing : proto::TrackingState::kTracking);
+    EXPECT_EQ(u.tracking_state,
+              i == 0 ? proto::TrackingState::kInitializing : proto::TrackingState::kTracking);
     if (i > 0) {
       EXPECT_GT(u.inlier_count, 50u);
     }
@@ -145,7 +146,8 @@ TEST(SlamLinkSession, GivenATablesFolderThenTheEndedSessionWritesOneFrameRowPerF
   ASSERT_TRUE(in) << dir;
   std::string header, line;
   std::getline(in, header);
-  EXPECT_NE(header.find("relocalised,features_ms,matching_ms,relocalise_ms,prediction_stale"), std::string::npos)
+  EXPECT_NE(header.find("relocalised,features_ms,matching_ms,relocalise_ms,prediction_stale"),
+            std::string::npos)
       << header;
   int rows = 0, tracked = 0;
   while (std::getline(in, line)) {
@@ -200,7 +202,8 @@ TEST(SlamLinkSession, GivenUnusableFramesThenEachStillGetsALostPoseUpdateWithARe
 // compared with what the pipeline said.
 class ScriptedPipeline : public SessionPipeline {
  public:
-  explicit ScriptedPipeline(std::map<std::int64_t, FrameRecord> script) : script_(std::move(script)) {}
+  explicit ScriptedPipeline(std::map<std::int64_t, FrameRecord> script)
+      : script_(std::move(script)) {}
   void submit(RgbdFrame) override {}
   std::optional<FrameRecord> record(std::int64_t index) const override {
     const auto it = script_.find(index);
@@ -217,7 +220,8 @@ class ScriptedPipeline : public SessionPipeline {
   std::map<std::int64_t, FrameRecord> script_;
 };
 
-TEST(SlamLinkSession, GivenLoopCorrectionsThenEachPoseUpdateDeclaresTheCountItsPoseIsExpressedAfter) {
+TEST(SlamLinkSession,
+     GivenLoopCorrectionsThenEachPoseUpdateDeclaresTheCountItsPoseIsExpressedAfter) {
   // GIVEN a pipeline that tracks frames 0-2 and 4, whose map is corrected before frame 2, and that
   // rejects frame 3
   std::map<std::int64_t, FrameRecord> script;
@@ -229,7 +233,8 @@ TEST(SlamLinkSession, GivenLoopCorrectionsThenEachPoseUpdateDeclaresTheCountItsP
     r.state = TrackingState::kTracking;
     r.inliers = 80;
     r.map_corrections = i >= 2 ? 1 : 0;
-    r.T_world_cam.translation() = Eigen::Vector3d(0.1 * static_cast<double>(i), 0, i >= 2 ? 0.7 : 0.0);
+    r.T_world_cam.translation() =
+        Eigen::Vector3d(0.1 * static_cast<double>(i), 0, i >= 2 ? 0.7 : 0.0);
     script[i] = r;
   }
   auto factory = [&script](const PipelineOptions&, const Intrinsics&, std::string*) {
@@ -304,7 +309,9 @@ TEST(PoseToWire, GivenRotationsAtTheEdgeOfTheCodecsChecksThenTheWirePoseIsValid)
     Eigen::Matrix3d R;
   };
   Eigen::Matrix3d scaled_identity = Eigen::Matrix3d::Identity() * (1.0 + 1e-15);
-  Eigen::Matrix3d drifted = Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix() * (1.0 + 5e-6);
+  Eigen::Matrix3d drifted =
+      Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix() *
+      (1.0 + 5e-6);
   Eigen::Matrix3d half_turn = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix();
   half_turn(1, 1) += 4e-16;
   const std::vector<Case> cases = {{"identity + rounding", scaled_identity},
@@ -318,7 +325,8 @@ TEST(PoseToWire, GivenRotationsAtTheEdgeOfTheCodecsChecksThenTheWirePoseIsValid)
     ASSERT_TRUE(p) << c.name;
     proto::PoseUpdate u;
     u.T_world_cam = *p;
-    EXPECT_TRUE(proto::validate(proto::Message{u}).empty()) << c.name << ": " << proto::validate(proto::Message{u});
+    EXPECT_TRUE(proto::validate(proto::Message{u}).empty())
+        << c.name << ": " << proto::validate(proto::Message{u});
   }
 }
 

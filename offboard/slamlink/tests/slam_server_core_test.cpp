@@ -20,7 +20,8 @@ SessionRegistry make_registry(std::int64_t grace_ms = 1000, std::size_t max_sess
   return SessionRegistry(o, [] { return std::make_unique<SlamLinkSession>(PipelineOptions{}); });
 }
 
-std::vector<std::uint8_t> hello_bytes(std::uint64_t session_id, std::uint64_t schema_hash = proto::kSchemaHash) {
+std::vector<std::uint8_t> hello_bytes(std::uint64_t session_id,
+                                      std::uint64_t schema_hash = proto::kSchemaHash) {
   proto::SlamHello h;
   h.schema_hash = schema_hash;
   h.peer_name = "test";
@@ -152,7 +153,10 @@ std::vector<TimeoutCase> timeout_cases() {
   cases.push_back({"idle", {{100, hello_bytes(9)}}, 5100, "idle: no bytes for 5000 ms"});
   auto half = hello_bytes(9);
   half.resize(half.size() / 2);
-  cases.push_back({"stops_mid_message", {{100, hello_bytes(9)}, {200, half}}, 1200, "begun and not finished within 1000 ms"});
+  cases.push_back({"stops_mid_message",
+                   {{100, hello_bytes(9)}, {200, half}},
+                   1200,
+                   "begun and not finished within 1000 ms"});
   auto dripping = drip(200, 100, 10);  // a byte every 100 ms: the idle timer alone would never fire
   dripping.insert(dripping.begin(), Step{100, hello_bytes(9)});
   cases.push_back({"dripping", dripping, 1200, "begun and not finished"});

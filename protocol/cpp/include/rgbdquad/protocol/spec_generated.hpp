@@ -28,7 +28,8 @@ inline constexpr std::string_view kStreamAuthAckLabel = "RGBQ-AK1";
 inline constexpr std::size_t kMaxStringBytes = 255;
 /// well above the Kinect v1's 640x480 (1280x1024 high-res RGB mode) while bounding width*height
 inline constexpr std::size_t kMaxImageDimensionPx = 4096;
-/// 640*480*3 = 921600 B raw RGB8 plus 127 KB margin for compressed encodings that expand incompressible data
+/// 640*480*3 = 921600 B raw RGB8 plus 127 KB margin for compressed encodings that expand
+/// incompressible data
 inline constexpr std::size_t kMaxFramePayloadBytes = 1048576;
 /// more than a handful of frames in flight is a backlog; the thesis kept at most one stale frame
 inline constexpr std::size_t kMaxCreditsPerRequest = 8;
@@ -69,7 +70,8 @@ constexpr std::string_view to_string(StreamKind v) {
   return "?";
 }
 
-/// RGB8: 3 bytes/pixel R,G,B row-major; DEPTH16: uint16 little-endian per pixel, units = depth_scale_units_per_m, 0 = no reading
+/// RGB8: 3 bytes/pixel R,G,B row-major; DEPTH16: uint16 little-endian per pixel, units =
+/// depth_scale_units_per_m, 0 = no reading
 enum class PixelFormat : std::uint8_t {
   kRgb8 = 0,
   kDepth16 = 1,
@@ -97,7 +99,8 @@ constexpr std::string_view to_string(PixelFormat v) {
   return "?";
 }
 
-/// payload encoding; codes come from the 'encodings' registry so new ones are added without a version break
+/// payload encoding; codes come from the 'encodings' registry so new ones are added without a
+/// version break
 enum class Encoding : std::uint8_t {
   kRaw = 0,
   kDepthRvl = 1,
@@ -105,7 +108,8 @@ enum class Encoding : std::uint8_t {
   kRgbJpeg = 3,
 };
 /// Every registered Encoding value, in spec order.
-inline constexpr Encoding kAllEncoding[] = {Encoding::kRaw, Encoding::kDepthRvl, Encoding::kDepthZstdDelta, Encoding::kRgbJpeg};
+inline constexpr Encoding kAllEncoding[] = {Encoding::kRaw, Encoding::kDepthRvl,
+                                            Encoding::kDepthZstdDelta, Encoding::kRgbJpeg};
 /// True when `wire` is a registered Encoding value.
 constexpr bool is_valid_encoding(std::uint8_t wire) {
   switch (wire) {
@@ -141,7 +145,9 @@ enum class TrackingState : std::uint8_t {
   kRelocalized = 3,
 };
 /// Every registered TrackingState value, in spec order.
-inline constexpr TrackingState kAllTrackingState[] = {TrackingState::kInitializing, TrackingState::kTracking, TrackingState::kLost, TrackingState::kRelocalized};
+inline constexpr TrackingState kAllTrackingState[] = {
+    TrackingState::kInitializing, TrackingState::kTracking, TrackingState::kLost,
+    TrackingState::kRelocalized};
 /// True when `wire` is a registered TrackingState value.
 constexpr bool is_valid_tracking_state(std::uint8_t wire) {
   switch (wire) {
@@ -175,7 +181,8 @@ enum class GraphStage : std::uint8_t {
   kAfterOptimisation = 1,
 };
 /// Every registered GraphStage value, in spec order.
-inline constexpr GraphStage kAllGraphStage[] = {GraphStage::kBeforeOptimisation, GraphStage::kAfterOptimisation};
+inline constexpr GraphStage kAllGraphStage[] = {GraphStage::kBeforeOptimisation,
+                                                GraphStage::kAfterOptimisation};
 /// True when `wire` is a registered GraphStage value.
 constexpr bool is_valid_graph_stage(std::uint8_t wire) {
   switch (wire) {
@@ -225,13 +232,15 @@ constexpr std::string_view to_string(EdgeKind v) {
   return "?";
 }
 
-/// OCCUPANCY_U8: 0 = free .. 100 = occupied, 255 = unknown; POINT_COUNT_U8: points projected into the cell, saturating at 255
+/// OCCUPANCY_U8: 0 = free .. 100 = occupied, 255 = unknown; POINT_COUNT_U8: points projected into
+/// the cell, saturating at 255
 enum class CellFormat : std::uint8_t {
   kOccupancyU8 = 0,
   kPointCountU8 = 1,
 };
 /// Every registered CellFormat value, in spec order.
-inline constexpr CellFormat kAllCellFormat[] = {CellFormat::kOccupancyU8, CellFormat::kPointCountU8};
+inline constexpr CellFormat kAllCellFormat[] = {CellFormat::kOccupancyU8,
+                                                CellFormat::kPointCountU8};
 /// True when `wire` is a registered CellFormat value.
 constexpr bool is_valid_cell_format(std::uint8_t wire) {
   switch (wire) {
@@ -297,16 +306,16 @@ inline constexpr FieldRange kFloorMapHeightCells{1.0, 4096.0};
 
 /// Message ids (envelope byte 5).
 enum class MessageType : std::uint8_t {
-  kHandshake = 1,  // stream link
-  kHandshakeAck = 2,  // stream link
-  kFrame = 3,  // stream link
-  kFrameRequest = 4,  // stream link
+  kHandshake = 1,        // stream link
+  kHandshakeAck = 2,     // stream link
+  kFrame = 3,            // stream link
+  kFrameRequest = 4,     // stream link
   kStreamChallenge = 5,  // stream link
-  kSlamHello = 16,  // slam link
-  kRgbdFrame = 17,  // slam link
-  kPoseUpdate = 18,  // slam link
-  kPoseGraph = 19,  // slam link
-  kFloorMap = 20,  // slam link
+  kSlamHello = 16,       // slam link
+  kRgbdFrame = 17,       // slam link
+  kPoseUpdate = 18,      // slam link
+  kPoseGraph = 19,       // slam link
+  kFloorMap = 20,        // slam link
 };
 /// Largest valid body of a message type; 0 for an unknown id. Checked before any
 /// allocation or wait for the body.
