@@ -52,9 +52,11 @@ class LivePipeline final : public SessionPipeline {
   }
 
  private:
-  std::unique_ptr<Pipeline> pipeline_;
+  // Declared before the pipeline so that they outlive it: the pipeline's threads may still retire
+  // records into frames_ while it is destroyed.
   std::string tables_dir_;
   std::optional<FramesTable> frames_;
+  std::unique_ptr<Pipeline> pipeline_;
 };
 
 }  // namespace
