@@ -627,6 +627,22 @@ TEST(Relocalisation, RefitsAroundTheKeyframeRansacFoundNotTheFirstCandidate) {
 namespace slam {
 namespace {
 
+/// A tracker on the world's map (ratio 0.75, as the other tracker tests), and ORB feature options.
+std::optional<Tracker> make_tracker(const SyntheticWorld& w) {
+  std::string err;
+  TrackerOptions to;
+  to.matching.lowe_ratio = 0.75;
+  auto tracker = Tracker::create(to, w.cam, w.map, &err);
+  EXPECT_TRUE(tracker) << err;
+  return tracker;
+}
+
+FeatureOptions orb_features() {
+  FeatureOptions fo;
+  fo.kind = DetectorKind::kOrb;
+  return fo;
+}
+
 /// One keyframe seeing 200 near landmarks; a tracker tracking it; then a frame 1 cm away, `gap_s`
 /// later, that sees `still_seen` of them plus 150 landmarks beyond the near depth (so the near rule
 /// stays quiet).
@@ -641,13 +657,9 @@ TrackResult track_view_change(int still_seen, bool mapper_idle, double gap_s = 0
   const std::vector<int> far = w.make_landmarks(T_far, 150, &rng);
   std::map<int, std::int64_t> known;
   w.add_keyframe(0, T0, T0, near, &known);
-  std::string err;
-  TrackerOptions to;
-  to.matching.lowe_ratio = 0.75;
-  auto tracker = Tracker::create(to, w.cam, w.map, &err);
-  EXPECT_TRUE(tracker) << err;
-  FeatureOptions fo;
-  fo.kind = DetectorKind::kOrb;
+  auto tracker = make_tracker(w);
+  if (!tracker) return {};
+  const FeatureOptions fo = orb_features();
   RgbdFrame f;
   f.rgb = image_of(0);
   f.index = 100;
@@ -694,13 +706,9 @@ TrackResult track_off_the_velocity_path(double gap_s, double off_path_m) {
   const std::vector<int> seen = w.make_landmarks(T0, 200, &rng);
   std::map<int, std::int64_t> known;
   w.add_keyframe(0, T0, T0, seen, &known);
-  std::string err;
-  TrackerOptions to;
-  to.matching.lowe_ratio = 0.75;
-  auto tracker = Tracker::create(to, w.cam, w.map, &err);
-  EXPECT_TRUE(tracker) << err;
-  FeatureOptions fo;
-  fo.kind = DetectorKind::kOrb;
+  auto tracker = make_tracker(w);
+  if (!tracker) return {};
+  const FeatureOptions fo = orb_features();
   RgbdFrame f;
   f.rgb = image_of(0);
   auto at = [](double x, double y) {

@@ -101,17 +101,25 @@ TEST(Regression, LocalMapWaitModeEqualsSequentialModeAndIsAccurate) {
   EXPECT_LT(a.rpe_mm, 11.0);
 }
 
+/// An ORB local-map pipeline in sequential mode (null, with a test failure, when refused).
+std::unique_ptr<Pipeline> sequential_orb_local_map() {
+  PipelineOptions o;
+  o.frontend.features.kind = DetectorKind::kOrb;
+  o.backend.kind = BackendKind::kLocalMap;
+  o.mode = PipelineMode::kSequential;
+  std::string err;
+  auto p = Pipeline::create(o, Intrinsics{}, &err);
+  EXPECT_TRUE(p) << err;
+  return p;
+}
+
 TEST(Pipeline, RetiredRecordsGoToTheSinkInOrderAndOnlyTheNewestAreHeld) {
   // GIVEN a local-map pipeline that keeps its 5 newest records (slam-server keeps a second's)
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
-  PipelineOptions o;
-  o.frontend.features.kind = DetectorKind::kOrb;
-  o.backend.kind = BackendKind::kLocalMap;
-  o.mode = PipelineMode::kSequential;
-  auto p = Pipeline::create(o, Intrinsics{}, &err);
-  ASSERT_TRUE(p) << err;
+  auto p = sequential_orb_local_map();
+  ASSERT_TRUE(p);
   std::vector<std::int64_t> retired;
   std::size_t retired_tracked = 0;
   p->retire_records(5, [&](const FrameRecord& r) {
@@ -184,12 +192,8 @@ TEST(Regression, LocalMapNeverHandsOnAStepFasterThanTheCameraCanMove) {
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
-  PipelineOptions o;
-  o.frontend.features.kind = DetectorKind::kOrb;
-  o.backend.kind = BackendKind::kLocalMap;
-  o.mode = PipelineMode::kSequential;
-  auto p = Pipeline::create(o, Intrinsics{}, &err);
-  ASSERT_TRUE(p) << err;
+  auto p = sequential_orb_local_map();
+  ASSERT_TRUE(p);
   double last_stamp = 0;
   for (std::size_t i = 0; i < 10; ++i) {
     auto f = ds->load(i, &err);
