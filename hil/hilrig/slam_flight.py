@@ -24,6 +24,7 @@ Every process is started by this module and stopped by its PID (ManagedProcess);
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import contextlib
 import csv
 import json
 from pathlib import Path
@@ -67,10 +68,18 @@ def missing_load_tool() -> list[str]:
     return [] if shutil.which("stress-ng") else ["stress-ng (apt: deps/apt/hil.txt)"]
 
 
+def free_ports(count: int) -> list[int]:
+    """`count` distinct free loopback ports. Every probe stays bound until all are read: the kernel
+    may hand a port that was just released to the very next bind."""
+    with contextlib.ExitStack() as stack:
+        probes = [stack.enter_context(socket.socket(socket.AF_INET, socket.SOCK_STREAM)) for _ in range(count)]
+        for s in probes:
+            s.bind(("127.0.0.1", 0))
+        return [s.getsockname()[1] for s in probes]
+
+
 def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    return free_ports(1)[0]
 
 
 # How the closed loop flies (quad-control "controller" keys), each measured in this rig:
@@ -206,7 +215,7 @@ class SlamFlight:
                 workdir=self.workdir,
             ).start()
             self.bridge = WifiBridgeEmulator(self.rig.transact).start()
-            slam_port, rgb_port, depth_port = free_port(), free_port(), free_port()
+            slam_port, rgb_port, depth_port = free_ports(3)
             self._start(
                 "slam-server",
                 [

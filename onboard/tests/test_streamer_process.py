@@ -28,10 +28,12 @@ def run(*args, **kwargs):
     return subprocess.run([str(BINARY), *args], capture_output=True, text=True, timeout=30, **kwargs)
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def two_free_ports() -> tuple[int, int]:
+    """Both probes stay bound until both are read, so the kernel cannot hand the same port twice."""
+    with socket.socket() as a, socket.socket() as b:
+        a.bind(("127.0.0.1", 0))
+        b.bind(("127.0.0.1", 0))
+        return a.getsockname()[1], b.getsockname()[1]
 
 
 def write_key(path: Path, text: str = "00112233445566778899aabbccddeeff\n", mode: int = 0o600) -> Path:
@@ -96,10 +98,10 @@ def test_missing_or_unsafe_stream_key_exits_2_with_the_reason(tmp_path, setup, m
 
 
 def test_searches_for_the_ground_station_forever_and_stops_on_sigterm(tmp_path):
-    port = free_port()  # nobody listens here
+    rgb_port, depth_port = two_free_ports()  # nobody listens here
     proc = subprocess.Popen(
         [str(BINARY), "--source", "tum", "--tum-dir", str(DESK), "--tum-loop", "true",
-         "--host", "127.0.0.1", "--rgb-port", str(port), "--depth-port", str(free_port()),
+         "--host", "127.0.0.1", "--rgb-port", str(rgb_port), "--depth-port", str(depth_port),
          "--stats-period", "0.5", "--stream-key-file", str(write_key(tmp_path / "stream.key"))],
         stderr=subprocess.PIPE, text=True)
     try:

@@ -46,9 +46,12 @@ stream::StreamSenderOptions sender_options(StreamKind kind, std::uint16_t port, 
   return o;
 }
 
-std::uint16_t free_port() {
-  net::UniqueFd probe = net::listen_tcp("127.0.0.1", 0);
-  return net::local_port(probe);
+// Two distinct free ports: both probes stay bound until both are read, because the kernel may hand
+// a port that was just released to the very next bind (it did, in CI).
+std::pair<std::uint16_t, std::uint16_t> two_free_ports() {
+  const net::UniqueFd first = net::listen_tcp("127.0.0.1", 0);
+  const net::UniqueFd second = net::listen_tcp("127.0.0.1", 0);
+  return {net::local_port(first), net::local_port(second)};
 }
 
 TEST(StreamEndToEnd, RealFramesArriveDepthBitExactAndPaired) {
@@ -159,8 +162,7 @@ TEST(StreamEndToEnd, BlankAndMalformedFramesAreNeverSent) {
 TEST(StreamEndToEnd, ReconnectsAfterServerRestartsWithoutDescriptorOrMemoryGrowth) {
   capture::SteadyClock clock;
   const auto frames = testing::load_tum(kDesk);
-  const std::uint16_t rgb_port = free_port();
-  const std::uint16_t depth_port = free_port();
+  const auto [rgb_port, depth_port] = two_free_ports();
   stream::StreamSender rgb(sender_options(StreamKind::kRgb, rgb_port, Encoding::kRgbJpeg), &clock,
                            nullptr);
   stream::StreamSender depth(sender_options(StreamKind::kDepth, depth_port, Encoding::kDepthRvl),

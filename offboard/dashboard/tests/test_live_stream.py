@@ -16,10 +16,12 @@ import pytest
 from dashboard_fixtures import REPO, QuadControl
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def two_free_ports() -> tuple[int, int]:
+    """Both probes stay bound until both are read, so the kernel cannot hand the same port twice."""
+    with socket.socket() as a, socket.socket() as b:
+        a.bind(("127.0.0.1", 0))
+        b.bind(("127.0.0.1", 0))
+        return a.getsockname()[1], b.getsockname()[1]
 
 
 def streamer_binary() -> str | None:
@@ -33,7 +35,7 @@ def test_frames_from_rgbd_streamer_reach_the_dashboard(binary, tmp_path):
     streamer = streamer_binary()
     if streamer is None:
         pytest.skip("rgbd-streamer is not built (make build, or set RGBD_STREAMER_BIN)")
-    rgb_port, depth_port = free_port(), free_port()
+    rgb_port, depth_port = two_free_ports()
     key = tmp_path / "stream.key"  # the craft's stream key: both ends read the same file (mode 0600)
     key.write_text("5c0ffee5" * 4 + "\n")
     key.chmod(0o600)
