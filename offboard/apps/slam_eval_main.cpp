@@ -50,6 +50,7 @@ struct RunArgs {
               keyframe_new_content = "on", depth_noise = "keypoint", map_lock = "pi",
               tracking_policy = "off", local_ba = "on";
   double depth_units_per_m = 0;
+  int mapping_rt_priority = slam::PipelineOptions{}.mapping_rt_priority;
 };
 
 /// Resident set size of this process, MiB (Linux /proc; -1 when unavailable). Instrumentation.
@@ -92,6 +93,7 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   po.tracker.keyframe_needs_new_content = a.keyframe_new_content == "on";
   po.map_lock_priority_inheritance = a.map_lock == "pi";
   po.mapper.bundle_adjustment = a.local_ba == "on";
+  po.mapping_rt_priority = a.mapping_rt_priority;
   if (!slam::parse_thread_policy(a.tracking_policy, &po.tracking_thread_policy, err) ||
       !slam::parse_depth_noise_model(a.depth_noise, &po.depth_noise, err)) {
     return std::nullopt;
@@ -132,6 +134,7 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
   m["local_ba"] = a.local_ba;
   m["depth_units_per_m"] = intr.depth_units_per_m;
   m["tracking_policy"] = a.tracking_policy;
+  m["mapping_rt_priority"] = a.mapping_rt_priority;
   return m;
 }
 
@@ -474,6 +477,11 @@ int main(int argc, char** argv) {
          "realtime mode: scheduling of the tracking thread - off (as created) | nice | rr | fifo "
          "(slam-server's and quad-control's real-time path)")
       ->check(CLI::IsMember({"off", "nice", "rr", "fifo"}))
+      ->capture_default_str();
+  run->add_option("--mapping-rt-priority", a.mapping_rt_priority,
+                  "realtime mode with a real-time tracking policy: SCHED_RR priority of the local "
+                  "mapping thread, below tracking's 10 (0: normal policy, nice below tracking)")
+      ->check(CLI::Range(0, 9))
       ->capture_default_str();
   std::string gt, est;
   auto* score = app.add_subcommand(

@@ -241,7 +241,10 @@ std::string SlamLinkSession::finish_summary() {
   if (pipeline_) {
     pipeline_->finish();
     const auto s = pipeline_->summary();
-    m << ", " << s.keyframes << " keyframes, " << s.loop_closures << " loop closures";
+    m << ", " << s.keyframes << " keyframes, " << s.loop_closures << " loop closures, mapping "
+      << s.mapper_caught_up << " keyframes caught up, " << s.mapper_ba_interrupted
+      << " BAs interrupted";
+    if (!s.mapping_thread.empty()) m << " (" << s.mapping_thread << ")";
     if (!map_load_error_.empty()) m << "; " << map_load_error_;
     if (!map_files_.save_path.empty()) {
       std::string err;

@@ -304,17 +304,30 @@ int main(int argc, char** argv) {
   app.add_option(
          "--thread-policy", thread_policy,
          "scheduling of the serving (tracking) thread: rr | fifo (real-time, falls back to nice "
-         "with a "
-         "logged reason) | nice | off; local mapping always yields (normal policy, nice 10)")
+         "with a logged reason) | nice | off; local mapping runs below it (--mapping-rt-priority)")
       ->check(CLI::IsMember({"rr", "fifo", "nice", "off"}))
       ->capture_default_str();
   app.add_option("--rt-priority", priority.rt_priority, "real-time priority of the serving thread")
       ->check(CLI::Range(1, 99))
       ->capture_default_str();
+  int mapping_rt_priority = slam::PipelineOptions{}.mapping_rt_priority;
+  app.add_option(
+         "--mapping-rt-priority", mapping_rt_priority,
+         "SCHED_RR priority of each session's local-mapping thread while the serving thread "
+         "is real-time; must be below --rt-priority (0: normal policy at nice -10)")
+      ->check(CLI::Range(0, 98))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   slam::parse_thread_policy(thread_policy, &priority.policy, nullptr);
+  if (mapping_rt_priority >= priority.rt_priority) {
+    log_line("--mapping-rt-priority (" + std::to_string(mapping_rt_priority) +
+             ") must be below --rt-priority (" + std::to_string(priority.rt_priority) +
+             "): mapping must never delay tracking");
+    return 2;
+  }
   slam::PipelineOptions options;
   options.loop_closing = loop_closing == "on";
+  options.mapping_rt_priority = mapping_rt_priority;
   std::string err;
   if (!slam::parse_detector_kind(features, &options.frontend.features.kind, &err) ||
       !slam::parse_backend_kind(backend, &options.backend.kind, &err)) {
@@ -356,8 +369,8 @@ int main(int argc, char** argv) {
             << copt.idle_timeout_ms << "/" << copt.message_timeout_ms << "/"
             << copt.write_timeout_ms << " ms, resume grace " << ropt.resume_grace_ms << " ms)"
             << std::endl;
-  // Tracking runs on this (the poll) thread: it is the real-time path; sessions' mappers lower
-  // themselves (slam::lower_current_thread).
+  // Tracking runs on this (the poll) thread: it is the real-time path; sessions' mappers place
+  // themselves below it (slam::PipelineOptions::mapping_rt_priority).
   log_line(slam::raise_current_thread(priority).describe("serving"));
   slam::SessionRegistry registry(
       ropt, [options, load_map, save_map, tables_dir, sessions = std::make_shared<int>(0)] {

@@ -152,19 +152,23 @@ std::optional<LocalMapper> LocalMapper::create(const LocalMapperOptions& options
   return LocalMapper(options, camera, std::move(map));
 }
 
-MapperStats LocalMapper::process(std::int64_t kf_id) {
+MapperStats LocalMapper::process(std::int64_t kf_id, const KeyframesWaiting& waiting) {
   const std::int64_t t0 = steady_now_ns();
   const std::int64_t c0 = thread_cpu_now_ns();
   MapperStats stats;
   stats.keyframe = kf_id;
+  const auto behind = [&] { return waiting && waiting(); };
   {
     std::lock_guard<MapMutex> lock(map_->mutex);
     if (!map_->map.has_keyframe(kf_id)) return stats;
     stats.points_culled = cull_points(kf_id);
   }
-  fuse(kf_id, &stats);
-  if (options_.bundle_adjustment) bundle_adjust(kf_id, &stats);
-  {
+  // Point culling runs for every keyframe (it judges points by the keyframe count); the rest works
+  // on the neighbourhood, which the next keyframe shares.
+  stats.caught_up = behind();
+  if (!stats.caught_up) fuse(kf_id, &stats);
+  if (options_.bundle_adjustment && !stats.caught_up) bundle_adjust(kf_id, waiting, &stats);
+  if (!stats.caught_up && !behind()) {
     std::lock_guard<MapMutex> lock(map_->mutex);
     stats.keyframes_culled = cull_keyframes(kf_id);
   }
@@ -231,7 +235,30 @@ void LocalMapper::fuse(std::int64_t kf_id, MapperStats* stats) {
   fuse_into(kf_id, theirs);
 }
 
-void LocalMapper::bundle_adjust(std::int64_t kf_id, MapperStats* stats) {
+namespace {
+
+/// Ends a solve after the current iteration once `waiting` says so (ORB-SLAM2's abort flag): the
+/// parameters keep the last accepted iterate, which is no worse than where the solve started.
+class StopWhenKeyframesWait : public ceres::IterationCallback {
+ public:
+  explicit StopWhenKeyframesWait(const LocalMapper::KeyframesWaiting& waiting)
+      : waiting_(waiting) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+    if (!waiting_ || !waiting_()) return ceres::SOLVER_CONTINUE;
+    stopped_ = true;
+    return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+  }
+  bool stopped() const { return stopped_; }
+
+ private:
+  const LocalMapper::KeyframesWaiting& waiting_;
+  bool stopped_ = false;
+};
+
+}  // namespace
+
+void LocalMapper::bundle_adjust(std::int64_t kf_id, const KeyframesWaiting& waiting,
+                                MapperStats* stats) {
   const std::int64_t t0 = steady_now_ns();
   struct Obs {
     std::int64_t kf;
@@ -305,8 +332,12 @@ void LocalMapper::bundle_adjust(std::int64_t kf_id, MapperStats* stats) {
   so.max_num_iterations = options_.ba_iterations;
   so.num_threads = 1;  // the other core belongs to tracking
   so.logging_type = ceres::SILENT;
+  StopWhenKeyframesWait stop(waiting);
+  so.callbacks.push_back(&stop);
+  so.update_state_every_iteration = false;  // the callback reads no parameters
   ceres::Solver::Summary summary;
   if (!obs.empty()) ceres::Solve(so, &problem, &summary);
+  stats->ba_interrupted = stop.stopped();
   stats->ba_keyframes = static_cast<int>(poses.size() - fixed.size());
   stats->ba_fixed = static_cast<int>(fixed.size());
   stats->ba_points = static_cast<int>(points.size());

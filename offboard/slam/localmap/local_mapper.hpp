@@ -11,12 +11,17 @@
 //     observations removed by the chi-square test;
 //  4. cull redundant keyframes: one whose points are 90 % seen by at least 3 other keyframes.
 // Cost per keyframe is bounded by the window sizes, not by the length of the flight.
+// Catching up (ORB-SLAM2's CheckNewKeyFrames / abort flag): when the caller says more keyframes
+// wait, steps 2-4 are left to the newest keyframe, and a bundle adjustment under way stops at the
+// end of its current iteration, keeping what it has reached. A mapper that falls behind (a loaded
+// CPU) thus spends its time on the keyframe tracking is about to use, not on a backlog.
 //
 // Thread safety: one LocalMapper; it locks the shared map for copies and write-backs and solves
 // the bundle adjustment on a copy, so tracking never waits for the solver.
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -49,6 +54,9 @@ struct MapperStats {
   int points_culled = 0, points_fused = 0, observations_added = 0, outliers_removed = 0;
   int keyframes_culled = 0, ba_keyframes = 0, ba_fixed = 0, ba_points = 0;
   bool ba_discarded = false;  ///< a loop correction moved the map while the BA was solving
+  /// Another keyframe was waiting: fusion, the BA and keyframe culling were left to it.
+  bool caught_up = false;
+  bool ba_interrupted = false;  ///< a keyframe arrived during the BA; it kept its last iterate
   double total_ms = 0, ba_ms = 0, total_cpu_ms = 0;
 };
 
@@ -68,15 +76,18 @@ class LocalMapper {
   static std::optional<LocalMapper> create(const LocalMapperOptions& options,
                                            const CameraModel& camera,
                                            std::shared_ptr<SharedMap> map, std::string* error);
+  /// True while more keyframes wait for the mapper (asked between steps and after every BA
+  /// iteration, so it must be cheap). Empty: never (wait and sequential modes, deterministic).
+  using KeyframesWaiting = std::function<bool()>;
   /// Processes keyframe `kf_id` (already inserted by the tracker).
-  MapperStats process(std::int64_t kf_id);
+  MapperStats process(std::int64_t kf_id, const KeyframesWaiting& waiting = {});
 
  private:
   LocalMapper(LocalMapperOptions o, CameraModel c, std::shared_ptr<SharedMap> m)
       : options_(std::move(o)), camera_(c), map_(std::move(m)) {}
   int cull_points(std::int64_t kf_id);
   void fuse(std::int64_t kf_id, MapperStats* stats);
-  void bundle_adjust(std::int64_t kf_id, MapperStats* stats);
+  void bundle_adjust(std::int64_t kf_id, const KeyframesWaiting& waiting, MapperStats* stats);
   int cull_keyframes(std::int64_t kf_id);
 
   LocalMapperOptions options_;

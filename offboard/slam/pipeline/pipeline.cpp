@@ -533,17 +533,20 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
 }
 
 void Pipeline::mapper_loop() {
-  if (options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive) {
-    // Mapping is off the camera-to-command path: it yields the CPU to tracking.
-    // Below tracking either way (slam/pipeline/thread_priority.hpp): by weight under a normal
-    // tracker; by policy under a real-time one (slam-server's and quad-control's), and then at nice
-    // -10, still ahead of the machine's other work: tracking needs the map kept up to date (at nice
-    // 10 beside two CPU burners mapping starved and tracking was lost during the HIL take-off).
-    // Not fatal when refused: mapping then competes for the CPU as an equal.
-    constexpr int kMapperNiceRealtime = 10;
-    constexpr int kMapperNiceBelowRealtime = -10;
-    lower_current_thread(kMapperNiceRealtime, kMapperNiceBelowRealtime);
+  const bool realtime =
+      options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive;
+  if (realtime) {
+    const std::string applied = place_mapping_thread().describe("mapping");
+    std::lock_guard<std::mutex> lock(mutex_);
+    summary_.mapping_thread = applied;
   }
+  // Realtime: a mapper that falls behind leaves fusion and the BA to the newest keyframe.
+  LocalMapper::KeyframesWaiting waiting;
+  if (realtime)
+    waiting = [this] {
+      std::lock_guard<std::mutex> lock(mutex_);
+      return !keyframe_queue_.empty();
+    };
   for (;;) {
     std::int64_t kf;
     {
@@ -556,12 +559,14 @@ void Pipeline::mapper_loop() {
     }
     MapperStats st;
     try {
-      st = mapper_->process(kf);
+      st = mapper_->process(kf, waiting);
     } catch (const std::exception&) {  // nothing escapes a thread; the keyframe stays as tracked
       st.keyframe = kf;
     }
     {
       std::lock_guard<std::mutex> lock(mutex_);
+      summary_.mapper_caught_up += st.caught_up ? 1 : 0;
+      summary_.mapper_ba_interrupted += st.ba_interrupted ? 1 : 0;
       mapper_stats_.push_back(st);
       mapper_busy_ = false;
       if (loop_closer_)
@@ -569,6 +574,33 @@ void Pipeline::mapper_loop() {
     }
     cv_.notify_all();
   }
+}
+
+ThreadPriorityResult Pipeline::place_mapping_thread() const {
+  // Real-time tracking: SCHED_RR below it (PipelineOptions::mapping_rt_priority says why).
+  const bool tracking_realtime = (options_.mode == PipelineMode::kRealtime &&
+                                  (options_.tracking_thread_policy == ThreadPolicy::kRoundRobin ||
+                                   options_.tracking_thread_policy == ThreadPolicy::kFifo)) ||
+                                 current_thread_is_realtime();
+  // Otherwise, or when the OS refuses: the normal policy below its creator - by weight under a
+  // normal tracker; under a real-time one at nice -10, still ahead of the process's other work
+  // (at nice 10 beside two CPU burners mapping starved and tracking was lost in the HIL take-off).
+  constexpr int kMapperNiceRealtime = 10;
+  constexpr int kMapperNiceBelowRealtime = -10;
+  if (tracking_realtime && options_.mapping_rt_priority > 0) {
+    ThreadPriorityOptions rr;
+    rr.policy = ThreadPolicy::kRoundRobin;
+    rr.rt_priority = options_.mapping_rt_priority;
+    const ThreadSchedule before = current_thread_schedule();
+    ThreadPriorityResult r = raise_current_thread(rr);
+    if (r.realtime) return r;
+    restore_current_thread(before);  // raise_current_thread fell back to its own nice
+    ThreadPriorityResult lowered =
+        lower_current_thread(kMapperNiceRealtime, kMapperNiceBelowRealtime);
+    lowered.reason = r.reason + (lowered.reason.empty() ? "" : "; " + lowered.reason);
+    return lowered;
+  }
+  return lower_current_thread(kMapperNiceRealtime, kMapperNiceBelowRealtime);
 }
 
 std::vector<std::pair<double, Eigen::Isometry3d>> Pipeline::final_trajectory() const {

@@ -65,6 +65,16 @@ struct PipelineOptions {
   /// kRealtime: scheduling of the tracking thread (slam-server and quad-control raise theirs; off
   /// leaves it as created). Lets `slam-eval --mode realtime` measure the real-time path.
   ThreadPolicy tracking_thread_policy = ThreadPolicy::kOff;
+  /// kRealtime/kLive, local map: when tracking runs under a real-time policy (asked above, or
+  /// inherited from a real-time creator: slam-server), the mapping thread runs SCHED_RR at this
+  /// priority, below the camera-to-command path (10, quad-control's firmware link 12) and above
+  /// all normal work; 0 keeps it on the normal policy at a nice below its creator. Why not nice:
+  /// Linux shares the CPU between processes (autogroups, systemd cgroups) before it looks at a
+  /// thread's nice, so beside a CPU load in another session the mapper got 1/4.85 of its wall time
+  /// (slam-eval realtime on fr1_xyz, stress-ng --cpu 2 under setsid) and in a fresh-clone demo
+  /// 1/13, until tracking ran out of keyframes and was lost. Its cost is bounded per keyframe (the
+  /// local window) and it yields its backlog (LocalMapper's catch-up), so it cannot hold a core.
+  int mapping_rt_priority = 5;
   LocalMapperOptions mapper;  ///< BackendKind::kLocalMap only
   /// BackendKind::kLocalMap: loop closing on its own thread (binary descriptors only: the
   /// vocabulary is ORB's; with SIFT/SURF it stays off and PipelineSummary says so). On by default
@@ -146,6 +156,9 @@ struct PipelineSummary {
   std::size_t loop_detections = 0;  ///< keyframes with database candidates passed to verification
   std::string
       tracking_thread;  ///< the tracking thread's scheduling, when PipelineOptions asked for one
+  std::string mapping_thread;  ///< the local-mapping thread's scheduling (realtime/live modes)
+  std::size_t mapper_caught_up = 0;  ///< keyframes whose fusion/BA was left to a newer keyframe
+  std::size_t mapper_ba_interrupted = 0;  ///< local BAs stopped early by a waiting keyframe
 };
 
 class Pipeline {
@@ -206,6 +219,8 @@ class Pipeline {
   /// Hands the retired records to the sink (caller does not hold mutex_).
   void hand_retired();
   void mapper_loop();
+  /// Schedules the calling (mapping) thread: real-time below tracking when tracking is real-time.
+  ThreadPriorityResult place_mapping_thread() const;
   void loop_closing_loop();
   /// Loop-closes keyframe `kf` and records its stats (the loop thread, or inline in sequential
   /// mode).

@@ -151,6 +151,11 @@ ThreadSchedule current_thread_schedule() {
   return s;
 }
 
+bool current_thread_is_realtime() {
+  const int policy = current_thread_schedule().policy;
+  return policy == SCHED_RR || policy == SCHED_FIFO;
+}
+
 void restore_current_thread(const ThreadSchedule& schedule) {
   sched_param param{};
   param.sched_priority = schedule.priority;

@@ -65,6 +65,8 @@ struct ThreadSchedule {
   int nice = 0;
 };
 ThreadSchedule current_thread_schedule();
+/// The calling thread runs under SCHED_RR or SCHED_FIFO (asked for, or inherited from its creator).
+bool current_thread_is_realtime();
 void restore_current_thread(const ThreadSchedule& schedule);
 
 /// A mutex with priority inheritance (PTHREAD_PRIO_INHERIT): a normal-policy thread holding it

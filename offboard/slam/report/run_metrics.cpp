@@ -177,6 +177,9 @@ void add_run_metrics(const RunOutcome& run, const std::string& groundtruth_path,
                      std::string* warning) {
   const PipelineSummary& s = run.summary;
   (*m)["tracking_thread"] = s.tracking_thread;
+  (*m)["mapping_thread"] = s.mapping_thread;
+  (*m)["mapper_caught_up"] = s.mapper_caught_up;
+  (*m)["mapper_ba_interrupted"] = s.mapper_ba_interrupted;
   (*m)["frames"] = run.records.size();
   (*m)["frames_submitted"] = s.frames_submitted;
   (*m)["frames_failed"] = s.frames_failed;

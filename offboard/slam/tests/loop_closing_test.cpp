@@ -9,6 +9,7 @@
 
 #include "slam/dataset/tum_dataset.hpp"
 #include "slam/localmap/keyframe_database.hpp"
+#include "slam/localmap/local_mapper.hpp"
 #include "slam/localmap/loop_closer.hpp"
 #include "slam/localmap/map_io.hpp"
 #include "slam/localmap/place_index.hpp"
@@ -783,6 +784,88 @@ TEST(TrackingGap, AfterAGapThePredictionCannotVouchForAFitMustMeetTheRelocalisat
   std::string err;
   EXPECT_FALSE(o.is_valid(&err));
   EXPECT_NE(err.find("max_predicted_gap_s"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace slam
+
+namespace slam {
+namespace {
+
+/// Four keyframes 5 cm apart along x seeing the same 200 landmarks; the map poses of keyframes 1-3
+/// are 2 cm off (alternating in y) while their observations are true: a local BA pulls them back.
+SyntheticWorld four_keyframes_off_by_2cm() {
+  SyntheticWorld w;
+  std::mt19937 rng(47);
+  const std::vector<int> seen = w.make_landmarks(Eigen::Isometry3d::Identity(), 200, &rng);
+  std::map<int, std::int64_t> known;
+  for (int k = 0; k < 4; ++k) {
+    Eigen::Isometry3d T_true = Eigen::Isometry3d::Identity();
+    T_true.translation() = Eigen::Vector3d(0.05 * k, 0, 0);
+    Eigen::Isometry3d T_map = T_true;
+    if (k > 0) T_map.translation().y() += (k % 2 ? 0.02 : -0.02);
+    w.add_keyframe(k, T_true, T_map, seen, &known);
+  }
+  return w;
+}
+
+std::optional<LocalMapper> make_mapper(const SyntheticWorld& w) {
+  std::string err;
+  LocalMapperOptions o;
+  o.redundant_observers = 10;  // all four keyframes see the same points: none may be culled here
+  auto mapper = LocalMapper::create(o, w.cam, w.map, &err);
+  EXPECT_TRUE(mapper) << err;
+  return mapper;
+}
+
+TEST(LocalMapper, WhileKeyframesWaitFusionAndTheBundleAdjustmentAreLeftToTheNewest) {
+  // GIVEN a map whose newest keyframes are 2 cm off
+  SyntheticWorld w = four_keyframes_off_by_2cm();
+  auto mapper = make_mapper(w);
+  ASSERT_TRUE(mapper);
+  const double before_m = position_rmse_m(w);
+  // WHEN keyframe 2 is processed while another keyframe waits
+  int asked = 0;
+  const MapperStats behind = mapper->process(2, [&] { return ++asked > 0; });
+  // THEN only point culling ran: nothing fused, no BA, the poses are as they were
+  EXPECT_TRUE(behind.caught_up);
+  EXPECT_EQ(behind.points_fused, 0);
+  EXPECT_EQ(behind.ba_points, 0);
+  EXPECT_FALSE(behind.ba_interrupted);
+  EXPECT_EQ(position_rmse_m(w), before_m);
+  // WHEN the newest keyframe 3 is processed with nothing waiting
+  const MapperStats newest = mapper->process(3, [] { return false; });
+  // THEN its BA covers the window and pulls the poses back
+  EXPECT_FALSE(newest.caught_up);
+  EXPECT_FALSE(newest.ba_interrupted);
+  EXPECT_GE(newest.ba_keyframes, 3);
+  EXPECT_LT(position_rmse_m(w), 0.1 * before_m) << "before " << before_m << " m";
+}
+
+TEST(LocalMapper, AKeyframeArrivingDuringTheBundleAdjustmentStopsItWithAnImprovedIterate) {
+  // GIVEN the same map twice
+  SyntheticWorld stopped_world = four_keyframes_off_by_2cm();
+  SyntheticWorld full_world = four_keyframes_off_by_2cm();
+  auto stopped = make_mapper(stopped_world);
+  auto full = make_mapper(full_world);
+  ASSERT_TRUE(stopped && full);
+  const double before_m = position_rmse_m(stopped_world);
+  // WHEN a keyframe arrives after the BA's first iteration (asked: before fusion, then after
+  // iteration 0 and 1 of the solve)
+  int asked = 0;
+  const MapperStats st = stopped->process(3, [&] { return ++asked >= 3; });
+  const MapperStats done = full->process(3, [] { return false; });
+  // THEN the solve stopped there, and what it reached was written back: better than the start, no
+  // better than the full solve
+  EXPECT_FALSE(st.caught_up);
+  EXPECT_TRUE(st.ba_interrupted);
+  EXPECT_FALSE(done.ba_interrupted);
+  EXPECT_EQ(st.keyframes_culled, 0);  // culling is left to the waiting keyframe
+  const double stopped_m = position_rmse_m(stopped_world);
+  const double full_m = position_rmse_m(full_world);
+  EXPECT_LT(stopped_m, before_m);
+  EXPECT_LE(full_m, stopped_m + 1e-9);
+  EXPECT_LE(asked, 4) << "the solve went on after it was told to stop";
 }
 
 }  // namespace

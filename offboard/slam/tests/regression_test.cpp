@@ -7,6 +7,7 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <thread>
 
 #include "slam/dataset/tum_dataset.hpp"
 #include "slam/eval/metrics.hpp"
@@ -147,6 +148,54 @@ TEST(Pipeline, RetiredRecordsGoToTheSinkInOrderAndOnlyTheNewestAreHeld) {
   EXPECT_EQ(held.front().index, static_cast<std::int64_t>(ds->size() - 5));
   EXPECT_FALSE(p->record(0));
   EXPECT_EQ(p->summary().frames_failed, 0u);
+}
+
+/// The mapping thread's scheduling in a kLive pipeline created by a thread raised to SCHED_RR
+/// (slam-server's serving thread), with `mapping_rt_priority`; `creator_realtime` says whether the
+/// OS granted the creator's raise.
+std::string live_mapping_thread(int mapping_rt_priority, bool* creator_realtime) {
+  std::string described;
+  std::thread creator([&] {
+    *creator_realtime = raise_current_thread(ThreadPriorityOptions{}).realtime;
+    PipelineOptions o;
+    o.frontend.features.kind = DetectorKind::kOrb;
+    o.backend.kind = BackendKind::kLocalMap;
+    o.mode = PipelineMode::kLive;
+    o.mapping_rt_priority = mapping_rt_priority;
+    std::string err;
+    auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+    auto p = Pipeline::create(o, Intrinsics{}, &err);
+    ASSERT_TRUE(ds && p) << err;
+    for (std::size_t i = 0; i < 5; ++i) {
+      auto f = ds->load(i, &err);
+      ASSERT_TRUE(f) << err;
+      p->submit(std::move(*f));
+    }
+    p->finish();
+    described = p->summary().mapping_thread;
+  });
+  creator.join();
+  return described;
+}
+
+TEST(Pipeline, UnderARealTimeTrackerMappingRunsRealTimeBelowIt) {
+  // GIVEN a live pipeline created by a real-time (SCHED_RR 10) thread
+  bool realtime = false;
+  const std::string rr = live_mapping_thread(5, &realtime);
+  if (realtime) {
+    // THEN its mapper runs SCHED_RR 5: below tracking, above every process's normal work
+    EXPECT_EQ(rr, "mapping thread: SCHED_RR priority 5");
+  } else {
+    // (without CAP_SYS_NICE: the normal policy, and the reason is given)
+    EXPECT_NE(rr.find("mapping thread: "), std::string::npos) << rr;
+    EXPECT_EQ(rr.find("SCHED_RR"), std::string::npos) << rr;
+  }
+  // AND with mapping_rt_priority 0 it drops to the normal policy, below the tracker by policy
+  const std::string normal = live_mapping_thread(0, &realtime);
+  EXPECT_EQ(normal.find("SCHED_RR"), std::string::npos) << normal;
+  if (realtime) {
+    EXPECT_EQ(normal, "mapping thread: nice -10 (below a real-time creator)");
+  }
 }
 
 TEST(Regression, LocalMapBridgesAGapOfWithheldFrames) {
