@@ -439,6 +439,14 @@ void Pipeline::loop_closing_loop() {
   }
 }
 
+KeyframeAdmission keyframe_admission(std::size_t keyframes_in_mapper, bool gate_on_busy_mapper) {
+  KeyframeAdmission a;
+  a.allowed = keyframes_in_mapper < kMaxQueuedKeyframesWeak;
+  a.mapper_idle = keyframes_in_mapper < kMaxQueuedKeyframes &&
+                  (!gate_on_busy_mapper || keyframes_in_mapper == 0);
+  return a;
+}
+
 void Pipeline::run_tracker(const RgbdFrame& frame) {
   const std::int64_t t0 = steady_now_ns();
   const std::int64_t c0 = thread_cpu_now_ns();
@@ -468,8 +476,10 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
        mapper_idle = true;  // wait/sequential: mapping is done before the next frame
   if (options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive) {
     std::lock_guard<std::mutex> lock(mutex_);
-    keyframe_allowed = keyframe_queue_.size() + (mapper_busy_ ? 1 : 0) < kMaxQueuedKeyframes;
-    mapper_idle = !options_.keyframe_gate_mapper_busy || (keyframe_queue_.empty() && !mapper_busy_);
+    const KeyframeAdmission admission = keyframe_admission(
+        keyframe_queue_.size() + (mapper_busy_ ? 1 : 0), options_.keyframe_gate_mapper_busy);
+    keyframe_allowed = admission.allowed;
+    mapper_idle = admission.mapper_idle;
   }
   TrackResult tr;
   try {

@@ -15,9 +15,9 @@
 // against the local map, the camera-to-command path), the back-end thread runs the LocalMapper
 // on keyframes and a third thread the LoopCloser on each mapped keyframe (wait mode waits for
 // both, sequential mode runs both inline). wait: the tracker waits for each keyframe to be mapped
-// (deterministic, equals sequential); realtime: keyframes queue for the mapper (at most
-// kMaxQueuedKeyframes, beyond which the tracker defers its keyframe), tracking never waits for
-// mapping.
+// (deterministic, equals sequential); realtime: keyframes queue for the mapper (see
+// keyframe_admission: beyond kMaxQueuedKeyframes only weak tracking adds one, up to
+// kMaxQueuedKeyframesWeak), tracking never waits for mapping.
 //
 // Thread safety: submit()/finish() from one producer thread; results after finish().
 #pragma once
@@ -161,6 +161,25 @@ struct PipelineSummary {
   std::size_t mapper_ba_interrupted = 0;  ///< local BAs stopped early by a waiting keyframe
 };
 
+/// Keyframes in the mapper (queued + in work) below which the tracker makes keyframes as it needs
+/// them (realtime/live).
+inline constexpr std::size_t kMaxQueuedKeyframes = 2;
+/// Beyond kMaxQueuedKeyframes, weak tracking still adds keyframes up to this many in the mapper
+/// (ORB-SLAM2's RGB-D rule: insert while fewer than 3 wait). The tracker creates a keyframe's
+/// points from its depth itself, so the keyframe helps tracking at once, and the mapper, seeing
+/// it wait, leaves its own work to it (LocalMapper catch-up). Without it a starved mapper kept the
+/// tracker from adding keyframes for 11 frames of a fresh-clone HIL flight: inliers 290 -> 32,
+/// lost.
+inline constexpr std::size_t kMaxQueuedKeyframesWeak = 3;
+
+/// What the tracker may do about keyframes while `keyframes_in_mapper` (queued + in work) wait.
+struct KeyframeAdmission {
+  bool allowed = true;      ///< a keyframe may be made (Tracker::track's keyframe_allowed)
+  bool mapper_idle = true;  ///< false: only weak tracking makes one (Tracker::track's mapper_idle)
+};
+/// `gate_on_busy_mapper`: PipelineOptions::keyframe_gate_mapper_busy.
+KeyframeAdmission keyframe_admission(std::size_t keyframes_in_mapper, bool gate_on_busy_mapper);
+
 class Pipeline {
  public:
   static std::unique_ptr<Pipeline> create(const PipelineOptions& options,
@@ -204,8 +223,6 @@ class Pipeline {
   /// Local-map system: writes the current map (call after finish() for the final one).
   bool save_map(const std::string& path, std::string* error) const;
   bool is_local_map() const { return options_.backend.kind == BackendKind::kLocalMap; }
-  /// Keyframes the mapper may have queued before the tracker defers new ones (realtime).
-  static constexpr std::size_t kMaxQueuedKeyframes = 2;
 
  private:
   Pipeline(PipelineOptions options, FrontEnd frontend, BackEnd backend);

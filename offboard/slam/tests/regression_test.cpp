@@ -150,6 +150,26 @@ TEST(Pipeline, RetiredRecordsGoToTheSinkInOrderAndOnlyTheNewestAreHeld) {
   EXPECT_EQ(p->summary().frames_failed, 0u);
 }
 
+TEST(Pipeline, KeyframeAdmissionLetsWeakTrackingPastABusyMapperUpToTheHardCap) {
+  // GIVEN the gate on a busy mapper off (the default)
+  // WHEN the mapper holds fewer than kMaxQueuedKeyframes THEN keyframes are made as needed
+  for (std::size_t n = 0; n < kMaxQueuedKeyframes; ++n) {
+    EXPECT_TRUE(keyframe_admission(n, false).allowed) << n;
+    EXPECT_TRUE(keyframe_admission(n, false).mapper_idle) << n;
+  }
+  // WHEN it holds kMaxQueuedKeyframes THEN only weak tracking makes one (mapper_idle false)
+  for (std::size_t n = kMaxQueuedKeyframes; n < kMaxQueuedKeyframesWeak; ++n) {
+    EXPECT_TRUE(keyframe_admission(n, false).allowed) << n;
+    EXPECT_FALSE(keyframe_admission(n, false).mapper_idle) << n;
+  }
+  // WHEN it holds kMaxQueuedKeyframesWeak THEN none
+  EXPECT_FALSE(keyframe_admission(kMaxQueuedKeyframesWeak, false).allowed);
+  // AND with the gate on, any keyframe in the mapper leaves keyframes to weak tracking
+  EXPECT_TRUE(keyframe_admission(0, true).mapper_idle);
+  EXPECT_FALSE(keyframe_admission(1, true).mapper_idle);
+  EXPECT_TRUE(keyframe_admission(1, true).allowed);
+}
+
 /// The mapping thread's scheduling in a kLive pipeline created by a thread raised to SCHED_RR
 /// (slam-server's serving thread), with `mapping_rt_priority`; `creator_realtime` says whether the
 /// OS granted the creator's raise.
