@@ -28,7 +28,9 @@ import contextlib
 import csv
 import json
 from pathlib import Path
+import os
 import re
+import shlex
 import shutil
 import socket
 import threading
@@ -146,6 +148,9 @@ class SlamFlightOptions:
     send_on_pose: bool | None = None
     # quad-control records the flight as MCAP in <workdir>/recording (docs/recording.md); False: off.
     record: bool = True
+    # More slam-server flags, for ablations (e.g. ("--mapping-rt-priority", "0")); the environment's
+    # HIL_SLAM_SERVER_ARGS (split like a shell line) by default, so any scenario can be re-flown.
+    slam_server_args: tuple = field(default_factory=lambda: tuple(shlex.split(os.environ.get("HIL_SLAM_SERVER_ARGS", ""))))
 
     def validate(self) -> None:
         if not 1.0 <= self.fps <= 30.0:
@@ -232,6 +237,7 @@ class SlamFlight:
                     # waits, relocalised), written when the session ends: where SLAM spent a flight.
                     "--tables-dir",
                     str(self.workdir / "slam-tables"),
+                    *o.slam_server_args,
                 ],
                 system=True,
             )
