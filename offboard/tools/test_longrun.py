@@ -65,3 +65,13 @@ def test_a_map_that_keeps_growing_does_not_level_off(tmp_path):
     # GIVEN few new keyframes late, but a map that keeps growing past its first-minute size
     run = _write_run(tmp_path / "growing", [53, 8, 2], [25, 30, 34])
     assert longrun.table(run) == 1
+
+
+def test_a_last_minute_that_maps_nothing_says_so_instead_of_a_ratio(tmp_path, capsys):
+    # GIVEN keyframes only while exploring (mapping costs nothing afterwards)
+    run = _write_run(tmp_path / "quiet", [47, 0, 0], [32, 32, 32])
+    # THEN both checks are met and the cost line names the empty minute, not inf or nan
+    assert longrun.table(run) == 0
+    out = capsys.readouterr().out
+    assert "no keyframe mapped in minute 3" in out
+    assert "inf" not in out and "nan" not in out.split("mapping p95")[1]
