@@ -45,6 +45,9 @@ def main(argv=None) -> int:
     ap.add_argument("--linger-s", type=float, default=0.0, help="keep everything up this long after landing")
     ap.add_argument("--send-on-pose", choices=("on", "off"), default=None,
                     help="quad-control's firmware.send_on_pose (default: its configured default)")
+    ap.add_argument("--record", choices=("on", "off"), default="on",
+                    help="quad-control records the flight as MCAP in OUT/recording (default on; off "
+                         "measures what recording costs the loop)")
     args = ap.parse_args(argv)
     missing = missing_parts()
     if missing:
@@ -58,7 +61,8 @@ def main(argv=None) -> int:
         print(f"demo [{time.monotonic() - t0:6.1f} s] {text}", flush=True)
 
     send_on_pose = None if args.send_on_pose is None else args.send_on_pose == "on"
-    with SlamFlight(args.out, SlamFlightOptions(fps=args.fps, send_on_pose=send_on_pose)) as flight:
+    with SlamFlight(args.out, SlamFlightOptions(fps=args.fps, send_on_pose=send_on_pose,
+                                                       record=args.record == "on")) as flight:
         progress(f"dashboard: http://127.0.0.1:{flight.dashboard_port}/ (open it to watch the flight)")
         progress(f"logs: {args.out}/*.log, flight log: {flight.log_dir}")
         try:
@@ -136,6 +140,7 @@ def print_figures(report: dict, args) -> None:
           f"resets {link['resets']} (counted from {', '.join(link['sources']) or 'nothing'})")
     print(f"demo: report {args.out / 'report.json'}; {report['wall_s']} s, real-time factor {report['realtime_factor']}")
     print(f"demo: load average {report.get('load_average')}; send_on_pose {args.send_on_pose or 'default'}; "
+          f"recording {args.record}; "
           f"scheduling {report.get('scheduling')}")
 
 
