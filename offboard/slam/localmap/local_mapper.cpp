@@ -334,7 +334,6 @@ void LocalMapper::bundle_adjust(std::int64_t kf_id, const KeyframesWaiting& wait
   so.logging_type = ceres::SILENT;
   StopWhenKeyframesWait stop(waiting);
   so.callbacks.push_back(&stop);
-  so.update_state_every_iteration = false;  // the callback reads no parameters
   ceres::Solver::Summary summary;
   if (!obs.empty()) ceres::Solve(so, &problem, &summary);
   stats->ba_interrupted = stop.stopped();

@@ -414,8 +414,9 @@ void Pipeline::close_loops(std::int64_t kf) {
 }
 
 void Pipeline::loop_closing_loop() {
-  if (options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive) {
-    // Off the camera-to-command path like mapping, with the same priorities (see mapper_loop).
+  if (paced()) {
+    // Off the camera-to-command path and, unlike mapping, not needed by the next frames: the
+    // normal policy below tracking (place_mapping_thread's fallback nices).
     constexpr int kLoopClosingNiceRealtime = 10;
     constexpr int kLoopClosingNiceBelowRealtime = -10;
     lower_current_thread(kLoopClosingNiceRealtime, kLoopClosingNiceBelowRealtime);
@@ -474,7 +475,7 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   rec.features = feats->points_cam_m.size();
   bool keyframe_allowed = true,
        mapper_idle = true;  // wait/sequential: mapping is done before the next frame
-  if (options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive) {
+  if (paced()) {
     std::lock_guard<std::mutex> lock(mutex_);
     const KeyframeAdmission admission = keyframe_admission(
         keyframe_queue_.size() + (mapper_busy_ ? 1 : 0), options_.keyframe_gate_mapper_busy);
@@ -543,8 +544,7 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
 }
 
 void Pipeline::mapper_loop() {
-  const bool realtime =
-      options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive;
+  const bool realtime = paced();
   if (realtime) {
     const std::string applied = place_mapping_thread().describe("mapping");
     std::lock_guard<std::mutex> lock(mutex_);

@@ -236,6 +236,10 @@ class Pipeline {
   /// Hands the retired records to the sink (caller does not hold mutex_).
   void hand_retired();
   void mapper_loop();
+  /// kRealtime or kLive: frames are paced by the camera and never wait for mapping.
+  bool paced() const {
+    return options_.mode == PipelineMode::kRealtime || options_.mode == PipelineMode::kLive;
+  }
   /// Schedules the calling (mapping) thread: real-time below tracking when tracking is real-time.
   ThreadPriorityResult place_mapping_thread() const;
   void loop_closing_loop();
