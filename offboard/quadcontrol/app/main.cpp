@@ -192,8 +192,11 @@ int main(int argc, char** argv) {
                      AccessPolicy{config->dashboard_token, config->dashboard_allowed_hosts});
     HttpServer server(config->dashboard_bind_address, config->dashboard_port,
                       [&api](const HttpRequest& r) { return api.handle(r); });
-    std::cout << "quad-control: dashboard on http://" << config->dashboard_bind_address << ":"
-              << server.port() << "/" << std::endl;
+    // One write for the whole line: the real-time threads log to the same pipe meanwhile, and a
+    // line written in pieces was split by one of theirs (a test then could not read the port).
+    std::cout << "quad-control: dashboard on http://" + config->dashboard_bind_address + ":" +
+                     std::to_string(server.port()) + "/\n"
+              << std::flush;
     int sig = 0;
     sigwait(&signals, &sig);
     std::cout << "quad-control: stopping (signal " << sig << ")" << std::endl;
