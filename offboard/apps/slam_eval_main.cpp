@@ -16,6 +16,7 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <thread>
@@ -170,129 +171,154 @@ bool write_run_outputs(const RunArgs& a, const slam::Pipeline& pipeline,
   return true;
 }
 
-int run_command(const RunArgs& a) {
-  std::string err;
-  if (a.cv_threads >= 0) cv::setNumThreads(a.cv_threads);
-  const std::optional<slam::PipelineOptions> options = pipeline_options(a, &err);
-  if (!options) {
-    std::cerr << "slam-eval: " << err << "\n";
-    return 2;
-  }
-  const slam::PipelineOptions& po = *options;
-
-  const std::string camera = a.camera == "auto" ? guess_camera(a.dataset) : a.camera;
+/// What a run is set up with: options, camera, pose stamp, the open dataset and the pipeline.
+struct RunSetup {
+  slam::PipelineOptions po;
+  std::string camera, stamp;
   slam::Intrinsics intr;
-  if (!slam::Intrinsics::from_name(camera, &intr, &err)) {
-    std::cerr << "slam-eval: " << err << "\n";
-    return 2;
-  }
-  if (a.depth_units_per_m > 0) intr.depth_units_per_m = a.depth_units_per_m;
+  std::optional<slam::TumDataset> ds;
+  std::unique_ptr<slam::Pipeline> pipeline;
+};
+
+/// Options, intrinsics, dataset, output folder and pipeline (with --load-map); nullopt with the
+/// exit code in *exit_code (2: bad options or map, 1: unreadable input or output) and the cause
+/// on stderr.
+std::optional<RunSetup> set_up_run(const RunArgs& a, int* exit_code) {
+  std::string err;
+  auto fail = [&](int code, const std::string& why) -> std::optional<RunSetup> {
+    std::cerr << "slam-eval: " << why << "\n";
+    *exit_code = code;
+    return std::nullopt;
+  };
+  RunSetup r;
+  const std::optional<slam::PipelineOptions> options = pipeline_options(a, &err);
+  if (!options) return fail(2, err);
+  r.po = *options;
+  r.camera = a.camera == "auto" ? guess_camera(a.dataset) : a.camera;
+  if (!slam::Intrinsics::from_name(r.camera, &r.intr, &err)) return fail(2, err);
+  if (a.depth_units_per_m > 0) r.intr.depth_units_per_m = a.depth_units_per_m;
   slam::TumDatasetOptions dso;
   dso.rate_divisor = a.rate;
   dso.max_frames = a.max_frames;
   // auto: the local map's poses rest on pixel measurements in the colour image, so they carry its
   // time (ORB-SLAM2's rgbd_tum does the same); the thesis back-ends align 3D points from the depth
   // image, so they carry the depth time (RGBD-SLAM's convention, which the thesis follows).
-  const std::string stamp =
-      a.stamp != "auto" ? a.stamp
-                        : (po.backend.kind == slam::BackendKind::kLocalMap ? "rgb" : "depth");
-  dso.stamp_from_depth = stamp == "depth";
-  auto ds = slam::TumDataset::open(a.dataset, dso, &err);
-  if (!ds) {
-    std::cerr << "slam-eval: " << err << "\n";
-    return 1;
-  }
+  r.stamp = a.stamp != "auto"
+                ? a.stamp
+                : (r.po.backend.kind == slam::BackendKind::kLocalMap ? "rgb" : "depth");
+  dso.stamp_from_depth = r.stamp == "depth";
+  r.ds = slam::TumDataset::open(a.dataset, dso, &err);
+  if (!r.ds) return fail(1, err);
   std::error_code ec;
   fs::create_directories(a.out, ec);
-  if (!fs::is_directory(a.out)) {
-    std::cerr << "slam-eval: cannot create output folder '" << a.out << "'\n";
-    return 1;
-  }
-  auto pipeline = slam::Pipeline::create(po, intr, &err);
-  if (!pipeline) {
-    std::cerr << "slam-eval: " << err << "\n";
-    return 2;
-  }
-  if (!a.load_map.empty() && !pipeline->load_map(a.load_map, &err)) {
-    std::cerr << "slam-eval: " << err << "\n";
-    return 2;
-  }
-  std::cerr << "slam-eval: " << ds->size() << " frames from " << a.dataset << " (camera " << camera
-            << ", features " << a.features << ", backend " << a.backend << ", mode " << a.mode
-            << ", rate 1/" << a.rate << ", ransac " << a.ransac << ", keyframes "
-            << a.keyframe_policy << ")\n";
-  const auto wall0 = std::chrono::steady_clock::now();
-  const slam::ReplaySchedule schedule{ds->frame_period_s(), a.withhold_from_s, a.withhold_s};
-  std::size_t load_failures = 0;
-  slam::RssSamples rss_samples;  // every 30 frames
-  double first_stamp_s = -1;
+  if (!fs::is_directory(a.out)) return fail(1, "cannot create output folder '" + a.out + "'");
+  r.pipeline = slam::Pipeline::create(r.po, r.intr, &err);
+  if (!r.pipeline) return fail(2, err);
+  if (!a.load_map.empty() && !r.pipeline->load_map(a.load_map, &err)) return fail(2, err);
+  return r;
+}
+
+/// What the replay loop measured besides what the pipeline reports.
+struct ReplayStats {
+  double wall_s = 0;
   std::size_t withheld = 0;
-  for (std::size_t i = 0; i < ds->size(); ++i) {
-    auto frame = ds->load(i, &err);
+  double first_stamp_s = -1;
+  slam::RssSamples rss_samples;  ///< every 30 frames
+};
+
+/// Submits every frame of the dataset, paced at the recorded rate in realtime/live mode (the
+/// application boundary: the only place that reads the clock), withholding --withhold-s of it;
+/// waits for the pipeline to finish. nullopt when the input is unreadable (the first frame, or more
+/// than 5 frames).
+std::optional<ReplayStats> replay_dataset(const RunArgs& a, RunSetup& r) {
+  slam::TumDataset& ds = *r.ds;
+  slam::Pipeline& pipeline = *r.pipeline;
+  const bool paced =
+      r.po.mode == slam::PipelineMode::kRealtime || r.po.mode == slam::PipelineMode::kLive;
+  const auto wall0 = std::chrono::steady_clock::now();
+  const slam::ReplaySchedule schedule{ds.frame_period_s(), a.withhold_from_s, a.withhold_s};
+  ReplayStats stats;
+  std::size_t load_failures = 0;
+  std::string err;
+  for (std::size_t i = 0; i < ds.size(); ++i) {
+    auto frame = ds.load(i, &err);
     if (!frame) {
       std::cerr << "slam-eval: " << err << "\n";
-      ++load_failures;
-      if (i == 0 || load_failures > 5) {
-        pipeline->finish();
+      if (i == 0 || ++load_failures > 5) {
+        pipeline.finish();
         std::cerr << "slam-eval: giving up on unreadable input\n";
-        return 1;
+        return std::nullopt;
       }
       continue;
     }
-    if (po.mode == slam::PipelineMode::kRealtime || po.mode == slam::PipelineMode::kLive) {
-      // Real-time replay: frame i is due i * period after the start (application boundary: the
-      // only place that reads the clock).
-      std::this_thread::sleep_until(wall0 + schedule.due(i));
-    }
+    if (paced)
+      std::this_thread::sleep_until(wall0 + schedule.due(i));  // frame i is due i periods in
     const double stamp_s = frame->stamp_s;
-    if (first_stamp_s < 0) first_stamp_s = stamp_s;
-    if (schedule.withheld(stamp_s, first_stamp_s)) {
-      ++withheld;  // a stalled link: the frame never reaches SLAM
+    if (stats.first_stamp_s < 0) stats.first_stamp_s = stamp_s;
+    if (schedule.withheld(stamp_s, stats.first_stamp_s)) {
+      ++stats.withheld;  // a stalled link: the frame never reaches SLAM
       continue;
     }
-    pipeline->submit(std::move(*frame));
-    if (i % 30 == 0) rss_samples.emplace_back(stamp_s, rss_mib());
-    if (!a.quiet && ((i + 1) % 25 == 0 || i + 1 == ds->size()))
-      std::cerr << "slam-eval: submitted " << (i + 1) << "/" << ds->size() << "\n";
+    pipeline.submit(std::move(*frame));
+    if (i % 30 == 0) stats.rss_samples.emplace_back(stamp_s, rss_mib());
+    if (!a.quiet && ((i + 1) % 25 == 0 || i + 1 == ds.size()))
+      std::cerr << "slam-eval: submitted " << (i + 1) << "/" << ds.size() << "\n";
   }
-  pipeline->finish();
-  const double wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  pipeline.finish();
+  stats.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  return stats;
+}
 
-  slam::RunOutcome run = slam::collect_run_outcome(*pipeline);
-  run.glc_backend = po.backend.kind == slam::BackendKind::kGlc;
-  run.wall_s = wall_s;
-  run.frames_withheld = withheld;
-  run.first_stamp_s = first_stamp_s;
-  run.withhold_from_s = a.withhold_from_s;
-  run.withhold_s = a.withhold_s;
-  if (!write_run_outputs(a, *pipeline, intr, &run, &err)) {
-    std::cerr << "slam-eval: " << err << "\n";
-    return 1;
-  }
-  // Per-frame and per-keyframe tables for long-run analysis (offboard/tools/longrun.py).
-  if (!slam::write_run_tables(a.out, run.records, run.mapper_stats, run.loop_stats, rss_samples,
-                              &err)) {
-    std::cerr << "slam-eval: " << err << "\n";
-    return 1;
-  }
-
-  json m = run_options_json(a, camera, stamp, intr);
+/// metrics.json (options, outcome, scores against the ground truth when the dataset has one).
+bool write_metrics(const RunArgs& a, const RunSetup& r, const slam::RunOutcome& run, json* m,
+                   std::string* err) {
+  *m = run_options_json(a, r.camera, r.stamp, r.intr);
   std::string warning;
-  slam::add_run_metrics(run, ds->groundtruth_path(), &m, &warning);
+  slam::add_run_metrics(run, r.ds->groundtruth_path(), m, &warning);
   if (!warning.empty()) std::cerr << "slam-eval: " << warning << "\n";
-  if (ds->groundtruth_path().empty()) {
+  if (r.ds->groundtruth_path().empty()) {
     std::cerr << "slam-eval: no groundtruth.txt in " << a.dataset << ": trajectory not scored\n";
-    m["ground_truth"] = nullptr;
+    (*m)["ground_truth"] = nullptr;
   }
   std::ofstream mf(fs::path(a.out) / "metrics.json");
-  mf << m.dump(2) << "\n";
-  if (!mf) {
-    std::cerr << "slam-eval: cannot write metrics.json\n";
+  mf << m->dump(2) << "\n";
+  if (!mf) *err = "cannot write metrics.json";
+  return static_cast<bool>(mf);
+}
+
+int run_command(const RunArgs& a) {
+  if (a.cv_threads >= 0) cv::setNumThreads(a.cv_threads);
+  int exit_code = 0;
+  std::optional<RunSetup> setup = set_up_run(a, &exit_code);
+  if (!setup) return exit_code;
+  std::cerr << "slam-eval: " << setup->ds->size() << " frames from " << a.dataset << " (camera "
+            << setup->camera << ", features " << a.features << ", backend " << a.backend
+            << ", mode " << a.mode << ", rate 1/" << a.rate << ", ransac " << a.ransac
+            << ", keyframes " << a.keyframe_policy << ")\n";
+  const std::optional<ReplayStats> replay = replay_dataset(a, *setup);
+  if (!replay) return 1;
+
+  slam::RunOutcome run = slam::collect_run_outcome(*setup->pipeline);
+  run.glc_backend = setup->po.backend.kind == slam::BackendKind::kGlc;
+  run.wall_s = replay->wall_s;
+  run.frames_withheld = replay->withheld;
+  run.first_stamp_s = replay->first_stamp_s;
+  run.withhold_from_s = a.withhold_from_s;
+  run.withhold_s = a.withhold_s;
+  std::string err;
+  json m;
+  // Trajectories, graphs, map; the per-frame and per-keyframe tables for long-run analysis
+  // (offboard/tools/longrun.py); metrics.json.
+  if (!write_run_outputs(a, *setup->pipeline, setup->intr, &run, &err) ||
+      !slam::write_run_tables(a.out, run.records, run.mapper_stats, run.loop_stats,
+                              replay->rss_samples, &err) ||
+      !write_metrics(a, *setup, run, &m, &err)) {
+    std::cerr << "slam-eval: " << err << "\n";
     return 1;
   }
   std::cerr << "slam-eval: " << run.records.size() << " frames, " << run.summary.keyframes
-            << " keyframes, " << run.summary.loop_closures << " loop closures, " << wall_s << " s";
+            << " keyframes, " << run.summary.loop_closures << " loop closures, " << replay->wall_s
+            << " s";
   if (m.contains("ate_rmse_m"))
     std::cerr << ", ATE " << m["ate_rmse_m"].get<double>() << " m, RPE "
               << m.value("rpe_trans_rmse_mm", 0.0) << " mm / " << m.value("rpe_rot_rmse_deg", 0.0)

@@ -64,9 +64,9 @@ double BackEnd::mean_depth_m(const FrameFeatures& f) const {
   return s / static_cast<double>(f.points_cam_m.size());
 }
 
-BackEnd::Comparison BackEnd::compare(const FrontendOutput& in, std::int64_t kf_id,
-                                     std::uint64_t salt) const {
-  Comparison c;
+KeyframeMatch BackEnd::compare(const FrontendOutput& in, std::int64_t kf_id,
+                               std::uint64_t salt) const {
+  KeyframeMatch c;
   c.kf = kf_id;
   const Keyframe& kf = keyframes_.at(kf_id);
   const std::uint64_t seed = options_.seed ^
@@ -77,6 +77,15 @@ BackEnd::Comparison BackEnd::compare(const FrontendOutput& in, std::int64_t kf_i
   return c;
 }
 
+std::vector<std::int64_t> BackEnd::creation_neighbours(std::int64_t kf_id) const {
+  std::vector<std::int64_t> out;
+  auto it = keyframes_.find(kf_id);
+  if (it == keyframes_.end()) return out;
+  if (it != keyframes_.begin()) out.push_back(std::prev(it)->first);
+  if (std::next(it) != keyframes_.end()) out.push_back(std::next(it)->first);
+  return out;
+}
+
 void BackEnd::touch(std::int64_t kf_id) {
   auto it = std::find(recency_.begin(), recency_.end(), kf_id);
   if (it != recency_.end()) recency_.erase(it);
@@ -84,7 +93,7 @@ void BackEnd::touch(std::int64_t kf_id) {
 }
 
 void BackEnd::add_keyframe(const FrontendOutput& in, const Eigen::Isometry3d& T_world_cam,
-                           const std::vector<Comparison>& recent) {
+                           const std::vector<KeyframeMatch>& recent) {
   Keyframe kf;
   kf.id = in.index;
   kf.stamp_s = in.stamp_s;
@@ -110,7 +119,7 @@ void BackEnd::add_keyframe(const FrontendOutput& in, const Eigen::Isometry3d& T_
     graph_.add_edge(e);
   }
   // Direct edges to the recent keyframes the frame was registered against.
-  for (const Comparison& c : recent) {
+  for (const KeyframeMatch& c : recent) {
     if (!c.est || c.est->inliers.size() < options_.min_inliers) continue;
     PoseGraphEdge e;
     e.from = c.kf;
@@ -145,13 +154,13 @@ BackendOutput BackEnd::process(const FrontendOutput& in) {
 
   // 1. Compare with the most recent keyframes.
   const std::int64_t tk = steady_now_ns();
-  std::vector<Comparison> recent;
+  std::vector<KeyframeMatch> recent;
   const std::size_t n_recent = std::min<std::size_t>(
       recency_.size(), static_cast<std::size_t>(options_.keyframes.recent_keyframes));
   for (std::size_t i = 0; i < n_recent; ++i)
     recent.push_back(compare(in, recency_[recency_.size() - 1 - i], 1));
-  const Comparison* best = nullptr;
-  for (const Comparison& c : recent)
+  const KeyframeMatch* best = nullptr;
+  for (const KeyframeMatch& c : recent)
     if (c.est && (!best || c.est->inliers.size() > best->est->inliers.size())) best = &c;
   std::optional<KeyframeEvidence> evidence;
   if (best)
@@ -178,31 +187,17 @@ BackendOutput BackEnd::process(const FrontendOutput& in) {
       recency_.size() >
           static_cast<std::size_t>(options_.loop.glc_exclude_latest) + (new_kf ? 1 : 0)) {
     const std::int64_t tg = steady_now_ns();
-    const std::size_t n_features = in.features->points_cam_m.size();
-    auto accept = [&](const Comparison& c) {
-      return c.est && accept_glc_match(options_.loop, n_features, c.matches, c.est->inlier_ratio,
-                                       c.est->inliers.size(), options_.min_inliers);
-    };
-    std::optional<Comparison> found;
-    for (std::int64_t kf : glc_keyframes_to_test(recency_, in.index, iteration_, options_.loop)) {
-      Comparison c = compare(in, kf, 2);
-      if (accept(c) && (!found || c.est->inliers.size() > found->est->inliers.size())) found = c;
-    }
-    if (found && options_.loop.glc_test_neighbours) {
-      // The two keyframes created just before and after the match.
-      auto it = keyframes_.find(found->kf);
-      std::vector<std::int64_t> neigh;
-      if (it != keyframes_.begin()) neigh.push_back(std::prev(it)->first);
-      if (std::next(it) != keyframes_.end()) neigh.push_back(std::next(it)->first);
-      for (std::int64_t nid : neigh) {
-        if (nid == in.index) continue;
-        if (std::any_of(recent.begin(), recent.end(),
-                        [&](const Comparison& r) { return r.kf == nid; }))
-          continue;
-        Comparison c = compare(in, nid, 3);
-        if (accept(c) && c.est->inliers.size() > found->est->inliers.size()) found = c;
-      }
-    }
+    GlcSearchInput search;
+    search.frame_id = in.index;
+    search.iteration = iteration_;
+    search.n_features = in.features->points_cam_m.size();
+    search.min_inliers = options_.min_inliers;
+    search.recency = &recency_;
+    for (const KeyframeMatch& r : recent) search.already_compared.push_back(r.kf);
+    const std::optional<KeyframeMatch> found = search_global_loop(
+        search, options_.loop,
+        [&](std::int64_t kf, std::uint64_t salt) { return compare(in, kf, salt); },
+        [&](std::int64_t kf) { return creation_neighbours(kf); });
     out.glc_ms = ms_since(tg);
     if (found) {
       if (!graph_.has_node(in.index)) {

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "slam/keyframes/keyframes.hpp"
+#include "slam/loop/glc_search.hpp"
 #include "slam/loop/loop.hpp"
 #include "slam/pipeline/frontend.hpp"
 #include "slam/posegraph/posegraph.hpp"
@@ -82,15 +83,12 @@ class BackEnd {
 
  private:
   explicit BackEnd(BackendOptions options) : options_(std::move(options)) {}
-  struct Comparison {
-    std::int64_t kf = -1;
-    std::size_t matches = 0;
-    std::optional<MotionEstimate> est;
-  };
-  Comparison compare(const FrontendOutput& in, std::int64_t kf_id, std::uint64_t salt) const;
+  KeyframeMatch compare(const FrontendOutput& in, std::int64_t kf_id, std::uint64_t salt) const;
+  /// The keyframes created just before and after `kf_id` (ids are frame indices, so map order).
+  std::vector<std::int64_t> creation_neighbours(std::int64_t kf_id) const;
   double mean_depth_m(const FrameFeatures& f) const;
   void add_keyframe(const FrontendOutput& in, const Eigen::Isometry3d& T_world_cam,
-                    const std::vector<Comparison>& recent);
+                    const std::vector<KeyframeMatch>& recent);
   void touch(std::int64_t kf_id);  ///< move to the end of the recency order
 
   BackendOptions options_;

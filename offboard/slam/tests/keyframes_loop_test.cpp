@@ -1,7 +1,13 @@
 // Keyframe policy decisions, LLC clamp and GLC candidate rotation (table-driven).
 #include <gtest/gtest.h>
 
+#include <functional>
+#include <map>
+#include <utility>
+#include <vector>
+
 #include "slam/keyframes/keyframes.hpp"
+#include "slam/loop/glc_search.hpp"
 #include "slam/loop/loop.hpp"
 
 namespace slam {
@@ -108,4 +114,90 @@ TEST(GlobalLoopClosure, AcceptanceNeedsMatchShareInlierShareAndMinimumInliers) {
 }
 
 }  // namespace
+// A registration that "finds" the loop only where the table says so; everything else is a poor
+// match. Records what was tested, with which salt.
+struct ScriptedRegistration {
+  std::map<std::int64_t, std::size_t> inliers_by_kf;  // accepted matches: 100 matched, these kept
+  std::vector<std::pair<std::int64_t, std::uint64_t>> tested;
+  KeyframeMatch operator()(std::int64_t kf, std::uint64_t salt) {
+    tested.emplace_back(kf, salt);
+    KeyframeMatch m;
+    m.kf = kf;
+    m.matches = 100;
+    MotionEstimate est;
+    const auto it = inliers_by_kf.find(kf);
+    const std::size_t kept = it == inliers_by_kf.end() ? 5 : it->second;  // 5 %: refused
+    est.inliers.assign(kept, 0);
+    est.inlier_ratio = static_cast<double>(kept) / 100.0;
+    m.est = est;
+    return m;
+  }
+};
+
+std::vector<std::int64_t> neighbours_by_id(std::int64_t kf) { return {kf - 1, kf + 1}; }
+
+TEST(GlobalLoopSearch, GivenAnAcceptedCandidateThenABetterCreationNeighbourWins) {
+  // GIVEN keyframes 0..9 (least recently used first), the frame 50 with 400 features, and a
+  // registration that accepts keyframe 2 (70 inliers) and its later neighbour 3 (80)
+  std::vector<std::int64_t> recency{0, 1, 2, 4, 5, 6, 7, 8, 9, 3};
+  GlcSearchInput in;
+  in.frame_id = 50;
+  in.n_features = 400;
+  in.min_inliers = 10;
+  in.recency = &recency;
+  ScriptedRegistration reg;
+  reg.inliers_by_kf = {{2, 70}, {3, 80}};
+  const LoopOptions o;  // thesis: 7 blocks, latest 3 excluded, neighbours tested
+  // WHEN the search runs
+  const auto found = search_global_loop(in, o, std::ref(reg), neighbours_by_id);
+  // THEN the candidates 0..6 (the latest 3 - 8, 9, 3 - left out) were tested first, then the
+  // neighbours 1 and 3 of the match with the neighbour salt, and the neighbour with more inliers
+  // won
+  ASSERT_TRUE(found.has_value());
+  EXPECT_EQ(found->kf, 3);
+  std::vector<std::pair<std::int64_t, std::uint64_t>> expected{
+      {0, 2}, {1, 2}, {2, 2}, {4, 2}, {5, 2}, {6, 2}, {7, 2}, {1, 3}, {3, 3}};
+  EXPECT_EQ(reg.tested, expected);
+}
+
+TEST(GlobalLoopSearch, GivenNeighboursAlreadyComparedOrTheFrameItselfThenTheyAreNotTestedAgain) {
+  // GIVEN the frame became keyframe 3; keyframe 1 is among the latest (not a candidate) and was
+  // registered against in the recent-keyframe pass
+  std::vector<std::int64_t> recency{0, 2, 4, 5, 6, 7, 8, 9, 1, 3};
+  GlcSearchInput in;
+  in.frame_id = 3;  // a keyframe made from this frame: never its own loop
+  in.n_features = 400;
+  in.min_inliers = 10;
+  in.recency = &recency;
+  in.already_compared = {1};
+  ScriptedRegistration reg;
+  reg.inliers_by_kf = {{2, 70}, {1, 90}};
+  const auto found = search_global_loop(in, LoopOptions{}, std::ref(reg), neighbours_by_id);
+  ASSERT_TRUE(found.has_value());
+  EXPECT_EQ(found->kf, 2);  // 1 would be better but was already compared; 3 is the frame
+  for (const auto& t : reg.tested) EXPECT_EQ(t.second, 2u);  // no neighbour left to test
+}
+
+TEST(GlobalLoopSearch, GivenNothingAcceptedOrNeighboursOffThenNoNeighbourIsTested) {
+  std::vector<std::int64_t> recency{0, 1, 2, 3, 4, 5, 6, 7, 8, 9};
+  GlcSearchInput in;
+  in.frame_id = 50;
+  in.n_features = 400;
+  in.min_inliers = 10;
+  in.recency = &recency;
+  ScriptedRegistration none;
+  EXPECT_FALSE(search_global_loop(in, LoopOptions{}, std::ref(none), neighbours_by_id));
+  for (const auto& t : none.tested) EXPECT_EQ(t.second, 2u);
+  LoopOptions no_neighbours;
+  no_neighbours.glc_test_neighbours = false;
+  ScriptedRegistration one;
+  one.inliers_by_kf = {{4, 70}, {5, 95}};
+  const auto found = search_global_loop(in, no_neighbours, std::ref(one), neighbours_by_id);
+  ASSERT_TRUE(found.has_value());
+  EXPECT_EQ(found->kf, 5);  // both candidates themselves; the better one
+  for (const auto& t : one.tested) EXPECT_EQ(t.second, 2u);
+  in.recency = nullptr;
+  EXPECT_FALSE(search_global_loop(in, LoopOptions{}, std::ref(one), neighbours_by_id));
+}
+
 }  // namespace slam
