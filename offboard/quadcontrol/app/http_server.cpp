@@ -7,9 +7,11 @@
 #include <algorithm>
 #include <boost/asio/ip/address.hpp>
 #include <boost/beast/core.hpp>
-#include <iostream>
 #include <optional>
 #include <stdexcept>
+#include <string>
+
+#include "app/log_line.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -175,9 +177,8 @@ void HttpServer::on_accept_error(const boost::system::error_code& ec) {
   ++failed_accepts_;
   if (backoff_.count() == 0) {
     backoff_ = kFirstBackoff;
-    std::cerr << "quad-control: dashboard: accept failed (" << ec.message()
-              << "); backing off up to " << kMaxBackoff.count() << " ms between retries"
-              << std::endl;
+    log_line("dashboard: accept failed (" + ec.message() + "); backing off up to " +
+             std::to_string(kMaxBackoff.count()) + " ms between retries");
   } else {
     backoff_ = std::min(backoff_ * 2, std::chrono::milliseconds(kMaxBackoff));
   }
@@ -197,8 +198,8 @@ void HttpServer::accept() {
       return;
     }
     if (backoff_.count() != 0) {
-      std::cerr << "quad-control: dashboard: accepting again after " << failed_accepts_
-                << " failed accepts" << std::endl;
+      log_line("dashboard: accepting again after " + std::to_string(failed_accepts_) +
+               " failed accepts");
       backoff_ = std::chrono::milliseconds(0);
       failed_accepts_ = 0;
     }

@@ -12,6 +12,7 @@
 #include "app/data_paths.hpp"
 #include "app/ground_station.hpp"
 #include "app/http_server.hpp"
+#include "app/log_line.hpp"
 #include "app/receiver_source.hpp"
 #include "app/thread_setup.hpp"
 
@@ -168,9 +169,7 @@ int main(int argc, char** argv) {
     gmtime_r(&now, &utc);
     std::strftime(stem, sizeof stem, "flight-%Y%m%d-%H%M%S", &utc);
     recorder = FlightRecorder::open(
-        config->recording, stem,
-        [](const std::string& line) { std::cerr << "quad-control: " << line << std::endl; },
-        &error);
+        config->recording, stem, [](const std::string& line) { log_line(line); }, &error);
     if (!recorder) {
       std::cerr << "quad-control: " << error << "\n";
       return 2;

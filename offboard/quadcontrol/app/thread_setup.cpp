@@ -1,13 +1,12 @@
 // Real-time threads of quad-control: see thread_setup.hpp.
 #include "app/thread_setup.hpp"
 
-#include <iostream>
+#include "app/log_line.hpp"
 
 namespace rgbdquad::quadcontrol {
 
 void raise_this_thread(const slam::ThreadPriorityOptions& options, const std::string& name) {
-  std::cerr << "quad-control: " + slam::raise_current_thread(options).describe(name) + "\n"
-            << std::flush;
+  log_line(slam::raise_current_thread(options).describe(name));
 }
 
 ScopedThreadRaise::ScopedThreadRaise(const slam::ThreadPriorityOptions& options,
