@@ -138,6 +138,9 @@ def print_figures(report: dict, args) -> None:
     link = report["slam_link"]
     print(f"demo: SLAM link: {link['link_breaks']} break(s), {link['resumes']} resumed, "
           f"resets {link['resets']} (counted from {', '.join(link['sources']) or 'nothing'})")
+    for proc, threads in (report.get("thread_cpu_s") or {}).items():
+        busiest = ", ".join(f"{name} {cpu_s:.1f}" for name, cpu_s in list(threads.items())[:6])
+        print(f"demo: CPU s by thread, {proc}: {busiest}")
     print(f"demo: report {args.out / 'report.json'}; {report['wall_s']} s, real-time factor {report['realtime_factor']}")
     print(f"demo: load average {report.get('load_average')}; send_on_pose {args.send_on_pose or 'default'}; "
           f"recording {args.record}; "

@@ -609,7 +609,16 @@ class SlamFlight:
     def scores(self) -> dict:
         """The figures every flight reports: ATE, latency per stage, stream/SLAM counts."""
         return {"ate": self.ate(), "latency_ms": self.latency(), "stream": self.stream_stats(),
-                "scheduling": self.scheduling(), "load_average": _load_average()}
+                "scheduling": self.scheduling(), "load_average": _load_average(),
+                "thread_cpu_s": self.thread_cpu()}
+
+    def thread_cpu(self) -> dict:
+        """CPU seconds per named thread of each ground-station and onboard process so far
+        (hilrig.thread_cpu), to say where the machine's CPU went in this flight."""
+        from hilrig.thread_cpu import thread_cpu_s
+
+        return {name: thread_cpu_s(p.pid) for name, p in self._procs
+                if name in ("quad-control", "slam-server", "rgbd-streamer") and p.alive()}
 
     def stream_stats(self) -> dict:
         frames = self.frames()

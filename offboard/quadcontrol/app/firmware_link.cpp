@@ -3,10 +3,10 @@
 
 #include <algorithm>
 #include <boost/asio/post.hpp>
-#include <iostream>
 #include <stdexcept>
 
 #include "app/frame_source.hpp"
+#include "app/log_line.hpp"
 #include "app/thread_setup.hpp"
 
 namespace rgbdquad::quadcontrol {
@@ -53,6 +53,7 @@ FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, rgbd_c
     schedule();
   }
   thread_ = std::thread([this] {
+    slam::name_current_thread("qc-firmware");
     raise_this_thread(options_.thread_priority, "firmware link");
     io_.run();
   });
@@ -292,7 +293,7 @@ void FirmwareLink::note_command_sent(std::int64_t now_us, std::int64_t provider_
     stats_.max_command_gap_ms = static_cast<double>(gap_monitor_.max_gap_us()) / 1000.0;
   }
   // Rare (a gap over 100 ms), so the write to the log costs nothing in a healthy flight.
-  if (gap) std::cerr << "quad-control: firmware link: " + *gap + "\n" << std::flush;
+  if (gap) log_line("firmware link: " + *gap);
 }
 
 }  // namespace rgbdquad::quadcontrol

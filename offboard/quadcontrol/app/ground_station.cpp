@@ -110,6 +110,7 @@ GroundStation::~GroundStation() {
 }
 
 void GroundStation::frame_loop() {
+  slam::name_current_thread("qc-frame");
   raise_this_thread(options_.realtime, "frame");
   while (!stop_) {
     std::string error;
@@ -167,6 +168,7 @@ void GroundStation::frame_loop() {
 }
 
 void GroundStation::control_loop() {
+  slam::name_current_thread("qc-control");
   auto next = std::chrono::steady_clock::now();
   while (!stop_) {
     next += std::chrono::milliseconds(options_.control_period_ms);

@@ -26,6 +26,7 @@ InProcessSlam::InProcessSlam(std::unique_ptr<slam::Pipeline> pipeline, Callback 
     : pipeline_(std::move(pipeline)), callback_(std::move(callback)) {
   // Tracking runs on this thread (the real-time path); the pipeline's mapper lowers itself.
   thread_ = std::thread([this, priority] {
+    slam::name_current_thread("qc-slam-track");
     raise_this_thread(priority, "SLAM (in-process tracking)");
     run();
   });

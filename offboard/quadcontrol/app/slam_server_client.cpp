@@ -3,9 +3,9 @@
 
 #include <Eigen/Geometry>
 #include <cstdio>
-#include <iostream>
 #include <random>
 
+#include "app/log_line.hpp"
 #include "app/thread_setup.hpp"
 
 namespace rgbdquad::quadcontrol {
@@ -22,7 +22,7 @@ std::string hex_id(std::uint64_t id) {
   return buf;
 }
 
-void log_line(const std::string& s) { std::cerr << "quad-control: SLAM link: " << s << std::endl; }
+void log_link(const std::string& s) { log_line("SLAM link: " + s); }
 
 std::uint64_t random_session_id() {
   std::random_device rd;
@@ -129,7 +129,7 @@ std::optional<proto::Message> SlamServerClient::receive(Clock::time_point deadli
     if (r.status == proto::DecodeStatus::kError) {
       const std::string e =
           std::string("dropped bytes: ") + proto::to_string(r.error) + " " + r.detail;
-      if (decode_errors_++ == 0) log_line(e + " (further ones counted)");
+      if (decode_errors_++ == 0) log_link(e + " (further ones counted)");
       mailbox_.note_error(e);
       continue;
     }
@@ -206,11 +206,11 @@ bool SlamServerClient::connect(std::string* error) {
     }
   }
   if (peer->resumed && session_ > 0)
-    log_line("connected to " + name() + ": session " + hex_id(peer->session_id) +
+    log_link("connected to " + name() + ": session " + hex_id(peer->session_id) +
              " resumed (map and world frame kept, " + std::to_string(peer->session_frames) +
              " frames)");
   else
-    log_line(
+    log_link(
         "connected to " + name() + ": session " + hex_id(peer->session_id) + " started (a new map" +
         (session_ > 1 ? ", new world frame: SLAM session reset #" + std::to_string(session_ - 1)
                       : "") +
@@ -270,6 +270,7 @@ std::optional<SlamResult> SlamServerClient::exchange(const CameraFrame& f, std::
 }
 
 void SlamServerClient::run() {
+  slam::name_current_thread("qc-slam-link");
   raise_this_thread(options_.thread_priority, "SLAM link");
   while (auto taken = mailbox_.take()) {
     const CameraFrame& frame = *taken;
@@ -282,7 +283,7 @@ void SlamServerClient::run() {
       last_attempt_us_ = now;
       if (!connect(&error)) {
         if (error != last_connect_error_)
-          log_line(error + " (retrying every " + std::to_string(options_.reconnect_interval_ms) +
+          log_link(error + " (retrying every " + std::to_string(options_.reconnect_interval_ms) +
                    " ms)");
         last_connect_error_ = error;
       } else {
@@ -292,7 +293,7 @@ void SlamServerClient::run() {
     if (connected_) {
       result = exchange(frame, &error);
       if (!result && !stop_) {
-        log_line("disconnected: " + error + "; reconnecting with session " +
+        log_link("disconnected: " + error + "; reconnecting with session " +
                  hex_id(options_.session_id) + " (slam-server keeps its map for a resume)");
         {
           std::lock_guard<std::mutex> lock(status_mutex_);

@@ -14,6 +14,7 @@
 #include "record/channels.hpp"
 #include "rgbdquad/encodings/depth_codec.h"
 #include "rgbdquad/recorder/mcap_writer.hpp"
+#include "slam/pipeline/thread_priority.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -710,6 +711,7 @@ struct Encoder {
 }  // namespace
 
 void FlightRecorder::run() {
+  slam::name_current_thread("qc-recorder");
   Encoder enc{options_, logger_};
   auto next_flush =
       std::chrono::steady_clock::now() + std::chrono::milliseconds(options_.flush_period_ms);

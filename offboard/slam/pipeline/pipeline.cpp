@@ -208,6 +208,7 @@ void Pipeline::hand_retired() {
 }
 
 void Pipeline::frontend_loop() {
+  name_current_thread("slam-tracking");
   if (options_.mode == PipelineMode::kRealtime &&
       options_.tracking_thread_policy != ThreadPolicy::kOff) {
     ThreadPriorityOptions tp;
@@ -231,6 +232,7 @@ void Pipeline::frontend_loop() {
 }
 
 void Pipeline::backend_loop() {
+  name_current_thread("slam-backend");
   if (options_.mode == PipelineMode::kRealtime) {
     // Real time: the front-end must keep up with the camera; the back-end is best effort (it
     // skips frames anyway), so it yields the CPU to the front-end. Linux applies nice per thread.
@@ -414,6 +416,7 @@ void Pipeline::close_loops(std::int64_t kf) {
 }
 
 void Pipeline::loop_closing_loop() {
+  name_current_thread("slam-loop");
   if (paced()) {
     // Off the camera-to-command path and, unlike mapping, not needed by the next frames: the
     // normal policy below tracking (place_mapping_thread's fallback nices).
@@ -544,6 +547,7 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
 }
 
 void Pipeline::mapper_loop() {
+  name_current_thread("slam-mapping");
   const bool realtime = paced();
   if (realtime) {
     const std::string applied = place_mapping_thread().describe("mapping");

@@ -165,6 +165,11 @@ void restore_current_thread(const ThreadSchedule& schedule) {
     set_thread_nice(schedule.nice, &ignored);
 }
 
+void name_current_thread(const std::string& name) {
+  constexpr std::size_t kMaxThreadNameChars = 15;  // TASK_COMM_LEN 16 with the terminator
+  pthread_setname_np(pthread_self(), name.substr(0, kMaxThreadNameChars).c_str());
+}
+
 PriorityInheritanceMutex::PriorityInheritanceMutex(bool inherit) {
   pthread_mutexattr_t attr;
   ::pthread_mutexattr_init(&attr);

@@ -69,6 +69,10 @@ ThreadSchedule current_thread_schedule();
 bool current_thread_is_realtime();
 void restore_current_thread(const ThreadSchedule& schedule);
 
+/// Names the calling thread so `top -H`, `ps -L` and /proc/PID/task/*/comm attribute its CPU time
+/// (Linux keeps 15 characters; a longer name is cut). Instrumentation only: a failure is ignored.
+void name_current_thread(const std::string& name);
+
 /// A mutex with priority inheritance (PTHREAD_PRIO_INHERIT): a normal-policy thread holding it
 /// (e.g. the dashboard building /api/state) runs at the priority of the real-time thread waiting
 /// for it until it unlocks, so CPU-heavy neighbours cannot stretch the wait (priority inversion;

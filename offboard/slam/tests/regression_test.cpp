@@ -4,10 +4,15 @@
 // but fail on any real regression (VO drift on these frames is several times larger).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <string>
 #include <thread>
+#include <vector>
 
 #include "slam/dataset/tum_dataset.hpp"
 #include "slam/eval/metrics.hpp"
@@ -216,6 +221,43 @@ TEST(Pipeline, UnderARealTimeTrackerMappingRunsRealTimeBelowIt) {
   if (realtime) {
     EXPECT_EQ(normal, "mapping thread: nice -10 (below a real-time creator)");
   }
+}
+
+/// Names of this process's threads (/proc/self/task/*/comm).
+std::vector<std::string> thread_names() {
+  std::vector<std::string> names;
+  for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream comm(task.path() / "comm");
+    std::string name;
+    if (std::getline(comm, name)) names.push_back(name);
+  }
+  return names;
+}
+
+TEST(Pipeline, ItsThreadsAreNamedSoTheirCpuCanBeAttributed) {
+  // GIVEN a wait-mode local-map pipeline with loop closing (tracking, mapping and loop threads)
+  PipelineOptions o;
+  o.frontend.features.kind = DetectorKind::kOrb;
+  o.backend.kind = BackendKind::kLocalMap;
+  o.mode = PipelineMode::kWait;
+  o.loop_closing = true;
+  std::string err;
+  auto p = Pipeline::create(o, Intrinsics{}, &err);
+  ASSERT_TRUE(p) << err;
+  // WHEN its threads have started (each names itself first thing)
+  std::vector<std::string> names;
+  for (int i = 0; i < 200; ++i) {
+    names = thread_names();
+    const auto has = [&](const char* n) {
+      return std::find(names.begin(), names.end(), n) != names.end();
+    };
+    if (has("slam-tracking") && has("slam-mapping") && has("slam-loop")) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  p->finish();
+  // THEN top -H / ps -L / the HIL's per-thread CPU report see them by name
+  for (const char* n : {"slam-tracking", "slam-mapping", "slam-loop"})
+    EXPECT_NE(std::find(names.begin(), names.end(), n), names.end()) << n;
 }
 
 TEST(Regression, LocalMapBridgesAGapOfWithheldFrames) {

@@ -2,6 +2,7 @@
 #include "rgbdquad/capture/freenect_source.h"
 
 #include <libfreenect.h>
+#include <pthread.h>
 
 #include <cmath>
 #include <cstring>
@@ -81,6 +82,7 @@ FreenectSource::~FreenectSource() {
 }
 
 void FreenectSource::event_loop() {
+  pthread_setname_np(pthread_self(), "kinect-events");  // top -H / ps -L attribute its CPU
   while (!stopped_) {
     // Blocks until the next USB event (live) or the next dump entry's time (fakenect).
     if (freenect_process_events(context_) < 0) {
