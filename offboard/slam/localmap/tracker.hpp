@@ -6,10 +6,11 @@
 //     their covisible neighbours, bounded in count, and the points they see;
 //  3. match those points by projection (wide radius), optimise the pose, match again with a narrow
 //     radius around the refined projection, optimise again (motion-only, RGB-D residual);
-//  4. when projection finds too little (fast rotation; after a gap longer than the prediction
-//     vouches for, less than the relocalisation bar) or tracking was lost: recover the
-//     pose from descriptor matches against keyframes ranked by appearance (thumbnails) with 3D-3D
-//     RANSAC, then refine against the local map (relocalisation, same map and world frame);
+//  4. when projection finds too little (fast rotation), after a gap longer than the prediction
+//     vouches for (always: the projection fit is then kept only if it beats the database's), or
+//     when tracking was lost: recover the pose from descriptor matches against keyframes ranked
+//     by appearance (thumbnails) with 3D-3D RANSAC, then refine against the local map
+//     (relocalisation, same map and world frame);
 //  5. decide a keyframe by view change (tracked points fall below a fraction of the reference
 //     keyframe's, or too few near points are tracked), never by the clock; insert it and its new
 //     near points into the map for the mapper to refine.

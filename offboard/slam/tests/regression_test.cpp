@@ -270,6 +270,15 @@ TEST(Regression, LocalMapBridgesAGapOfWithheldFrames) {
   ASSERT_EQ(r.trajectory.size(), 20u);
   for (const auto& rec : recs) EXPECT_EQ(rec.state, TrackingState::kTracking) << rec.index;
   EXPECT_LT(r.ate_m, 0.015);
+  // AND the first frame after the gap, whose prediction no longer vouches for it, was also checked
+  // against the keyframe database (a projection fit from a stale pose can lock onto repeated
+  // texture at the wrong offset), and only that frame
+  for (const auto& rec : recs) {
+    EXPECT_EQ(rec.prediction_stale, rec.index == 20) << rec.index;
+    if (rec.index == 20) {
+      EXPECT_GT(rec.ransac_ms, 0.0);
+    }
+  }
 }
 
 TEST(Regression, LocalMapSurvivesBlankAndDepthlessFramesWithoutAPoseJump) {
