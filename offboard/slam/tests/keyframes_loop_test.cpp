@@ -136,15 +136,21 @@ struct ScriptedRegistration {
 
 std::vector<std::int64_t> neighbours_by_id(std::int64_t kf) { return {kf - 1, kf + 1}; }
 
+/// A frame with 400 features with depth and the back-end's bar of 10 inliers.
+GlcSearchInput search_input(std::int64_t frame_id, const std::vector<std::int64_t>* recency) {
+  GlcSearchInput in;
+  in.frame_id = frame_id;
+  in.n_features = 400;
+  in.min_inliers = 10;
+  in.recency = recency;
+  return in;
+}
+
 TEST(GlobalLoopSearch, GivenAnAcceptedCandidateThenABetterCreationNeighbourWins) {
   // GIVEN keyframes 0..9 (least recently used first), the frame 50 with 400 features, and a
   // registration that accepts keyframe 2 (70 inliers) and its later neighbour 3 (80)
   std::vector<std::int64_t> recency{0, 1, 2, 4, 5, 6, 7, 8, 9, 3};
-  GlcSearchInput in;
-  in.frame_id = 50;
-  in.n_features = 400;
-  in.min_inliers = 10;
-  in.recency = &recency;
+  GlcSearchInput in = search_input(50, &recency);
   ScriptedRegistration reg;
   reg.inliers_by_kf = {{2, 70}, {3, 80}};
   const LoopOptions o;  // thesis: 7 blocks, latest 3 excluded, neighbours tested
@@ -164,11 +170,8 @@ TEST(GlobalLoopSearch, GivenNeighboursAlreadyComparedOrTheFrameItselfThenTheyAre
   // GIVEN the frame became keyframe 3; keyframe 1 is among the latest (not a candidate) and was
   // registered against in the recent-keyframe pass
   std::vector<std::int64_t> recency{0, 2, 4, 5, 6, 7, 8, 9, 1, 3};
-  GlcSearchInput in;
-  in.frame_id = 3;  // a keyframe made from this frame: never its own loop
-  in.n_features = 400;
-  in.min_inliers = 10;
-  in.recency = &recency;
+  GlcSearchInput in =
+      search_input(3, &recency);  // a keyframe made from this frame: never its own loop
   in.already_compared = {1};
   ScriptedRegistration reg;
   reg.inliers_by_kf = {{2, 70}, {1, 90}};
@@ -180,11 +183,7 @@ TEST(GlobalLoopSearch, GivenNeighboursAlreadyComparedOrTheFrameItselfThenTheyAre
 
 TEST(GlobalLoopSearch, GivenNothingAcceptedOrNeighboursOffThenNoNeighbourIsTested) {
   std::vector<std::int64_t> recency{0, 1, 2, 3, 4, 5, 6, 7, 8, 9};
-  GlcSearchInput in;
-  in.frame_id = 50;
-  in.n_features = 400;
-  in.min_inliers = 10;
-  in.recency = &recency;
+  GlcSearchInput in = search_input(50, &recency);
   ScriptedRegistration none;
   EXPECT_FALSE(search_global_loop(in, LoopOptions{}, std::ref(none), neighbours_by_id));
   for (const auto& t : none.tested) EXPECT_EQ(t.second, 2u);

@@ -107,14 +107,19 @@ TEST(Regression, LocalMapWaitModeEqualsSequentialModeAndIsAccurate) {
   EXPECT_LT(a.rpe_mm, 11.0);
 }
 
-/// An ORB local-map pipeline in sequential mode (null, with a test failure, when refused).
-std::unique_ptr<Pipeline> sequential_orb_local_map() {
+/// The system that flies (ORB, local map) in `mode`.
+PipelineOptions orb_local_map(PipelineMode mode) {
   PipelineOptions o;
   o.frontend.features.kind = DetectorKind::kOrb;
   o.backend.kind = BackendKind::kLocalMap;
-  o.mode = PipelineMode::kSequential;
+  o.mode = mode;
+  return o;
+}
+
+/// An ORB local-map pipeline in sequential mode (null, with a test failure, when refused).
+std::unique_ptr<Pipeline> sequential_orb_local_map() {
   std::string err;
-  auto p = Pipeline::create(o, Intrinsics{}, &err);
+  auto p = Pipeline::create(orb_local_map(PipelineMode::kSequential), Intrinsics{}, &err);
   EXPECT_TRUE(p) << err;
   return p;
 }
@@ -182,10 +187,7 @@ std::string live_mapping_thread(int mapping_rt_priority, bool* creator_realtime)
   std::string described;
   std::thread creator([&] {
     *creator_realtime = raise_current_thread(ThreadPriorityOptions{}).realtime;
-    PipelineOptions o;
-    o.frontend.features.kind = DetectorKind::kOrb;
-    o.backend.kind = BackendKind::kLocalMap;
-    o.mode = PipelineMode::kLive;
+    PipelineOptions o = orb_local_map(PipelineMode::kLive);
     o.mapping_rt_priority = mapping_rt_priority;
     std::string err;
     auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
@@ -236,10 +238,7 @@ std::vector<std::string> thread_names() {
 
 TEST(Pipeline, ItsThreadsAreNamedSoTheirCpuCanBeAttributed) {
   // GIVEN a wait-mode local-map pipeline with loop closing (tracking, mapping and loop threads)
-  PipelineOptions o;
-  o.frontend.features.kind = DetectorKind::kOrb;
-  o.backend.kind = BackendKind::kLocalMap;
-  o.mode = PipelineMode::kWait;
+  PipelineOptions o = orb_local_map(PipelineMode::kWait);
   o.loop_closing = true;
   std::string err;
   auto p = Pipeline::create(o, Intrinsics{}, &err);
@@ -332,14 +331,6 @@ TEST(Regression, LocalMapNeverHandsOnAStepFasterThanTheCameraCanMove) {
   EXPECT_TRUE(recs[10].T_world_cam.isApprox(recs[9].T_world_cam, 1e-12));
 }
 
-PipelineOptions local_map_options() {
-  PipelineOptions o;
-  o.frontend.features.kind = DetectorKind::kOrb;
-  o.backend.kind = BackendKind::kLocalMap;
-  o.mode = PipelineMode::kSequential;
-  return o;
-}
-
 TEST(Regression, LocalMapWithLoopClosingWaitModeEqualsSequentialOnAForwardBackwardRevisit) {
   // GIVEN the excerpt played forward then backward (a revisit) and a loop closer that searches from
   // the second keyframe on (the 60 frames make too few keyframes for the default bars)
@@ -347,7 +338,7 @@ TEST(Regression, LocalMapWithLoopClosingWaitModeEqualsSequentialOnAForwardBackwa
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
   auto run_mode = [&](PipelineMode mode, std::vector<LoopStats>* loops) {
-    PipelineOptions o = local_map_options();
+    PipelineOptions o = orb_local_map(PipelineMode::kSequential);
     o.mode = mode;
     o.loop_closing = true;
     o.loop.min_keyframes_in_map = 2;
@@ -393,7 +384,7 @@ TEST(Regression, LocalMapSavedThenReloadedRelocalisesInTheSameWorldFrame) {
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
-  const PipelineOptions o = local_map_options();
+  const PipelineOptions o = orb_local_map(PipelineMode::kSequential);
   std::vector<FrameRecord> first;
   {
     auto p = Pipeline::create(o, Intrinsics{}, &err);
@@ -429,7 +420,7 @@ TEST(Regression, MapFilesThatDoNotFitAreRefusedWithAReason) {
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
-  const PipelineOptions o = local_map_options();
+  const PipelineOptions o = orb_local_map(PipelineMode::kSequential);
   {
     auto p = Pipeline::create(o, Intrinsics{}, &err);
     for (std::size_t i = 0; i < 3; ++i) p->submit(std::move(*ds->load(i, &err)));
