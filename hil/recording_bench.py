@@ -34,12 +34,7 @@ from dashboard_fixtures import KEY, QuadControl, write_config  # noqa: E402
 from firmware_double import FirmwareDouble  # noqa: E402
 from rgbd_protocol.control_bridge import WifiBridgeEmulator  # noqa: E402
 
-CLK_TCK = os.sysconf("SC_CLK_TCK")
-
-
-def cpu_s(pid: int) -> float:
-    fields = pathlib.Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / CLK_TCK  # utime, stime (proc(5) fields 14, 15)
+from hilrig.thread_cpu import process_cpu_s as cpu_s  # noqa: E402
 
 
 def received_to_command_ms(log_dir: pathlib.Path, t_from_us: int) -> list[float]:

@@ -26,6 +26,11 @@ def parse_stat(text: str) -> tuple[str, float]:
     return comm, (utime + stime) / CLOCK_TICKS_PER_S
 
 
+def process_cpu_s(pid: int, proc_root: Path = Path("/proc")) -> float:
+    """CPU seconds used so far by process `pid`, all its threads together."""
+    return parse_stat((proc_root / str(pid) / "stat").read_text())[1]
+
+
 def thread_cpu_s(pid: int, proc_root: Path = Path("/proc")) -> dict[str, float]:
     """CPU seconds used so far by each thread name of process `pid` (empty when it is gone)."""
     out: dict[str, float] = {}

@@ -27,6 +27,8 @@ def test_threads_of_one_name_are_summed_and_unreadable_ones_skipped(tmp_path):
     assert got == {"rx-rgb": round(160 / tick, 2), "main": round(10 / tick, 2)}
     assert list(got) == ["rx-rgb", "main"]  # busiest first
     assert thread_cpu.thread_cpu_s(99999, proc_root=tmp_path) == {}
+    (tmp_path / "7" / "stat").write_text("7 (quad-control) " + rest.format(u=300, s=30))
+    assert thread_cpu.process_cpu_s(7, proc_root=tmp_path) == 330 / tick
 
 
 def test_a_named_busy_thread_of_this_process_is_seen():
