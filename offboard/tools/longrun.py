@@ -18,8 +18,12 @@ What a bounded back-end must show (issue: "keyframes level off, the last minute'
 most 1.5x the second minute's"): the table prints both checks and a verdict. "Level off" is judged
 against the first minute, which explores the desk (every later minute only revisits it): the last
 whole minute may add at most `kSteadyKeyframeFraction` of the first minute's new keyframes, and the
-map may not end it with more keyframes than it had after the first minute. (Comparing the last
-minute with the second only showed that the rate did not grow: 31 -> 27 passed.)
+map may not end it with more keyframes than it had after the first minute plus that same slack.
+(Comparing the last minute with the second only showed that the rate did not grow: 31 -> 27
+passed.) The size rule allowed no growth at all until session 12: on an idle machine the same code
+ended 37 -> 37 (met) in one run and 34 -> 35 (missed) in the next - one keyframe made in minute 2
+at a turn-around decided the verdict, while the map had stopped growing (0 new keyframes in
+minutes 3 and 4). A map that keeps growing is still refused (test_longrun.py).
 """
 
 from __future__ import annotations
@@ -179,14 +183,15 @@ def table(run: Path, minute_s: float = 60.0) -> int:
             ok_cost, cost_text = ratio <= 1.5, f"{ratio:.2f} against minute {base['minute']}"
         allowed = math.floor(kSteadyKeyframeFraction * first["new_keyframes"])
         ok_rate = lastm["new_keyframes"] <= allowed
-        ok_size = lastm["keyframes_end"] <= first["keyframes_end"]
+        ok_size = lastm["keyframes_end"] <= first["keyframes_end"] + allowed
         ok_kf = ok_rate and ok_size
         print(f"mapping p95, last whole minute / second minute: {cost_text} (target <= 1.5): "
               f"{'met' if ok_cost else 'MISSED'}")
         print(f"keyframes level off: {first['new_keyframes']} new in minute 1 (exploring), "
               f"{second['new_keyframes']} in minute 2, {lastm['new_keyframes']} in minute {lastm['minute']} "
               f"(target <= {allowed}, {kSteadyKeyframeFraction:.0%} of minute 1); map {first['keyframes_end']} "
-              f"keyframes after minute 1, {lastm['keyframes_end']} after minute {lastm['minute']}: "
+              f"keyframes after minute 1, {lastm['keyframes_end']} after minute {lastm['minute']} "
+              f"(target <= {first['keyframes_end'] + allowed}): "
               f"{'met' if ok_kf else 'MISSED'}")
         verdict = 0 if ok_cost and ok_kf else 1
     else:

@@ -67,6 +67,15 @@ def test_a_map_that_keeps_growing_does_not_level_off(tmp_path):
     assert longrun.table(run) == 1
 
 
+def test_one_late_keyframe_after_exploring_still_levels_off(tmp_path, capsys):
+    # GIVEN the bench's idle run of session 11: 64 keyframes while exploring, 4 in minute 2 (one kept),
+    # none afterwards - the map stopped one keyframe above its first-minute size
+    run = _write_run(tmp_path / "late", [64, 4, 0, 0], [34, 35, 35, 35])
+    # THEN it levels off (the size rule has the rate rule's slack, 10 % of minute 1's 64 -> 6)
+    assert longrun.table(run) == 0
+    assert "(target <= 40): met" in capsys.readouterr().out
+
+
 def test_a_last_minute_that_maps_nothing_says_so_instead_of_a_ratio(tmp_path, capsys):
     # GIVEN keyframes only while exploring (mapping costs nothing afterwards)
     run = _write_run(tmp_path / "quiet", [47, 0, 0], [32, 32, 32])
