@@ -151,7 +151,9 @@ nlohmann::json AppConfig::to_json_redacted() const {
             {"min_interval_ms", firmware.min_interval_ms},
             {"keep_alive_ms", firmware.keep_alive_ms},
             {"key_hex", firmware_key_hex.empty() ? "" : "<redacted>"}}},
-          {"camera", {{"mount_pitch_down_deg", station.mount_pitch_down_deg}}},
+          {"camera",
+           {{"mount_pitch_down_deg", station.mount_pitch_down_deg},
+            {"imu_rotation_prior", station.imu_rotation_prior}}},
           {"realtime",
            {{"policy", slam::to_string(station.realtime.policy)},
             {"priority", station.realtime.rt_priority},
@@ -236,8 +238,9 @@ std::optional<AppConfig> load_app_config(const std::string& path, std::string* e
       !read(f, "firmware", "min_interval_ms", c.firmware.min_interval_ms, error) ||
       !read(f, "firmware", "keep_alive_ms", c.firmware.keep_alive_ms, error) ||
       !read(f, "firmware", "key_hex", c.firmware_key_hex, error) ||
-      !check_keys(cam, "camera", {"mount_pitch_down_deg"}, error) ||
+      !check_keys(cam, "camera", {"mount_pitch_down_deg", "imu_rotation_prior"}, error) ||
       !read(cam, "camera", "mount_pitch_down_deg", c.station.mount_pitch_down_deg, error) ||
+      !read(cam, "camera", "imu_rotation_prior", c.station.imu_rotation_prior, error) ||
       !check_keys(fl, "floor",
                   {"iterations", "inlier_distance_m", "max_tilt_deg", "min_inlier_fraction", "seed",
                    "search_frames"},

@@ -30,6 +30,10 @@ struct CameraFrame {
   /// The link's payloads when the stream was encoded (live source; empty for the dataset replay),
   /// for the flight recorder to store without re-encoding.
   EncodedImage rgb_encoded, depth_encoded;
+  /// The camera's NED attitude at capture from the craft's IMU (CraftPoseTracker::
+  /// camera_attitude_at), set by the ground station when `camera.imu_rotation_prior` is on; the
+  /// in-process SLAM predicts rotation from it (slam::RgbdFrame::q_nav_cam).
+  std::optional<Eigen::Quaterniond> q_ned_cam;
 };
 
 class FrameSource {

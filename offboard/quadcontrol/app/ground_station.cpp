@@ -162,6 +162,9 @@ void GroundStation::frame_loop() {
       } else {
         imu_match_dt_ms_.reset();
       }
+      if (options_.imu_rotation_prior)
+        frame->q_ned_cam =
+            tracker_.camera_attitude_at(frame->capture_us, options_.imu_match_window_us);
     }
     slam_->submit(*frame);  // dropped when SLAM is busy (thesis behaviour)
   }

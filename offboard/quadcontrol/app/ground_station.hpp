@@ -46,11 +46,16 @@ struct GroundStationOptions {
   FloorPlaneOptions floor;
   FloorMapOptions map;
   double mount_pitch_down_deg = 30.0;  ///< Kinect tilt on the craft (thesis: mounted at an angle)
-  int floor_search_frames = 30;        ///< ~1 s at 30 Hz to find the floor, then fall back
-  int floor_pixel_step = 4;            ///< depth sub-sampling for the RANSAC (19200 points)
-  int map_pixel_step = 8;              ///< depth sub-sampling for the map (4800 points/frame)
-  double max_depth_m = 4.0;            ///< Kinect depth beyond ~4 m is too noisy for a map
-  int control_period_ms = 20;          ///< 50 Hz, the firmware command rate
+  /// Hand the camera's IMU attitude at capture to the in-process SLAM, which then predicts each
+  /// frame's rotation from the attitude change instead of the constant-velocity model (issue 12
+  /// item 1). Off by default: unit-tested, not yet flown - the HIL flights use the SLAM-server
+  /// link, which does not carry it (protocol/slamlink has no field yet).
+  bool imu_rotation_prior = false;
+  int floor_search_frames = 30;  ///< ~1 s at 30 Hz to find the floor, then fall back
+  int floor_pixel_step = 4;      ///< depth sub-sampling for the RANSAC (19200 points)
+  int map_pixel_step = 8;        ///< depth sub-sampling for the map (4800 points/frame)
+  double max_depth_m = 4.0;      ///< Kinect depth beyond ~4 m is too noisy for a map
+  int control_period_ms = 20;    ///< 50 Hz, the firmware command rate
   std::size_t trajectory_max_points = 5000;
   std::int64_t imu_match_window_us = 20000;  ///< TUM's association rule: nearest within 20 ms
   std::string slam_mode =

@@ -50,6 +50,7 @@ void InProcessSlam::run() {
     input.stamp_s = static_cast<double>(frame.capture_us) / 1e6;
     input.rgb = frame.rgb;
     input.depth = frame.depth;
+    input.q_nav_cam = frame.q_ned_cam;
     std::string error;
     std::optional<slam::FrameRecord> rec;
     try {

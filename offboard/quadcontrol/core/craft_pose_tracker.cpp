@@ -32,6 +32,37 @@ CraftPose craft_pose_from(const Eigen::Isometry3d& T_floor_cam) {
   return CraftPose{t.x(), t.y(), t.z(), std::atan2(forward.y(), forward.x()) * kDegPerRad};
 }
 
+Eigen::Quaterniond camera_attitude_ned(const ImuSample& sample, double mount_pitch_down_deg) {
+  const Eigen::Matrix3d R_ned_body =
+      (Eigen::AngleAxisd(sample.yaw_rad, Eigen::Vector3d::UnitZ()) *
+       Eigen::AngleAxisd(sample.pitch_rad, Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(sample.roll_rad, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix();
+  // Level mount: camera z (forward) = body x, camera x (right) = body y, camera y (down) = body z;
+  // then pitched down about body y, the forward axis tipping towards body +z.
+  Eigen::Matrix3d level;
+  level << 0, 0, 1, 1, 0, 0, 0, 1, 0;
+  const Eigen::Matrix3d R_body_cam =
+      Eigen::AngleAxisd(-mount_pitch_down_deg / kDegPerRad, Eigen::Vector3d::UnitY())
+          .toRotationMatrix() *
+      level;
+  return Eigen::Quaterniond(R_ned_body * R_body_cam).normalized();
+}
+
+bool CraftPoseTracker::on_imu(const ImuSample& sample) {
+  attitudes_.push(sample.t_us, sample);
+  return estimator_.predict(sample);
+}
+
+std::optional<Eigen::Quaterniond> CraftPoseTracker::camera_attitude_at(
+    std::int64_t capture_us, std::int64_t max_dt_us) const {
+  const std::optional<std::int64_t> local_us = capture_clock_.peek(capture_us);
+  if (!local_us) return std::nullopt;
+  const auto sample = attitudes_.nearest(*local_us, max_dt_us);
+  if (!sample) return std::nullopt;
+  return camera_attitude_ned(sample->second, options_.mount_pitch_down_deg);
+}
+
 CraftPoseTracker::CraftPoseTracker(CraftPoseTrackerOptions options)
     : options_(std::move(options)), estimator_(make_estimator(options_)) {}
 

@@ -34,6 +34,7 @@
 #include "core/estimator_options.hpp"
 #include "core/flight_controller.hpp"
 #include "core/pose_estimator.hpp"
+#include "core/timestamp_buffer.hpp"
 #include "map/floor_plane.hpp"
 
 namespace rgbdquad::quadcontrol {
@@ -87,6 +88,11 @@ struct CraftPoseUpdate {
 /// optical axis (camera +z) projected on the floor, degrees counter-clockwise from floor +x.
 CraftPose craft_pose_from(const Eigen::Isometry3d& T_floor_cam);
 
+/// The camera's attitude in NED from one APM attitude (ZYX Euler) and the Kinect's mount (looking
+/// along body x, pitched down by mount_pitch_down_deg; camera x right, y down, z forward), i.e.
+/// R_ned_cam = R_ned_body * R_body_cam.
+Eigen::Quaterniond camera_attitude_ned(const ImuSample& sample, double mount_pitch_down_deg);
+
 class CraftPoseTracker {
  public:
   /// `options` must be valid (validate() empty); throws std::invalid_argument otherwise.
@@ -106,7 +112,13 @@ class CraftPoseTracker {
                          const std::optional<FloorPlane>& floor_candidate);
 
   /// An IMU sample of the APM (PoseEstimator::predict); false when dropped.
-  bool on_imu(const ImuSample& sample) { return estimator_.predict(sample); }
+  bool on_imu(const ImuSample& sample);
+  /// The camera's NED attitude at a frame's capture stamp (craft clock): the IMU sample nearest to
+  /// it on this clock within `max_dt_us`, through camera_attitude_ned(). nullopt before the first
+  /// tracked frame has set the clock offset, or with no sample near enough. For the SLAM
+  /// tracker's rotation prediction (slam::RgbdFrame::q_nav_cam).
+  std::optional<Eigen::Quaterniond> camera_attitude_at(std::int64_t capture_us,
+                                                       std::int64_t max_dt_us) const;
   /// The estimator's state at `now_us` for the controller, when the estimator is enabled and has
   /// fresh IMU input (an invalid estimate comes as a lost sample: lost-hold); nullopt otherwise
   /// (the raw poses of update() drive the controller then). Records last_estimate().
@@ -146,6 +158,9 @@ class CraftPoseTracker {
   std::uint32_t map_correction_count_ = 0;
   PoseEstimator estimator_;
   CaptureClock capture_clock_;  ///< the craft's capture stamps -> the caller's clock
+  /// Recent IMU samples by their time on the caller's clock: 64 = 0.6 s at the firmware's 100 Hz
+  /// replies, longer than a frame's transit to the ground station.
+  TimestampBuffer<ImuSample> attitudes_{64};
   std::optional<StateEstimate> last_estimate_;
   std::uint64_t estimates_flown_ = 0;
 };

@@ -96,6 +96,11 @@ std::int64_t CaptureClock::to_local(std::int64_t capture_us, std::int64_t receiv
   return capture_us + *std::min_element(offsets_us_.begin(), offsets_us_.end());
 }
 
+std::optional<std::int64_t> CaptureClock::peek(std::int64_t capture_us) const {
+  if (offsets_us_.empty()) return std::nullopt;
+  return capture_us + *std::min_element(offsets_us_.begin(), offsets_us_.end());
+}
+
 const char* to_string(FuseOutcome outcome) {
   switch (outcome) {
     case FuseOutcome::kFused:

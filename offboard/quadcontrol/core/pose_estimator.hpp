@@ -73,6 +73,9 @@ class CaptureClock {
   explicit CaptureClock(std::size_t window = 300) : window_(window == 0 ? 1 : window) {}
   /// Records one frame and returns its capture time on the ground station's clock.
   std::int64_t to_local(std::int64_t capture_us, std::int64_t received_us);
+  /// The same conversion with the offset of the frames recorded so far, recording nothing (for a
+  /// frame that is recorded later); nullopt before the first frame.
+  std::optional<std::int64_t> peek(std::int64_t capture_us) const;
 
  private:
   std::size_t window_;

@@ -388,5 +388,48 @@ TEST(CraftPoseTracker, CraftPoseIsTheCameraCentreAndTheOpticalAxisHeading) {
   }
 }
 
+TEST(CameraAttitude, TheMountTurnsTheApmAttitudeIntoTheCamerasNedAttitude) {
+  // GIVEN the Kinect looking along the body's x axis, pitched 30 deg down (hil/kinect_emulator/
+  // poses.py renders the same mount)
+  const double a = 30.0 / kDegPerRad;
+  ImuSample level;
+  const Eigen::Matrix3d R = camera_attitude_ned(level, 30.0).toRotationMatrix();
+  // THEN a level craft heading north looks north and 30 deg down, with its image x to the east
+  EXPECT_TRUE(R.col(2).isApprox(Eigen::Vector3d(std::cos(a), 0, std::sin(a)), 1e-12));
+  EXPECT_TRUE(R.col(0).isApprox(Eigen::Vector3d(0, 1, 0), 1e-12));
+  // AND heading east (yaw 90 deg) it looks east, image x to the south
+  ImuSample east;
+  east.yaw_rad = 90.0 / kDegPerRad;
+  const Eigen::Matrix3d Re = camera_attitude_ned(east, 30.0).toRotationMatrix();
+  EXPECT_TRUE(Re.col(2).isApprox(Eigen::Vector3d(0, std::cos(a), std::sin(a)), 1e-12));
+  EXPECT_TRUE(Re.col(0).isApprox(Eigen::Vector3d(-1, 0, 0), 1e-12));
+  // AND pitching the nose up by the mount angle levels the optical axis
+  ImuSample nose_up;
+  nose_up.pitch_rad = a;
+  EXPECT_TRUE(camera_attitude_ned(nose_up, 30.0)
+                  .toRotationMatrix()
+                  .col(2)
+                  .isApprox(Eigen::Vector3d(1, 0, 0), 1e-12));
+}
+
+TEST(CameraAttitude, AFramesAttitudeIsTheImuSampleAtItsCaptureOnTheStationsClock) {
+  Rig rig;
+  // GIVEN IMU samples but no frame yet THEN the capture clock is unknown: no attitude
+  rig.imu_until_now();
+  EXPECT_FALSE(rig.tracker.camera_attitude_at(rig.now_us - kLinkDelayUs, 20'000));
+  // WHEN frames have set the clock (capture = received - 30 ms here) and the craft yaws to 90 deg
+  for (int i = 0; i < 3; ++i) rig.slam(camera_at(0, 0, 0.5, 0, 30));
+  ImuSample s;
+  s.t_us = rig.now_us + 5'000;
+  s.yaw_rad = 90.0 / kDegPerRad;
+  rig.tracker.on_imu(s);
+  // THEN a frame captured at that sample's time gets its attitude (within the 20 ms window)
+  const auto q = rig.tracker.camera_attitude_at(s.t_us - kLinkDelayUs + 3'000, 20'000);
+  ASSERT_TRUE(q);
+  EXPECT_TRUE(q->isApprox(camera_attitude_ned(s, 30.0), 1e-12));
+  // AND a frame captured 100 ms after the newest sample gets none
+  EXPECT_FALSE(rig.tracker.camera_attitude_at(s.t_us - kLinkDelayUs + 100'000, 20'000));
+}
+
 }  // namespace
 }  // namespace rgbdquad::quadcontrol

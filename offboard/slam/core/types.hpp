@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 
 #include "rgbdquad/camera/tum_cameras.hpp"
@@ -36,6 +37,10 @@ struct RgbdFrame {
   double stamp_s = 0.0;    ///< capture time of the colour image
   cv::Mat rgb;
   cv::Mat depth;
+  /// Camera attitude at `stamp_s` in a gravity-aligned navigation frame (the craft's IMU attitude
+  /// times the camera mount), when the caller has one. The tracker uses only its change between
+  /// consecutive frames, so the navigation frame need not be the map's.
+  std::optional<Eigen::Quaterniond> q_nav_cam;
 };
 
 /// Rotation angle of a rigid transform in radians.

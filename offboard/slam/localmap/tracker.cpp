@@ -220,7 +220,7 @@ std::int64_t Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatu
 
 TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFeatures> features,
                            const FeatureOptions& feature_options, bool keyframe_allowed,
-                           bool mapper_idle, const std::optional<Eigen::Quaterniond>& R_prior) {
+                           bool mapper_idle) {
   TrackResult out;
   lock_wait_ms_ = 0;
   const TrackedFeatures tf = TrackedFeatures::from(std::move(features), camera_, feature_options);
@@ -239,9 +239,8 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
       out.map_lock_wait_ms = lock_wait_ms_;
       return out;
     }
-    const Eigen::Isometry3d T_world_cam =
-        R_prior ? Eigen::Isometry3d(R_prior->normalized().toRotationMatrix())
-                : Eigen::Isometry3d::Identity();
+    const Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+    last_q_nav_cam_ = frame.q_nav_cam;
     out.keyframe_id = insert_keyframe(frame, tf, thumbnail, T_world_cam, LocalMap{}, {});
     state_ = TrackingState::kTracking;
     T_world_last_ = T_world_cam;
@@ -281,7 +280,13 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
                                 options_.max_velocity_scale);
     T_world_pred = T_world_last_ * scale_motion(T_last_cur_velocity_, s);
   }
-  if (R_prior) T_world_pred.linear() = R_prior->normalized().toRotationMatrix();
+  if (options_.attitude_prior && state_ == TrackingState::kTracking && frame.q_nav_cam &&
+      last_q_nav_cam_) {
+    const Eigen::Quaterniond q_last_cur =
+        last_q_nav_cam_->normalized().conjugate() * frame.q_nav_cam->normalized();
+    T_world_pred.linear() = T_world_last_.linear() * q_last_cur.toRotationMatrix();
+    out.attitude_predicted = true;
+  }
 
   // 2-3. Local map and projection tracking.
   std::int64_t t0 = steady_now_ns();
@@ -499,6 +504,7 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
   T_world_last_ = T_world_cam;
   T_ref_last_ = out.T_kf_cam;
   last_stamp_s_ = frame.stamp_s;
+  last_q_nav_cam_ = frame.q_nav_cam;
   last_points_ = std::move(matched_ids);
   out.state = TrackingState::kTracking;
   out.T_world_cam = T_world_cam;

@@ -144,6 +144,10 @@ struct TrackerOptions {
   /// ~10 cm: enough for a projection search at the wrong offset in a room of repeated texture to
   /// reach the tracking bar (HIL scenario 4, 1.7 s link stall: a 45-inlier fit 0.4 m off).
   double max_predicted_gap_s = 0.2;
+  /// Predict the rotation from the caller's attitude (`RgbdFrame::q_nav_cam`) when two consecutive
+  /// frames carry one: an IMU measures rotation directly, where the constant-velocity model
+  /// extrapolates the last interval's (wrong at every change of turn rate, and across gaps).
+  bool attitude_prior = true;
   bool is_valid(std::string* error) const;
 };
 
@@ -155,6 +159,7 @@ struct TrackResult {
   bool keyframe = false;          ///< this frame became a keyframe `keyframe_id`
   std::int64_t keyframe_id = -1;  ///< the frame index, unless a loaded map already uses it
   bool relocalised = false;       ///< the pose came from the keyframe database, not the prediction
+  bool attitude_predicted = false;  ///< the predicted rotation came from RgbdFrame::q_nav_cam
   bool prediction_stale =
       false;  ///< the gap since the last tracked frame exceeded max_predicted_gap_s
   /// Distance of the fitted position from the recent constant-velocity path, and its bound
@@ -190,11 +195,12 @@ class Tracker {
   /// Tracks one frame whose features are extracted. `keyframe_allowed`: the mapper can take a
   /// keyframe now (bounded queue). `mapper_idle`: the mapper has nothing queued or in work (always
   /// true when the caller waits for mapping); while false only weak tracking makes a keyframe.
-  /// `R_world_cam_prior`: optional rotation prior.
+  /// When this frame and the last tracked one both carry `RgbdFrame::q_nav_cam` (and
+  /// `TrackerOptions::attitude_prior` is on), the predicted rotation is the last pose's rotated by
+  /// the attitude's change between the two frames instead of the constant-velocity rotation.
   TrackResult track(const RgbdFrame& frame, std::shared_ptr<const FrameFeatures> features,
                     const FeatureOptions& feature_options, bool keyframe_allowed,
-                    bool mapper_idle = true,
-                    const std::optional<Eigen::Quaterniond>& R_world_cam_prior = std::nullopt);
+                    bool mapper_idle = true);
 
   /// Forget the motion model and start from relocalisation (after a map load, or a reset).
   void set_lost() { state_ = TrackingState::kLost; }
@@ -247,6 +253,7 @@ class Tracker {
   Eigen::Isometry3d T_last_cur_velocity_ =
       Eigen::Isometry3d::Identity();  ///< motion over one interval
   double last_stamp_s_ = 0, last_interval_s_ = 0;
+  std::optional<Eigen::Quaterniond> last_q_nav_cam_;  ///< the last tracked frame's attitude
   bool have_velocity_ = false;
   std::vector<std::int64_t> last_points_;  ///< map points matched in the last tracked frame
   std::int64_t reference_kf_ = -1;

@@ -514,6 +514,7 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   rec.ransac_ms = tr.relocalise_ms;
   rec.relocalised = tr.relocalised;
   rec.prediction_stale = tr.prediction_stale;
+  rec.attitude_predicted = tr.attitude_predicted;
   rec.prediction_deviation_m = tr.prediction_deviation_m;
   rec.prediction_deviation_bound_m = tr.prediction_deviation_bound_m;
   rec.map_lock_wait_ms = tr.map_lock_wait_ms;

@@ -111,6 +111,7 @@ struct FrameRecord {
       false;  ///< local-map system: the pose came from the keyframe database (TrackResult)
   bool prediction_stale =
       false;  ///< local-map system: the gap exceeded the tracker's max_predicted_gap_s
+  bool attitude_predicted = false;  ///< local-map system: rotation predicted from the IMU attitude
   double prediction_deviation_m = -1,
          prediction_deviation_bound_m = -1;  ///< local-map system (TrackResult)
   std::int64_t reference_keyframe = -1;
