@@ -697,17 +697,32 @@ TEST(KeyframeGate, WhileTheMapperIsBusyOnlyWeakTrackingMakesAKeyframe) {
   EXPECT_TRUE(weak.keyframe);
 }
 
+/// 200 landmarks seen by one keyframe at the origin, and a tracker on that map.
+struct OneKeyframeScene {
+  SyntheticWorld w;
+  std::vector<int> seen;
+  std::optional<Tracker> tracker;
+};
+
+OneKeyframeScene one_keyframe_scene(unsigned seed) {
+  OneKeyframeScene scene;
+  std::mt19937 rng(seed);
+  const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity();
+  scene.seen = scene.w.make_landmarks(T0, 200, &rng);
+  std::map<int, std::int64_t> known;
+  scene.w.add_keyframe(0, T0, T0, scene.seen, &known);
+  scene.tracker = make_tracker(scene.w);
+  return scene;
+}
+
 /// One keyframe seeing 200 landmarks at the origin; a tracker that tracks it at t = 1 s and 1 cm
 /// along x at t = 1.033 s (0.3 m/s); then a frame `gap_s` later that sees all the landmarks from
 /// the constant-velocity position displaced by `off_path_m` along y.
 TrackResult track_off_the_velocity_path(double gap_s, double off_path_m) {
-  SyntheticWorld w;
-  std::mt19937 rng(43);
-  const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity();
-  const std::vector<int> seen = w.make_landmarks(T0, 200, &rng);
-  std::map<int, std::int64_t> known;
-  w.add_keyframe(0, T0, T0, seen, &known);
-  auto tracker = make_tracker(w);
+  OneKeyframeScene scene = one_keyframe_scene(43);
+  const SyntheticWorld& w = scene.w;
+  const std::vector<int>& seen = scene.seen;
+  auto& tracker = scene.tracker;
   if (!tracker) return {};
   const FeatureOptions fo = orb_features();
   RgbdFrame f;
@@ -873,15 +888,13 @@ TEST(LocalMapper, AKeyframeArrivingDuringTheBundleAdjustmentStopsItWithAnImprove
 /// is not the map's (R_nav_map: 90 deg about x, as NED is not SLAM's first camera) when
 /// `with_attitude`.
 TrackResult track_sudden_pan(double pan_deg, bool with_attitude) {
-  SyntheticWorld w;
-  std::mt19937 rng(47);
-  const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity();
-  const std::vector<int> seen = w.make_landmarks(T0, 200, &rng);
-  std::map<int, std::int64_t> known;
-  w.add_keyframe(0, T0, T0, seen, &known);
-  auto tracker = make_tracker(w);
+  OneKeyframeScene scene = one_keyframe_scene(47);
+  const SyntheticWorld& w = scene.w;
+  const std::vector<int>& seen = scene.seen;
+  auto& tracker = scene.tracker;
   if (!tracker) return {};
   const FeatureOptions fo = orb_features();
+  const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity();
   const Eigen::Quaterniond q_nav_map(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()));
   RgbdFrame f;
   f.rgb = image_of(0);
