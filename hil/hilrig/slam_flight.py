@@ -115,6 +115,16 @@ def _alt_hold() -> FcOptions:
     return FcOptions(mode=FlightMode.ALT_HOLD)
 
 
+def _env_flag(name: str) -> bool | None:
+    """1 / 0 from the environment variable `name`; None when unset or empty."""
+    value = os.environ.get(name, "").strip()
+    if not value:
+        return None
+    if value not in ("0", "1"):
+        raise ValueError(f"{name} must be 1 or 0, not {value!r}")
+    return value == "1"
+
+
 @dataclass(frozen=True)
 class SlamFlightOptions:
     # 30 fps: the Kinect's rate; the live renderer sustains it next to the rest of the rig on 2
@@ -151,6 +161,10 @@ class SlamFlightOptions:
     # More slam-server flags, for ablations (e.g. ("--mapping-rt-priority", "0")); the environment's
     # HIL_SLAM_SERVER_ARGS (split like a shell line) by default, so any scenario can be re-flown.
     slam_server_args: tuple = field(default_factory=lambda: tuple(shlex.split(os.environ.get("HIL_SLAM_SERVER_ARGS", ""))))
+    # quad-control's camera.imu_rotation_prior (the APM attitude at capture rides with each frame to
+    # slam-server, whose tracker predicts rotation from its change); None: quad-control's default.
+    # The environment's HIL_IMU_ROTATION_PRIOR (1 / 0) sets it, so any scenario can be flown both ways.
+    imu_rotation_prior: bool | None = field(default_factory=lambda: _env_flag("HIL_IMU_ROTATION_PRIOR"))
 
     def validate(self) -> None:
         if not 1.0 <= self.fps <= 30.0:
@@ -414,7 +428,8 @@ class SlamFlight:
             "slam": {"mode": "server", "host": "127.0.0.1", "port": slam_port},
             "firmware": {"enabled": True, "host": "127.0.0.1", "port": self.bridge.port, "key_hex": o.key.hex(),
                          **({} if o.send_on_pose is None else {"send_on_pose": o.send_on_pose})},
-            "camera": {"mount_pitch_down_deg": o.mount.mount_pitch_down_deg},
+            "camera": {"mount_pitch_down_deg": o.mount.mount_pitch_down_deg,
+                       **({} if o.imu_rotation_prior is None else {"imu_rotation_prior": o.imu_rotation_prior})},
             "recording": {"enabled": o.record, "dir": str(self.recording_dir)},
         }
         if o.controller_overrides:

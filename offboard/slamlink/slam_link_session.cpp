@@ -85,6 +85,10 @@ std::optional<RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame& m,
   RgbdFrame f;
   f.index = static_cast<std::int64_t>(frames_);
   f.stamp_s = static_cast<double>(dh.capture_timestamp_us) * 1e-6;
+  if (m.attitude.valid) {  // the codec has checked it is a unit quaternion
+    const auto& q = m.attitude.q_xyzw;
+    f.q_nav_cam = Eigen::Quaterniond(q[3], q[0], q[1], q[2]);
+  }
   cv::Mat rgb(rh.height, rh.width, CV_8UC3, const_cast<std::uint8_t*>(m.rgb.payload.data()));
   cv::cvtColor(rgb, f.rgb, cv::COLOR_RGB2BGR);  // copies
   f.depth.create(dh.height, dh.width, CV_16UC1);

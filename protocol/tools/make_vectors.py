@@ -122,8 +122,15 @@ def floor_map():
             "cell_format": "OCCUPANCY_U8", "cells": cells}
 
 
-def rgbd_frame():
+# R_ned_cam of a level craft heading north with the Kinect looking forward, unmounted (camera z =
+# north, x = east, y = down): exactly (0.5, 0.5, 0.5, 0.5).
+LEVEL_NORTH_ATTITUDE = {"valid": True, "q_xyzw": [0.5, 0.5, 0.5, 0.5]}
+NO_ATTITUDE = {"valid": False, "q_xyzw": [0.0, 0.0, 0.0, 1.0]}
+
+
+def rgbd_frame(attitude=None):
     return {"pair_sequence": 12, "intrinsics": FR1, "depth_scale_units_per_m": TUM_DEPTH_UNITS_PER_M,
+            "attitude": LEVEL_NORTH_ATTITUDE if attitude is None else attitude,
             "rgb": image("RGB8", 2, 2, 12), "depth": image("DEPTH16", 2, 2, 12)}
 
 
@@ -223,7 +230,10 @@ class Builder:
                    {"protocol_version": 1, "schema_hash": c.spec.schema_hash,
                     "peer_name": "slam-server", "session_id": 0, "resumed": False,
                     "session_frames": 0, "refusal": "slam-server busy: all 4 client slots in use"})
-        self.valid("rgbd_frame", "2x2 RGB-D pair for the SLAM server", "RgbdFrame", rgbd_frame())
+        self.valid("rgbd_frame", "2x2 RGB-D pair for the SLAM server, with the camera's IMU attitude",
+                   "RgbdFrame", rgbd_frame())
+        self.valid("rgbd_frame_no_attitude", "2x2 RGB-D pair without an attitude", "RgbdFrame",
+                   rgbd_frame(NO_ATTITUDE))
         self.valid("pose_update", "tracking pose with egomotion, keyframe", "PoseUpdate",
                    pose_update())
         self.valid("pose_update_lost", "tracking lost: identity poses, no inliers", "PoseUpdate",
@@ -363,6 +373,8 @@ class Builder:
              raw("PoseGraph", dict(pose_graph(), edges=[dict(pose_graph()["edges"][0], kind=5)]))),
             ("map_cells_size_mismatch", "4x3 map with 11 cells", "FloorMap",
              raw("FloorMap", dict(floor_map(), cells=bytes(11)))),
+            ("rgbd_attitude_not_unit", "RgbdFrame attitude q = (0,0,0,0.5)", "RgbdFrame",
+             raw("RgbdFrame", rgbd_frame({"valid": True, "q_xyzw": [0.0, 0.0, 0.0, 0.5]}))),
             ("rgbd_swapped_images", "RgbdFrame with depth in the rgb slot", "RgbdFrame",
              raw("RgbdFrame", dict(rgbd_frame(), rgb=rgbd_frame()["depth"],
                                    depth=rgbd_frame()["rgb"]))),

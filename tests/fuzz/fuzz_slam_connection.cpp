@@ -224,6 +224,9 @@ proto::RgbdFrame frame(FuzzedDataProvider& in, std::uint32_t pair_sequence) {
   f.intrinsics.cx_px = pick();
   f.intrinsics.cy_px = pick();
   f.depth_scale_units_per_m = in.ConsumeBool() ? 5000.0 : pick();
+  f.attitude.valid = in.ConsumeBool();
+  if (in.ConsumeIntegralInRange<int>(0, 3) == 0)
+    f.attitude.q_xyzw = {pick(), pick(), pick(), pick()};
   const std::uint16_t w = in.ConsumeIntegralInRange<std::uint16_t>(0, kMaxSide_px);
   const std::uint16_t h = in.ConsumeIntegralInRange<std::uint16_t>(0, kMaxSide_px);
   const bool consistent = in.ConsumeIntegralInRange<int>(0, 3) != 0;

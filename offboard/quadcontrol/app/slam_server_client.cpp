@@ -245,6 +245,10 @@ std::optional<SlamResult> SlamServerClient::exchange(const CameraFrame& f, std::
   m.intrinsics.cy_px = f.intrinsics.cy_px;
   for (std::size_t j = 0; j < 5; ++j) m.intrinsics.distortion[j] = f.intrinsics.distortion[j];
   m.depth_scale_units_per_m = f.intrinsics.depth_units_per_m;
+  if (f.q_ned_cam) {
+    const Eigen::Quaterniond q = f.q_ned_cam->normalized();
+    m.attitude = proto::CameraAttitude{true, {q.x(), q.y(), q.z(), q.w()}};
+  }
   m.rgb = image(f, proto::PixelFormat::kRgb8, std::move(rgb));
   m.depth = image(f, proto::PixelFormat::kDepth16, std::move(depth));
   // One deadline for the whole exchange: sending, SLAM on the server, the reply.

@@ -41,6 +41,8 @@ def frame_fields(seq: int, texture: np.ndarray) -> dict:
     return {"pair_sequence": 10 + seq,
             "intrinsics": {**TUM_FR1.intrinsics(), "distortion": [0.0] * 5},
             "depth_scale_units_per_m": float(DEPTH_UNITS_PER_M),
+            # a craft's IMU attitude (level, heading north): the tracker's rotation prior path
+            "attitude": {"valid": True, "q_xyzw": [0.5, 0.5, 0.5, 0.5]},
             "rgb": image("RGB8", rgb.tobytes()), "depth": image("DEPTH16", depth.tobytes())}
 
 

@@ -66,6 +66,7 @@ def frame_bytes(seq: int, tex: np.ndarray, encoding: str = "RAW") -> bytes:
         "pair_sequence": 10 + seq,
         "intrinsics": {**TUM_FR1.intrinsics(), "distortion": [0.0] * 5},
         "depth_scale_units_per_m": float(DEPTH_UNITS_PER_M),
+        "attitude": {"valid": False, "q_xyzw": [0.0, 0.0, 0.0, 1.0]},
         "rgb": rgb_image, "depth": image("DEPTH16", depth.tobytes())})
 
 

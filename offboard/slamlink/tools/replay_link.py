@@ -100,7 +100,9 @@ def main() -> int:
         sock.sendall(codec.encode("RgbdFrame", {
             "pair_sequence": n,
             "intrinsics": {**TUM_FR1.intrinsics(), "distortion": [0.0] * 5},  # no distortion sent
-            "depth_scale_units_per_m": TUM_DEPTH_UNITS_PER_M, "rgb": image("RGB8", rgb),
+            "depth_scale_units_per_m": TUM_DEPTH_UNITS_PER_M,
+            "attitude": {"valid": False, "q_xyzw": [0.0, 0.0, 0.0, 1.0]},  # TUM frames: no IMU attitude
+            "rgb": image("RGB8", rgb),
             "depth": image("DEPTH16", depth)}))
         m = next_message()
         if m is None:

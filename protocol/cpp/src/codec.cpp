@@ -112,17 +112,21 @@ std::string check_image(const ImageFrame& f, const char* field) {
   return check_image(f.header, f.payload.size(), field);
 }
 
-std::string check_pose(const Pose3& p, const char* field) {
-  const std::string prefix = std::string(field) + ".";
-  for (double t : p.t_m)
-    RGBD_CHECK(check_range(t, field_range::kPose3TM, (prefix + "t_m").c_str()));
-  for (double q : p.q_xyzw)
-    RGBD_CHECK(check_range(q, field_range::kPose3QXyzw, (prefix + "q_xyzw").c_str()));
-  const auto& q = p.q_xyzw;
+// Range of each element and |q|^2 (spec check unit_quaternion), reported as `<prefix>q_xyzw`.
+std::string check_unit_quaternion(const std::array<double, 4>& q, const FieldRange& range,
+                                  const std::string& prefix) {
+  for (double e : q) RGBD_CHECK(check_range(e, range, (prefix + "q_xyzw").c_str()));
   const double norm2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
   if (!(std::fabs(norm2 - 1.0) <= kUnitQuaternionTolerance))
     return prefix + "q_xyzw: not a unit quaternion";
   return {};
+}
+
+std::string check_pose(const Pose3& p, const char* field) {
+  const std::string prefix = std::string(field) + ".";
+  for (double t : p.t_m)
+    RGBD_CHECK(check_range(t, field_range::kPose3TM, (prefix + "t_m").c_str()));
+  return check_unit_quaternion(p.q_xyzw, field_range::kPose3QXyzw, prefix);
 }
 
 std::string check_stream_kind(StreamKind kind, PixelFormat format) {
@@ -166,6 +170,8 @@ std::string validate_one(const RgbdFrame& m) {
   RGBD_CHECK(check_intrinsics(m.intrinsics));
   RGBD_CHECK(check_range(m.depth_scale_units_per_m, field_range::kRgbdFrameDepthScaleUnitsPerM,
                          "depth_scale_units_per_m"));
+  RGBD_CHECK(
+      check_unit_quaternion(m.attitude.q_xyzw, field_range::kCameraAttitudeQXyzw, "attitude."));
   RGBD_CHECK(check_image(m.rgb, "rgb"));
   RGBD_CHECK(check_image(m.depth, "depth"));
   if (m.rgb.header.pixel_format != PixelFormat::kRgb8) return "rgb.pixel_format: must be RGB8";
@@ -282,6 +288,8 @@ void put_body(Writer& w, const RgbdFrame& m) {
   w.u32(m.pair_sequence);
   put_intrinsics(w, m.intrinsics);
   w.f64(m.depth_scale_units_per_m);
+  w.u8(m.attitude.valid ? 1 : 0);
+  for (double q : m.attitude.q_xyzw) w.f64(q);
   put_image(w, m.rgb);
   put_image(w, m.depth);
 }
@@ -436,6 +444,8 @@ void get_body(Parse& p, RgbdFrame& m) {
   m.pair_sequence = p.r.u32();
   get_intrinsics(p, m.intrinsics);
   m.depth_scale_units_per_m = p.r.f64();
+  m.attitude.valid = get_bool(p, "attitude.valid");
+  for (double& q : m.attitude.q_xyzw) q = p.r.f64();
   get_image(p, m.rgb, "rgb.payload");
   get_image(p, m.depth, "depth.payload");
 }

@@ -81,6 +81,8 @@ std::vector<Message> all_message_kinds() {
   pair.depth.header = {1, 5, 6, 2, 2, PixelFormat::kDepth16, Encoding::kRaw, 8};
   pair.depth.payload = {1, 2, 3, 4, 5, 6, 7, 8};
   out.emplace_back(pair);
+  pair.attitude = {true, {0.5, 0.5, 0.5, 0.5}};  // the camera's IMU attitude rides along
+  out.emplace_back(pair);
   PoseUpdate pose;
   pose.pair_sequence = 9;
   pose.timestamp_us = 1305031102175304;
@@ -181,6 +183,13 @@ TEST(Encode, RejectsMessagesThatBreakTheSpec) {
   kind_mismatch.stream_kind = StreamKind::kRgb;
   PoseUpdate bad_q;
   bad_q.T_world_cam.q_xyzw = {0, 0, 0, 0.5};
+  RgbdFrame bad_attitude;
+  bad_attitude.intrinsics = make_handshake().intrinsics;
+  bad_attitude.depth_scale_units_per_m = camera::kTumDepthUnitsPerM;
+  bad_attitude.rgb = make_rgb_frame(2, 2, 1).image;
+  bad_attitude.depth.header = {1, 5, 6, 2, 2, PixelFormat::kDepth16, Encoding::kRaw, 8};
+  bad_attitude.depth.payload = {1, 2, 3, 4, 5, 6, 7, 8};
+  bad_attitude.attitude = {true, {0, 0, 0, 0.5}};
   FloorMap short_cells;
   short_cells.width_cells = 2;
   short_cells.height_cells = 2;
@@ -195,6 +204,7 @@ TEST(Encode, RejectsMessagesThatBreakTheSpec) {
       {"credits 0", FrameRequest{0, 0}, "credits"},
       {"credits above max", FrameRequest{9, 0}, "credits"},
       {"non-unit quaternion", bad_q, "q_xyzw"},
+      {"non-unit attitude", bad_attitude, "attitude.q_xyzw"},
       {"map cells size", short_cells, "cells"},
   };
   for (const Case& c : cases) {

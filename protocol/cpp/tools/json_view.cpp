@@ -146,6 +146,14 @@ Pose3 pose_from(const json& j) {
   return p;
 }
 
+json attitude_json(const CameraAttitude& a) { return {{"valid", a.valid}, {"q_xyzw", a.q_xyzw}}; }
+CameraAttitude attitude_from(const json& j) {
+  CameraAttitude a;
+  a.valid = boolean(j, "valid");
+  a.q_xyzw = doubles<4>(j, "q_xyzw");
+  return a;
+}
+
 json fields_of(const Handshake& m) {
   return {{"protocol_version", m.protocol_version},
           {"schema_hash", m.schema_hash},
@@ -181,6 +189,7 @@ json fields_of(const RgbdFrame& m) {
   return {{"pair_sequence", m.pair_sequence},
           {"intrinsics", intrinsics_json(m.intrinsics)},
           {"depth_scale_units_per_m", m.depth_scale_units_per_m},
+          {"attitude", attitude_json(m.attitude)},
           {"rgb", image_json(m.rgb)},
           {"depth", image_json(m.depth)}};
 }
@@ -282,6 +291,7 @@ Message from_fields(const std::string& type, const json& f) {
     m.pair_sequence = num<std::uint32_t>(f, "pair_sequence");
     m.intrinsics = intrinsics_from(at(f, "intrinsics"));
     m.depth_scale_units_per_m = num<double>(f, "depth_scale_units_per_m");
+    m.attitude = attitude_from(at(f, "attitude"));
     m.rgb = image_from(at(f, "rgb"));
     m.depth = image_from(at(f, "depth"));
     return m;

@@ -51,6 +51,13 @@ struct Pose3 {
   std::array<double, 4> q_xyzw{0.0, 0.0, 0.0, 1.0};
 };
 
+/// The camera's attitude at capture from the craft's IMU (R_nav_cam, nav gravity-aligned: NED for
+/// the APM), when the sender has one; the receiver uses only its change between frames.
+struct CameraAttitude {
+  bool valid = false;
+  std::array<double, 4> q_xyzw{0.0, 0.0, 0.0, 1.0};  ///< (0, 0, 0, 1) when not valid
+};
+
 /// Stream, sender -> receiver, first message on each connection.
 struct Handshake {
   std::uint16_t protocol_version = kProtocolVersion;
@@ -109,6 +116,7 @@ struct RgbdFrame {
   std::uint32_t pair_sequence = 0;
   CameraIntrinsics intrinsics;  ///< of the RGB image; depth is registered to it
   double depth_scale_units_per_m = 1000.0;
+  CameraAttitude attitude;
   ImageFrame rgb;    ///< pixel_format RGB8
   ImageFrame depth;  ///< pixel_format DEPTH16
 };

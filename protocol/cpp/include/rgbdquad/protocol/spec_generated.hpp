@@ -11,7 +11,7 @@ namespace rgbdquad::protocol {
 /// Protocol major version carried in every envelope; peers with another version refuse.
 inline constexpr std::uint8_t kProtocolVersion = 1;
 /// First 8 bytes (little-endian) of SHA-256 of the canonical spec (see docs/protocol.md).
-inline constexpr std::uint64_t kSchemaHash = 0x58887b989251087aULL;
+inline constexpr std::uint64_t kSchemaHash = 0x77ddddf95a1ffc23ULL;
 /// Envelope magic, resynchronisation marker.
 inline constexpr std::uint8_t kMagic[4] = {0x52, 0x47, 0x42, 0x51};
 inline constexpr std::size_t kEnvelopeHeaderBytes = 16;
@@ -290,6 +290,7 @@ inline constexpr FieldRange kCameraIntrinsicsCyPx{-100000.0, 100000.0};
 inline constexpr FieldRange kCameraIntrinsicsDistortion{-1000.0, 1000.0};
 inline constexpr FieldRange kImageFrameWidth{1.0, 4096.0};
 inline constexpr FieldRange kImageFrameHeight{1.0, 4096.0};
+inline constexpr FieldRange kCameraAttitudeQXyzw{-1.0, 1.0};
 inline constexpr FieldRange kPose3TM{-100000.0, 100000.0};
 inline constexpr FieldRange kPose3QXyzw{-1.0, 1.0};
 inline constexpr FieldRange kHandshakeWidth{1.0, 4096.0};
@@ -334,7 +335,7 @@ constexpr std::size_t max_body_bytes(std::uint8_t message_type) {
     case 16:  // SlamHello
       return 537;
     case 17:  // RgbdFrame
-      return 2097296;
+      return 2097329;
     case 18:  // PoseUpdate
       return 134;
     case 19:  // PoseGraph
