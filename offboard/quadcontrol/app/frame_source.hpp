@@ -32,7 +32,7 @@ struct CameraFrame {
   EncodedImage rgb_encoded, depth_encoded;
   /// The camera's NED attitude at capture from the craft's IMU (CraftPoseTracker::
   /// camera_attitude_at), set by the ground station when `camera.imu_rotation_prior` is on; the
-  /// in-process SLAM predicts rotation from it (slam::RgbdFrame::q_nav_cam).
+  /// SLAM (either link) predicts rotation from it (slam::RgbdFrame::q_nav_cam).
   std::optional<Eigen::Quaterniond> q_ned_cam;
 };
 

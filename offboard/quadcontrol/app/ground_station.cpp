@@ -164,7 +164,7 @@ void GroundStation::frame_loop() {
       }
       if (options_.imu_rotation_prior)
         frame->q_ned_cam =
-            tracker_.camera_attitude_at(frame->capture_us, options_.imu_match_window_us);
+            tracker_.camera_attitude_at(frame->capture_us, options_.attitude_match_window_us);
     }
     slam_->submit(*frame);  // dropped when SLAM is busy (thesis behaviour)
   }

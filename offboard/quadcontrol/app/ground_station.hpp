@@ -46,11 +46,11 @@ struct GroundStationOptions {
   FloorPlaneOptions floor;
   FloorMapOptions map;
   double mount_pitch_down_deg = 30.0;  ///< Kinect tilt on the craft (thesis: mounted at an angle)
-  /// Hand the camera's IMU attitude at capture to the in-process SLAM, which then predicts each
+  /// Hand the camera's IMU attitude at capture to SLAM (either link), which then predicts each
   /// frame's rotation from the attitude change instead of the constant-velocity model (issue 12
-  /// item 1). Off by default: unit-tested, not yet flown - the HIL flights use the SLAM-server
-  /// link, which does not carry it (protocol/slamlink has no field yet).
-  bool imu_rotation_prior = false;
+  /// item 1). Both SLAM links carry it (the SLAM-server link in RgbdFrame.attitude). HIL
+  /// scenarios 1, 2, 4 and 5 flown with it and without: docs/control.md.
+  bool imu_rotation_prior = true;
   int floor_search_frames = 30;  ///< ~1 s at 30 Hz to find the floor, then fall back
   int floor_pixel_step = 4;      ///< depth sub-sampling for the RANSAC (19200 points)
   int map_pixel_step = 8;        ///< depth sub-sampling for the map (4800 points/frame)
@@ -58,6 +58,11 @@ struct GroundStationOptions {
   int control_period_ms = 20;    ///< 50 Hz, the firmware command rate
   std::size_t trajectory_max_points = 5000;
   std::int64_t imu_match_window_us = 20000;  ///< TUM's association rule: nearest within 20 ms
+  /// The attitude handed to SLAM with a frame (`imu_rotation_prior`): the sample nearest to the
+  /// capture within 60 ms. The frame reaches SLAM ~2 ms after capture, before the ATTITUDE sampled
+  /// after it has come back, so the newest one is up to an ATTITUDE period (40 ms at the APM's
+  /// 25 Hz stream rate) plus a reply's way back (up to 20 ms on the 50 Hz command grid) old.
+  std::int64_t attitude_match_window_us = 60000;
   std::string slam_mode =
       "server";  ///< "server": slam-server over the SLAM link; "in-process": local-map SLAM here
   SlamServerOptions slam_server;

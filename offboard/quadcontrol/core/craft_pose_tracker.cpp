@@ -50,7 +50,12 @@ Eigen::Quaterniond camera_attitude_ned(const ImuSample& sample, double mount_pit
 }
 
 bool CraftPoseTracker::on_imu(const ImuSample& sample) {
-  attitudes_.push(sample.t_us, sample);
+  // Each ATTITUDE message once, by when it was sampled: replies repeat it until the next arrives.
+  const std::int64_t t_us = sample.attitude_t_us.value_or(sample.t_us);
+  if (!last_attitude_t_us_ || t_us > *last_attitude_t_us_) {
+    attitudes_.push(t_us, sample);
+    last_attitude_t_us_ = t_us;
+  }
   return estimator_.predict(sample);
 }
 

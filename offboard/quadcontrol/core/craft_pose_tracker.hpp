@@ -158,9 +158,10 @@ class CraftPoseTracker {
   std::uint32_t map_correction_count_ = 0;
   PoseEstimator estimator_;
   CaptureClock capture_clock_;  ///< the craft's capture stamps -> the caller's clock
-  /// Recent IMU samples by their time on the caller's clock: 64 = 0.6 s at the firmware's 100 Hz
-  /// replies, longer than a frame's transit to the ground station.
+  /// Recent ATTITUDE samples by when they were sampled, caller's clock: 64 = 2.6 s at the APM's
+  /// 25 Hz stream rate, far longer than a frame's transit to the ground station.
   TimestampBuffer<ImuSample> attitudes_{64};
+  std::optional<std::int64_t> last_attitude_t_us_;
   std::optional<StateEstimate> last_estimate_;
   std::uint64_t estimates_flown_ = 0;
 };

@@ -82,6 +82,7 @@ std::optional<ImuSample> imu_sample_from_reply(const rgbd_control::Reply& reply,
   ImuSample s;
   const auto newest_age_ms = std::min(*reply.imu_age_ms, *reply.att_age_ms);
   s.t_us = received_us - static_cast<std::int64_t>(newest_age_ms) * 1000;
+  s.attitude_t_us = received_us - static_cast<std::int64_t>(*reply.att_age_ms) * 1000;
   s.specific_force_frd_mss =
       Eigen::Vector3d(reply.imu_raw[0], reply.imu_raw[1], reply.imu_raw[2]) * kMssPerMg;
   s.roll_rad = reply.att_mrad[0] * kRadPerMrad;

@@ -53,11 +53,15 @@ struct ImuSample {
   Eigen::Vector3d specific_force_frd_mss{0, 0,
                                          0};  ///< accelerometer, body FRD (level at rest: 0, 0, -g)
   double roll_rad = 0.0, pitch_rad = 0.0, yaw_rad = 0.0;  ///< APM ATTITUDE, NED, ZYX Euler
+  /// When the ATTITUDE part was sampled, caller's clock (`t_us` is the newer of ATTITUDE and
+  /// RAW_IMU, which stream at different rates); nullopt: take `t_us`.
+  std::optional<std::int64_t> attitude_t_us;
 };
 
 /// The IMU content of a control reply (RAW_IMU in mg, ATTITUDE in mrad, ages in ms), stamped with
-/// the reply's arrival minus the newer of the two ages (the reply's transit back, ~2-5 ms, is
-/// not subtracted). nullopt when the reply carries no IMU or no attitude yet.
+/// the reply's arrival minus the newer of the two ages, and the attitude with its own age (the
+/// reply's transit back, ~2-5 ms, is not subtracted). nullopt when the reply carries no IMU or no
+/// attitude yet.
 std::optional<ImuSample> imu_sample_from_reply(const rgbd_control::Reply& reply,
                                                std::int64_t received_us);
 

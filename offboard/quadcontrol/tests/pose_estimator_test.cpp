@@ -368,6 +368,10 @@ TEST(ImuFromReply, GivenAReplyThenUnitsAndStampAreConverted) {
   const auto s = imu_sample_from_reply(r, 1'000'000);
   ASSERT_TRUE(s.has_value());
   EXPECT_EQ(s->t_us, 1'000'000 - 20'000);  // the newer of the two readings
+  r.imu_age_ms = 5;  // RAW_IMU newer than ATTITUDE: the attitude keeps its own stamp
+  EXPECT_EQ(imu_sample_from_reply(r, 1'000'000)->t_us, 1'000'000 - 5'000);
+  EXPECT_EQ(imu_sample_from_reply(r, 1'000'000)->attitude_t_us, 1'000'000 - 20'000);
+  r.imu_age_ms = 60;
   EXPECT_NEAR(s->specific_force_frd_mss.z(), -kG, 1e-9);
   EXPECT_NEAR(s->roll_rad, 0.1, 1e-12);
   EXPECT_NEAR(s->yaw_rad, 3.0, 1e-12);
