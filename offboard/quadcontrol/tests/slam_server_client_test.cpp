@@ -72,6 +72,11 @@ class FakeServer {
     std::lock_guard<std::mutex> lock(mutex_);
     return session_ids_;
   }
+  /// The attitude of every RgbdFrame received, by pair_sequence.
+  std::vector<std::pair<std::uint32_t, proto::CameraAttitude>> attitudes() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return attitudes_;
+  }
 
  private:
   /// False once the peer is gone.
@@ -124,6 +129,10 @@ class FakeServer {
         const auto* f = std::get_if<proto::RgbdFrame>(&*r.message);
         if (!f) continue;
         ++frames;
+        {
+          std::lock_guard<std::mutex> lock(mutex_);
+          attitudes_.emplace_back(f->pair_sequence, f->attitude);
+        }
         proto::PoseUpdate u;
         u.pair_sequence = f->pair_sequence;
         u.tracking_state = proto::TrackingState::kTracking;
@@ -161,6 +170,7 @@ class FakeServer {
   std::mutex mutex_;
   int conn_ = -1;
   std::vector<std::uint64_t> session_ids_;
+  std::vector<std::pair<std::uint32_t, proto::CameraAttitude>> attitudes_;
   std::atomic<int> connections_{0};
   std::atomic<bool> stop_{false};
   std::thread thread_;
@@ -173,6 +183,9 @@ CameraFrame small_frame(std::int64_t seq) {
   f.received_us = monotonic_now_us();
   f.rgb = cv::Mat(6, 8, CV_8UC3, cv::Scalar(10, 20, 30));
   f.depth = cv::Mat(6, 8, CV_16UC1, cv::Scalar(5000));
+  // Every even frame carries the craft's attitude (yaw 0.1 rad per frame), the odd ones none.
+  if (seq % 2 == 0)
+    f.q_ned_cam = Eigen::Quaterniond(Eigen::AngleAxisd(0.1 * seq, Eigen::Vector3d::UnitZ()));
   return f;
 }
 
@@ -274,6 +287,23 @@ TEST(SlamServerClient, GivenAnAnsweringServerThenPosesArriveInOneSession) {
   EXPECT_TRUE(h.copy().back().tracking);
   // the server's map-correction counter reaches the controller's input (3 answers: at least 1)
   EXPECT_GE(h.copy().back().map_correction_count, 1u);
+}
+
+TEST(SlamServerClient, GivenFramesWithAndWithoutAnImuAttitudeThenEachRgbdFrameSaysWhichItIs) {
+  FakeServer server(Behaviour::kAnswer);
+  Harness h(server.port());
+  ASSERT_TRUE(h.feed_until([&] { return h.copy().size() >= 4; })) << h.client->stats().last_error;
+  const auto seen = server.attitudes();
+  ASSERT_GE(seen.size(), 4u);
+  for (const auto& [seq, att] : seen) {
+    SCOPED_TRACE(seq);
+    EXPECT_EQ(att.valid, seq % 2 == 0);
+    const Eigen::Quaterniond want =
+        seq % 2 == 0 ? Eigen::Quaterniond(Eigen::AngleAxisd(0.1 * seq, Eigen::Vector3d::UnitZ()))
+                     : Eigen::Quaterniond::Identity();
+    const Eigen::Quaterniond got(att.q_xyzw[3], att.q_xyzw[0], att.q_xyzw[1], att.q_xyzw[2]);
+    EXPECT_TRUE(got.isApprox(want, 1e-12));
+  }
 }
 
 // Why the first design's 5 s timeout never fired: asio's synchronous read_some treats the EAGAIN

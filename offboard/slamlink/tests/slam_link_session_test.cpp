@@ -96,6 +96,31 @@ TEST(SlamLinkSession, GivenFramesWhenProcessedThenOnePoseUpdatePerFrame) {
   EXPECT_EQ(s.frames_faulted(), 0u);
 }
 
+TEST(SlamLinkSession, GivenFramesWithAnImuAttitudeThenTheTrackerPredictsRotationFromIt) {
+  PipelineOptions options = orb_options();
+  options.backend.kind = BackendKind::kLocalMap;  // slam-server's default, the system that flies
+  SlamLinkSession s(options);
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  // GIVEN frames 0, 1 and 3 with an attitude (fr1_xyz barely rotates: a constant one), 2 without
+  for (std::uint32_t i = 0; i < 4; ++i) {
+    auto f = ds->load(i, &err);
+    ASSERT_TRUE(f) << err;
+    proto::RgbdFrame m = to_wire(*f, 100 + i);
+    if (i != 2) m.attitude = {true, {0.5, 0.5, 0.5, 0.5}};
+    roundtrip(&s, m, &err);
+    EXPECT_TRUE(err.empty()) << err;
+  }
+  // THEN only a frame whose predecessor had one too gets its rotation from the attitude
+  for (std::int64_t i = 0; i < 4; ++i) {
+    const auto rec = s.pipeline()->record(i);
+    ASSERT_TRUE(rec) << i;
+    EXPECT_EQ(rec->attitude_predicted, i == 1) << i;
+    EXPECT_EQ(rec->state, TrackingState::kTracking) << i;  // the first frame is the first keyframe
+  }
+}
+
 TEST(SlamLinkSession, GivenMapFilesThenASessionSavesItsMapAndTheNextStartsInIt) {
   PipelineOptions o;
   o.frontend.features.kind = DetectorKind::kOrb;
