@@ -38,15 +38,7 @@ Eigen::Quaterniond camera_attitude_ned(const ImuSample& sample, double mount_pit
        Eigen::AngleAxisd(sample.pitch_rad, Eigen::Vector3d::UnitY()) *
        Eigen::AngleAxisd(sample.roll_rad, Eigen::Vector3d::UnitX()))
           .toRotationMatrix();
-  // Level mount: camera z (forward) = body x, camera x (right) = body y, camera y (down) = body z;
-  // then pitched down about body y, the forward axis tipping towards body +z.
-  Eigen::Matrix3d level;
-  level << 0, 0, 1, 1, 0, 0, 0, 1, 0;
-  const Eigen::Matrix3d R_body_cam =
-      Eigen::AngleAxisd(-mount_pitch_down_deg / kDegPerRad, Eigen::Vector3d::UnitY())
-          .toRotationMatrix() *
-      level;
-  return Eigen::Quaterniond(R_ned_body * R_body_cam).normalized();
+  return Eigen::Quaterniond(R_ned_body * rotation_body_cam(mount_pitch_down_deg)).normalized();
 }
 
 bool CraftPoseTracker::on_imu(const ImuSample& sample) {

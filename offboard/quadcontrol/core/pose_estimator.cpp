@@ -94,7 +94,7 @@ std::optional<ImuSample> imu_sample_from_reply(const rgbd_control::Reply& reply,
 std::int64_t CaptureClock::to_local(std::int64_t capture_us, std::int64_t received_us) {
   offsets_us_.push_back(received_us - capture_us);
   while (offsets_us_.size() > window_) offsets_us_.pop_front();
-  return capture_us + *std::min_element(offsets_us_.begin(), offsets_us_.end());
+  return *peek(capture_us);
 }
 
 std::optional<std::int64_t> CaptureClock::peek(std::int64_t capture_us) const {

@@ -2,6 +2,7 @@
 #include "map/floor_plane.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <cmath>
 #include <random>
 
@@ -21,10 +22,19 @@ std::string FloorPlaneOptions::validate() const {
   return {};
 }
 
+Eigen::Matrix3d rotation_body_cam(double mount_pitch_down_deg) {
+  // Level mount: camera z (forward) = body x, camera x (right) = body y, camera y (down) = body z;
+  // then pitched down about body y, the forward axis tipping towards body +z.
+  Eigen::Matrix3d level;
+  level << 0, 0, 1, 1, 0, 0, 0, 1, 0;
+  return Eigen::AngleAxisd(-mount_pitch_down_deg * kDegToRad, Eigen::Vector3d::UnitY())
+             .toRotationMatrix() *
+         level;
+}
+
 Eigen::Vector3d expected_up_in_camera(double mount_pitch_down_deg) {
-  // Level camera (x right, y down, z forward): up = -y. Pitched down by a: up tilts backwards (-z).
-  const double a = mount_pitch_down_deg * kDegToRad;
-  return Eigen::Vector3d(0.0, -std::cos(a), -std::sin(a)).normalized();
+  // Level camera: up = -y. Pitched down by a: up tilts backwards (-z): (0, -cos a, -sin a).
+  return rotation_body_cam(mount_pitch_down_deg).transpose() * Eigen::Vector3d(0.0, 0.0, -1.0);
 }
 
 std::optional<FloorPlane> fit_floor_plane(const std::vector<Eigen::Vector3d>& points,

@@ -41,8 +41,13 @@ std::optional<FloorPlane> fit_floor_plane(const std::vector<Eigen::Vector3d>& po
                                           const Eigen::Vector3d& expected_up_cam,
                                           const FloorPlaneOptions& options);
 
+/// The Kinect's mount, R_body_cam: camera (x right, y down, z forward) -> body FRD, for a camera
+/// looking along body x and pitched down by mount_pitch_down_deg (the mount
+/// hil/kinect_emulator/poses.py renders).
+Eigen::Matrix3d rotation_body_cam(double mount_pitch_down_deg);
+
 /// Expected up direction in the camera frame (x right, y down, z forward) for a camera pitched
-/// down by mount_pitch_down_deg.
+/// down by mount_pitch_down_deg: body up (FRD -z) through rotation_body_cam().
 Eigen::Vector3d expected_up_in_camera(double mount_pitch_down_deg);
 
 /// T_floor_cam from the plane: maps camera points into the floor frame (z = height above floor).
