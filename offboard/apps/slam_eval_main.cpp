@@ -49,7 +49,7 @@ struct RunArgs {
   std::string keyframe_gate = slam::PipelineOptions{}.keyframe_gate_mapper_busy ? "on" : "off";
   std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off",
               keyframe_new_content = "on", depth_noise = "keypoint", map_lock = "pi",
-              tracking_policy = "off", local_ba = "on";
+              tracking_policy = "off", local_ba = "on", cross_check = "on";
   double depth_units_per_m = 0;
   int mapping_rt_priority = slam::PipelineOptions{}.mapping_rt_priority;
 };
@@ -92,6 +92,7 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   po.loop_closing = a.loop_closing == "on";
   po.keyframe_gate_mapper_busy = a.keyframe_gate == "on";
   po.tracker.keyframe_needs_new_content = a.keyframe_new_content == "on";
+  if (a.cross_check == "off") po.tracker.cross_check_tracked_ratio = 0;
   po.map_lock_priority_inheritance = a.map_lock == "pi";
   po.mapper.bundle_adjustment = a.local_ba == "on";
   po.mapping_rt_priority = a.mapping_rt_priority;
@@ -130,6 +131,7 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
   m["cv_threads"] = a.cv_threads;
   m["loop_closing_option"] = a.loop_closing;
   m["keyframe_new_content"] = a.keyframe_new_content;
+  m["cross_check"] = a.cross_check;
   m["depth_noise"] = a.depth_noise;
   m["map_lock"] = a.map_lock;
   m["local_ba"] = a.local_ba;
@@ -474,6 +476,12 @@ int main(int argc, char** argv) {
                   "localmap: a view change makes no keyframe that would be culled as redundant at "
                   "once (>= 90 % of "
                   "its tracked near points seen by >= 3 keyframes); off: ORB-SLAM2's rule as is")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  run->add_option("--cross-check", a.cross_check,
+                  "localmap: a weak fit (< 0.75 x the reference keyframe's tracked points, or < 50 "
+                  "inliers) is cross-checked by registering the frame to the reference keyframe, "
+                  "independent of the prediction; the fit with more inliers is kept")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   run->add_option(

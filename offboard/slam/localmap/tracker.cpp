@@ -22,6 +22,10 @@ Eigen::Isometry3d scale_motion(const Eigen::Isometry3d& T, double s) {
   return out;
 }
 
+/// ORB-SLAM2's nMinObs for the reference keyframe's tracked points: 3 observations, or 2 while the
+/// map has <= 2 keyframes; an RGB-D observation counts 2 there, i.e. 2 keyframes, or 1.
+int keyframe_min_observations(const SlamMap& map) { return map.keyframes().size() > 2 ? 2 : 1; }
+
 }  // namespace
 
 ProjectionFitOptions projection_fit_options(const TrackerOptions& o) {
@@ -74,6 +78,8 @@ bool TrackerOptions::is_valid(std::string* error) const {
   if (pose.rounds < 1 || pose.iterations_per_round < 1)
     return fail("pose optimiser needs >= 1 round and iteration");
   if (!(max_velocity_scale >= 1)) return fail("max_velocity_scale must be >= 1");
+  if (!(cross_check_tracked_ratio >= 0 && cross_check_tracked_ratio < 1))
+    return fail("cross_check_tracked_ratio must be in [0, 1)");
   if (!(max_predicted_gap_s > 0)) return fail("max_predicted_gap_s must be positive");
   if (!(max_acceleration_m_per_s2 > 0) || !(motion_bound_baseline_s > 0))
     return fail("max_acceleration_m_per_s2 and motion_bound_baseline_s must be positive");
@@ -145,6 +151,15 @@ Tracker::LocalMap Tracker::build_local_map(const std::vector<std::int64_t>& seed
     }
   }
   return local;
+}
+
+bool Tracker::cross_check_needed(const Fit& fit) const {
+  if (!fit.ok || !(options_.cross_check_tracked_ratio > 0)) return false;
+  if (static_cast<int>(fit.inliers) < options_.min_inliers_relocalised) return true;
+  const auto lock = lock_map();
+  const int ref_tracked =
+      map_->map.tracked_points(reference_kf_, keyframe_min_observations(map_->map));
+  return static_cast<double>(fit.inliers) < options_.cross_check_tracked_ratio * ref_tracked;
 }
 
 Tracker::Fit Tracker::fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
@@ -316,10 +331,15 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
   // can lock onto repeated texture at the wrong offset and still pass the relocalisation bar (HIL
   // scenario 4 after a 1.7 s link stall: 65 inliers 0.21 m off, then a keyframe made there), so
   // the database is asked as well and the fit with more inliers is kept.
-  if (!fit.ok || static_cast<int>(fit.inliers) < needed || out.prediction_stale) {
+  // A weak fit (cross_check_needed) gets the same second opinion from the reference keyframe alone.
+  const bool recover = !fit.ok || static_cast<int>(fit.inliers) < needed || out.prediction_stale;
+  out.cross_checked = !recover && cross_check_needed(fit);
+  if (recover || out.cross_checked) {
     t0 = steady_now_ns();
     std::vector<std::int64_t> candidates;
-    {
+    if (out.cross_checked) {
+      candidates.push_back(reference_kf_);
+    } else {
       const auto lock = lock_map();
       candidates =
           rank_keyframes_by_appearance(map_->map, thumbnail, options_.relocalisation_candidates);
@@ -446,10 +466,9 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     // counting 2 there: i.e. 2 keyframes, or 1 while the map has <= 2 keyframes. Ratio 0.75
     // (0.4 while there is a single keyframe).
     const std::size_t kfs = map.keyframes().size();
-    const int min_obs = kfs > 2 ? 2 : 1;
     const double ratio =
         kfs < 2 ? options_.keyframe_tracked_ratio_first : options_.keyframe_tracked_ratio;
-    const int ref_tracked = map.tracked_points(reference_kf_, min_obs);
+    const int ref_tracked = map.tracked_points(reference_kf_, keyframe_min_observations(map));
     const int tracked = static_cast<int>(fit.inliers);
     const bool view_changed = tracked < ratio * ref_tracked;
     const bool need_near =
@@ -489,9 +508,10 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
     out.T_kf_cam = Eigen::Isometry3d::Identity();
   }
 
-  // Motion model over the last interval (not across a relocalisation).
+  // Motion model over the last interval (not across a relocalisation; a cross-check that replaced
+  // the fit continues from a tracked frame, so its motion is the corrected step).
   const double dt = frame.stamp_s - last_stamp_s_;
-  if (state_ == TrackingState::kTracking && !out.relocalised && dt > 0) {
+  if (state_ == TrackingState::kTracking && (!out.relocalised || out.cross_checked) && dt > 0) {
     T_last_cur_velocity_ = T_world_last_.inverse() * T_world_cam;
     last_interval_s_ = dt;
     have_velocity_ = true;

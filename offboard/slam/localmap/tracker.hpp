@@ -10,7 +10,8 @@
 //     vouches for (always: the projection fit is then kept only if it beats the database's), or
 //     when tracking was lost: recover the pose from descriptor matches against keyframes ranked
 //     by appearance (thumbnails) with 3D-3D RANSAC, then refine against the local map
-//     (relocalisation, same map and world frame);
+//     (relocalisation, same map and world frame); a fit that is weak (the frame is about to
+//     become a keyframe) is cross-checked the same way against the reference keyframe alone;
 //  5. decide a keyframe by view change (tracked points fall below a fraction of the reference
 //     keyframe's, or too few near points are tracked), never by the clock; insert it and its new
 //     near points into the map for the mapper to refine.
@@ -144,6 +145,17 @@ struct TrackerOptions {
   /// ~10 cm: enough for a projection search at the wrong offset in a room of repeated texture to
   /// reach the tracking bar (HIL scenario 4, 1.7 s link stall: a 45-inlier fit 0.4 m off).
   double max_predicted_gap_s = 0.2;
+  /// A fit that passes the tracking bar but is weak - fewer inliers than this x the reference
+  /// keyframe's tracked points, or fewer than `min_inliers_relocalised` - is cross-checked: the
+  /// frame is registered to the reference keyframe by descriptors and 3D-3D RANSAC, independent of
+  /// the prediction, refitted against the local map around it, and the fit with more inliers is
+  /// kept. 0.75 is the keyframe rule's `keyframe_tracked_ratio`: such a frame is about to become a
+  /// keyframe, and a keyframe made at a wrong pose misplaces every point it adds and every frame
+  /// tracked against them. On fr1_xyz_first300 with every 4th frame (7.5 fps: 5 cm and 2-3 deg
+  /// between frames, like a 30 fps stream with dropped frames) a constant-velocity prediction past
+  /// a change of direction converged 5 deg and 7 cm off with 183 inliers; the keyframe made there
+  /// put the next 8 frames 0.1 m off. 0 disables the cross-check.
+  double cross_check_tracked_ratio = 0.75;
   /// Predict the rotation from the caller's attitude (`RgbdFrame::q_nav_cam`) when two consecutive
   /// frames carry one: an IMU measures rotation directly, where the constant-velocity model
   /// extrapolates the last interval's (wrong at every change of turn rate, and across gaps).
@@ -159,6 +171,9 @@ struct TrackResult {
   bool keyframe = false;          ///< this frame became a keyframe `keyframe_id`
   std::int64_t keyframe_id = -1;  ///< the frame index, unless a loaded map already uses it
   bool relocalised = false;       ///< the pose came from the keyframe database, not the prediction
+  /// The fit was weak and was cross-checked against the reference keyframe
+  /// (TrackerOptions::cross_check_tracked_ratio); `relocalised` too when the cross-check's fit won.
+  bool cross_checked = false;
   bool attitude_predicted = false;  ///< the predicted rotation came from RgbdFrame::q_nav_cam
   bool prediction_stale =
       false;  ///< the gap since the last tracked frame exceeded max_predicted_gap_s
@@ -226,6 +241,8 @@ class Tracker {
   /// Two-pass projection matching and pose optimisation from a pose guess.
   Fit fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
                     const Eigen::Isometry3d& T_cam_world_guess, double first_radius_px) const;
+  /// The fit passed the tracking bar but is weak (TrackerOptions::cross_check_tracked_ratio).
+  bool cross_check_needed(const Fit& fit) const;
   /// A pose guess from the keyframe database and the keyframe it was registered to.
   struct KeyframeGuess {
     Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();

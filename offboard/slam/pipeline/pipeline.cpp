@@ -513,6 +513,7 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   rec.matching_ms = tr.local_map_ms + tr.search_ms;
   rec.ransac_ms = tr.relocalise_ms;
   rec.relocalised = tr.relocalised;
+  rec.cross_checked = tr.cross_checked;
   rec.prediction_stale = tr.prediction_stale;
   rec.attitude_predicted = tr.attitude_predicted;
   rec.prediction_deviation_m = tr.prediction_deviation_m;
@@ -523,7 +524,9 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   rec.frontend_cpu_ms = (thread_cpu_now_ns() - c0) * 1e-6;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (tr.relocalised) ++summary_.relocalisations;
+    if (tr.relocalised && !tr.cross_checked) ++summary_.relocalisations;
+    if (tr.cross_checked) ++summary_.cross_checks;
+    if (tr.relocalised && tr.cross_checked) ++summary_.cross_check_replacements;
     if (tr.state == TrackingState::kLost) ++summary_.frames_lost;
     push_record_locked(std::move(rec));
   }

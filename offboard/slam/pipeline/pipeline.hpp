@@ -109,6 +109,7 @@ struct FrameRecord {
   bool loop_closed = false;
   bool relocalised =
       false;  ///< local-map system: the pose came from the keyframe database (TrackResult)
+  bool cross_checked = false;  ///< local-map system: a weak fit was cross-checked (TrackResult)
   bool prediction_stale =
       false;  ///< local-map system: the gap exceeded the tracker's max_predicted_gap_s
   bool attitude_predicted = false;  ///< local-map system: rotation predicted from the IMU attitude
@@ -151,6 +152,9 @@ struct PipelineSummary {
   std::size_t map_points = 0;
   std::size_t keyframes_culled = 0;
   std::size_t relocalisations = 0;  ///< frames whose pose came from the keyframe database
+                                    ///< after a loss or a stale prediction
+  /// Weak fits cross-checked against the reference keyframe, and those whose pose it replaced.
+  std::size_t cross_checks = 0, cross_check_replacements = 0;
   std::size_t frames_lost = 0;
   bool loop_closing_active =
       false;  ///< the loop closer ran (option on and a vocabulary for the detector)

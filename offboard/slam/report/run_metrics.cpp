@@ -27,6 +27,8 @@ namespace {
 void add_local_map_metrics(const RunOutcome& run, json* m) {
   (*m)["keyframes_culled"] = run.summary.keyframes_culled;
   (*m)["relocalisations"] = run.summary.relocalisations;
+  (*m)["cross_checks"] = run.summary.cross_checks;
+  (*m)["cross_check_replacements"] = run.summary.cross_check_replacements;
   std::vector<double> map_ms, map_cpu, ba_ms;
   for (const auto& st : run.mapper_stats) {
     map_ms.push_back(st.total_ms);

@@ -935,3 +935,75 @@ TEST(AttitudePrior, ASuddenPanIsTrackedByProjectionWhenTheImuAttitudeComesWithTh
 
 }  // namespace
 }  // namespace slam
+
+namespace slam {
+namespace {
+
+/// A tracker (cross-check ratio `cross_check_ratio`) on one keyframe seeing 200 landmarks at the
+/// origin. The camera pans 1 deg in one frame interval, then stops; the next frame comes 0.1 s
+/// later (3 intervals: the prediction extrapolates 3 deg). In that frame 120 landmarks are seen
+/// from where the camera is (the origin) and 80 look exactly as from the predicted pose (texture
+/// that repeats 3 deg over: the aliasing a wrong prediction can lock onto). Returns the last frame.
+TrackResult track_a_stop_the_view_aliases(double cross_check_ratio) {
+  OneKeyframeScene scene = one_keyframe_scene(53);
+  const SyntheticWorld& w = scene.w;
+  const std::vector<int>& seen = scene.seen;
+  std::string err;
+  TrackerOptions to;
+  to.matching.lowe_ratio = 0.75;
+  to.cross_check_tracked_ratio = cross_check_ratio;
+  auto tracker = Tracker::create(to, w.cam, w.map, &err);
+  EXPECT_TRUE(tracker) << err;
+  if (!tracker) return {};
+  const FeatureOptions fo = orb_features();
+  const double deg = M_PI / 180;
+  RgbdFrame f;
+  f.rgb = image_of(0);
+  tracker->set_lost();
+  f.index = 100;
+  f.stamp_s = 1.0;
+  EXPECT_EQ(tracker->track(f, w.features_of(pose_at(0, 0, -1 * deg), seen), fo, false).state,
+            TrackingState::kTracking);
+  f.index = 101;
+  f.stamp_s = 1.033;
+  const TrackResult moving = tracker->track(f, w.features_of(pose_at(0, 0, 0), seen), fo, false);
+  EXPECT_EQ(moving.state, TrackingState::kTracking);
+  EXPECT_FALSE(moving.cross_checked);  // all 200 tracked: not weak
+  std::map<int, Eigen::Isometry3d> aliased;
+  for (std::size_t i = 120; i < seen.size(); ++i) aliased[seen[i]] = pose_at(0, 0, 3 * deg);
+  f.index = 102;
+  f.stamp_s = 1.133;
+  return tracker->track(f, w.features_of(pose_at(0, 0, 0), seen, aliased), fo, false);
+}
+
+TEST(CrossCheck, AWeakFitAtTheWrongPoseIsReplacedByTheReferenceKeyframesRegistration) {
+  // GIVEN a camera that stops where the constant-velocity prediction overshoots by 3 deg, in front
+  // of texture that repeats there: around the prediction only the 80 aliased points match (the
+  // 120 true ones are ~27 px away, past the 15 px search)
+  // WHEN the cross-check is off THEN the fit stays at the prediction: 80 inliers (above the
+  // tracking bar of 30), 3 deg off, and would be handed on
+  const TrackResult unchecked = track_a_stop_the_view_aliases(0.0);
+  ASSERT_EQ(unchecked.state, TrackingState::kTracking);
+  EXPECT_FALSE(unchecked.cross_checked);
+  EXPECT_NEAR(unchecked.inliers, 80u, 5u);
+  EXPECT_GT(Eigen::AngleAxisd(unchecked.T_world_cam.rotation()).angle(), 2.5 * M_PI / 180);
+  // WHEN it is on (80 < 0.75 x the reference's 200 tracked points: weak) THEN the frame is
+  // registered to the reference keyframe by descriptors, independent of the prediction, the refit
+  // there finds the 120, and that fit replaces the wrong one
+  const TrackResult checked = track_a_stop_the_view_aliases(0.75);
+  ASSERT_EQ(checked.state, TrackingState::kTracking);
+  EXPECT_TRUE(checked.cross_checked);
+  EXPECT_TRUE(checked.relocalised);
+  EXPECT_GE(checked.inliers, 115u);
+  EXPECT_LT(Eigen::AngleAxisd(checked.T_world_cam.rotation()).angle(), 0.2 * M_PI / 180);
+  EXPECT_LT(checked.T_world_cam.translation().norm(), 0.005);
+  // AND the ratio is validated
+  TrackerOptions o;
+  o.cross_check_tracked_ratio = 1.0;
+  std::string err;
+  EXPECT_FALSE(o.is_valid(&err));
+  EXPECT_NE(err.find("cross_check_tracked_ratio"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace slam
