@@ -4,7 +4,8 @@
 #   SIFT/SURF/ORB x local map/VO/LLC/GLC, plus cv::rgbd::RgbdOdometry (rgbd-odometry-peer) on the
 #   same frames; then real-time replays at 30 fps (local map ORB and SIFT, the thesis ORB VO+LLC and
 #   VO+GLC) counting dropped front-end frames; relocalisation (1 s withheld mid-sequence; a second
-#   run from the saved map); loop closing on vs off (local map ORB, wait and real time, on
+#   run from the saved map); every k-th frame (k = 1..6) with the cross-check of weak fits on and
+#   off; loop closing on vs off (local map ORB, wait and real time, on
 #   fr1_xyz_first300 and fr2_desk_first50: ATE, loops detected/accepted, pose-graph ms, map-lock
 #   hold ms); and the long run (fr1_xyz_first300 forward/backward LONGRUN_PASSES times, real time,
 #   per-minute table). Prints tables shaped like thesis Tables 4.8 (RPE) and 4.10
@@ -88,6 +89,15 @@ if [ -d "$DATA/fr1_xyz_first300" ]; then
     --save-map "$OUT/fr1_xyz_first300.map" --out "$OUT/reloc_gap" 2> "$OUT/reloc_gap.log" || status=1
   "$BIN/slam-eval" run --dataset "$xyz" --load-map "$OUT/fr1_xyz_first300.map" --mode wait --no-map \
     --quiet --out "$OUT/reloc_reload" 2> "$OUT/reloc_reload.log" || status=1
+  # Larger steps between frames (every k-th frame: the motion of a faster flight, or of a stream
+  # that drops frames), with the tracker's cross-check of weak fits on and off (wait mode).
+  for k in 1 2 3 4 6; do
+    for cc in on off; do
+      echo "bench: [$(( $(date +%s) - start ))s] every ${k}th frame, cross-check $cc"
+      "$BIN/slam-eval" run --dataset "$xyz" --rate "$k" --cross-check "$cc" --mode wait --cv-threads 1 \
+        --no-map --quiet --out "$OUT/rate_${k}_cc_$cc" 2> "$OUT/rate_${k}_cc_$cc.log" || status=1
+    done
+  done
   if [ "$LONGRUN_PASSES" -gt 0 ]; then
     echo "bench: [$(( $(date +%s) - start ))s] long run: $LONGRUN_PASSES forward/backward passes, real time"
     rm -rf "$OUT/longrun_data"

@@ -36,7 +36,7 @@ def stage(m, name, key="median_ms"):
 
 def main(out_dir: str) -> int:
     out = Path(out_dir)
-    special = ("realtime_", "longrun", "reloc", "loop_")
+    special = ("realtime_", "longrun", "reloc", "loop_", "rate_")
     seqs = sorted(p.name for p in out.iterdir() if p.is_dir() and not p.name.startswith(special))
     for seq in seqs:
         runs = {(d, b): load(out / seq / f"{d}_{b}" / "metrics.json") for d in DETECTORS for b, _ in BACKENDS}
@@ -129,6 +129,22 @@ def main(out_dir: str) -> int:
                   f"{(lc.get('posegraph') or {}).get('max_ms', '-')} | {(lc.get('apply_lock') or {}).get('max_ms', '-')} | "
                   f"{(lc.get('fuse_lock_max_per_keyframe') or {}).get('max_ms', '-')} | {lc.get('local_ba_discarded', '-')} | "
                   f"{m.get('frontend_dropped')} |")
+    rates = sorted({int(p.name.split("_")[1]) for p in out.iterdir() if p.is_dir() and p.name.startswith("rate_")})
+    if rates:
+        print("\n### Larger steps between frames (local map ORB, wait, fr1_xyz_first300 every k-th frame): "
+              "cross-check of weak fits on / off")
+        print("| k (fps) | ATE m on / off | RPE mm on / off | keyframes on / off | cross-checks (replaced) | "
+              "lost frames on / off | tracking CPU p95 ms on / off |")
+        print("|---|---|---|---|---|---|---|")
+        for k in rates:
+            on, off = (load(out / f"rate_{k}_cc_{c}" / "metrics.json") or {} for c in ("on", "off"))
+            print(f"| {k} ({30 / k:.1f}) | {cell(on, 'ate_rmse_m', '{:.4f}')} / {cell(off, 'ate_rmse_m', '{:.4f}')} | "
+                  f"{cell(on, 'rpe_trans_rmse_mm', '{:.2f}')} / {cell(off, 'rpe_trans_rmse_mm', '{:.2f}')} | "
+                  f"{on.get('keyframes', '-')} / {off.get('keyframes', '-')} | "
+                  f"{on.get('cross_checks', '-')} ({on.get('cross_check_replacements', '-')}) | "
+                  f"{on.get('tracking_lost_frames', '-')} / {off.get('tracking_lost_frames', '-')} | "
+                  f"{stage(on, 'frontend_cpu', 'p95_ms') or float('nan'):.1f} / "
+                  f"{stage(off, 'frontend_cpu', 'p95_ms') or float('nan'):.1f} |")
     for name, title in (("reloc_gap", "1 s of frames withheld mid-sequence"),
                         ("reloc_reload", "second run started from the reloaded map")):
         m = load(out / name / "metrics.json")
