@@ -16,6 +16,7 @@ from hilrig.slam_flight import SlamFlight, camera_room_position, goal_in_room, h
 HOLD_HEIGHT_M = 1.7  # thesis: hold height after take-off (quad-control's controller.hold_height_m)
 SETTLE_S = 5.0  # after quad-control reports "hold": the PID settles before the hold is scored
 ARRIVAL_SETTLE_S = 6.0  # after arriving at a waypoint: settle, then score the last second
+TURN_DONE_DEG = 5.0  # a turn is done when quad-control's heading is this close to the setpoint's
 SETPOINT_MATCH_M = 0.01  # the hold setpoint equals the clicked waypoint (JSON round trip of doubles)
 
 
@@ -92,6 +93,41 @@ def go_to(flight: SlamFlight, start_room: np.ndarray, x_m: float, y_m: float, pr
     t_end = flight.rig.sim_us
     err = hold_error(flight.rig.history(), goal, flight.options.mount, t_end - 1e6, t_end)
     return {"leg_s": round((t_arrived - t_start) / 1e6, 1), **err}
+
+
+def _heading_error_deg(state: dict) -> float:
+    """quad-control's heading (SLAM) against its setpoint's, wrapped to [-180, 180)."""
+    pose, sp = state.get("pose"), state.get("setpoint") or {}
+    if not pose or "yaw_deg" not in sp:
+        return 1e9
+    return (pose["yaw_deg"] - sp["yaw_deg"] + 180.0) % 360.0 - 180.0
+
+
+def turn(flight: SlamFlight, start_room: np.ndarray, yaw_ccw_deg: float, hold_s: float, progress=None) -> dict:
+    """Turns in place by `yaw_ccw_deg` (the dashboard's manual step), waits until quad-control's
+    heading is within TURN_DONE_DEG of the new setpoint, then holds `hold_s` (scored after SETTLE_S).
+    Scores the true camera position during the turn and the hold against the take-off hold point,
+    and the true heading change."""
+    goal = goal_in_room(start_room, (0.0, 0.0, HOLD_HEIGHT_M))
+    _say(progress, f"turn {yaw_ccw_deg:+.0f} deg")
+    yaw0 = flight.rig.snapshot().yaw_rad
+    t0 = flight.rig.sim_us
+    flight.manual(yaw_ccw_deg=yaw_ccw_deg)
+    flight.wait_until(
+        lambda s: s["state"] == "hold" and abs(_heading_error_deg(s)) <= TURN_DONE_DEG,
+        timeout_s=60,
+        what=f"turn {yaw_ccw_deg:+.0f} deg",
+    )
+    t_turned = flight.rig.sim_us
+    # NED yaw grows clockwise seen from above: a counter-clockwise turn decreases it.
+    turned_deg = -float(np.degrees((flight.rig.snapshot().yaw_rad - yaw0 + np.pi) % (2 * np.pi) - np.pi))
+    return {
+        "yaw_ccw_deg": yaw_ccw_deg,
+        "true_turn_deg": round(turned_deg, 1),
+        "turn_s": round((t_turned - t0) / 1e6, 2),
+        "during_turn": hold_error(flight.rig.history(), goal, flight.options.mount, t0, t_turned),
+        "hold": hold(flight, start_room, hold_s, progress),
+    }
 
 
 def _setpoint_at(state: dict, x_m: float, y_m: float) -> bool:

@@ -502,6 +502,15 @@ class SlamFlight:
             raise RuntimeError(f"waypoint refused ({status}): {body}")
         return body
 
+    def manual(self, forward_m: float = 0.0, left_m: float = 0.0, up_m: float = 0.0, yaw_ccw_deg: float = 0.0) -> dict:
+        """The dashboard's manual step (POST /api/manual): moves the hold setpoint, turns the heading."""
+        body = {"forward_m": forward_m, "left_m": left_m, "up_m": up_m, "yaw_ccw_deg": yaw_ccw_deg}
+        status, reply = self._http("POST", "/api/manual", body)
+        self.operator_events.append((time.monotonic(), f"manual {json.dumps(body)}", json.dumps(reply)))
+        if status != 200:
+            raise RuntimeError(f"manual step refused ({status}): {reply}")
+        return reply
+
     def wait_until(self, predicate, timeout_s: float, what: str, poll_s: float = 0.1) -> dict:
         """Polls /api/state until predicate(state) holds; raises with the last state otherwise."""
         end = time.monotonic() + timeout_s
@@ -625,7 +634,29 @@ class SlamFlight:
         """The figures every flight reports: ATE, latency per stage, stream/SLAM counts."""
         return {"ate": self.ate(), "latency_ms": self.latency(), "stream": self.stream_stats(),
                 "scheduling": self.scheduling(), "load_average": _load_average(),
-                "thread_cpu_s": self.thread_cpu()}
+                "thread_cpu_s": self.thread_cpu(), "slam_tracking": self.slam_tracking()}
+
+    def slam_tracking(self) -> dict:
+        """slam-server's per-frame table (--tables-dir, every session of every slam-server run):
+        frames tracked and lost, and how each tracked pose was found."""
+        rows = [r for path in sorted(self.workdir.glob("slam-tables*/session-*/frames.csv")) for r in _read_csv(path)]
+        if not rows:
+            return {"frames": 0}
+
+        def count(column: str) -> int:
+            return sum(1 for r in rows if r.get(column) == "1")
+
+        cpu = np.array([float(r["frontend_cpu_ms"]) for r in rows if r.get("frontend_cpu_ms")])
+        return {
+            "frames": len(rows),
+            "lost": sum(1 for r in rows if r.get("state") == "lost"),
+            "relocalised": count("relocalised"),
+            "cross_checked": count("cross_checked"),
+            "attitude_predicted": count("attitude_predicted"),
+            "keyframes": count("keyframe"),
+            "tracking_cpu_ms": {"median": round(float(np.median(cpu)), 1), "p95": round(float(np.percentile(cpu, 95)), 1)}
+            if cpu.size else None,
+        }
 
     def thread_cpu(self) -> dict:
         """CPU seconds per named thread of each ground-station and onboard process so far

@@ -8,6 +8,8 @@ and the FC emulator. The operator uses quad-control's dashboard API; emulator tr
   scenario 4  the stream link (both sockets) drops for 1 s mid-hover and comes back
   scenario 5  degraded stream link (20 +- 10 ms, 2 % loss stalls of 200 ms) during a hover
   scenario 6  blank frames from the Kinect mid-hover (the streamer drops them)
+  scenario 8  turns in place: +90, -90, -90, +90 deg with holds between (the IMU rotation prior's
+              case: a changing turn rate is what constant velocity predicts worst)
   load        take off and hold 30 s with two CPU burners (stress-ng) beside the ground station
 Each fault scenario must end holding or landed, never flying away.
 Reports: test-artifacts/hil/slam_loop_scenario{1..6}.json, slam_loop_load.json (printed by make hil).
@@ -219,6 +221,28 @@ def test_slam_loop_scenario5_degraded_stream_link(tmp_path):
     # Was a strict xfail until 3 Dec 2026 (0.158-0.169 m): met since the roll/pitch gains were
     # chosen for the shorter loop delay (hilrig/slam_flight.py HIL_CONTROLLER_GAINS; docs/hil.md).
     assert out["max_horizontal_from_hold_point_m"] <= HOLD_TOLERANCE_M, out
+
+
+# Scenario 8: each turn faces another wall of the room (left, back to the front, right, front).
+TURNS_CCW_DEG = (90.0, -90.0, -90.0, 90.0)
+TURN_HOLD_S = 8.0
+
+
+def test_slam_loop_scenario8_turns_in_place(flight):
+    to = missions.take_off(flight, progress=print)
+    start = to["start_room_m"]
+    report: dict = {"hold": missions.hold(flight, start, 5.0, progress=print)}
+    report["turns"] = [missions.turn(flight, start, yaw, TURN_HOLD_S, progress=print) for yaw in TURNS_CCW_DEG]
+    report["failsafe_events"] = [e for _, e in flight.rig.fc.events if "failsafe" in e]
+    report["rejected_pose_jumps"] = flight.state().get("rejected_poses")
+    prior = flight.options.imu_rotation_prior
+    report["imu_rotation_prior"] = "default (on)" if prior is None else prior
+    report = _finish(flight, "slam_loop_scenario8", report)
+    assert not report["failsafe_events"]
+    assert report["ate"].get("ate_rmse_m") is not None
+    for t in report["turns"]:
+        assert abs(t["true_turn_deg"] - t["yaw_ccw_deg"]) <= 2 * missions.TURN_DONE_DEG, t
+        assert t["hold"]["max_m"] <= HOLD_TOLERANCE_M, t
 
 
 def test_slam_loop_scenario6_blank_frames(tmp_path):

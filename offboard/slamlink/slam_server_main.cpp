@@ -299,6 +299,12 @@ int main(int argc, char** argv) {
                  "localmap: loop closing on its own thread (docs/slam.md)")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
+  std::string cross_check = "on";
+  app.add_option("--cross-check", cross_check,
+                 "localmap: cross-check weak fits against the reference keyframe (docs/slam.md); "
+                 "off for ablations")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   std::string thread_policy = "rr";
   slam::ThreadPriorityOptions priority;
   app.add_option(
@@ -327,6 +333,7 @@ int main(int argc, char** argv) {
   }
   slam::PipelineOptions options;
   options.loop_closing = loop_closing == "on";
+  if (cross_check == "off") options.tracker.cross_check_tracked_ratio = 0;
   options.mapping_rt_priority = mapping_rt_priority;
   std::string err;
   if (!slam::parse_detector_kind(features, &options.frontend.features.kind, &err) ||

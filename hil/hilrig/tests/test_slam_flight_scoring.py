@@ -51,3 +51,21 @@ def test_hold_error_uses_only_the_window_and_splits_the_axes():
 def test_sequence_number_of_a_request_line():
     assert _seq_of("PUT /control?seq=42&arm=1&roll=1500&pitch=1500&thr=1000&yaw=1500&mac=00") == 42
     assert _seq_of("GET /status") is None
+
+
+def test_slam_tracking_counts_every_session_of_every_slam_server_run(tmp_path):
+    from types import SimpleNamespace
+
+    from hilrig.slam_flight import SlamFlight
+
+    header = "index,state,keyframe,relocalised,attitude_predicted,cross_checked,frontend_cpu_ms\n"
+    first = tmp_path / "slam-tables" / "session-1"
+    first.mkdir(parents=True)
+    (first / "frames.csv").write_text(header + "0,tracking,1,0,0,0,5\n1,tracking,0,0,1,1,9\n2,lost,0,0,1,0,7\n")
+    restarted = tmp_path / "slam-tables-1" / "session-1"
+    restarted.mkdir(parents=True)
+    (restarted / "frames.csv").write_text(header + "0,tracking,0,1,1,1,11\n")
+    out = SlamFlight.slam_tracking(SimpleNamespace(workdir=tmp_path))
+    assert out == {"frames": 4, "lost": 1, "relocalised": 1, "cross_checked": 2, "attitude_predicted": 3,
+                   "keyframes": 1, "tracking_cpu_ms": {"median": 8.0, "p95": 10.7}}
+    assert SlamFlight.slam_tracking(SimpleNamespace(workdir=tmp_path / "none")) == {"frames": 0}

@@ -22,6 +22,8 @@ Eigen::Isometry3d scale_motion(const Eigen::Isometry3d& T, double s) {
   return out;
 }
 
+constexpr double kDegPerRad = 57.29577951308232;
+
 /// ORB-SLAM2's nMinObs for the reference keyframe's tracked points: 3 observations, or 2 while the
 /// map has <= 2 keyframes; an RGB-D observation counts 2 there, i.e. 2 keyframes, or 1.
 int keyframe_min_observations(const SlamMap& map) { return map.keyframes().size() > 2 ? 2 : 1; }
@@ -80,6 +82,8 @@ bool TrackerOptions::is_valid(std::string* error) const {
   if (!(max_velocity_scale >= 1)) return fail("max_velocity_scale must be >= 1");
   if (!(cross_check_tracked_ratio >= 0 && cross_check_tracked_ratio < 1))
     return fail("cross_check_tracked_ratio must be in [0, 1)");
+  if (!(cross_check_same_pose_m >= 0) || !(cross_check_same_pose_deg >= 0))
+    return fail("cross_check_same_pose_m and cross_check_same_pose_deg must be >= 0");
   if (!(max_predicted_gap_s > 0)) return fail("max_predicted_gap_s must be positive");
   if (!(max_acceleration_m_per_s2 > 0) || !(motion_bound_baseline_s > 0))
     return fail("max_acceleration_m_per_s2 and motion_bound_baseline_s must be positive");
@@ -358,7 +362,18 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
       }
       Fit refit =
           fit_local_map(around, tf, guess->T_world_cam.inverse(), options_.search.radius_px);
-      if (refit.ok && refit.inliers > fit.inliers) {
+      // A cross-check that lands on the same pose changes nothing: the projection fit, matched
+      // against the local map of the last frame's points, stays (and with it the keyframe's links
+      // to the map). Only a different pose with more inliers replaces it.
+      bool replaces = true;
+      if (out.cross_checked && refit.ok) {
+        const Eigen::Isometry3d d = fit.T_cam_world.inverse() * refit.T_cam_world;
+        out.cross_check_shift_m = d.translation().norm();
+        out.cross_check_shift_deg = rotation_angle_rad(d) * kDegPerRad;
+        replaces = out.cross_check_shift_m > options_.cross_check_same_pose_m ||
+                   out.cross_check_shift_deg > options_.cross_check_same_pose_deg;
+      }
+      if (refit.ok && refit.inliers > fit.inliers && replaces) {
         fit = std::move(refit);
         local = std::move(around);
         out.local_points = local.points.size();

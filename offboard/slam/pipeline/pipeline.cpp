@@ -514,6 +514,8 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
   rec.ransac_ms = tr.relocalise_ms;
   rec.relocalised = tr.relocalised;
   rec.cross_checked = tr.cross_checked;
+  rec.cross_check_shift_m = tr.cross_check_shift_m;
+  rec.cross_check_shift_deg = tr.cross_check_shift_deg;
   rec.prediction_stale = tr.prediction_stale;
   rec.attitude_predicted = tr.attitude_predicted;
   rec.prediction_deviation_m = tr.prediction_deviation_m;

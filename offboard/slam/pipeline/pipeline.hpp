@@ -110,6 +110,7 @@ struct FrameRecord {
   bool relocalised =
       false;  ///< local-map system: the pose came from the keyframe database (TrackResult)
   bool cross_checked = false;  ///< local-map system: a weak fit was cross-checked (TrackResult)
+  double cross_check_shift_m = -1, cross_check_shift_deg = -1;  ///< (TrackResult)
   bool prediction_stale =
       false;  ///< local-map system: the gap exceeded the tracker's max_predicted_gap_s
   bool attitude_predicted = false;  ///< local-map system: rotation predicted from the IMU attitude

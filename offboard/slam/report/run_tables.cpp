@@ -13,7 +13,8 @@ std::optional<FramesTable> FramesTable::create(const fs::path& path, std::string
   out << "index,stamp_s,state,keyframe,matches,inliers,frontend_ms,frontend_cpu_ms,map_keyframes,"
          "map_points,keyframe_wanted,ref_tracked,near_tracked,near_untracked,near_redundant,"
          "map_lock_wait_ms,relocalised,features_ms,matching_ms,relocalise_ms,prediction_stale,"
-         "prediction_deviation_m,prediction_deviation_bound_m,attitude_predicted,cross_checked\n";
+         "prediction_deviation_m,prediction_deviation_bound_m,attitude_predicted,cross_checked,"
+         "cross_check_shift_m,cross_check_shift_deg\n";
   if (!out) {
     if (error) *error = "cannot write " + path.string();
     return std::nullopt;
@@ -31,7 +32,8 @@ void FramesTable::append(const FrameRecord& r) {
        << r.features_ms << "," << r.matching_ms << "," << r.ransac_ms << ","
        << (r.prediction_stale ? 1 : 0) << "," << std::setprecision(4) << r.prediction_deviation_m
        << "," << r.prediction_deviation_bound_m << "," << (r.attitude_predicted ? 1 : 0) << ","
-       << (r.cross_checked ? 1 : 0) << "\n";
+       << (r.cross_checked ? 1 : 0) << "," << r.cross_check_shift_m << ","
+       << r.cross_check_shift_deg << "\n";
 }
 
 bool FramesTable::close(std::string* error) {
