@@ -481,7 +481,8 @@ int main(int argc, char** argv) {
   run->add_option("--cross-check", a.cross_check,
                   "localmap: a weak fit (< 0.75 x the reference keyframe's tracked points, or < 50 "
                   "inliers) is cross-checked by registering the frame to the reference keyframe, "
-                  "independent of the prediction; the fit with more inliers is kept")
+                  "independent of the prediction; that fit replaces it when it has more inliers "
+                  "at a different pose (> 1 cm or 0.5 deg away)")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   run->add_option(

@@ -30,6 +30,13 @@ int keyframe_min_observations(const SlamMap& map) { return map.keyframes().size(
 
 }  // namespace
 
+CameraShift camera_shift(const Eigen::Isometry3d& T_cam_world_a,
+                         const Eigen::Isometry3d& T_cam_world_b) {
+  // T_a_b = T_a_world * T_world_b: camera b in camera a's frame.
+  const Eigen::Isometry3d T_a_b = T_cam_world_a * T_cam_world_b.inverse();
+  return {T_a_b.translation().norm(), rotation_angle_rad(T_a_b) * kDegPerRad};
+}
+
 ProjectionFitOptions projection_fit_options(const TrackerOptions& o) {
   ProjectionFitOptions f;
   f.search = o.search;
@@ -367,9 +374,9 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
       // to the map). Only a different pose with more inliers replaces it.
       bool replaces = true;
       if (out.cross_checked && refit.ok) {
-        const Eigen::Isometry3d d = fit.T_cam_world.inverse() * refit.T_cam_world;
-        out.cross_check_shift_m = d.translation().norm();
-        out.cross_check_shift_deg = rotation_angle_rad(d) * kDegPerRad;
+        const CameraShift d = camera_shift(fit.T_cam_world, refit.T_cam_world);
+        out.cross_check_shift_m = d.metres;
+        out.cross_check_shift_deg = d.degrees;
         replaces = out.cross_check_shift_m > options_.cross_check_same_pose_m ||
                    out.cross_check_shift_deg > options_.cross_check_same_pose_deg;
       }

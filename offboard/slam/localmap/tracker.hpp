@@ -209,6 +209,14 @@ struct TrackResult {
   std::uint64_t map_corrections = 0;
 };
 
+/// How far apart two poses of one camera are: the distance between the camera centres and the
+/// angle between the orientations.
+struct CameraShift {
+  double metres = 0, degrees = 0;
+};
+CameraShift camera_shift(const Eigen::Isometry3d& T_cam_world_a,
+                         const Eigen::Isometry3d& T_cam_world_b);
+
 /// The projection-fit settings inside the tracker options.
 ProjectionFitOptions projection_fit_options(const TrackerOptions& options);
 

@@ -629,9 +629,8 @@ namespace slam {
 namespace {
 
 /// A tracker on the world's map (ratio 0.75, as the other tracker tests), and ORB feature options.
-std::optional<Tracker> make_tracker(const SyntheticWorld& w) {
+std::optional<Tracker> make_tracker(const SyntheticWorld& w, TrackerOptions to = {}) {
   std::string err;
-  TrackerOptions to;
   to.matching.lowe_ratio = 0.75;
   auto tracker = Tracker::create(to, w.cam, w.map, &err);
   EXPECT_TRUE(tracker) << err;
@@ -704,14 +703,14 @@ struct OneKeyframeScene {
   std::optional<Tracker> tracker;
 };
 
-OneKeyframeScene one_keyframe_scene(unsigned seed) {
+OneKeyframeScene one_keyframe_scene(unsigned seed, const TrackerOptions& options = {}) {
   OneKeyframeScene scene;
   std::mt19937 rng(seed);
   const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity();
   scene.seen = scene.w.make_landmarks(T0, 200, &rng);
   std::map<int, std::int64_t> known;
   scene.w.add_keyframe(0, T0, T0, scene.seen, &known);
-  scene.tracker = make_tracker(scene.w);
+  scene.tracker = make_tracker(scene.w, options);
   return scene;
 }
 
@@ -945,15 +944,12 @@ namespace {
 /// from where the camera is (the origin) and 80 look exactly as from the predicted pose (texture
 /// that repeats 3 deg over: the aliasing a wrong prediction can lock onto). Returns the last frame.
 TrackResult track_a_stop_the_view_aliases(double cross_check_ratio) {
-  OneKeyframeScene scene = one_keyframe_scene(53);
+  TrackerOptions to;
+  to.cross_check_tracked_ratio = cross_check_ratio;
+  OneKeyframeScene scene = one_keyframe_scene(53, to);
   const SyntheticWorld& w = scene.w;
   const std::vector<int>& seen = scene.seen;
-  std::string err;
-  TrackerOptions to;
-  to.matching.lowe_ratio = 0.75;
-  to.cross_check_tracked_ratio = cross_check_ratio;
-  auto tracker = Tracker::create(to, w.cam, w.map, &err);
-  EXPECT_TRUE(tracker) << err;
+  auto& tracker = scene.tracker;
   if (!tracker) return {};
   const FeatureOptions fo = orb_features();
   const double deg = M_PI / 180;
@@ -974,6 +970,19 @@ TrackResult track_a_stop_the_view_aliases(double cross_check_ratio) {
   f.index = 102;
   f.stamp_s = 1.133;
   return tracker->track(f, w.features_of(pose_at(0, 0, 0), seen, aliased), fo, false);
+}
+
+TEST(CrossCheck, TheShiftBetweenTwoFitsIsTheCameraCentresDistanceWhereverTheCameraIs) {
+  // GIVEN one camera centre 5 m from the world origin, seen with two orientations 1 deg apart
+  Eigen::Isometry3d T_world_a = pose_at(5.0, 0.0, 0.0);
+  Eigen::Isometry3d T_world_b = pose_at(5.0, 0.0, M_PI / 180);
+  // THEN the shift is 1 deg and no distance (a product taken in the wrong order gives ~9 cm here)
+  CameraShift same_centre = camera_shift(T_world_a.inverse(), T_world_b.inverse());
+  EXPECT_NEAR(same_centre.metres, 0.0, 1e-12);
+  EXPECT_NEAR(same_centre.degrees, 1.0, 1e-9);
+  // AND a centre 2 cm away is 2 cm away, whatever the orientations
+  T_world_b.translation().y() += 0.02;
+  EXPECT_NEAR(camera_shift(T_world_a.inverse(), T_world_b.inverse()).metres, 0.02, 1e-12);
 }
 
 TEST(CrossCheck, AWeakFitAtTheWrongPoseIsReplacedByTheReferenceKeyframesRegistration) {
