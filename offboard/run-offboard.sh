@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
 # make run-offboard: the ground station for the real craft.
 #
-#   slam-server --bind 127.0.0.1 --port 5700       (if built; SLAM as a separate process)
+#   slam-server --bind 127.0.0.1 --port 5700 --checkpoint-dir $SLAM_CHECKPOINT_DIR
+#                                                  (if built; SLAM as a separate process; default
+#                                                  ~/.local/state/rgbdquad/slam-checkpoints: a
+#                                                  slam-server started again during a flight resumes
+#                                                  its map and world frame from there)
 #   quad-control --config $QC_CONFIG               (default ~/.config/rgbdquad/quad-control.json, a copy
 #                                                   of offboard/quadcontrol/config/quad-control.json with
 #                                                   firmware.key_hex set)
@@ -17,6 +21,7 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 bin=${QUAD_CONTROL_BIN:-$root/build/bin/quad-control}
 slam_bin=${SLAM_SERVER:-$root/build/bin/slam-server}
+checkpoints=${SLAM_CHECKPOINT_DIR:-$HOME/.local/state/rgbdquad/slam-checkpoints}
 config=${QC_CONFIG:-$HOME/.config/rgbdquad/quad-control.json}
 template=$root/offboard/quadcontrol/config/quad-control.json
 
@@ -42,7 +47,7 @@ cleanup() { if [ -n "$slam_pid" ]; then kill "$slam_pid" 2>/dev/null || true; wa
 trap cleanup EXIT
 if [ -x "$slam_bin" ]; then
   # shellcheck disable=SC2086
-  "$slam_bin" --bind 127.0.0.1 --port 5700 ${SLAM_SERVER_ARGS:-} &
+  "$slam_bin" --bind 127.0.0.1 --port 5700 --checkpoint-dir "$checkpoints" ${SLAM_SERVER_ARGS:-} &
   slam_pid=$!
   echo "run-offboard: slam-server pid $slam_pid on 127.0.0.1:5700"
 else

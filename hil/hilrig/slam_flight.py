@@ -251,6 +251,10 @@ class SlamFlight:
                     # waits, relocalised), written when the session ends: where SLAM spent a flight.
                     "--tables-dir",
                     str(self.workdir / "slam-tables"),
+                    # The deployed setting (run-offboard): each session's map is checkpointed, so
+                    # a slam-server restarted after a crash resumes the flight's map and world frame.
+                    *(("--checkpoint-dir", str(self.workdir / "slam-checkpoints"))
+                      if o.backend == "localmap" else ()),
                     *o.slam_server_args,
                 ],
                 system=True,
@@ -354,8 +358,10 @@ class SlamFlight:
         self._killed_on_purpose.add("slam-server")
 
     def restart_slam_server(self) -> None:
-        """A new slam-server on the same port (what a supervisor would do): quad-control's link
-        reconnects; its session is unknown there, so a new map starts and quad-control re-anchors."""
+        """A new slam-server on the same port (what a supervisor would do), with the same arguments:
+        quad-control's link reconnects with its session id; the new server resumes that session from
+        its map checkpoint (--checkpoint-dir) when there is one, else a new map starts and
+        quad-control re-anchors it."""
         old = [p for name, p in self._procs if name == "slam-server"]
         if not old or old[-1].alive():
             raise RuntimeError("slam-server is still running: kill_slam_server() first")

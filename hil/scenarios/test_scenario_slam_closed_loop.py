@@ -320,13 +320,14 @@ def _log(path) -> str | None:
 
 def test_slam_loop_slam_server_killed_and_restarted(tmp_path):
     """slam-server is SIGKILLed in the hover and a new one started on the same port 1 s later (a
-    supervisor's restart). Its maps died with it, so the reconnect cannot resume: quad-control
-    must log the broken link with its cause, start a new session and re-anchor it on the last pose
-    (or, with no pose for 300 ms, lost-hold -> blind landing through the firmware failsafe); it
-    must not crash, and the craft must end holding with tracking or landed, never climbing or
-    flying away. Where it holds is not judged against +-0.15 m: the drift during the outage (lost-
-    hold, neutral sticks, no pose) cannot be observed, and the new map is anchored on the last pose
-    before it (measured: 0.43 m off, reported in the artifact)."""
+    supervisor's restart, same arguments). The flight's map dies with the process but not its
+    checkpoint (--checkpoint-dir, written every 5 s of data): the new server resumes quad-control's
+    session from it (SlamHello.resumed), relocalises in the same map and reports poses in the same
+    world frame, so the drift during the outage (lost-hold, neutral sticks, no pose) is observed and
+    flown back instead of being anchored into a new map (before checkpoints: 0.39-0.61 m off the
+    hold point). Asserted: the broken link logged with its cause, the session resumed from its
+    checkpoint, no crash, the craft ends holding with tracking or landed, never climbing or flying
+    away; the hold error after the restart is reported."""
     with _flight(tmp_path) as flight:
         to = missions.take_off(flight, progress=print)
         flight.hold_for(missions.SETTLE_S)
@@ -340,11 +341,15 @@ def test_slam_loop_slam_server_killed_and_restarted(tmp_path):
         out = _fault_outcome(flight, to["start_room_m"], t_fault)
         qc_log = _log(tmp_path / "quad-control.log") or ""
         st = flight.state()
+        server_log = _log(tmp_path / "slam-server.log") or ""
         report = _finish(flight, "slam_loop_slam_server_restart", {
             "outage_s": 1.0, "slam": st.get("slam"),
             "disconnect_causes": [line for line in qc_log.splitlines() if "SLAM link: disconnected" in line][:3],
+            "resumed_from_checkpoint": [line for line in server_log.splitlines()
+                                        if "resumed from its checkpoint" in line][:1],
             **out})
     assert report["disconnect_causes"], "the broken SLAM link was not logged with a cause"
+    assert report["resumed_from_checkpoint"], "the restarted slam-server did not resume the flight's map"
     assert out["max_horizontal_from_hold_point_m"] < FLYAWAY_RADIUS_M
     holding = out["state_after"] == "hold" and report["slam"]["state"] == "tracking"
     assert holding or out["landed"], report

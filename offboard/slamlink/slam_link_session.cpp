@@ -147,11 +147,17 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
   const Intrinsics k = intrinsics_of(frame);
   if (!pipeline_) {
     std::string err;
-    pipeline_ = factory_(options_, k, &err);
+    PipelineOptions options = options_;
+    options.checkpoint_path = map_files_.checkpoint_path;
+    pipeline_ = factory_(options, k, &err);
     if (!pipeline_)
       return lost_update(frame, "slam-link: cannot start the pipeline: " + err, error);
     intrinsics_ = k;
-    if (!map_files_.load_path.empty() && !pipeline_->load_map(map_files_.load_path, &err)) {
+    if (map_files_.resume_from_checkpoint) {
+      if (!pipeline_->load_map(map_files_.checkpoint_path, &err))
+        resume_error_ = "slam-link: the session's checkpoint cannot be resumed (" + err +
+                        "); its world frame is lost: start a new session";
+    } else if (!map_files_.load_path.empty() && !pipeline_->load_map(map_files_.load_path, &err)) {
       // The flight goes on in a new map: say so on every frame's first answer, never silently.
       map_load_error_ = "slam-link: map not loaded, starting a new map: " + err;
     }
@@ -175,6 +181,7 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
                            describe(intrinsics_) + "); start a new session for a new camera",
                        error);
   }
+  if (!resume_error_.empty()) return lost_update(frame, resume_error_, error);
   if (!map_load_error_.empty() && frames_ == 0 && error) *error = map_load_error_;
   std::string why;
   auto f = to_frame(frame, &why);
@@ -250,6 +257,12 @@ std::string SlamLinkSession::finish_summary() {
       << " BAs interrupted";
     if (!s.mapping_thread.empty()) m << " (" << s.mapping_thread << ")";
     if (!map_load_error_.empty()) m << "; " << map_load_error_;
+    if (!resume_error_.empty()) m << "; " << resume_error_;
+    if (!map_files_.checkpoint_path.empty()) {
+      m << "; " << s.checkpoints_written << " map checkpoints (slowest " << s.checkpoint_max_ms
+        << " ms)";
+      if (!s.checkpoint_error.empty()) m << ", last failure: " << s.checkpoint_error;
+    }
     if (!map_files_.save_path.empty()) {
       std::string err;
       if (pipeline_->save_map(map_files_.save_path, &err))

@@ -46,6 +46,14 @@ struct SessionMapFiles {
   /// this folder (created with the pipeline; frames.csv grows during the flight, the others are
   /// written when the session ends) - what slam-eval writes for a dataset, for a flight.
   std::string tables_dir;
+  /// When set: the map is checkpointed here while the session runs (PipelineOptions::
+  /// checkpoint_path), so that a slam-server restarted after a crash continues the same map.
+  std::string checkpoint_path;
+  /// The session continues the map in `checkpoint_path` (its client was told its session
+  /// resumed): the first frame loads it and relocalises in its world frame. If it cannot be loaded
+  /// (another camera, a file broken since it was checked) every frame is answered LOST with the
+  /// reason - a new map here would move the world frame under a client told it was kept.
+  bool resume_from_checkpoint = false;
 };
 
 /// What a session asks of the SLAM pipeline (the subset of Pipeline it uses, same contracts).
@@ -110,6 +118,7 @@ class SlamLinkSession {
   std::string
       map_load_error_;        ///< why the configured map could not be loaded ("" = loaded or none)
   std::string tables_error_;  ///< why the tables could not be started ("" = started or none)
+  std::string resume_error_;  ///< why the checkpoint to resume could not be loaded ("" = loaded)
   PipelineFactory factory_;
   std::unique_ptr<SessionPipeline> pipeline_;
   Intrinsics intrinsics_;  ///< what the pipeline was created with (the session's first frame)

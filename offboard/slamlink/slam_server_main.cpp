@@ -20,6 +20,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -292,6 +293,17 @@ int main(int argc, char** argv) {
   app.add_option("--resume-grace-ms", ropt.resume_grace_ms,
                  "a session without its client is kept this long")
       ->capture_default_str();
+  app.add_option("--checkpoint-dir", ropt.checkpoint_dir,
+                 "localmap: checkpoint each session's map into DIR/session-<id>.map (created if "
+                 "missing) every --checkpoint-period-s of data and after each loop correction; a "
+                 "restarted slam-server asked for that session resumes its map and world frame "
+                 "(SlamHello.resumed) instead of starting a new one; deleted when the session "
+                 "ends for good, kept when slam-server stops");
+  double checkpoint_period_s = slam::PipelineOptions{}.checkpoint_period_s;
+  app.add_option("--checkpoint-period-s", checkpoint_period_s,
+                 "data seconds between map checkpoints (0: after every keyframe)")
+      ->check(CLI::Range(0.0, 3600.0))
+      ->capture_default_str();
   app.add_option("--max-sessions", ropt.max_sessions, "maps held at once (attached + parked)")
       ->capture_default_str();
   std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off";
@@ -335,6 +347,7 @@ int main(int argc, char** argv) {
   options.loop_closing = loop_closing == "on";
   if (cross_check == "off") options.tracker.cross_check_tracked_ratio = 0;
   options.mapping_rt_priority = mapping_rt_priority;
+  options.checkpoint_period_s = checkpoint_period_s;
   std::string err;
   if (!slam::parse_detector_kind(features, &options.frontend.features.kind, &err) ||
       !slam::parse_backend_kind(backend, &options.backend.kind, &err)) {
@@ -344,6 +357,19 @@ int main(int argc, char** argv) {
   if (std::string e = copt.validate() + ropt.validate(); !e.empty()) {
     log_line(e);
     return 2;
+  }
+  if (!ropt.checkpoint_dir.empty()) {
+    if (options.backend.kind != slam::BackendKind::kLocalMap) {
+      log_line("--checkpoint-dir needs --backend localmap");
+      return 2;
+    }
+    std::error_code ec;
+    std::filesystem::create_directories(ropt.checkpoint_dir, ec);
+    if (ec || !std::filesystem::is_directory(ropt.checkpoint_dir)) {
+      log_line("--checkpoint-dir " + ropt.checkpoint_dir + ": cannot create it" +
+               (ec ? ": " + ec.message() : std::string()));
+      return 2;
+    }
   }
   sigset_t mask;
   sigemptyset(&mask);
@@ -380,8 +406,13 @@ int main(int argc, char** argv) {
   // themselves below it (slam::PipelineOptions::mapping_rt_priority).
   log_line(slam::raise_current_thread(priority).describe("serving"));
   slam::SessionRegistry registry(
-      ropt, [options, load_map, save_map, tables_dir, sessions = std::make_shared<int>(0)] {
-        slam::SessionMapFiles files{load_map, save_map, ""};
+      ropt, [options, load_map, save_map, tables_dir,
+             sessions = std::make_shared<int>(0)](const slam::SessionStart& start) {
+        slam::SessionMapFiles files;
+        files.load_path = load_map;
+        files.save_path = save_map;
+        files.checkpoint_path = start.checkpoint_path;
+        files.resume_from_checkpoint = start.resume_from_checkpoint;
         ++*sessions;
         if (!tables_dir.empty())
           files.tables_dir = tables_dir + "/session-" + std::to_string(*sessions);

@@ -2,6 +2,9 @@
 #include "slam_sessions.hpp"
 
 #include <cstdio>
+#include <filesystem>
+
+#include "slam/localmap/map_io.hpp"
 
 namespace slam {
 
@@ -9,6 +12,7 @@ namespace {
 // Ids the registry gives itself (client asked with 0): a fixed prefix in the top bits keeps them
 // apart from a client's random ids in practice, and they are never resumed.
 constexpr std::uint64_t kOwnIdPrefix = 0x5E55000000000000ull;
+constexpr std::uint64_t kOwnIdPrefixMask = 0xFFFF000000000000ull;
 }  // namespace
 
 std::string SessionRegistryOptions::validate() const {
@@ -26,8 +30,24 @@ std::string SessionRegistry::id_text(std::uint64_t session_id) {
   return buf;
 }
 
-std::string SessionRegistry::end_line(std::uint64_t id, Entry& e, const std::string& why) {
-  return "session " + id_text(id) + " ended (" + why + "): " + e.session->finish_summary();
+std::string SessionRegistry::checkpoint_path(std::uint64_t session_id) const {
+  if (options_.checkpoint_dir.empty() || (session_id & kOwnIdPrefixMask) == kOwnIdPrefix) return {};
+  return (std::filesystem::path(options_.checkpoint_dir) / ("session-" + id_text(session_id) +
+                                                            ".map"))
+      .string();
+}
+
+std::string SessionRegistry::end_line(std::uint64_t id, Entry& e, const std::string& why,
+                                      bool for_good) {
+  std::string line =
+      "session " + id_text(id) + " ended (" + why + "): " + e.session->finish_summary();
+  if (for_good && !e.checkpoint_path.empty()) {
+    std::error_code ec;
+    std::filesystem::remove(e.checkpoint_path, ec);
+    line += ec ? "; checkpoint " + e.checkpoint_path + " NOT deleted: " + ec.message()
+               : "; checkpoint deleted";
+  }
+  return line;
 }
 
 AttachResult SessionRegistry::attach(std::uint64_t session_id, int connection, std::int64_t now_ms,
@@ -75,14 +95,32 @@ AttachResult SessionRegistry::attach(std::uint64_t session_id, int connection, s
     do session_id = kOwnIdPrefix | next_own_id_++;
     while (sessions_.count(session_id) != 0);
   }
+  SessionStart start;
+  start.session_id = session_id;
+  start.checkpoint_path = checkpoint_path(session_id);
+  std::string unusable;  // why an existing checkpoint is not resumed
+  if (!start.checkpoint_path.empty() && std::filesystem::exists(start.checkpoint_path)) {
+    // (an unusable one is overwritten by the new map's first checkpoint)
+    start.resume_from_checkpoint = check_map_file(start.checkpoint_path, &unusable);
+  }
   Entry e;
-  e.session = factory_();
+  e.session = factory_(start);
+  e.checkpoint_path = start.checkpoint_path;
   e.connection = connection;
   e.started_ms = now_ms;
   r.session = e.session.get();
   r.session_id = session_id;
+  r.resumed = start.resume_from_checkpoint;
   sessions_.emplace(session_id, std::move(e));
-  if (log) log->push_back("session " + id_text(session_id) + " started (a new map)");
+  if (log)
+    log->push_back("session " + id_text(session_id) +
+                   (r.resumed ? " resumed from its checkpoint " + start.checkpoint_path +
+                                    " (slam-server restarted; map and world frame kept)"
+                              : " started (a new map" +
+                                    (unusable.empty() ? std::string()
+                                                      : "; its checkpoint is unusable: " +
+                                                            unusable) +
+                                    ")"));
   return r;
 }
 
@@ -112,7 +150,8 @@ std::vector<std::string> SessionRegistry::expire(std::int64_t now_ms) {
 
 std::vector<std::string> SessionRegistry::finish_all() {
   std::vector<std::string> lines;
-  for (auto& [id, e] : sessions_) lines.push_back(end_line(id, e, "slam-server stopping"));
+  for (auto& [id, e] : sessions_)  // checkpoints kept: a restarted slam-server resumes them
+    lines.push_back(end_line(id, e, "slam-server stopping", /*for_good=*/false));
   sessions_.clear();
   return lines;
 }

@@ -6,6 +6,11 @@
 // presents the id of a session another connection still holds takes it over (the caller closes the
 // old connection): a client that timed out reconnects before the server noticed the old socket
 // died. session_id 0 asks for a new map that cannot be resumed; the registry then names it itself.
+// With a checkpoint folder, every session with a client's id keeps its map checkpointed there
+// (session-<id>.map, PipelineOptions::checkpoint_path): a restarted slam-server that is asked for
+// an id it does not hold, and finds that id's whole checkpoint, resumes it (map and world frame
+// kept) instead of starting a new map. A session that ends for good (grace over, dropped for room)
+// deletes its checkpoint; one ended by slam-server stopping keeps it for the next start.
 //
 // Time is passed in (now_ms, any monotonic origin). Not thread-safe (slam-server's single loop).
 #pragma once
@@ -30,6 +35,8 @@ struct SessionRegistryOptions {
   /// Maps held at once (attached + parked). A map holds keyframes (images + features): a few
   /// hundred MB for a long flight. Beyond it the oldest parked map is dropped.
   std::size_t max_sessions = 4;
+  /// Where sessions checkpoint their maps ("" = no checkpoints; the folder must exist).
+  std::string checkpoint_dir;
   std::string validate() const;
 };
 
@@ -41,9 +48,16 @@ struct AttachResult {
   std::string refusal;
 };
 
+/// How a session starts (SessionRegistry's factory fills its SessionMapFiles from it).
+struct SessionStart {
+  std::uint64_t session_id = 0;
+  std::string checkpoint_path;          ///< "" = no checkpoint
+  bool resume_from_checkpoint = false;  ///< continue the map in checkpoint_path
+};
+
 class SessionRegistry {
  public:
-  using Factory = std::function<std::unique_ptr<SlamLinkSession>()>;
+  using Factory = std::function<std::unique_ptr<SlamLinkSession>(const SessionStart&)>;
   SessionRegistry(SessionRegistryOptions options, Factory factory);
 
   /// Attaches `connection` to session `session_id` (new or resumed). Log lines (a session started,
@@ -63,15 +77,20 @@ class SessionRegistry {
   std::size_t size() const { return sessions_.size(); }
 
   static std::string id_text(std::uint64_t session_id);
+  /// The checkpoint file of `session_id` ("" without a checkpoint folder, or for the registry's
+  /// own ids, which restart from 1 with every slam-server and are never resumed).
+  std::string checkpoint_path(std::uint64_t session_id) const;
 
  private:
   struct Entry {
     std::unique_ptr<SlamLinkSession> session;
+    std::string checkpoint_path;
     std::optional<int> connection;  ///< attached connection
     std::int64_t parked_since_ms = 0;
     std::int64_t started_ms = 0;
   };
-  std::string end_line(std::uint64_t id, Entry& e, const std::string& why);
+  /// Finishes the session; `for_good`: its checkpoint is deleted (the flight's map is over).
+  std::string end_line(std::uint64_t id, Entry& e, const std::string& why, bool for_good = true);
 
   SessionRegistryOptions options_;
   Factory factory_;

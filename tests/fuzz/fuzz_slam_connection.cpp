@@ -314,7 +314,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   slam::SessionRegistryOptions ropt;
   ropt.max_sessions = 2;
   ropt.resume_grace_ms = 3000;
-  slam::SessionRegistry registry(ropt, [&] {
+  slam::SessionRegistry registry(ropt, [&](const slam::SessionStart&) {
     return std::make_unique<slam::SlamLinkSession>(slam::PipelineOptions{}, slam::SessionMapFiles{},
                                                    factory);
   });

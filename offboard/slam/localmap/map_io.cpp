@@ -109,7 +109,7 @@ std::uint64_t fnv1a64(const std::uint8_t* data, std::size_t n) {
 }
 
 bool save_map(const std::string& path, const SlamMap& map, const MapFileContext& ctx,
-              std::string* error) {
+              std::string* error, std::uint64_t map_corrections) {
   const std::uint16_t probe = 1;
   if (*reinterpret_cast<const std::uint8_t*>(&probe) != 1)
     return fail(error, path, "this host is big-endian; the format is little-endian");
@@ -182,6 +182,7 @@ bool save_map(const std::string& path, const SlamMap& map, const MapFileContext&
     w.put<std::int64_t>(e.b);
     w.pose(e.T_a_b);
   }
+  w.put<std::uint64_t>(map_corrections);
   w.put<std::uint64_t>(fnv1a(w.bytes(), w.bytes().size()));
   const std::string tmp = path + ".tmp";
   {
@@ -196,15 +197,17 @@ bool save_map(const std::string& path, const SlamMap& map, const MapFileContext&
   return true;
 }
 
-std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& ctx,
-                                std::string* error) {
+namespace {
+/// The file's bytes when its magic, version and checksum are right; nullopt with `error` else.
+std::optional<std::vector<std::uint8_t>> read_verified(const std::string& path,
+                                                       std::string* error) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     fail(error, path, "cannot open");
     return std::nullopt;
   }
-  const std::vector<std::uint8_t> b((std::istreambuf_iterator<char>(in)),
-                                    std::istreambuf_iterator<char>());
+  std::vector<std::uint8_t> b((std::istreambuf_iterator<char>(in)),
+                              std::istreambuf_iterator<char>());
   if (b.size() < sizeof kMagic + 4 + 8 || std::memcmp(b.data(), kMagic, sizeof kMagic) != 0) {
     fail(error, path, "not an rgbdquad map file (bad magic)");
     return std::nullopt;
@@ -223,6 +226,19 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
     fail(error, path, "checksum mismatch (corrupt or truncated file)");
     return std::nullopt;
   }
+  return b;
+}
+}  // namespace
+
+bool check_map_file(const std::string& path, std::string* error) {
+  return read_verified(path, error).has_value();
+}
+
+std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& ctx,
+                                std::string* error, std::uint64_t* map_corrections) {
+  const auto bytes = read_verified(path, error);
+  if (!bytes) return std::nullopt;
+  const std::vector<std::uint8_t>& b = *bytes;
   Reader r(b, b.size() - 8);
   char magic[8];
   std::uint32_t v2;
@@ -360,9 +376,12 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
     if (!kfs.count(e.a) || !kfs.count(e.b)) return corrupt("loop edge between unknown keyframes");
     loops.push_back(e);
   }
+  std::uint64_t corrections = 0;
+  if (!r.get(&corrections)) return corrupt("map corrections");
   if (r.left() != 0) return corrupt("trailing bytes");
   SlamMap map;
   map.restore(std::move(kfs), std::move(pts), std::move(culled), std::move(loops));
+  if (map_corrections) *map_corrections = corrections;
   return map;
 }
 

@@ -49,6 +49,14 @@ const char* to_string(PipelineMode m) {
 
 bool PipelineOptions::is_valid(std::string* error) const {
   if (!frontend.is_valid(error) || !backend.is_valid(error)) return false;
+  if (!(checkpoint_period_s >= 0)) {
+    if (error) *error = "pipeline: checkpoint_period_s must be >= 0";
+    return false;
+  }
+  if (!checkpoint_path.empty() && backend.kind != BackendKind::kLocalMap) {
+    if (error) *error = "pipeline: map checkpoints need the localmap back-end";
+    return false;
+  }
   if (backend.kind == BackendKind::kLocalMap)
     return tracker.is_valid(error) && mapper.is_valid(error) &&
            (!loop_closing || loop.is_valid(error));
@@ -166,6 +174,7 @@ void Pipeline::finish() {
   }
   cv_.notify_all();
   if (loop_thread_.joinable()) loop_thread_.join();
+  checkpoint_if_due(/*force=*/true);
   std::sort(records_.begin(), records_.end(),
             [](const FrameRecord& a, const FrameRecord& b) { return a.index < b.index; });
   if (is_local_map()) {
@@ -369,7 +378,9 @@ bool Pipeline::load_map(const std::string& path, std::string* error) {
     if (error) *error = "maps are saved and loaded by the localmap back-end only";
     return false;
   }
-  auto loaded = slam::load_map(path, MapFileContext{camera_, options_.frontend.features}, error);
+  std::uint64_t corrections = 0;
+  auto loaded = slam::load_map(path, MapFileContext{camera_, options_.frontend.features}, error,
+                               &corrections);
   if (!loaded) return false;
   {
     std::lock_guard<MapMutex> lock(map_->mutex);
@@ -378,6 +389,7 @@ bool Pipeline::load_map(const std::string& path, std::string* error) {
       return false;
     }
     map_->map = std::move(*loaded);
+    map_->corrections = corrections;  // the world frame's revision goes on from the file's
   }
   tracker_->set_lost();  // the first frames relocalise in the loaded map
   if (loop_closer_) loop_closer_->index_map();
@@ -391,7 +403,44 @@ bool Pipeline::save_map(const std::string& path, std::string* error) const {
   }
   std::lock_guard<MapMutex> lock(map_->mutex);
   return slam::save_map(path, map_->map, MapFileContext{camera_, options_.frontend.features},
-                        error);
+                        error, map_->corrections);
+}
+
+void Pipeline::checkpoint_if_due(bool force) {
+  if (options_.checkpoint_path.empty() || !is_local_map()) return;
+  std::lock_guard<std::mutex> writer(checkpoint_mutex_);
+  const std::int64_t t0 = steady_now_ns();
+  SlamMap copy;
+  std::uint64_t corrections = 0;
+  double stamp_s = 0;
+  {
+    std::lock_guard<MapMutex> lock(map_->mutex);
+    if (map_->map.keyframes().empty()) return;
+    stamp_s = map_->map.keyframes().rbegin()->second.stamp_s;
+    corrections = map_->corrections;
+    // Due when a newer keyframe is `checkpoint_period_s` past the last checkpoint's newest, or a
+    // loop correction moved the map since; a map without new keyframes is not rewritten.
+    const bool due = !checkpoint_stamp_s_ ||
+                     (stamp_s > *checkpoint_stamp_s_ &&
+                      stamp_s - *checkpoint_stamp_s_ >= options_.checkpoint_period_s) ||
+                     corrections != checkpoint_corrections_;
+    if (!due && !force) return;
+    copy = map_->map;  // keyframe features and descriptors are shared, never written in place
+  }
+  std::string error;
+  const bool ok =
+      slam::save_map(options_.checkpoint_path, copy,
+                     MapFileContext{camera_, options_.frontend.features}, &error, corrections);
+  const double ms = ms_since(t0);
+  checkpoint_stamp_s_ = stamp_s;
+  checkpoint_corrections_ = corrections;
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (ok) {
+    ++summary_.checkpoints_written;
+    summary_.checkpoint_max_ms = std::max(summary_.checkpoint_max_ms, ms);
+  } else {
+    summary_.checkpoint_error = error;
+  }
 }
 
 std::vector<MapperStats> Pipeline::mapper_stats() const {
@@ -435,6 +484,7 @@ void Pipeline::loop_closing_loop() {
       loop_busy_ = true;
     }
     close_loops(kf);
+    checkpoint_if_due(/*force=*/false);
     {
       std::lock_guard<std::mutex> lock(mutex_);
       loop_busy_ = false;
@@ -541,6 +591,7 @@ void Pipeline::run_tracker(const RgbdFrame& frame) {
       mapper_stats_.push_back(st);
     }
     if (loop_closer_) close_loops(tr.keyframe_id);
+    checkpoint_if_due(/*force=*/false);
     return;
   }
   std::unique_lock<std::mutex> lock(mutex_);
@@ -593,6 +644,7 @@ void Pipeline::mapper_loop() {
         loop_queue_.push_back(kf);  // same step: wait mode never sees both idle early
     }
     cv_.notify_all();
+    if (!loop_closer_) checkpoint_if_due(/*force=*/false);  // else after its loop closing
   }
 }
 

@@ -93,6 +93,20 @@ struct PipelineOptions {
   bool keyframe_gate_mapper_busy = false;
   LoopCloserOptions
       loop;  ///< matching, RANSAC and projection settings are filled in from the tracker's
+  /// BackendKind::kLocalMap: map checkpoints. When set, the map (with its count of loop
+  /// corrections) is written here - through a temporary file renamed into place - after a mapped
+  /// keyframe when `checkpoint_period_s` of data have passed since the last checkpoint or a loop
+  /// correction moved the map since, and once more by finish(). A service restarted after a crash
+  /// loads it and continues in the same map and world frame (slam-server --checkpoint-dir). The
+  /// map is copied under the map lock (the tracker waits for the copy only) and written by the
+  /// thread that finished the keyframe (loop closing, else mapping), never the tracking thread.
+  std::string checkpoint_path;
+  /// 1 s: a restarted service can relocalise only where the checkpoint has keyframes, and the
+  /// views of the last seconds are the ones the craft still sees. With 5 s, a HIL restart in the
+  /// hover found only the take-off's keyframes (the climb's were newer than the checkpoint) and
+  /// stayed lost for 33 frames, past quad-control's 2 s lost-hold: it landed. A map that does not
+  /// change (steady hover, revisits) is not rewritten; what a write costs is in docs/slam.md.
+  double checkpoint_period_s = 1.0;
   bool is_valid(std::string* error) const;
 };
 
@@ -165,6 +179,11 @@ struct PipelineSummary {
   std::string mapping_thread;  ///< the local-mapping thread's scheduling (realtime/live modes)
   std::size_t mapper_caught_up = 0;  ///< keyframes whose fusion/BA was left to a newer keyframe
   std::size_t mapper_ba_interrupted = 0;  ///< local BAs stopped early by a waiting keyframe
+  /// Map checkpoints (PipelineOptions::checkpoint_path): written, the slowest copy + write (ms),
+  /// and the last failure ("" when none).
+  std::size_t checkpoints_written = 0;
+  double checkpoint_max_ms = 0;
+  std::string checkpoint_error;
 };
 
 /// Keyframes in the mapper (queued + in work) below which the tracker makes keyframes as it needs
@@ -223,8 +242,9 @@ class Pipeline {
   std::vector<MapperStats> mapper_stats() const;
   std::vector<LoopStats> loop_stats() const;
   /// Local-map system: starts from the map in `path` (before the first frame; the first frames
-  /// relocalise in it, poses are in its world frame). False with `error`: wrong version, camera,
-  /// detector, corrupt file, or frames already submitted.
+  /// relocalise in it, poses are in its world frame, map corrections counted on from the file's).
+  /// False with `error`: wrong version, camera, detector, corrupt file, or frames already
+  /// submitted.
   bool load_map(const std::string& path, std::string* error);
   /// Local-map system: writes the current map (call after finish() for the final one).
   bool save_map(const std::string& path, std::string* error) const;
@@ -252,6 +272,9 @@ class Pipeline {
   /// Loop-closes keyframe `kf` and records its stats (the loop thread, or inline in sequential
   /// mode).
   void close_loops(std::int64_t kf);
+  /// Writes the map checkpoint (PipelineOptions::checkpoint_path) when due, or always if `force`.
+  /// Called by the thread that finished a keyframe, and by finish().
+  void checkpoint_if_due(bool force);
 
   PipelineOptions options_;
   std::optional<FrontEnd> frontend_;
@@ -288,6 +311,10 @@ class Pipeline {
   bool loop_busy_ = false;
   bool loop_closed_ = false;
   std::vector<LoopStats> loop_stats_;
+  // Map checkpoints: the newest keyframe's stamp and the map's corrections at the last one.
+  std::mutex checkpoint_mutex_;  // one writer at a time (mapping and loop threads, finish)
+  std::optional<double> checkpoint_stamp_s_;
+  std::uint64_t checkpoint_corrections_ = 0;
   std::thread frontend_thread_;
   std::thread backend_thread_;
   std::thread loop_thread_;

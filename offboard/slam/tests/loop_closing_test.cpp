@@ -380,14 +380,19 @@ TEST(LoopCloser, DetectsTheRevisitAndThePoseGraphRemovesTheInjectedDrift) {
   // the revisit's duplicate points were merged into the old ones
   EXPECT_GE(last.points_merged, 100);
   EXPECT_LT(w.map->map.points().size(), points_before);
-  // and the loop edge survives a save / load (map format version 2)
+  // and the loop edge survives a save / load (map format version 2), with the count of map
+  // corrections (version 3)
   const std::string path = ::testing::TempDir() + "/loop_edge.map";
   std::string err;
   FeatureOptions fo;
   fo.kind = DetectorKind::kOrb;
-  ASSERT_TRUE(save_map(path, w.map->map, MapFileContext{w.cam, fo}, &err)) << err;
-  const auto loaded = load_map(path, MapFileContext{w.cam, fo}, &err);
+  ASSERT_EQ(w.map->corrections, 1u);
+  ASSERT_TRUE(save_map(path, w.map->map, MapFileContext{w.cam, fo}, &err, w.map->corrections))
+      << err;
+  std::uint64_t corrections = 0;
+  const auto loaded = load_map(path, MapFileContext{w.cam, fo}, &err, &corrections);
   ASSERT_TRUE(loaded) << err;
+  EXPECT_EQ(corrections, 1u);
   ASSERT_EQ(loaded->loop_edges().size(), 1u);
   EXPECT_TRUE(loaded->loop_edges()[0].T_a_b.isApprox(w.map->map.loop_edges()[0].T_a_b, 1e-12));
 }

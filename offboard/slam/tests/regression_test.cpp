@@ -450,15 +450,15 @@ TEST(Regression, MapFilesThatDoNotFitAreRefusedWithAReason) {
   PipelineOptions sift = o;
   sift.frontend.features.kind = DetectorKind::kSift;
   refused(sift, Intrinsics{}, "another feature detector");
-  // the previous version (1: no loop edges) and a future one
+  // the previous version (2: no map corrections) and a future one
   std::string v = bytes;
-  ASSERT_EQ(v[8], 2) << "kMapFileVersion changed: update this test";
-  v[8] = 1;
+  ASSERT_EQ(v[8], 3) << "kMapFileVersion changed: update this test";
+  v[8] = 2;
   write(v);
-  refused(o, Intrinsics{}, "format version 1, this build reads version 2");
-  v[8] = 3;
+  refused(o, Intrinsics{}, "format version 2, this build reads version 3");
+  v[8] = 4;
   write(v);
-  refused(o, Intrinsics{}, "format version 3");
+  refused(o, Intrinsics{}, "format version 4");
   // one flipped byte in the middle, and a truncated file
   std::string c = bytes;
   c[c.size() / 2] = static_cast<char>(c[c.size() / 2] ^ 0x5A);

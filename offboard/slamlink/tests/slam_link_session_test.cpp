@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <thread>
+#include <chrono>
 
 #include "rgbdquad/camera/tum_cameras.hpp"
 #include "rgbdquad/protocol/codec.hpp"
@@ -131,12 +133,12 @@ TEST(SlamLinkSession, GivenMapFilesThenASessionSavesItsMapAndTheNextStartsInIt) 
   ASSERT_TRUE(ds) << err;
   {
     // GIVEN a session that saves its map
-    SlamLinkSession first(o, SessionMapFiles{"", map_path, ""});
+    SlamLinkSession first(o, SessionMapFiles{"", map_path, "", "", false});
     for (std::uint32_t i = 0; i < 10; ++i) roundtrip(&first, to_wire(*ds->load(i, &err), i), &err);
     EXPECT_NE(first.finish_summary().find("map saved to"), std::string::npos);
   }
   // WHEN a new session starts from it, on later frames
-  SlamLinkSession second(o, SessionMapFiles{map_path, "", ""});
+  SlamLinkSession second(o, SessionMapFiles{map_path, "", "", "", false});
   const proto::PoseUpdate u = roundtrip(&second, to_wire(*ds->load(12, &err), 0), &err);
   // THEN its first frame is tracked in the saved map's world frame (relocalised, not a new map)
   EXPECT_TRUE(err.empty()) << err;
@@ -145,17 +147,65 @@ TEST(SlamLinkSession, GivenMapFilesThenASessionSavesItsMapAndTheNextStartsInIt) 
   // AND a session given a file that is no map says so on its first answer and goes on in a new map
   const std::string junk = ::testing::TempDir() + "/junk.map";
   { std::ofstream(junk) << "not a map"; }
-  SlamLinkSession third(o, SessionMapFiles{junk, "", ""});
+  SlamLinkSession third(o, SessionMapFiles{junk, "", "", "", false});
   roundtrip(&third, to_wire(*ds->load(0, &err), 0), &err);
   EXPECT_NE(err.find("map not loaded"), std::string::npos) << err;
   EXPECT_NE(third.finish_summary().find("bad magic"), std::string::npos);
+}
+
+TEST(SlamLinkSession, GivenACheckpointWrittenWhileRunningThenARestartResumesTheSameWorldFrame) {
+  PipelineOptions o = orb_options();
+  o.backend.kind = BackendKind::kLocalMap;
+  o.checkpoint_period_s = 0;  // after every mapped keyframe
+  const std::string path = ::testing::TempDir() + "/session-checkpoint.map";
+  std::filesystem::remove(path);
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  proto::PoseUpdate before;
+  {
+    // GIVEN a running session that checkpoints its map
+    SessionMapFiles files;
+    files.checkpoint_path = path;
+    SlamLinkSession first(o, files);
+    for (std::uint32_t i = 0; i < 10; ++i)
+      before = roundtrip(&first, to_wire(*ds->load(i, &err), i), &err);
+    ASSERT_EQ(before.tracking_state, proto::TrackingState::kTracking);
+    // THEN the checkpoint appears while it runs (written by its mapping side, not at the end)
+    for (int k = 0; k < 200 && !std::filesystem::exists(path); ++k)
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    ASSERT_TRUE(std::filesystem::exists(path));
+    EXPECT_NE(first.finish_summary().find("map checkpoints"), std::string::npos);
+  }
+  // WHEN a new session resumes it (slam-server restarted) and is sent the last frame again
+  SessionMapFiles resume;
+  resume.checkpoint_path = path;
+  resume.resume_from_checkpoint = true;
+  SlamLinkSession second(o, resume);
+  const proto::PoseUpdate after = roundtrip(&second, to_wire(*ds->load(9, &err), 0), &err);
+  // THEN the frame is relocalised in the checkpointed map, at the pose the first session gave it
+  EXPECT_TRUE(err.empty()) << err;
+  ASSERT_EQ(after.tracking_state, proto::TrackingState::kTracking);
+  EXPECT_EQ(second.pipeline()->summary().relocalisations, 1u);
+  for (int a = 0; a < 3; ++a) EXPECT_NEAR(after.T_world_cam.t_m[a], before.T_world_cam.t_m[a], 0.01);
+  // AND a session told to resume a checkpoint it cannot load answers LOST with the reason, never
+  // a new map under a client that was told its world frame is kept
+  const std::string junk = ::testing::TempDir() + "/junk-checkpoint.map";
+  { std::ofstream(junk) << "not a map"; }
+  resume.checkpoint_path = junk;
+  SlamLinkSession third(o, resume);
+  for (std::uint32_t i = 0; i < 3; ++i) {
+    const proto::PoseUpdate u = roundtrip(&third, to_wire(*ds->load(i, &err), i), &err);
+    EXPECT_EQ(u.tracking_state, proto::TrackingState::kLost);
+    EXPECT_NE(err.find("checkpoint cannot be resumed"), std::string::npos) << err;
+  }
 }
 
 TEST(SlamLinkSession, GivenATablesFolderThenTheEndedSessionWritesOneFrameRowPerFrameWithItsStages) {
   // GIVEN a session told to write its tables into a folder that does not exist yet
   const std::string dir = ::testing::TempDir() + "/slam_link_tables/session-1";
   std::filesystem::remove_all(dir);
-  SlamLinkSession s(orb_options(), SessionMapFiles{"", "", dir});
+  SlamLinkSession s(orb_options(), SessionMapFiles{"", "", dir, "", false});
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
@@ -186,7 +236,7 @@ TEST(SlamLinkSession, GivenATablesFolderThenTheEndedSessionWritesOneFrameRowPerF
   EXPECT_TRUE(std::filesystem::exists(dir + "/loops.csv"));
   EXPECT_FALSE(std::filesystem::exists(dir + "/rss.csv"));  // slam-server samples no RSS
   // AND a folder that cannot be made is reported, not thrown
-  SlamLinkSession blocked(orb_options(), SessionMapFiles{"", "", "/proc/no/such/dir"});
+  SlamLinkSession blocked(orb_options(), SessionMapFiles{"", "", "/proc/no/such/dir", "", false});
   roundtrip(&blocked, to_wire(*ds->load(0, &err), 0), &err);
   EXPECT_NE(blocked.finish_summary().find("tables NOT written"), std::string::npos);
 }

@@ -4,7 +4,11 @@
 // on protocol faults. Deterministic: no sockets, no clock.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+
 #include "rgbdquad/protocol/codec.hpp"
+#include "slam/localmap/map_io.hpp"
 #include "slam_connection.hpp"
 #include "slam_sessions.hpp"
 
@@ -17,7 +21,9 @@ SessionRegistry make_registry(std::int64_t grace_ms = 1000, std::size_t max_sess
   SessionRegistryOptions o;
   o.resume_grace_ms = grace_ms;
   o.max_sessions = max_sessions;
-  return SessionRegistry(o, [] { return std::make_unique<SlamLinkSession>(PipelineOptions{}); });
+  return SessionRegistry(o, [](const SessionStart&) {
+    return std::make_unique<SlamLinkSession>(PipelineOptions{});
+  });
 }
 
 std::vector<std::uint8_t> hello_bytes(std::uint64_t session_id,
@@ -51,6 +57,52 @@ TEST(SessionRegistry, GivenAParkedSessionWhenTheSameIdComesBackWithinTheGraceThe
   EXPECT_EQ(b.session, a.session);
   EXPECT_FALSE(b.displaced_connection.has_value());
   EXPECT_NE(log.back().find("resumed"), std::string::npos);
+}
+
+TEST(SessionRegistry, GivenACheckpointOfTheAskedIdThenARestartedServerResumesItElseStartsANewMap) {
+  // GIVEN a checkpoint folder holding a whole map file for session 42 and garbage for session 43
+  const std::filesystem::path dir = ::testing::TempDir() + "/registry_checkpoints";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  SessionRegistryOptions o;
+  o.resume_grace_ms = 1000;
+  o.checkpoint_dir = dir.string();
+  std::vector<SessionStart> starts;
+  SessionRegistry reg(o, [&starts](const SessionStart& s) {
+    starts.push_back(s);
+    return std::make_unique<SlamLinkSession>(PipelineOptions{});
+  });
+  std::string err;
+  FeatureOptions orb;
+  orb.kind = DetectorKind::kOrb;
+  ASSERT_TRUE(save_map(reg.checkpoint_path(42), SlamMap{}, MapFileContext{CameraModel{}, orb}, &err,
+                       3))
+      << err;
+  { std::ofstream(reg.checkpoint_path(43)) << "half a map"; }
+  std::vector<std::string> log;
+  // WHEN session 42 is asked for: THEN it resumes from the checkpoint (map and world frame kept)
+  const AttachResult a = reg.attach(42, 1, 0, &log);
+  EXPECT_TRUE(a.resumed);
+  ASSERT_EQ(starts.size(), 1u);
+  EXPECT_TRUE(starts[0].resume_from_checkpoint);
+  EXPECT_EQ(starts[0].checkpoint_path, (dir / "session-000000000000002a.map").string());
+  EXPECT_NE(log.back().find("resumed from its checkpoint"), std::string::npos) << log.back();
+  // AND session 43's broken checkpoint starts a new map, saying why
+  EXPECT_FALSE(reg.attach(43, 2, 0, &log).resumed);
+  EXPECT_FALSE(starts[1].resume_from_checkpoint);
+  EXPECT_NE(log.back().find("checkpoint is unusable"), std::string::npos) << log.back();
+  // AND a session the registry names itself (id 0) is never checkpointed: its id restarts; a
+  // client's id that shares bits with the registry's prefix is
+  const AttachResult own = reg.attach(0, 3, 0, &log);
+  EXPECT_FALSE(own.resumed);
+  EXPECT_TRUE(starts[2].checkpoint_path.empty());
+  EXPECT_FALSE(reg.checkpoint_path(0x7ff75fbefab44523ull).empty());
+  // AND a session that ends for good deletes its checkpoint; slam-server stopping keeps them
+  reg.detach(1, 0);
+  ASSERT_EQ(reg.expire(1000).size(), 1u);
+  EXPECT_FALSE(std::filesystem::exists(reg.checkpoint_path(42)));
+  const auto stopped = reg.finish_all();
+  EXPECT_TRUE(std::filesystem::exists(reg.checkpoint_path(43)));
 }
 
 TEST(SessionRegistry, GivenAParkedSessionWhenTheGraceEndsThenItIsFinishedAndTheIdStartsANewMap) {
