@@ -7,6 +7,8 @@ a wall-clock duration beyond "it happened before the deadline".
 
   * a broken connection does not discard the map: the same session id reconnects and continues
     (SlamHello.resumed, session_frames; the next pose is tracked, not INITIALIZING);
+  * nor does a killed slam-server, given --checkpoint-dir: the next one resumes the session from its
+    checkpoint and tracks the next frame in the same map;
   * a newer connection with the same session id takes it over; the old one is closed with the cause;
   * an idle client does not block another one;
   * a client that never says hello, stops mid-message or drips bytes is closed with the cause;
@@ -78,12 +80,12 @@ def hello_bytes(session_id: int, name: str = "pytest") -> bytes:
 
 
 class Server:
-    def __init__(self, *extra: str):
+    def __init__(self, *extra: str, backend: str = "vo"):
         self.port = free_port()
         self.log_file = tempfile.NamedTemporaryFile(prefix="slam-server-", suffix=".log", delete=False)
         self.proc = subprocess.Popen(
             [str(BINARY), "--bind", "127.0.0.1", "--port", str(self.port), "--features", "orb",
-             "--backend", "vo", *extra], stderr=self.log_file)
+             "--backend", backend, *extra], stderr=self.log_file)
         deadline = time.monotonic() + DEADLINE_S
         while "listening" not in self.log():
             assert self.proc.poll() is None, self.log()
@@ -115,8 +117,8 @@ class Server:
 def server_factory():
     started = []
 
-    def make(*extra):
-        s = Server(*extra)
+    def make(*extra, backend: str = "vo"):
+        s = Server(*extra, backend=backend)
         started.append(s)
         return s
     yield make
@@ -187,6 +189,44 @@ def test_broken_connection_resumes_the_same_map(server_factory):
     assert u.fields["tracking_state"] == "TRACKING"
     assert "session 0000000000001234 resumed" in srv.log()
     b.close()
+
+
+def test_killed_server_with_checkpoints_is_resumed_by_the_next_one(tmp_path):
+    # GIVEN a slam-server that checkpoints its maps, and a client that sent 3 frames in session 0x77
+    ckpt = tmp_path / "checkpoints"
+    first = Server("--checkpoint-dir", str(ckpt), backend="localmap")
+    tex = texture()
+    a = Client(first.port)
+    assert not a.hello(0x77)["resumed"]
+    for seq in range(3):
+        a.send(frame_bytes(seq, tex))
+        assert a.next_message().fields["tracking_state"] == "TRACKING"
+    path = ckpt / "session-0000000000000077.map"
+    deadline = time.monotonic() + DEADLINE_S
+    while not path.exists():  # written by the session's mapping side after its first keyframe
+        assert time.monotonic() < deadline, first.log()
+        time.sleep(0.05)
+    # WHEN it is killed (no goodbye, no final save) and a new one is started on the same folder
+    first.proc.kill()
+    first.proc.wait(timeout=DEADLINE_S)
+    a.close()
+    os.unlink(first.log_file.name)
+    second = Server("--checkpoint-dir", str(ckpt), backend="localmap")
+    try:
+        b = Client(second.port)
+        h = b.hello(0x77)
+        # THEN the session resumes from its checkpoint and the next frame is tracked in that map
+        assert h["resumed"] and h["session_id"] == 0x77, second.log()
+        assert "resumed from its checkpoint" in second.log()
+        b.send(frame_bytes(3, tex))
+        assert b.next_message().fields["tracking_state"] == "TRACKING", second.log()
+        b.close()
+        # AND another id starts a new map
+        c = Client(second.port)
+        assert not c.hello(0x78)["resumed"]
+        c.close()
+    finally:
+        assert second.stop() == 0
 
 
 def test_new_connection_of_the_same_session_takes_it_over(server_factory):
