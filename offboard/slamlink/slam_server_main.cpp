@@ -25,6 +25,7 @@
 #include <map>
 #include <memory>
 
+#include "slam/localmap/map_io.hpp"
 #include "slam/pipeline/thread_priority.hpp"
 #include "slam_connection.hpp"
 #include "slam_sessions.hpp"
@@ -417,7 +418,8 @@ int main(int argc, char** argv) {
         if (!tables_dir.empty())
           files.tables_dir = tables_dir + "/session-" + std::to_string(*sessions);
         return std::make_unique<slam::SlamLinkSession>(options, files);
-      });
+      },
+      [](const std::string& path, std::string* why) { return slam::check_map_file(path, why); });
   Server(lfd, sigfd, max_clients, copt, std::move(registry)).run();
   ::close(lfd);
   ::close(sigfd);

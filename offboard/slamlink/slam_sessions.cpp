@@ -4,8 +4,6 @@
 #include <cstdio>
 #include <filesystem>
 
-#include "slam/localmap/map_io.hpp"
-
 namespace slam {
 
 namespace {
@@ -21,8 +19,11 @@ std::string SessionRegistryOptions::validate() const {
   return {};
 }
 
-SessionRegistry::SessionRegistry(SessionRegistryOptions options, Factory factory)
-    : options_(options), factory_(std::move(factory)) {}
+SessionRegistry::SessionRegistry(SessionRegistryOptions options, Factory factory,
+                                 CheckpointCheck checkpoint_check)
+    : options_(std::move(options)),
+      factory_(std::move(factory)),
+      checkpoint_check_(std::move(checkpoint_check)) {}
 
 std::string SessionRegistry::id_text(std::uint64_t session_id) {
   char buf[24];
@@ -99,9 +100,12 @@ AttachResult SessionRegistry::attach(std::uint64_t session_id, int connection, s
   start.session_id = session_id;
   start.checkpoint_path = checkpoint_path(session_id);
   std::string unusable;  // why an existing checkpoint is not resumed
-  if (!start.checkpoint_path.empty() && std::filesystem::exists(start.checkpoint_path)) {
+  std::error_code ec;
+  if (!start.checkpoint_path.empty() && std::filesystem::exists(start.checkpoint_path, ec)) {
     // (an unusable one is overwritten by the new map's first checkpoint)
-    start.resume_from_checkpoint = check_map_file(start.checkpoint_path, &unusable);
+    if (!checkpoint_check_) unusable = "no checkpoint check configured";
+    start.resume_from_checkpoint =
+        checkpoint_check_ && checkpoint_check_(start.checkpoint_path, &unusable);
   }
   Entry e;
   e.session = factory_(start);

@@ -58,7 +58,12 @@ struct SessionStart {
 class SessionRegistry {
  public:
   using Factory = std::function<std::unique_ptr<SlamLinkSession>(const SessionStart&)>;
-  SessionRegistry(SessionRegistryOptions options, Factory factory);
+  /// Whether the checkpoint file at `path` can be resumed (slam::check_map_file in slam-server;
+  /// passed in so that the registry does not depend on the SLAM engine: the fuzz target builds it
+  /// without). Without one, checkpoints are written but never resumed.
+  using CheckpointCheck = std::function<bool(const std::string& path, std::string* why)>;
+  SessionRegistry(SessionRegistryOptions options, Factory factory,
+                  CheckpointCheck checkpoint_check = nullptr);
 
   /// Attaches `connection` to session `session_id` (new or resumed). Log lines (a session started,
   /// resumed, a parked map dropped to make room) are appended to `log`.
@@ -94,6 +99,7 @@ class SessionRegistry {
 
   SessionRegistryOptions options_;
   Factory factory_;
+  CheckpointCheck checkpoint_check_;
   std::map<std::uint64_t, Entry> sessions_;
   std::uint64_t next_own_id_ = 1;  ///< ids for clients that ask with 0 (high bit set, see .cpp)
 };

@@ -68,10 +68,13 @@ TEST(SessionRegistry, GivenACheckpointOfTheAskedIdThenARestartedServerResumesItE
   o.resume_grace_ms = 1000;
   o.checkpoint_dir = dir.string();
   std::vector<SessionStart> starts;
-  SessionRegistry reg(o, [&starts](const SessionStart& s) {
-    starts.push_back(s);
-    return std::make_unique<SlamLinkSession>(PipelineOptions{});
-  });
+  SessionRegistry reg(
+      o,
+      [&starts](const SessionStart& s) {
+        starts.push_back(s);
+        return std::make_unique<SlamLinkSession>(PipelineOptions{});
+      },
+      [](const std::string& path, std::string* why) { return check_map_file(path, why); });
   std::string err;
   FeatureOptions orb;
   orb.kind = DetectorKind::kOrb;
