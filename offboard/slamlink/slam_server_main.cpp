@@ -407,8 +407,9 @@ int main(int argc, char** argv) {
   // themselves below it (slam::PipelineOptions::mapping_rt_priority).
   log_line(slam::raise_current_thread(priority).describe("serving"));
   slam::SessionRegistry registry(
-      ropt, [options, load_map, save_map, tables_dir,
-             sessions = std::make_shared<int>(0)](const slam::SessionStart& start) {
+      ropt,
+      [options, load_map, save_map, tables_dir,
+       sessions = std::make_shared<int>(0)](const slam::SessionStart& start) {
         slam::SessionMapFiles files;
         files.load_path = load_map;
         files.save_path = save_map;

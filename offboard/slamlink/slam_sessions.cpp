@@ -33,8 +33,8 @@ std::string SessionRegistry::id_text(std::uint64_t session_id) {
 
 std::string SessionRegistry::checkpoint_path(std::uint64_t session_id) const {
   if (options_.checkpoint_dir.empty() || (session_id & kOwnIdPrefixMask) == kOwnIdPrefix) return {};
-  return (std::filesystem::path(options_.checkpoint_dir) / ("session-" + id_text(session_id) +
-                                                            ".map"))
+  return (std::filesystem::path(options_.checkpoint_dir) /
+          ("session-" + id_text(session_id) + ".map"))
       .string();
 }
 
@@ -118,13 +118,13 @@ AttachResult SessionRegistry::attach(std::uint64_t session_id, int connection, s
   sessions_.emplace(session_id, std::move(e));
   if (log)
     log->push_back("session " + id_text(session_id) +
-                   (r.resumed ? " resumed from its checkpoint " + start.checkpoint_path +
-                                    " (slam-server restarted; map and world frame kept)"
-                              : " started (a new map" +
-                                    (unusable.empty() ? std::string()
-                                                      : "; its checkpoint is unusable: " +
-                                                            unusable) +
-                                    ")"));
+                   (r.resumed
+                        ? " resumed from its checkpoint " + start.checkpoint_path +
+                              " (slam-server restarted; map and world frame kept)"
+                        : " started (a new map" +
+                              (unusable.empty() ? std::string()
+                                                : "; its checkpoint is unusable: " + unusable) +
+                              ")"));
   return r;
 }
 

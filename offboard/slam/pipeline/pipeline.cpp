@@ -402,8 +402,8 @@ bool Pipeline::save_map(const std::string& path, std::string* error) const {
     return false;
   }
   std::lock_guard<MapMutex> lock(map_->mutex);
-  return slam::save_map(path, map_->map, MapFileContext{camera_, options_.frontend.features},
-                        error, map_->corrections);
+  return slam::save_map(path, map_->map, MapFileContext{camera_, options_.frontend.features}, error,
+                        map_->corrections);
 }
 
 void Pipeline::checkpoint_if_due(bool force) {

@@ -5,12 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <thread>
-#include <chrono>
 
 #include "rgbdquad/camera/tum_cameras.hpp"
 #include "rgbdquad/protocol/codec.hpp"
@@ -187,7 +187,8 @@ TEST(SlamLinkSession, GivenACheckpointWrittenWhileRunningThenARestartResumesTheS
   EXPECT_TRUE(err.empty()) << err;
   ASSERT_EQ(after.tracking_state, proto::TrackingState::kTracking);
   EXPECT_EQ(second.pipeline()->summary().relocalisations, 1u);
-  for (int a = 0; a < 3; ++a) EXPECT_NEAR(after.T_world_cam.t_m[a], before.T_world_cam.t_m[a], 0.01);
+  for (int a = 0; a < 3; ++a)
+    EXPECT_NEAR(after.T_world_cam.t_m[a], before.T_world_cam.t_m[a], 0.01);
   // AND a session told to resume a checkpoint it cannot load answers LOST with the reason, never
   // a new map under a client that was told its world frame is kept
   const std::string junk = ::testing::TempDir() + "/junk-checkpoint.map";

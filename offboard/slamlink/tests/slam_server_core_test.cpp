@@ -21,9 +21,8 @@ SessionRegistry make_registry(std::int64_t grace_ms = 1000, std::size_t max_sess
   SessionRegistryOptions o;
   o.resume_grace_ms = grace_ms;
   o.max_sessions = max_sessions;
-  return SessionRegistry(o, [](const SessionStart&) {
-    return std::make_unique<SlamLinkSession>(PipelineOptions{});
-  });
+  return SessionRegistry(
+      o, [](const SessionStart&) { return std::make_unique<SlamLinkSession>(PipelineOptions{}); });
 }
 
 std::vector<std::uint8_t> hello_bytes(std::uint64_t session_id,
@@ -78,8 +77,8 @@ TEST(SessionRegistry, GivenACheckpointOfTheAskedIdThenARestartedServerResumesItE
   std::string err;
   FeatureOptions orb;
   orb.kind = DetectorKind::kOrb;
-  ASSERT_TRUE(save_map(reg.checkpoint_path(42), SlamMap{}, MapFileContext{CameraModel{}, orb}, &err,
-                       3))
+  ASSERT_TRUE(
+      save_map(reg.checkpoint_path(42), SlamMap{}, MapFileContext{CameraModel{}, orb}, &err, 3))
       << err;
   { std::ofstream(reg.checkpoint_path(43)) << "half a map"; }
   std::vector<std::string> log;
