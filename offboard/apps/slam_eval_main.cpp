@@ -49,7 +49,8 @@ struct RunArgs {
   std::string keyframe_gate = slam::PipelineOptions{}.keyframe_gate_mapper_busy ? "on" : "off";
   std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off",
               keyframe_new_content = "on", depth_noise = "keypoint", map_lock = "pi",
-              tracking_policy = "off", local_ba = "on", cross_check = "on";
+              tracking_policy = "off", local_ba = "on", cross_check = "on",
+              orb_pixel_centres = "on";
   double depth_units_per_m = 0;
   int mapping_rt_priority = slam::PipelineOptions{}.mapping_rt_priority;
 };
@@ -93,6 +94,7 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   po.keyframe_gate_mapper_busy = a.keyframe_gate == "on";
   po.tracker.keyframe_needs_new_content = a.keyframe_new_content == "on";
   if (a.cross_check == "off") po.tracker.cross_check_tracked_ratio = 0;
+  po.frontend.features.orb_pixel_centres = a.orb_pixel_centres == "on";
   po.map_lock_priority_inheritance = a.map_lock == "pi";
   po.mapper.bundle_adjustment = a.local_ba == "on";
   po.mapping_rt_priority = a.mapping_rt_priority;
@@ -132,6 +134,7 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
   m["loop_closing_option"] = a.loop_closing;
   m["keyframe_new_content"] = a.keyframe_new_content;
   m["cross_check"] = a.cross_check;
+  m["orb_pixel_centres"] = a.orb_pixel_centres;
   m["depth_noise"] = a.depth_noise;
   m["map_lock"] = a.map_lock;
   m["local_ba"] = a.local_ba;
@@ -483,6 +486,12 @@ int main(int argc, char** argv) {
                   "inliers) is cross-checked by registering the frame to the reference keyframe, "
                   "independent of the prediction; that fit replaces it when it has more inliers "
                   "at a different pose (> 1 cm or 0.5 deg away)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  run->add_option("--orb-pixel-centres", a.orb_pixel_centres,
+                  "ORB keypoints of pyramid level L > 0 moved to their corner's input pixel "
+                  "(cv::ORB reports them (scale^L - 1) / 2 px up and left of it: 1.5 px at level "
+                  "2 with scale 2); off for ablations")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   run->add_option(

@@ -118,6 +118,20 @@ std::optional<FeatureExtractor> FeatureExtractor::create(const FeatureOptions& o
   return FeatureExtractor(o, k, det);
 }
 
+void FeatureExtractor::orb_keypoints_to_pixel_centres(const cv::Size& input,
+                                                      std::vector<cv::KeyPoint>* kps) const {
+  for (cv::KeyPoint& kp : *kps) {
+    if (kp.octave <= 0) continue;
+    // cv::ORB's level sizes (orb.cpp) and its keypoint scale s_L: pt = level pixel x s_L.
+    const double s = std::pow(options_.orb_scale_factor, kp.octave);
+    const double level_w = std::round(input.width / s), level_h = std::round(input.height / s);
+    if (!(level_w > 0 && level_h > 0)) continue;
+    const double rx = input.width / level_w, ry = input.height / level_h;
+    kp.pt.x = static_cast<float>((kp.pt.x / s + 0.5) * rx - 0.5);
+    kp.pt.y = static_cast<float>((kp.pt.y / s + 0.5) * ry - 0.5);
+  }
+}
+
 std::optional<FrameFeatures> FeatureExtractor::extract(const RgbdFrame& frame,
                                                        std::string* error) const {
   if (frame.rgb.empty() || frame.depth.empty()) {
@@ -153,6 +167,8 @@ std::optional<FrameFeatures> FeatureExtractor::extract(const RgbdFrame& frame,
       }
     } else {
       detector_->detectAndCompute(grey, cv::noArray(), kps, desc);
+      if (options_.kind == DetectorKind::kOrb && options_.orb_pixel_centres)
+        orb_keypoints_to_pixel_centres(grey.size(), &kps);
     }
   } catch (const cv::Exception& e) {
     if (error) *error = std::string("features: detector failed: ") + e.what();

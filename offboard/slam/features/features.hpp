@@ -47,6 +47,16 @@ struct FeatureOptions {
   int orb_levels = 6;
   int orb_edge_threshold = 31;
   int orb_patch_size = 31;
+  /// Put ORB keypoints of pyramid level L > 0 where their corner is in the input image. cv::ORB
+  /// reports a level-L keypoint at (level pixel) x s_L (orb.cpp: `keypoint->pt *= scale`), but it
+  /// builds the level with cv::resize, whose pixel centres are aligned: level pixel i is input
+  /// coordinate (i + 0.5) x R_L - 0.5 (R_L = input size / level size). Left as reported, every
+  /// level-L keypoint sits (R_L - 1) / 2 px up and to the left of its corner - with the thesis'
+  /// scale factor 2: 0.5 px at level 1, 1.5 at 2, 3.5 at 3, 7.5 at 4, 15.5 at 5 - always the same
+  /// way, so a point seen at one level in a keyframe and at another in a later frame pulls the
+  /// pose by the difference, and depth is read beside the corner. (The SIFT half-size path below
+  /// corrects the same convention.) Off only to measure what it changes.
+  bool orb_pixel_centres = true;
   // Lifting to 3D. Kinect v1 depth is unreliable below ~0.4 m and its noise grows with z^2
   // (about 4 cm at 4 m), so points beyond `max_depth_m` are dropped.
   double min_depth_m = 0.3;
@@ -93,6 +103,8 @@ class FeatureExtractor {
 
  private:
   FeatureExtractor(FeatureOptions options, Intrinsics intrinsics, cv::Ptr<cv::Feature2D> detector);
+  /// FeatureOptions::orb_pixel_centres: level-L keypoints moved to their corner's input pixel.
+  void orb_keypoints_to_pixel_centres(const cv::Size& input, std::vector<cv::KeyPoint>* kps) const;
   FeatureOptions options_;
   Intrinsics intrinsics_;
   cv::Ptr<cv::Feature2D> detector_;
