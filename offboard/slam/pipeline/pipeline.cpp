@@ -379,8 +379,7 @@ bool Pipeline::load_map(const std::string& path, std::string* error) {
     return false;
   }
   std::uint64_t corrections = 0;
-  auto loaded = slam::load_map(path, MapFileContext{camera_, options_.frontend.features}, error,
-                               &corrections);
+  auto loaded = slam::load_map(path, map_file_context(), error, &corrections);
   if (!loaded) return false;
   {
     std::lock_guard<MapMutex> lock(map_->mutex);
@@ -402,8 +401,11 @@ bool Pipeline::save_map(const std::string& path, std::string* error) const {
     return false;
   }
   std::lock_guard<MapMutex> lock(map_->mutex);
-  return slam::save_map(path, map_->map, MapFileContext{camera_, options_.frontend.features}, error,
-                        map_->corrections);
+  return slam::save_map(path, map_->map, map_file_context(), error, map_->corrections);
+}
+
+MapFileContext Pipeline::map_file_context() const {
+  return MapFileContext{camera_, options_.frontend.features};
 }
 
 void Pipeline::checkpoint_if_due(bool force) {
@@ -429,8 +431,7 @@ void Pipeline::checkpoint_if_due(bool force) {
   }
   std::string error;
   const bool ok =
-      slam::save_map(options_.checkpoint_path, copy,
-                     MapFileContext{camera_, options_.frontend.features}, &error, corrections);
+      slam::save_map(options_.checkpoint_path, copy, map_file_context(), &error, corrections);
   const double ms = ms_since(t0);
   checkpoint_stamp_s_ = stamp_s;
   checkpoint_corrections_ = corrections;

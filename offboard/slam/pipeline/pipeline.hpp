@@ -205,6 +205,8 @@ struct KeyframeAdmission {
 /// `gate_on_busy_mapper`: PipelineOptions::keyframe_gate_mapper_busy.
 KeyframeAdmission keyframe_admission(std::size_t keyframes_in_mapper, bool gate_on_busy_mapper);
 
+struct MapFileContext;  // slam/localmap/map_io.hpp
+
 class Pipeline {
  public:
   static std::unique_ptr<Pipeline> create(const PipelineOptions& options,
@@ -275,6 +277,8 @@ class Pipeline {
   /// Writes the map checkpoint (PipelineOptions::checkpoint_path) when due, or always if `force`.
   /// Called by the thread that finished a keyframe, and by finish().
   void checkpoint_if_due(bool force);
+  /// The camera and detector a map file of this pipeline must match (save, load, checkpoints).
+  MapFileContext map_file_context() const;
 
   PipelineOptions options_;
   std::optional<FrontEnd> frontend_;
