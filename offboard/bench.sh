@@ -9,7 +9,8 @@
 #   fr1_xyz_first300 and fr2_desk_first50: ATE, loops detected/accepted, pose-graph ms, map-lock
 #   hold ms); and the long run (fr1_xyz_first300 forward/backward LONGRUN_PASSES times, real time,
 #   per-minute table). Prints tables shaped like thesis Tables 4.8 (RPE) and 4.10
-#   (ATE), per-stage median ms, and the verdicts.
+#   (ATE), per-stage median ms, the verdicts, and each trajectory's stamp lag against the motion
+#   capture for position and orientation (ours, the peer, and the published RGBD-SLAM / ORB-SLAM2).
 # Env: DATA (default ../shared/data), SLAM_BIN (default build/bin), BENCH_OUT (default out/bench),
 #      BENCH_SEQUENCES (space-separated subset), BENCH_DETECTORS, BENCH_BACKENDS,
 #      LONGRUN_PASSES (default 20: 5960 frames, 200 s of data; 0 skips the long run).
@@ -110,6 +111,31 @@ python3 offboard/tools/bench_table.py "$OUT"
 if [ -f "$OUT/longrun/metrics.json" ]; then
   echo; echo "### Long run (real time), per minute of data"
   python3 offboard/tools/longrun.py table "$OUT/longrun" || status=1
+fi
+# When does each estimate agree with the motion capture, for position and for orientation
+# (offboard/tools/stamp_lag.py; docs/slam.md, session 15): the same for every system that reads the
+# same stamps means the lag is in the data's stamps, not in an estimator. Needs the venv's numpy.
+py=.venv/bin/python; [ -x "$py" ] || py=python3
+if "$py" -c "import numpy" 2> /dev/null; then
+  echo; echo "### Stamp lag against the motion capture (wait mode unless named; best shift, ms)"
+  lag() {
+    [ -f "$2" ] && [ -f "$3" ] || return 0
+    echo "- $1: $(PYTHONPATH=offboard/python "$py" offboard/tools/stamp_lag.py --brief --gt "$3" --est "$2" | tr '\n' '|' | sed 's/|$//; s/|/ | /g')"
+  }
+  for seq in fr1_xyz_first300 fr2_desk_first50; do
+    gt="$DATA/$seq/groundtruth.txt"
+    lag "$seq ORB local map" "$OUT/$seq/orb_localmap/trajectory.tum" "$gt"
+    lag "$seq SIFT VO+GLC" "$OUT/$seq/sift_glc/trajectory.tum" "$gt"
+    lag "$seq peer RgbdOdometry" "$OUT/$seq/peer/trajectory.tum" "$gt"
+  done
+  lag "fr1_xyz_first300 ORB local map, real time" "$OUT/realtime_orb_localmap/trajectory.tum" \
+    "$DATA/fr1_xyz_first300/groundtruth.txt"
+  lag "fr1/xyz RGBD-SLAM (published, whole sequence)" \
+    "$DATA/reference_trajectories/freiburg1_xyz-rgbdslam.txt" "$DATA/fr1_xyz_first300/groundtruth.txt"
+  lag "fr2/desk ORB-SLAM2 (published, whole sequence)" "$DATA/reference_trajectories/fr2_desk_ORB.txt" \
+    "$DATA/fr2_desk_first50/groundtruth.txt"
+else
+  echo "bench: stamp lag skipped (no numpy for $py; make test builds the venv)"
 fi
 echo "bench: done in $(( $(date +%s) - start )) s; metrics under $OUT/"
 exit $status

@@ -146,10 +146,10 @@ def stamp_lag(gt: tum.Trajectory, est: tum.Trajectory, max_shift_s: float,
     return LagReport([score_shift(gt, used, float(s)) for s in shifts], len(used))
 
 
-def format_report(report: LagReport) -> str:
-    lines = [f"{report.poses} estimated poses, ground truth read at (stamp + shift)",
-             "shift ms   position RMSE mm   orientation RMS deg"]
-    for s in report.scores:
+def format_report(report: LagReport, brief: bool = False) -> str:
+    lines = [] if brief else [f"{report.poses} estimated poses, ground truth read at (stamp + shift)",
+                              "shift ms   position RMSE mm   orientation RMS deg"]
+    for s in [] if brief else report.scores:
         lines.append(f"{s.shift_s * 1000:+8.1f}   {s.position_rmse_m * 1000:16.2f}   "
                      f"{s.orientation_rms_deg:10.3f}")
     bp, bo = report.best_position(), report.best_orientation()
@@ -171,6 +171,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-shift-ms", type=float, default=50.0,
                         help="largest shift tried either way (default 50 ms: 1.5 frames at 30 fps)")
     parser.add_argument("--step-ms", type=float, default=5.0, help="shift step (default 5 ms)")
+    parser.add_argument("--brief", action="store_true", help="only the two best shifts, no table")
     args = parser.parse_args(argv)
     try:
         report = stamp_lag(tum.read_trajectory(args.gt), tum.read_trajectory(args.est),
@@ -178,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
     except (tum.TumFormatError, ValueError) as err:
         print(f"stamp_lag: {err}", file=sys.stderr)
         return 1
-    print(format_report(report))
+    print(format_report(report, brief=args.brief))
     return 0
 
 
