@@ -33,16 +33,30 @@ install -d "$stage/lib/systemd/system"
 sed 's#/usr/local/#/usr/#g' "$root/onboard/systemd/rgbd-streamer.service" > "$stage/lib/systemd/system/rgbd-streamer.service"
 install -D -m 0644 "$root/onboard/README.md" "$stage/usr/share/doc/rgbd-streamer/README.md"
 
+# RGBD_CROSS_SYSROOT (scripts/onboard-arm.sh, deps/post/arm-cross.sh's fallback): the libraries
+# are in that directory, and its .rgbd-file-owners names the package of each file.
+sysroot=${RGBD_CROSS_SYSROOT:-}
+sysroot_real=""
+[ -z "$sysroot" ] || sysroot_real=$(readlink -f "$sysroot")
+owner_of() {  # owner_of <path inside the target's file system>
+  if [ -n "$sysroot" ]; then
+    awk -v f="$1" '$1 == f { print $2; exit }' "$sysroot/.rgbd-file-owners"
+  else
+    dpkg -S "$1" 2>/dev/null | head -1 | cut -d: -f1 || true
+  fi
+}
 depends=()
 for lib in $(readelf -d "$binary" | sed -n 's/.*(NEEDED).*\[\(.*\)\]/\1/p'); do
   path=""
   for dir in "/usr/lib/$triplet" "/lib/$triplet"; do
-    if [ -e "$dir/$lib" ]; then path=$(readlink -f "$dir/$lib"); break; fi
+    if [ -e "$sysroot$dir/$lib" ]; then
+      path=$(cd "$sysroot$dir" && readlink -f "$lib"); path=${path#"$sysroot_real"}; break
+    fi
   done
   [ -n "$path" ] || { echo "package-deb: $lib (needed by $binary) not found for $triplet" >&2; exit 1; }
-  owner=$(dpkg -S "$path" 2>/dev/null | head -1 | cut -d: -f1) || true
+  owner=$(owner_of "$path")
   if [ -z "$owner" ]; then  # dpkg records /lib paths for some packages (usrmerge): try that spelling
-    owner=$(dpkg -S "${path#/usr}" 2>/dev/null | head -1 | cut -d: -f1) || true
+    owner=$(owner_of "${path#/usr}")
   fi
   [ -n "$owner" ] || { echo "package-deb: no Debian package owns $path" >&2; exit 1; }
   depends+=("$owner")

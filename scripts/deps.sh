@@ -20,7 +20,7 @@ for pkg in "${wanted[@]}"; do
 done
 if [ "${#missing[@]}" -gt 0 ]; then
   echo "deps: installing ${#missing[@]} Debian package(s): ${missing[*]}"
-  "${sudo_cmd[@]}" apt-get update -q
+  scripts/apt-update.sh
   DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -q "${missing[@]}"
 else
   echo "deps: all ${#wanted[@]} Debian packages present"

@@ -29,10 +29,17 @@ jobs=${JOBS:-$(nproc)}
 build=build-$arch
 
 ARM_ARCHES=$arch bash deps/post/arm-cross.sh
+# deps/post/arm-cross.sh's fallback: the ARM libraries in a sysroot of their own (present only then).
+sysroot=""
+if [ -e "build-sysroot-$arch/.rgbd-sysroot" ]; then
+  sysroot="$root/build-sysroot-$arch"
+  echo "onboard-arm: ARM libraries from the sysroot $sysroot (apt could not install them as multiarch packages)"
+fi
+export RGBD_CROSS_SYSROOT=$sysroot  # onboard/package-deb.sh looks the libraries up there
 # Release at the host build's optimisation level (-O2) without debug info: the package ships the
 # binary stripped, and compiling without -g is faster.
 cmake -S . -B "$build" -G Ninja -DCMAKE_TOOLCHAIN_FILE="$root/cmake/toolchains/debian-$arch.cmake" \
-  -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE="-O2 -DNDEBUG" -DCMAKE_C_FLAGS_RELEASE="-O2 -DNDEBUG" \
+  -DRGBD_CROSS_SYSROOT="$sysroot" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE="-O2 -DNDEBUG" -DCMAKE_C_FLAGS_RELEASE="-O2 -DNDEBUG" \
   -DRGBD_BUILD_OFFBOARD=OFF -DRGBD_BUILD_HIL=OFF -DRGBD_BUILD_FIRMWARE_NATIVE=OFF >/dev/null
 # The streamer and the unit tests of what runs on the board (protocol_tests replays the golden and
 # hostile vectors of protocol/vectors). Not built for ARM: ground-station-side tools and tests
