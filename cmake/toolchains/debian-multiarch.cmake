@@ -41,10 +41,10 @@ set(ENV{PKG_CONFIG_PATH} "")
 # (arm64) or crashes (armhf) in the first pthread_create. The CPU model is the board's, so an
 # instruction the board lacks fails the tests instead of passing on qemu's default "max" CPU.
 # With a sysroot, loader and libc are both the sysroot's.
+set(_rgbd_qemu_root /)
 if(RGBD_CROSS_SYSROOT)
-  set(CMAKE_CROSSCOMPILING_EMULATOR ${RGBD_CROSS_QEMU} -cpu ${RGBD_CROSS_QEMU_CPU} -L ${RGBD_CROSS_SYSROOT})
-else()
-  set(CMAKE_CROSSCOMPILING_EMULATOR ${RGBD_CROSS_QEMU} -cpu ${RGBD_CROSS_QEMU_CPU} -L /)
+  set(_rgbd_qemu_root ${RGBD_CROSS_SYSROOT})
 endif()
+set(CMAKE_CROSSCOMPILING_EMULATOR ${RGBD_CROSS_QEMU} -cpu ${RGBD_CROSS_QEMU_CPU} -L ${_rgbd_qemu_root})
 # For scripts/onboard-arm.sh (runs the ARM rgbd-streamer under the same emulator in the e2e check).
 set(RGBD_CROSS_EMULATOR "${CMAKE_CROSSCOMPILING_EMULATOR}" CACHE INTERNAL "emulator command")

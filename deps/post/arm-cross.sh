@@ -44,11 +44,14 @@ link_openni_drivers() {  # link_openni_drivers <arch> <sysroot>
   "${sudo_cmd[@]}" mkdir -p "$(dirname "$link")"
   "${sudo_cmd[@]}" ln -sfn "$2/usr/lib/$(triplet_of "$1")/OpenNI2" "$link"
 }
-drop_sysroots() {
+drop_openni_links() {
   for arch in $arches; do
-    rm -rf "$root/build-sysroot-$arch"
     if [ -L "$(openni_link "$arch")" ]; then "${sudo_cmd[@]}" rm -f "$(openni_link "$arch")"; fi
   done
+}
+drop_sysroots() {
+  for arch in $arches; do rm -rf "$root/build-sysroot-$arch"; done
+  drop_openni_links
 }
 
 need_update=0
@@ -86,9 +89,7 @@ fi
 
 echo "deps/post/arm-cross.sh: installing ${#missing[@]} package(s) for $arches: ${missing[*]}"
 "$root/scripts/apt-update.sh"
-for arch in $arches; do
-  if [ -L "$(openni_link "$arch")" ]; then "${sudo_cmd[@]}" rm -f "$(openni_link "$arch")"; fi
-done
+drop_openni_links
 # No recommends: qemu-user would otherwise pull qemu-user-binfmt (system-wide binfmt registration).
 if DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"; then
   drop_sysroots
@@ -97,9 +98,8 @@ fi
 
 echo "deps/post/arm-cross.sh: apt cannot install the ARM libraries as multiarch packages (above);" \
      "unpacking them into build-sysroot-<arch>/ instead"
-to_install=()
-mapfile -t host_missing < <(printf '%s\n' "${host_missing[@]}" mmdebstrap | sort -u)
-for pkg in "${host_missing[@]}"; do installed "$pkg" || to_install+=("$pkg"); done
+to_install=("${host_missing[@]}")
+installed mmdebstrap || to_install+=(mmdebstrap)
 if [ "${#to_install[@]}" -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -q --no-install-recommends "${to_install[@]}"
 fi
