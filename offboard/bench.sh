@@ -113,7 +113,7 @@ if [ -f "$OUT/longrun/metrics.json" ]; then
   python3 offboard/tools/longrun.py table "$OUT/longrun" || status=1
 fi
 # When does each estimate agree with the motion capture, for position and for orientation
-# (offboard/tools/stamp_lag.py; docs/slam.md, session 15): the same for every system that reads the
+# (offboard/tools/stamp_lag.py; docs/slam.md, Timestamps): the same for every system that reads the
 # same stamps means the lag is in the data's stamps, not in an estimator. Needs the venv's numpy.
 py=.venv/bin/python; [ -x "$py" ] || py=python3
 if "$py" -c "import numpy" 2> /dev/null; then

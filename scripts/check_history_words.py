@@ -9,9 +9,9 @@ that refers to a work period, a tracker entry or a person; it exits 1 if there i
 Rules (case-insensitive):
 
 * every file: a numbered work period (`session` or `sessions` followed by a number), a tracker entry
-  (`issue` followed by a number, with or without `#`), and the phrase "the lead". The word session
-  alone is fine (a SLAM map's lifetime is a session); a session named by an identifier is written
-  with a hexadecimal identifier (`0x2a`), which the rule does not match.
+  (`issue` followed by a number, with or without `#`), and the word lead after the definite
+  article. The word session alone is fine (a SLAM map's lifetime is a session); a session named by
+  an identifier is written with a hexadecimal identifier (`0x2a`), which the rule does not match.
 * prose only (docs/*.md and the top-level README.md): the words lead(s) and helper(s) in any use
   except the verb phrase "lead(s) to". Prose names a thing by what it is ("test support code",
   "the scoring functions"), so both words there can only mean a person. In code and code comments

@@ -1,4 +1,4 @@
-"""`make hil` must fail, not skip, when a part of the rig is missing (issue 14, item 6).
+"""`make hil` must fail, not skip, when a part of the rig is missing.
 
 Runs one HIL scenario in a child pytest with RGBD_BUILD_DIR pointing at an empty folder, so
 slam-eval cannot be found: with HIL_STRICT=1 (what hil/run.sh sets) the run fails and names the

@@ -23,7 +23,7 @@ constexpr uint8_t kPwmPortBBits[4] = {_BV(PB1), _BV(PB2), _BV(PB3), _BV(PB4)};
 constexpr uint8_t kPwmPortBMask = _BV(PB1) | _BV(PB2) | _BV(PB3) | _BV(PB4);
 
 /// Bridge link: 1000000 baud is exact at 16 MHz (U2X0=1, UBRR0 = 16e6 / (8 * 1000000) - 1 = 1; the
-/// ESP8266's UART runs it too). Issue 13: at 500000 a command cycle was 16.4 ms in simavr (request
+/// ESP8266's UART runs it too). At 500000 a command cycle was 16.4 ms in simavr (request
 /// and reply bytes half of it); at 250000 a 243-byte reply alone took 10 ms. 2 Mbaud (UBRR0 = 0)
 /// would leave the RX ISR 80 cycles per byte, too few beside the soft-UART and PWM interrupts.
 constexpr uint32_t kBridgeBaud = rgbd_control::kBridgeBaud;  // control_spec.json serial_link.baud

@@ -2,7 +2,7 @@
 
 A closed-loop flight runs the rig (simavr + FC emulator + Kinect renderer) at SCHED_RR 11 and the
 ground station's SLAM/control threads at 10-12 (hilrig.realtime). Two flights on one 2-core machine
-starve each other's SLAM - measured twice in session 5: tracking lost, link timeouts - and both
+starve each other's SLAM - measured twice: tracking lost, link timeouts - and both
 report failures that belong to neither system. So a flight takes this machine-wide lock before it
 raises any priority, and a second flight waits for the first to end (printing who holds it) instead
 of corrupting both measurements.

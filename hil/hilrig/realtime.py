@@ -25,7 +25,7 @@ import shutil
 # Above the ground station's CPU-heavy real-time threads (frame, SLAM link, slam-server's tracking:
 # SCHED_RR 10, quad-control.json "realtime"), below quad-control's firmware link thread (10 + 2,
 # ground_station.cpp kCommandPriorityStep) and the kernel's threaded interrupt handlers (50).
-# Not above the link thread (it was 20 until issue 13's long flight): the rig's own bursts (renderer,
+# Not above the link thread (at 20, during the 10-minute flight): the rig's own bursts (renderer,
 # rgbd-streamer, simavr, this process) filled both cores for 85 ms at a time and left the link
 # thread runnable but without a CPU while the simulated firmware's 250 ms failsafe kept counting;
 # two rigs on the machine stalled it 1.1 s and the failsafe landed the craft. On the craft, the

@@ -1,4 +1,4 @@
-"""Pass/fail of a closed-loop flight against the project's targets (`make demo`, issue 13).
+"""Pass/fail of a closed-loop flight against the project's targets (`make demo`).
 
 Pure functions over what the flight recorded (the mission report, quad-control's /api/state at the
 end, the processes' logs), so the verdict is unit-tested without flying. Each target gives one

@@ -154,7 +154,7 @@ def test_slam_long_flight_box_laps(tmp_path):
             "landing": landing,
             "resets": resets,
             "failsafe_events": [e for _, e in flight.rig.fc.events if "failsafe" in e],
-            # Command gaps (issue 13): quad-control's own count and longest gap between two commands
+            # Command gaps: quad-control's own count and longest gap between two commands
             # (each gap over 100 ms is logged with its causes in quad-control.log), the firmware
             # link's timeouts, and the rig's side: simulated gaps between lines on the serial link.
             "command_gaps": {k: state.get("firmware", {}).get(k) for k in

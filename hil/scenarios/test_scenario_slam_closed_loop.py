@@ -266,7 +266,7 @@ def test_slam_loop_scenario6_blank_frames(tmp_path):
     assert err["max_m"] <= 2 * HOLD_TOLERANCE_M
 
 
-# The load scenario (issue 13 item 5): two CPU-burning workers, one per core of the 2-core machine
+# The load scenario: two CPU-burning workers, one per core of the 2-core machine
 # the rig was sized on, at the normal policy beside the ground station for the whole flight.
 LOAD_CPU_BURNERS = 2
 LOAD_HOLD_S = 30.0

@@ -144,7 +144,7 @@ def test_stream_bit_exact_latency_and_blank_frames(emulated):
 
 
 def test_streamer_without_the_key_is_refused_then_the_craft_streams(emulated, tmp_path):
-    """Issue 17 finding 6: only the craft's streamer (holding the stream key) is accepted. (This
+    """Only the craft's streamer (holding the stream key) is accepted. (This
     Python receiver serves one connection per port at a time; the C++ receiver's concurrent case -
     an impostor while the craft streams - is StreamAuthEndToEnd in offboard/receiver.)"""
     other = tmp_path / "other.key"

@@ -20,9 +20,9 @@ against the first minute, which explores the desk (every later minute only revis
 whole minute may add at most `kSteadyKeyframeFraction` of the first minute's new keyframes, and the
 map may not end it with more keyframes than it had after the first minute plus that same slack.
 (Comparing the last minute with the second only showed that the rate did not grow: 31 -> 27
-passed.) The size rule allowed no growth at all until session 12: on an idle machine the same code
-ended 37 -> 37 (met) in one run and 34 -> 35 (missed) in the next - one keyframe made in minute 2
-at a turn-around decided the verdict, while the map had stopped growing (0 new keyframes in
+passed.) A size rule that allowed no growth at all was decided by noise: on an idle machine the same
+code ended 37 -> 37 (met) in one run and 34 -> 35 (missed) in the next - one keyframe made in minute
+2 at a turn-around decided the verdict, while the map had stopped growing (0 new keyframes in
 minutes 3 and 4). A map that keeps growing is still refused (test_longrun.py).
 """
 
@@ -37,7 +37,7 @@ import sys
 from pathlib import Path
 
 kAssocMaxDtS = 0.02  # TUM associate.py's default tolerance
-# Revisits in steady state add no keyframes (issue 12); a tenth of the exploring minute's count leaves
+# Revisits in steady state add no keyframes; a tenth of the exploring minute's count leaves
 # room for the odd keyframe at a turn-around without calling a constant churn "levelled off".
 kSteadyKeyframeFraction = 0.1
 

@@ -17,7 +17,7 @@ The shift where each is smallest is where the ground truth agrees best with the 
 negative shift means the estimate shows the camera as the ground truth had it |s| ms before the
 estimate's stamp (the estimate lags its stamp). A stream whose stamps are taken after exposure (at
 arrival, as the Kinect's colour stamps) makes every system's orientation lag; the benchmark's ATE
-uses positions at the given stamps and cannot show it. docs/slam.md (session 15) has what it
+uses positions at the given stamps and cannot show it. docs/slam.md (Timestamps) has what it
 prints for this project, RGBD-SLAM and ORB-SLAM2 on the shared excerpts.
 
 Only estimate stamps whose shifted time falls inside the ground truth for every shift, between two

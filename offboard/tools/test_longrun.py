@@ -68,7 +68,7 @@ def test_a_map_that_keeps_growing_does_not_level_off(tmp_path):
 
 
 def test_one_late_keyframe_after_exploring_still_levels_off(tmp_path, capsys):
-    # GIVEN the bench's idle run of session 11: 64 keyframes while exploring, 4 in minute 2 (one kept),
+    # GIVEN an idle bench run: 64 keyframes while exploring, 4 in minute 2 (one kept),
     # none afterwards - the map stopped one keyframe above its first-minute size
     run = _write_run(tmp_path / "late", [64, 4, 0, 0], [34, 35, 35, 35])
     # THEN it levels off (the size rule has the rate rule's slack, 10 % of minute 1's 64 -> 6)

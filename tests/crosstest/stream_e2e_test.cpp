@@ -251,7 +251,7 @@ TEST(StreamEndToEnd, RefusedEncodingFallsBackToRawAndStillDeliversBitExact) {
   EXPECT_GE(rx.counters().depth.handshakes_refused, 1u);
 }
 
-// --- authentication (issue 17, finding 6) ---------------------------------------------------
+// --- authentication -------------------------------------------------------------------------
 
 TEST(StreamAuthEndToEnd, AStreamerWithAnotherKeyIsRefusedWhileTheCraftKeepsStreaming) {
   capture::SteadyClock clock;

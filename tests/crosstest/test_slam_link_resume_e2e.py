@@ -1,4 +1,4 @@
-"""The real quad-control and slam-server with the SLAM link severed for 1 s (issue 13 #1).
+"""The real quad-control and slam-server with the SLAM link severed for 1 s.
 
 GIVEN quad-control replaying tests/data/fr1_xyz_first30 (no firmware) to slam-server through the
 HIL rig's LinkProxy, WHEN the proxy severs the link (every connection reset, the port refusing) and

@@ -120,7 +120,7 @@ def test_dashboard_end_to_end(quad_control, firmware, browser, artifacts):
     page.keyboard.press("r")
     page.wait_for_function("document.getElementById('state').textContent === 'hold'", timeout=10_000)
 
-    # WHEN hostile manual steps arrive through the API (issue 17 #3: 50 m -> setpoint x 50.1,
+    # WHEN hostile manual steps arrive through the API (50 m -> setpoint x 50.1,
     # 1e308 twice -> x = inf, up 1e308 -> the height loop stopped) THEN each is refused and the
     # setpoint stays finite, inside the flight envelope
     before = api_state(quad_control.url)["setpoint"]
@@ -194,9 +194,10 @@ def test_token_required_off_loopback_and_enforced(binary):
 
 
 def test_cross_site_requests_cannot_command_the_craft(binary):
-    """Issue 17 #5: on loopback without a token, a POST from a foreign page (Origin evil.example,
-    a DNS-rebinding Host, a text/plain "simple request") armed the craft. Each probe must now be
-    refused and leave the craft disarmed; the dashboard page's own request must still work."""
+    """On loopback without a token, a POST from a foreign page (Origin evil.example, a
+    DNS-rebinding Host, a text/plain "simple request") could arm an unguarded craft. Each probe
+    must be refused and leave the craft disarmed; the dashboard page's own request must still
+    work."""
     qc = QuadControl(binary, ["--no-firmware", "--port", "0"])
     port = qc.url.rstrip("/").rsplit(":", 1)[1]
     arm = json.dumps({"command": "arm"}).encode()
@@ -232,7 +233,7 @@ def test_cross_site_requests_cannot_command_the_craft(binary):
 
 
 def test_public_bind_needs_a_strong_token(binary):
-    # Issue 17 #5: a 1-character token was accepted for a public bind.
+    # A public bind needs a token long and random enough to resist guessing (not a 1-character one).
     for token, ok in [("x", False), ("s3cret", False), ("aaaaaaaaaaaaaaaaaaaa", False),
                       ("9f86d081884c7d659a2feaa0c55ad015", True)]:
         r = subprocess.run([str(binary), "--no-firmware", "--bind", "0.0.0.0", "--token", token, "--print-config"],

@@ -1,8 +1,9 @@
-"""Issue 17 #4 on the whole quad-control process: with its descriptor limit lowered (RLIMIT_NOFILE
-in the child, set before exec) and a flood of idle dashboard connections, no thread spins (CPU
-time per thread from /proc, not wall time), the replay keeps reading frames (the frame thread
-needs descriptors too) and the operator still gets /api/state. Before the fix the accept loop
-took a whole core retrying accept() and new clients timed out. Loopback only; stopped by PID."""
+"""Descriptor exhaustion on the whole quad-control process: with its descriptor limit lowered
+(RLIMIT_NOFILE in the child, set before exec) and a flood of idle dashboard connections, no thread
+spins (CPU time per thread from /proc, not wall time), the replay keeps reading frames (the frame
+thread needs descriptors too) and the operator still gets /api/state. An accept loop without
+back-off takes a whole core retrying accept() and new clients time out. Loopback only; stopped by
+PID."""
 
 from __future__ import annotations
 

@@ -190,7 +190,7 @@ std::optional<AppConfig> load_app_config(const std::string& path, std::string* e
   const json& m = j.value("map", empty);
   const json& rt = j.value("realtime", empty);
   if (f.is_object() && f.contains("control_spec")) {
-    // Removed (issue 14): the ranges and routes are compiled in from the generated
+    // Not read any more: the ranges and routes are compiled in from the generated
     // contract, the same the firmware is built with; a file could only disagree with both.
     *error =
         "firmware.control_spec: no longer read - the control link's ranges and routes are compiled "

@@ -1,6 +1,6 @@
-// Why the firmware link went quiet (issue 13, the long flight's radio failsafe): every gap between
-// two commands longer than a threshold is explained in one log line, with what the sending thread
-// was doing meanwhile:
+// Why the firmware link went quiet (a radio failsafe lands the craft after 250 ms): every gap
+// between two commands longer than a threshold is explained in one log line, with what the sending
+// thread was doing meanwhile:
 //   * late    - how long after the send was due the link's thread ran the send (timer wake-up);
 //   * provider - the command provider (the hub's lock + the controller step) of this send;
 //   * reply   - the longest reply callback since the previous send (recorder + hub lock);

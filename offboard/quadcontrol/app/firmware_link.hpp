@@ -6,7 +6,7 @@
 // between computing and sending) and sends it (protocol/control: PUT /control?...&mac=...,
 // SipHash-2-4 under the craft key, strictly increasing sequence). Before the first command it reads
 // GET /status to continue above the sequence number the craft last accepted. Each request has its
-// own deadline (timeout_ms); a client still waiting is skipped. With send_on_pose (issue 13 item 2)
+// own deadline (timeout_ms); a client still waiting is skipped. With send_on_pose
 // the fixed period is replaced by a CommandScheduler: notify_pose() makes the next command go out
 // at once, no sooner than min_interval_ms after the previous one (what the firmware sustains), and
 // with no new pose a keep-alive goes out every keep_alive_ms (the firmware's 250 ms failsafe never
@@ -43,7 +43,7 @@ struct FirmwareLinkOptions {
   std::uint16_t port = 80;
   int timeout_ms = 100;  ///< > 2 periods: a reply later than this is useless for control
   int period_ms = 20;  ///< 50 commands/s, the rate the thesis' firmware handled (send_on_pose off)
-  /// Issue 13 item 2: send on each new pose (rate-limited, with keep-alives) instead of every
+  /// Send on each new pose (rate-limited, with keep-alives) instead of every
   /// period_ms. Saves ~half a command period of camera->PWM latency (HIL make demo: pose ->
   /// command 9.9 -> 1.2 ms median); on by default since measured (docs/control.md).
   bool send_on_pose = true;

@@ -358,7 +358,7 @@ nlohmann::json to_json(const StationSnapshot& snap) {
   j["last_event"] = st.last_event;
   j["tracking"] = st.tracking;
   j["rejected_poses"] = st.rejected_poses;
-  j["map_resets"] = st.map_resets;  // declared map corrections flown (issue 13)
+  j["map_resets"] = st.map_resets;  // declared map corrections flown
   j["refused_map_corrections"] = st.refused_map_corrections;
   j["map_correction_count"] = snap.map_correction_count;
   j["facing_waypoint"] = st.facing_waypoint;

@@ -47,9 +47,9 @@ struct GroundStationOptions {
   FloorMapOptions map;
   double mount_pitch_down_deg = 30.0;  ///< Kinect tilt on the craft (thesis: mounted at an angle)
   /// Hand the camera's IMU attitude at capture to SLAM (either link), which then predicts each
-  /// frame's rotation from the attitude change instead of the constant-velocity model (issue 12
-  /// item 1). Both SLAM links carry it (the SLAM-server link in RgbdFrame.attitude). HIL
-  /// scenarios 1, 2, 4 and 5 flown with it and without: docs/control.md.
+  /// frame's rotation from the attitude change instead of the constant-velocity model. Both SLAM
+  /// links carry it (the SLAM-server link in RgbdFrame.attitude). HIL scenarios 1, 2, 4 and 5 flown
+  /// with it and without: docs/control.md.
   bool imu_rotation_prior = true;
   int floor_search_frames = 30;  ///< ~1 s at 30 Hz to find the floor, then fall back
   int floor_pixel_step = 4;      ///< depth sub-sampling for the RANSAC (19200 points)

@@ -2,7 +2,7 @@
 // Used for the dashboard. Binds to the given address only; the caller decides whether that may be
 // non-loopback (see main.cpp: a token is required for that). Joined in the destructor.
 //
-// Under hostile load (issue 17, finding 4):
+// Under hostile load:
 //   - at most `max_sessions` connections are kept; a new one evicts the connection idle longest
 //     (a browser reconnects), so idle sockets can neither exhaust the process's descriptors (the
 //     frame and SLAM threads need some) nor lock the operator out;

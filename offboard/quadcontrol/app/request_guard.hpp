@@ -1,5 +1,5 @@
 // Who may use the dashboard API: the checks every /api/ request passes before a route runs
-// (issue 17, finding 5: a foreign web page, or a DNS-rebinding host, could arm the craft).
+// (without them a foreign web page, or a DNS-rebinding host, could arm the craft).
 //
 // A browser lets any page send a "simple" cross-site POST (Content-Type text/plain, form types)
 // to 127.0.0.1 without asking the server first, and a DNS-rebinding host name makes a foreign

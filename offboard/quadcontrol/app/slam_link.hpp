@@ -31,7 +31,7 @@ struct SlamResult {
   /// +1 each time the link starts a new SLAM session (a new map): poses of a new session are in a
   /// new world frame (its first camera). A reconnect that resumes the map keeps the number.
   std::uint64_t session = 0;
-  /// SLAM's map-correction counter (PoseUpdate.map_correction_count, issue 13): +1 each time SLAM
+  /// SLAM's map-correction counter (PoseUpdate.map_correction_count): +1 each time SLAM
   /// corrected its world-frame trajectory discontinuously (a loop correction that moved the map).
   std::uint32_t map_correction_count = 0;
 };

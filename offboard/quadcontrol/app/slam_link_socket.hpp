@@ -2,7 +2,7 @@
 // wait in poll() with the time left, on a non-blocking descriptor. (A blocking read does not
 // honour SO_RCVTIMEO when it goes through asio: asio's synchronous read_some treats the EAGAIN
 // that SO_RCVTIMEO produces as "not ready yet" and polls again without a timeout, so the SLAM
-// link's 5 s reply timeout never fired - issue 17.)
+// link's 5 s reply timeout would never fire.)
 //
 // Owned and used by one thread; wake_up() may be called from any thread (it shuts the socket
 // down so a wait in progress returns at once). Errors are returned as text for the log.

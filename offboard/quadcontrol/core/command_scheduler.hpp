@@ -1,5 +1,5 @@
-// When the ground station sends the next command to the firmware (issue 13 item 2: commands
-// driven by fresh poses).
+// When the ground station sends the next command to the firmware (commands driven by fresh
+// poses).
 //
 // A new pose is sent at once, but never sooner than min_interval after the previous command (what
 // the firmware sustains); with no new pose a keep-alive goes out keep_alive after the previous

@@ -2,7 +2,7 @@
 // 30-400 ms later) with the APM's IMU read back over the firmware link (MAVLink RAW_IMU specific
 // force + ATTITUDE angles, carried by every control reply), so the controller acts on an estimate
 // of where the craft is NOW, with a velocity from the accelerometer, instead of on a pose that is
-// 200-400 ms old after a stream stall (issue 12/13, HIL scenario 5).
+// 200-400 ms old after a stream stall (HIL scenario 5).
 //
 // Design (how flight stacks fuse delayed external vision; no code taken from them):
 //  * PX4 EKF2 and ArduPilot EKF3 run their filter on a delayed "fusion time horizon" (the oldest

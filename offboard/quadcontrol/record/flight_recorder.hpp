@@ -1,4 +1,4 @@
-// quad-control's MCAP flight recorder (issue 15): what the ground station saw and did, in the
+// quad-control's MCAP flight recorder: what the ground station saw and did, in the
 // container ROS 2 bags and Foxglove use, readable by any MCAP tool (docs/recording.md lists the
 // channels, units and frames).
 //
@@ -50,7 +50,7 @@ struct RecorderOptions {
   bool enabled = false;  ///< built-in default off (tests, tools); the shipped config turns it on
   std::string dir;       ///< output folder, created if missing
   /// RGB and depth of every n-th frame. 1: SLAM replayed on 1 frame in 6 lost track where the
-  /// flight's SLAM on every frame did not (docs/recording.md, session 4), and storing the link's
+  /// flight's SLAM on every frame did not (docs/recording.md), and storing the link's
   /// payloads as they are costs no encoding; the price is size (~the link's rate,
   /// docs/recording.md).
   int image_every_n_frames = 1;

@@ -1,4 +1,4 @@
-// Pose-driven command schedule (issue 13 item 2): GIVEN/WHEN/THEN with time passed in, driven by an
+// Pose-driven command schedule: GIVEN/WHEN/THEN with time passed in, driven by an
 // event simulation of the firmware link's timer (no clock, no threads).
 #include "core/command_scheduler.hpp"
 

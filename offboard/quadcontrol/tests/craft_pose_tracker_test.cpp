@@ -99,7 +99,7 @@ struct Rig {
   std::int64_t now_us = 1'000'000;
   std::int64_t imu_us = 1'000'000;
   std::uint32_t seed = 1;
-  Eigen::Isometry3d world1 = camera_at(0.0, 0.0, 1.2);  ///< session 1's first camera
+  Eigen::Isometry3d world1 = camera_at(0.0, 0.0, 1.2);  ///< the first session's first camera
   Eigen::Isometry3d world2 = Eigen::Isometry3d::Identity();
 };
 
@@ -223,13 +223,14 @@ class SlamReconnect : public ::testing::TestWithParam<SessionCase> {};
 TEST_P(SlamReconnect, GivenASlamReconnectWhenPosesComeBackThenTheCraftPoseIsContinuous) {
   const SessionCase c = GetParam();
   Rig rig;
-  // GIVEN session 1 tracking a craft flying forward 2 cm per frame
+  // GIVEN the first session tracking a craft flying forward 2 cm per frame
   auto camera = [](int i) { return camera_at(0.02 * i, 0.01 * i, 1.2, 10.0); };
   rig.world1 = camera(0);
   CraftPose last;
   int i = 0;
   for (; i < 10; ++i) last = rig.slam(camera(i)).pose;
-  // (what session 1 would have said of the next camera: the floor frame is the tracker's own)
+  // (what the first session would have said of the next camera: the floor frame is the tracker's
+  // own)
   const Eigen::Isometry3d T_floor_world1 = *rig.tracker.T_floor_world();
   const CraftPose expected_next =
       craft_pose_from(T_floor_world1 * rig.world1.inverse() * camera(i));
@@ -264,7 +265,7 @@ INSTANTIATE_TEST_SUITE_P(CraftPoseTracker, SlamReconnect,
 TEST(CraftPoseTracker, GivenANewSessionWhenItIsNotTrackingYetThenItIsNotAnchored) {
   Rig rig;
   rig.slam(rig.world1);
-  // WHEN session 2 reports, not tracking THEN the floor frame stays with session 1
+  // WHEN the second session reports, not tracking THEN the floor frame stays with the first
   EXPECT_FALSE(rig.slam(rig.world1, false, 2).reanchored);
   EXPECT_EQ(rig.tracker.session(), 1u);
   // and a session-1 result that still arrives is used

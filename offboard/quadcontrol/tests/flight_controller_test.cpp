@@ -510,7 +510,7 @@ TEST_F(Flight, ManualNudgeMovesSetpointInBodyFrame) {
   EXPECT_NE(fc.nudge(now_us, std::nan(""), 0.0, 0.0, 0.0), "");
 }
 
-// Declared map corrections (issue 13, PX4 EKF2 reset-counter style): a jump that arrives with a
+// Declared map corrections (PX4 EKF2 reset-counter style): a jump that arrives with a
 // changed map_correction_count is SLAM correcting its map, flown as a re-anchor; the same jump
 // without a count change is a SLAM failure, rejected as before.
 struct CorrectionCase {

@@ -1,4 +1,4 @@
-// The flight envelope as one contract (issue 17, finding 3): every path that writes a setpoint
+// The flight envelope as one contract: every path that writes a setpoint
 // (manual steps, waypoints, take-off, landing) with NaN, inf, huge and negative values.
 // Table-driven, GIVEN/WHEN/THEN, time passed in, seeded.
 #include "core/flight_envelope.hpp"

@@ -1,5 +1,5 @@
-// The dashboard's HTTP server under hostile load (issue 17, finding 4 and the malformed-request
-// part of finding 7): at the descriptor limit the accept loop backs off instead of spinning
+// The dashboard's HTTP server under hostile load (descriptor exhaustion, malformed requests): at
+// the descriptor limit the accept loop backs off instead of spinning
 // (measured as the CPU time of a child process whose RLIMIT_NOFILE is lowered), it serves again
 // once descriptors are free, idle connections beyond the session cap are evicted, and a malformed
 // request gets a 400 before the close. Loopback only; children are reaped by PID.

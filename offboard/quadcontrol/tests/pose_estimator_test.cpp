@@ -402,7 +402,7 @@ TEST(EstimatorOptionsTest, GivenBadValuesThenValidateNamesThem) {
   EXPECT_THROW(PoseEstimator{o}, std::invalid_argument);
 }
 
-// Declared map correction (issue 13): SLAM moved its world-frame estimate by a known amount (a loop
+// Declared map correction: SLAM moved its world-frame estimate by a known amount (a loop
 // correction); the estimator re-anchors instead of rejecting the jump at its innovation gate.
 struct ShiftCase {
   const char* name;

@@ -1,4 +1,4 @@
-// Dashboard API access checks (issue 17, finding 5): a foreign page or a DNS-rebinding host must
+// Dashboard API access checks: a foreign page or a DNS-rebinding host must
 // not command the craft; the dashboard page itself and non-browser clients must. Table-driven.
 #include "app/request_guard.hpp"
 

@@ -3,7 +3,7 @@
 // the link status); a connection that breaks is resumed with the same session id, so the session
 // number (the world frame) does not change; a refusal is reported with its reason.
 // Deadlines are generous (a shared machine); the client's own timeout is short (300 ms).
-// Also a characterisation of the first design's bug (issue 17): SO_RCVTIMEO does not bound asio's
+// Also a characterisation of why the client polls: SO_RCVTIMEO does not bound asio's
 // synchronous read_some.
 #include "app/slam_server_client.hpp"
 

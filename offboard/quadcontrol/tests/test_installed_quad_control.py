@@ -1,4 +1,4 @@
-"""An installed quad-control runs from any directory (issue 14): `cmake --install <build>
+"""An installed quad-control runs from any directory: `cmake --install <build>
 --component quad-control` into a temporary prefix, then the installed binary, started from an
 unrelated working directory, finds its dashboard files and the default TUM replay under
 <prefix>/share/rgbdquad (app/data_paths.hpp), serves /api/state and the page on loopback, and

@@ -1,7 +1,7 @@
-// The receiver under a hostile peer (issue 17): garbage on a stream port is counted but logged at
-// a bounded rate (finding 7: one line per malformed envelope), and a new connection displaces the
-// live streamer only once its handshake is accepted (finding 6: a raw connect, even random bytes,
-// dropped the real streamer), and only a handshake signed with the stream key over this
+// The receiver under a hostile peer: garbage on a stream port is counted but logged at
+// a bounded rate (not one line per malformed envelope), and a new connection displaces the
+// live streamer only once its handshake is accepted (otherwise a raw connect, even random bytes,
+// would drop the real streamer), and only a handshake signed with the stream key over this
 // connection's challenge is accepted (finding 6: any peer with a valid handshake was fed to SLAM).
 // Loopback only.
 #include <arpa/inet.h>

@@ -1,6 +1,6 @@
 // The receiver's per-connection session without sockets (receiver_session.h): replayed against the
 // golden vectors of protocol/vectors (signed with the manifest's key and nonces), the
-// authentication cases of issue 17 (wrong key, missing mac, replayed handshake) and the deadlines,
+// authentication cases (wrong key, missing mac, replayed handshake) and the deadlines,
 // all with time passed in.
 #include "rgbdquad/receiver/receiver_session.h"
 

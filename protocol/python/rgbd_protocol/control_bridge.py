@@ -2,11 +2,11 @@
 
 The reference of the control link's HTTP <-> serial-line mapping (control_spec.json serial_link),
 kept with the codec so every side's tests use the same one: the HIL rig fronts the firmware in
-simavr with it, the ground-station tests front a firmware double (moved here from hil/wifi_bridge,
-issue 14: deployables share only contracts). As specified in docs/protocol-control.md: each HTTP request becomes ONE text line
-`<METHOD> <target>` on the ATmega's serial link (no HTTP version, headers or body); the one reply
-line `<status> <json>` comes back as the HTTP response (status code + JSON body). One request at a
-time on the serial link. What the serial side is comes in as a callable
+simavr with it, the ground-station tests front a firmware double (it lives here because deployables
+share only contracts). As specified in docs/protocol-control.md: each HTTP request becomes ONE text
+line `<METHOD> <target>` on the ATmega's serial link (no HTTP version, headers or body); the one
+reply line `<status> <json>` comes back as the HTTP response (status code + JSON body). One request
+at a time on the serial link. What the serial side is comes in as a callable
 `transact(line: str, timeout_s: float) -> str | None` (None: no reply in time), so the same bridge
 fronts the firmware in simavr (hilrig.live_rig) or a test double.
 

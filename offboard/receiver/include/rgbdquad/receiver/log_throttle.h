@@ -1,10 +1,10 @@
-// Rate limit for log lines caused by a peer's input (issue 17, finding 7: a peer sending garbage
-// got one log line per malformed envelope, i.e. per 16 bytes: a few KiB/s of input became MB/s of
-// log). At most `burst` lines per `window_us`; the rest are counted and the count is reported
-// with the next line let through, or - when no further line comes (the peer went quiet or its
-// connection was dropped without a line) - by `take_unreported` once the window is over, so
-// nothing is hidden, only summarised.
-// Time is passed in (monotonic microseconds). Not thread-safe: one per serving thread.
+// Rate limit for log lines caused by a peer's input (without it a peer sending garbage gets one
+// log line per malformed envelope, i.e. per 16 bytes: a few KiB/s of input becomes MB/s of log). At
+// most `burst` lines per `window_us`; the rest are counted and the count is reported with the next
+// line let through, or - when no further line comes (the peer went quiet or its connection was
+// dropped without a line) - by `take_unreported` once the window is over, so nothing is hidden,
+// only summarised. Time is passed in (monotonic microseconds). Not thread-safe: one per serving
+// thread.
 #pragma once
 
 #include <cstdint>

@@ -1,4 +1,4 @@
-// One stream connection on the ground-station side, socket-free (issue 14 item 3): bytes in,
+// One stream connection on the ground-station side, socket-free: bytes in,
 // bytes and events out, time passed in. StreamReceiver (stream_receiver.h) is the socket shell
 // around it; tests and fuzzers drive it directly.
 //

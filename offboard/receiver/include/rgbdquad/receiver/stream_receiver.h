@@ -5,7 +5,7 @@
 // RGB with depth by nearest capture timestamp. Consumers (SLAM server, control loop) read the
 // newest pair.
 //
-// Authentication (issue 17): every connection gets a StreamChallenge; its Handshake must carry a
+// Authentication: every connection gets a StreamChallenge; its Handshake must carry a
 // mac over that challenge under the craft's stream key (protocol/stream_auth.hpp), so only the
 // craft's streamer is accepted and a recorded handshake is refused.
 // Hostile peers: a new connection is only a candidate until its handshake is accepted (within 2 s

@@ -1,4 +1,4 @@
-// One stream connection on the streamer's side, socket-free (issue 14 item 3): bytes in, bytes
+// One stream connection on the streamer's side, socket-free: bytes in, bytes
 // and a state out, time passed in. StreamSender (stream_sender.h) is the socket shell around it,
 // which also picks the frames to send.
 //
