@@ -12,6 +12,8 @@ Rules (case-insensitive):
   (`issue` followed by a number, with or without `#`), and the word lead after the definite
   article. The word session alone is fine (a SLAM map's lifetime is a session); a session named by
   an identifier is written with a hexadecimal identifier (`0x2a`), which the rule does not match.
+  An option or identifier ending in `-sessions`/`_session` followed by a value (`--max-sessions
+  4`) is not a work period and is not flagged.
 * prose only (docs/*.md and the top-level README.md): the words lead(s) and helper(s) in any use
   except the verb phrase "lead(s) to". Prose names a thing by what it is ("test support code",
   "the scoring functions"), so both words there can only mean a person. In code and code comments
@@ -33,7 +35,7 @@ import sys
 from pathlib import Path
 
 EVERYWHERE = re.compile(
-    r"\bsessions?\s+[0-9]+\b|\bissues?\s+#?[0-9]+\b|\bthe\s+lead\b",
+    r"(?<![-_])\bsessions?\s+[0-9]+\b|\bissues?\s+#?[0-9]+\b|\bthe\s+lead\b",
     re.IGNORECASE,
 )
 PROSE_ONLY = re.compile(r"\b(?:lead|helper)s?\b(?!\s+to\b)", re.IGNORECASE)

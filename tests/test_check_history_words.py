@@ -63,10 +63,11 @@ def test_clean_tree_passes(tmp_path):
     root = make_repo(
         tmp_path / "repo",
         {
-            "docs/slam.md": "A session keeps one map; a stall leads to relocalisation.\n",
             "src/geometry.hpp": "// Small geometry helpers: angle wrapping.\n",
             "src/test.py": '"""Session 0x2a resumes from its checkpoint."""\n',
             "README.md": "Run `make test`.\n",
+            "docs/slam.md": "A session keeps one map; a stall leads to relocalisation.\n"
+            "`slam-server --max-sessions 4` holds four maps.\n",
         },
     )
     # WHEN the checker runs THEN it passes silently
