@@ -5,6 +5,7 @@
 #   make demo            deps + build, then the end-to-end demo of what exists
 #   make bench           accuracy/speed benchmarks on DATA (default ../shared/data), prints tables
 #   make study           the frame-rate / spatial-velocity study on DATA
+#   make results         docs/results.md from out/results/*.json (written by bench, hil, demo-loop)
 #   make fuzz            longer libFuzzer runs (FUZZ_SECONDS per target, default 300)
 #   make hil             all hardware-in-loop scenarios
 #   make firmware        build the ATmega328P image, print flash/RAM use
@@ -28,7 +29,7 @@ define component
 endef
 
 .PHONY: all deps build build-cpp build-asan firmware test demo demo-loop bench study fuzz hil flash \
-        install-onboard run-offboard clean help onboard-arm bench-arm
+        install-onboard run-offboard clean help onboard-arm bench-arm results
 
 all: build
 
@@ -52,10 +53,15 @@ demo: build
 
 # Ten consecutive `make demo` flights and one summary (hil/tools/demo_loop.py; RUNS=N for another count).
 demo-loop: build
-	.venv/bin/python hil/tools/demo_loop.py --runs $(or $(RUNS),10)
+	@.venv/bin/python hil/tools/demo_loop.py --runs $(or $(RUNS),10); status=$$?; \
+	  python3 scripts/results_write.py demo-loop || true; exit $$status
 
 bench: build
 	@scripts/bench.sh
+
+# The one page of dated figures, from the result files the benchmark runs wrote (stdlib only).
+results:
+	@python3 scripts/results.py
 
 study: build
 	$(call component,offboard/study.sh,)

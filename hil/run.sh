@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # `make hil`: every hardware-in-loop scenario (pytest tests marked `hil` under hil/), then a summary
-# of what each reported (test-artifacts/hil/*.json) and the latency budget.
+# of what each reported (test-artifacts/hil/*.json, also written to out/results/hil.json) and the
+# latency budget.
 #   RGBD_BUILD_DIR   build folder holding bin/fw_sim, bin/slam-eval, ... (default: build)
 #   RGBD_FIRMWARE_ELF firmware image (default: firmware/.pio/build/uno_wifi/program.elf)
 # A scenario whose components are not built fails with the reason (HIL_STRICT=1; set HIL_STRICT=0
 # to let such scenarios skip while running a subset). Extra args go to pytest.
 set -uo pipefail
 if [ "${1:-}" = "-h" ] || [ "${1:-}" = "--help" ]; then
-  sed -n '2,7p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,8p' "$0" | sed 's/^# \{0,1\}//'
   exit 0
 fi
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -31,4 +32,6 @@ print(sys.argv[1].split("/")[-1] + ": " + ", ".join(f"{k}={v:.3f}" if isinstance
 PY
 done
 .venv/bin/python hil/hilrig/latency_budget.py test-artifacts/hil
+# Each scenario's figures into out/results/hil.json for docs/results.md (make results).
+python3 scripts/results_write.py hil test-artifacts/hil || true
 exit $status

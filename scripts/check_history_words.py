@@ -61,10 +61,7 @@ def tracked_files(root: Path) -> list[str]:
 
 
 def is_skipped(path: str) -> bool:
-    return (
-        path.startswith(SKIPPED_PREFIXES)
-        or Path(path).suffix.lower() in BINARY_EXTENSIONS
-    )
+    return path.startswith(SKIPPED_PREFIXES) or Path(path).suffix.lower() in BINARY_EXTENSIONS
 
 
 def read_text(file: Path) -> str | None:
