@@ -27,6 +27,7 @@ if [ "${#unformatted[@]}" -gt 0 ]; then
   status=1
 fi
 echo "lint: history words"
-# Reported, not yet fatal: the tree is scrubbed in a following change, which makes this fatal.
-.venv/bin/python scripts/check_history_words.py || echo "lint: history words found (not fatal yet)"
+# Folders being restructured are reported without failing; remove each from the list once clean.
+pending=(offboard/slam offboard/slamlink offboard/apps)
+python3 scripts/check_history_words.py "${pending[@]/#/--pending=}" || status=1
 exit $status
