@@ -44,4 +44,6 @@ def pytest_runtest_makereport(item, call):
         return
     reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
     report.outcome = "failed"
-    report.longrepr = f"HIL_STRICT: a part of the rig is missing, so this scenario cannot run: {reason}"
+    report.longrepr = (
+        f"HIL_STRICT: a part of the rig is missing, so this scenario cannot run: {reason}"
+    )

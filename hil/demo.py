@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 import shutil
 import sys
 import time
+from pathlib import Path
 
 from hilrig import missions
 from hilrig.paths import REPO_ROOT
@@ -32,22 +32,44 @@ def frame_rate_guide(out: Path, fps: float) -> str:
     recommended rate (slam_study.guide.flight_summary, docs/study.md). Informational only."""
     try:
         from slam_study.guide import flight_summary
+
         return flight_summary(out / "groundtruth.tum", fps)
     except Exception as e:  # noqa: BLE001 - one summary line must not fail the demo
         return f"frame-rate guide not available: {e}"
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", type=Path, default=REPO_ROOT / "out" / "demo-hil", help="output folder (replaced)")
-    ap.add_argument("--fps", type=float, default=SlamFlightOptions.fps, help=f"camera frame rate (default {SlamFlightOptions.fps:g})")
-    ap.add_argument("--hold-s", type=float, default=10.0, help="seconds to hold before the waypoints")
-    ap.add_argument("--linger-s", type=float, default=0.0, help="keep everything up this long after landing")
-    ap.add_argument("--send-on-pose", choices=("on", "off"), default=None,
-                    help="quad-control's firmware.send_on_pose (default: its configured default)")
-    ap.add_argument("--record", choices=("on", "off"), default="on",
-                    help="quad-control records the flight as MCAP in OUT/recording (default on; off "
-                         "measures what recording costs the loop)")
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument(
+        "--out", type=Path, default=REPO_ROOT / "out" / "demo-hil", help="output folder (replaced)"
+    )
+    ap.add_argument(
+        "--fps",
+        type=float,
+        default=SlamFlightOptions.fps,
+        help=f"camera frame rate (default {SlamFlightOptions.fps:g})",
+    )
+    ap.add_argument(
+        "--hold-s", type=float, default=10.0, help="seconds to hold before the waypoints"
+    )
+    ap.add_argument(
+        "--linger-s", type=float, default=0.0, help="keep everything up this long after landing"
+    )
+    ap.add_argument(
+        "--send-on-pose",
+        choices=("on", "off"),
+        default=None,
+        help="quad-control's firmware.send_on_pose (default: its configured default)",
+    )
+    ap.add_argument(
+        "--record",
+        choices=("on", "off"),
+        default="on",
+        help="quad-control records the flight as MCAP in OUT/recording (default on; off "
+        "measures what recording costs the loop)",
+    )
     args = ap.parse_args(argv)
     missing = missing_parts()
     if missing:
@@ -61,9 +83,13 @@ def main(argv=None) -> int:
         print(f"demo [{time.monotonic() - t0:6.1f} s] {text}", flush=True)
 
     send_on_pose = None if args.send_on_pose is None else args.send_on_pose == "on"
-    with SlamFlight(args.out, SlamFlightOptions(fps=args.fps, send_on_pose=send_on_pose,
-                                                       record=args.record == "on")) as flight:
-        progress(f"dashboard: http://127.0.0.1:{flight.dashboard_port}/ (open it to watch the flight)")
+    with SlamFlight(
+        args.out,
+        SlamFlightOptions(fps=args.fps, send_on_pose=send_on_pose, record=args.record == "on"),
+    ) as flight:
+        progress(
+            f"dashboard: http://127.0.0.1:{flight.dashboard_port}/ (open it to watch the flight)"
+        )
         progress(f"logs: {args.out}/*.log, flight log: {flight.log_dir}")
         try:
             report = missions.scenario2(flight, hold_s=args.hold_s, progress=progress)
@@ -72,10 +98,14 @@ def main(argv=None) -> int:
             progress(f"mission aborted: {e}")
             flight.hold_for(2.0)
             snap = flight.rig.snapshot()
-            report = {"aborted": str(e), "armed_at_end": snap.armed, "landed_at_end": snap.landed,
-                      "touchdowns_mps": list(flight.rig.fc.touchdowns_mps),
-                      "fc_events": [e for _, e in flight.rig.fc.events],
-                      "realtime_factor": round(flight.rig.realtime_factor, 3)}
+            report = {
+                "aborted": str(e),
+                "armed_at_end": snap.armed,
+                "landed_at_end": snap.landed,
+                "touchdowns_mps": list(flight.rig.fc.touchdowns_mps),
+                "fc_events": [e for _, e in flight.rig.fc.events],
+                "realtime_factor": round(flight.rig.realtime_factor, 3),
+            }
         report.update(flight.scores())
         try:  # quad-control's own account of its SLAM link (sessions, resumes, disconnects)
             final_state = flight.state()
@@ -85,7 +115,9 @@ def main(argv=None) -> int:
         if args.linger_s > 0:
             progress(f"landed; everything stays up {args.linger_s:.0f} s more")
             flight.hold_for(args.linger_s)
-    resets = session_resets(_read(args.out / "slam-server.log"), _read(args.out / "quad-control.log"), final_state)
+    resets = session_resets(
+        _read(args.out / "slam-server.log"), _read(args.out / "quad-control.log"), final_state
+    )
     report["slam_link"] = dict(resets, state=(final_state or {}).get("slam"))
     checks = judge(report, resets, args.fps)
     report["verdict"] = [c.__dict__ for c in checks]
@@ -110,41 +142,64 @@ def print_figures(report: dict, args) -> None:
     if "aborted" in report:
         print("demo: ===== the flight did NOT complete (HIL scenario 2, SLAM in the loop) =====")
         print(f"demo: {report['aborted'][:400]}")
-        print(f"demo: at the end: armed={report['armed_at_end']} landed={report['landed_at_end']}, "
-              f"touchdowns {report['touchdowns_mps']} m/s, APM events {report['fc_events']}")
-        print(f"demo: SLAM ATE {report['ate']}; report {args.out / 'report.json'}; logs in {args.out}")
+        print(
+            f"demo: at the end: armed={report['armed_at_end']} landed={report['landed_at_end']}, "
+            f"touchdowns {report['touchdowns_mps']} m/s, APM events {report['fc_events']}"
+        )
+        print(
+            f"demo: SLAM ATE {report['ate']}; report {args.out / 'report.json'}; logs in {args.out}"
+        )
         return
     a, lat, land = report["ate"], report["latency_ms"], report["landing"]
     print("demo: ===== summary (HIL scenario 2, SLAM in the loop) =====")
     if "ate_rmse_m" in a:
-        print(f"demo: SLAM ATE RMSE {a['ate_rmse_m'] * 1000:.1f} mm (max {a['ate_max_m'] * 1000:.1f} mm, "
-              f"{a['pairs']} poses) against the emulator's truth")
+        print(
+            f"demo: SLAM ATE RMSE {a['ate_rmse_m'] * 1000:.1f} mm (max {a['ate_max_m'] * 1000:.1f} mm, "
+            f"{a['pairs']} poses) against the emulator's truth"
+        )
     else:
         print(f"demo: SLAM ATE not available: {a}")
     h = report["hold"]
-    print(f"demo: hold at {missions.HOLD_HEIGHT_M} m: max error {h['max_m']:.3f} m, RMS {h['rms_m']:.3f} m")
+    print(
+        f"demo: hold at {missions.HOLD_HEIGHT_M} m: max error {h['max_m']:.3f} m, RMS {h['rms_m']:.3f} m"
+    )
     for i, w in enumerate(report["waypoints"], 1):
         print(f"demo: waypoint {i}: reached in {w['leg_s']} s, position error {w['max_m']:.3f} m")
-    print(f"demo: landing: touchdown {land['touchdown_vertical_speed_mps']} m/s, "
-          f"final distance to the last waypoint {report['final_distance_to_last_waypoint_m']} m")
+    print(
+        f"demo: landing: touchdown {land['touchdown_vertical_speed_mps']} m/s, "
+        f"final distance to the last waypoint {report['final_distance_to_last_waypoint_m']} m"
+    )
     if "capture_to_pwm" in lat:
         stages = [k for k in lat if k not in ("frames", "capture_to_pwm", "exposure_to_pwm")]
-        print("demo: latency, median ms: " + ", ".join(f"{k.replace('_to_', '->')} {lat[k]['median_ms']}" for k in stages))
-        print(f"demo: camera (capture stamp) -> PWM median {lat['capture_to_pwm']['median_ms']} ms "
-              f"(p95 {lat['capture_to_pwm']['p95_ms']}) over {lat['frames']} frames at {args.fps:g} fps")
+        print(
+            "demo: latency, median ms: "
+            + ", ".join(f"{k.replace('_to_', '->')} {lat[k]['median_ms']}" for k in stages)
+        )
+        print(
+            f"demo: camera (capture stamp) -> PWM median {lat['capture_to_pwm']['median_ms']} ms "
+            f"(p95 {lat['capture_to_pwm']['p95_ms']}) over {lat['frames']} frames at {args.fps:g} fps"
+        )
     s = report["stream"]
-    print(f"demo: stream {s['received_fps']} fps received, {s['slam_tracked']}/{s['slam_results']} SLAM results tracked")
+    print(
+        f"demo: stream {s['received_fps']} fps received, {s['slam_tracked']}/{s['slam_results']} SLAM results tracked"
+    )
     print(f"demo: {frame_rate_guide(args.out, args.fps)}")
     link = report["slam_link"]
-    print(f"demo: SLAM link: {link['link_breaks']} break(s), {link['resumes']} resumed, "
-          f"resets {link['resets']} (counted from {', '.join(link['sources']) or 'nothing'})")
+    print(
+        f"demo: SLAM link: {link['link_breaks']} break(s), {link['resumes']} resumed, "
+        f"resets {link['resets']} (counted from {', '.join(link['sources']) or 'nothing'})"
+    )
     for proc, threads in (report.get("thread_cpu_s") or {}).items():
         busiest = ", ".join(f"{name} {cpu_s:.1f}" for name, cpu_s in list(threads.items())[:6])
         print(f"demo: CPU s by thread, {proc}: {busiest}")
-    print(f"demo: report {args.out / 'report.json'}; {report['wall_s']} s, real-time factor {report['realtime_factor']}")
-    print(f"demo: load average {report.get('load_average')}; send_on_pose {args.send_on_pose or 'default'}; "
-          f"recording {args.record}; "
-          f"scheduling {report.get('scheduling')}")
+    print(
+        f"demo: report {args.out / 'report.json'}; {report['wall_s']} s, real-time factor {report['realtime_factor']}"
+    )
+    print(
+        f"demo: load average {report.get('load_average')}; send_on_pose {args.send_on_pose or 'default'}; "
+        f"recording {args.record}; "
+        f"scheduling {report.get('scheduling')}"
+    )
 
 
 if __name__ == "__main__":

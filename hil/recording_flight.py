@@ -20,10 +20,10 @@ from __future__ import annotations
 import argparse
 import json
 import os
-from pathlib import Path
 import shutil
 import sys
 import time
+from pathlib import Path
 
 from hilrig import missions
 from hilrig.paths import REPO_ROOT
@@ -61,8 +61,12 @@ def recording_figures(flight: SlamFlight, state: dict, out: Path, replay_it: boo
     if not replay_it:
         return figures
     try:
-        figures["replay"] = replay(files[-1], out / "replay", REPO_ROOT / "build" / "bin" / "slam-eval",
-                                   REPO_ROOT / "build" / "bin" / "tum-score")
+        figures["replay"] = replay(
+            files[-1],
+            out / "replay",
+            REPO_ROOT / "build" / "bin" / "slam-eval",
+            REPO_ROOT / "build" / "bin" / "tum-score",
+        )
     except Exception as e:  # noqa: BLE001 - the flight's figures still count
         figures["replay"] = {"error": f"{type(e).__name__}: {e}"}
     return figures
@@ -83,15 +87,25 @@ def with_image_rate(every_n: int) -> None:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--record", choices=("on", "off"), required=True)
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--hold-s", type=float, default=10.0)
-    ap.add_argument("--image-every", type=int, default=None,
-                    help="recording.image_every_n_frames for this flight (default: quad-control's, 1)")
-    ap.add_argument("--rgb-encoding", choices=("raw", "jpeg"), default="raw",
-                    help="the streamer's RGB encoding (the rig's default raw: the recorder then JPEG-encodes "
-                         "every frame; jpeg: the shipped streamer's, stored as it came)")
+    ap.add_argument(
+        "--image-every",
+        type=int,
+        default=None,
+        help="recording.image_every_n_frames for this flight (default: quad-control's, 1)",
+    )
+    ap.add_argument(
+        "--rgb-encoding",
+        choices=("raw", "jpeg"),
+        default="raw",
+        help="the streamer's RGB encoding (the rig's default raw: the recorder then JPEG-encodes "
+        "every frame; jpeg: the shipped streamer's, stored as it came)",
+    )
     ap.add_argument("--no-replay", action="store_true", help="skip the replay through SLAM")
     args = ap.parse_args(argv)
     missing = missing_parts()
@@ -112,9 +126,18 @@ def main(argv=None) -> int:
             report = {"aborted": str(e)}
         report.update(flight.scores())
         state = flight.state()
-    out = {"record": args.record, "rgb_encoding": args.rgb_encoding, "image_every_n_frames": args.image_every, "wall_s": round(time.monotonic() - t0, 1), "load_average_before": load_before,
-           "load_average_after": os.getloadavg(), "aborted": report.get("aborted"),
-           "latency_ms": report.get("latency_ms"), "ate": report.get("ate"), "stream": report.get("stream")}
+    out = {
+        "record": args.record,
+        "rgb_encoding": args.rgb_encoding,
+        "image_every_n_frames": args.image_every,
+        "wall_s": round(time.monotonic() - t0, 1),
+        "load_average_before": load_before,
+        "load_average_after": os.getloadavg(),
+        "aborted": report.get("aborted"),
+        "latency_ms": report.get("latency_ms"),
+        "ate": report.get("ate"),
+        "stream": report.get("stream"),
+    }
     if args.record == "on":
         out["recording"] = recording_figures(flight, state, args.out, replay_it=not args.no_replay)
     (args.out / "recording-report.json").write_text(json.dumps(out, indent=2, default=str))

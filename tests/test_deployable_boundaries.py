@@ -6,6 +6,7 @@ The scan covers C/C++ includes (resolved against the headers in the tree), CMake
 another deployable's folder or targets, and Python imports of modules that exist only in another
 deployable or in the rig. There are none left (KNOWN is empty): any crossing fails.
 """
+
 from __future__ import annotations
 
 import ast
@@ -33,8 +34,12 @@ def _files(suffixes: tuple[str, ...], root: pathlib.Path = ROOT) -> list[pathlib
             continue
         for p in base.rglob("*"):
             rel = p.relative_to(root)
-            if p.is_file() and p.name.endswith(suffixes) and not (SKIP_PARTS & set(rel.parts)) \
-                    and not rel.parts[0].startswith("build"):
+            if (
+                p.is_file()
+                and p.name.endswith(suffixes)
+                and not (SKIP_PARTS & set(rel.parts))
+                and not rel.parts[0].startswith("build")
+            ):
                 out.append(p)
     return out
 
@@ -126,7 +131,8 @@ def test_no_new_crossing_between_deployables():
     new = sorted(found - KNOWN)
     assert not new, (
         "a deployable reaches into another deployable or the rig; go through protocol/ or move the "
-        "code to tests/ or hil/:\n" + "\n".join(f"  {f} -> {t}" for f, t in new))
+        "code to tests/ or hil/:\n" + "\n".join(f"  {f} -> {t}" for f, t in new)
+    )
 
 
 def test_the_scan_finds_a_crossing(tmp_path):

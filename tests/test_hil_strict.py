@@ -20,12 +20,30 @@ def run_scenario(tmp_path: Path, strict: str) -> subprocess.CompletedProcess:
     env = dict(os.environ, RGBD_BUILD_DIR=str(tmp_path / "no-build"), HIL_STRICT=strict)
     env.pop("RGBD_BIN_DIR", None)
     return subprocess.run(
-        [sys.executable, "-m", "pytest", "-m", "hil", "-rs", "-q", "-p", "no:cacheprovider", SCENARIO],
-        cwd=REPO, env=env, capture_output=True, text=True, timeout=300)
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-m",
+            "hil",
+            "-rs",
+            "-q",
+            "-p",
+            "no:cacheprovider",
+            SCENARIO,
+        ],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 # A skip in a fixture becomes an error of the test's set-up, one in the test body a failure.
-@pytest.mark.parametrize("strict,code,words", [("1", 1, ("error", "failed")), ("0", 0, ("skipped",))])
+@pytest.mark.parametrize(
+    "strict,code,words", [("1", 1, ("error", "failed")), ("0", 0, ("skipped",))]
+)
 def test_missing_part_fails_under_make_hil_and_skips_otherwise(tmp_path, strict, code, words):
     out = run_scenario(tmp_path, strict)
     text = out.stdout + out.stderr

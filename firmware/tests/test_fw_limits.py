@@ -22,18 +22,31 @@ def _compiled_values(tmp_path, names):
     body = "\n".join(
         f'  std::printf("{n} %llu\\n", static_cast<unsigned long long>(fw::{n}));' for n in names
     )
-    src.write_text(f'#include <cstdio>\n#include "limits.h"\nint main() {{\n{body}\n  return 0;\n}}\n')
+    src.write_text(
+        f'#include <cstdio>\n#include "limits.h"\nint main() {{\n{body}\n  return 0;\n}}\n'
+    )
     exe = tmp_path / "print_limits"
     subprocess.run(
-        [cxx, "-std=c++14", f"-I{ROOT / 'firmware' / 'core'}",
-         f"-I{ROOT / 'protocol' / 'control' / 'include'}", str(src), "-o", str(exe)],
-        check=True, capture_output=True, text=True)
+        [
+            cxx,
+            "-std=c++14",
+            f"-I{ROOT / 'firmware' / 'core'}",
+            f"-I{ROOT / 'protocol' / 'control' / 'include'}",
+            str(src),
+            "-o",
+            str(exe),
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
     return {name: int(value) for name, value in (line.split() for line in out.splitlines())}
 
 
 def test_reader_sees_every_constant_of_limits_h():
-    # Every constexpr line of the header is a definition the reader took (none skipped by its regex).
+    # Every constexpr line of the header is a definition the reader took (none skipped by its
+    # regex).
     text = fw_limits.LIMITS_H.read_text()
     declared = re.findall(r"^\s*constexpr\s+\w+\s+(k\w+)", text, re.M)
     assert declared and list(fw_limits.FW_LIMITS) == declared
@@ -49,4 +62,6 @@ def test_failsafe_timings_tests_rely_on():
     # throttle below ArduCopter's FS_THR_VALUE and above its no-signal floor.
     lim = fw_limits.FW_LIMITS
     assert lim["kApmRcPulseMinValidUs"] < lim["kFailsafeThrottleUs"] < lim["kApmFsThrValueUs"]
-    assert lim["kApmLandHandoverMs"] == lim["kApmFsCounterFrames"] * lim["kPwmFramePeriodUs"] // 1000
+    assert (
+        lim["kApmLandHandoverMs"] == lim["kApmFsCounterFrames"] * lim["kPwmFramePeriodUs"] // 1000
+    )

@@ -23,15 +23,21 @@ import re
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 LIMITS_H = ROOT / "firmware" / "core" / "limits.h"
-CONTROL_SPEC_H = ROOT / "protocol" / "control" / "include" / "rgbd_control" / "control_spec_generated.h"
+CONTROL_SPEC_H = (
+    ROOT / "protocol" / "control" / "include" / "rgbd_control" / "control_spec_generated.h"
+)
 
 #: A constexpr integer constant definition (one per line in these headers).
 DEFINITION_RE = re.compile(
     r"^\s*constexpr\s+(?:u?int(?:8|16|32|64)_t|size_t)\s+(k\w+)\s*=\s*([^;]+);", re.M
 )
 _SUFFIX_RE = re.compile(r"\b(\d+)(?:UL|ULL|U|L)\b")
-_OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
-        ast.FloorDiv: operator.floordiv}
+_OPS = {
+    ast.Add: operator.add,
+    ast.Sub: operator.sub,
+    ast.Mult: operator.mul,
+    ast.FloorDiv: operator.floordiv,
+}
 
 
 def _evaluate(expr: str, known: dict[str, int], where: str) -> int:
@@ -62,7 +68,9 @@ def parse(text: str, known: dict[str, int] | None = None, where: str = "header")
     return out
 
 
-def load(limits_h: pathlib.Path = LIMITS_H, control_spec_h: pathlib.Path = CONTROL_SPEC_H) -> dict[str, int]:
+def load(
+    limits_h: pathlib.Path = LIMITS_H, control_spec_h: pathlib.Path = CONTROL_SPEC_H
+) -> dict[str, int]:
     """The constants of limits.h by name (kFailsafeTimeoutMs, kFailsafeThrottleUs, ...)."""
     protocol = parse(control_spec_h.read_text(), where=control_spec_h.name)
     known = {f"rgbd_control__{k}": v for k, v in protocol.items()}

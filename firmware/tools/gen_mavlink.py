@@ -64,7 +64,7 @@ def main() -> int:
         return 2
     entries = re.findall(r"\{(\d+), [^{}]*\}", m.group(1))
     bodies = re.findall(r"(\{\d+, [^{}]*\})", m.group(1))
-    table = {int(i): b for i, b in zip(entries, bodies)}
+    table = {int(i): b for i, b in zip(entries, bodies, strict=False)}
     missing = [i for i in WANTED_MSG_IDS if i not in table]
     if missing:
         print(f"gen_mavlink: message ids {missing} not in common.xml", file=sys.stderr)

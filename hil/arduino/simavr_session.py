@@ -58,7 +58,9 @@ def firmware_elf() -> pathlib.Path | None:
     return p if p.is_file() else None
 
 
-def _require(sim: pathlib.Path | None, elf: pathlib.Path | None) -> tuple[pathlib.Path, pathlib.Path]:
+def _require(
+    sim: pathlib.Path | None, elf: pathlib.Path | None
+) -> tuple[pathlib.Path, pathlib.Path]:
     sim, elf = sim or fw_sim_path(), elf or firmware_elf_path()
     for p, how in (
         (sim, "build it: make build (or cmake --build ... --target fw_sim)"),
@@ -246,7 +248,8 @@ class LiveSession:
             self._eeprom = wd / f"fw_sim_live_eeprom_{os.getpid()}_{id(self)}.bin"
             self._eeprom.write_bytes(key_record)
             args += ["--eeprom", str(self._eeprom)]
-        # stderr to a file, not a pipe: nobody reads it while the session runs, so a pipe could fill.
+        # stderr to a file, not a pipe: nobody reads it while the session runs, so a pipe could
+        # fill.
         self._stderr = tempfile.TemporaryFile(mode="w+")
         self._proc = subprocess.Popen(
             args,

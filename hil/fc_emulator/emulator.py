@@ -21,9 +21,9 @@ thread-safe.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 import enum
 import math
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np

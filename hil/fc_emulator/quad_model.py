@@ -19,8 +19,8 @@ seeded gust generator. Not thread-safe.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
 import math
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 

@@ -9,8 +9,8 @@ Not thread-safe: feed and read from one thread (the scenario loop).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
+from dataclasses import dataclass
 
 CHANNEL_COUNT = 4
 CH_ROLL, CH_PITCH, CH_THROTTLE, CH_YAW = 0, 1, 2, 3

@@ -7,15 +7,15 @@ Everything is deterministic (seeded emulators, no clock).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
 import math
+from dataclasses import dataclass, field, replace
 
 import numpy as np
-
 from fc_emulator import FlightControllerEmulator
 from fc_emulator.emulator import RC_READ_PERIOD_US
-from hilrig.pilot import ARM_STICKS_US, IDLE_STICKS_US, PilotGains, sticks_for
 from kinect_emulator import KinectEmulator, camera_pose_from_ned
+
+from hilrig.pilot import ARM_STICKS_US, IDLE_STICKS_US, PilotGains, sticks_for
 
 
 @dataclass(frozen=True)
@@ -76,8 +76,8 @@ def fly_plan(
     legs: list[Leg],
     kinect: KinectEmulator | None = None,
     sink=None,
-    mount: CameraMount = CameraMount(),
-    gains: PilotGains = PilotGains(),
+    mount: CameraMount = CameraMount(),  # noqa: B008 (frozen dataclass: an immutable default)
+    gains: PilotGains = PilotGains(),  # noqa: B008 (frozen dataclass)
     log: FlightLog | None = None,
     on_sticks=None,
 ) -> FlightLog:

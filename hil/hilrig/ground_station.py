@@ -9,10 +9,10 @@ Runs on its own thread, paced by the wall clock passed in (it is a real-time cli
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import http.client
 import threading
 import time
+from dataclasses import dataclass, field
 
 from hilrig.flight import Leg
 from hilrig.pilot import ARM_STICKS_US, IDLE_STICKS_US, PilotGains, sticks_for

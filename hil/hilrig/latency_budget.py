@@ -55,19 +55,45 @@ def closed_loop(d: Path) -> tuple[str, dict] | None:
 
 
 def component_rows(d: Path) -> list[tuple[str, float | None, str]]:
-    stream, slam, hold = _load(d, "stream.json"), _load(d, "slam_replay.json"), _load(d, "scenario1_hold.json")
+    stream, slam, hold = (
+        _load(d, "stream.json"),
+        _load(d, "slam_replay.json"),
+        _load(d, "scenario1_hold.json"),
+    )
     return [
-        ("capture -> received", stream.get("capture_to_receive_median_ms"), "fakenect -> streamer -> receiver"),
-        ("SLAM front end per frame", slam.get("frontend_median_ms"), "slam-eval ORB on emulated frames"),
+        (
+            "capture -> received",
+            stream.get("capture_to_receive_median_ms"),
+            "fakenect -> streamer -> receiver",
+        ),
+        (
+            "SLAM front end per frame",
+            slam.get("frontend_median_ms"),
+            "slam-eval ORB on emulated frames",
+        ),
         ("PID + command out (quad-control)", None, "only measured in the closed-loop flights"),
-        ("serial in -> firmware reply", hold.get("serial_and_firmware_median_ms"), "simavr, simulated time"),
-        ("firmware reply -> next PWM frame", hold.get("reply_to_next_pwm_frame_median_ms"), "simavr"),
+        (
+            "serial in -> firmware reply",
+            hold.get("serial_and_firmware_median_ms"),
+            "simavr, simulated time",
+        ),
+        (
+            "firmware reply -> next PWM frame",
+            hold.get("reply_to_next_pwm_frame_median_ms"),
+            "simavr",
+        ),
     ]
 
 
 def main() -> int:
-    d = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[2] / "test-artifacts/hil"
-    print("latency budget, camera -> PWM (median / p95 ms; thesis Table 4.22: 139 ms @ 6 fps, 187 ms @ 8 fps)")
+    d = (
+        Path(sys.argv[1])
+        if len(sys.argv) > 1
+        else Path(__file__).resolve().parents[2] / "test-artifacts/hil"
+    )
+    print(
+        "latency budget, camera -> PWM (median / p95 ms; thesis Table 4.22: 139 ms @ 6 fps, 187 ms @ 8 fps)"
+    )
     found = closed_loop(d)
     if found is not None:
         name, lat = found
@@ -82,17 +108,23 @@ def main() -> int:
         e2e = lat["capture_to_pwm"]
         print(f"  {'sum of the stage medians':44s} {total:6.1f}")
         verdict = "met" if e2e["median_ms"] <= TARGET_MS else "MISSED"
-        print(f"  {'camera (capture stamp) -> PWM, per frame':44s} {e2e['median_ms']:6.1f} / {e2e['p95_ms']:6.1f}"
-              f"   over {lat.get('frames')} frames ({name}); target <= {TARGET_MS:.0f}: {verdict}")
+        print(
+            f"  {'camera (capture stamp) -> PWM, per frame':44s} {e2e['median_ms']:6.1f} / {e2e['p95_ms']:6.1f}"
+            f"   over {lat.get('frames')} frames ({name}); target <= {TARGET_MS:.0f}: {verdict}"
+        )
         # A constant shift of every frame: the median and p95 shift by it too.
         k = KINECT_V1_EXPOSURE_TO_USB_MS
-        print(f"  {'exposure -> PWM, Kinect v1 modelled':44s} {e2e['median_ms'] + k:6.1f} /"
-              f" {e2e['p95_ms'] + k:6.1f}   (= {k:.1f} ms exposure->USB, a lower bound with no"
-              " published measurement, + capture -> PWM)")
+        print(
+            f"  {'exposure -> PWM, Kinect v1 modelled':44s} {e2e['median_ms'] + k:6.1f} /"
+            f" {e2e['p95_ms'] + k:6.1f}   (= {k:.1f} ms exposure->USB, a lower bound with no"
+            " published measurement, + capture -> PWM)"
+        )
         if "exposure_to_pwm" in lat:
             x = lat["exposure_to_pwm"]
-            print(f"  {'  as emulated (rig exposure -> PWM)':44s} {x['median_ms']:6.1f} / {x['p95_ms']:6.1f}"
-                  "   (the rig's render + write, or its held latency_ms, in place of the sensor's)")
+            print(
+                f"  {'  as emulated (rig exposure -> PWM)':44s} {x['median_ms']:6.1f} / {x['p95_ms']:6.1f}"
+                "   (the rig's render + write, or its held latency_ms, in place of the sensor's)"
+            )
         return 0
     total, missing = 0.0, []
     for label, ms, how in component_rows(d):
@@ -102,9 +134,14 @@ def main() -> int:
         else:
             total += ms
             print(f"  {label:44s} {ms:6.1f}   ({how})")
-    print(f"  {'sum of measured stages':44s} {total:6.1f}" + (f"   (missing: {', '.join(missing)})" if missing else ""))
-    print(f"  {'+ Kinect v1 exposure -> USB, modelled':44s} {KINECT_V1_EXPOSURE_TO_USB_MS:6.1f}"
-          "   (lower bound, no published measurement: exposure -> PWM adds it)")
+    print(
+        f"  {'sum of measured stages':44s} {total:6.1f}"
+        + (f"   (missing: {', '.join(missing)})" if missing else "")
+    )
+    print(
+        f"  {'+ Kinect v1 exposure -> USB, modelled':44s} {KINECT_V1_EXPOSURE_TO_USB_MS:6.1f}"
+        "   (lower bound, no published measurement: exposure -> PWM adds it)"
+    )
     return 0
 
 

@@ -14,12 +14,12 @@ proxy is a real-time component between real processes). Threads are joined by cl
 
 from __future__ import annotations
 
-from collections import deque
-from dataclasses import dataclass
 import random
 import socket
 import threading
 import time
+from collections import deque
+from dataclasses import dataclass
 
 LINUX_MIN_RTO_MS = 200.0  # TCP_RTO_MIN
 
@@ -101,7 +101,7 @@ class LinkProxy:
     def __init__(
         self,
         upstream_port: int,
-        impairment: LinkImpairment = LinkImpairment(),
+        impairment: LinkImpairment = LinkImpairment(),  # noqa: B008 (frozen dataclass)
         clock=time.monotonic,
     ) -> None:
         impairment.validate()

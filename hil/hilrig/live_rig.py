@@ -16,17 +16,16 @@ Thread safety: transact()/snapshot()/history() may be called from any thread; on
 
 from __future__ import annotations
 
-from collections import deque
-from dataclasses import dataclass, field
 import threading
 import time
+from collections import deque
+from dataclasses import dataclass, field
 
 import numpy as np
-
 from arduino.simavr_session import LiveSession, firmware_elf
 from fc_emulator import FcOptions, FcSnapshot, FlightControllerEmulator, QuadParams
-from hilrig.paths import find_binary
 
+from hilrig.paths import find_binary
 
 # Largest lag behind the wall clock the rig makes up for (one 20 ms RC frame); beyond it the lag is
 # dropped rather than caught up at simavr's ~3.7x speed.
@@ -96,7 +95,8 @@ class LiveRig:
         self.wall_s = 0.0
         self.lag_dropped_s = 0.0
         # Diagnosis of command gaps (the firmware's 250 ms failsafe counts simulated time): each lag
-        # drop above one step (simulated us, wall s, dropped s), and every long simulated gap between
+        # drop above one step (simulated us, wall s, dropped s), and every long simulated gap
+        # between
         # two lines injected on the serial link (_note_injection).
         self.lag_events: list[tuple[int, float, float]] = []
         self._last_injected_us: float | None = None
@@ -205,8 +205,14 @@ class LiveRig:
         if last is None or t_us - last <= self.INJECTION_GAP_US:
             return
         lag = sum(d for sim, _, d in self.lag_events if last <= sim <= t_us)
-        self.injection_gaps.append({"sim_s": round(last / 1e6, 3), "gap_ms": round((t_us - last) / 1e3, 1),
-                                    "rig_lag_dropped_ms": round(lag * 1e3, 1), "queued": len(self._queue)})
+        self.injection_gaps.append(
+            {
+                "sim_s": round(last / 1e6, 3),
+                "gap_ms": round((t_us - last) / 1e3, 1),
+                "rig_lag_dropped_ms": round(lag * 1e3, 1),
+                "queued": len(self._queue),
+            }
+        )
 
     def _step(self, t_next: int) -> None:
         s = self._session

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import fcntl
 import os
-from pathlib import Path
 import time
+from pathlib import Path
 from typing import Callable
 
 DEFAULT_LOCK_PATH = Path("/tmp/rgbdquad-hil-flight.lock")
@@ -44,9 +44,14 @@ class FlightLock:
     """Machine-wide exclusive lock for one HIL flight. `acquire` blocks (polling, with progress
     lines through `say`) up to `wait_s`; `release` is idempotent."""
 
-    def __init__(self, path: Path | None = None, wait_s_: float | None = None,
-                 say: Callable[[str], None] = print, clock: Callable[[], float] = time.monotonic,
-                 sleep: Callable[[float], None] = time.sleep) -> None:
+    def __init__(
+        self,
+        path: Path | None = None,
+        wait_s_: float | None = None,
+        say: Callable[[str], None] = print,
+        clock: Callable[[], float] = time.monotonic,
+        sleep: Callable[[float], None] = time.sleep,
+    ) -> None:
         self.path = Path(path) if path is not None else lock_path()
         self.wait_s = wait_s() if wait_s_ is None else wait_s_
         self._say = say
@@ -73,16 +78,19 @@ class FlightLock:
                 try:
                     fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                     break
-                except BlockingIOError:
+                except BlockingIOError as busy:
                     now = self._clock()
                     if now - start >= self.wait_s:
                         raise FlightLockTimeout(
                             f"another HIL flight holds {self.path} ({self.holder()}) for more than "
                             f"{self.wait_s:.0f} s; two real-time flights on one machine starve each "
-                            "other, so this one does not start (HIL_FLIGHT_LOCK_WAIT_S to wait longer)")
+                            "other, so this one does not start (HIL_FLIGHT_LOCK_WAIT_S to wait longer)"
+                        ) from busy
                     if now >= next_say:
-                        self._say(f"hil: waiting for another HIL flight to end ({self.holder()}), "
-                                  f"{now - start:.0f} s so far")
+                        self._say(
+                            f"hil: waiting for another HIL flight to end ({self.holder()}), "
+                            f"{now - start:.0f} s so far"
+                        )
                         next_say = now + PROGRESS_PERIOD_S
                     self._sleep(POLL_PERIOD_S)
         except BaseException:

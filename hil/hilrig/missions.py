@@ -17,7 +17,9 @@ HOLD_HEIGHT_M = 1.7  # thesis: hold height after take-off (quad-control's contro
 SETTLE_S = 5.0  # after quad-control reports "hold": the PID settles before the hold is scored
 ARRIVAL_SETTLE_S = 6.0  # after arriving at a waypoint: settle, then score the last second
 TURN_DONE_DEG = 5.0  # a turn is done when quad-control's heading is this close to the setpoint's
-SETPOINT_MATCH_M = 0.01  # the hold setpoint equals the clicked waypoint (JSON round trip of doubles)
+SETPOINT_MATCH_M = (
+    0.01  # the hold setpoint equals the clicked waypoint (JSON round trip of doubles)
+)
 
 
 def _say(progress, text: str) -> None:
@@ -40,7 +42,9 @@ def take_off(flight: SlamFlight, progress=None) -> dict:
     # quad-control holds the gesture (throttle 0, yaw right) for controller.arm_gesture_ms, then
     # centres yaw: take-off is accepted from then on.
     flight.wait_until(
-        lambda s: s["state"] == "armed" and s["command"]["yaw_pct"] == 0.0 and flight.rig.snapshot().armed,
+        lambda s: s["state"] == "armed"
+        and s["command"]["yaw_pct"] == 0.0
+        and flight.rig.snapshot().armed,
         timeout_s=20,
         what="armed (gesture finished)",
     )
@@ -57,7 +61,11 @@ def take_off(flight: SlamFlight, progress=None) -> dict:
                 raise
             time.sleep(0.2)
     flight.wait_until(lambda s: s["state"] == "hold", timeout_s=60, what="take-off -> hold")
-    return {"start_room_m": start, "takeoff_sim_s": t_takeoff / 1e6, "hold_reached_sim_s": flight.rig.sim_us / 1e6}
+    return {
+        "start_room_m": start,
+        "takeoff_sim_s": t_takeoff / 1e6,
+        "hold_reached_sim_s": flight.rig.sim_us / 1e6,
+    }
 
 
 def hold(flight: SlamFlight, start_room: np.ndarray, seconds: float, progress=None) -> dict:
@@ -70,7 +78,9 @@ def hold(flight: SlamFlight, start_room: np.ndarray, seconds: float, progress=No
     return hold_error(flight.rig.history(), goal, flight.options.mount, t0, flight.rig.sim_us)
 
 
-def go_to(flight: SlamFlight, start_room: np.ndarray, x_m: float, y_m: float, progress=None) -> dict:
+def go_to(
+    flight: SlamFlight, start_room: np.ndarray, x_m: float, y_m: float, progress=None
+) -> dict:
     """Clicks a waypoint (floor frame); waits for arrival (quad-control back in hold), settles, and
     scores the true position against the waypoint."""
     _say(progress, f"waypoint ({x_m:.1f}, {y_m:.1f}) m")
@@ -79,7 +89,8 @@ def go_to(flight: SlamFlight, start_room: np.ndarray, x_m: float, y_m: float, pr
     t_start = flight.rig.sim_us
     # Arrived: holding with the setpoint on the waypoint (quad-control holds where it arrived). Not
     # the "waypoint reached" event alone: a tracking blip right after the arrival replaces it with
-    # "tracking back" before the next poll (seen under load: the craft held at the waypoint while the
+    # "tracking back" before the next poll (seen under load: the craft held at the waypoint while
+    # the
     # operator waited 60 s for the event).
     flight.wait_until(
         lambda s: s["state"] == "hold"
@@ -103,7 +114,9 @@ def _heading_error_deg(state: dict) -> float:
     return (pose["yaw_deg"] - sp["yaw_deg"] + 180.0) % 360.0 - 180.0
 
 
-def turn(flight: SlamFlight, start_room: np.ndarray, yaw_ccw_deg: float, hold_s: float, progress=None) -> dict:
+def turn(
+    flight: SlamFlight, start_room: np.ndarray, yaw_ccw_deg: float, hold_s: float, progress=None
+) -> dict:
     """Turns in place by `yaw_ccw_deg` (the dashboard's manual step), waits until quad-control's
     heading is within TURN_DONE_DEG of the new setpoint, then holds `hold_s` (scored after SETTLE_S).
     Scores the true camera position during the turn and the hold against the take-off hold point,
@@ -120,7 +133,9 @@ def turn(flight: SlamFlight, start_room: np.ndarray, yaw_ccw_deg: float, hold_s:
     )
     t_turned = flight.rig.sim_us
     # NED yaw grows clockwise seen from above: a counter-clockwise turn decreases it.
-    turned_deg = -float(np.degrees((flight.rig.snapshot().yaw_rad - yaw0 + np.pi) % (2 * np.pi) - np.pi))
+    turned_deg = -float(
+        np.degrees((flight.rig.snapshot().yaw_rad - yaw0 + np.pi) % (2 * np.pi) - np.pi)
+    )
     return {
         "yaw_ccw_deg": yaw_ccw_deg,
         "true_turn_deg": round(turned_deg, 1),
@@ -133,7 +148,10 @@ def turn(flight: SlamFlight, start_room: np.ndarray, yaw_ccw_deg: float, hold_s:
 def _setpoint_at(state: dict, x_m: float, y_m: float) -> bool:
     """quad-control's setpoint is on (x_m, y_m) (floor frame; it is set to the waypoint on arrival)."""
     sp = state.get("setpoint") or {}
-    return abs(sp.get("x_m", 1e9) - x_m) <= SETPOINT_MATCH_M and abs(sp.get("y_m", 1e9) - y_m) <= SETPOINT_MATCH_M
+    return (
+        abs(sp.get("x_m", 1e9) - x_m) <= SETPOINT_MATCH_M
+        and abs(sp.get("y_m", 1e9) - y_m) <= SETPOINT_MATCH_M
+    )
 
 
 def land(flight: SlamFlight, progress=None) -> dict:
@@ -160,7 +178,9 @@ def land(flight: SlamFlight, progress=None) -> dict:
     }
 
 
-def scenario2(flight: SlamFlight, waypoints=((1.0, 0.0), (1.0, 0.8)), hold_s: float = 10.0, progress=None) -> dict:
+def scenario2(
+    flight: SlamFlight, waypoints=((1.0, 0.0), (1.0, 0.8)), hold_s: float = 10.0, progress=None
+) -> dict:
     """Take off, hold, fly to two waypoints (floor frame, m), land. The figures of the flight."""
     t0 = time.monotonic()
     to = take_off(flight, progress)
@@ -172,14 +192,18 @@ def scenario2(flight: SlamFlight, waypoints=((1.0, 0.0), (1.0, 0.8)), hold_s: fl
     report["final_distance_to_last_waypoint_m"] = round(
         float(
             np.hypot(
-                *(camera_room_position(flight.rig.snapshot(), flight.options.mount)[:2]
-                  - goal_in_room(start, (*waypoints[-1], 0.0))[:2])
+                *(
+                    camera_room_position(flight.rig.snapshot(), flight.options.mount)[:2]
+                    - goal_in_room(start, (*waypoints[-1], 0.0))[:2]
+                )
             )
         ),
         3,
     )
     t_land_us = report["landing"]["t_land_sim_s"] * 1e6
-    report["failsafe_events"] = [e for t, e in flight.rig.fc.events if t < t_land_us and "failsafe" in e]
+    report["failsafe_events"] = [
+        e for t, e in flight.rig.fc.events if t < t_land_us and "failsafe" in e
+    ]
     report["rejected_pose_jumps"] = flight.state().get("rejected_poses")
     report["wall_s"] = round(time.monotonic() - t0, 1)
     report["realtime_factor"] = round(flight.rig.realtime_factor, 3)

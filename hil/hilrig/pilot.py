@@ -9,8 +9,8 @@ Pure function of (snapshot, target): no clock, no state besides the target.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
+from dataclasses import dataclass
 
 from fc_emulator.emulator import (
     ANGLE_MAX_RAD,
@@ -64,7 +64,10 @@ def _climb_to_throttle(rate_mps: float) -> int:
 
 
 def sticks_for(
-    s: FcSnapshot, target_ned_m, target_yaw_rad: float, gains: PilotGains = PilotGains()
+    s: FcSnapshot,
+    target_ned_m,
+    target_yaw_rad: float,
+    gains: PilotGains = PilotGains(),  # noqa: B008 (frozen dataclass: an immutable default)
 ) -> tuple[int, int, int, int]:
     """RC pulses (roll, pitch, throttle, yaw) steering the craft towards target_ned_m /
     target_yaw."""

@@ -6,8 +6,8 @@ Use as a context manager so a failing scenario still stops what it started.
 
 from __future__ import annotations
 
-from pathlib import Path
 import subprocess
+from pathlib import Path
 
 
 class ManagedProcess:

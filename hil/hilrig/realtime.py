@@ -30,15 +30,19 @@ import shutil
 # thread runnable but without a CPU while the simulated firmware's 250 ms failsafe kept counting;
 # two rigs on the machine stalled it 1.1 s and the failsafe landed the craft. On the craft, the
 # firmware and camera have their own CPUs and never take the ground station's; the link thread
-# needs ~1 ms of CPU per command (<1 % of a core), so ranking it above the rig costs the rig nothing.
+# needs ~1 ms of CPU per command (<1 % of a core), so ranking it above the rig costs the rig
+# nothing.
 RIG_RT_PRIORITY = 11
 # When real-time is refused: a nice-0 neighbour then gets ~1/10 of the weight (CFS, 1.25x per step).
 RIG_FALLBACK_NICE = -10
 
 
 def _policy_name(policy: int) -> str:
-    return {os.SCHED_OTHER: "SCHED_OTHER", os.SCHED_RR: "SCHED_RR", os.SCHED_FIFO: "SCHED_FIFO"}.get(
-        policy, str(policy))
+    return {
+        os.SCHED_OTHER: "SCHED_OTHER",
+        os.SCHED_RR: "SCHED_RR",
+        os.SCHED_FIFO: "SCHED_FIFO",
+    }.get(policy, str(policy))
 
 
 def current_policy() -> str:
@@ -49,7 +53,9 @@ def current_policy() -> str:
     return f"{_policy_name(policy)} nice {os.getpriority(os.PRIO_PROCESS, 0)}"
 
 
-def raise_this_thread(priority: int = RIG_RT_PRIORITY, fallback_nice: int = RIG_FALLBACK_NICE) -> str:
+def raise_this_thread(
+    priority: int = RIG_RT_PRIORITY, fallback_nice: int = RIG_FALLBACK_NICE
+) -> str:
     """SCHED_RR at `priority` for the calling thread (pid 0 = the calling thread on Linux), else nice
     `fallback_nice`; returns what was applied and, on a fallback, why."""
     try:
@@ -76,7 +82,11 @@ def restore_this_thread(saved: tuple[int, int, int]) -> None:
 
 
 def save_this_thread() -> tuple[int, int, int]:
-    return os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, os.getpriority(os.PRIO_PROCESS, 0)
+    return (
+        os.sched_getscheduler(0),
+        os.sched_getparam(0).sched_priority,
+        os.getpriority(os.PRIO_PROCESS, 0),
+    )
 
 
 def normal_policy_argv(argv: list) -> list:

@@ -23,11 +23,9 @@ Every process is started by this module and stopped by its PID (ManagedProcess);
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import contextlib
 import csv
 import json
-from pathlib import Path
 import os
 import re
 import shlex
@@ -37,17 +35,19 @@ import threading
 import time
 import urllib.error
 import urllib.request
+from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
-
 from fc_emulator import FcOptions, FlightMode, QuadParams
+from kinect_emulator.poses import camera_pose_from_ned
+from rgbd_protocol.stream_auth import write_key_file
+
 from hilrig.flight import CameraMount
 from hilrig.link_proxy import LinkImpairment, LinkProxy
 from hilrig.machine_lock import FlightLock
 from hilrig.paths import find_binary
 from hilrig.procs import ManagedProcess
-from kinect_emulator.poses import camera_pose_from_ned
-from rgbd_protocol.stream_auth import write_key_file
 
 # What a closed-loop flight needs from the build (make build): the real programs.
 REQUIRED_BINARIES = ("fw_sim", "rgbd-streamer", "quad-control", "slam-server", "tum-score")
@@ -74,7 +74,10 @@ def free_ports(count: int) -> list[int]:
     """`count` distinct free loopback ports. Every probe stays bound until all are read: the kernel
     may hand a port that was just released to the very next bind."""
     with contextlib.ExitStack() as stack:
-        probes = [stack.enter_context(socket.socket(socket.AF_INET, socket.SOCK_STREAM)) for _ in range(count)]
+        probes = [
+            stack.enter_context(socket.socket(socket.AF_INET, socket.SOCK_STREAM))
+            for _ in range(count)
+        ]
         for s in probes:
             s.bind(("127.0.0.1", 0))
         return [s.getsockname()[1] for s in probes]
@@ -131,7 +134,8 @@ class SlamFlightOptions:
     # cores (measured: 30.0 fps received, 12 % of frames dropped by a busy SLAM front end).
     fps: float = 30.0
     features: str = "orb"  # ORB: the front end that fits a 30 fps budget on a CPU (docs/slam.md)
-    # VO + local loop closure: measured in a 20 s gusty hover ATE 5.8 mm (VO alone 20-47 mm: its drift
+    # VO + local loop closure: measured in a 20 s gusty hover ATE 5.8 mm (VO alone 20-47 mm: its
+    # drift
     # became the hold error), same front-end latency; GLC 4.9 mm but +14 ms per pose.
     backend: str = "localmap"  # slam-server back end: localmap | vo | llc | glc
     quad_params: QuadParams = field(default_factory=QuadParams)
@@ -143,7 +147,8 @@ class SlamFlightOptions:
     key: bytes = bytes(range(0x11, 0x21))
     controller_overrides: dict = field(default_factory=lambda: dict(HIL_CONTROLLER_GAINS))
     # Faults: the WiFi link of the two stream sockets (rgbd-streamer -> quad-control) goes through
-    # a LinkProxy each (hilrig.link_proxy: delay, jitter, loss stalls, sever/restore); None = direct.
+    # a LinkProxy each (hilrig.link_proxy: delay, jitter, loss stalls, sever/restore); None =
+    # direct.
     stream_impairment: LinkImpairment | None = None
     # Render indices the Kinect emulator delivers all-zero (the streamer must drop them).
     blank_frames: frozenset = frozenset()
@@ -156,20 +161,31 @@ class SlamFlightOptions:
     cpu_burners: int = 0
     # quad-control's firmware.send_on_pose (commands on each fresh pose); None: its default.
     send_on_pose: bool | None = None
-    # quad-control records the flight as MCAP in <workdir>/recording (docs/recording.md); False: off.
+    # quad-control records the flight as MCAP in <workdir>/recording (docs/recording.md); False:
+    # off.
     record: bool = True
     # More slam-server flags, for ablations (e.g. ("--mapping-rt-priority", "0")); the environment's
     # HIL_SLAM_SERVER_ARGS (split like a shell line) by default, so any scenario can be re-flown.
-    slam_server_args: tuple = field(default_factory=lambda: tuple(shlex.split(os.environ.get("HIL_SLAM_SERVER_ARGS", ""))))
+    slam_server_args: tuple = field(
+        default_factory=lambda: tuple(shlex.split(os.environ.get("HIL_SLAM_SERVER_ARGS", "")))
+    )
     # quad-control's camera.imu_rotation_prior (the APM attitude at capture rides with each frame to
     # slam-server, whose tracker predicts rotation from its change); None: quad-control's default.
-    # The environment's HIL_IMU_ROTATION_PRIOR (1 / 0) sets it, so any scenario can be flown both ways.
-    imu_rotation_prior: bool | None = field(default_factory=lambda: _env_flag("HIL_IMU_ROTATION_PRIOR"))
+    # The environment's HIL_IMU_ROTATION_PRIOR (1 / 0) sets it, so any scenario can be flown both
+    # ways.
+    imu_rotation_prior: bool | None = field(
+        default_factory=lambda: _env_flag("HIL_IMU_ROTATION_PRIOR")
+    )
 
     def validate(self) -> None:
         if not 1.0 <= self.fps <= 30.0:
             raise ValueError("fps must be in [1, 30] (a Kinect v1 delivers at most 30)")
-        if self.features not in ("orb", "sift", "surf") or self.backend not in ("localmap", "vo", "llc", "glc"):
+        if self.features not in ("orb", "sift", "surf") or self.backend not in (
+            "localmap",
+            "vo",
+            "llc",
+            "glc",
+        ):
             raise ValueError("features must be orb|sift|surf and backend localmap|vo|llc|glc")
         if len(self.key) != 16:
             raise ValueError("key must be 16 bytes")
@@ -207,26 +223,41 @@ class SlamFlight:
 
     # ---- start / stop -----------------------------------------------------------------------
     def start(self) -> "SlamFlight":
-        from provision_key import key_record
-
-        from hilrig.live_rig import LiveRig
         from kinect_emulator.live import LiveKinect
         from kinect_emulator.renderer import KinectOptions
+        from provision_key import key_record
         from rgbd_protocol.control_bridge import WifiBridgeEmulator
+
+        from hilrig.live_rig import LiveRig
 
         o = self.options
         from hilrig import realtime
 
         try:
-            # One real-time flight per machine (hilrig.machine_lock), taken before any priority is raised.
+            # One real-time flight per machine (hilrig.machine_lock), taken before any priority is
+            # raised.
             self._flight_lock = FlightLock(say=lambda m: print(m, flush=True)).acquire(
-                f"SlamFlight in {self.workdir}")
-            # Before anything is created: the rig's threads and children inherit this thread's policy.
+                f"SlamFlight in {self.workdir}"
+            )
+            # Before anything is created: the rig's threads and children inherit this thread's
+            # policy.
             self._saved_sched = realtime.save_this_thread()
-            self.rig_scheduling = realtime.raise_this_thread() if o.rig_realtime else realtime.current_policy()
+            self.rig_scheduling = (
+                realtime.raise_this_thread() if o.rig_realtime else realtime.current_policy()
+            )
             if o.cpu_burners:
-                self._start("stress-ng", ["stress-ng", "--cpu", o.cpu_burners, "--cpu-method", "matrixprod",
-                                          "--metrics-brief"], system=True)
+                self._start(
+                    "stress-ng",
+                    [
+                        "stress-ng",
+                        "--cpu",
+                        o.cpu_burners,
+                        "--cpu-method",
+                        "matrixprod",
+                        "--metrics-brief",
+                    ],
+                    system=True,
+                )
             self.rig = LiveRig(
                 key_record(o.key),
                 fc_options=o.fc_options,
@@ -252,9 +283,13 @@ class SlamFlight:
                     "--tables-dir",
                     str(self.workdir / "slam-tables"),
                     # The deployed setting (run-offboard): each session's map is checkpointed, so
-                    # a slam-server restarted after a crash resumes the flight's map and world frame.
-                    *(("--checkpoint-dir", str(self.workdir / "slam-checkpoints"))
-                      if o.backend == "localmap" else ()),
+                    # a slam-server restarted after a crash resumes the flight's map and world
+                    # frame.
+                    *(
+                        ("--checkpoint-dir", str(self.workdir / "slam-checkpoints"))
+                        if o.backend == "localmap"
+                        else ()
+                    ),
                     *o.slam_server_args,
                 ],
                 system=True,
@@ -276,10 +311,14 @@ class SlamFlight:
             self.dashboard_port = self._wait_dashboard_port(qc)
             self.kinect = LiveKinect(
                 self.workdir / "kinect-dump",
-                KinectOptions(fps=o.fps, seed=o.kinect_seed, blank_frames=frozenset(o.blank_frames)),
+                KinectOptions(
+                    fps=o.fps, seed=o.kinect_seed, blank_frames=frozenset(o.blank_frames)
+                ),
             )
             if o.stream_impairment is not None:
-                self.stream_proxies = [LinkProxy(p, o.stream_impairment) for p in (rgb_port, depth_port)]
+                self.stream_proxies = [
+                    LinkProxy(p, o.stream_impairment) for p in (rgb_port, depth_port)
+                ]
                 rgb_port, depth_port = (p.port for p in self.stream_proxies)
             self.kinect.start()
             self._pump = threading.Thread(target=self._pump_frames, name="kinect-pump", daemon=True)
@@ -366,7 +405,9 @@ class SlamFlight:
         if not old or old[-1].alive():
             raise RuntimeError("slam-server is still running: kill_slam_server() first")
         argv = list(old[-1].argv)
-        restarts = len(list(self.workdir.glob("slam-server*.log")))  # names this server's log and tables
+        restarts = len(
+            list(self.workdir.glob("slam-server*.log"))
+        )  # names this server's log and tables
         if "--tables-dir" in argv:  # the new server numbers its sessions from 1 again
             i = argv.index("--tables-dir") + 1
             argv[i] = str(self.workdir / f"slam-tables-{restarts}")
@@ -395,7 +436,9 @@ class SlamFlight:
         from hilrig.realtime import normal_policy_argv
 
         argv = [str(a) for a in argv]
-        p = ManagedProcess(normal_policy_argv(argv) if system else argv, self.workdir / f"{name}.log", env=env)
+        p = ManagedProcess(
+            normal_policy_argv(argv) if system else argv, self.workdir / f"{name}.log", env=env
+        )
         self._procs.append((name, p))
         return p
 
@@ -405,7 +448,9 @@ class SlamFlight:
         out = {"rig": self.rig_scheduling}
         for name, p in self._procs:
             if name in ("quad-control", "slam-server"):
-                out[name] = re.findall(r"^(?:quad-control|slam-server): (.+ thread: .*)$", p.log_text(), re.M)[:6]
+                out[name] = re.findall(
+                    r"^(?:quad-control|slam-server): (.+ thread: .*)$", p.log_text(), re.M
+                )[:6]
         return out
 
     def _stream_key_file(self) -> Path:
@@ -417,7 +462,9 @@ class SlamFlight:
 
     def _write_streamer_config(self) -> Path:
         path = self.workdir / "rgbd-streamer.yaml"
-        path.write_text(self.kinect.streamer_config_yaml(f"stream_key_file: {self._stream_key_file()}\n"))
+        path.write_text(
+            self.kinect.streamer_config_yaml(f"stream_key_file: {self._stream_key_file()}\n")
+        )
         return path
 
     def _write_quad_control_config(self, slam_port: int, rgb_port: int, depth_port: int) -> Path:
@@ -432,10 +479,21 @@ class SlamFlight:
                 "key_file": str(self._stream_key_file()),
             },
             "slam": {"mode": "server", "host": "127.0.0.1", "port": slam_port},
-            "firmware": {"enabled": True, "host": "127.0.0.1", "port": self.bridge.port, "key_hex": o.key.hex(),
-                         **({} if o.send_on_pose is None else {"send_on_pose": o.send_on_pose})},
-            "camera": {"mount_pitch_down_deg": o.mount.mount_pitch_down_deg,
-                       **({} if o.imu_rotation_prior is None else {"imu_rotation_prior": o.imu_rotation_prior})},
+            "firmware": {
+                "enabled": True,
+                "host": "127.0.0.1",
+                "port": self.bridge.port,
+                "key_hex": o.key.hex(),
+                **({} if o.send_on_pose is None else {"send_on_pose": o.send_on_pose}),
+            },
+            "camera": {
+                "mount_pitch_down_deg": o.mount.mount_pitch_down_deg,
+                **(
+                    {}
+                    if o.imu_rotation_prior is None
+                    else {"imu_rotation_prior": o.imu_rotation_prior}
+                ),
+            },
             "recording": {"enabled": o.record, "dir": str(self.recording_dir)},
         }
         if o.controller_overrides:
@@ -453,7 +511,9 @@ class SlamFlight:
             if not qc.alive():
                 raise RuntimeError("quad-control exited:\n" + qc.log_text()[-2000:])
             time.sleep(0.05)
-        raise RuntimeError("quad-control did not print its dashboard port:\n" + qc.log_text()[-2000:])
+        raise RuntimeError(
+            "quad-control did not print its dashboard port:\n" + qc.log_text()[-2000:]
+        )
 
     # ---- camera -------------------------------------------------------------------------------
     def _pump_frames(self) -> None:
@@ -503,16 +563,26 @@ class SlamFlight:
 
     def waypoint(self, x_m: float, y_m: float) -> dict:
         status, body = self._http("POST", "/api/waypoint", {"x_m": x_m, "y_m": y_m})
-        self.operator_events.append((time.monotonic(), f"waypoint {x_m:.2f},{y_m:.2f}", json.dumps(body)))
+        self.operator_events.append(
+            (time.monotonic(), f"waypoint {x_m:.2f},{y_m:.2f}", json.dumps(body))
+        )
         if status != 200:
             raise RuntimeError(f"waypoint refused ({status}): {body}")
         return body
 
-    def manual(self, forward_m: float = 0.0, left_m: float = 0.0, up_m: float = 0.0, yaw_ccw_deg: float = 0.0) -> dict:
+    def manual(
+        self,
+        forward_m: float = 0.0,
+        left_m: float = 0.0,
+        up_m: float = 0.0,
+        yaw_ccw_deg: float = 0.0,
+    ) -> dict:
         """The dashboard's manual step (POST /api/manual): moves the hold setpoint, turns the heading."""
         body = {"forward_m": forward_m, "left_m": left_m, "up_m": up_m, "yaw_ccw_deg": yaw_ccw_deg}
         status, reply = self._http("POST", "/api/manual", body)
-        self.operator_events.append((time.monotonic(), f"manual {json.dumps(body)}", json.dumps(reply)))
+        self.operator_events.append(
+            (time.monotonic(), f"manual {json.dumps(body)}", json.dumps(reply))
+        )
         if status != 200:
             raise RuntimeError(f"manual step refused ({status}): {reply}")
         return reply
@@ -568,16 +638,25 @@ class SlamFlight:
         gt = self.workdir / "groundtruth.tum"
         n = 0
         with open(gt, "w") as f:
-            f.write("# emulator truth: T_room_cam of the rendered frame at the streamer's capture stamp\n")
-            for stamp, rec in zip(stamps, matched):
+            f.write(
+                "# emulator truth: T_room_cam of the rendered frame at the streamer's capture stamp\n"
+            )
+            for stamp, rec in zip(stamps, matched, strict=False):
                 if rec is None:
                     continue
                 T = np.asarray(rec.T_room_cam)
                 q = rotation_to_quaternion_xyzw(T[:3, :3])
-                f.write(f"{stamp / 1e6:.6f} {T[0, 3]:.6f} {T[1, 3]:.6f} {T[2, 3]:.6f} " + " ".join(f"{v:.9f}" for v in q) + "\n")
+                f.write(
+                    f"{stamp / 1e6:.6f} {T[0, 3]:.6f} {T[1, 3]:.6f} {T[2, 3]:.6f} "
+                    + " ".join(f"{v:.9f}" for v in q)
+                    + "\n"
+                )
                 n += 1
         if n < 3:
-            return {"error": f"only {n} tracked frames matched to rendered poses", "tracked": len(tracked)}
+            return {
+                "error": f"only {n} tracked frames matched to rendered poses",
+                "tracked": len(tracked),
+            }
         p = ManagedProcess(
             [find_binary("tum-score"), gt, self.log_dir / "trajectory.tum"],
             self.workdir / "tum-score.json",
@@ -588,7 +667,11 @@ class SlamFlight:
         if rc != 0:
             return {"error": (self.workdir / "tum-score.err").read_text()[-500:]}
         m = json.loads((self.workdir / "tum-score.json").read_text())
-        return {k: m[k] for k in ("ate_rmse_m", "ate_max_m", "rpe_trans_rmse_mm", "rpe_rot_rmse_deg", "pairs") if k in m}
+        return {
+            k: m[k]
+            for k in ("ate_rmse_m", "ate_max_m", "rpe_trans_rmse_mm", "rpe_rot_rmse_deg", "pairs")
+            if k in m
+        }
 
     def latency(self) -> dict:
         """Median / p95 per stage over the frames whose pose reached the motors (ms)."""
@@ -611,11 +694,15 @@ class SlamFlight:
         recs = match_capture_stamps(self.kinect.records(), caps)
         timings = [by_seq[int(first_cmd[cap]["seq"])] for cap in caps]
         # One interpolation over the whole flight (the rig's step table is copied once).
-        walls = self.rig.sim_to_wall(
-            [[t.injected_us, t.reply_end_us, t.first_pulse_after_us] for t in timings]
-        ) if timings else []
+        walls = (
+            self.rig.sim_to_wall(
+                [[t.injected_us, t.reply_end_us, t.first_pulse_after_us] for t in timings]
+            )
+            if timings
+            else []
+        )
         rows = []
-        for cap, rec, (inj, rep, pwm) in zip(caps, recs, walls):
+        for cap, rec, (inj, rep, pwm) in zip(caps, recs, walls, strict=False):
             c, p = first_cmd[cap], poses[cap]
             row = {
                 "capture_to_received": (int(p["received_us"]) - cap) / 1e3,
@@ -633,19 +720,32 @@ class SlamFlight:
         out: dict = {"frames": len(rows)}
         for key in rows[0] if rows else []:
             v = np.array([r[key] for r in rows if key in r])
-            out[key] = {"median_ms": round(float(np.median(v)), 1), "p95_ms": round(float(np.percentile(v, 95)), 1)}
+            out[key] = {
+                "median_ms": round(float(np.median(v)), 1),
+                "p95_ms": round(float(np.percentile(v, 95)), 1),
+            }
         return out
 
     def scores(self) -> dict:
         """The figures every flight reports: ATE, latency per stage, stream/SLAM counts."""
-        return {"ate": self.ate(), "latency_ms": self.latency(), "stream": self.stream_stats(),
-                "scheduling": self.scheduling(), "load_average": _load_average(),
-                "thread_cpu_s": self.thread_cpu(), "slam_tracking": self.slam_tracking()}
+        return {
+            "ate": self.ate(),
+            "latency_ms": self.latency(),
+            "stream": self.stream_stats(),
+            "scheduling": self.scheduling(),
+            "load_average": _load_average(),
+            "thread_cpu_s": self.thread_cpu(),
+            "slam_tracking": self.slam_tracking(),
+        }
 
     def slam_tracking(self) -> dict:
         """slam-server's per-frame table (--tables-dir, every session of every slam-server run):
         frames tracked and lost, and how each tracked pose was found."""
-        rows = [r for path in sorted(self.workdir.glob("slam-tables*/session-*/frames.csv")) for r in _read_csv(path)]
+        rows = [
+            r
+            for path in sorted(self.workdir.glob("slam-tables*/session-*/frames.csv"))
+            for r in _read_csv(path)
+        ]
         if not rows:
             return {"frames": 0}
 
@@ -660,8 +760,12 @@ class SlamFlight:
             "cross_checked": count("cross_checked"),
             "attitude_predicted": count("attitude_predicted"),
             "keyframes": count("keyframe"),
-            "tracking_cpu_ms": {"median": round(float(np.median(cpu)), 1), "p95": round(float(np.percentile(cpu, 95)), 1)}
-            if cpu.size else None,
+            "tracking_cpu_ms": {
+                "median": round(float(np.median(cpu)), 1),
+                "p95": round(float(np.percentile(cpu, 95)), 1),
+            }
+            if cpu.size
+            else None,
         }
 
     def thread_cpu(self) -> dict:
@@ -669,13 +773,20 @@ class SlamFlight:
         (hilrig.thread_cpu), to say where the machine's CPU went in this flight."""
         from hilrig.thread_cpu import thread_cpu_s
 
-        return {name: thread_cpu_s(p.pid) for name, p in self._procs
-                if name in ("quad-control", "slam-server", "rgbd-streamer") and p.alive()}
+        return {
+            name: thread_cpu_s(p.pid)
+            for name, p in self._procs
+            if name in ("quad-control", "slam-server", "rgbd-streamer") and p.alive()
+        }
 
     def stream_stats(self) -> dict:
         frames = self.frames()
         poses = self.poses()
-        span = (int(frames[-1]["received_us"]) - int(frames[0]["received_us"])) / 1e6 if len(frames) > 1 else 0
+        span = (
+            (int(frames[-1]["received_us"]) - int(frames[0]["received_us"])) / 1e6
+            if len(frames) > 1
+            else 0
+        )
         return {
             "frames_received": len(frames),
             "received_fps": round((len(frames) - 1) / span, 2) if span > 0 else 0.0,
@@ -731,7 +842,9 @@ def goal_in_room(start_cam_room: np.ndarray, floor_goal: tuple[float, float, flo
     return np.array([start_cam_room[0] + x, start_cam_room[1] + y, z])
 
 
-def hold_error(history, goal_room: np.ndarray, mount: CameraMount, from_us: float, to_us: float) -> dict:
+def hold_error(
+    history, goal_room: np.ndarray, mount: CameraMount, from_us: float, to_us: float
+) -> dict:
     """Error of the camera's true position against a goal in the room frame over [from_us, to_us]."""
     sel = [s for s in history if from_us <= s.t_us <= to_us]
     if not sel:

@@ -11,12 +11,12 @@ same ports. One thread per stream; `close()` joins them. Protocol: rgbd_protocol
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 import os
-from pathlib import Path
 import socket
 import threading
 import time
+from dataclasses import dataclass
+from pathlib import Path
 
 from rgbd_protocol.codec import Codec, StreamDecoder
 from rgbd_protocol.stream_auth import ack_tag, handshake_tag, load_key_file, tags_equal
@@ -96,7 +96,9 @@ class _StreamPort:
                     if not tags_equal(ev.fields["mac"], expected):
                         reason = "handshake not authenticated (wrong stream key?)"
                     ack = {"accepted": not reason, "reason": reason, "mac": [0] * 8}
-                    ack["mac"] = ack_tag(codec, self.owner.key, nonce, bytes(ev.fields["sender_nonce"]), ack)
+                    ack["mac"] = ack_tag(
+                        codec, self.owner.key, nonce, bytes(ev.fields["sender_nonce"]), ack
+                    )
                     conn.sendall(codec.encode("HandshakeAck", ack))
                     if reason:
                         self.owner._note(f"{self.kind}: refused handshake: {reason}")

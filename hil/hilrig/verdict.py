@@ -21,8 +21,8 @@ Targets:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 import re
+from dataclasses import dataclass
 
 HOLD_MAX_M = 0.15
 WAYPOINT_MAX_M = 0.15
@@ -54,7 +54,9 @@ def _fmt(v, unit: str, scale: float = 1.0, digits: int = 3) -> str:
     return "n/a" if v is None else f"{v * scale:.{digits}f} {unit}"
 
 
-def session_resets(slam_server_log: str | None, quad_control_log: str | None, state: dict | None) -> dict:
+def session_resets(
+    slam_server_log: str | None, quad_control_log: str | None, state: dict | None
+) -> dict:
     """New SLAM sessions after the first, from every source that is available."""
     sources: dict[str, int] = {}
     if slam_server_log is not None:
@@ -103,78 +105,129 @@ def rig_health(report: dict, fps: float) -> dict:
 def _rig_check(report: dict, fps: float) -> Check:
     rig = rig_health(report, fps)
     ratio, rtf = rig["delivered_ratio"], rig["realtime_factor"]
-    rig_ok = ratio is not None and rtf is not None and ratio >= MIN_DELIVERED_RATIO and rtf >= MIN_REALTIME_FACTOR
+    rig_ok = (
+        ratio is not None
+        and rtf is not None
+        and ratio >= MIN_DELIVERED_RATIO
+        and rtf >= MIN_REALTIME_FACTOR
+    )
     if rig_ok:
         why = ""
     elif ratio is None or rtf is None:
         why = "the rig did not report its delivered frames / real-time factor"
     else:
-        why = (f"rig overloaded: {rig['frames_delivered']} of {rig['frames_requested']} camera frames delivered "
-               f"({rig['frames_superseded']} superseded, render median {rig['render_ms_median']} ms), "
-               f"simulation at {rtf:.2f}x wall clock: the machine could not run the emulators in real time, "
-               "so other misses may be the rig's, not the system's")
-    return Check("rig real-time", rig_ok,
-                 f"{_fmt(ratio, '', 100, 0).strip()}% frames delivered, {rtf if rtf is not None else 'n/a'}x real time",
-                 f">= {MIN_DELIVERED_RATIO:.0%} delivered, >= {MIN_REALTIME_FACTOR}x", why)
+        why = (
+            f"rig overloaded: {rig['frames_delivered']} of {rig['frames_requested']} camera frames delivered "
+            f"({rig['frames_superseded']} superseded, render median {rig['render_ms_median']} ms), "
+            f"simulation at {rtf:.2f}x wall clock: the machine could not run the emulators in real time, "
+            "so other misses may be the rig's, not the system's"
+        )
+    return Check(
+        "rig real-time",
+        rig_ok,
+        f"{_fmt(ratio, '', 100, 0).strip()}% frames delivered, {rtf if rtf is not None else 'n/a'}x real time",
+        f">= {MIN_DELIVERED_RATIO:.0%} delivered, >= {MIN_REALTIME_FACTOR}x",
+        why,
+    )
 
 
 def _aborted_checks(report: dict, plan: str) -> list[Check]:
     aborted = report.get("aborted")
     if not aborted:
         return []
-    return [Check("flight completed", False, "aborted", plan, f"the mission stopped: {aborted[:300]}")]
+    return [
+        Check("flight completed", False, "aborted", plan, f"the mission stopped: {aborted[:300]}")
+    ]
 
 
 def _hold_check(report: dict) -> Check:
     h = report.get("hold") or {}
     hv = h.get("max_m")
-    return Check("hold", hv is not None and hv <= HOLD_MAX_M, _fmt(hv, "m"), f"<= {HOLD_MAX_M} m",
-                 "not measured (the mission stopped before the hold was scored)" if hv is None else
-                 f"the craft was {hv:.3f} m from its hold point (horizontal {h.get('max_horizontal_m')} m, "
-                 f"vertical {h.get('max_vertical_m')} m)")
+    return Check(
+        "hold",
+        hv is not None and hv <= HOLD_MAX_M,
+        _fmt(hv, "m"),
+        f"<= {HOLD_MAX_M} m",
+        "not measured (the mission stopped before the hold was scored)"
+        if hv is None
+        else f"the craft was {hv:.3f} m from its hold point (horizontal {h.get('max_horizontal_m')} m, "
+        f"vertical {h.get('max_vertical_m')} m)",
+    )
 
 
 def _ate_check(report: dict) -> Check:
     ate = report.get("ate") or {}
     av = ate.get("ate_rmse_m")
-    return Check("SLAM ATE", av is not None and av <= ATE_MAX_M, _fmt(av, "mm", 1000, 1),
-                 f"<= {ATE_MAX_M * 1000:.0f} mm",
-                 f"ATE not available: {ate.get('error', ate)}" if av is None else
-                 f"SLAM trajectory {av * 1000:.1f} mm RMSE from the truth (max {ate.get('ate_max_m', 0) * 1000:.0f} mm)")
+    return Check(
+        "SLAM ATE",
+        av is not None and av <= ATE_MAX_M,
+        _fmt(av, "mm", 1000, 1),
+        f"<= {ATE_MAX_M * 1000:.0f} mm",
+        f"ATE not available: {ate.get('error', ate)}"
+        if av is None
+        else f"SLAM trajectory {av * 1000:.1f} mm RMSE from the truth (max {ate.get('ate_max_m', 0) * 1000:.0f} mm)",
+    )
 
 
 def _resets_check(resets: dict) -> Check:
     r = resets.get("resets")
-    return Check("SLAM session resets", r is not None and r <= MAX_SESSION_RESETS,
-                 "not observed" if r is None else f"{r} (link breaks {resets.get('link_breaks', 0)}, "
-                 f"resumed {resets.get('resumes', 0)})", f"{MAX_SESSION_RESETS}",
-                 "no log or state to count them from" if r is None else
-                 f"{r} new map(s) after the first (sources {resets.get('sources')}; causes: "
-                 f"{resets.get('disconnect_causes') or resets.get('server_close_causes')})")
+    return Check(
+        "SLAM session resets",
+        r is not None and r <= MAX_SESSION_RESETS,
+        "not observed"
+        if r is None
+        else f"{r} (link breaks {resets.get('link_breaks', 0)}, "
+        f"resumed {resets.get('resumes', 0)})",
+        f"{MAX_SESSION_RESETS}",
+        "no log or state to count them from"
+        if r is None
+        else f"{r} new map(s) after the first (sources {resets.get('sources')}; causes: "
+        f"{resets.get('disconnect_causes') or resets.get('server_close_causes')})",
+    )
 
 
 def judge(report: dict, resets: dict, fps: float) -> list[Check]:
     """One Check per target of `make demo` (scenario 2), in a fixed order."""
-    checks = [_rig_check(report, fps), *_aborted_checks(report, "take-off, hold, 2 waypoints, landing"),
-              _hold_check(report)]
+    checks = [
+        _rig_check(report, fps),
+        *_aborted_checks(report, "take-off, hold, 2 waypoints, landing"),
+        _hold_check(report),
+    ]
     wps = report.get("waypoints") or []
     for i in range(max(2, len(wps))):
         w = wps[i] if i < len(wps) else {}
         v = w.get("max_m")
-        checks.append(Check(f"waypoint {i + 1}", v is not None and v <= WAYPOINT_MAX_M, _fmt(v, "m"),
-                            f"<= {WAYPOINT_MAX_M} m",
-                            "not reached" if v is None else f"ended {v:.3f} m from the waypoint"))
+        checks.append(
+            Check(
+                f"waypoint {i + 1}",
+                v is not None and v <= WAYPOINT_MAX_M,
+                _fmt(v, "m"),
+                f"<= {WAYPOINT_MAX_M} m",
+                "not reached" if v is None else f"ended {v:.3f} m from the waypoint",
+            )
+        )
     td = (report.get("landing") or {}).get("touchdown_vertical_speed_mps")
     if td is None and report.get("touchdowns_mps"):  # an aborted flight that still came down
         td = max(report["touchdowns_mps"])
-    checks.append(Check("touchdown", td is not None and td <= TOUCHDOWN_MAX_MPS, _fmt(td, "m/s", digits=2),
-                        f"<= {TOUCHDOWN_MAX_MPS} m/s",
-                        "no landing recorded" if td is None else f"hit the floor at {td:.2f} m/s"))
+    checks.append(
+        Check(
+            "touchdown",
+            td is not None and td <= TOUCHDOWN_MAX_MPS,
+            _fmt(td, "m/s", digits=2),
+            f"<= {TOUCHDOWN_MAX_MPS} m/s",
+            "no landing recorded" if td is None else f"hit the floor at {td:.2f} m/s",
+        )
+    )
     checks += [_ate_check(report), _resets_check(resets)]
     return checks
 
 
 def judge_hold(report: dict, resets: dict, fps: float) -> list[Check]:
     """The targets of a hold-only flight (the load scenario): rig real-time, hold, SLAM ATE, resets."""
-    return [_rig_check(report, fps), *_aborted_checks(report, "take-off and hold"), _hold_check(report),
-            _ate_check(report), _resets_check(resets)]
+    return [
+        _rig_check(report, fps),
+        *_aborted_checks(report, "take-off and hold"),
+        _hold_check(report),
+        _ate_check(report),
+        _resets_check(resets),
+    ]

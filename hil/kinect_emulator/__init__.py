@@ -8,11 +8,11 @@ dump) - offline, or live from the craft's current pose (LiveKinect: a fakenect d
 is a FIFO, fed by a renderer child process).
 """
 
-from kinect_emulator.renderer import KinectFrame, KinectEmulator, KinectOptions, Intrinsics
-from kinect_emulator.room import Box, Room, default_room, load_textures
-from kinect_emulator.writers import FakenectDumpWriter, TumFolderWriter
 from kinect_emulator.live import LiveFrameRecord, LiveKinect, match_capture_stamps
 from kinect_emulator.poses import camera_pose_from_ned, pose_matrix
+from kinect_emulator.renderer import Intrinsics, KinectEmulator, KinectFrame, KinectOptions
+from kinect_emulator.room import Box, Room, default_room, load_textures
+from kinect_emulator.writers import FakenectDumpWriter, TumFolderWriter
 
 __all__ = [
     "Box",

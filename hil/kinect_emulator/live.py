@@ -58,14 +58,11 @@ start() and close() from the owning thread.
 
 from __future__ import annotations
 
-from bisect import bisect_right
-from dataclasses import dataclass
 import fcntl
 import json
 import logging
 import math
 import os
-from pathlib import Path
 import re
 import shutil
 import stat
@@ -74,6 +71,9 @@ import subprocess
 import termios
 import threading
 import time
+from bisect import bisect_right
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -325,8 +325,14 @@ def _child_main() -> int:
                 return 0
             seq, t_s, *flat = reqs[-1]
             start = time.monotonic()
-            rec = {"index": n_rendered, "seq": seq, "t_mono_s": t_s, "T_room_cam": flat,
-                   "superseded": len(reqs) - 1, "render_start_mono_s": start}
+            rec = {
+                "index": n_rendered,
+                "seq": seq,
+                "t_mono_s": t_s,
+                "T_room_cam": flat,
+                "superseded": len(reqs) - 1,
+                "render_start_mono_s": start,
+            }
             if index.reader_is_behind() and start - index.last_written_s > READER_STALLED_S:
                 # The streamer has not read the previous frame for a while (not started, stopped or
                 # stalled): a render now could not be written; save the CPU for the rig.
@@ -353,8 +359,12 @@ def _child_main() -> int:
                     written, dname, rname = index.write_frame(
                         n_rendered, t_s, frame.rgb, lut[frame.depth_mm], time.monotonic
                     )
-                    rec.update(delivered=True, index_written_mono_s=written, depth_file=dname,
-                               rgb_file=rname)
+                    rec.update(
+                        delivered=True,
+                        index_written_mono_s=written,
+                        depth_file=dname,
+                        rgb_file=rname,
+                    )
             n_rendered += 1
             records.write(json.dumps(rec) + "\n")
             records.flush()
@@ -366,8 +376,13 @@ def _child_main() -> int:
 class LiveKinect:
     """A Kinect v1 that renders live from submitted poses into a fakenect FIFO dump (see module)."""
 
-    def __init__(self, dump_dir, options: KinectOptions | None = None, room: Room | None = None,
-                 keep_files: bool = False) -> None:
+    def __init__(
+        self,
+        dump_dir,
+        options: KinectOptions | None = None,
+        room: Room | None = None,
+        keep_files: bool = False,
+    ) -> None:
         """dump_dir: created by start(); must not hold an offline dump (a regular INDEX.txt).
         room: None = default_room() built in the child (saves pickling the textures)."""
         self.dir = Path(dump_dir)
@@ -456,8 +471,13 @@ class LiveKinect:
 
     def direct_streamer_command(self, streamer_bin, *args) -> list[str]:
         """The streamer itself (its PID is the one to stop); run it with env=streamer_env()."""
-        return [str(streamer_bin), "--source", "freenect", "--freenect-disparity-depth",
-                *(str(a) for a in args)]
+        return [
+            str(streamer_bin),
+            "--source",
+            "freenect",
+            "--freenect-disparity-depth",
+            *(str(a) for a in args),
+        ]
 
     def streamer_config_yaml(self, extra: str = "") -> str:
         """rgbd-streamer settings for this camera: the renderer draws depth already registered to
@@ -625,4 +645,3 @@ class LiveKinect:
         self.records()
         with self._rec_lock:
             return [d["error"] for d in self._undelivered if "error" in d]
-

@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from fc_emulator.quad_model import rotation_body_to_ned
 
 # NED -> NWU: flip y and z.

@@ -32,10 +32,10 @@ cast ~4 ms, texture ~6 ms, depth model ~3 ms); the figures of both back ends are
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import logging
 import math
 import os
+from dataclasses import dataclass, field
 
 import numpy as np
 from rgbd_protocol.tum_cameras import TUM_FR1
@@ -246,7 +246,7 @@ class KinectEmulator:
                 if rect is None:
                     continue
                 r0, r1, c0, c1 = rect
-                sub = lambda arr: arr.reshape(H, W)[r0:r1, c0:c1]  # noqa: E731
+                sub = lambda arr, r0=r0, r1=r1, c0=c0, c1=c1: arr.reshape(H, W)[r0:r1, c0:c1]  # noqa: E731
                 t_s = sub(t)
                 tmin = np.full(t_s.shape, -np.inf, f32)
                 tmax = np.full(t_s.shape, np.inf, f32)
@@ -288,8 +288,12 @@ class KinectEmulator:
         camera; None if it covers no pixel."""
         i = self.options.intrinsics
         corners = np.array(
-            [[x, y, z] for x in (box.lo_m[0], box.hi_m[0]) for y in (box.lo_m[1], box.hi_m[1])
-             for z in (box.lo_m[2], box.hi_m[2])]  # fmt: skip
+            [
+                [x, y, z]
+                for x in (box.lo_m[0], box.hi_m[0])
+                for y in (box.lo_m[1], box.hi_m[1])
+                for z in (box.lo_m[2], box.hi_m[2])
+            ]  # fmt: skip
         )
         pc = (corners - o) @ R  # rows: R^T (p - o), camera frame
         if np.any(pc[:, 2] <= SCREEN_RECT_MIN_Z_M):

@@ -30,7 +30,7 @@ class Box:
     hi_m: tuple[float, float, float]
 
     def __post_init__(self) -> None:
-        if not all(a < b for a, b in zip(self.lo_m, self.hi_m)):
+        if not all(a < b for a, b in zip(self.lo_m, self.hi_m, strict=False)):
             raise ValueError(
                 f"Box corners must satisfy lo < hi on every axis: {self.lo_m} {self.hi_m}"
             )
@@ -57,7 +57,9 @@ class Room:
         for o in self.obstacles:
             if not all(
                 bl <= ol and oh <= bh
-                for bl, ol, oh, bh in zip(self.bounds.lo_m, o.lo_m, o.hi_m, self.bounds.hi_m)
+                for bl, ol, oh, bh in zip(
+                    self.bounds.lo_m, o.lo_m, o.hi_m, self.bounds.hi_m, strict=False
+                )
             ):
                 raise ValueError(f"obstacle {o} is not inside the room bounds")
 

@@ -23,6 +23,7 @@ from rgbd_protocol.tum_cameras import TUM_DEPTH_UNITS_PER_M  # noqa: F401  (re-e
 
 from kinect_emulator.poses import rotation_to_quaternion_xyzw
 from kinect_emulator.renderer import KinectFrame
+
 # Raw 11-bit disparity <-> metres, libfreenect's documented approximation (Stephane Magnenat):
 #   z_m = 0.1236 * tan(raw / 2842.5 + 1.1863); 2047 = no reading.
 FREENECT_NO_READING = 2047

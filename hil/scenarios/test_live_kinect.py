@@ -19,14 +19,13 @@ import time
 
 import numpy as np
 import pytest
-
 from hilrig.paths import artifacts_dir, find_binary
 from hilrig.procs import ManagedProcess
 from hilrig.stream_rx import StreamReceiver
-from rgbd_protocol.stream_auth import write_key_file
 from kinect_emulator import KinectEmulator, KinectOptions, camera_pose_from_ned, default_room
 from kinect_emulator.live import LiveKinect, fakenect_lib_dir, match_capture_stamps
 from kinect_emulator.writers import depth_mm_to_freenect_raw, freenect_raw_to_depth_mm
+from rgbd_protocol.stream_auth import write_key_file
 
 pytestmark = pytest.mark.hil
 
@@ -77,8 +76,11 @@ def _fly(setup, fps: float) -> dict:
     cfg = work / "streamer.yaml"
     key = work / "stream.key"  # the craft's stream key, shared with the receiver (mode 0600)
     write_key_file(key)
-    cfg.write_text(cam.streamer_config_yaml(
-        f"stats_period_s: 0\nlog_level: warn\nexit_linger_ms: 1000\nstream_key_file: {key}\n"))
+    cfg.write_text(
+        cam.streamer_config_yaml(
+            f"stats_period_s: 0\nlog_level: warn\nexit_linger_ms: 1000\nstream_key_file: {key}\n"
+        )
+    )
     with StreamReceiver(key) as rx:
         cam.start()
         try:
@@ -107,7 +109,14 @@ def _fly(setup, fps: float) -> dict:
         depth, rgb = rx.frames("depth"), rx.frames("rgb")
         scale = rx.handshakes["depth"]["depth_scale_units_per_m"]
     return dict(
-        cam=cam, opts=opts, depth=depth, rgb=rgb, scale=scale, log=log, flown_s=flown_s, n=n,
+        cam=cam,
+        opts=opts,
+        depth=depth,
+        rgb=rgb,
+        scale=scale,
+        log=log,
+        flown_s=flown_s,
+        n=n,
         dump=work / "dump",
     )
 
@@ -139,11 +148,11 @@ def test_live_kinect_through_fakenect_and_rgbd_streamer(setup, fps):
             refs[m.index] = emu.render_indexed(m.T_room_cam, int(round(m.t_mono_s * 1e6)), m.index)
         return refs[m.index]
 
-    for f, m in zip(depth, d_match):
+    for f, m in zip(depth, d_match, strict=False):
         got = np.frombuffer(f.payload, dtype="<u2").reshape(f.height, f.width)
         want = freenect_raw_to_depth_mm(depth_mm_to_freenect_raw(ref(m).depth_mm))
         assert np.array_equal(got, want), f"depth of frame {m.index} is not the render of its pose"
-    for f, m in zip(rgb, r_match):
+    for f, m in zip(rgb, r_match, strict=False):
         got = np.frombuffer(f.payload, np.uint8).reshape(f.height, f.width, 3)
         assert np.array_equal(got, ref(m).rgb), f"RGB of frame {m.index} is not the render"
     # Files fakenect finished with were deleted during the flight (the last frame's may remain).
@@ -152,10 +161,14 @@ def test_live_kinect_through_fakenect_and_rgbd_streamer(setup, fps):
     # Latency chain (ms), over the depth frames received.
     exp_to_written = [(m.index_written_mono_s - m.t_mono_s) * 1e3 for m in d_match]
     written_to_capture = [
-        f.capture_timestamp_us / 1e3 - m.index_written_mono_s * 1e3 for f, m in zip(depth, d_match)
+        f.capture_timestamp_us / 1e3 - m.index_written_mono_s * 1e3
+        for f, m in zip(depth, d_match, strict=False)
     ]
     capture_to_rx = [(f.receive_monotonic_us - f.capture_timestamp_us) / 1e3 for f in depth]
-    exp_to_rx = [f.receive_monotonic_us / 1e3 - m.t_mono_s * 1e3 for f, m in zip(depth, d_match)]
+    exp_to_rx = [
+        f.receive_monotonic_us / 1e3 - m.t_mono_s * 1e3
+        for f, m in zip(depth, d_match, strict=False)
+    ]
     assert min(written_to_capture) >= 0 and min(capture_to_rx) >= 0
     report = {
         "load_average_1_5_15min": list(os.getloadavg()),  # 2 shared cores: read figures with it

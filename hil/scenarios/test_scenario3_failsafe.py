@@ -21,12 +21,11 @@ import math
 
 import numpy as np
 import pytest
-
+from arduino.simavr_session import Scenario, firmware_elf
 from fc_emulator import FlightControllerEmulator, fly
 from fc_emulator.emulator import FS_COUNTER, FS_THR_VALUE_US, LAND_SPEED_MPS, RC_READ_PERIOD_US
 from fw_limits import FW_LIMITS
 from hilrig.flight import Leg, fly_plan
-from arduino.simavr_session import Scenario, firmware_elf
 from hilrig.paths import artifacts_dir, find_binary
 from hilrig.pilot import ARM_STICKS_US
 
@@ -43,7 +42,9 @@ FW_SIM_TIMEOUT_S = 300.0  # 28 simulated s run in ~8 s idle; a loaded machine ma
 # The firmware's failsafe timing and RC frame (firmware/core/limits.h, read by fw_limits).
 FW_FAILSAFE_TIMEOUT_MS = FW_LIMITS["kFailsafeTimeoutMs"]
 FW_FRAME_MS = FW_LIMITS["kPwmFramePeriodUs"] / 1000
-APM_FS_COUNTER_MS = FS_COUNTER * RC_READ_PERIOD_US / 1000  # the emulated APM's low-throttle debounce
+APM_FS_COUNTER_MS = (
+    FS_COUNTER * RC_READ_PERIOD_US / 1000
+)  # the emulated APM's low-throttle debounce
 
 
 def _ground_station_commands() -> list[tuple[int, tuple[int, int, int, int], bool]]:
@@ -114,7 +115,9 @@ def scenario(tmp_path_factory):
     pass1 = _script(cmds, kill_us, end_us).run(eeprom, work, timeout_s=FW_SIM_TIMEOUT_S)
     mav = []
     fc, trace = _fly_on_pulses(pass1.pulses, end_us, sink=lambda t, d: mav.append((t, d)))
-    pass2 = _script(cmds, kill_us, end_us, mavlink=mav).run(eeprom, work, timeout_s=FW_SIM_TIMEOUT_S)
+    pass2 = _script(cmds, kill_us, end_us, mavlink=mav).run(
+        eeprom, work, timeout_s=FW_SIM_TIMEOUT_S
+    )
     return dict(
         cmds=cmds,
         kill_us=kill_us,
@@ -131,7 +134,9 @@ def _metrics(sc) -> dict:
     kill_us, fc, trace = sc["kill_us"], sc["fc"], sc["trace"]
     last_cmd_us = max(t for t, _, _ in sc["cmds"] if t < kill_us)
     last_thr = [c for t, c, _ in sc["cmds"] if t < kill_us][-1][2]
-    thr = [p for p in sc["pass1"].pulses if p.channel == THROTTLE_CHANNEL and p.rise_us > last_cmd_us]
+    thr = [
+        p for p in sc["pass1"].pulses if p.channel == THROTTLE_CHANNEL and p.rise_us > last_cmd_us
+    ]
     onset = next(p for p in thr if abs(p.width_us - last_thr) > 3)  # first pulse off the command
     below = next(p for p in thr if p.width_us < FS_THR_VALUE_US)  # what the APM takes as failsafe
     fs_events = [t for t, e in fc.events if e.startswith("radio failsafe") and t > kill_us]
@@ -179,7 +184,9 @@ def test_scenario3_touchdown_speed_within_target(scenario):
     # takes over after FS_COUNTER low frames and flies the whole descent at LAND_SPEED.
     m = _metrics(scenario)
     assert m["touchdown_vertical_speed_mps"] <= LAND_SPEED_MPS + 0.01, m
-    handover_ms = FW_FAILSAFE_TIMEOUT_MS + 2 * FW_FRAME_MS + APM_FS_COUNTER_MS + 5  # onset + FS_COUNTER
+    handover_ms = (
+        FW_FAILSAFE_TIMEOUT_MS + 2 * FW_FRAME_MS + APM_FS_COUNTER_MS + 5
+    )  # onset + FS_COUNTER
     assert m["apm_radio_failsafe_after_kill_ms"] <= handover_ms
 
 
@@ -272,9 +279,9 @@ PWM_JITTER_TOLERANCE_US = 10.0
 def test_scenario3_outputs_do_not_depend_on_telemetry_and_replies_carry_it(scenario):
     p1, p2 = scenario["pass1"].pulses, scenario["pass2"].pulses
     assert len(p1) == len(p2)
-    assert all(a.channel == b.channel for a, b in zip(p1, p2))
-    width_jitter = max(abs(a.width_us - b.width_us) for a, b in zip(p1, p2))
-    rise_jitter = max(abs(a.rise_us - b.rise_us) for a, b in zip(p1, p2))
+    assert all(a.channel == b.channel for a, b in zip(p1, p2, strict=False))
+    width_jitter = max(abs(a.width_us - b.width_us) for a, b in zip(p1, p2, strict=False))
+    rise_jitter = max(abs(a.rise_us - b.rise_us) for a, b in zip(p1, p2, strict=False))
     print(
         f"\nscenario 3: PWM jitter caused by telemetry: width {width_jitter:.1f} us, "
         f"edge {rise_jitter:.1f} us over {len(p1)} pulses"

@@ -24,10 +24,9 @@ import time
 
 import numpy as np
 import pytest
-
+from arduino.simavr_session import firmware_elf
 from fc_emulator import QuadParams
 from hilrig.flight import Leg
-from arduino.simavr_session import firmware_elf
 from hilrig.ground_station import GroundStation
 from hilrig.paths import artifacts_dir, find_binary
 
@@ -55,9 +54,8 @@ def _need_rig():
 
 
 def _rig_and_bridge(tmp_path):
-    from provision_key import key_record
-
     from hilrig.live_rig import LiveRig
+    from provision_key import key_record
     from rgbd_protocol.control_bridge import WifiBridgeEmulator
 
     rig = LiveRig(key_record(KEY), quad_params=DISTURBED, workdir=tmp_path)
@@ -70,7 +68,7 @@ def _hold_errors(history, from_us, to_us):
     sel = [s for s in history if from_us <= s.t_us <= to_us]
     horiz = [math.hypot(s.pos_ned_m[0] - HOLD[0], s.pos_ned_m[1] - HOLD[1]) for s in sel]
     vert = [abs(s.pos_ned_m[2] - HOLD[2]) for s in sel]
-    err3 = [math.hypot(h, v) for h, v in zip(horiz, vert)]
+    err3 = [math.hypot(h, v) for h, v in zip(horiz, vert, strict=False)]
     return {
         "max_m": max(err3),
         "rms_m": float(np.sqrt(np.mean(np.square(err3)))),
@@ -235,7 +233,7 @@ def test_scenario7_bad_http_then_scenario3_ground_station_killed(tmp_path):
         results = {}
         rounds = 0
         while rig.sim_us < attack_from + 8e6:
-            for name, data, want in _attacks(gs.seqs.next() + 1000):
+            for name, data, _want in _attacks(gs.seqs.next() + 1000):
                 got = _raw(bridge.port, data)
                 results.setdefault(name, set()).add(got)
             rounds += 1

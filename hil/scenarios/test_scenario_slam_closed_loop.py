@@ -21,9 +21,7 @@ import json
 import time
 
 import numpy as np
-
 import pytest
-
 from fc_emulator import QuadParams
 from hilrig import missions
 from hilrig.link_proxy import LinkImpairment
@@ -50,7 +48,9 @@ TOUCHDOWN_LIMIT_MPS = 0.5
 # craft 0.6-1.5 m during the ~5 s failsafe descent (measured), and nothing on board can know.
 FLYAWAY_RADIUS_M = 2.0
 # Indoor disturbances (as the truth-piloted scenarios): 0.15 m/s^2 air currents, APM trim error.
-DISTURBED = QuadParams(gust_accel_std_mss=0.15, gust_tau_s=2.0, trim_error_deg=(0.5, -0.3), disturbance_seed=7)
+DISTURBED = QuadParams(
+    gust_accel_std_mss=0.15, gust_tau_s=2.0, trim_error_deg=(0.5, -0.3), disturbance_seed=7
+)
 
 
 def _flight(tmp_path, **options):
@@ -72,7 +72,8 @@ def _fault_outcome(flight, start_room, fault_sim_us) -> dict:
     goal = goal_in_room(start_room, (0.0, 0.0, missions.HOLD_HEIGHT_M))
     hist = [h for h in flight.rig.history() if h.t_us >= fault_sim_us]
     worst = max(
-        float(np.linalg.norm(camera_room_position(h, flight.options.mount)[:2] - goal[:2])) for h in hist
+        float(np.linalg.norm(camera_room_position(h, flight.options.mount)[:2] - goal[:2]))
+        for h in hist
     )
     st = flight.state()
     return {
@@ -80,15 +81,23 @@ def _fault_outcome(flight, start_room, fault_sim_us) -> dict:
         "last_event": st["last_event"],
         "landed": flight.rig.snapshot().landed,
         "max_horizontal_from_hold_point_m": round(worst, 3),
-        "final_hold_error": hold_error(flight.rig.history(), goal, flight.options.mount,
-                                       flight.rig.sim_us - 3e6, flight.rig.sim_us),
+        "final_hold_error": hold_error(
+            flight.rig.history(),
+            goal,
+            flight.options.mount,
+            flight.rig.sim_us - 3e6,
+            flight.rig.sim_us,
+        ),
         "rejected_pose_jumps": st.get("rejected_poses"),
         "failsafe_events": [e for _, e in flight.rig.fc.events if "failsafe" in e],
     }
 
 
 def _holding_or_landed(outcome) -> bool:
-    holding = outcome["state_after"] == "hold" and outcome["final_hold_error"]["max_m"] <= 2 * HOLD_TOLERANCE_M
+    holding = (
+        outcome["state_after"] == "hold"
+        and outcome["final_hold_error"]["max_m"] <= 2 * HOLD_TOLERANCE_M
+    )
     return holding or outcome["landed"]
 
 
@@ -103,7 +112,9 @@ def _finish(flight, name: str, report: dict) -> dict:
 def test_slam_loop_scenario1_hold_30s(flight):
     to = missions.take_off(flight, progress=print)
     err = missions.hold(flight, to["start_room_m"], 30.0, progress=print)
-    report = _finish(flight, "slam_loop_scenario1", {"hold": err, "realtime_factor": flight.rig.realtime_factor})
+    report = _finish(
+        flight, "slam_loop_scenario1", {"hold": err, "realtime_factor": flight.rig.realtime_factor}
+    )
     assert not [e for _, e in flight.rig.fc.events if "failsafe" in e]
     assert report["ate"].get("ate_rmse_m") is not None
     assert err["max_m"] <= HOLD_TOLERANCE_M, err
@@ -132,7 +143,8 @@ def test_slam_loop_scenario3_ground_station_killed(flight):
         flight.hold_for(0.5)
     hist = [s for s in flight.rig.history() if s.t_us >= kill_sim_us]
     drift = max(
-        float(((camera_room_position(s, flight.options.mount)[:2] - at_kill[:2]) ** 2).sum() ** 0.5) for s in hist
+        float(((camera_room_position(s, flight.options.mount)[:2] - at_kill[:2]) ** 2).sum() ** 0.5)
+        for s in hist
     )
     touchdowns = list(flight.rig.fc.touchdowns_mps)
     report = _finish(
@@ -179,9 +191,16 @@ def test_slam_loop_scenario4_stream_link_dropped_and_restored(tmp_path):
             flight.hold_for(8.0)
         out = _fault_outcome(flight, to["start_room_m"], t_fault)
         touchdowns = list(flight.rig.fc.touchdowns_mps)
-        report = _finish(flight, "slam_loop_scenario4", {
-            "outage_s": 1.0, "settled_after_restore_s": settled_s,
-            "touchdown_vertical_speed_mps": max(touchdowns) if touchdowns else None, **out})
+        report = _finish(
+            flight,
+            "slam_loop_scenario4",
+            {
+                "outage_s": 1.0,
+                "settled_after_restore_s": settled_s,
+                "touchdown_vertical_speed_mps": max(touchdowns) if touchdowns else None,
+                **out,
+            },
+        )
     assert not out["failsafe_events"]
     assert out["max_horizontal_from_hold_point_m"] < FLYAWAY_RADIUS_M
     assert _holding_or_landed(out), report
@@ -192,7 +211,9 @@ def test_slam_loop_scenario5_degraded_stream_link(tmp_path):
     # The WiFi configuration of docs/onboard.md: JPEG RGB + zstd-delta depth (~13x and ~6x smaller
     # than raw). With raw RGB a 900 KB frame spans ~15 chunks, so a third of the frames would hit a
     # 200 ms loss stall.
-    with _flight(tmp_path, stream_impairment=bad, rgb_encoding="jpeg", depth_encoding="zstd-delta") as flight:
+    with _flight(
+        tmp_path, stream_impairment=bad, rgb_encoding="jpeg", depth_encoding="zstd-delta"
+    ) as flight:
         report: dict = {"impairment": bad.__dict__}
         t0 = flight.rig.sim_us
         start = None
@@ -210,14 +231,23 @@ def test_slam_loop_scenario5_degraded_stream_link(tmp_path):
         touchdowns = list(flight.rig.fc.touchdowns_mps)
         # quad-control's IMU + pose fusion across the stalls (docs/control.md "Estimator")
         report["estimator"] = flight.state().get("estimator")
-        report = _finish(flight, "slam_loop_scenario5", {
-            **report, "touchdown_vertical_speed_mps": max(touchdowns) if touchdowns else None, **out})
+        report = _finish(
+            flight,
+            "slam_loop_scenario5",
+            {
+                **report,
+                "touchdown_vertical_speed_mps": max(touchdowns) if touchdowns else None,
+                **out,
+            },
+        )
     # A craft that never took off holds perfectly: that is a failure of the flight, not a pass.
     assert took_off, f"never took off: {report.get('mission_aborted')}"
     assert out["max_horizontal_from_hold_point_m"] < FLYAWAY_RADIUS_M
     assert _holding_or_landed(out), report
     # The targets of the real-time SLAM issue: SLAM holds through the stalls, and so does the craft.
-    assert report["ate"].get("ate_rmse_m") is not None and report["ate"]["ate_rmse_m"] <= 0.030, report["ate"]
+    assert report["ate"].get("ate_rmse_m") is not None and report["ate"]["ate_rmse_m"] <= 0.030, (
+        report["ate"]
+    )
     # Was a strict xfail until 3 Dec 2026 (0.158-0.169 m): met since the roll/pitch gains were
     # chosen for the shorter loop delay (hilrig/slam_flight.py HIL_CONTROLLER_GAINS; docs/hil.md).
     assert out["max_horizontal_from_hold_point_m"] <= HOLD_TOLERANCE_M, out
@@ -232,7 +262,9 @@ def test_slam_loop_scenario8_turns_in_place(flight):
     to = missions.take_off(flight, progress=print)
     start = to["start_room_m"]
     report: dict = {"hold": missions.hold(flight, start, 5.0, progress=print)}
-    report["turns"] = [missions.turn(flight, start, yaw, TURN_HOLD_S, progress=print) for yaw in TURNS_CCW_DEG]
+    report["turns"] = [
+        missions.turn(flight, start, yaw, TURN_HOLD_S, progress=print) for yaw in TURNS_CCW_DEG
+    ]
     report["failsafe_events"] = [e for _, e in flight.rig.fc.events if "failsafe" in e]
     report["rejected_pose_jumps"] = flight.state().get("rejected_poses")
     prior = flight.options.imu_rotation_prior
@@ -246,7 +278,8 @@ def test_slam_loop_scenario8_turns_in_place(flight):
 
 
 def test_slam_loop_scenario6_blank_frames(tmp_path):
-    # Render indices ~13 s into the flight at 30 fps (during the hold): 3 blank frames in a row, then
+    # Render indices ~13 s into the flight at 30 fps (during the hold): 3 blank frames in a row,
+    # then
     # 2 single ones.
     blanks = frozenset({390, 391, 392, 450, 510})
     with _flight(tmp_path, blank_frames=blanks) as flight:
@@ -256,11 +289,21 @@ def test_slam_loop_scenario6_blank_frames(tmp_path):
         out = _fault_outcome(flight, to["start_room_m"], t0)
         records = flight.kinect.records()
         received = match_capture_stamps(records, [int(f["capture_us"]) for f in flight.frames()])
-        report = _finish(flight, "slam_loop_scenario6", {
-            "blank_frames_rendered": sorted(r.index for r in records if r.index in blanks),
-            "blank_frames_received": sorted(r.index for r in received if r is not None and r.index in blanks),
-            "hold": err, **out})
-    assert len(report["blank_frames_rendered"]) >= 3, "the blank frames were not reached during the hold"
+        report = _finish(
+            flight,
+            "slam_loop_scenario6",
+            {
+                "blank_frames_rendered": sorted(r.index for r in records if r.index in blanks),
+                "blank_frames_received": sorted(
+                    r.index for r in received if r is not None and r.index in blanks
+                ),
+                "hold": err,
+                **out,
+            },
+        )
+    assert len(report["blank_frames_rendered"]) >= 3, (
+        "the blank frames were not reached during the hold"
+    )
     assert report["blank_frames_received"] == [], "blank frames reached the ground station"
     assert out["state_after"] == "hold" and not out["failsafe_events"]
     assert err["max_m"] <= 2 * HOLD_TOLERANCE_M
@@ -296,14 +339,18 @@ def test_slam_loop_load_two_cpu_burners(tmp_path):
         except Exception:  # noqa: BLE001 - quad-control may have died; its log still counts
             final_state = None
         report = _finish(flight, "slam_loop_load", report)
-        resets = session_resets(_log(tmp_path / "slam-server.log"), _log(tmp_path / "quad-control.log"), final_state)
+        resets = session_resets(
+            _log(tmp_path / "slam-server.log"), _log(tmp_path / "quad-control.log"), final_state
+        )
     report["slam_link"] = resets
     checks = judge_hold(report, resets, flight.options.fps)
     report["verdict"] = [c.__dict__ for c in checks]
     (artifacts_dir() / "slam_loop_load.json").write_text(json.dumps(report, indent=2, default=str))
     lat = report["latency_ms"].get("capture_to_pwm", {})
-    print(f"load scenario (load average {report['load_average']}): camera->PWM median {lat.get('median_ms')} ms, "
-          f"p95 {lat.get('p95_ms')} ms; scheduling {report['scheduling']}")
+    print(
+        f"load scenario (load average {report['load_average']}): camera->PWM median {lat.get('median_ms')} ms, "
+        f"p95 {lat.get('p95_ms')} ms; scheduling {report['scheduling']}"
+    )
     for c in checks:
         print("load scenario: " + c.line())
     rig, *targets = checks
@@ -342,14 +389,27 @@ def test_slam_loop_slam_server_killed_and_restarted(tmp_path):
         qc_log = _log(tmp_path / "quad-control.log") or ""
         st = flight.state()
         server_log = _log(tmp_path / "slam-server.log") or ""
-        report = _finish(flight, "slam_loop_slam_server_restart", {
-            "outage_s": 1.0, "slam": st.get("slam"),
-            "disconnect_causes": [line for line in qc_log.splitlines() if "SLAM link: disconnected" in line][:3],
-            "resumed_from_checkpoint": [line for line in server_log.splitlines()
-                                        if "resumed from its checkpoint" in line][:1],
-            **out})
+        report = _finish(
+            flight,
+            "slam_loop_slam_server_restart",
+            {
+                "outage_s": 1.0,
+                "slam": st.get("slam"),
+                "disconnect_causes": [
+                    line for line in qc_log.splitlines() if "SLAM link: disconnected" in line
+                ][:3],
+                "resumed_from_checkpoint": [
+                    line
+                    for line in server_log.splitlines()
+                    if "resumed from its checkpoint" in line
+                ][:1],
+                **out,
+            },
+        )
     assert report["disconnect_causes"], "the broken SLAM link was not logged with a cause"
-    assert report["resumed_from_checkpoint"], "the restarted slam-server did not resume the flight's map"
+    assert report["resumed_from_checkpoint"], (
+        "the restarted slam-server did not resume the flight's map"
+    )
     assert out["max_horizontal_from_hold_point_m"] < FLYAWAY_RADIUS_M
     holding = out["state_after"] == "hold" and report["slam"]["state"] == "tracking"
     assert holding or out["landed"], report

@@ -15,7 +15,6 @@ import json
 import time
 
 import pytest
-
 from fc_emulator import FlightControllerEmulator
 from hilrig.flight import CameraMount, Leg, arm, fly_plan
 from hilrig.paths import artifacts_dir, find_binary

@@ -21,14 +21,13 @@ import time
 
 import numpy as np
 import pytest
-
 from fc_emulator import FlightControllerEmulator
 from hilrig.flight import Leg, arm, fly_plan
 from hilrig.paths import artifacts_dir, find_binary
 from hilrig.procs import ManagedProcess
 from hilrig.stream_rx import StreamReceiver
-from rgbd_protocol.stream_auth import write_key_file
 from kinect_emulator import KinectEmulator, KinectOptions, TumFolderWriter, default_room
+from rgbd_protocol.stream_auth import write_key_file
 
 pytestmark = pytest.mark.hil
 

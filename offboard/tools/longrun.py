@@ -54,6 +54,7 @@ def _read_list(path: Path) -> list[tuple[float, str]]:
 
 def _nearest(stamps: list[float], t: float) -> int:
     import bisect
+
     i = bisect.bisect_left(stamps, t)
     best = min((j for j in (i - 1, i) if 0 <= j < len(stamps)), key=lambda j: abs(stamps[j] - t))
     return best
@@ -64,7 +65,9 @@ def make(src: Path, out: Path, passes: int) -> int:
     depth = _read_list(src / "depth.txt")
     gt = _read_list(src / "groundtruth.txt")
     if not rgb or not depth or not gt:
-        print(f"longrun: {src} lacks rgb.txt, depth.txt or groundtruth.txt entries", file=sys.stderr)
+        print(
+            f"longrun: {src} lacks rgb.txt, depth.txt or groundtruth.txt entries", file=sys.stderr
+        )
         return 2
     depth_stamps = [t for t, _ in depth]
     gt_stamps = [t for t, _ in gt]
@@ -91,7 +94,7 @@ def make(src: Path, out: Path, passes: int) -> int:
     n = 0
     for p in range(passes):
         order = frames if p % 2 == 0 else list(reversed(frames))
-        for t_rgb, rgb_file, t_d, depth_file, pose in order:
+        for _t_rgb, rgb_file, _t_d, depth_file, pose in order:
             t = t0 + n * period
             # rgb and depth share the new stamp; the pose is the one at the original rgb stamp.
             name = f"{t:.6f}.png"
@@ -104,10 +107,14 @@ def make(src: Path, out: Path, passes: int) -> int:
             depth_lines.append(f"{t:.6f} depth/{name}")
             gt_lines.append(f"{t:.6f} {pose}")
             n += 1
-    header = f"# long-run sequence: {src.name} played forward/backward {passes} times ({n} frames)\n"
+    header = (
+        f"# long-run sequence: {src.name} played forward/backward {passes} times ({n} frames)\n"
+    )
     (out / "rgb.txt").write_text(header + "\n".join(rgb_lines) + "\n")
     (out / "depth.txt").write_text(header + "\n".join(depth_lines) + "\n")
-    (out / "groundtruth.txt").write_text(header + "# timestamp tx ty tz qx qy qz qw\n" + "\n".join(gt_lines) + "\n")
+    (out / "groundtruth.txt").write_text(
+        header + "# timestamp tx ty tz qx qy qz qw\n" + "\n".join(gt_lines) + "\n"
+    )
     print(f"longrun: {n} frames, {n * period:.1f} s at {1 / period:.2f} fps in {out}")
     return 0
 
@@ -143,32 +150,54 @@ def table(run: Path, minute_s: float = 60.0) -> int:
         for f in fr:
             if int(f["keyframe"]) and f.get("keyframe_wanted") in why:
                 why[f["keyframe_wanted"]] += 1
-        # frames whose keyframe was left for later because the mapper was busy (tracker c1b/c1c gate)
+        # frames whose keyframe was left for later because the mapper was busy (tracker c1b/c1c
+        # gate)
         deferred_busy = sum(1 for f in fr if f.get("keyframe_wanted") == "mapper_busy")
         last = fr[-1] if fr else None
-        rows.append({
-            "minute": m + 1, "frames": len(fr),
-            "lost": sum(1 for f in fr if f["state"] == "lost"),
-            "new_keyframes": sum(int(f["keyframe"]) for f in fr),
-            "keyframes_end": int(last["map_keyframes"]) if last else 0,
-            "map_points_end": int(last["map_points"]) if last else 0,
-            "rss_mib_end": rs[-1] if rs else float("nan"),
-            "tracking_cpu_p95_ms": _p95([float(f["frontend_cpu_ms"]) for f in fr]),
-            "mapping_p95_ms": _p95([float(x["mapping_ms"]) for x in mp]),
-            "keyframes_mapped": len(mp),
-            "kf_view/near/both": f"{why['view_changed']}/{why['need_near']}/{why['view_changed+need_near']}",
-            "loops_accepted": sum(1 for x in lp if x["accepted"] == "1"),
-            "deferred_busy": deferred_busy,
-        })
-    cols = ["minute", "frames", "lost", "new_keyframes", "keyframes_end", "map_points_end",
-            "rss_mib_end", "tracking_cpu_p95_ms", "mapping_p95_ms", "keyframes_mapped", "kf_view/near/both",
-            "loops_accepted", "deferred_busy"]
+        rows.append(
+            {
+                "minute": m + 1,
+                "frames": len(fr),
+                "lost": sum(1 for f in fr if f["state"] == "lost"),
+                "new_keyframes": sum(int(f["keyframe"]) for f in fr),
+                "keyframes_end": int(last["map_keyframes"]) if last else 0,
+                "map_points_end": int(last["map_points"]) if last else 0,
+                "rss_mib_end": rs[-1] if rs else float("nan"),
+                "tracking_cpu_p95_ms": _p95([float(f["frontend_cpu_ms"]) for f in fr]),
+                "mapping_p95_ms": _p95([float(x["mapping_ms"]) for x in mp]),
+                "keyframes_mapped": len(mp),
+                "kf_view/near/both": f"{why['view_changed']}/{why['need_near']}/{why['view_changed+need_near']}",
+                "loops_accepted": sum(1 for x in lp if x["accepted"] == "1"),
+                "deferred_busy": deferred_busy,
+            }
+        )
+    cols = [
+        "minute",
+        "frames",
+        "lost",
+        "new_keyframes",
+        "keyframes_end",
+        "map_points_end",
+        "rss_mib_end",
+        "tracking_cpu_p95_ms",
+        "mapping_p95_ms",
+        "keyframes_mapped",
+        "kf_view/near/both",
+        "loops_accepted",
+        "deferred_busy",
+    ]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for r in rows:
-        print("| " + " | ".join(f"{r[c]:.1f}" if isinstance(r[c], float) else str(r[c]) for c in cols) + " |")
-    print(f"ATE {metrics.get('ate_rmse_m', float('nan')):.4f} m over {metrics.get('frames')} frames, "
-          f"front-end dropped {metrics.get('frontend_dropped')}, mode {metrics.get('mode')}")
+        print(
+            "| "
+            + " | ".join(f"{r[c]:.1f}" if isinstance(r[c], float) else str(r[c]) for c in cols)
+            + " |"
+        )
+    print(
+        f"ATE {metrics.get('ate_rmse_m', float('nan')):.4f} m over {metrics.get('frames')} frames, "
+        f"front-end dropped {metrics.get('frontend_dropped')}, mode {metrics.get('mode')}"
+    )
     verdict = 0
     full = [r for r in rows if r["frames"] > 0.9 * minute_s * 25]  # whole minutes only
     if len(full) >= 3:
@@ -179,20 +208,28 @@ def table(run: Path, minute_s: float = 60.0) -> int:
         if lastm["keyframes_mapped"] == 0:
             ok_cost, cost_text = True, f"no keyframe mapped in minute {lastm['minute']}"
         else:
-            ratio = lastm["mapping_p95_ms"] / base["mapping_p95_ms"] if base["mapping_p95_ms"] > 0 else float("inf")
+            ratio = (
+                lastm["mapping_p95_ms"] / base["mapping_p95_ms"]
+                if base["mapping_p95_ms"] > 0
+                else float("inf")
+            )
             ok_cost, cost_text = ratio <= 1.5, f"{ratio:.2f} against minute {base['minute']}"
         allowed = math.floor(kSteadyKeyframeFraction * first["new_keyframes"])
         ok_rate = lastm["new_keyframes"] <= allowed
         ok_size = lastm["keyframes_end"] <= first["keyframes_end"] + allowed
         ok_kf = ok_rate and ok_size
-        print(f"mapping p95, last whole minute / second minute: {cost_text} (target <= 1.5): "
-              f"{'met' if ok_cost else 'MISSED'}")
-        print(f"keyframes level off: {first['new_keyframes']} new in minute 1 (exploring), "
-              f"{second['new_keyframes']} in minute 2, {lastm['new_keyframes']} in minute {lastm['minute']} "
-              f"(target <= {allowed}, {kSteadyKeyframeFraction:.0%} of minute 1); map {first['keyframes_end']} "
-              f"keyframes after minute 1, {lastm['keyframes_end']} after minute {lastm['minute']} "
-              f"(target <= {first['keyframes_end'] + allowed}): "
-              f"{'met' if ok_kf else 'MISSED'}")
+        print(
+            f"mapping p95, last whole minute / second minute: {cost_text} (target <= 1.5): "
+            f"{'met' if ok_cost else 'MISSED'}"
+        )
+        print(
+            f"keyframes level off: {first['new_keyframes']} new in minute 1 (exploring), "
+            f"{second['new_keyframes']} in minute 2, {lastm['new_keyframes']} in minute {lastm['minute']} "
+            f"(target <= {allowed}, {kSteadyKeyframeFraction:.0%} of minute 1); map {first['keyframes_end']} "
+            f"keyframes after minute 1, {lastm['keyframes_end']} after minute {lastm['minute']} "
+            f"(target <= {first['keyframes_end'] + allowed}): "
+            f"{'met' if ok_kf else 'MISSED'}"
+        )
         verdict = 0 if ok_cost and ok_kf else 1
     else:
         print("fewer than 3 whole minutes: no verdict (use more --passes)")
@@ -200,10 +237,14 @@ def table(run: Path, minute_s: float = 60.0) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     sub = ap.add_subparsers(dest="cmd", required=True)
     mk = sub.add_parser("make", help="build the forward/backward sequence")
-    mk.add_argument("--src", type=Path, required=True, help="TUM-layout excerpt with groundtruth.txt")
+    mk.add_argument(
+        "--src", type=Path, required=True, help="TUM-layout excerpt with groundtruth.txt"
+    )
     mk.add_argument("--out", type=Path, required=True)
     mk.add_argument("--passes", type=int, default=20, help="forward+backward passes (default 20)")
     tb = sub.add_parser("table", help="per-minute table of a slam-eval run on it")

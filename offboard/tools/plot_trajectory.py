@@ -7,6 +7,7 @@ Also prints where the trajectory went (start, end, path length).
 
 usage: plot_trajectory.py GT.txt EST.tum SCORE.json OUT.png
 """
+
 import json
 import sys
 
@@ -27,11 +28,13 @@ def read_tum(path):
 def quat_to_rot(qx, qy, qz, qw):
     n = np.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
     qx, qy, qz, qw = qx / n, qy / n, qz / n, qw / n
-    return np.array([
-        [1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qz * qw), 2 * (qx * qz + qy * qw)],
-        [2 * (qx * qy + qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qx * qw)],
-        [2 * (qx * qz - qy * qw), 2 * (qy * qz + qx * qw), 1 - 2 * (qx * qx + qy * qy)],
-    ])
+    return np.array(
+        [
+            [1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qz * qw), 2 * (qx * qz + qy * qw)],
+            [2 * (qx * qy + qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qx * qw)],
+            [2 * (qx * qz - qy * qw), 2 * (qy * qz + qx * qw), 1 - 2 * (qx * qx + qy * qy)],
+        ]
+    )
 
 
 def main(argv):
@@ -50,8 +53,10 @@ def main(argv):
     span = (gt[:, 0] >= est[0, 0] - 0.1) & (gt[:, 0] <= est[-1, 0] + 0.1)
     gt_xyz = gt[span, 1:4]
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     fig, ax = plt.subplots(figsize=(6, 6), dpi=100)
     ax.plot(gt_xyz[:, 0], gt_xyz[:, 1], "k-", lw=2, label="ground truth (motion capture)")
     ax.plot(est_xyz[:, 0], est_xyz[:, 1], "r.-", ms=3, lw=1, label="SLAM estimate (aligned)")
@@ -65,9 +70,11 @@ def main(argv):
     fig.tight_layout()
     fig.savefig(argv[4])
     path_len = float(np.sum(np.linalg.norm(np.diff(est_xyz, axis=0), axis=1)))
-    print(f"trajectory: {len(est)} poses over {est[-1, 0] - est[0, 0]:.2f} s, path length {path_len:.3f} m, "
-          f"start ({est_xyz[0, 0]:.3f}, {est_xyz[0, 1]:.3f}, {est_xyz[0, 2]:.3f}) m, "
-          f"end ({est_xyz[-1, 0]:.3f}, {est_xyz[-1, 1]:.3f}, {est_xyz[-1, 2]:.3f}) m (ground-truth frame)")
+    print(
+        f"trajectory: {len(est)} poses over {est[-1, 0] - est[0, 0]:.2f} s, path length {path_len:.3f} m, "
+        f"start ({est_xyz[0, 0]:.3f}, {est_xyz[0, 1]:.3f}, {est_xyz[0, 2]:.3f}) m, "
+        f"end ({est_xyz[-1, 0]:.3f}, {est_xyz[-1, 1]:.3f}, {est_xyz[-1, 2]:.3f}) m (ground-truth frame)"
+    )
     return 0
 
 

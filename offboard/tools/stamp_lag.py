@@ -32,7 +32,6 @@ import sys
 from dataclasses import dataclass
 
 import numpy as np
-
 from slam_study import se3, tum
 
 # Interpolating across a motion-capture dropout would invent poses: the ground truth's samples
@@ -125,12 +124,14 @@ def score_shift(gt: tum.Trajectory, est: tum.Trajectory, shift_s: float) -> Shif
     rot, trans = se3.align_rigid(gt_poses[:, :3, 3], est.positions_m())
     aligned_pos = est.positions_m() @ rot.T + trans
     position_rmse = float(np.sqrt(np.mean(np.sum((aligned_pos - gt_poses[:, :3, 3]) ** 2, axis=1))))
-    return ShiftScore(shift_s, position_rmse,
-                      _orientation_rms_deg(gt_poses[:, :3, :3], est.poses[:, :3, :3]))
+    return ShiftScore(
+        shift_s, position_rmse, _orientation_rms_deg(gt_poses[:, :3, :3], est.poses[:, :3, :3])
+    )
 
 
-def stamp_lag(gt: tum.Trajectory, est: tum.Trajectory, max_shift_s: float,
-              step_s: float) -> LagReport:
+def stamp_lag(
+    gt: tum.Trajectory, est: tum.Trajectory, max_shift_s: float, step_s: float
+) -> LagReport:
     """Scores est against gt at shifts -max_shift_s ... +max_shift_s (step_s apart)."""
     if not (max_shift_s >= 0 and step_s > 0 and np.isfinite(max_shift_s) and np.isfinite(step_s)):
         raise ValueError("the shift range must be >= 0 and the step > 0")
@@ -140,24 +141,38 @@ def stamp_lag(gt: tum.Trajectory, est: tum.Trajectory, max_shift_s: float,
     for s in (shifts[0], shifts[-1], 0.0):
         keep &= _usable(gt, est.stamps_s + s)
     if keep.sum() < kMinPoses:
-        raise ValueError(f"only {int(keep.sum())} estimated pose(s) lie inside the ground truth "
-                         f"for every shift of +-{max_shift_s * 1000:.0f} ms; need {kMinPoses}")
+        raise ValueError(
+            f"only {int(keep.sum())} estimated pose(s) lie inside the ground truth "
+            f"for every shift of +-{max_shift_s * 1000:.0f} ms; need {kMinPoses}"
+        )
     used = est.subset(np.where(keep)[0])
     return LagReport([score_shift(gt, used, float(s)) for s in shifts], len(used))
 
 
 def format_report(report: LagReport, brief: bool = False) -> str:
-    lines = [] if brief else [f"{report.poses} estimated poses, ground truth read at (stamp + shift)",
-                              "shift ms   position RMSE mm   orientation RMS deg"]
+    lines = (
+        []
+        if brief
+        else [
+            f"{report.poses} estimated poses, ground truth read at (stamp + shift)",
+            "shift ms   position RMSE mm   orientation RMS deg",
+        ]
+    )
     for s in [] if brief else report.scores:
-        lines.append(f"{s.shift_s * 1000:+8.1f}   {s.position_rmse_m * 1000:16.2f}   "
-                     f"{s.orientation_rms_deg:10.3f}")
+        lines.append(
+            f"{s.shift_s * 1000:+8.1f}   {s.position_rmse_m * 1000:16.2f}   "
+            f"{s.orientation_rms_deg:10.3f}"
+        )
     bp, bo = report.best_position(), report.best_orientation()
     zero = min(report.scores, key=lambda s: abs(s.shift_s))
-    lines.append(f"position best at {bp.shift_s * 1000:+.1f} ms ({bp.position_rmse_m * 1000:.2f} "
-                 f"mm; {zero.position_rmse_m * 1000:.2f} mm at 0)")
-    lines.append(f"orientation best at {bo.shift_s * 1000:+.1f} ms ({bo.orientation_rms_deg:.3f} "
-                 f"deg; {zero.orientation_rms_deg:.3f} deg at 0)")
+    lines.append(
+        f"position best at {bp.shift_s * 1000:+.1f} ms ({bp.position_rmse_m * 1000:.2f} "
+        f"mm; {zero.position_rmse_m * 1000:.2f} mm at 0)"
+    )
+    lines.append(
+        f"orientation best at {bo.shift_s * 1000:+.1f} ms ({bo.orientation_rms_deg:.3f} "
+        f"deg; {zero.orientation_rms_deg:.3f} deg at 0)"
+    )
     edge = max(abs(report.scores[0].shift_s), abs(report.scores[-1].shift_s))
     if abs(bp.shift_s) >= edge or abs(bo.shift_s) >= edge:
         lines.append("a best shift is at the edge of the range: widen --max-shift-ms")
@@ -168,14 +183,22 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--gt", required=True, help="ground truth, TUM format (motion capture)")
     parser.add_argument("--est", required=True, help="estimate, TUM format")
-    parser.add_argument("--max-shift-ms", type=float, default=50.0,
-                        help="largest shift tried either way (default 50 ms: 1.5 frames at 30 fps)")
+    parser.add_argument(
+        "--max-shift-ms",
+        type=float,
+        default=50.0,
+        help="largest shift tried either way (default 50 ms: 1.5 frames at 30 fps)",
+    )
     parser.add_argument("--step-ms", type=float, default=5.0, help="shift step (default 5 ms)")
     parser.add_argument("--brief", action="store_true", help="only the two best shifts, no table")
     args = parser.parse_args(argv)
     try:
-        report = stamp_lag(tum.read_trajectory(args.gt), tum.read_trajectory(args.est),
-                           args.max_shift_ms / 1000.0, args.step_ms / 1000.0)
+        report = stamp_lag(
+            tum.read_trajectory(args.gt),
+            tum.read_trajectory(args.est),
+            args.max_shift_ms / 1000.0,
+            args.step_ms / 1000.0,
+        )
     except (tum.TumFormatError, ValueError) as err:
         print(f"stamp_lag: {err}", file=sys.stderr)
         return 1

@@ -17,18 +17,37 @@ FPS = 30
 
 def _write_run(folder: Path, new_keyframes_per_minute: list[int], keyframes_end: list[int]) -> Path:
     folder.mkdir(parents=True)
-    fields = ["index", "stamp_s", "state", "keyframe", "frontend_cpu_ms", "map_keyframes", "map_points",
-              "keyframe_wanted"]
+    fields = [
+        "index",
+        "stamp_s",
+        "state",
+        "keyframe",
+        "frontend_cpu_ms",
+        "map_keyframes",
+        "map_points",
+        "keyframe_wanted",
+    ]
     frames, mapping = [], []
     index = 0
-    for minute, (new_kf, kf_end) in enumerate(zip(new_keyframes_per_minute, keyframes_end)):
+    for minute, (new_kf, kf_end) in enumerate(
+        zip(new_keyframes_per_minute, keyframes_end, strict=False)
+    ):
         n = 60 * FPS
         every = n // new_kf if new_kf else n + 1
         for i in range(n):
             is_kf = new_kf > 0 and i % every == 0 and i // every < new_kf
-            frames.append({"index": index, "stamp_s": f"{minute * 60 + i / FPS:.6f}", "state": "tracking",
-                           "keyframe": int(is_kf), "frontend_cpu_ms": "10", "map_keyframes": kf_end,
-                           "map_points": 2000, "keyframe_wanted": "view_changed" if is_kf else "none"})
+            frames.append(
+                {
+                    "index": index,
+                    "stamp_s": f"{minute * 60 + i / FPS:.6f}",
+                    "state": "tracking",
+                    "keyframe": int(is_kf),
+                    "frontend_cpu_ms": "10",
+                    "map_keyframes": kf_end,
+                    "map_points": 2000,
+                    "keyframe_wanted": "view_changed" if is_kf else "none",
+                }
+            )
             if is_kf:
                 mapping.append({"keyframe": index, "mapping_ms": "50"})
             index += 1
@@ -54,7 +73,8 @@ def test_a_constant_keyframe_rate_is_not_levelling_off(tmp_path, capsys):
 
 
 def test_keyframes_that_stop_after_exploring_level_off(tmp_path, capsys):
-    # GIVEN 53 keyframes while exploring, then 8 and 2 on revisits, the map no larger than after minute 1
+    # GIVEN 53 keyframes while exploring, then 8 and 2 on revisits, the map no larger than after
+    # minute 1
     run = _write_run(tmp_path / "steady", [53, 8, 2], [25, 25, 24])
     assert longrun.table(run) == 0
     out = capsys.readouterr().out

@@ -19,8 +19,9 @@ kFramePeriodS = 1 / 30
 def _motion(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A hand-held-like motion: position and rotation vector, both oscillating, not in phase."""
     pos = np.stack([0.2 * np.sin(1.3 * t), 0.1 * np.sin(2.1 * t + 0.5), 0.15 * np.cos(0.9 * t)], 1)
-    rotvec = np.stack([0.2 * np.sin(1.7 * t + 1.0), 0.25 * np.sin(1.1 * t), 0.1 * np.cos(2.3 * t)],
-                      1)
+    rotvec = np.stack(
+        [0.2 * np.sin(1.7 * t + 1.0), 0.25 * np.sin(1.1 * t), 0.1 * np.cos(2.3 * t)], 1
+    )
     return pos, rotvec
 
 
@@ -31,8 +32,12 @@ def _poses(pos: np.ndarray, rotvec: np.ndarray) -> np.ndarray:
     return se3.make_poses(pos, q)
 
 
-def _trajectories(orientation_lag_s: float, position_lag_s: float, span_s: float = 8.0,
-                  hand_eye: np.ndarray | None = None):
+def _trajectories(
+    orientation_lag_s: float,
+    position_lag_s: float,
+    span_s: float = 8.0,
+    hand_eye: np.ndarray | None = None,
+):
     t_gt = np.arange(0.0, span_s, kMocapPeriodS)
     pos, rv = _motion(t_gt)
     gt = tum.Trajectory(t_gt, _poses(pos, rv))
@@ -76,7 +81,8 @@ def test_a_whole_pose_lag_moves_both_minima():
 def test_every_shift_scores_the_same_poses():
     gt, est = _trajectories(0.0, 0.0, span_s=2.0)
     report = stamp_lag.stamp_lag(gt, est, max_shift_s=0.6, step_s=0.2)
-    # Estimate stamps run 0.5 ... 1.5 s: shifted by -0.6 s the first ones fall before the ground truth.
+    # Estimate stamps run 0.5 ... 1.5 s: shifted by -0.6 s the first ones fall before the ground
+    # truth.
     assert report.poses < len(est)
     assert [round(s.shift_s, 3) for s in report.scores] == [-0.6, -0.4, -0.2, 0.0, 0.2, 0.4, 0.6]
 
@@ -86,7 +92,9 @@ def test_an_estimate_outside_the_ground_truth_is_a_clear_error(tmp_path, capsys)
     later = tum.Trajectory(est.stamps_s + 100.0, est.poses)
     tum.write_trajectory(tmp_path / "gt.txt", gt)
     tum.write_trajectory(tmp_path / "est.txt", later)
-    assert stamp_lag.main(["--gt", str(tmp_path / "gt.txt"), "--est", str(tmp_path / "est.txt")]) == 1
+    assert (
+        stamp_lag.main(["--gt", str(tmp_path / "gt.txt"), "--est", str(tmp_path / "est.txt")]) == 1
+    )
     assert "lie inside the ground truth" in capsys.readouterr().err
 
 
@@ -102,5 +110,7 @@ def test_a_ground_truth_dropout_is_not_interpolated_across():
 def test_a_malformed_file_is_a_clear_error(tmp_path, capsys):
     (tmp_path / "gt.txt").write_text("1.0 0 0 0 0 0 0\n")
     (tmp_path / "est.txt").write_text("1.0 0 0 0 0 0 0 1\n")
-    assert stamp_lag.main(["--gt", str(tmp_path / "gt.txt"), "--est", str(tmp_path / "est.txt")]) == 1
+    assert (
+        stamp_lag.main(["--gt", str(tmp_path / "gt.txt"), "--est", str(tmp_path / "est.txt")]) == 1
+    )
     assert "expected 8 fields" in capsys.readouterr().err

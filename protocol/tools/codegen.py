@@ -18,16 +18,25 @@ def clang_format(text: str, path: Path, tool: str) -> str:
     exe = shutil.which("clang-format")
     if exe is None:
         raise SystemExit(f"{tool}: clang-format not found (make deps installs it)")
-    return subprocess.run([exe, f"--assume-filename={path}"], input=text, capture_output=True,
-                          text=True, check=True, cwd=path.parent).stdout
+    return subprocess.run(
+        [exe, f"--assume-filename={path}"],
+        input=text,
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=path.parent,
+    ).stdout
 
 
 def main(description: str, outputs: Callable[[], dict[Path, str]], regenerate: str) -> int:
     """Writes every generated file, or with --check exits 1 naming each committed file that differs
     from what the spec generates (`regenerate`: the command that fixes it)."""
     parser = argparse.ArgumentParser(description=description)
-    parser.add_argument("--check", action="store_true",
-                        help="exit 1 if a committed file differs from what the spec generates")
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="exit 1 if a committed file differs from what the spec generates",
+    )
     args = parser.parse_args()
     stale = []
     for path, text in outputs().items():

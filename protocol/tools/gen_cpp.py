@@ -54,17 +54,22 @@ def generate() -> str:
         f"inline constexpr std::uint64_t kSchemaHash = 0x{spec.schema_hash:016x}ULL;",
         "/// Envelope magic, resynchronisation marker.",
         "inline constexpr std::uint8_t kMagic[4] = {"
-        + ", ".join(f"0x{b:02x}" for b in spec.magic) + "};",
+        + ", ".join(f"0x{b:02x}" for b in spec.magic)
+        + "};",
         "inline constexpr std::size_t kEnvelopeHeaderBytes = 16;",
         "inline constexpr std::size_t kEnvelopeTrailerBytes = 4;",
         "",
     ]
     auth = spec.raw["protocol"]["stream_auth"]
-    out.append("/// Stream authentication (spec protocol.stream_auth): " + auth["mac"] + " under a per-craft key.")
+    out.append(
+        "/// Stream authentication (spec protocol.stream_auth): "
+        + auth["mac"]
+        + " under a per-craft key."
+    )
     for key in ("key_bytes", "nonce_bytes", "tag_bytes"):
         out.append(f"inline constexpr std::size_t kStreamAuth{camel(key)} = {auth[key]};")
     for key in ("handshake_label", "ack_label"):
-        out.append(f"inline constexpr std::string_view kStreamAuth{camel(key)} = \"{auth[key]}\";")
+        out.append(f'inline constexpr std::string_view kStreamAuth{camel(key)} = "{auth[key]}";')
     out.append("")
     for name, lim in spec.raw["limits"].items():
         out.append(f"/// {lim['doc']}")
@@ -79,11 +84,13 @@ def generate() -> str:
             out.append(f"  k{camel(k)} = {v},")
         out.append("};")
         out.append(f"/// Every registered {ename} value, in spec order.")
-        out.append(f"inline constexpr {ename} kAll{ename}[] = {{"
-                   + ", ".join(f"{ename}::k{camel(k)}" for k in values) + "};")
+        out.append(
+            f"inline constexpr {ename} kAll{ename}[] = {{"
+            + ", ".join(f"{ename}::k{camel(k)}" for k in values)
+            + "};"
+        )
         out.append(f"/// True when `wire` is a registered {ename} value.")
-        out.append(f"constexpr bool is_valid_{snake(ename)}"
-                   f"({ut} wire) {{")
+        out.append(f"constexpr bool is_valid_{snake(ename)}({ut} wire) {{")
         out.append("  switch (wire) {")
         for v in values.values():
             out.append(f"    case {v}:")
@@ -92,18 +99,22 @@ def generate() -> str:
         out.append("      return false;")
         out.append("  }")
         out.append("}")
-        out.append(f"/// Spec name of a {ename} value (\"?\" for an unregistered one).")
+        out.append(f'/// Spec name of a {ename} value ("?" for an unregistered one).')
         out.append(f"constexpr std::string_view to_string({ename} v) {{")
         out.append("  switch (v) {")
         for k in values:
             out.append(f"    case {ename}::k{camel(k)}:")
-            out.append(f"      return \"{k}\";")
+            out.append(f'      return "{k}";')
         out.append("  }")
-        out.append("  return \"?\";")
+        out.append('  return "?";')
         out.append("}")
         out.append("")
-    out.append("/// Encoding registry: may `encoding` carry `format`?  (spec 'encodings'.pixel_formats)")
-    out.append("constexpr bool encoding_allows_pixel_format(Encoding encoding, PixelFormat format) {")
+    out.append(
+        "/// Encoding registry: may `encoding` carry `format`?  (spec 'encodings'.pixel_formats)"
+    )
+    out.append(
+        "constexpr bool encoding_allows_pixel_format(Encoding encoding, PixelFormat format) {"
+    )
     out.append("  switch (encoding) {")
     for ename, enc in spec.raw["encodings"].items():
         cond = " || ".join(f"format == PixelFormat::k{camel(p)}" for p in enc["pixel_formats"])
@@ -125,8 +136,10 @@ def generate() -> str:
         for f in fields:
             if "range" in f:
                 lo, hi = f["range"]
-                out.append(f"inline constexpr FieldRange k{owner}{camel(f['name'])}{{{float(lo)!r}, "
-                           f"{float(hi)!r}}};")
+                out.append(
+                    f"inline constexpr FieldRange k{owner}{camel(f['name'])}{{{float(lo)!r}, "
+                    f"{float(hi)!r}}};"
+                )
     out.append("}  // namespace field_range")
     out.append("")
     out.append("/// Message ids (envelope byte 5).")
@@ -149,9 +162,9 @@ def generate() -> str:
     out.append("  switch (t) {")
     for m in spec.messages:
         out.append(f"    case MessageType::k{m['name']}:")
-        out.append(f"      return \"{m['name']}\";")
+        out.append(f'      return "{m["name"]}";')
     out.append("  }")
-    out.append("  return \"?\";")
+    out.append('  return "?";')
     out.append("}")
     out.append("")
     out.append("}  // namespace rgbdquad::protocol")

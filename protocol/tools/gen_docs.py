@@ -45,16 +45,24 @@ def field_table(spec, fields) -> list[str]:
     rows = ["| field | wire type | bytes | unit | range | meaning |", "|---|---|---|---|---|---|"]
     for f in fields:
         rng = f.get("range")
-        rows.append(f"| `{f['name']}` | {wire_type(spec, f)} | {size_text(spec, f)} | "
-                    f"{f.get('unit', '')} | {'' if rng is None else f'[{rng[0]}, {rng[1]}]'} | "
-                    f"{f.get('doc', '')} |")
+        rows.append(
+            f"| `{f['name']}` | {wire_type(spec, f)} | {size_text(spec, f)} | "
+            f"{f.get('unit', '')} | {'' if rng is None else f'[{rng[0]}, {rng[1]}]'} | "
+            f"{f.get('doc', '')} |"
+        )
     return rows
 
 
 def generate_tables() -> str:
     spec = load_spec()
-    out = [BEGIN, "", f"Protocol version **{spec.version}**, schema hash "
-           f"**`0x{spec.schema_hash:016x}`**.", "", "### Envelope", ""]
+    out = [
+        BEGIN,
+        "",
+        f"Protocol version **{spec.version}**, schema hash **`0x{spec.schema_hash:016x}`**.",
+        "",
+        "### Envelope",
+        "",
+    ]
     out += ["| field | wire type | meaning |", "|---|---|---|"]
     for f in spec.raw["protocol"]["envelope"] + spec.raw["protocol"]["trailer"]:
         out.append(f"| `{f['name']}` | {f['type']} | {f['doc']} |")
@@ -65,16 +73,30 @@ def generate_tables() -> str:
     for name, e in spec.raw["enums"].items():
         vals = ", ".join(f"{k}={v}" for k, v in spec.enum_values(name).items())
         out.append(f"| `{name}` | {e['type']} | {vals} | {e['doc']} |")
-    out += ["", "### Encoding registry", "", "| code | name | status | pixel formats | payload |",
-            "|---|---|---|---|---|"]
+    out += [
+        "",
+        "### Encoding registry",
+        "",
+        "| code | name | status | pixel formats | payload |",
+        "|---|---|---|---|---|",
+    ]
     for name, e in spec.raw["encodings"].items():
-        out.append(f"| {e['code']} | `{name}` | {e['status']} | {', '.join(e['pixel_formats'])} | "
-                   f"{e['doc']} |")
-    out += ["", "### Messages", "", "| id | message | link | direction | body bytes |",
-            "|---|---|---|---|---|"]
+        out.append(
+            f"| {e['code']} | `{name}` | {e['status']} | {', '.join(e['pixel_formats'])} | "
+            f"{e['doc']} |"
+        )
+    out += [
+        "",
+        "### Messages",
+        "",
+        "| id | message | link | direction | body bytes |",
+        "|---|---|---|---|---|",
+    ]
     for m in spec.messages:
-        out.append(f"| {m['id']} | [{m['name']}](#{m['name'].lower()}) | {m['link']} | "
-                   f"{m['direction']} | {spec.message_min_body_bytes(m)}..{m['max_body_bytes']} |")
+        out.append(
+            f"| {m['id']} | [{m['name']}](#{m['name'].lower()}) | {m['link']} | "
+            f"{m['direction']} | {spec.message_min_body_bytes(m)}..{m['max_body_bytes']} |"
+        )
     for m in spec.messages:
         out += ["", f"#### {m['name']}", "", f"id {m['id']}, {m['link']} link: {m['direction']}."]
         if m.get("checks"):

@@ -10,15 +10,14 @@ Skipped when the binaries are not built.
 
 import json
 import os
-from pathlib import Path
 import re
 import signal
 import subprocess
 import time
 import urllib.request
+from pathlib import Path
 
 import pytest
-
 from hilrig.link_proxy import LinkProxy
 from hilrig.slam_flight import free_port
 
@@ -28,8 +27,10 @@ SLAM_SERVER = Path(os.environ.get("SLAM_SERVER", BIN / "slam-server"))
 QUAD_CONTROL = Path(os.environ.get("QUAD_CONTROL_BIN", BIN / "quad-control"))
 DEADLINE_S = 60.0
 
-pytestmark = pytest.mark.skipif(not (SLAM_SERVER.exists() and QUAD_CONTROL.exists()),
-                                reason="slam-server / quad-control not built")
+pytestmark = pytest.mark.skipif(
+    not (SLAM_SERVER.exists() and QUAD_CONTROL.exists()),
+    reason="slam-server / quad-control not built",
+)
 
 
 def wait_for(path: Path, pattern: str, deadline: float) -> re.Match:
@@ -37,7 +38,9 @@ def wait_for(path: Path, pattern: str, deadline: float) -> re.Match:
         m = re.search(pattern, path.read_text(errors="replace"))
         if m:
             return m
-        assert time.monotonic() < deadline, f"'{pattern}' not in {path.name}:\n{path.read_text()[-3000:]}"
+        assert time.monotonic() < deadline, (
+            f"'{pattern}' not in {path.name}:\n{path.read_text()[-3000:]}"
+        )
         time.sleep(0.1)
 
 
@@ -54,8 +57,20 @@ def stop(proc: subprocess.Popen) -> None:
 def test_severed_slam_link_resumes_the_same_session(tmp_path):
     ss_log, qc_log = tmp_path / "slam-server.log", tmp_path / "quad-control.log"
     port = free_port()
-    ss = subprocess.Popen([str(SLAM_SERVER), "--bind", "127.0.0.1", "--port", str(port), "--features", "orb",
-                           "--backend", "vo"], stderr=open(ss_log, "w"))
+    ss = subprocess.Popen(
+        [
+            str(SLAM_SERVER),
+            "--bind",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--features",
+            "orb",
+            "--backend",
+            "vo",
+        ],
+        stderr=open(ss_log, "w"),
+    )
     proxy = None
     qc = None
     try:
@@ -63,19 +78,39 @@ def test_severed_slam_link_resumes_the_same_session(tmp_path):
         wait_for(ss_log, "listening", deadline)
         proxy = LinkProxy(port)
         cfg = tmp_path / "quad-control.json"
-        cfg.write_text(json.dumps({"slam": {"mode": "server", "host": "127.0.0.1", "port": proxy.port}}))
-        qc = subprocess.Popen([str(QUAD_CONTROL), "--no-firmware", "--config", str(cfg), "--port", "0",
-                               "--tum", str(REPO / "tests" / "data" / "fr1_xyz_first30")],
-                              stdout=open(qc_log, "w"), stderr=subprocess.STDOUT)
+        cfg.write_text(
+            json.dumps({"slam": {"mode": "server", "host": "127.0.0.1", "port": proxy.port}})
+        )
+        qc = subprocess.Popen(
+            [
+                str(QUAD_CONTROL),
+                "--no-firmware",
+                "--config",
+                str(cfg),
+                "--port",
+                "0",
+                "--tum",
+                str(REPO / "tests" / "data" / "fr1_xyz_first30"),
+            ],
+            stdout=open(qc_log, "w"),
+            stderr=subprocess.STDOUT,
+        )
         dash = wait_for(qc_log, r"dashboard on http://127\.0\.0\.1:(\d+)/", deadline).group(1)
-        sid = wait_for(qc_log, r"SLAM link: connected to .*: session ([0-9a-f]+) started \(a new map\)",
-                       deadline).group(1)
+        sid = wait_for(
+            qc_log,
+            r"SLAM link: connected to .*: session ([0-9a-f]+) started \(a new map\)",
+            deadline,
+        ).group(1)
         wait_for(ss_log, r"slam-server: \d+ frames|session [0-9a-f]+ new", deadline)
         time.sleep(2.0)  # some frames into the map
         proxy.sever()
         time.sleep(1.0)
         proxy.restore()
-        wait_for(qc_log, rf"session {sid} resumed \(map and world frame kept", time.monotonic() + DEADLINE_S)
+        wait_for(
+            qc_log,
+            rf"session {sid} resumed \(map and world frame kept",
+            time.monotonic() + DEADLINE_S,
+        )
         wait_for(ss_log, rf"session {sid} resumed", time.monotonic() + DEADLINE_S)
         with urllib.request.urlopen(f"http://127.0.0.1:{dash}/api/state", timeout=10) as r:
             slam = json.load(r)["slam"]

@@ -61,7 +61,7 @@ def test_pwm_widths_and_period_on_all_four_pins():
         assert len(pulses) >= 10, f"channel {ch}: too few pulses"
         for p in pulses:
             worst_width = max(worst_width, abs(p.width_us - commanded[ch - 1]))
-        for a, b in zip(pulses, pulses[1:]):
+        for a, b in zip(pulses, pulses[1:], strict=False):
             worst_period = max(worst_period, abs((b.rise_us - a.rise_us) - FRAME_US))
     print(
         f"\nsimavr PWM: worst pulse-width error {worst_width:.3f} us, "
@@ -72,7 +72,10 @@ def test_pwm_widths_and_period_on_all_four_pins():
     assert worst_period <= PULSE_TOLERANCE_US
     # and before arming the outputs were at the safe values
     before = r.frame_at(0)
-    assert all(abs(w - s) <= PULSE_TOLERANCE_US for w, s in zip(before, [1500, 1500, 1000, 1500]))
+    assert all(
+        abs(w - s) <= PULSE_TOLERANCE_US
+        for w, s in zip(before, [1500, 1500, 1000, 1500], strict=False)
+    )
 
 
 def test_failsafe_engages_within_timeout_and_steps_to_the_apm_handover_throttle():
@@ -200,7 +203,7 @@ def test_overlong_lines_of_any_length_get_414_promptly_and_one_reply_each():
     r = sc.run(RECORD)
     got = statuses(r)
     # WHEN the replies are matched to the lines
-    lat = [(rep.start_us - t0) / MS for t0, rep in zip(starts, r.replies[::2])]
+    lat = [(rep.start_us - t0) / MS for t0, rep in zip(starts, r.replies[::2], strict=False)]
     print(
         f"\nsimavr over-long lines {OVERLONG_LINE_BYTES} B: replies {got}; 414 sent "
         f"{min(lat):.1f}-{max(lat):.1f} ms after each line started"
@@ -223,7 +226,7 @@ def test_at_least_50_commands_per_second_with_replies():
     assert all(s == 200 for s in statuses(r))
     span_s = (r.replies[-1].end_us - r.sent[0].start_us) / 1e6
     rate = n / span_s
-    per_cmd = [(rep.start_us - s.end_us) / MS for s, rep in zip(r.sent, r.replies)]
+    per_cmd = [(rep.start_us - s.end_us) / MS for s, rep in zip(r.sent, r.replies, strict=False)]
     print(
         f"\nsimavr throughput: {rate:.1f} commands/s with replies ({n} in {span_s * 1000:.0f} ms "
         f"simulated); firmware processing per command {min(per_cmd):.2f}-{max(per_cmd):.2f} ms"
@@ -310,7 +313,9 @@ def test_overlong_request_gets_one_414_and_the_next_request_follows_at_once():
     # WHEN it runs
     r = sc.run(RECORD)
     got = statuses(r)
-    print(f"\nsimavr over-long requests {OVERLONG_REQUEST_BYTES} B + raw 612 B, each then a command: {got}")
+    print(
+        f"\nsimavr over-long requests {OVERLONG_REQUEST_BYTES} B + raw 612 B, each then a command: {got}"
+    )
     # THEN each over-long line got exactly one 414 while it was still going out, and the command
     # behind it was not swallowed: its newline ended the discarding, no byte was lost in simavr's
     # FIFO (the harness used to overflow it on long lines, losing the newline, so the next command
@@ -377,7 +382,8 @@ def test_recorded_commands_cannot_be_replayed_after_a_reset():
 
 
 def test_telemetry_stream_under_command_load_loses_no_frame():
-    # GIVEN full-length (untruncated) ATTITUDE (roll = k mrad) + RAW_IMU (xacc = k) pairs every 16 ms
+    # GIVEN full-length (untruncated) ATTITUDE (roll = k mrad) + RAW_IMU (xacc = k) pairs every 16
+    # ms
     # - 77 bytes = 13.4 ms of back-to-back bytes per 16 ms, 84 % of the 57600-baud line - on the
     # software UART while commands run at full rate through the hardware UART (SipHash + replies)
     mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
@@ -400,7 +406,7 @@ def test_telemetry_stream_under_command_load_loses_no_frame():
     replies = [parse_reply(x.text + "\n") for x in r.replies]
     assert all(p.status == 200 for p in replies)
     checked = 0
-    for sent, rep in zip(r.sent, replies):
+    for sent, rep in zip(r.sent, replies, strict=False):
         # The cache is read when the request is processed, right after it has been received.
         def latest(t_us, idx):
             done = [k for k, *ends in frame_end_us if ends[idx] <= t_us]
@@ -447,7 +453,8 @@ def _bss_end(elf):
 
 
 def test_stack_high_water_mark_under_full_load():
-    # GIVEN SRAM above .bss painted, WHEN the heaviest paths run (commands at full rate with SipHash,
+    # GIVEN SRAM above .bss painted, WHEN the heaviest paths run (commands at full rate with
+    # SipHash,
     # malformed and over-long lines, telemetry at 84 % line load, reply formatting, failsafe),
     # THEN the stack never came close to .bss (the build keeps >= 25 % of RAM free for it).
     mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)

@@ -8,12 +8,11 @@ import math
 
 import numpy as np
 import pytest
-from pymavlink.dialects.v20 import common as mavlink2
-
 from fc_emulator import FcOptions, FlightControllerEmulator, FlightMode, QuadModel, QuadParams, fly
 from fc_emulator.emulator import ARM_DELAY_US, FS_COUNTER, FS_THR_VALUE_US, LAND_SPEED_MPS
 from fc_emulator.quad_model import GRAVITY_MSS
 from fw_limits import FW_LIMITS
+from pymavlink.dialects.v20 import common as mavlink2
 
 ARM = [1500, 1500, 1000, 2000]  # throttle zero, yaw full right
 MID = [1500, 1500, 1500, 1500]  # AltHold: hold altitude

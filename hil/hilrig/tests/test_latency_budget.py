@@ -19,7 +19,11 @@ def test_closed_loop_figures_are_printed_and_judged(tmp_path, capsys, monkeypatc
     monkeypatch.setattr("sys.argv", ["latency_budget.py", str(tmp_path)])
     assert latency_budget.main() == 0
     out = capsys.readouterr().out
-    assert any(line.split()[-1] == "60.0" for line in out.splitlines() if "sum of the stage medians" in line)
+    assert any(
+        line.split()[-1] == "60.0"
+        for line in out.splitlines()
+        if "sum of the stage medians" in line
+    )
     assert "58.0 /   90.0   over 42 frames (slam_loop_scenario2.json); target <= 60: met" in out
     k = KINECT_V1_EXPOSURE_TO_USB_MS
     modelled = [line for line in out.splitlines() if "exposure -> PWM, Kinect v1 modelled" in line]

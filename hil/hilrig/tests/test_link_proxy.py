@@ -5,7 +5,6 @@ import threading
 import time
 
 import pytest
-
 from hilrig.link_proxy import LinkImpairment, LinkProxy
 
 

@@ -7,7 +7,6 @@ import sys
 import time
 
 import pytest
-
 from hilrig.machine_lock import FlightLock, FlightLockTimeout
 
 HOLD = """

@@ -7,7 +7,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
-
 from hilrig.flight import CameraMount
 from hilrig.slam_flight import _seq_of, camera_room_position, goal_in_room, hold_error
 
@@ -40,7 +39,11 @@ def test_hold_error_uses_only_the_window_and_splits_the_axes():
     start = camera_room_position(Snap(0, (0.0, 0.0, 0.0)), mount)
     goal = goal_in_room(start, (0.0, 0.0, 1.7))
     # Body at 1.75 m above the floor puts the camera at 1.70 m: on the goal; then 0.1 m north.
-    hist = [Snap(0, (5.0, 0.0, -1.55)), Snap(1_000_000, (0.0, 0.0, -1.55)), Snap(2_000_000, (0.1, 0.0, -1.55))]
+    hist = [
+        Snap(0, (5.0, 0.0, -1.55)),
+        Snap(1_000_000, (0.0, 0.0, -1.55)),
+        Snap(2_000_000, (0.1, 0.0, -1.55)),
+    ]
     e = hold_error(hist, goal, mount, 1_000_000, 2_000_000)
     assert e["samples"] == 2
     assert e["max_horizontal_m"] == pytest.approx(0.1, abs=1e-3)
@@ -61,11 +64,20 @@ def test_slam_tracking_counts_every_session_of_every_slam_server_run(tmp_path):
     header = "index,state,keyframe,relocalised,attitude_predicted,cross_checked,frontend_cpu_ms\n"
     first = tmp_path / "slam-tables" / "session-1"
     first.mkdir(parents=True)
-    (first / "frames.csv").write_text(header + "0,tracking,1,0,0,0,5\n1,tracking,0,0,1,1,9\n2,lost,0,0,1,0,7\n")
+    (first / "frames.csv").write_text(
+        header + "0,tracking,1,0,0,0,5\n1,tracking,0,0,1,1,9\n2,lost,0,0,1,0,7\n"
+    )
     restarted = tmp_path / "slam-tables-1" / "session-1"
     restarted.mkdir(parents=True)
     (restarted / "frames.csv").write_text(header + "0,tracking,0,1,1,1,11\n")
     out = SlamFlight.slam_tracking(SimpleNamespace(workdir=tmp_path))
-    assert out == {"frames": 4, "lost": 1, "relocalised": 1, "cross_checked": 2, "attitude_predicted": 3,
-                   "keyframes": 1, "tracking_cpu_ms": {"median": 8.0, "p95": 10.7}}
+    assert out == {
+        "frames": 4,
+        "lost": 1,
+        "relocalised": 1,
+        "cross_checked": 2,
+        "attitude_predicted": 3,
+        "keyframes": 1,
+        "tracking_cpu_ms": {"median": 8.0, "p95": 10.7},
+    }
     assert SlamFlight.slam_tracking(SimpleNamespace(workdir=tmp_path / "none")) == {"frames": 0}

@@ -7,8 +7,6 @@ import math
 
 import numpy as np
 import pytest
-from PIL import Image
-
 from kinect_emulator import (
     Box,
     FakenectDumpWriter,
@@ -25,6 +23,7 @@ from kinect_emulator import (
 from kinect_emulator.poses import rotation_to_quaternion_xyzw
 from kinect_emulator.renderer import BASELINE_M, DISPARITY_SUBPIXELS, IR_FOCAL_PX, NOISE_COEFF_PER_M
 from kinect_emulator.writers import depth_mm_to_freenect_raw, freenect_raw_to_depth_mm
+from PIL import Image
 
 EXACT = dict(
     depth_noise=False, quantise=False, shadows=False, dropout_fraction=0.0, rgb_noise_std=0.0

@@ -10,13 +10,12 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-from pathlib import Path
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
-
 from kinect_emulator import Box, Intrinsics, KinectEmulator, KinectOptions, Room, pose_matrix
 from kinect_emulator.live import (
     INDEX_NAME,
@@ -124,7 +123,7 @@ def test_fifo_index_sync_protocol_files_complete_and_collected(tmp_path):
             raw = rng.integers(0, 2048, (4, 5), dtype=np.uint16)
             rgb = rng.integers(0, 256, (4, 5, 3), dtype=np.uint8)
             assert idx.wait_reader_done(time.monotonic, time.sleep, WAIT_S)
-            written, dname, rname = idx.write_frame(k, 12.5 + k, rgb, raw, lambda: 100.0 + k)
+            written, dname, rname = idx.write_frame(k, 12.5 + k, rgb, raw, lambda k=k: 100.0 + k)
             assert written == 100.0 + k == idx.last_written_s
             frames.append((dname, rname, raw, rgb))
         assert idx.wait_reader_done(time.monotonic, time.sleep, WAIT_S)  # the reader is done
@@ -230,7 +229,9 @@ def test_live_frames_reach_a_reader_in_order_and_reproducibly(tmp_path, room):
         for k, T in enumerate(poses):
             assert cam.submit(10.0 + k / 30, T)
             # One at a time (wait for the record): nothing is superseded, nothing is behind.
-            assert wait_for(lambda: len(cam.records()) == k + 1 and len(frames_read()) == 2 * k + 2)
+            assert wait_for(
+                lambda k=k: len(cam.records()) == k + 1 and len(frames_read()) == 2 * k + 2
+            )
         # An out-of-room pose: an error record, no frame, the camera goes on.
         assert cam.submit(20.0, level_pose(50.0))
         assert wait_for(lambda: cam.error_messages())
@@ -262,9 +263,11 @@ def test_live_frames_reach_a_reader_in_order_and_reproducibly(tmp_path, room):
         assert (dname, rname) == (r.depth_file, r.rgb_file)
         f = emu.render_indexed(poses[k], round(r.t_mono_s * 1e6), r.index)
         h, w = f.depth_mm.shape
-        assert dbytes == f"P5 {w} {h} 65535\n".encode() + depth_mm_to_freenect_raw(
-            f.depth_mm
-        ).astype("=u2").tobytes()
+        assert (
+            dbytes
+            == f"P5 {w} {h} 65535\n".encode()
+            + depth_mm_to_freenect_raw(f.depth_mm).astype("=u2").tobytes()
+        )
         assert rbytes == f"P6 {w} {h} 255\n".encode() + f.rgb.tobytes()
 
 

@@ -13,7 +13,6 @@ build tree are the comparisons skipped, with the reason.
 
 import numpy as np
 import pytest
-
 from kinect_emulator import (
     Box,
     Intrinsics,
@@ -23,9 +22,9 @@ from kinect_emulator import (
     camera_pose_from_ned,
     default_room,
     load_textures,
+    native,
     pose_matrix,
 )
-from kinect_emulator import native
 
 
 @pytest.fixture(scope="module")
@@ -60,10 +59,12 @@ def _look_at(eye, target) -> np.ndarray:
 # parallel to two axes: +-inf ray parameters), a box corner behind the camera (whole-image
 # obstacle test), the near range limit.
 POSES = {
-    "flight_1": camera_pose_from_ned([0.3, 0.2, -1.7], 0.02, -0.03, 0.4, 30.0,
-                                     origin_room_m=(-0.5, 1.5, 0.2)),  # fmt: skip
-    "flight_2": camera_pose_from_ned([1.2, 1.1, -1.2], -0.05, 0.08, 2.1, 30.0,
-                                     origin_room_m=(-0.5, 1.5, 0.2)),  # fmt: skip
+    "flight_1": camera_pose_from_ned(
+        [0.3, 0.2, -1.7], 0.02, -0.03, 0.4, 30.0, origin_room_m=(-0.5, 1.5, 0.2)
+    ),  # fmt: skip
+    "flight_2": camera_pose_from_ned(
+        [1.2, 1.1, -1.2], -0.05, 0.08, 2.1, 30.0, origin_room_m=(-0.5, 1.5, 0.2)
+    ),  # fmt: skip
     "crate": _look_at([0.5, -0.5, 1.4], [2.1, -1.8, 0.5]),
     "pillar": _look_at([0.0, 0.5, 1.2], [-2.4, 1.8, 1.2]),
     "corner": _look_at([2.0, 1.0, 2.0], [4.0, 3.0, 3.0]),
@@ -113,8 +114,13 @@ def test_given_a_pose_when_both_back_ends_render_then_the_images_are_identical(b
 @pytest.mark.parametrize(
     "opts",
     [
-        dict(depth_noise=False, quantise=False, shadows=False, dropout_fraction=0.0,
-             rgb_noise_std=0.0),  # fmt: skip
+        dict(
+            depth_noise=False,
+            quantise=False,
+            shadows=False,
+            dropout_fraction=0.0,
+            rgb_noise_std=0.0,
+        ),  # fmt: skip
         dict(shadows=False),
         dict(quantise=False, dropout_fraction=0.2, rgb_noise_std=9.0),
         dict(min_range_m=1.0, max_range_m=3.0),
@@ -141,8 +147,11 @@ def test_given_a_small_room_and_camera_then_identical(built):
     small = Room(
         bounds=Box((-2.0, -1.5, 0.0), (2.0, 1.5, 2.5)),
         textures=np.ascontiguousarray(tex),
-        obstacles=[Box((0.5, -0.5, 0.0), (1.0, 0.5, 0.8)), Box((-1.5, 0.8, 0.0), (-1.2, 1.1, 2.5)),
-                   Box((-0.2, -1.5, 1.0), (0.2, -1.2, 1.3))],  # fmt: skip
+        obstacles=[
+            Box((0.5, -0.5, 0.0), (1.0, 0.5, 0.8)),
+            Box((-1.5, 0.8, 0.0), (-1.2, 1.1, 2.5)),
+            Box((-0.2, -1.5, 1.0), (0.2, -1.2, 1.3)),
+        ],  # fmt: skip
         tile_w_m=0.7,
         tile_h_m=0.5,
     )

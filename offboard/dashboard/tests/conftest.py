@@ -7,8 +7,15 @@ import pathlib
 import shutil
 
 import pytest
-
-from dashboard_fixtures import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, KEY, QuadControl, quad_control_binary, write_config
+from dashboard_fixtures import (
+    ARTIFACTS,
+    CHROMIUM,
+    CHROMIUM_ARGS,
+    KEY,
+    QuadControl,
+    quad_control_binary,
+    write_config,
+)
 
 
 @pytest.fixture(scope="module")
@@ -47,8 +54,12 @@ def browser(tmp_path_factory):
     profile = tmp_path_factory.mktemp("chromium-profile")
     with sync_api.sync_playwright() as p:
         context = p.chromium.launch_persistent_context(
-            str(profile), executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS,
-            viewport={"width": 1400, "height": 1000})
+            str(profile),
+            executable_path=CHROMIUM,
+            headless=True,
+            args=CHROMIUM_ARGS,
+            viewport={"width": 1400, "height": 1000},
+        )
         yield context
         context.close()
 

@@ -20,13 +20,23 @@ REPO = pathlib.Path(__file__).resolve().parents[3]
 ARTIFACTS = REPO / "test-artifacts" / "dashboard"
 KEY = bytes(range(16))  # test key (the protocol/control golden-vector key), never a craft's
 CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 START_TIMEOUT_S = 60.0  # quad-control prints its dashboard URL once the SLAM front-end is set up
 
 
 def quad_control_binary() -> pathlib.Path | None:
-    candidates = [os.environ.get("QUAD_CONTROL_BIN", ""), str(REPO / "build" / "bin" / "quad-control")]
+    candidates = [
+        os.environ.get("QUAD_CONTROL_BIN", ""),
+        str(REPO / "build" / "bin" / "quad-control"),
+    ]
     for c in candidates:
         if c and os.access(c, os.X_OK):
             return pathlib.Path(c)
@@ -37,8 +47,13 @@ class QuadControl:
     """A running quad-control process; `url` is its dashboard."""
 
     def __init__(self, binary: pathlib.Path, args: list[str], preexec_fn=None) -> None:
-        self.proc = subprocess.Popen([str(binary), *args], stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True, preexec_fn=preexec_fn)
+        self.proc = subprocess.Popen(
+            [str(binary), *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            preexec_fn=preexec_fn,
+        )
         self.lines: queue.Queue[str] = queue.Queue()
         self.log: list[str] = []
         threading.Thread(target=self._pump, daemon=True).start()
@@ -52,6 +67,7 @@ class QuadControl:
 
     def _wait_url(self) -> str:
         import time
+
         deadline = time.monotonic() + START_TIMEOUT_S
         while time.monotonic() < deadline:
             try:
@@ -82,15 +98,26 @@ def write_config(tmp: pathlib.Path, bridge_port: int) -> pathlib.Path:
     # replay's height and tolerates slow poses. Everything else is the shipped default.
     cfg = {
         "dashboard": {"bind_address": "127.0.0.1", "port": 0},
-        "stream": {"source": "tum", "tum_folder": str(REPO / "tests/data/fr1_xyz_first30"), "loop": "bounce"},
+        "stream": {
+            "source": "tum",
+            "tum_folder": str(REPO / "tests/data/fr1_xyz_first30"),
+            "loop": "bounce",
+        },
         "slam": {"mode": "in-process"},
-        "firmware": {"host": "127.0.0.1", "port": bridge_port, "key_hex": KEY.hex(), "timeout_ms": 200},
+        "firmware": {
+            "host": "127.0.0.1",
+            "port": bridge_port,
+            "key_hex": KEY.hex(),
+            "timeout_ms": 200,
+        },
         "camera": {"mount_pitch_down_deg": 0.0},
-        "controller": {"hold_height_m": 1.0, "takeoff_reached_tolerance_m": 0.5,
-                       "pose_timeout_ms": 8000.0, "lost_hold_ms": 8000.0},
+        "controller": {
+            "hold_height_m": 1.0,
+            "takeoff_reached_tolerance_m": 0.5,
+            "pose_timeout_ms": 8000.0,
+            "lost_hold_ms": 8000.0,
+        },
     }
     path = tmp / "quad-control-test.json"
     path.write_text(json.dumps(cfg, indent=2))
     return path
-
-

@@ -33,10 +33,19 @@ class FirmwareDouble:
 
     def _reply(self, status: int) -> str:
         age = int((time.monotonic() - self._start) * 1000) % 20  # a reading every 20 ms
-        obj = {"ver": control.CONTROL_LINK_VERSION, "err": control.STATUS_REASONS[status], "fw": FW_VERSION, "state": self.state,
-               "seq": self.seq, "out_us": list(self.out_us), "clamped": 0,
-               "att_mrad": [12, -34, 1571], "att_age_ms": age,
-               "imu_raw": [1, -2, -1000, 30, -40, 5], "imu_age_ms": age}
+        obj = {
+            "ver": control.CONTROL_LINK_VERSION,
+            "err": control.STATUS_REASONS[status],
+            "fw": FW_VERSION,
+            "state": self.state,
+            "seq": self.seq,
+            "out_us": list(self.out_us),
+            "clamped": 0,
+            "att_mrad": [12, -34, 1571],
+            "att_age_ms": age,
+            "imu_raw": [1, -2, -1000, 30, -40, 5],
+            "imu_age_ms": age,
+        }
         assert list(obj) == control.REPLY_FIELDS
         return f"{status} {json.dumps(obj, separators=(',', ':'))}"
 
@@ -53,13 +62,14 @@ class FirmwareDouble:
             if not line.startswith(prefix):
                 return self._reject(404 if line.startswith("PUT ") else 400)
             try:
-                pairs = [p.split("=", 1) for p in line[len(prefix):].split("&")]
+                pairs = [p.split("=", 1) for p in line[len(prefix) :].split("&")]
                 names = [p[0] for p in pairs]
                 if names != control.FIELDS + ["mac"]:
                     return self._reject(400)
                 v = {k: int(x) for k, x in pairs[:-1]}
                 expected = control.build_control_request(
-                    self._key, v["seq"], bool(v["arm"]), v["roll"], v["pitch"], v["thr"], v["yaw"])
+                    self._key, v["seq"], bool(v["arm"]), v["roll"], v["pitch"], v["thr"], v["yaw"]
+                )
             except ValueError:
                 return self._reject(422)
             if expected != line:
@@ -68,7 +78,11 @@ class FirmwareDouble:
                 return self._reject(409)
             self.seq = v["seq"]
             self.state = "armed" if v["arm"] else "disarmed"
-            self.out_us = [v["roll"], v["pitch"], v["thr"], v["yaw"]] if v["arm"] else [1500, 1500, 1000, 1500]
+            self.out_us = (
+                [v["roll"], v["pitch"], v["thr"], v["yaw"]]
+                if v["arm"]
+                else [1500, 1500, 1000, 1500]
+            )
             self.accepted.append(v)
             return self._reply(200)
 

@@ -16,7 +16,7 @@ import urllib.request
 
 from dashboard_fixtures import QuadControl
 
-FD_LIMIT = 64          # quad-control needs ~20 at start-up; the flood takes the rest
+FD_LIMIT = 64  # quad-control needs ~20 at start-up; the flood takes the rest
 FLOOD_CONNECTIONS = 200
 WINDOW_S = 3.0
 CLK_TCK = os.sysconf("SC_CLK_TCK")
@@ -73,8 +73,10 @@ def test_descriptor_limit_does_not_spin_or_lock_out(binary):
         busiest, busiest_tid = max((after[t] - before.get(t, 0.0), t) for t in after)
         total = sum(after.values()) - sum(before.values())
         name = open(f"/proc/{qc.proc.pid}/task/{busiest_tid}/comm").read().strip()
-        print(f"flood of {len(flood)}: busiest thread ({name}) {busiest:.2f} s, "
-              f"process {total:.2f} s of CPU in {WINDOW_S} s (without the flood {quiet:.2f} s)")
+        print(
+            f"flood of {len(flood)}: busiest thread ({name}) {busiest:.2f} s, "
+            f"process {total:.2f} s of CPU in {WINDOW_S} s (without the flood {quiet:.2f} s)"
+        )
         # THEN no thread spins (the frame thread decodes 30 fps: well under half a core)
         assert busiest < 0.5 * WINDOW_S, f"a thread used {busiest:.2f} s of CPU in {WINDOW_S} s"
         assert total < quiet + 0.5, f"the flood added {total - quiet:.2f} s of CPU in {WINDOW_S} s"

@@ -12,7 +12,6 @@ import time
 import urllib.request
 
 import pytest
-
 from dashboard_fixtures import REPO, QuadControl
 
 
@@ -25,7 +24,10 @@ def two_free_ports() -> tuple[int, int]:
 
 
 def streamer_binary() -> str | None:
-    for c in (os.environ.get("RGBD_STREAMER_BIN", ""), str(REPO / "build" / "bin" / "rgbd-streamer")):
+    for c in (
+        os.environ.get("RGBD_STREAMER_BIN", ""),
+        str(REPO / "build" / "bin" / "rgbd-streamer"),
+    ):
         if c and os.access(c, os.X_OK):
             return c
     return None
@@ -36,21 +38,51 @@ def test_frames_from_rgbd_streamer_reach_the_dashboard(binary, tmp_path):
     if streamer is None:
         pytest.skip("rgbd-streamer is not built (make build, or set RGBD_STREAMER_BIN)")
     rgb_port, depth_port = two_free_ports()
-    key = tmp_path / "stream.key"  # the craft's stream key: both ends read the same file (mode 0600)
+    key = (
+        tmp_path / "stream.key"
+    )  # the craft's stream key: both ends read the same file (mode 0600)
     key.write_text("5c0ffee5" * 4 + "\n")
     key.chmod(0o600)
     cfg = tmp_path / "live.json"
-    cfg.write_text(json.dumps({
-        "dashboard": {"port": 0},
-        "stream": {"source": "receiver", "bind_address": "127.0.0.1", "rgb_port": rgb_port,
-                   "depth_port": depth_port, "key_file": str(key)},
-        "slam": {"mode": "in-process"},
-        "firmware": {"enabled": False},
-    }))
+    cfg.write_text(
+        json.dumps(
+            {
+                "dashboard": {"port": 0},
+                "stream": {
+                    "source": "receiver",
+                    "bind_address": "127.0.0.1",
+                    "rgb_port": rgb_port,
+                    "depth_port": depth_port,
+                    "key_file": str(key),
+                },
+                "slam": {"mode": "in-process"},
+                "firmware": {"enabled": False},
+            }
+        )
+    )
     qc = QuadControl(binary, ["--config", str(cfg), "--port", "0"])
-    proc = subprocess.Popen([streamer, "--source", "tum", "--tum-dir", str(REPO / "tests/data/fr1_xyz_first30"),
-                             "--host", "127.0.0.1", "--rgb-port", str(rgb_port), "--depth-port", str(depth_port),
-                             "--stats-period", "0", "--stream-key-file", str(key)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            streamer,
+            "--source",
+            "tum",
+            "--tum-dir",
+            str(REPO / "tests/data/fr1_xyz_first30"),
+            "--host",
+            "127.0.0.1",
+            "--rgb-port",
+            str(rgb_port),
+            "--depth-port",
+            str(depth_port),
+            "--stats-period",
+            "0",
+            "--stream-key-file",
+            str(key),
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         deadline = time.monotonic() + 60
         state = {}

@@ -21,17 +21,17 @@ import base64
 import io
 import json
 import os
-from pathlib import Path
 import resource
 import signal
 import time
 import urllib.request
+from pathlib import Path
 
+import numpy as np
 from dashboard_fixtures import REPO, QuadControl, write_config
 from flight_recording.depth import decode as decode_depth
 from flight_recording.reader import read, read_complete
 from flight_recording.replay import run as replay
-import numpy as np
 
 DEADLINE_S = 90.0  # the shared 2-core machine may run SLAM at ~1 pose/s
 DATASET = REPO / "tests/data/fr1_xyz_first30"
@@ -43,7 +43,7 @@ REPLAY_TOLERANCE_M = 0.030
 # The excerpt played at a quarter of its speed (7.5 fps) so that in-flight SLAM, ~1 pose/s on a
 # loaded machine at worst, still gives several poses to compare.
 SLOW_REPLAY_SPEED = 0.25
-FLIGHT_S = 12.0    # long enough that the last second is a small part of it
+FLIGHT_S = 12.0  # long enough that the last second is a small part of it
 
 
 def api_state(url: str) -> dict:
@@ -52,8 +52,12 @@ def api_state(url: str) -> dict:
 
 
 def api_post(url: str, path: str, body: dict) -> dict:
-    req = urllib.request.Request(url + path, data=json.dumps(body).encode(), method="POST",
-                                 headers={"Content-Type": "application/json"})
+    req = urllib.request.Request(
+        url + path,
+        data=json.dumps(body).encode(),
+        method="POST",
+        headers={"Content-Type": "application/json"},
+    )
     with urllib.request.urlopen(req, timeout=5) as r:
         return json.load(r)
 
@@ -68,15 +72,25 @@ def wait_for(predicate, what: str, timeout_s: float = DEADLINE_S):
     raise AssertionError(f"timed out waiting for {what}")
 
 
-def start(binary: Path, tmp: Path, bridge_port: int, record_dir: Path, preexec_fn=None,
-          image_every: int | None = None, stream: dict | None = None) -> QuadControl:
+def start(
+    binary: Path,
+    tmp: Path,
+    bridge_port: int,
+    record_dir: Path,
+    preexec_fn=None,
+    image_every: int | None = None,
+    stream: dict | None = None,
+) -> QuadControl:
     cfg = write_config(tmp, bridge_port)
     doc = json.loads(cfg.read_text())
     doc["recording"] = {} if image_every is None else {"image_every_n_frames": image_every}
     doc["stream"].update(stream or {})
     cfg.write_text(json.dumps(doc))
-    qc = QuadControl(binary, ["--config", str(cfg), "--port", "0", "--record", str(record_dir)],
-                     preexec_fn=preexec_fn)
+    qc = QuadControl(
+        binary,
+        ["--config", str(cfg), "--port", "0", "--record", str(record_dir)],
+        preexec_fn=preexec_fn,
+    )
     wait_for(lambda: api_state(qc.url)["recording"]["messages"] >= 1, "the first recorded messages")
     return qc
 
@@ -84,7 +98,10 @@ def start(binary: Path, tmp: Path, bridge_port: int, record_dir: Path, preexec_f
 def fly(qc: QuadControl, seconds: float) -> dict:
     # Arm only once commands (and with them the recorder's state events) are flowing: arming in the
     # first milliseconds would record " -> armed" with no disarmed state before it.
-    wait_for(lambda: api_state(qc.url)["recording"]["messages"] >= 100, "recorded telemetry before arming")
+    wait_for(
+        lambda: api_state(qc.url)["recording"]["messages"] >= 100,
+        "recorded telemetry before arming",
+    )
     api_post(qc.url, "api/command", {"command": "arm"})
     # The arm gesture ends when the firmware reports armed; on a loaded machine that can take longer
     # than a fixed sleep, and the recording is then checked for an arming it never saw.
@@ -109,10 +126,21 @@ def test_sigterm_leaves_a_complete_recording_with_every_channel(binary, firmware
     rec = read_complete(one_file(tmp_path / "rec"))
     counts = rec.counts()
     print("channels and message counts:", json.dumps(counts, sort_keys=True))
-    for topic in ("/stream/frame", "/camera/rgb/compressed", "/camera/depth/compressed",
-                  "/camera/depth/raw", "/camera/calibration",
-                  "/control/command", "/firmware/reply", "/events", "/log", "/recorder/stats",
-                  "/slam/tracking", "/latency", "/control/setpoint"):
+    for topic in (
+        "/stream/frame",
+        "/camera/rgb/compressed",
+        "/camera/depth/compressed",
+        "/camera/depth/raw",
+        "/camera/calibration",
+        "/control/command",
+        "/firmware/reply",
+        "/events",
+        "/log",
+        "/recorder/stats",
+        "/slam/tracking",
+        "/latency",
+        "/control/setpoint",
+    ):
         assert counts.get(topic, 0) > 0, f"{topic} missing: {counts}"
     # Frames: one /stream/frame per frame received; images of every frame (the default).
     frames = rec.topic("/stream/frame")
@@ -123,14 +151,17 @@ def test_sigterm_leaves_a_complete_recording_with_every_channel(binary, firmware
     # /recorder/stats (written after the stop's drain).
     images = counts["/camera/rgb/compressed"]
     last = rec.topic("/recorder/stats")[-1].data
-    print(f"images {images} of {len(frames)} frames, {last['images_dropped']} dropped, encode "
-          f"{last['encode_ms_per_frame']:.2f} ms per frame, load {os.getloadavg()[0]:.1f}")
+    print(
+        f"images {images} of {len(frames)} frames, {last['images_dropped']} dropped, encode "
+        f"{last['encode_ms_per_frame']:.2f} ms per frame, load {os.getloadavg()[0]:.1f}"
+    )
     assert images + last["images_dropped"] == len(frames), (images, last, len(frames))
     assert images >= 1
     assert counts["/camera/depth/compressed"] == images
     # The depth preview for Foxglove: every 30th recorded frame, with the calibration.
     assert abs(counts["/camera/depth/raw"] - images / 30) <= 2, counts
     from PIL import Image
+
     rgb = rec.topic("/camera/rgb/compressed")[0].data
     assert rgb["format"] == "jpeg" and rgb["frame_id"] == "camera"
     assert Image.open(io.BytesIO(base64.b64decode(rgb["data"]))).size == (640, 480)
@@ -172,8 +203,10 @@ def test_sigkill_leaves_the_flight_readable_up_to_about_its_last_second(binary, 
     expected = last_frames - first_seq
     span = rec.span_s()
     fraction = recovered / max(1, expected)
-    print(f"SIGKILL after {FLIGHT_S:.0f} s: {recovered} of {expected} frames recovered "
-          f"({100 * fraction:.1f} %), span {span:.2f} s, load {os.getloadavg()[0]:.1f}")
+    print(
+        f"SIGKILL after {FLIGHT_S:.0f} s: {recovered} of {expected} frames recovered "
+        f"({100 * fraction:.1f} %), span {span:.2f} s, load {os.getloadavg()[0]:.1f}"
+    )
     # The writer closes a chunk every second: at most ~1 s (plus the queue) is lost, besides what a
     # starved writer dropped (counted; every dropped event at most one frame).
     fps = state["stream"]["fps"] or 30.0
@@ -187,7 +220,9 @@ def counts_ok(rec) -> bool:
     return c.get("/control/command", 0) > 0 and c.get("/camera/rgb/compressed", 0) > 0
 
 
-def test_full_disk_stops_recording_with_the_cause_and_the_flight_goes_on(binary, firmware, tmp_path):
+def test_full_disk_stops_recording_with_the_cause_and_the_flight_goes_on(
+    binary, firmware, tmp_path
+):
     double, b = firmware
     limit = 3 * 1024 * 1024  # a few seconds of recording
 
@@ -197,12 +232,16 @@ def test_full_disk_stops_recording_with_the_cause_and_the_flight_goes_on(binary,
     qc = start(binary, tmp_path, b.port, tmp_path / "rec", preexec_fn=small_disk)
     try:
         api_post(qc.url, "api/command", {"command": "arm"})
-        st = wait_for(lambda: (s := api_state(qc.url))["recording"]["failed"] and s, "the recording to fail")
+        st = wait_for(
+            lambda: (s := api_state(qc.url))["recording"]["failed"] and s, "the recording to fail"
+        )
         assert "File too large" in st["recording"]["error"]
         frames, sent = st["stream"]["frames"], st["firmware"]["sent"]
         time.sleep(3.0)
         after = api_state(qc.url)
-        assert after["stream"]["frames"] > frames and after["firmware"]["sent"] > sent  # the flight goes on
+        assert (
+            after["stream"]["frames"] > frames and after["firmware"]["sent"] > sent
+        )  # the flight goes on
         assert after["recording"]["dropped_after_failure"] > 0
         assert double.last_command() is not None
     finally:
@@ -215,17 +254,42 @@ def test_full_disk_stops_recording_with_the_cause_and_the_flight_goes_on(binary,
 
 def test_a_short_recording_replays_through_slam_within_tolerance(binary, firmware, tmp_path):
     _double, b = firmware
-    qc = start(binary, tmp_path, b.port, tmp_path / "rec", stream={"loop": "once", "speed": SLOW_REPLAY_SPEED})
+    qc = start(
+        binary,
+        tmp_path,
+        b.port,
+        tmp_path / "rec",
+        stream={"loop": "once", "speed": SLOW_REPLAY_SPEED},
+    )
     try:
-        wait_for(lambda: "replay finished" in json.dumps(api_state(qc.url)), "the excerpt to play once")
+        wait_for(
+            lambda: "replay finished" in json.dumps(api_state(qc.url)), "the excerpt to play once"
+        )
         time.sleep(1.0)  # the last poses reach the recorder
     finally:
         qc.stop()
-    result = replay(one_file(tmp_path / "rec"), tmp_path / "replay", REPO / "build/bin/slam-eval",
-                    REPO / "build/bin/tum-score")
-    print("replay of a short recording:", json.dumps({k: result[k] for k in (
-        "frames", "flight_poses", "replay_poses", "pairs", "ate_replay_vs_flight_rmse_m",
-        "ate_replay_vs_flight_max_m")}))
+    result = replay(
+        one_file(tmp_path / "rec"),
+        tmp_path / "replay",
+        REPO / "build/bin/slam-eval",
+        REPO / "build/bin/tum-score",
+    )
+    print(
+        "replay of a short recording:",
+        json.dumps(
+            {
+                k: result[k]
+                for k in (
+                    "frames",
+                    "flight_poses",
+                    "replay_poses",
+                    "pairs",
+                    "ate_replay_vs_flight_rmse_m",
+                    "ate_replay_vs_flight_max_m",
+                )
+            }
+        ),
+    )
     assert result["frames"] >= 25, result  # every frame of the excerpt recorded (a few may drop)
     assert result["pairs"] >= 5, result
     assert result["ate_replay_vs_flight_rmse_m"] <= REPLAY_TOLERANCE_M, result

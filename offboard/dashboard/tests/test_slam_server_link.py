@@ -14,7 +14,6 @@ import time
 import urllib.request
 
 import pytest
-
 from dashboard_fixtures import REPO, QuadControl
 
 
@@ -31,9 +30,15 @@ def state(qc: QuadControl) -> dict:
 
 def config(tmp_path, port: int):
     cfg = tmp_path / "slam.json"
-    cfg.write_text(json.dumps({"dashboard": {"port": 0}, "firmware": {"enabled": False},
-                               "slam": {"mode": "server", "host": "127.0.0.1", "port": port,
-                                        "timeout_ms": 20000}}))
+    cfg.write_text(
+        json.dumps(
+            {
+                "dashboard": {"port": 0},
+                "firmware": {"enabled": False},
+                "slam": {"mode": "server", "host": "127.0.0.1", "port": port, "timeout_ms": 20000},
+            }
+        )
+    )
     return cfg
 
 
@@ -42,8 +47,11 @@ def test_poses_from_slam_server(binary, tmp_path):
     if not os.access(server, os.X_OK):
         pytest.skip(f"{server} not built")
     port = free_port()
-    proc = subprocess.Popen([server, "--bind", "127.0.0.1", "--port", str(port)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [server, "--bind", "127.0.0.1", "--port", str(port)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     qc = None
     try:
         qc = QuadControl(binary, ["--config", str(config(tmp_path, port)), "--port", "0"])
@@ -56,7 +64,12 @@ def test_poses_from_slam_server(binary, tmp_path):
             time.sleep(0.5)
         assert s["slam"]["processed"] >= 3, s["slam"]
         assert s["slam"]["link"].startswith("slam-server at 127.0.0.1")
-        assert s["pose"] is not None and s["slam"]["state"] in ("tracking", "initialising", "lost", "relocalised")
+        assert s["pose"] is not None and s["slam"]["state"] in (
+            "tracking",
+            "initialising",
+            "lost",
+            "relocalised",
+        )
     finally:
         if qc:
             qc.stop()

@@ -66,7 +66,10 @@ def evo_numbers(gt_path: Path, est_path: Path) -> dict:
 def cpp_numbers(gt_path: Path, est_path: Path) -> dict:
     proc = subprocess.run(
         [str(tum_score_binary()), str(gt_path), str(est_path)],
-        capture_output=True, text=True, timeout=60, check=False,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
     )
     assert proc.returncode == 0, proc.stderr
     return json.loads(proc.stdout)
@@ -89,6 +92,7 @@ def assert_agree(gt_path: Path, est_path: Path) -> dict:
 
 # ---- seeded perturbations of the ground truth -------------------------------------------------
 
+
 def load_tum(path: Path) -> np.ndarray:
     return np.loadtxt(path, comments="#")
 
@@ -97,12 +101,15 @@ def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product of (x, y, z, w) quaternions, row-wise."""
     ax, ay, az, aw = a.T
     bx, by, bz, bw = b.T
-    return np.stack([
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-        aw * bw - ax * bx - ay * by - az * bz,
-    ], axis=1)
+    return np.stack(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ],
+        axis=1,
+    )
 
 
 def small_rotation_quats(rng: np.random.Generator, n: int, sigma_rad: float) -> np.ndarray:
@@ -140,10 +147,13 @@ def perturbed(kind: str, seed: int) -> np.ndarray:
     return est
 
 
-@pytest.mark.parametrize("est_name,expected_ate_m", [
-    ("fr1_xyz_rgbdslam.txt", 0.0135),  # issue: 0.0135 m on the full sequence
-    ("fr1_xyz_rgbdslam_first300.txt", 0.0148),  # issue: 0.0148 m on the first 300 frames
-])
+@pytest.mark.parametrize(
+    "est_name,expected_ate_m",
+    [
+        ("fr1_xyz_rgbdslam.txt", 0.0135),  # issue: 0.0135 m on the full sequence
+        ("fr1_xyz_rgbdslam_first300.txt", 0.0148),  # issue: 0.0148 m on the first 300 frames
+    ],
+)
 def test_shipped_reference_matches_evo_and_issue(est_name, expected_ate_m):
     cpp = assert_agree(GT, TESTDATA / est_name)
     assert cpp["ate_rmse_m"] == pytest.approx(expected_ate_m, abs=5e-5)
@@ -153,8 +163,7 @@ def test_shipped_reference_matches_evo_and_issue(est_name, expected_ate_m):
 @pytest.mark.parametrize("seed", [1, 2])
 def test_perturbed_ground_truth_matches_evo(tmp_path, kind, seed):
     est_path = tmp_path / f"{kind}_{seed}.txt"
-    np.savetxt(est_path, perturbed(kind, seed), fmt="%.9f",
-               header="timestamp tx ty tz qx qy qz qw")
+    np.savetxt(est_path, perturbed(kind, seed), fmt="%.9f", header="timestamp tx ty tz qx qy qz qw")
     cpp = assert_agree(GT, est_path)
     assert cpp["pairs"] == 400
     assert cpp["ate_rmse_m"] > 1e-4  # the perturbation is visible, not aligned away
@@ -178,12 +187,22 @@ def test_shared_reference_trajectories_match_evo(gt_rel, est_rel):
 def test_bad_input_gives_message_and_nonzero_exit(tmp_path):
     broken = tmp_path / "broken.txt"
     broken.write_text("1 0 0 0 0 0 0 1\n2 0 zero 0 0 0 0 1\n")
-    proc = subprocess.run([str(tum_score_binary()), str(GT), str(broken)],
-                          capture_output=True, text=True, timeout=60, check=False)
+    proc = subprocess.run(
+        [str(tum_score_binary()), str(GT), str(broken)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
     assert proc.returncode == 1
     assert "broken.txt:2: field 3 'zero' is not a finite number" in proc.stderr
-    proc = subprocess.run([str(tum_score_binary()), "--max-dt", "-1", str(GT), str(GT)],
-                          capture_output=True, text=True, timeout=60, check=False)
+    proc = subprocess.run(
+        [str(tum_score_binary()), "--max-dt", "-1", str(GT), str(GT)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
     assert proc.returncode == 2
     assert "--max-dt must be a positive number" in proc.stderr
 
@@ -216,7 +235,10 @@ def test_tum_association_mode_matches_associate_py(tmp_path):
     expected_pairs = tum_associate(list(gt[:, 0]), list(est[:, 0]), MAX_DT_S)
     proc = subprocess.run(
         [str(tum_score_binary()), "--association", "tum", str(GT), str(est_path)],
-        capture_output=True, text=True, timeout=60, check=False,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
     )
     assert proc.returncode == 0, proc.stderr
     tum = json.loads(proc.stdout)

@@ -10,11 +10,11 @@ byte offset. Messages are decoded from JSON.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import io
 import json
-from pathlib import Path
 import struct
+from dataclasses import dataclass, field
+from pathlib import Path
 
 from mcap.exceptions import EndOfFile, McapError
 from mcap.reader import make_reader
@@ -69,7 +69,9 @@ def read_complete(path: Path) -> Recording:
         rec.channels = {c.id: c.topic for c in summary.channels.values()}
         rec.schemas = {s.id: s.name for s in summary.schemas.values()}
         for _schema, channel, message in reader.iter_messages(log_time_order=False):
-            rec.messages.append(RecordedMessage(channel.topic, message.log_time, json.loads(message.data)))
+            rec.messages.append(
+                RecordedMessage(channel.topic, message.log_time, json.loads(message.data))
+            )
         rec.complete = True
         rec.bytes_read = Path(path).stat().st_size
     return rec
@@ -85,7 +87,9 @@ def read_tolerant(path: Path) -> Recording:
     pos = len(MAGIC)
     while pos < len(data):
         if pos + _RECORD_HEADER.size > len(data):
-            rec.errors.append(f"truncated at byte {pos}: record header cut ({len(data) - pos} bytes left)")
+            rec.errors.append(
+                f"truncated at byte {pos}: record header cut ({len(data) - pos} bytes left)"
+            )
             break
         opcode, length = _RECORD_HEADER.unpack_from(data, pos)
         end = pos + _RECORD_HEADER.size + length
@@ -96,14 +100,18 @@ def read_tolerant(path: Path) -> Recording:
             )
             break
         try:
-            for r in StreamReader(io.BytesIO(data[pos:end]), skip_magic=True, validate_crcs=True).records:
+            for r in StreamReader(
+                io.BytesIO(data[pos:end]), skip_magic=True, validate_crcs=True
+            ).records:
                 _take(rec, r)
         except EndOfFile:
             pass  # the one whole record was consumed (its length was checked above); no next record
         except (McapError, ValueError, struct.error, EOFError) as e:
             rec.errors.append(f"damaged record opcode 0x{opcode:02x} at byte {pos} skipped: {e}")
         except Exception as e:  # noqa: BLE001 - zstd/json errors surface as various types
-            rec.errors.append(f"damaged record opcode 0x{opcode:02x} at byte {pos} skipped: {type(e).__name__}: {e}")
+            rec.errors.append(
+                f"damaged record opcode 0x{opcode:02x} at byte {pos} skipped: {type(e).__name__}: {e}"
+            )
         pos = end
         rec.bytes_read = pos
         if rec.complete:  # the Footer: what follows is the closing magic
@@ -134,5 +142,7 @@ def read(path: Path) -> Recording:
         return read_complete(path)
     except Exception as e:  # noqa: BLE001 - any defect: fall back to the streaming read
         rec = read_tolerant(path)
-        rec.errors.insert(0, f"seeking read failed ({type(e).__name__}: {e}); read in streaming order")
+        rec.errors.insert(
+            0, f"seeking read failed ({type(e).__name__}: {e}); read in streaming order"
+        )
         return rec

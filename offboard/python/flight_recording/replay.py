@@ -24,9 +24,9 @@ import argparse
 import base64
 import io
 import json
-from pathlib import Path
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 from rgbd_protocol.tum_cameras import TUM_CAMERAS as _TUM_MODELS
@@ -38,17 +38,25 @@ from flight_recording.reader import read
 ROOT = Path(__file__).resolve().parents[3]
 # The Freiburg cameras slam-eval's --camera accepts (slam::Intrinsics::from_name), fx fy cx cy;
 # one definition: protocol/camera/tum_cameras.json. TUM_DEPTH_UNITS_PER_M is its depth scale.
-TUM_CAMERAS = {name: (c.fx_px, c.fy_px, c.cx_px, c.cy_px)
-               for name, c in _TUM_MODELS.items() if name.startswith("fr")}
+TUM_CAMERAS = {
+    name: (c.fx_px, c.fy_px, c.cx_px, c.cy_px)
+    for name, c in _TUM_MODELS.items()
+    if name.startswith("fr")
+}
 INTRINSICS_TOLERANCE_PX = 0.05
 
 
 def camera_name(K: list[float]) -> str:
     fx, fy, cx, cy = K[0], K[4], K[2], K[5]
     for name, ref in TUM_CAMERAS.items():
-        if all(abs(a - b) <= INTRINSICS_TOLERANCE_PX for a, b in zip((fx, fy, cx, cy), ref)):
+        if all(
+            abs(a - b) <= INTRINSICS_TOLERANCE_PX
+            for a, b in zip((fx, fy, cx, cy), ref, strict=False)
+        ):
             return name
-    raise ValueError(f"recorded intrinsics fx {fx} fy {fy} cx {cx} cy {cy} are not a TUM camera slam-eval knows")
+    raise ValueError(
+        f"recorded intrinsics fx {fx} fy {fy} cx {cx} cy {cy} are not a TUM camera slam-eval knows"
+    )
 
 
 def stamp_s(header: dict) -> float:
@@ -60,12 +68,18 @@ def extract(mcap: Path, out: Path) -> dict:
     from PIL import Image
 
     rec = read(mcap)
-    rgb = {m.data["timestamp"]["sec"] * 10**9 + m.data["timestamp"]["nsec"]: m.data
-           for m in rec.topic("/camera/rgb/compressed")}
+    rgb = {
+        m.data["timestamp"]["sec"] * 10**9 + m.data["timestamp"]["nsec"]: m.data
+        for m in rec.topic("/camera/rgb/compressed")
+    }
     # Every recorded frame's depth as the link carried it; older recordings: the 16UC1 channel.
-    depth_topic = "/camera/depth/compressed" if rec.topic("/camera/depth/compressed") else "/camera/depth/raw"
-    depth = {m.data["timestamp"]["sec"] * 10**9 + m.data["timestamp"]["nsec"]: m.data
-             for m in rec.topic(depth_topic)}
+    depth_topic = (
+        "/camera/depth/compressed" if rec.topic("/camera/depth/compressed") else "/camera/depth/raw"
+    )
+    depth = {
+        m.data["timestamp"]["sec"] * 10**9 + m.data["timestamp"]["nsec"]: m.data
+        for m in rec.topic(depth_topic)
+    }
     cal = rec.topic("/camera/calibration")
     if not cal:
         raise ValueError(f"{mcap}: no /camera/calibration message (recorded without images?)")
@@ -83,60 +97,115 @@ def extract(mcap: Path, out: Path) -> dict:
         encoding = d.get("encoding") if depth_topic == "/camera/depth/compressed" else "raw"
         raw = decode_depth(encoding, base64.b64decode(d["data"]), d["width"], d["height"])
         units = float(d.get("depth_units_per_m", units))
-        scaled = np.clip(np.rint(raw.astype(np.float64) * (TUM_DEPTH_UNITS_PER_M / units)), 0, 65535).astype(np.uint16)
+        scaled = np.clip(
+            np.rint(raw.astype(np.float64) * (TUM_DEPTH_UNITS_PER_M / units)), 0, 65535
+        ).astype(np.uint16)
         buf = io.BytesIO()
         Image.fromarray(scaled).save(buf, format="PNG")
         (tum / "depth" / f"{t}.png").write_bytes(buf.getvalue())
         rgb_lines.append(f"{t} rgb/{t}.jpg")
         depth_lines.append(f"{t} depth/{t}.png")
-    header = "# extracted from {} by flight_recording.replay\n# timestamp filename\n".format(mcap.name)
+    header = "# extracted from {} by flight_recording.replay\n# timestamp filename\n".format(
+        mcap.name
+    )
     (tum / "rgb.txt").write_text(header + "\n".join(rgb_lines) + "\n")
     (tum / "depth.txt").write_text(header + "\n".join(depth_lines) + "\n")
     poses = []
     for m in rec.topic("/slam/pose"):
         p = m.data["pose"]
         pos, q = p["position"], p["orientation"]
-        poses.append(f"{stamp_s(m.data['timestamp']):.6f} {pos['x']:.6f} {pos['y']:.6f} {pos['z']:.6f} "
-                     f"{q['x']:.9f} {q['y']:.9f} {q['z']:.9f} {q['w']:.9f}")
-    traj = "# quad-control in-flight poses T_floor_cam (from {})\n".format(mcap.name) + "\n".join(poses) + "\n"
+        poses.append(
+            f"{stamp_s(m.data['timestamp']):.6f} {pos['x']:.6f} {pos['y']:.6f} {pos['z']:.6f} "
+            f"{q['x']:.9f} {q['y']:.9f} {q['z']:.9f} {q['w']:.9f}"
+        )
+    traj = (
+        "# quad-control in-flight poses T_floor_cam (from {})\n".format(mcap.name)
+        + "\n".join(poses)
+        + "\n"
+    )
     (out / "flight.tum").write_text(traj)
     (tum / "groundtruth.txt").write_text(traj)
     D = calib.get("D", [])
-    return {"frames": len(stamps), "flight_poses": len(poses), "camera": camera_name(calib["K"]),
-            "distortion": any(abs(x) > 0 for x in D), "errors": rec.errors, "complete": rec.complete}
+    return {
+        "frames": len(stamps),
+        "flight_poses": len(poses),
+        "camera": camera_name(calib["K"]),
+        "distortion": any(abs(x) > 0 for x in D),
+        "errors": rec.errors,
+        "complete": rec.complete,
+    }
 
 
 def run(mcap: Path, out: Path, slam_eval: Path, tum_score: Path) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     info = extract(mcap, out)
     if info["frames"] < 2 or info["flight_poses"] < 2:
-        raise ValueError(f"{mcap}: {info['frames']} frames and {info['flight_poses']} poses: nothing to replay")
-    cmd = [str(slam_eval), "run", "--dataset", str(out / "tum"), "--out", str(out / "slam"),
-           "--camera", info["camera"], "--mode", "wait", "--no-map", "--quiet"]
+        raise ValueError(
+            f"{mcap}: {info['frames']} frames and {info['flight_poses']} poses: nothing to replay"
+        )
+    cmd = [
+        str(slam_eval),
+        "run",
+        "--dataset",
+        str(out / "tum"),
+        "--out",
+        str(out / "slam"),
+        "--camera",
+        info["camera"],
+        "--mode",
+        "wait",
+        "--no-map",
+        "--quiet",
+    ]
     if not info["distortion"]:
-        cmd.append("--no-undistort")  # the recorded camera has no distortion (e.g. the HIL renderer)
+        cmd.append(
+            "--no-undistort"
+        )  # the recorded camera has no distortion (e.g. the HIL renderer)
     subprocess.run(cmd, check=True, capture_output=True, text=True)
-    score = subprocess.run([str(tum_score), str(out / "flight.tum"), str(out / "slam" / "trajectory.tum")],
-                           check=True, capture_output=True, text=True)
+    score = subprocess.run(
+        [str(tum_score), str(out / "flight.tum"), str(out / "slam" / "trajectory.tum")],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     s = json.loads(score.stdout)
-    result = dict(info, replay_poses=sum(1 for line in (out / "slam" / "trajectory.tum").read_text().splitlines()
-                                         if line and not line.startswith("#")),
-                  ate_replay_vs_flight_rmse_m=s["ate_rmse_m"], ate_replay_vs_flight_max_m=s["ate_max_m"],
-                  ate_rot_rmse_deg=s.get("ate_rot_rmse_deg"), pairs=s["pairs"], command=" ".join(cmd))
+    result = dict(
+        info,
+        replay_poses=sum(
+            1
+            for line in (out / "slam" / "trajectory.tum").read_text().splitlines()
+            if line and not line.startswith("#")
+        ),
+        ate_replay_vs_flight_rmse_m=s["ate_rmse_m"],
+        ate_replay_vs_flight_max_m=s["ate_max_m"],
+        ate_rot_rmse_deg=s.get("ate_rot_rmse_deg"),
+        pairs=s["pairs"],
+        command=" ".join(cmd),
+    )
     (out / "replay.json").write_text(json.dumps(result, indent=2))
     return result
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("recording", type=Path)
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--slam-eval", type=Path, default=ROOT / "build" / "bin" / "slam-eval")
     ap.add_argument("--tum-score", type=Path, default=ROOT / "build" / "bin" / "tum-score")
-    ap.add_argument("--extract-only", action="store_true", help="write the TUM folder and flight.tum, run nothing")
+    ap.add_argument(
+        "--extract-only",
+        action="store_true",
+        help="write the TUM folder and flight.tum, run nothing",
+    )
     a = ap.parse_args(argv)
     try:
-        result = extract(a.recording, a.out) if a.extract_only else run(a.recording, a.out, a.slam_eval, a.tum_score)
+        result = (
+            extract(a.recording, a.out)
+            if a.extract_only
+            else run(a.recording, a.out, a.slam_eval, a.tum_score)
+        )
     except (ValueError, subprocess.CalledProcessError) as e:
         detail = getattr(e, "stderr", "") or ""
         print(f"flight_recording.replay: {e}\n{detail}", file=sys.stderr)

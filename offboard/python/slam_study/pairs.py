@@ -31,14 +31,14 @@ kRotAxisIndex = {"roll": 2, "pitch": 0, "yaw": 1}
 class PairTable:
     """Column arrays, one row per consecutive pair. Lengths are equal."""
 
-    stamp_s: np.ndarray          # time of frame i
-    dt_s: np.ndarray             # time between the frames
-    gt_trans_mm: np.ndarray      # |translation of M|
-    gt_rot_deg: np.ndarray       # rotation angle of M
-    trans_share: np.ndarray      # (n,3) x, y, z L1 shares of M's translation
-    rot_share: np.ndarray        # (n,3) roll, pitch, yaw L1 shares of M's rotation vector
-    rpe_trans_mm: np.ndarray     # |translation of E|
-    rpe_rot_deg: np.ndarray      # rotation angle of E
+    stamp_s: np.ndarray  # time of frame i
+    dt_s: np.ndarray  # time between the frames
+    gt_trans_mm: np.ndarray  # |translation of M|
+    gt_rot_deg: np.ndarray  # rotation angle of M
+    trans_share: np.ndarray  # (n,3) x, y, z L1 shares of M's translation
+    rot_share: np.ndarray  # (n,3) roll, pitch, yaw L1 shares of M's rotation vector
+    rpe_trans_mm: np.ndarray  # |translation of E|
+    rpe_rot_deg: np.ndarray  # rotation angle of E
 
     def __len__(self) -> int:
         return int(self.stamp_s.shape[0])
@@ -47,8 +47,12 @@ class PairTable:
     def concat(tables: list[PairTable]) -> PairTable:
         if not tables:
             return empty_pairs()
-        return PairTable(*(np.concatenate([getattr(t, f) for t in tables])
-                           for f in PairTable.__dataclass_fields__))
+        return PairTable(
+            *(
+                np.concatenate([getattr(t, f) for t in tables])
+                for f in PairTable.__dataclass_fields__
+            )
+        )
 
     def select(self, mask: np.ndarray) -> PairTable:
         return PairTable(*(getattr(self, f)[mask] for f in PairTable.__dataclass_fields__))
@@ -65,8 +69,9 @@ def _l1_shares(vectors: np.ndarray) -> np.ndarray:
     return np.divide(mag, total, out=np.zeros_like(mag), where=total > 0)
 
 
-def motion_pairs(gt: Trajectory, est: Trajectory,
-                 max_diff_s: float = kMaxAssociationDiffS) -> PairTable:
+def motion_pairs(
+    gt: Trajectory, est: Trajectory, max_diff_s: float = kMaxAssociationDiffS
+) -> PairTable:
     """Pairs of consecutive estimate poses that both have ground truth within max_diff_s.
 
     An estimate frame without ground truth breaks the chain: the pairs on either side of it are
@@ -104,8 +109,9 @@ class AteResult:
     aligned_est: Trajectory  # the estimate moved into the ground-truth frame
 
 
-def absolute_trajectory_error(gt: Trajectory, est: Trajectory,
-                              max_diff_s: float = kMaxAssociationDiffS) -> AteResult | None:
+def absolute_trajectory_error(
+    gt: Trajectory, est: Trajectory, max_diff_s: float = kMaxAssociationDiffS
+) -> AteResult | None:
     """ATE as the TUM tools define it: associate, rigid (no scale) Horn alignment of the estimate's
     positions onto ground truth, RMSE of position differences. None with fewer than 3 matches."""
     ie, ig = associate(est.stamps_s, gt.stamps_s, max_diff_s)
@@ -117,10 +123,15 @@ def absolute_trajectory_error(gt: Trajectory, est: Trajectory,
     tf[:3, 3] = trans
     moved = tf @ est.poses
     diff = np.linalg.norm(moved[ie, :3, 3] - gt.positions_m()[ig], axis=1)
-    return AteResult(float(np.sqrt(np.mean(diff ** 2))), float(diff.mean()), float(diff.max()),
-                     int(ie.size), Trajectory(est.stamps_s, moved))
+    return AteResult(
+        float(np.sqrt(np.mean(diff**2))),
+        float(diff.mean()),
+        float(diff.max()),
+        int(ie.size),
+        Trajectory(est.stamps_s, moved),
+    )
 
 
 def rmse(values: np.ndarray) -> float:
     v = np.asarray(values, dtype=float)
-    return float(np.sqrt(np.mean(v ** 2))) if v.size else float("nan")
+    return float(np.sqrt(np.mean(v**2))) if v.size else float("nan")

@@ -22,9 +22,25 @@ from slam_study import guide, metrics, plots, tables, thesis, velocity
 from slam_study.pairs import AteResult, PairTable, absolute_trajectory_error, motion_pairs, rmse
 from slam_study.tum import Dataset, Trajectory, TumFormatError, read_trajectory
 
-kPairColumns = ["source", "dataset", "features", "backend", "k", "stamp_s", "dt_s", "gt_trans_mm",
-                "gt_rot_deg", "share_x", "share_y", "share_z", "share_roll", "share_pitch",
-                "share_yaw", "rpe_trans_mm", "rpe_rot_deg"]
+kPairColumns = [
+    "source",
+    "dataset",
+    "features",
+    "backend",
+    "k",
+    "stamp_s",
+    "dt_s",
+    "gt_trans_mm",
+    "gt_rot_deg",
+    "share_x",
+    "share_y",
+    "share_z",
+    "share_roll",
+    "share_pitch",
+    "share_yaw",
+    "rpe_trans_mm",
+    "rpe_rot_deg",
+]
 # The per-pair study takes one back-end per detector: frame-to-frame error is the front end's, and
 # pooling vo/llc/glc would count the same frame pairs three times. vo is the plain front end.
 kGridBackend = "vo"
@@ -66,8 +82,15 @@ def load_runs(out: Path, datasets: dict[str, Dataset], warn) -> list[Run]:
         except (OSError, ValueError, KeyError) as err:
             warn(f"skipping {result_path}: unreadable ({err})")
             continue
-        run = Run(Path(job["dataset"]).name, job["features"], job["backend"], int(job["k"]),
-                  meta.get("status", "failed"), meta.get("reason", ""), meta.get("wall_s"))
+        run = Run(
+            Path(job["dataset"]).name,
+            job["features"],
+            job["backend"],
+            int(job["k"]),
+            meta.get("status", "failed"),
+            meta.get("reason", ""),
+            meta.get("wall_s"),
+        )
         run_dir = result_path.parent
         run.metrics = metrics.load(run_dir / "metrics.json")
         if run.status == "ok":
@@ -109,6 +132,7 @@ def _config_table(key: str, title: str, runs: list[Run], cell, note: str = "") -
 
 def run_tables(runs: list[Run]) -> list[tables.Table]:
     """Tables 4.5/4.8/4.9 (RPE), 4.10 (ATE), 4.7 (keyframes), 4.12/4.13 (time per stage)."""
+
     def rpe(run: Run) -> str:
         if run.pairs is None or len(run.pairs) == 0:
             return "no pairs"
@@ -122,36 +146,57 @@ def run_tables(runs: list[Run]) -> list[tables.Table]:
         loops = metrics.count(run.metrics, "loop")
         frames = len(run.trajectory) if run.trajectory is not None else 0
         lost = metrics.count(run.metrics, "lost")
-        return (f"{'-' if kf is None else kf} / {frames}"
-                + ("" if loops is None else f" ({loops} loops)")
-                + ("" if not lost else f", {lost} lost"))
+        return (
+            f"{'-' if kf is None else kf} / {frames}"
+            + ("" if loops is None else f" ({loops} loops)")
+            + ("" if not lost else f", {lost} lost")
+        )
 
     out = [
-        _config_table("table_4_5_rpe", "Tables 4.5 / 4.8 / 4.9 - RPE RMSE per frame pair, "
-                      "translational mm / rotational deg", runs, rpe,
-                      note="Consecutive pairs of the run (k frames apart in the recording); "
-                           "recomputed from trajectory.tum against groundtruth.txt."),
+        _config_table(
+            "table_4_5_rpe",
+            "Tables 4.5 / 4.8 / 4.9 - RPE RMSE per frame pair, translational mm / rotational deg",
+            runs,
+            rpe,
+            note="Consecutive pairs of the run (k frames apart in the recording); "
+            "recomputed from trajectory.tum against groundtruth.txt.",
+        ),
         _config_table("table_4_10_ate", "Table 4.10 - ATE RMSE (mm), rigid alignment", runs, ate),
-        _config_table("table_4_7_keyframes", "Table 4.7 - keyframes / poses in trajectory "
-                      "(loop closures, frames with tracking lost)", runs, keyframes,
-                      note="Keyframes and loop closures as reported in metrics.json."),
+        _config_table(
+            "table_4_7_keyframes",
+            "Table 4.7 - keyframes / poses in trajectory "
+            "(loop closures, frames with tracking lost)",
+            runs,
+            keyframes,
+            note="Keyframes and loop closures as reported in metrics.json.",
+        ),
     ]
     stage_names = sorted({s for r in runs for s in metrics.stages(r.metrics)})
-    timing = tables.Table("table_4_12_stage_times", "Tables 4.12 / 4.13 - time per stage, ms "
-                          "mean / median / p95 (k = 1 runs, from metrics.json)",
-                          ["dataset", "config"] + stage_names)
-    for run in sorted((r for r in runs if r.k == 1 and r.status == "ok"),
-                      key=lambda r: (r.dataset, r.config)):
+    timing = tables.Table(
+        "table_4_12_stage_times",
+        "Tables 4.12 / 4.13 - time per stage, ms "
+        "mean / median / p95 (k = 1 runs, from metrics.json)",
+        ["dataset", "config"] + stage_names,
+    )
+    for run in sorted(
+        (r for r in runs if r.k == 1 and r.status == "ok"), key=lambda r: (r.dataset, r.config)
+    ):
         st = metrics.stages(run.metrics)
         row = [run.dataset, run.config]
         for name in stage_names:
             s = st.get(name)
-            row.append("-" if s is None else " / ".join(
-                f"{s[k_]:.1f}" if k_ in s else "-" for k_ in ("mean_ms", "median_ms", "p95_ms")))
+            row.append(
+                "-"
+                if s is None
+                else " / ".join(
+                    f"{s[k_]:.1f}" if k_ in s else "-" for k_ in ("mean_ms", "median_ms", "p95_ms")
+                )
+            )
         timing.rows.append(row)
     out.append(timing)
-    status = tables.Table("run_status", "Run status (failed runs and why)",
-                          ["dataset", "config", "k", "reason"])
+    status = tables.Table(
+        "run_status", "Run status (failed runs and why)", ["dataset", "config", "k", "reason"]
+    )
     for run in runs:
         if run.status != "ok":
             status.rows.append([run.dataset, run.config, str(run.k), run.reason])
@@ -162,12 +207,15 @@ def run_tables(runs: list[Run]) -> list[tables.Table]:
 def per_config_translation(runs: list[Run]) -> tables.Table:
     """Translation-study RPE per configuration: the detectors/back-ends side by side."""
     edges = tables.kTransStudyEdgesMm
-    table = tables.Table("per_config_translation",
-                         "Translation study per configuration: RPE trans mm mean [n], rotation "
-                         "< 0.3 deg", ["config"] + [tables.bin_label(a, b)
-                                                    for a, b in itertools.pairwise(edges)])
+    table = tables.Table(
+        "per_config_translation",
+        "Translation study per configuration: RPE trans mm mean [n], rotation < 0.3 deg",
+        ["config"] + [tables.bin_label(a, b) for a, b in itertools.pairwise(edges)],
+    )
     for cfg in sorted({r.config for r in runs if r.pairs is not None}):
-        pooled = PairTable.concat([r.pairs for r in runs if r.config == cfg and r.pairs is not None])
+        pooled = PairTable.concat(
+            [r.pairs for r in runs if r.config == cfg and r.pairs is not None]
+        )
         pure = pooled.select(pooled.gt_rot_deg < tables.kTransStudyMaxRotDeg)
         row = [cfg]
         for lo, hi in itertools.pairwise(edges):
@@ -188,41 +236,79 @@ def _verdict_ratio(ours: float, theirs: float, n: int) -> str:
 
 def thesis_comparison(pairs: PairTable) -> tables.Table:
     """Our measurement beside each published number the project has (thesis.py)."""
-    t = tables.Table("thesis_comparison", "Ours beside the thesis's published numbers",
-                     ["finding", "selection", "ours", "n", "thesis (published)", "verdict"],
-                     note="Thesis column: only the values quoted in the study issue; "
-                          "everything else in the thesis is 'not quoted' here.")
-    pure_r = pairs.select((pairs.gt_trans_mm < tables.kRotStudyMaxTransMm)
-                          & tables.in_bin(pairs.gt_rot_deg, 0.8, 1.2))
+    t = tables.Table(
+        "thesis_comparison",
+        "Ours beside the thesis's published numbers",
+        ["finding", "selection", "ours", "n", "thesis (published)", "verdict"],
+        note="Thesis column: only the values quoted in the study issue; "
+        "everything else in the thesis is 'not quoted' here.",
+    )
+    pure_r = pairs.select(
+        (pairs.gt_trans_mm < tables.kRotStudyMaxTransMm) & tables.in_bin(pairs.gt_rot_deg, 0.8, 1.2)
+    )
     c = tables.CellStats.of(pure_r)
-    t.rows.append(["1 deg/frame rotation -> trans RPE", "trans < 3 mm, rot 0.8-1.2 deg",
-                   tables._fmt(c.trans_mean_mm) + " mm", str(c.n),
-                   f"~{thesis.kRotation1DegTransRpeMm:g} mm",
-                   _verdict_ratio(c.trans_mean_mm, thesis.kRotation1DegTransRpeMm, c.n)])
+    t.rows.append(
+        [
+            "1 deg/frame rotation -> trans RPE",
+            "trans < 3 mm, rot 0.8-1.2 deg",
+            tables._fmt(c.trans_mean_mm) + " mm",
+            str(c.n),
+            f"~{thesis.kRotation1DegTransRpeMm:g} mm",
+            _verdict_ratio(c.trans_mean_mm, thesis.kRotation1DegTransRpeMm, c.n),
+        ]
+    )
     frac = c.rot_mean_deg / c.motion_rot_mean_deg if c.n else float("nan")
-    t.rows.append(["1 deg/frame rotation -> rot error", "same", tables._pct(c.rot_mean_deg,
-                   c.motion_rot_mean_deg), str(c.n),
-                   f"~{100 * thesis.kRotation1DegRotRpeFraction:.0f} %",
-                   _verdict_ratio(frac, thesis.kRotation1DegRotRpeFraction, c.n)])
-    pure_t = pairs.select((pairs.gt_rot_deg < tables.kTransStudyMaxRotDeg)
-                          & tables.in_bin(pairs.gt_trans_mm, 8.0, 12.0))
+    t.rows.append(
+        [
+            "1 deg/frame rotation -> rot error",
+            "same",
+            tables._pct(c.rot_mean_deg, c.motion_rot_mean_deg),
+            str(c.n),
+            f"~{100 * thesis.kRotation1DegRotRpeFraction:.0f} %",
+            _verdict_ratio(frac, thesis.kRotation1DegRotRpeFraction, c.n),
+        ]
+    )
+    pure_t = pairs.select(
+        (pairs.gt_rot_deg < tables.kTransStudyMaxRotDeg)
+        & tables.in_bin(pairs.gt_trans_mm, 8.0, 12.0)
+    )
     c = tables.CellStats.of(pure_t)
     frac = c.trans_mean_mm / c.motion_trans_mean_mm if c.n else float("nan")
-    t.rows.append(["10 mm/frame translation -> trans error", "rot < 0.3 deg, trans 8-12 mm",
-                   tables._pct(c.trans_mean_mm, c.motion_trans_mean_mm), str(c.n),
-                   f"~{100 * thesis.kTranslation10MmTransRpeFraction:.0f} %",
-                   _verdict_ratio(frac, thesis.kTranslation10MmTransRpeFraction, c.n)])
-    t.rows.append(["10 mm/frame translation -> rot RPE", "same", tables._fmt(c.rot_mean_deg, 3)
-                   + " deg", str(c.n), f"{thesis.kTranslation10MmRotRpeDeg:g} deg",
-                   _verdict_ratio(c.rot_mean_deg, thesis.kTranslation10MmRotRpeDeg, c.n)])
+    t.rows.append(
+        [
+            "10 mm/frame translation -> trans error",
+            "rot < 0.3 deg, trans 8-12 mm",
+            tables._pct(c.trans_mean_mm, c.motion_trans_mean_mm),
+            str(c.n),
+            f"~{100 * thesis.kTranslation10MmTransRpeFraction:.0f} %",
+            _verdict_ratio(frac, thesis.kTranslation10MmTransRpeFraction, c.n),
+        ]
+    )
+    t.rows.append(
+        [
+            "10 mm/frame translation -> rot RPE",
+            "same",
+            tables._fmt(c.rot_mean_deg, 3) + " deg",
+            str(c.n),
+            f"{thesis.kTranslation10MmRotRpeDeg:g} deg",
+            _verdict_ratio(c.rot_mean_deg, thesis.kTranslation10MmRotRpeDeg, c.n),
+        ]
+    )
     corner = thesis.kGridCorner
-    sel = (tables.in_bin(pairs.gt_trans_mm, *corner["trans_bin_mm"])
-           & tables.in_bin(pairs.gt_rot_deg, *corner["rot_bin_deg"]))
+    sel = tables.in_bin(pairs.gt_trans_mm, *corner["trans_bin_mm"]) & tables.in_bin(
+        pairs.gt_rot_deg, *corner["rot_bin_deg"]
+    )
     c = tables.CellStats.of(pairs.select(sel))
-    t.rows.append(["18 mm + 1.8 deg/frame (grid corner)", "trans 16-18 mm, rot 1.6-1.8 deg",
-                   f"{tables._fmt(c.trans_mean_mm)} mm / {tables._fmt(c.rot_mean_deg, 3)} deg",
-                   str(c.n), f"{corner['rpe_trans_mm']:.2f} mm / {corner['rpe_rot_deg']:.2f} deg",
-                   _verdict_ratio(c.trans_mean_mm, corner["rpe_trans_mm"], c.n)])
+    t.rows.append(
+        [
+            "18 mm + 1.8 deg/frame (grid corner)",
+            "trans 16-18 mm, rot 1.6-1.8 deg",
+            f"{tables._fmt(c.trans_mean_mm)} mm / {tables._fmt(c.rot_mean_deg, 3)} deg",
+            str(c.n),
+            f"{corner['rpe_trans_mm']:.2f} mm / {corner['rpe_rot_deg']:.2f} deg",
+            _verdict_ratio(c.trans_mean_mm, corner["rpe_trans_mm"], c.n),
+        ]
+    )
     # Axis findings: error per unit motion, single-axis pairs.
     t.rows.append(_axis_row(pairs, rotation=False))
     t.rows.append(_axis_row(pairs, rotation=True))
@@ -234,8 +320,7 @@ def thesis_comparison(pairs: PairTable) -> tables.Table:
 kMinPairsForFit = 20
 
 
-def effect_fit(pairs: PairTable, interaction: bool = True
-               ) -> tuple[np.ndarray, np.ndarray] | None:
+def effect_fit(pairs: PairTable, interaction: bool = True) -> tuple[np.ndarray, np.ndarray] | None:
     """Least squares over every pair: rpe_trans_mm = a + b*t_mm + c*r_deg (+ d*t_mm*r_deg when
     interaction). Returns (coefficients, standard errors) or None with too few pairs. From the
     additive fit, b and c are the marginal costs of translation and rotation (thesis: ~0.45 mm/mm,
@@ -270,43 +355,81 @@ def _fit_rows(pairs: PairTable) -> list[list[str]]:
     per_mm = thesis.kTranslation10MmTransRpeFraction
 
     def ratio_verdict(ours: float, theirs: float) -> str:
-        return ("agrees (within x2)" if 0.5 <= ours / theirs <= 2
-                else f"differs (x{ours / theirs:.2f})")
+        return (
+            "agrees (within x2)" if 0.5 <= ours / theirs <= 2 else f"differs (x{ours / theirs:.2f})"
+        )
 
     corner = a4 + b4 * 17.0 + c4 * 1.7 + d * 17.0 * 1.7
     return [
-        ["marginal cost of rotation (fit c)", sel_add, f"{c:.2f} ± {sc:.2f} mm per deg", n,
-         f"~{per_deg:g} mm per deg", ratio_verdict(c, per_deg)],
-        ["marginal cost of translation (fit b)", sel_add, f"{b:.3f} ± {sb:.3f} mm per mm", n,
-         "45 % at 10 mm (0.45 mm per mm if proportional)", ratio_verdict(b, per_mm)],
-        ["rotation hurts more: 1 deg costs as much as c/b mm of translation", sel_add,
-         f"{c / b:.1f} mm" if b > 0 else "b <= 0 (translation adds no error)", n,
-         f"~{per_deg / per_mm:.1f} mm (derived: 4 mm per deg / 0.45 mm per mm)",
-         "agrees (rotation costs more)" if (b <= 0 < c or (b > 0 and c / b > 1))
-         else "differs"],
-        ["compounding (fit d; > 0 = super-additive)", sel_full,
-         f"{d:.3f} ± {sd:.3f} mm per mm·deg", n, "multiplicative (no coefficient quoted)",
-         "agrees" if d - 2 * sd > 0 else ("differs" if d + 2 * sd < 0 else "inconclusive (±2σ)")],
-        ["full fit evaluated at 17 mm + 1.7 deg", sel_full, f"{corner:.2f} mm", n,
-         f"{thesis.kGridCorner['rpe_trans_mm']:.2f} mm (18 mm + 1.8 deg)",
-         ratio_verdict(corner, thesis.kGridCorner["rpe_trans_mm"])
-         + " (extrapolated where the grid is thin)"],
+        [
+            "marginal cost of rotation (fit c)",
+            sel_add,
+            f"{c:.2f} ± {sc:.2f} mm per deg",
+            n,
+            f"~{per_deg:g} mm per deg",
+            ratio_verdict(c, per_deg),
+        ],
+        [
+            "marginal cost of translation (fit b)",
+            sel_add,
+            f"{b:.3f} ± {sb:.3f} mm per mm",
+            n,
+            "45 % at 10 mm (0.45 mm per mm if proportional)",
+            ratio_verdict(b, per_mm),
+        ],
+        [
+            "rotation hurts more: 1 deg costs as much as c/b mm of translation",
+            sel_add,
+            f"{c / b:.1f} mm" if b > 0 else "b <= 0 (translation adds no error)",
+            n,
+            f"~{per_deg / per_mm:.1f} mm (derived: 4 mm per deg / 0.45 mm per mm)",
+            "agrees (rotation costs more)" if (b <= 0 < c or (b > 0 and c / b > 1)) else "differs",
+        ],
+        [
+            "compounding (fit d; > 0 = super-additive)",
+            sel_full,
+            f"{d:.3f} ± {sd:.3f} mm per mm·deg",
+            n,
+            "multiplicative (no coefficient quoted)",
+            "agrees" if d - 2 * sd > 0 else ("differs" if d + 2 * sd < 0 else "inconclusive (±2σ)"),
+        ],
+        [
+            "full fit evaluated at 17 mm + 1.7 deg",
+            sel_full,
+            f"{corner:.2f} mm",
+            n,
+            f"{thesis.kGridCorner['rpe_trans_mm']:.2f} mm (18 mm + 1.8 deg)",
+            ratio_verdict(corner, thesis.kGridCorner["rpe_trans_mm"])
+            + " (extrapolated where the grid is thin)",
+        ],
     ]
 
 
 def _axis_row(pairs: PairTable, rotation: bool) -> list[str]:
     if rotation:
-        pure = pairs.select((pairs.gt_trans_mm < tables.kRotStudyMaxTransMm)
-                            & (pairs.gt_rot_deg >= tables.kRotStudyEdgesDeg[0]))
-        shares, thr, names, cheap = pure.rot_share, tables.kRotSingleAxisShare, \
-            ("roll", "pitch", "yaw"), 0
+        pure = pairs.select(
+            (pairs.gt_trans_mm < tables.kRotStudyMaxTransMm)
+            & (pairs.gt_rot_deg >= tables.kRotStudyEdgesDeg[0])
+        )
+        shares, thr, names, cheap = (
+            pure.rot_share,
+            tables.kRotSingleAxisShare,
+            ("roll", "pitch", "yaw"),
+            0,
+        )
         ratio = pure.rpe_rot_deg / np.maximum(pure.gt_rot_deg, 1e-9)
         finding, unit = "roll costs less (rot RPE / rotation)", "single-axis > 85 %"
     else:
-        pure = pairs.select((pairs.gt_rot_deg < tables.kTransStudyMaxRotDeg)
-                            & (pairs.gt_trans_mm >= tables.kTransStudyEdgesMm[0]))
-        shares, thr, names, cheap = pure.trans_share, tables.kTransSingleAxisShare, \
-            ("x", "y", "z"), 2
+        pure = pairs.select(
+            (pairs.gt_rot_deg < tables.kTransStudyMaxRotDeg)
+            & (pairs.gt_trans_mm >= tables.kTransStudyEdgesMm[0])
+        )
+        shares, thr, names, cheap = (
+            pure.trans_share,
+            tables.kTransSingleAxisShare,
+            ("x", "y", "z"),
+            2,
+        )
         ratio = pure.rpe_trans_mm / np.maximum(pure.gt_trans_mm, 1e-9)
         finding, unit = "z-translation costs less (trans RPE / translation)", "single-axis > 80 %"
     parts, ns, means = [], [], []
@@ -318,8 +441,9 @@ def _axis_row(pairs: PairTable, rotation: bool) -> list[str]:
         ns.append(f"{name} {n}")
         means.append((m, n))
     others = [means[i] for i in range(3) if i != cheap]
-    if means[cheap][1] < tables.kMinSamplesPerCell or any(n < tables.kMinSamplesPerCell
-                                                          for _, n in others):
+    if means[cheap][1] < tables.kMinSamplesPerCell or any(
+        n < tables.kMinSamplesPerCell for _, n in others
+    ):
         verdict = "not enough data"
     else:
         verdict = "agrees" if means[cheap][0] < min(m for m, _ in others) else "differs"
@@ -333,16 +457,26 @@ def write_pairs_csv(path: Path, sources: list[Source]) -> None:
         for src in sources:
             for ds, feat, backend, k, p in src.rows:
                 for i in range(len(p)):
-                    writer.writerow([src.name, ds, feat, backend, k, f"{p.stamp_s[i]:.6f}",
-                                     f"{p.dt_s[i]:.6f}", f"{p.gt_trans_mm[i]:.4f}",
-                                     f"{p.gt_rot_deg[i]:.5f}",
-                                     *(f"{v:.4f}" for v in p.trans_share[i]),
-                                     *(f"{v:.4f}" for v in p.rot_share[i]),
-                                     f"{p.rpe_trans_mm[i]:.4f}", f"{p.rpe_rot_deg[i]:.5f}"])
+                    writer.writerow(
+                        [
+                            src.name,
+                            ds,
+                            feat,
+                            backend,
+                            k,
+                            f"{p.stamp_s[i]:.6f}",
+                            f"{p.dt_s[i]:.6f}",
+                            f"{p.gt_trans_mm[i]:.4f}",
+                            f"{p.gt_rot_deg[i]:.5f}",
+                            *(f"{v:.4f}" for v in p.trans_share[i]),
+                            *(f"{v:.4f}" for v in p.rot_share[i]),
+                            f"{p.rpe_trans_mm[i]:.4f}",
+                            f"{p.rpe_rot_deg[i]:.5f}",
+                        ]
+                    )
 
 
-def read_pairs_csv(path: str | Path,
-                   source: str | None = None) -> tuple[PairTable, str, list[str]]:
+def read_pairs_csv(path: str | Path, source: str | None = None) -> tuple[PairTable, str, list[str]]:
     """Pairs of one source from pairs.csv (default: the one with the most pairs). Returns the
     pairs, the source used and the list of sources in the file."""
     path = Path(path)
@@ -363,10 +497,16 @@ def read_pairs_csv(path: str | Path,
         col = {c: np.array([float(r[c]) for r in sel]) for c in kPairColumns[5:]}
     except (KeyError, ValueError) as err:
         raise TumFormatError(f"{path}: malformed pairs file ({err})") from err
-    pairs = PairTable(col["stamp_s"], col["dt_s"], col["gt_trans_mm"], col["gt_rot_deg"],
-                      np.stack([col["share_x"], col["share_y"], col["share_z"]], axis=1),
-                      np.stack([col["share_roll"], col["share_pitch"], col["share_yaw"]], axis=1),
-                      col["rpe_trans_mm"], col["rpe_rot_deg"])
+    pairs = PairTable(
+        col["stamp_s"],
+        col["dt_s"],
+        col["gt_trans_mm"],
+        col["gt_rot_deg"],
+        np.stack([col["share_x"], col["share_y"], col["share_z"]], axis=1),
+        np.stack([col["share_roll"], col["share_pitch"], col["share_yaw"]], axis=1),
+        col["rpe_trans_mm"],
+        col["rpe_rot_deg"],
+    )
     return pairs, source, names
 
 
@@ -394,37 +534,54 @@ def pair_sections(src: Source, out: Path) -> list[str]:
     """Markdown for one source: Tables 4.14-4.21, thesis comparison, plots; CSVs written."""
     slug = _slug(src.name)
     p = src.pairs
-    md = [f"## Per-pair study: {src.name}", "",
-          (f"{len(p)} consecutive frame pairs. Motion and axis shares in the camera frame of the "
-          "first frame of each pair (x right, y down, z optical axis; roll about z, pitch about x, "
-          f"yaw about y). Cells with fewer than {tables.kMinSamplesPerCell} pairs are marked thin."),
-          ""]
+    md = [
+        f"## Per-pair study: {src.name}",
+        "",
+        (
+            f"{len(p)} consecutive frame pairs. Motion and axis shares in the camera frame of the "
+            "first frame of each pair (x right, y down, z optical axis; roll about z, pitch about x, "
+            f"yaw about y). Cells with fewer than {tables.kMinSamplesPerCell} pairs are marked thin."
+        ),
+        "",
+    ]
     t414, t415 = tables.translation_study(p)
     t417, t418 = tables.rotation_study(p)
     t420a, t420b, cells = tables.joint_grid(p)
     t416, t419 = tables.velocity_tables(p)
     t421 = guide.platform_table(p)
     quoted = "Thesis (published) values for this table: "
-    t414.note = (quoted + "~45 % translational error and 0.2 deg at 10 mm per frame; other cells "
-                 "not quoted.")
-    t417.note = (quoted + "~4 mm translational error and ~20 % rotational error at 1 deg per "
-                 "frame; other cells not quoted.")
-    t420a.note = (quoted + f"cell 16-18 mm x 1.6-1.8 deg (18 mm + 1.8 deg): "
-                  f"{thesis.kGridCorner['rpe_trans_mm']:.2f} mm / "
-                  f"{thesis.kGridCorner['rpe_rot_deg']:.2f} deg; other cells not quoted.")
+    t414.note = (
+        quoted + "~45 % translational error and 0.2 deg at 10 mm per frame; other cells not quoted."
+    )
+    t417.note = (
+        quoted + "~4 mm translational error and ~20 % rotational error at 1 deg per "
+        "frame; other cells not quoted."
+    )
+    t420a.note = (
+        quoted + f"cell 16-18 mm x 1.6-1.8 deg (18 mm + 1.8 deg): "
+        f"{thesis.kGridCorner['rpe_trans_mm']:.2f} mm / "
+        f"{thesis.kGridCorner['rpe_rot_deg']:.2f} deg; other cells not quoted."
+    )
     for table in (t415, t416, t418, t419, t420b, t421):
         table.note = (table.note + " " if table.note else "") + "Thesis values: not quoted."
     comparison = thesis_comparison(p)
     for table in (comparison, t414, t415, t416, t417, t418, t419, t420a, t420b, t421):
         (out / "tables" / f"{slug}__{table.key}.csv").write_text(table.csv())
         md.append(table.markdown())
-    for fname, fn in ((f"{slug}_error_vs_translation.png",
-                       lambda path: plots.error_vs_motion(p, path, src.name, rotation=False)),
-                      (f"{slug}_error_vs_rotation.png",
-                       lambda path: plots.error_vs_motion(p, path, src.name, rotation=True)),
-                      (f"{slug}_grid.png",
-                       lambda path: plots.grid_heatmap(cells, path, f"Table 4.20 grid: "
-                                                       f"{src.name}"))):
+    for fname, fn in (
+        (
+            f"{slug}_error_vs_translation.png",
+            lambda path: plots.error_vs_motion(p, path, src.name, rotation=False),
+        ),
+        (
+            f"{slug}_error_vs_rotation.png",
+            lambda path: plots.error_vs_motion(p, path, src.name, rotation=True),
+        ),
+        (
+            f"{slug}_grid.png",
+            lambda path: plots.grid_heatmap(cells, path, f"Table 4.20 grid: {src.name}"),
+        ),
+    ):
         fn(out / "plots" / fname)
         md += [f"![{fname}](plots/{fname})", ""]
     return md
@@ -447,8 +604,13 @@ def build(out: Path, references: list[tuple[str, str]], ks_for_rates: list[int],
     for feat in sorted({r.features for r in ok_runs if r.backend == grid_backend}):
         chosen = [r for r in ok_runs if r.features == feat and r.backend == grid_backend]
         rows = [(r.dataset, r.features, r.backend, r.k, r.pairs) for r in chosen]
-        sources.append(Source(f"{kSweepSourcePrefix}{feat}-{grid_backend} (all datasets and k)",
-                              PairTable.concat([r.pairs for r in chosen]), rows))
+        sources.append(
+            Source(
+                f"{kSweepSourcePrefix}{feat}-{grid_backend} (all datasets and k)",
+                PairTable.concat([r.pairs for r in chosen]),
+                rows,
+            )
+        )
     ref_trajs: dict[str, dict[str, Trajectory]] = {}
     for ds_dir, traj_file in references:
         ds = _dataset(str(Path(ds_dir).resolve()), datasets, warn)
@@ -462,28 +624,48 @@ def build(out: Path, references: list[tuple[str, str]], ks_for_rates: list[int],
         if ate is not None:
             ref_trajs.setdefault(ds.name, {})[f"peer {Path(traj_file).stem}"] = ate.aligned_est
 
-    md = ["# Spatial-velocity study (thesis Chapter 4) on TUM RGB-D data", "",
-          ("Generated by `slam-study` (offboard/python/slam_study); method and closing note in "
-          "docs/study.md. Data: TUM RGB-D benchmark (Sturm et al., IROS 2012, CC BY 4.0)."), ""]
+    md = [
+        "# Spatial-velocity study (thesis Chapter 4) on TUM RGB-D data",
+        "",
+        (
+            "Generated by `slam-study` (offboard/python/slam_study); method and closing note in "
+            "docs/study.md. Data: TUM RGB-D benchmark (Sturm et al., IROS 2012, CC BY 4.0)."
+        ),
+        "",
+    ]
     sweep_record = out / "sweep.json"
     if sweep_record.is_file():
         rec = json.loads(sweep_record.read_text())
         md += ["## Sweep", "", "```", json.dumps(rec, indent=1), "```", ""]
     n_ok = sum(r.status == "ok" for r in runs)
-    md += [(f"Runs found: {len(runs)} ({n_ok} ok, {len(runs) - n_ok} failed). "
-           f"Sources of frame pairs: {', '.join(s.name for s in sources) or 'none'}."), ""]
+    md += [
+        (
+            f"Runs found: {len(runs)} ({n_ok} ok, {len(runs) - n_ok} failed). "
+            f"Sources of frame pairs: {', '.join(s.name for s in sources) or 'none'}."
+        ),
+        "",
+    ]
 
     md += ["## Datasets at reduced frame rates (Table 3.4)", ""]
-    for name, ds in sorted(datasets.items()):
+    for _name, ds in sorted(datasets.items()):
         table = velocity.rate_table(ds, ks_for_rates)
         (out / "tables" / f"{table.key}.csv").write_text(table.csv())
         md.append(table.markdown())
-    t33 = tables.Table("table_3_3_thesis", "Thesis Table 3.3 (published; full sequences, ours "
-                       "are excerpts)", ["sequence", "duration s", "frames", "trans m/s",
-                                         "rot deg/s"])
+    t33 = tables.Table(
+        "table_3_3_thesis",
+        "Thesis Table 3.3 (published; full sequences, ours are excerpts)",
+        ["sequence", "duration s", "frames", "trans m/s", "rot deg/s"],
+    )
     for seq, v in thesis.kTable33.items():
-        t33.rows.append([seq, f"{v['duration_s']}", f"{v['frames']}", f"{v['trans_m_per_s']}",
-                         f"{v['rot_deg_per_s']}"])
+        t33.rows.append(
+            [
+                seq,
+                f"{v['duration_s']}",
+                f"{v['frames']}",
+                f"{v['trans_m_per_s']}",
+                f"{v['rot_deg_per_s']}",
+            ]
+        )
     md.append(t33.markdown())
 
     if runs:
@@ -496,8 +678,11 @@ def build(out: Path, references: list[tuple[str, str]], ks_for_rates: list[int],
 
     md += ["## Trajectories (top-down, ATE-aligned, k = 1)", ""]
     for name, ds in sorted(datasets.items()):
-        estimates = {f"{r.config}": r.ate.aligned_est for r in runs
-                     if r.dataset == name and r.k == 1 and r.ate is not None}
+        estimates = {
+            f"{r.config}": r.ate.aligned_est
+            for r in runs
+            if r.dataset == name and r.k == 1 and r.ate is not None
+        }
         estimates.update(ref_trajs.get(name, {}))
         if not estimates:
             continue
@@ -506,8 +691,9 @@ def build(out: Path, references: list[tuple[str, str]], ks_for_rates: list[int],
         end_s = max(t.stamps_s[-1] for t in estimates.values())
         in_span = (ds.groundtruth.stamps_s >= start_s) & (ds.groundtruth.stamps_s <= end_s)
         gt = ds.groundtruth.subset(np.where(in_span)[0])
-        plots.trajectories_top_down(gt, estimates, out / "plots" / fname,
-                                    f"{name}: ground truth vs estimates")
+        plots.trajectories_top_down(
+            gt, estimates, out / "plots" / fname, f"{name}: ground truth vs estimates"
+        )
         md += [f"![{fname}](plots/{fname})", ""]
     write_pairs_csv(out / "pairs.csv", sources)
     report = out / "report.md"

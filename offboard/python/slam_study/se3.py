@@ -92,7 +92,9 @@ def rotation_vector(rot: np.ndarray) -> np.ndarray:
     r = r.reshape(-1, 3, 3)
     cos_a = np.clip((np.trace(r, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
     angle = np.arccos(cos_a)
-    skew = np.stack([r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0], r[:, 1, 0] - r[:, 0, 1]], axis=1)
+    skew = np.stack(
+        [r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0], r[:, 1, 0] - r[:, 0, 1]], axis=1
+    )
     out = np.empty((r.shape[0], 3))
     small = angle < kSmallAngleRad
     out[small] = 0.5 * skew[small]

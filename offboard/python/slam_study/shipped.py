@@ -40,8 +40,17 @@ from slam_study.tum import Dataset, Trajectory, TumFormatError, read_trajectory
 
 kRepoRoot = Path(__file__).resolve().parents[3]
 kTablePath = Path(__file__).resolve().parent / "data" / "guide_pairs.csv"
-kColumns = ("source", "dataset", "k", "stamp_s", "dt_s", "gt_trans_mm", "gt_rot_deg",
-            "rpe_trans_mm", "rpe_rot_deg")
+kColumns = (
+    "source",
+    "dataset",
+    "k",
+    "stamp_s",
+    "dt_s",
+    "gt_trans_mm",
+    "gt_rot_deg",
+    "rpe_trans_mm",
+    "rpe_rot_deg",
+)
 # The guide reads the plain front end only: frame-to-frame error is the front end's, and the
 # vo/llc/glc runs of one detector would repeat the same frame pairs (report.kGridBackend).
 kBackend = "vo"
@@ -58,8 +67,10 @@ kMotionTolMm = 2e-3
 kMotionTolDeg = 2e-4
 # Real TUM excerpts in the repository and the sweep dataset each is (part of): the check
 # recomputes the table's ground-truth motion on their frames.
-kRepoExcerpts = {"fr1_desk_9frames": "tests/data/fr1_desk_9frames",
-                 "fr1_xyz_first300": "tests/data/fr1_xyz_first30"}
+kRepoExcerpts = {
+    "fr1_desk_9frames": "tests/data/fr1_desk_9frames",
+    "fr1_xyz_first300": "tests/data/fr1_xyz_first30",
+}
 
 
 def _files_sha256(root: Path, entries, suffixes=None, excluded_dirs=()) -> str:
@@ -71,9 +82,13 @@ def _files_sha256(root: Path, entries, suffixes=None, excluded_dirs=()) -> str:
         if p.is_file():
             files.append(p)
         elif p.is_dir():
-            files += [f for f in p.rglob("*") if f.is_file()
-                      and (suffixes is None or f.suffix in suffixes or f.name == "CMakeLists.txt")
-                      and not any(part in excluded_dirs for part in f.relative_to(p).parts[:-1])]
+            files += [
+                f
+                for f in p.rglob("*")
+                if f.is_file()
+                and (suffixes is None or f.suffix in suffixes or f.name == "CMakeLists.txt")
+                and not any(part in excluded_dirs for part in f.relative_to(p).parts[:-1])
+            ]
     h = hashlib.sha256()
     for f in sorted(files, key=lambda f: f.relative_to(root).as_posix()):
         h.update(f.relative_to(root).as_posix().encode() + b"\0")
@@ -98,7 +113,7 @@ def file_sha256(path: Path) -> str:
 class ShippedTable:
     meta: dict[str, str]
     rows: list[dict[str, str]]
-    datasets: dict[str, dict]     # name -> {"groundtruth_sha256": ..., "frames": ...}
+    datasets: dict[str, dict]  # name -> {"groundtruth_sha256": ..., "frames": ...}
 
     def sources(self) -> list[str]:
         return list(dict.fromkeys(r["source"] for r in self.rows))
@@ -117,15 +132,22 @@ class ShippedTable:
         the shipped table (the guide does not use them): they read as zero."""
         sel = [r for r in self.rows if r["source"] == source]
         if not sel:
-            raise TumFormatError(f"the guide table has no source '{source}'; "
-                                 f"sources: {', '.join(self.sources())}")
+            raise TumFormatError(
+                f"the guide table has no source '{source}'; sources: {', '.join(self.sources())}"
+            )
         col = {c: np.array([float(r[c]) for r in sel]) for c in kColumns[3:]}
         n = len(sel)
-        pairs = PairTable(col["stamp_s"], col["dt_s"], col["gt_trans_mm"], col["gt_rot_deg"],
-                          np.zeros((n, 3)), np.zeros((n, 3)), col["rpe_trans_mm"],
-                          col["rpe_rot_deg"])
-        return (pairs, np.array([r["dataset"] for r in sel]),
-                np.array([int(r["k"]) for r in sel]))
+        pairs = PairTable(
+            col["stamp_s"],
+            col["dt_s"],
+            col["gt_trans_mm"],
+            col["gt_rot_deg"],
+            np.zeros((n, 3)),
+            np.zeros((n, 3)),
+            col["rpe_trans_mm"],
+            col["rpe_rot_deg"],
+        )
+        return (pairs, np.array([r["dataset"] for r in sel]), np.array([int(r["k"]) for r in sel]))
 
     def recorded_speed(self) -> tuple[float, float] | None:
         """(m/s, deg/s): the fastest 1 s of any recording the table rests on."""
@@ -140,9 +162,11 @@ class ShippedTable:
         ds = ", ".join(self.datasets)
         commit = self.meta.get("engine_commit", "?")
         short = commit[:12] + ("+uncommitted" if commit.endswith("+uncommitted") else "")
-        return (f"measured {self.meta.get('generated_utc', '?')} with the engine at {short}\n"
-                f"      on {ds} (TUM RGB-D excerpts),\n      every k-th frame, k = "
-                f"{self.meta.get('k', '?')}")
+        return (
+            f"measured {self.meta.get('generated_utc', '?')} with the engine at {short}\n"
+            f"      on {ds} (TUM RGB-D excerpts),\n      every k-th frame, k = "
+            f"{self.meta.get('k', '?')}"
+        )
 
 
 def _rows_text(rows: list[dict[str, str]]) -> str:
@@ -159,29 +183,48 @@ def rows_sha256(rows: list[dict[str, str]]) -> str:
 
 
 def format_rows(source: str, dataset: str, k: int, p: PairTable) -> list[dict[str, str]]:
-    return [{"source": source, "dataset": dataset, "k": str(k),
-             "stamp_s": f"{p.stamp_s[i]:.6f}", "dt_s": f"{p.dt_s[i]:.6f}",
-             "gt_trans_mm": f"{p.gt_trans_mm[i]:.3f}", "gt_rot_deg": f"{p.gt_rot_deg[i]:.4f}",
-             "rpe_trans_mm": f"{p.rpe_trans_mm[i]:.3f}", "rpe_rot_deg": f"{p.rpe_rot_deg[i]:.4f}"}
-            for i in range(len(p))]
+    return [
+        {
+            "source": source,
+            "dataset": dataset,
+            "k": str(k),
+            "stamp_s": f"{p.stamp_s[i]:.6f}",
+            "dt_s": f"{p.dt_s[i]:.6f}",
+            "gt_trans_mm": f"{p.gt_trans_mm[i]:.3f}",
+            "gt_rot_deg": f"{p.gt_rot_deg[i]:.4f}",
+            "rpe_trans_mm": f"{p.rpe_trans_mm[i]:.3f}",
+            "rpe_rot_deg": f"{p.rpe_rot_deg[i]:.4f}",
+        }
+        for i in range(len(p))
+    ]
 
 
 def _git_commit(root: Path) -> str:
     """HEAD, with "+uncommitted" when the engine's sources differ from it (informational: the
     sha256 of the sources is what the check compares)."""
     try:
-        head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True,
-                              text=True, check=True, timeout=10).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--",
-                                *kEngineSources], capture_output=True, text=True, check=True,
-                               timeout=10).stdout.strip()
+        head = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=10,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--", *kEngineSources],
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=10,
+        ).stdout.strip()
         return head + ("+uncommitted" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
 
 
-def collect(report_dir: Path, warn) -> tuple[list[dict[str, str]], dict[str, dict], set[str],
-                                              list[int]]:
+def collect(
+    report_dir: Path, warn
+) -> tuple[list[dict[str, str]], dict[str, dict], set[str], list[int]]:
     """Rows from REPORT_DIR/runs/*/*-vo-k*/ (successful runs), the datasets they rest on, the
     engine-source hashes the runs recorded, and the k values."""
     rows, datasets, engine_hashes, ks = [], {}, set(), set()
@@ -198,12 +241,14 @@ def collect(report_dir: Path, warn) -> tuple[list[dict[str, str]], dict[str, dic
             cache[name] = Dataset.load(ds_path)
             stamps = cache[name].rgb_stamps_s
             v, w, _ = velocity.window_velocities(cache[name].groundtruth, stamps[0], stamps[-1])
-            datasets[name] = {"groundtruth_sha256": file_sha256(Path(ds_path) / "groundtruth.txt"),
-                              "frames": int(stamps.size),
-                              # the recording's own speed (1 s windows, velocity.py): faster
-                              # motion is in the table only as frames dropped, without its blur
-                              "max_trans_m_per_s": round(float(v.max()), 3) if v.size else 0.0,
-                              "max_rot_deg_per_s": round(float(w.max()), 2) if w.size else 0.0}
+            datasets[name] = {
+                "groundtruth_sha256": file_sha256(Path(ds_path) / "groundtruth.txt"),
+                "frames": int(stamps.size),
+                # the recording's own speed (1 s windows, velocity.py): faster
+                # motion is in the table only as frames dropped, without its blur
+                "max_trans_m_per_s": round(float(v.max()), 3) if v.size else 0.0,
+                "max_rot_deg_per_s": round(float(w.max()), 2) if w.size else 0.0,
+            }
         est = read_trajectory(result_path.parent / "trajectory.tum")
         p = motion_pairs(cache[name].groundtruth, est)
         rows += format_rows(f"{job['features']}-{kBackend}", name, int(job["k"]), p)
@@ -213,8 +258,9 @@ def collect(report_dir: Path, warn) -> tuple[list[dict[str, str]], dict[str, dic
     return rows, dict(sorted(datasets.items())), engine_hashes, sorted(ks)
 
 
-def write(report_dir: Path, out: Path, warn, root: Path = kRepoRoot,
-          engine_commit: str | None = None) -> ShippedTable:
+def write(
+    report_dir: Path, out: Path, warn, root: Path = kRepoRoot, engine_commit: str | None = None
+) -> ShippedTable:
     """Writes the table from a sweep's runs. Refuses runs whose recorded engine sources differ
     from the tree's (they were measured with another engine; `make study` redoes them).
     engine_commit: what to record as the engine's commit (default: git HEAD of root, marked
@@ -226,7 +272,8 @@ def write(report_dir: Path, out: Path, warn, root: Path = kRepoRoot,
     if engine_hashes != {engine}:
         raise TumFormatError(
             f"{report_dir}/runs were made with engine sources {sorted(engine_hashes)}, the tree's "
-            f"are {engine}: rerun the sweep (make study redoes runs of another engine)")
+            f"are {engine}: rerun the sweep (make study redoes runs of another engine)"
+        )
     meta = {
         "generated_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "generated_by": "slam-study table --report <sweep> (make study); do not edit by hand",
@@ -238,8 +285,10 @@ def write(report_dir: Path, out: Path, warn, root: Path = kRepoRoot,
         "rows_sha256": rows_sha256(rows),
     }
     out.parent.mkdir(parents=True, exist_ok=True)
-    head = ("# slam-study guide table: per-frame-pair error of slam-eval's front end (back-end vo)"
-            " on TUM RGB-D excerpts; docs/study.md\n")
+    head = (
+        "# slam-study guide table: per-frame-pair error of slam-eval's front end (back-end vo)"
+        " on TUM RGB-D excerpts; docs/study.md\n"
+    )
     text = head + "".join(f"# {k}: {v}\n" for k, v in meta.items()) + _rows_text(rows)
     tmp = out.with_suffix(".tmp")
     tmp.write_text(text)
@@ -276,8 +325,13 @@ def _recompute_motion(table: ShippedTable, name: str, ds: Dataset) -> tuple[int,
     """Recomputes gt_trans_mm / gt_rot_deg of the rows of dataset `name` whose two frames lie
     within ds's colour frames, from ds's ground truth. Returns (rows checked, problems)."""
     lo, hi = ds.rgb_stamps_s[0] - 1e-6, ds.rgb_stamps_s[-1] + 1e-6
-    rows = [r for r in table.rows if r["dataset"] == name and lo <= float(r["stamp_s"])
-            and float(r["stamp_s"]) + float(r["dt_s"]) <= hi]
+    rows = [
+        r
+        for r in table.rows
+        if r["dataset"] == name
+        and lo <= float(r["stamp_s"])
+        and float(r["stamp_s"]) + float(r["dt_s"]) <= hi
+    ]
     problems = []
     for r in rows:
         a = float(r["stamp_s"])
@@ -286,11 +340,15 @@ def _recompute_motion(table: ShippedTable, name: str, ds: Dataset) -> tuple[int,
         if len(p) != 1:
             problems.append(f"{name} pair at {r['stamp_s']}: no ground truth in {ds.path}")
             continue
-        if (abs(p.gt_trans_mm[0] - float(r["gt_trans_mm"])) > kMotionTolMm
-                or abs(p.gt_rot_deg[0] - float(r["gt_rot_deg"])) > kMotionTolDeg):
-            problems.append(f"{name} {r['source']} k={r['k']} pair at {r['stamp_s']}: table "
-                            f"{r['gt_trans_mm']} mm / {r['gt_rot_deg']} deg, recomputed from "
-                            f"{ds.path.name} {p.gt_trans_mm[0]:.3f} / {p.gt_rot_deg[0]:.4f}")
+        if (
+            abs(p.gt_trans_mm[0] - float(r["gt_trans_mm"])) > kMotionTolMm
+            or abs(p.gt_rot_deg[0] - float(r["gt_rot_deg"])) > kMotionTolDeg
+        ):
+            problems.append(
+                f"{name} {r['source']} k={r['k']} pair at {r['stamp_s']}: table "
+                f"{r['gt_trans_mm']} mm / {r['gt_rot_deg']} deg, recomputed from "
+                f"{ds.path.name} {p.gt_trans_mm[0]:.3f} / {p.gt_rot_deg[0]:.4f}"
+            )
     return len(rows), problems
 
 
@@ -299,12 +357,18 @@ def engine_problem(table: ShippedTable, root: Path = kRepoRoot) -> str | None:
     engine = engine_sources_sha256(root)
     if table.meta.get("engine_sources_sha256") == engine:
         return None
-    return ("the engine's sources changed since the table was measured "
-            f"({', '.join(kEngineSources)}: {table.meta.get('engine_sources_sha256')} -> {engine})")
+    return (
+        "the engine's sources changed since the table was measured "
+        f"({', '.join(kEngineSources)}: {table.meta.get('engine_sources_sha256')} -> {engine})"
+    )
 
 
-def check(table: ShippedTable, excerpts: dict[str, Path], root: Path = kRepoRoot,
-          include_engine: bool = True) -> tuple[list[str], list[str]]:
+def check(
+    table: ShippedTable,
+    excerpts: dict[str, Path],
+    root: Path = kRepoRoot,
+    include_engine: bool = True,
+) -> tuple[list[str], list[str]]:
     """(problems, checked): every way the table is found stale, and what was checked.
     `excerpts` maps a dataset name of the table to a TUM folder holding (part of) it; the rows in
     that folder's span get their ground-truth motion recomputed, and an identical ground-truth file
@@ -319,28 +383,36 @@ def check(table: ShippedTable, excerpts: dict[str, Path], root: Path = kRepoRoot
         checked.append(f"engine sources sha256 ({', '.join(kEngineSources)})")
     code = study_code_sha256()
     if table.meta.get("study_code_sha256") != code:
-        problems.append(f"the study code that makes the rows changed ({', '.join(kStudyCode)}: "
-                        f"{table.meta.get('study_code_sha256')} -> {code})")
+        problems.append(
+            f"the study code that makes the rows changed ({', '.join(kStudyCode)}: "
+            f"{table.meta.get('study_code_sha256')} -> {code})"
+        )
     checked.append(f"study code sha256 ({', '.join(kStudyCode)})")
     for name, ds_dir in sorted(excerpts.items()):
         if name not in table.datasets:  # a table measured on other data (make study DATA=...)
             checked.append(f"{name}: not in the table, nothing to recompute from {ds_dir}")
             continue
         ds = Dataset.load(ds_dir)
-        same = file_sha256(Path(ds_dir) / "groundtruth.txt") == \
-            table.datasets[name]["groundtruth_sha256"]
+        same = (
+            file_sha256(Path(ds_dir) / "groundtruth.txt")
+            == table.datasets[name]["groundtruth_sha256"]
+        )
         n, found = _recompute_motion(table, name, ds)
         problems += found
         if n == 0:
             problems.append(f"no row of {name} lies within {ds_dir}'s frames")
-        checked.append(f"{name}: ground-truth motion of {n} rows recomputed from {ds_dir} "
-                       f"({'same ground-truth file' if same else 'an excerpt'}; "
-                       f"{len(found)} disagree)")
+        checked.append(
+            f"{name}: ground-truth motion of {n} rows recomputed from {ds_dir} "
+            f"({'same ground-truth file' if same else 'an excerpt'}; "
+            f"{len(found)} disagree)"
+        )
     return problems, checked
 
 
 def regenerate_hint() -> str:
-    return ("regenerate: `STUDY_BACKENDS=vo make study` (the vo runs only; needs ../shared/data "
-            "or DATA=...: ~6 min of slam-eval CPU, 11 min wall on the shared 2 cores; a full "
-            "`make study` regenerates it too), or `slam-study table --report build/study` when "
-            "the sweep's runs are already there")
+    return (
+        "regenerate: `STUDY_BACKENDS=vo make study` (the vo runs only; needs ../shared/data "
+        "or DATA=...: ~6 min of slam-eval CPU, 11 min wall on the shared 2 cores; a full "
+        "`make study` regenerates it too), or `slam-study table --report build/study` when "
+        "the sweep's runs are already there"
+    )

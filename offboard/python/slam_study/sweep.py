@@ -31,13 +31,13 @@ kDefaultRunTimeoutS = 900.0
 
 @dataclass(frozen=True)
 class Job:
-    dataset: str      # absolute path of the TUM-layout folder
+    dataset: str  # absolute path of the TUM-layout folder
     features: str
     backend: str
     k: int
     mode: str = "wait"
-    extra_args: tuple[str, ...] = ()   # passed to slam-eval after the standard options
-    engine_sources_sha256: str = ""    # of the tree slam-eval was built from ("" = not tracked)
+    extra_args: tuple[str, ...] = ()  # passed to slam-eval after the standard options
+    engine_sources_sha256: str = ""  # of the tree slam-eval was built from ("" = not tracked)
 
     @property
     def name(self) -> str:
@@ -47,14 +47,27 @@ class Job:
         return out / "runs" / Path(self.dataset).name / f"{self.features}-{self.backend}-k{self.k}"
 
 
-def make_jobs(datasets: list[Path], features: list[str], backends: list[str], ks: list[int],
-              mode: str = "wait", extra_args: tuple[str, ...] = (),
-              engine_sources_sha256: str = "") -> list[Job]:
+def make_jobs(
+    datasets: list[Path],
+    features: list[str],
+    backends: list[str],
+    ks: list[int],
+    mode: str = "wait",
+    extra_args: tuple[str, ...] = (),
+    engine_sources_sha256: str = "",
+) -> list[Job]:
     names = [d.name for d in datasets]
     if len(set(names)) != len(names):
-        raise ValueError(f"dataset folder names must be unique (they name the run folders): {names}")
-    return [Job(str(d.resolve()), f, b, k, mode, tuple(extra_args), engine_sources_sha256)
-            for d in datasets for f in features for b in backends for k in ks]
+        raise ValueError(
+            f"dataset folder names must be unique (they name the run folders): {names}"
+        )
+    return [
+        Job(str(d.resolve()), f, b, k, mode, tuple(extra_args), engine_sources_sha256)
+        for d in datasets
+        for f in features
+        for b in backends
+        for k in ks
+    ]
 
 
 # Relative per-frame cost of the detectors, for ordering only (slam-eval on fr1_desk, 9 frames:
@@ -65,9 +78,11 @@ kFeatureCostWeight = {"sift": 4.0, "surf": 4.0, "orb": 1.0}
 def longest_first(jobs: list[Job], frames_by_dataset: dict[str, int]) -> list[Job]:
     """Expected-longest runs first (frames kept x detector weight), so the last runs to finish are
     short ones and the workers stay busy to the end (LPT scheduling)."""
+
     def cost(job: Job) -> float:
         frames = frames_by_dataset.get(job.dataset, 0) / job.k
         return frames * kFeatureCostWeight.get(job.features, 1.0)
+
     return sorted(jobs, key=cost, reverse=True)
 
 
@@ -116,8 +131,10 @@ class Progress:
         self.failed += 0 if ok else 1
         filled = self.width * self.done // max(self.total, 1)
         elapsed = self.clock_s() - self.start_s
-        line = (f"[{'#' * filled}{'.' * (self.width - filled)}] {self.done}/{self.total} runs"
-                f" ({self.failed} failed) {elapsed:6.1f} s  {name}{'' if ok else ' FAILED'}")
+        line = (
+            f"[{'#' * filled}{'.' * (self.width - filled)}] {self.done}/{self.total} runs"
+            f" ({self.failed} failed) {elapsed:6.1f} s  {name}{'' if ok else ' FAILED'}"
+        )
         if self.tty:
             self.stream.write("\r" + line[:150].ljust(150))
             if self.done == self.total:
@@ -127,14 +144,23 @@ class Progress:
         self.stream.flush()
 
 
-def run_local(jobs: list[Job], slam_eval: str, out: Path, workers: int, timeout_s: float,
-              progress: Progress, clock_s: Callable[[], float]) -> int:
+def run_local(
+    jobs: list[Job],
+    slam_eval: str,
+    out: Path,
+    workers: int,
+    timeout_s: float,
+    progress: Progress,
+    clock_s: Callable[[], float],
+) -> int:
     """Runs jobs on `workers` local slam-eval processes at a time. Returns the failed count."""
     failed = 0
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+
         def timed(job: Job):
             start = clock_s()
             return execute_job(asdict(job), slam_eval, timeout_s), clock_s() - start
+
         futures = {pool.submit(timed, job): job for job in jobs}
         for fut in as_completed(futures):
             job = futures[fut]
@@ -146,8 +172,9 @@ def run_local(jobs: list[Job], slam_eval: str, out: Path, workers: int, timeout_
     return failed
 
 
-def run_ray(jobs: list[Job], slam_eval: str, out: Path, address: str, timeout_s: float,
-            progress: Progress) -> int:
+def run_ray(
+    jobs: list[Job], slam_eval: str, out: Path, address: str, timeout_s: float, progress: Progress
+) -> int:
     """Runs jobs as Ray tasks (1 CPU each) on the cluster at `address` (e.g. 127.0.0.1:6379).
 
     The slam_study package is shipped with the job (runtime_env py_modules); slam-eval and the
@@ -155,8 +182,12 @@ def run_ray(jobs: list[Job], slam_eval: str, out: Path, address: str, timeout_s:
     import ray  # imported here: local sweeps do not need Ray installed
 
     package_dir = str(Path(__file__).resolve().parent)
-    ray.init(address=address, runtime_env={"py_modules": [package_dir]},
-             log_to_driver=False, logging_level="ERROR")
+    ray.init(
+        address=address,
+        runtime_env={"py_modules": [package_dir]},
+        log_to_driver=False,
+        logging_level="ERROR",
+    )
     try:
         remote = ray.remote(num_cpus=1, max_retries=0)(_ray_task)
         pending = {remote.remote(asdict(job), slam_eval, timeout_s): job for job in jobs}
@@ -168,8 +199,15 @@ def run_ray(jobs: list[Job], slam_eval: str, out: Path, address: str, timeout_s:
                 try:
                     result, wall_s = ray.get(ref)
                 except Exception as err:  # noqa: BLE001 - a task that died on its node: record, go on
-                    result, wall_s = {"status": "failed", "reason": f"ray task failed: {err}",
-                                      "returncode": None, "command": []}, None
+                    result, wall_s = (
+                        {
+                            "status": "failed",
+                            "reason": f"ray task failed: {err}",
+                            "returncode": None,
+                            "command": [],
+                        },
+                        None,
+                    )
                 store_result(job, out, result, wall_s)
                 ok = result["status"] == "ok"
                 failed += 0 if ok else 1

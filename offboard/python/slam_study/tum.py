@@ -59,8 +59,9 @@ def read_trajectory(path: str | Path) -> Trajectory:
     rows = []
     for lineno, fields in _data_lines(path):
         if len(fields) != 8:
-            raise TumFormatError(f"{path}:{lineno}: expected 8 fields 't tx ty tz qx qy qz qw', "
-                                 f"got {len(fields)}")
+            raise TumFormatError(
+                f"{path}:{lineno}: expected 8 fields 't tx ty tz qx qy qz qw', got {len(fields)}"
+            )
         try:
             values = [float(f) for f in fields]
         except ValueError as err:
@@ -81,11 +82,13 @@ def read_trajectory(path: str | Path) -> Trajectory:
 
 def write_trajectory(path: str | Path, traj: Trajectory) -> None:
     lines = []
-    for stamp, pose in zip(traj.stamps_s, traj.poses):
+    for stamp, pose in zip(traj.stamps_s, traj.poses, strict=False):
         q = se3.rot_to_quat_xyzw(pose[:3, :3])
         t = pose[:3, 3]
-        lines.append(f"{stamp:.6f} {t[0]:.6f} {t[1]:.6f} {t[2]:.6f} "
-                     f"{q[0]:.6f} {q[1]:.6f} {q[2]:.6f} {q[3]:.6f}")
+        lines.append(
+            f"{stamp:.6f} {t[0]:.6f} {t[1]:.6f} {t[2]:.6f} "
+            f"{q[0]:.6f} {q[1]:.6f} {q[2]:.6f} {q[3]:.6f}"
+        )
     Path(path).write_text("\n".join(lines) + "\n")
 
 
@@ -110,8 +113,9 @@ def read_frame_list(path: str | Path) -> tuple[np.ndarray, list[str]]:
     return np.asarray(stamps)[order], [names[i] for i in order]
 
 
-def associate(stamps_a: np.ndarray, stamps_b: np.ndarray,
-              max_diff_s: float = kMaxAssociationDiffS) -> tuple[np.ndarray, np.ndarray]:
+def associate(
+    stamps_a: np.ndarray, stamps_b: np.ndarray, max_diff_s: float = kMaxAssociationDiffS
+) -> tuple[np.ndarray, np.ndarray]:
     """Nearest-timestamp matching, one-to-one, |ta - tb| <= max_diff_s (TUM associate.py rule:
     candidate pairs taken greedily in order of increasing difference). Returns index arrays
     (ia, ib) sorted by ia."""

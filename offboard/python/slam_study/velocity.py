@@ -41,9 +41,9 @@ class RateStats:
     window_s: float
 
 
-def window_velocities(gt: Trajectory, start_s: float, end_s: float,
-                      window_s: float = kVelocityWindowS
-                      ) -> tuple[np.ndarray, np.ndarray, float]:
+def window_velocities(
+    gt: Trajectory, start_s: float, end_s: float, window_s: float = kVelocityWindowS
+) -> tuple[np.ndarray, np.ndarray, float]:
     """(m/s per window, deg/s per window, window used): the motion over the `window` seconds that
     follow each ground-truth sample inside [start_s, end_s], per second. The window shrinks to the
     span when the span is shorter; empty arrays with fewer than 2 samples."""
@@ -57,12 +57,16 @@ def window_velocities(gt: Trajectory, start_s: float, end_s: float,
     i, j = np.where(valid)[0], j[valid]
     rel = se3.relative(gt.poses[inside[i]], gt.poses[inside[j]])
     dt = stamps[j] - stamps[i]
-    return (np.linalg.norm(rel[:, :3, 3], axis=1) / dt,
-            se3.rotation_angle_deg(rel[:, :3, :3]) / dt, window)
+    return (
+        np.linalg.norm(rel[:, :3, 3], axis=1) / dt,
+        se3.rotation_angle_deg(rel[:, :3, :3]) / dt,
+        window,
+    )
 
 
-def windowed_velocity(gt: Trajectory, start_s: float, end_s: float,
-                      window_s: float = kVelocityWindowS) -> tuple[float, float, float]:
+def windowed_velocity(
+    gt: Trajectory, start_s: float, end_s: float, window_s: float = kVelocityWindowS
+) -> tuple[float, float, float]:
     """(m/s, deg/s, window used): mean motion over `window` seconds of the ground truth inside
     [start_s, end_s], per second. The window shrinks to the span when the span is shorter."""
     v, w, window = window_velocities(gt, start_s, end_s, window_s)
@@ -84,24 +88,67 @@ def rate_stats(dataset: Dataset, k: int) -> RateStats | None:
     duration = float(gt.stamps_s[-1] - gt.stamps_s[0])
     frames = int(dataset.rgb_stamps_s[::k].size)
     v_m_s, w_deg_s, window = windowed_velocity(dataset.groundtruth, gt.stamps_s[0], gt.stamps_s[-1])
-    return RateStats(k, kNominalFps / k, (len(gt) - 1) / duration if duration > 0 else float("nan"),
-                     duration, frames, v_m_s, w_deg_s, float(1000 * trans_m.mean()),
-                     float(rot_deg.mean()), window)
+    return RateStats(
+        k,
+        kNominalFps / k,
+        (len(gt) - 1) / duration if duration > 0 else float("nan"),
+        duration,
+        frames,
+        v_m_s,
+        w_deg_s,
+        float(1000 * trans_m.mean()),
+        float(rot_deg.mean()),
+        window,
+    )
 
 
 def rate_table(dataset: Dataset, ks: list[int]) -> Table:
-    table = Table(f"table_3_4_{dataset.name}",
-                  f"Table 3.4 - {dataset.name} at reduced frame rates (every k-th frame)",
-                  ["k", "fps (nominal)", "fps (measured)", "duration s", "frames",
-                   "trans m/s", "rot deg/s", "velocity window s", "mm/frame", "deg/frame"])
+    table = Table(
+        f"table_3_4_{dataset.name}",
+        f"Table 3.4 - {dataset.name} at reduced frame rates (every k-th frame)",
+        [
+            "k",
+            "fps (nominal)",
+            "fps (measured)",
+            "duration s",
+            "frames",
+            "trans m/s",
+            "rot deg/s",
+            "velocity window s",
+            "mm/frame",
+            "deg/frame",
+        ],
+    )
     for k in ks:
         s = rate_stats(dataset, k)
         if s is None:
-            table.rows.append([str(k), f"{kNominalFps / k:.2f}", "-", "-",
-                               str(dataset.rgb_stamps_s[::k].size), "-", "-", "-", "-", "-"])
+            table.rows.append(
+                [
+                    str(k),
+                    f"{kNominalFps / k:.2f}",
+                    "-",
+                    "-",
+                    str(dataset.rgb_stamps_s[::k].size),
+                    "-",
+                    "-",
+                    "-",
+                    "-",
+                    "-",
+                ]
+            )
             continue
-        table.rows.append([str(k), f"{s.nominal_fps:.2f}", f"{s.fps:.2f}", f"{s.duration_s:.2f}",
-                           str(s.frames), f"{s.trans_m_per_s:.3f}", f"{s.rot_deg_per_s:.2f}",
-                           f"{s.window_s:.2f}", f"{s.trans_mm_per_frame:.2f}",
-                           f"{s.rot_deg_per_frame:.3f}"])
+        table.rows.append(
+            [
+                str(k),
+                f"{s.nominal_fps:.2f}",
+                f"{s.fps:.2f}",
+                f"{s.duration_s:.2f}",
+                str(s.frames),
+                f"{s.trans_m_per_s:.3f}",
+                f"{s.rot_deg_per_s:.2f}",
+                f"{s.window_s:.2f}",
+                f"{s.trans_mm_per_frame:.2f}",
+                f"{s.rot_deg_per_frame:.3f}",
+            ]
+        )
     return table

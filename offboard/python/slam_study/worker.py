@@ -21,9 +21,23 @@ kPollS = 0.05
 
 
 def job_command(slam_eval: str, job: dict, out_dir: str) -> list[str]:
-    return [slam_eval, "run", "--dataset", job["dataset"], "--features", job["features"],
-            "--backend", job["backend"], "--rate", str(job["k"]), "--mode", job["mode"],
-            "--out", out_dir, *job.get("extra_args", [])]
+    return [
+        slam_eval,
+        "run",
+        "--dataset",
+        job["dataset"],
+        "--features",
+        job["features"],
+        "--backend",
+        job["backend"],
+        "--rate",
+        str(job["k"]),
+        "--mode",
+        job["mode"],
+        "--out",
+        out_dir,
+        *job.get("extra_args", []),
+    ]
 
 
 def execute_job(job: dict, slam_eval: str, timeout_s: float) -> dict:
@@ -34,13 +48,22 @@ def execute_job(job: dict, slam_eval: str, timeout_s: float) -> dict:
     This is the process boundary, so it reads the clock, but only to enforce timeout_s."""
     with tempfile.TemporaryDirectory(prefix="slam-study-") as tmp:
         cmd = job_command(slam_eval, job, tmp)
-        result = {"status": "failed", "returncode": None, "reason": "", "command": cmd,
-                  "cpu_s": None, "stderr_tail": "", "trajectory": None, "metrics": None}
+        result = {
+            "status": "failed",
+            "returncode": None,
+            "reason": "",
+            "command": cmd,
+            "cpu_s": None,
+            "stderr_tail": "",
+            "trajectory": None,
+            "metrics": None,
+        }
         err_path = Path(tmp) / "stderr.txt"
         try:
             with err_path.open("wb") as err_fh:
-                proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL,
-                                        stdout=subprocess.DEVNULL, stderr=err_fh)
+                proc = subprocess.Popen(
+                    cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err_fh
+                )
         except OSError as err:
             result["reason"] = f"cannot start {slam_eval}: {err.strerror}"
             return result

@@ -30,7 +30,8 @@ START_TIMEOUT_S = 60.0  # the machine may be loaded; quad-control prints its URL
 pytestmark = pytest.mark.skipif(
     not os.access(BUILD / "bin" / "quad-control", os.X_OK)
     or not (BUILD / "cmake_install.cmake").is_file(),
-    reason=f"quad-control not built in {BUILD} (build it, or set RGBD_BUILD_DIR)")
+    reason=f"quad-control not built in {BUILD} (build it, or set RGBD_BUILD_DIR)",
+)
 
 
 @pytest.fixture(scope="module")
@@ -39,8 +40,13 @@ def prefix(tmp_path_factory) -> pathlib.Path:
     if cmake is None:
         pytest.skip("cmake not on PATH")
     p = tmp_path_factory.mktemp("prefix")
-    subprocess.run([cmake, "--install", str(BUILD), "--prefix", str(p), "--component", "quad-control"],
-                   check=True, capture_output=True, text=True, timeout=120)
+    subprocess.run(
+        [cmake, "--install", str(BUILD), "--prefix", str(p), "--component", "quad-control"],
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     return p
 
 
@@ -62,23 +68,38 @@ def test_install_puts_the_binary_its_data_and_the_config_template_under_the_pref
     share = prefix / "share" / "rgbdquad"
     for f in ["bin/quad-control"]:
         assert os.access(prefix / f, os.X_OK), f
-    for f in ["dashboard/index.html", "dashboard/app.js", "data/fr1_xyz_first30/rgb.txt",
-              "data/fr1_xyz_first30/depth.txt", "config/quad-control.json"]:
+    for f in [
+        "dashboard/index.html",
+        "dashboard/app.js",
+        "data/fr1_xyz_first30/rgb.txt",
+        "data/fr1_xyz_first30/depth.txt",
+        "config/quad-control.json",
+    ]:
         assert (share / f).is_file(), f
     assert len(list((share / "data/fr1_xyz_first30/rgb").iterdir())) == 30
 
 
 def test_installed_help_names_the_installed_locations(prefix, elsewhere):
-    r = subprocess.run([str(prefix / "bin/quad-control"), "--help"], cwd=elsewhere,
-                       capture_output=True, text=True, timeout=30)
+    r = subprocess.run(
+        [str(prefix / "bin/quad-control"), "--help"],
+        cwd=elsewhere,
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     assert r.returncode == 0, r.stderr
     assert "share/rgbdquad/config/quad-control.json" in r.stdout
     assert "share/rgbdquad/{dashboard,data/fr1_xyz_first30}" in r.stdout
 
 
 def test_installed_binary_takes_its_data_from_the_prefix_from_any_directory(prefix, elsewhere):
-    r = subprocess.run([str(prefix / "bin/quad-control"), "--no-firmware", "--print-config"],
-                       cwd=elsewhere, capture_output=True, text=True, timeout=30)
+    r = subprocess.run(
+        [str(prefix / "bin/quad-control"), "--no-firmware", "--print-config"],
+        cwd=elsewhere,
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     assert r.returncode == 0, r.stderr
     line = next(x for x in r.stdout.splitlines() if x.startswith("quad-control: configuration "))
     config = json.loads(line.removeprefix("quad-control: configuration "))
@@ -91,11 +112,26 @@ def test_installed_binary_takes_its_data_from_the_prefix_from_any_directory(pref
 def test_installed_binary_serves_the_dashboard_and_state(prefix, elsewhere):
     # SLAM over the link to a port nobody listens on: frames and state still flow, no SLAM load.
     cfg = elsewhere / "qc.json"
-    cfg.write_text(json.dumps({"slam": {"mode": "server", "host": "127.0.0.1",
-                                        "port": unused_loopback_port()}}))
-    proc = subprocess.Popen([str(prefix / "bin/quad-control"), "--config", str(cfg), "--no-firmware",
-                             "--no-record", "--port", "0"],
-                            cwd=elsewhere, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    cfg.write_text(
+        json.dumps(
+            {"slam": {"mode": "server", "host": "127.0.0.1", "port": unused_loopback_port()}}
+        )
+    )
+    proc = subprocess.Popen(
+        [
+            str(prefix / "bin/quad-control"),
+            "--config",
+            str(cfg),
+            "--no-firmware",
+            "--no-record",
+            "--port",
+            "0",
+        ],
+        cwd=elsewhere,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     lines: queue.Queue[str] = queue.Queue()
     log: list[str] = []
 
@@ -139,8 +175,13 @@ def test_a_missing_data_folder_is_a_clear_error_naming_the_paths_tried(prefix, t
     copy = tmp_path / "broken"
     shutil.copytree(prefix, copy)
     shutil.rmtree(copy / "share/rgbdquad/dashboard")
-    r = subprocess.run([str(copy / "bin/quad-control"), "--no-firmware", "--print-config"],
-                       cwd=elsewhere, capture_output=True, text=True, timeout=30)
+    r = subprocess.run(
+        [str(copy / "bin/quad-control"), "--no-firmware", "--print-config"],
+        cwd=elsewhere,
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     assert r.returncode == 2, r.stdout + r.stderr
     assert "dashboard static files not found" in r.stderr
     assert str((copy / "share/rgbdquad/dashboard").resolve()) in r.stderr

@@ -25,17 +25,23 @@ from rgbd_protocol.control_bridge import WifiBridgeEmulator  # noqa: E402
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=20.0, help="measurement window (default 20)")
-    ap.add_argument("--bin", default=str(REPO / "build/bin/quad-control"), help="quad-control binary")
+    ap.add_argument(
+        "--bin", default=str(REPO / "build/bin/quad-control"), help="quad-control binary"
+    )
     args = ap.parse_args()
     double = FirmwareDouble(KEY)
     bridge = WifiBridgeEmulator(double.transact).start()
     tmp = pathlib.Path("/tmp") / f"qc-measure-{time.time_ns()}"
     tmp.mkdir()
-    qc = QuadControl(pathlib.Path(args.bin), ["--config", str(write_config(tmp, bridge.port)), "--port", "0"])
+    qc = QuadControl(
+        pathlib.Path(args.bin), ["--config", str(write_config(tmp, bridge.port)), "--port", "0"]
+    )
     try:
+
         def state() -> dict:
             with urllib.request.urlopen(qc.url + "api/state", timeout=5) as r:
                 return json.load(r)
+
         time.sleep(3)  # start-up: first frames, SLAM set-up
         a = state()
         t0 = time.monotonic()
@@ -44,16 +50,24 @@ def main() -> int:
         dt = time.monotonic() - t0
         fa, fb = a["firmware"], b["firmware"]
         print(f"window {dt:.1f} s on {b['stream']['source']}")
-        print(f"firmware: {(fb['sent'] - fa['sent']) / dt:.1f} requests/s sent, {(fb['ok'] - fa['ok']) / dt:.1f} accepted/s, "
-              f"timeouts {fb['timeouts'] - fa['timeouts']}, stale {fb['stale'] - fa['stale']}, "
-              f"errors {fb['http_errors'] - fa['http_errors']}, latency last {fb['latency_ms']:.1f} ms, "
-              f"mean {fb['mean_latency_ms']:.1f} ms")
-        print(f"stream: {(b['stream']['frames'] - a['stream']['frames']) / dt:.1f} frames/s received, "
-              f"fps counter {b['stream']['fps']:.1f}, load+decode {b['stream']['latency_ms']:.1f} ms")
+        print(
+            f"firmware: {(fb['sent'] - fa['sent']) / dt:.1f} requests/s sent, {(fb['ok'] - fa['ok']) / dt:.1f} accepted/s, "
+            f"timeouts {fb['timeouts'] - fa['timeouts']}, stale {fb['stale'] - fa['stale']}, "
+            f"errors {fb['http_errors'] - fa['http_errors']}, latency last {fb['latency_ms']:.1f} ms, "
+            f"mean {fb['mean_latency_ms']:.1f} ms"
+        )
+        print(
+            f"stream: {(b['stream']['frames'] - a['stream']['frames']) / dt:.1f} frames/s received, "
+            f"fps counter {b['stream']['fps']:.1f}, load+decode {b['stream']['latency_ms']:.1f} ms"
+        )
         sa, sb = a["slam"], b["slam"]
-        print(f"slam: {(sb['processed'] - sa['processed']) / dt:.2f} poses/s, dropped busy "
-              f"{sb['dropped_busy'] - sa['dropped_busy']}, last latency {sb['latency_ms']:.0f} ms, inliers {sb['inliers']}")
-        print(f"firmware double accepted {len(double.accepted)} commands, rejected {double.rejected}")
+        print(
+            f"slam: {(sb['processed'] - sa['processed']) / dt:.2f} poses/s, dropped busy "
+            f"{sb['dropped_busy'] - sa['dropped_busy']}, last latency {sb['latency_ms']:.0f} ms, inliers {sb['inliers']}"
+        )
+        print(
+            f"firmware double accepted {len(double.accepted)} commands, rejected {double.rejected}"
+        )
     finally:
         qc.stop()
         bridge.close()

@@ -13,7 +13,9 @@ HERE = pathlib.Path(__file__).resolve().parent
 
 def test_generated_files_are_up_to_date():
     gen = HERE.parent / "tools" / "gen_tum_cameras.py"
-    proc = subprocess.run([sys.executable, str(gen), "--check"], capture_output=True, text=True, check=False)
+    proc = subprocess.run(
+        [sys.executable, str(gen), "--check"], capture_output=True, text=True, check=False
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 

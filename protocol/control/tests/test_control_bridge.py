@@ -6,7 +6,6 @@ import json
 import socket
 
 import pytest
-
 from rgbd_protocol.control_bridge import BridgeOptions, WifiBridgeEmulator
 
 

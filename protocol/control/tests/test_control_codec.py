@@ -101,13 +101,17 @@ def test_sequence_counter_is_strictly_increasing_and_resumable():
 
 def test_golden_vectors_are_up_to_date():
     gen = HERE.parent / "tools" / "gen_control_vectors.py"
-    proc = subprocess.run([sys.executable, str(gen), "--check"], capture_output=True, text=True, check=False)
+    proc = subprocess.run(
+        [sys.executable, str(gen), "--check"], capture_output=True, text=True, check=False
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
 def test_generated_constants_and_types_are_up_to_date():
     gen = HERE.parent / "tools" / "gen_control.py"
-    proc = subprocess.run([sys.executable, str(gen), "--check"], capture_output=True, text=True, check=False)
+    proc = subprocess.run(
+        [sys.executable, str(gen), "--check"], capture_output=True, text=True, check=False
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
@@ -119,7 +123,12 @@ def test_spec_ranges_and_limits_agree_with_the_firmware():
     for ch in ("roll", "pitch", "thr", "yaw"):
         assert control.RANGES[ch] == (control.CHANNEL_MIN_US, control.CHANNEL_MAX_US)
     for name in ("Roll", "Pitch", "Yaw", "Throttle"):
-        assert control.CHANNEL_MIN_US <= lim[f"k{name}MinUs"] < lim[f"k{name}MaxUs"] <= control.CHANNEL_MAX_US
+        assert (
+            control.CHANNEL_MIN_US
+            <= lim[f"k{name}MinUs"]
+            < lim[f"k{name}MaxUs"]
+            <= control.CHANNEL_MAX_US
+        )
     assert control.MAX_REQUEST_BYTES == lim["kMaxRequestBytes"]
     # The firmware has no status table of its own any more: firmware/core/status.h aliases the
     # generated one.

@@ -17,8 +17,7 @@ import struct
 import zlib
 from dataclasses import dataclass, field
 
-from .spec import (ENVELOPE_HEADER_BYTES, ENVELOPE_TRAILER_BYTES, SCALAR_SIZES, Spec,
-                   load_spec)
+from .spec import ENVELOPE_HEADER_BYTES, ENVELOPE_TRAILER_BYTES, SCALAR_SIZES, Spec, load_spec
 
 # Stable error names, identical to rgbdquad::protocol::to_string(DecodeError).
 GARBAGE_SKIPPED = "garbage_skipped"
@@ -70,7 +69,7 @@ class _Reader:
     def take(self, n: int) -> bytes:
         if n > len(self.data) - self.pos:
             raise _Truncated()
-        out = bytes(self.data[self.pos:self.pos + n])
+        out = bytes(self.data[self.pos : self.pos + n])
         self.pos += n
         return out
 
@@ -89,8 +88,9 @@ class Codec:
         self.spec = spec or load_spec()
         self.spec.validate()
         self._enum_by_name = {e: self.spec.enum_values(e) for e in self.spec.raw["enums"]}
-        self._enum_by_code = {e: {v: k for k, v in vals.items()}
-                              for e, vals in self._enum_by_name.items()}
+        self._enum_by_code = {
+            e: {v: k for k, v in vals.items()} for e, vals in self._enum_by_name.items()
+        }
 
     # ------------------------------------------------------------------ structural decode
     def _read(self, f: dict, r: _Reader):
@@ -123,7 +123,7 @@ class Codec:
         return {f["name"]: self._read(f, r) for f in fields}
 
     # ------------------------------------------------------------------ values
-    def _check_value(self, f: dict, v, path: str) -> None:
+    def _check_value(self, f: dict, v, path: str) -> None:  # noqa: C901 (one branch per spec type)
         """Raises EncodeError naming the field when a raw (wire-form) value breaks the spec."""
         t = f["type"]
         rng = f.get("range")
@@ -134,7 +134,7 @@ class Codec:
             if v not in self._enum_by_code[t[5:]]:
                 raise EncodeError(f"{path}: unknown value")
         elif t in ("f32", "f64") or (_ARRAY_RE.match(t) and t.startswith("f")):
-            for x in (v if isinstance(v, list) else [v]):
+            for x in v if isinstance(v, list) else [v]:
                 lo, hi = rng if rng else (-math.inf, math.inf)
                 if not (math.isfinite(x) and lo <= x <= hi):
                     raise EncodeError(f"{path}: {x} outside [{lo}, {hi}] or not finite")
@@ -143,14 +143,15 @@ class Codec:
             if m and (not isinstance(v, (list, tuple)) or len(v) != int(m.group(2))):
                 raise EncodeError(f"{path}: expected {m.group(2)} values")
             bits = 8 * SCALAR_SIZES[m.group(1) if m else t]
-            for x in (v if isinstance(v, (list, tuple)) else [v]):
+            for x in v if isinstance(v, (list, tuple)) else [v]:
                 if not (isinstance(x, int) and 0 <= x < (1 << bits)):
                     raise EncodeError(f"{path}: {x} does not fit its wire type")
                 if rng and not (rng[0] <= x <= rng[1]):
                     raise EncodeError(f"{path}: {x} outside [{rng[0]}, {rng[1]}]")
         elif t == "string":
             if len(v) > self.spec.resolve_max(f["max_len"]) or not _STRING_RE.match(
-                    v.decode("latin-1")):
+                v.decode("latin-1")
+            ):
                 raise EncodeError(f"{path}: not printable ASCII within its length limit")
         elif t == "bytes":
             if len(v) > self.spec.resolve_max(f["max_len"]):
@@ -169,10 +170,11 @@ class Codec:
 
     def _check_fields(self, fields: list[dict], v: dict, path: str) -> None:
         for f in fields:
-            self._check_value(f, v[f["name"]], f"{path}{f['name']}" if not path
-                              else f"{path}.{f['name']}")
+            self._check_value(
+                f, v[f["name"]], f"{path}{f['name']}" if not path else f"{path}.{f['name']}"
+            )
 
-    def _run_checks(self, checks: list[str], v: dict, path: str) -> None:
+    def _run_checks(self, checks: list[str], v: dict, path: str) -> None:  # noqa: C901 (one per check)
         name = self._enum_by_code
         for check in checks:
             if check == "encoding_allows_pixel_format":
@@ -190,7 +192,10 @@ class Codec:
                 if not abs(x * x + y * y + z * z + w * w - 1.0) <= UNIT_QUATERNION_TOLERANCE:
                     raise EncodeError(f"{path}.q_xyzw: not a unit quaternion")
             elif check == "stream_kind_matches_pixel_format":
-                pair = (name["StreamKind"][v["stream_kind"]], name["PixelFormat"][v["pixel_format"]])
+                pair = (
+                    name["StreamKind"][v["stream_kind"]],
+                    name["PixelFormat"][v["pixel_format"]],
+                )
                 if pair not in (("RGB", "RGB8"), ("DEPTH", "DEPTH16")):
                     raise EncodeError("pixel_format: does not match stream_kind")
             elif check == "rgbd_pixel_formats":
@@ -218,12 +223,16 @@ class Codec:
         if t == "string":
             return v.decode("ascii")
         if t.startswith("struct:"):
-            return {g["name"]: self._to_friendly(g, v[g["name"]])
-                    for g in self.spec.struct_fields(t[7:])}
+            return {
+                g["name"]: self._to_friendly(g, v[g["name"]])
+                for g in self.spec.struct_fields(t[7:])
+            }
         if t.startswith("array:"):
             item_fields = self.spec.struct_fields(t[6:])
-            return [{g["name"]: self._to_friendly(g, item[g["name"]]) for g in item_fields}
-                    for item in v]
+            return [
+                {g["name"]: self._to_friendly(g, item[g["name"]]) for g in item_fields}
+                for item in v
+            ]
         return v
 
     def _to_wire(self, f: dict, v, path: str):
@@ -264,9 +273,12 @@ class Codec:
         missing = [f["name"] for f in fields if f["name"] not in values]
         if missing:
             raise EncodeError(f"{path}: missing field(s) {missing}")
-        return {f["name"]: self._to_wire(f, values[f["name"]],
-                                         f"{path}.{f['name']}" if path else f["name"])
-                for f in fields}
+        return {
+            f["name"]: self._to_wire(
+                f, values[f["name"]], f"{path}.{f['name']}" if path else f["name"]
+            )
+            for f in fields
+        }
 
     # ------------------------------------------------------------------ structural encode
     def _write(self, f: dict, v, out: bytearray) -> None:
@@ -314,14 +326,19 @@ class Codec:
         """Full envelope (header, body, trailer) of message `name`."""
         return self.wrap(self.spec.message(name)["id"], self.encode_body(name, fields))
 
-    def wrap(self, type_id: int, body: bytes, *, version: int | None = None,
-             reserved: int = 0) -> bytes:
+    def wrap(
+        self, type_id: int, body: bytes, *, version: int | None = None, reserved: int = 0
+    ) -> bytes:
         """Envelope around an already-encoded body (tests use the keywords to forge headers)."""
         header = self.spec.magic + struct.pack(
-            "<BBHI", self.spec.version if version is None else version, type_id, reserved,
-            len(body))
-        return (header + struct.pack("<I", zlib.crc32(header)) + body
-                + struct.pack("<I", zlib.crc32(body)))
+            "<BBHI", self.spec.version if version is None else version, type_id, reserved, len(body)
+        )
+        return (
+            header
+            + struct.pack("<I", zlib.crc32(header))
+            + body
+            + struct.pack("<I", zlib.crc32(body))
+        )
 
     def decode_body(self, type_id: int, body: bytes) -> tuple[str, dict]:
         """(message name, fields) of one body; raises DecodeFailure."""
@@ -341,22 +358,28 @@ class Codec:
             self._validate_message(message, wire)
         except EncodeError as e:
             raise DecodeFailure(INVALID_VALUE, str(e)) from None
-        return message["name"], {f["name"]: self._to_friendly(f, wire[f["name"]])
-                                 for f in message["fields"]}
+        return message["name"], {
+            f["name"]: self._to_friendly(f, wire[f["name"]]) for f in message["fields"]
+        }
 
     def incompatibility(self, fields: dict) -> str:
         """'' when a Handshake/SlamHello's version and schema hash equal ours, else the reason."""
         if fields["protocol_version"] != self.spec.version:
-            return (f"protocol version mismatch: peer {fields['protocol_version']}, "
-                    f"ours {self.spec.version}")
+            return (
+                f"protocol version mismatch: peer {fields['protocol_version']}, "
+                f"ours {self.spec.version}"
+            )
         if fields["schema_hash"] != self.spec.schema_hash:
-            return (f"schema hash mismatch: peer 0x{fields['schema_hash']:016x}, "
-                    f"ours 0x{self.spec.schema_hash:016x}")
+            return (
+                f"schema hash mismatch: peer 0x{fields['schema_hash']:016x}, "
+                f"ours 0x{self.spec.schema_hash:016x}"
+            )
         return ""
 
     # ------------------------------------------------------------------ JSON view
     def to_view(self, name: str, fields: dict) -> dict:
         """The JSON view shared with the C++ tool: bytes fields as lowercase hex."""
+
         def conv(v):
             if isinstance(v, (bytes, bytearray)):
                 return bytes(v).hex()
@@ -365,6 +388,7 @@ class Codec:
             if isinstance(v, list):
                 return [conv(x) for x in v]
             return v
+
         return {"type": name, "fields": conv(fields)}
 
     def from_view(self, view: dict) -> tuple[str, dict]:
@@ -383,6 +407,7 @@ class Codec:
                     v = [conv(self.spec.struct_fields(t[6:]), item) for item in v]
                 out[f["name"]] = v
             return out
+
         return message["name"], conv(message["fields"], view["fields"])
 
 
@@ -424,7 +449,7 @@ class StreamDecoder:
         if i < 0:
             i = len(buf)
             for k in range(len(magic) - 1, 0, -1):  # longest partial first = smallest offset
-                if len(buf) - k >= start and buf[len(buf) - k:] == magic[:k]:
+                if len(buf) - k >= start and buf[len(buf) - k :] == magic[:k]:
                     i = len(buf) - k
                     break
         del buf[:i]
@@ -436,15 +461,20 @@ class StreamDecoder:
             return Event("need_more")
         skipped = self._discard_to_next_magic(0)
         if skipped:
-            return Event("error", error=GARBAGE_SKIPPED, detail=f"{skipped} bytes before a magic",
-                         bytes_discarded=skipped)
+            return Event(
+                "error",
+                error=GARBAGE_SKIPPED,
+                detail=f"{skipped} bytes before a magic",
+                bytes_discarded=skipped,
+            )
         if len(buf) < ENVELOPE_HEADER_BYTES:
             return Event("need_more")
         version, type_id, reserved, body_length, header_crc = struct.unpack_from("<BBHII", buf, 4)
 
         def header_error(code: str, detail: str) -> Event:
-            return Event("error", error=code, detail=detail,
-                         bytes_discarded=self._discard_to_next_magic(1))
+            return Event(
+                "error", error=code, detail=detail, bytes_discarded=self._discard_to_next_magic(1)
+            )
 
         if zlib.crc32(bytes(buf[:12])) != header_crc:
             return header_error(BAD_HEADER_CRC, "header CRC")
@@ -463,7 +493,7 @@ class StreamDecoder:
         total = ENVELOPE_HEADER_BYTES + body_length + ENVELOPE_TRAILER_BYTES
         if len(buf) < total:
             return Event("need_more")
-        body = bytes(buf[ENVELOPE_HEADER_BYTES:ENVELOPE_HEADER_BYTES + body_length])
+        body = bytes(buf[ENVELOPE_HEADER_BYTES : ENVELOPE_HEADER_BYTES + body_length])
         (body_crc,) = struct.unpack_from("<I", buf, ENVELOPE_HEADER_BYTES + body_length)
         del buf[:total]
         if zlib.crc32(body) != body_crc:
@@ -498,9 +528,10 @@ def normalize_events(events: list[dict]) -> list[dict]:
     """
     out: list[dict] = []
     for e in events:
-        if (e.get("error") == GARBAGE_SKIPPED and out and out[-1]["event"] == "error"):
-            out[-1] = dict(out[-1], bytes_discarded=out[-1]["bytes_discarded"]
-                           + e["bytes_discarded"])
+        if e.get("error") == GARBAGE_SKIPPED and out and out[-1]["event"] == "error":
+            out[-1] = dict(
+                out[-1], bytes_discarded=out[-1]["bytes_discarded"] + e["bytes_discarded"]
+            )
         else:
             out.append(dict(e))
     return out

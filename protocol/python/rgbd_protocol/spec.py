@@ -114,8 +114,10 @@ class Spec:
         The encoding registry is left out on purpose: encodings are negotiated per stream by the
         handshake, so registering a new one must not make every older peer refuse the link.
         """
-        wire = {k: copy.deepcopy(self.raw[k]) for k in ("protocol", "limits", "enums", "structs",
-                                                         "messages")}
+        wire = {
+            k: copy.deepcopy(self.raw[k])
+            for k in ("protocol", "limits", "enums", "structs", "messages")
+        }
 
         def strip(node):
             if isinstance(node, dict):

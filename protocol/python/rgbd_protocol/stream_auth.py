@@ -35,11 +35,17 @@ def handshake_tag(codec: Codec, key: bytes, receiver_nonce: bytes, handshake: di
     return list(siphash24(key, msg))
 
 
-def ack_tag(codec: Codec, key: bytes, receiver_nonce: bytes, sender_nonce: bytes, ack: dict) -> list[int]:
+def ack_tag(
+    codec: Codec, key: bytes, receiver_nonce: bytes, sender_nonce: bytes, ack: dict
+) -> list[int]:
     """The HandshakeAck's mac on the connection with these nonces."""
     body = codec.encode_body("HandshakeAck", _zero_mac(codec, ack))
-    msg = (_auth(codec)["ack_label"].encode("ascii") + bytes(receiver_nonce) + bytes(sender_nonce)
-           + body)
+    msg = (
+        _auth(codec)["ack_label"].encode("ascii")
+        + bytes(receiver_nonce)
+        + bytes(sender_nonce)
+        + body
+    )
     return list(siphash24(key, msg))
 
 
@@ -62,8 +68,10 @@ def load_key_file(path: Path | str) -> bytes:
     """Reads a key file as the C++ side does: owner-only permissions (0600/0400) are required."""
     st = os.stat(path)
     if st.st_mode & (stat.S_IRWXG | stat.S_IRWXO):
-        raise PermissionError(f"stream key file {path} is accessible by group or others "
-                              f"(mode {stat.S_IMODE(st.st_mode):04o}); chmod 600 {path}")
+        raise PermissionError(
+            f"stream key file {path} is accessible by group or others "
+            f"(mode {stat.S_IMODE(st.st_mode):04o}); chmod 600 {path}"
+        )
     return parse_key(Path(path).read_text())
 
 

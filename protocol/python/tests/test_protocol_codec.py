@@ -8,7 +8,6 @@ import zlib
 from pathlib import Path
 
 import pytest
-
 from rgbd_protocol import Codec, EncodeError, StreamDecoder, event_view, normalize_events
 
 VECTORS = Path(__file__).resolve().parents[2] / "vectors"
@@ -20,7 +19,7 @@ def replay(data: bytes, chunk: int):
     dec = StreamDecoder(CODEC)
     events = []
     for i in range(0, len(data), chunk or max(len(data), 1)):
-        dec.feed(data[i:i + (chunk or len(data))])
+        dec.feed(data[i : i + (chunk or len(data))])
         events += dec.drain()
     return events, dec.buffered_bytes
 
@@ -58,35 +57,84 @@ def test_full_size_kinect_frames_round_trip():
     rng = random.Random(7)
     for fmt, bpp in (("RGB8", 3), ("DEPTH16", 2)):
         payload = rng.randbytes(640 * 480 * bpp)
-        fields = {"image": {"sequence": 1, "capture_timestamp_us": 2, "send_timestamp_us": 3,
-                            "width": 640, "height": 480, "pixel_format": fmt, "encoding": "RAW",
-                            "payload": payload}}
+        fields = {
+            "image": {
+                "sequence": 1,
+                "capture_timestamp_us": 2,
+                "send_timestamp_us": 3,
+                "width": 640,
+                "height": 480,
+                "pixel_format": fmt,
+                "encoding": "RAW",
+                "payload": payload,
+            }
+        }
         dec = StreamDecoder(CODEC)
         dec.feed(CODEC.encode("Frame", fields))
         (event,) = dec.drain()
         assert event.kind == "message" and event.fields == fields
 
 
-@pytest.mark.parametrize("name,fields,field", [
-    ("FrameRequest", {"credits": 0, "last_received_sequence": 0}, "credits"),
-    ("FrameRequest", {"credits": 9, "last_received_sequence": 0}, "credits"),
-    ("FrameRequest", {"credits": 1}, "missing"),
-    ("FrameRequest", {"credits": 1.5, "last_received_sequence": 0}, "credits"),
-    ("HandshakeAck", {"accepted": True, "reason": "x" * 256, "mac": [0] * 8}, "reason"),
-    ("HandshakeAck", {"accepted": True, "reason": "caf\u00e9", "mac": [0] * 8}, "reason"),
-    ("HandshakeAck", {"accepted": 1, "reason": "", "mac": [0] * 8}, "accepted"),
-    ("HandshakeAck", {"accepted": True, "reason": "", "mac": [0] * 7}, "mac"),
-    ("StreamChallenge", {"receiver_nonce": [256] + [0] * 15}, "receiver_nonce"),
-    ("FloorMap", {"revision": 0, "timestamp_us": 0, "resolution_m": math.nan, "origin_x_m": 0.0,
-                  "origin_y_m": 0.0, "width_cells": 1, "height_cells": 1,
-                  "cell_format": "OCCUPANCY_U8", "cells": b"\0"}, "resolution_m"),
-    ("FloorMap", {"revision": 0, "timestamp_us": 0, "resolution_m": 0.05, "origin_x_m": 0.0,
-                  "origin_y_m": 0.0, "width_cells": 2, "height_cells": 1,
-                  "cell_format": "OCCUPANCY_U8", "cells": b"\0"}, "cells"),
-    ("Frame", {"image": {"sequence": 0, "capture_timestamp_us": 0, "send_timestamp_us": 0,
-                         "width": 2, "height": 2, "pixel_format": "RGB8", "encoding": "NOPE",
-                         "payload": b""}}, "encoding"),
-])
+@pytest.mark.parametrize(
+    "name,fields,field",
+    [
+        ("FrameRequest", {"credits": 0, "last_received_sequence": 0}, "credits"),
+        ("FrameRequest", {"credits": 9, "last_received_sequence": 0}, "credits"),
+        ("FrameRequest", {"credits": 1}, "missing"),
+        ("FrameRequest", {"credits": 1.5, "last_received_sequence": 0}, "credits"),
+        ("HandshakeAck", {"accepted": True, "reason": "x" * 256, "mac": [0] * 8}, "reason"),
+        ("HandshakeAck", {"accepted": True, "reason": "caf\u00e9", "mac": [0] * 8}, "reason"),
+        ("HandshakeAck", {"accepted": 1, "reason": "", "mac": [0] * 8}, "accepted"),
+        ("HandshakeAck", {"accepted": True, "reason": "", "mac": [0] * 7}, "mac"),
+        ("StreamChallenge", {"receiver_nonce": [256] + [0] * 15}, "receiver_nonce"),
+        (
+            "FloorMap",
+            {
+                "revision": 0,
+                "timestamp_us": 0,
+                "resolution_m": math.nan,
+                "origin_x_m": 0.0,
+                "origin_y_m": 0.0,
+                "width_cells": 1,
+                "height_cells": 1,
+                "cell_format": "OCCUPANCY_U8",
+                "cells": b"\0",
+            },
+            "resolution_m",
+        ),
+        (
+            "FloorMap",
+            {
+                "revision": 0,
+                "timestamp_us": 0,
+                "resolution_m": 0.05,
+                "origin_x_m": 0.0,
+                "origin_y_m": 0.0,
+                "width_cells": 2,
+                "height_cells": 1,
+                "cell_format": "OCCUPANCY_U8",
+                "cells": b"\0",
+            },
+            "cells",
+        ),
+        (
+            "Frame",
+            {
+                "image": {
+                    "sequence": 0,
+                    "capture_timestamp_us": 0,
+                    "send_timestamp_us": 0,
+                    "width": 2,
+                    "height": 2,
+                    "pixel_format": "RGB8",
+                    "encoding": "NOPE",
+                    "payload": b"",
+                }
+            },
+            "encoding",
+        ),
+    ],
+)
 def test_encoder_refuses_messages_that_break_the_spec(name, fields, field):
     with pytest.raises(EncodeError, match=field):
         CODEC.encode(name, fields)
@@ -113,9 +161,18 @@ def test_seeded_random_bytes_never_raise_and_always_progress():
 
 
 def test_decoder_cap_refuses_bodies_above_it_before_they_arrive():
-    fields = {"image": {"sequence": 0, "capture_timestamp_us": 0, "send_timestamp_us": 0,
-                        "width": 8, "height": 8, "pixel_format": "RGB8", "encoding": "RAW",
-                        "payload": bytes(192)}}
+    fields = {
+        "image": {
+            "sequence": 0,
+            "capture_timestamp_us": 0,
+            "send_timestamp_us": 0,
+            "width": 8,
+            "height": 8,
+            "pixel_format": "RGB8",
+            "encoding": "RAW",
+            "payload": bytes(192),
+        }
+    }
     data = CODEC.encode("Frame", fields)
     dec = StreamDecoder(CODEC, max_body_bytes=64)
     dec.feed(data[:16])  # the header alone is enough to refuse
@@ -127,5 +184,6 @@ def test_schema_mismatch_reason_names_both_hashes():
     reason = CODEC.incompatibility({"protocol_version": 1, "schema_hash": 1})
     assert "0x0000000000000001" in reason and f"{CODEC.spec.schema_hash:016x}" in reason
     assert "version" in CODEC.incompatibility({"protocol_version": 2, "schema_hash": 1})
-    assert CODEC.incompatibility({"protocol_version": 1,
-                                  "schema_hash": CODEC.spec.schema_hash}) == ""
+    assert (
+        CODEC.incompatibility({"protocol_version": 1, "schema_hash": CODEC.spec.schema_hash}) == ""
+    )

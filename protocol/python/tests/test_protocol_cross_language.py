@@ -9,7 +9,6 @@ import subprocess
 from pathlib import Path
 
 import pytest
-
 from rgbd_protocol import Codec, StreamDecoder, event_view, normalize_events
 from rgbd_protocol.tum_cameras import TUM_DEPTH_UNITS_PER_M
 
@@ -20,7 +19,8 @@ VECTORS = ROOT / "protocol" / "vectors"
 CODEC = Codec()
 
 pytestmark = pytest.mark.skipif(
-    not BUILD.is_dir(), reason=f"build dir {BUILD} absent (build first or set RGBD_BUILD_DIR)")
+    not BUILD.is_dir(), reason=f"build dir {BUILD} absent (build first or set RGBD_BUILD_DIR)"
+)
 
 
 def tool(*args, data: bytes = b"") -> subprocess.CompletedProcess:
@@ -51,61 +51,135 @@ def random_messages(seed: int, count: int) -> list[tuple[str, dict]]:
 
     def image(fmt, w, h):
         bpp = 3 if fmt == "RGB8" else 2
-        return {"sequence": rng.getrandbits(32), "capture_timestamp_us": rng.getrandbits(64),
-                "send_timestamp_us": rng.getrandbits(64), "width": w, "height": h,
-                "pixel_format": fmt, "encoding": "RAW", "payload": rng.randbytes(w * h * bpp)}
+        return {
+            "sequence": rng.getrandbits(32),
+            "capture_timestamp_us": rng.getrandbits(64),
+            "send_timestamp_us": rng.getrandbits(64),
+            "width": w,
+            "height": h,
+            "pixel_format": fmt,
+            "encoding": "RAW",
+            "payload": rng.randbytes(w * h * bpp),
+        }
 
-    intr = {"fx_px": rng.uniform(1, 1000), "fy_px": rng.uniform(1, 1000),
-            "cx_px": rng.uniform(-500, 500), "cy_px": rng.uniform(-500, 500),
-            "distortion": [rng.uniform(-2, 2) for _ in range(5)]}
+    intr = {
+        "fx_px": rng.uniform(1, 1000),
+        "fy_px": rng.uniform(1, 1000),
+        "cx_px": rng.uniform(-500, 500),
+        "cy_px": rng.uniform(-500, 500),
+        "distortion": [rng.uniform(-2, 2) for _ in range(5)],
+    }
     makers = [
-        lambda: ("Handshake", {"protocol_version": 1, "schema_hash": CODEC.spec.schema_hash,
-                               "stream_kind": "DEPTH", "width": rng.randint(1, 4096),
-                               "height": rng.randint(1, 4096), "pixel_format": "DEPTH16",
-                               "encoding": rng.choice(["RAW", "DEPTH_RVL", "DEPTH_ZSTD_DELTA"]),
-                               "intrinsics": intr, "depth_scale_units_per_m": 1000.0,
-                               "device_id": "".join(chr(rng.randint(32, 126))
-                                                    for _ in range(rng.randint(0, 255))),
-                               "sender_nonce": list(rng.randbytes(16)), "mac": list(rng.randbytes(8))}),
-        lambda: ("HandshakeAck", {"accepted": rng.random() < 0.5, "reason": "because",
-                                  "mac": list(rng.randbytes(8))}),
+        lambda: (
+            "Handshake",
+            {
+                "protocol_version": 1,
+                "schema_hash": CODEC.spec.schema_hash,
+                "stream_kind": "DEPTH",
+                "width": rng.randint(1, 4096),
+                "height": rng.randint(1, 4096),
+                "pixel_format": "DEPTH16",
+                "encoding": rng.choice(["RAW", "DEPTH_RVL", "DEPTH_ZSTD_DELTA"]),
+                "intrinsics": intr,
+                "depth_scale_units_per_m": 1000.0,
+                "device_id": "".join(chr(rng.randint(32, 126)) for _ in range(rng.randint(0, 255))),
+                "sender_nonce": list(rng.randbytes(16)),
+                "mac": list(rng.randbytes(8)),
+            },
+        ),
+        lambda: (
+            "HandshakeAck",
+            {"accepted": rng.random() < 0.5, "reason": "because", "mac": list(rng.randbytes(8))},
+        ),
         lambda: ("StreamChallenge", {"receiver_nonce": list(rng.randbytes(16))}),
-        lambda: ("Frame", {"image": image(rng.choice(["RGB8", "DEPTH16"]), rng.randint(1, 40),
-                                          rng.randint(1, 30))}),
-        lambda: ("FrameRequest", {"credits": rng.randint(1, 8),
-                                  "last_received_sequence": rng.getrandbits(32)}),
-        lambda: ("SlamHello", {"protocol_version": 1, "schema_hash": rng.getrandbits(64),
-                               "peer_name": "slam-server", "session_id": rng.getrandbits(64),
-                               "resumed": rng.random() < 0.5,
-                               "session_frames": rng.getrandbits(32),
-                               "refusal": rng.choice(["", "slam-server busy: all 4 client slots in use"])}),
-        lambda: ("RgbdFrame", {"pair_sequence": rng.getrandbits(32), "intrinsics": intr,
-                               "depth_scale_units_per_m": TUM_DEPTH_UNITS_PER_M,
-                               "attitude": rng.choice([{"valid": True, "q_xyzw": q()},
-                                                       {"valid": False, "q_xyzw": [0.0, 0.0, 0.0, 1.0]}]),
-                               "rgb": image("RGB8", 8, 6),
-                               "depth": image("DEPTH16", 8, 6)}),
-        lambda: ("PoseUpdate", {"pair_sequence": rng.getrandbits(32),
-                                "timestamp_us": rng.getrandbits(64),
-                                "tracking_state": rng.choice(["INITIALIZING", "TRACKING", "LOST",
-                                                              "RELOCALIZED"]),
-                                "T_world_cam": pose(), "T_prev_cur": pose(),
-                                "is_keyframe": rng.random() < 0.5,
-                                "inlier_count": rng.getrandbits(32),
-                                "map_correction_count": rng.getrandbits(32)}),
-        lambda: ("PoseGraph", {"revision": rng.getrandbits(32), "timestamp_us": rng.getrandbits(64),
-                               "stage": rng.choice(["BEFORE_OPTIMISATION", "AFTER_OPTIMISATION"]),
-                               "nodes": [{"node_id": i, "timestamp_us": rng.getrandbits(64),
-                                          "T_world_node": pose()} for i in range(rng.randint(0, 30))],
-                               "edges": [{"from_id": rng.getrandbits(32), "to_id": rng.getrandbits(32),
-                                          "kind": rng.choice(["ODOMETRY", "LOOP_CLOSURE"]),
-                                          "T_from_to": pose()} for _ in range(rng.randint(0, 40))]}),
-        lambda: ("FloorMap", {"revision": 1, "timestamp_us": rng.getrandbits(64),
-                              "resolution_m": rng.uniform(0.001, 1.0),
-                              "origin_x_m": rng.uniform(-100, 100), "origin_y_m": rng.uniform(-100, 100),
-                              "width_cells": 20, "height_cells": 10,
-                              "cell_format": rng.choice(["OCCUPANCY_U8", "POINT_COUNT_U8"]),
-                              "cells": rng.randbytes(200)}),
+        lambda: (
+            "Frame",
+            {
+                "image": image(
+                    rng.choice(["RGB8", "DEPTH16"]), rng.randint(1, 40), rng.randint(1, 30)
+                )
+            },
+        ),
+        lambda: (
+            "FrameRequest",
+            {"credits": rng.randint(1, 8), "last_received_sequence": rng.getrandbits(32)},
+        ),
+        lambda: (
+            "SlamHello",
+            {
+                "protocol_version": 1,
+                "schema_hash": rng.getrandbits(64),
+                "peer_name": "slam-server",
+                "session_id": rng.getrandbits(64),
+                "resumed": rng.random() < 0.5,
+                "session_frames": rng.getrandbits(32),
+                "refusal": rng.choice(["", "slam-server busy: all 4 client slots in use"]),
+            },
+        ),
+        lambda: (
+            "RgbdFrame",
+            {
+                "pair_sequence": rng.getrandbits(32),
+                "intrinsics": intr,
+                "depth_scale_units_per_m": TUM_DEPTH_UNITS_PER_M,
+                "attitude": rng.choice(
+                    [
+                        {"valid": True, "q_xyzw": q()},
+                        {"valid": False, "q_xyzw": [0.0, 0.0, 0.0, 1.0]},
+                    ]
+                ),
+                "rgb": image("RGB8", 8, 6),
+                "depth": image("DEPTH16", 8, 6),
+            },
+        ),
+        lambda: (
+            "PoseUpdate",
+            {
+                "pair_sequence": rng.getrandbits(32),
+                "timestamp_us": rng.getrandbits(64),
+                "tracking_state": rng.choice(["INITIALIZING", "TRACKING", "LOST", "RELOCALIZED"]),
+                "T_world_cam": pose(),
+                "T_prev_cur": pose(),
+                "is_keyframe": rng.random() < 0.5,
+                "inlier_count": rng.getrandbits(32),
+                "map_correction_count": rng.getrandbits(32),
+            },
+        ),
+        lambda: (
+            "PoseGraph",
+            {
+                "revision": rng.getrandbits(32),
+                "timestamp_us": rng.getrandbits(64),
+                "stage": rng.choice(["BEFORE_OPTIMISATION", "AFTER_OPTIMISATION"]),
+                "nodes": [
+                    {"node_id": i, "timestamp_us": rng.getrandbits(64), "T_world_node": pose()}
+                    for i in range(rng.randint(0, 30))
+                ],
+                "edges": [
+                    {
+                        "from_id": rng.getrandbits(32),
+                        "to_id": rng.getrandbits(32),
+                        "kind": rng.choice(["ODOMETRY", "LOOP_CLOSURE"]),
+                        "T_from_to": pose(),
+                    }
+                    for _ in range(rng.randint(0, 40))
+                ],
+            },
+        ),
+        lambda: (
+            "FloorMap",
+            {
+                "revision": 1,
+                "timestamp_us": rng.getrandbits(64),
+                "resolution_m": rng.uniform(0.001, 1.0),
+                "origin_x_m": rng.uniform(-100, 100),
+                "origin_y_m": rng.uniform(-100, 100),
+                "width_cells": 20,
+                "height_cells": 10,
+                "cell_format": rng.choice(["OCCUPANCY_U8", "POINT_COUNT_U8"]),
+                "cells": rng.randbytes(200),
+            },
+        ),
     ]
     return [makers[i % len(makers)]() for i in range(count)]
 
@@ -147,11 +221,24 @@ def test_cpp_encodes_python_decodes():
 
 def test_full_size_frames_cross_both_ways():
     rng = random.Random(3)
-    frames = [("Frame", {"image": {"sequence": s, "capture_timestamp_us": 10 + s,
-                                   "send_timestamp_us": 20 + s, "width": 640, "height": 480,
-                                   "pixel_format": fmt, "encoding": "RAW",
-                                   "payload": rng.randbytes(640 * 480 * bpp)}})
-              for s, (fmt, bpp) in enumerate([("RGB8", 3), ("DEPTH16", 2)])]
+    frames = [
+        (
+            "Frame",
+            {
+                "image": {
+                    "sequence": s,
+                    "capture_timestamp_us": 10 + s,
+                    "send_timestamp_us": 20 + s,
+                    "width": 640,
+                    "height": 480,
+                    "pixel_format": fmt,
+                    "encoding": "RAW",
+                    "payload": rng.randbytes(640 * 480 * bpp),
+                }
+            },
+        )
+        for s, (fmt, bpp) in enumerate([("RGB8", 3), ("DEPTH16", 2)])
+    ]
     data = b"".join(CODEC.encode(n, f) for n, f in frames)
     events, _ = cpp_decode(data, 65536)
     assert events == [{"event": "message", "message": CODEC.to_view(n, f)} for n, f in frames]
@@ -195,11 +282,18 @@ def mutated_bodies(seed: int, per_seed: int) -> list[tuple[int, bytes]]:
     """Seeded mutations (byte flips, truncation, insertion) of every corpus body, with its type."""
     spec = CODEC.spec
     ids = {m["name"]: m["id"] for m in spec.messages}
-    target_to_type = {"handshake": "Handshake", "handshake_ack": "HandshakeAck", "frame": "Frame",
-                      "stream_challenge": "StreamChallenge",
-                      "frame_request": "FrameRequest", "slam_hello": "SlamHello",
-                      "rgbd_frame": "RgbdFrame", "pose_update": "PoseUpdate",
-                      "pose_graph": "PoseGraph", "floor_map": "FloorMap"}
+    target_to_type = {
+        "handshake": "Handshake",
+        "handshake_ack": "HandshakeAck",
+        "frame": "Frame",
+        "stream_challenge": "StreamChallenge",
+        "frame_request": "FrameRequest",
+        "slam_hello": "SlamHello",
+        "rgbd_frame": "RgbdFrame",
+        "pose_update": "PoseUpdate",
+        "pose_graph": "PoseGraph",
+        "floor_map": "FloorMap",
+    }
     rng = random.Random(seed)
     out = []
     for target, name in target_to_type.items():
@@ -212,9 +306,11 @@ def mutated_bodies(seed: int, per_seed: int) -> list[tuple[int, bytes]]:
                     for _ in range(rng.randint(1, 3)):
                         b[rng.randrange(len(b))] = rng.randrange(256)
                 elif op == 1 and b:
-                    del b[rng.randrange(len(b)):]
+                    del b[rng.randrange(len(b)) :]
                 else:
-                    b[rng.randint(0, len(b)):rng.randint(0, len(b))] = rng.randbytes(rng.randint(1, 4))
+                    b[rng.randint(0, len(b)) : rng.randint(0, len(b))] = rng.randbytes(
+                        rng.randint(1, 4)
+                    )
                 out.append((ids[name], bytes(b)))
     return out
 

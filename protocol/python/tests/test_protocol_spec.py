@@ -6,7 +6,6 @@ import sys
 from pathlib import Path
 
 import pytest
-
 from rgbd_protocol.spec import Spec, SpecError, load_spec
 
 PROTOCOL = Path(__file__).resolve().parents[2]
@@ -16,8 +15,17 @@ def test_spec_validates_and_has_every_required_message():
     spec = load_spec()
     spec.validate()
     names = {m["name"] for m in spec.messages}
-    assert {"Handshake", "HandshakeAck", "Frame", "FrameRequest", "SlamHello", "RgbdFrame",
-            "PoseUpdate", "PoseGraph", "FloorMap"} <= names
+    assert {
+        "Handshake",
+        "HandshakeAck",
+        "Frame",
+        "FrameRequest",
+        "SlamHello",
+        "RgbdFrame",
+        "PoseUpdate",
+        "PoseGraph",
+        "FloorMap",
+    } <= names
 
 
 def test_every_numeric_field_states_a_unit_or_is_an_enum_struct_or_flag():
@@ -44,7 +52,9 @@ def test_schema_hash_ignores_docs_and_encodings_but_not_layout():
     raw["encodings"]["DEPTH_LZ4"] = {"code": 4, "status": "reserved", "pixel_formats": ["DEPTH16"]}
     assert Spec(raw).schema_hash == spec.schema_hash
     raw["messages"][0]["fields"][1], raw["messages"][0]["fields"][2] = (
-        raw["messages"][0]["fields"][2], raw["messages"][0]["fields"][1])
+        raw["messages"][0]["fields"][2],
+        raw["messages"][0]["fields"][1],
+    )
     assert Spec(raw).schema_hash != spec.schema_hash
     raw = copy.deepcopy(spec.raw)
     raw["limits"]["max_string_bytes"]["value"] = 254
@@ -60,8 +70,12 @@ def test_inconsistent_max_body_bytes_is_caught():
 
 @pytest.mark.parametrize("tool", ["gen_cpp.py", "gen_docs.py", "make_vectors.py"])
 def test_generated_files_are_up_to_date(tool):
-    r = subprocess.run([sys.executable, str(PROTOCOL / "tools" / tool), "--check"],
-                       capture_output=True, text=True, timeout=120)
+    r = subprocess.run(
+        [sys.executable, str(PROTOCOL / "tools" / tool), "--check"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert r.returncode == 0, r.stderr
 
 

@@ -8,10 +8,15 @@ import os
 from pathlib import Path
 
 import pytest
-
 from rgbd_protocol.codec import Codec, StreamDecoder
-from rgbd_protocol.stream_auth import (ack_tag, handshake_tag, load_key_file, parse_key, tags_equal,
-                                       write_key_file)
+from rgbd_protocol.stream_auth import (
+    ack_tag,
+    handshake_tag,
+    load_key_file,
+    parse_key,
+    tags_equal,
+    write_key_file,
+)
 
 VECTORS = Path(__file__).resolve().parents[2] / "vectors"
 CODEC = Codec()
@@ -32,9 +37,9 @@ def test_vector_tags_verify_and_forged_ones_do_not():
     for v in manifest["vectors"]:
         for name, fields in _messages(v["name"]):
             if name == "Handshake":
-                tag = lambda k, n=rn: handshake_tag(CODEC, k, n, fields)  # noqa: E731
+                tag = lambda k, n=rn, fields=fields: handshake_tag(CODEC, k, n, fields)  # noqa: E731
             elif name == "HandshakeAck":
-                tag = lambda k, n=rn: ack_tag(CODEC, k, n, sn, fields)  # noqa: E731
+                tag = lambda k, n=rn, fields=fields: ack_tag(CODEC, k, n, sn, fields)  # noqa: E731
             else:
                 continue
             ok = tags_equal(fields["mac"], tag(key))

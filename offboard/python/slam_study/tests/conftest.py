@@ -27,8 +27,10 @@ def fake_slam_eval(tmp_path: Path) -> Path:
     """An executable with slam-eval's interface (tests/fake_slam_eval.py) run by this Python."""
     script = tmp_path / "slam-eval"
     pythonpath = os.pathsep.join([str(kRepo / "offboard" / "python")])
-    script.write_text("#!/bin/sh\n"
-                      f"PYTHONPATH='{pythonpath}' exec '{sys.executable}' "
-                      f"'{Path(__file__).parent / 'fake_slam_eval.py'}' \"$@\"\n")
+    script.write_text(
+        "#!/bin/sh\n"
+        f"PYTHONPATH='{pythonpath}' exec '{sys.executable}' "
+        f"'{Path(__file__).parent / 'fake_slam_eval.py'}' \"$@\"\n"
+    )
     script.chmod(0o755)
     return script

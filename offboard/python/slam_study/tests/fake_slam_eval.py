@@ -61,9 +61,15 @@ def main() -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     tum.write_trajectory(out / "trajectory.tum", tum.Trajectory(gt.stamps_s, np.array(poses)))
-    metrics = {"frames": len(gt), "keyframes": max(1, len(gt) // 3), "loop_closures": 0,
-               "timing": {"extract": {"mean_ms": 10.0, "median_ms": 9.5, "p95_ms": 14.0},
-                          "match": {"mean_ms": 2.0, "median_ms": 1.9, "p95_ms": 3.0}}}
+    metrics = {
+        "frames": len(gt),
+        "keyframes": max(1, len(gt) // 3),
+        "loop_closures": 0,
+        "timing": {
+            "extract": {"mean_ms": 10.0, "median_ms": 9.5, "p95_ms": 14.0},
+            "match": {"mean_ms": 2.0, "median_ms": 1.9, "p95_ms": 3.0},
+        },
+    }
     (out / "metrics.json").write_text(json.dumps(metrics))
     print(f"fake-slam-eval: {len(gt)} frames", file=sys.stderr)
     return 0

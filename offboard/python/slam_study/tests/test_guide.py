@@ -23,10 +23,10 @@ def test_prediction_uses_the_cell_of_the_per_frame_motion():
     preds = guide.predict(_dense_pairs(), 0.27, 15.0, fps_list=(30.0, 15.0, 16.0, 54.0, 2.0))
     at30, at15, at16, at54, at2 = preds
     assert at30.enough and at30.cell.trans_mean_mm == pytest.approx(3.0)
-    assert at15.cell is None and not at15.enough           # 18 mm: above the 17 mm measured
-    assert at2.cell is None                                # 135 mm is beyond the grid
+    assert at15.cell is None and not at15.enough  # 18 mm: above the 17 mm measured
+    assert at2.cell is None  # 135 mm is beyond the grid
     assert at16.enough and at16.cell.trans_mean_mm == pytest.approx(9.0)
-    assert at54.cell.n == 2 and not at54.enough             # thin cell: not enough data
+    assert at54.cell.n == 2 and not at54.enough  # thin cell: not enough data
 
 
 def test_lowest_rate_meeting_target():
@@ -46,19 +46,38 @@ def test_bad_velocities_are_rejected(v, w):
 
 def test_guide_cli_reads_pairs_csv(tmp_path, capsys):
     p = _dense_pairs()
-    report.write_pairs_csv(tmp_path / "pairs.csv",
-                           [report.Source("s", p, [("d", "orb", "vo", 1, p)])])
+    report.write_pairs_csv(
+        tmp_path / "pairs.csv", [report.Source("s", p, [("d", "orb", "vo", 1, p)])]
+    )
     back, source, names = report.read_pairs_csv(tmp_path / "pairs.csv")
     assert source == "s" and names == ["s"] and len(back) == len(p)
     np.testing.assert_allclose(back.gt_trans_mm, p.gt_trans_mm)
-    assert cli.main(["guide", "--trans-vel", "0.27", "--rot-vel", "15", "--target-rpe-mm", "5",
-                     "--report", str(tmp_path)]) == 0
+    assert (
+        cli.main(
+            [
+                "guide",
+                "--trans-vel",
+                "0.27",
+                "--rot-vel",
+                "15",
+                "--target-rpe-mm",
+                "5",
+                "--report",
+                str(tmp_path),
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "Lowest frame rate meeting 5 mm per frame: 30.00 fps" in out
-    assert "outside the measured motion: no prediction" in out   # 2 fps: 135 mm per frame
+    assert "outside the measured motion: no prediction" in out  # 2 fps: 135 mm per frame
     assert "outside what was measured at 15.00, 10.00" in out
-    assert cli.main(["guide", "--trans-vel", "0.27", "--rot-vel", "15",
-                     "--report", str(tmp_path / "none")]) == 2
+    assert (
+        cli.main(
+            ["guide", "--trans-vel", "0.27", "--rot-vel", "15", "--report", str(tmp_path / "none")]
+        )
+        == 2
+    )
     with pytest.raises(SystemExit):
         cli.main(["guide", "--trans-vel", "-1", "--rot-vel", "15"])
 
@@ -66,7 +85,7 @@ def test_guide_cli_reads_pairs_csv(tmp_path, capsys):
 def test_platform_table_reports_envelope_or_not_enough_data():
     table = guide.platform_table(_dense_pairs())
     assert table.rows[0][0] == "30"
-    assert table.rows[0][3] == "not enough data"      # no pure-rotation pairs at all
+    assert table.rows[0][3] == "not enough data"  # no pure-rotation pairs at all
     empty = guide.platform_table(make_pairs([], []))
     assert empty.rows[0][1] == "not enough data"
 

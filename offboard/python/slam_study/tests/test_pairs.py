@@ -33,11 +33,11 @@ def test_given_identical_trajectories_when_paired_then_error_is_zero():
 
 
 def test_given_estimate_overshooting_each_step_when_paired_then_rpe_is_the_overshoot():
-    gt = _straight_line(6, np.array([0, 0, 0.010]))           # 10 mm along the optical axis
-    est = _straight_line(6, np.array([0, 0, 0.013]))          # 13 mm per step
+    gt = _straight_line(6, np.array([0, 0, 0.010]))  # 10 mm along the optical axis
+    est = _straight_line(6, np.array([0, 0, 0.013]))  # 13 mm per step
     p = pairs.motion_pairs(gt, est)
     np.testing.assert_allclose(p.rpe_trans_mm, 3.0, atol=1e-9)
-    np.testing.assert_allclose(p.trans_share[:, 2], 1.0)      # z share
+    np.testing.assert_allclose(p.trans_share[:, 2], 1.0)  # z share
 
 
 @pytest.mark.parametrize("axis_index, expected_axis", [(2, "roll"), (0, "pitch"), (1, "yaw")])
@@ -66,9 +66,9 @@ def test_given_motion_then_shares_are_in_the_first_frames_camera_frame():
 
 def test_given_estimate_frame_without_ground_truth_then_pairs_around_it_are_dropped():
     gt = _straight_line(10, np.array([0.005, 0, 0]))
-    gt_missing = gt.subset(np.array([0, 1, 2, 3, 5, 6, 7, 8, 9]))   # no ground truth at frame 4
+    gt_missing = gt.subset(np.array([0, 1, 2, 3, 5, 6, 7, 8, 9]))  # no ground truth at frame 4
     p = pairs.motion_pairs(gt_missing, gt)
-    assert len(p) == 7     # pairs (3,4) and (4,5) dropped, not bridged into a 10 mm pair
+    assert len(p) == 7  # pairs (3,4) and (4,5) dropped, not bridged into a 10 mm pair
     np.testing.assert_allclose(p.gt_trans_mm, 5.0)
 
 
@@ -91,14 +91,16 @@ def test_rotation_vector_round_trip_including_near_pi():
     vecs *= (rng.uniform(0, np.pi - 1e-3, 50) / np.linalg.norm(vecs, axis=1))[:, None]
     vecs[0] = [0, 0, np.pi - 1e-8]
     angles = np.linalg.norm(vecs, axis=1)
-    quats = np.hstack([np.sin(angles / 2)[:, None] * vecs / angles[:, None],
-                       np.cos(angles / 2)[:, None]])
+    quats = np.hstack(
+        [np.sin(angles / 2)[:, None] * vecs / angles[:, None], np.cos(angles / 2)[:, None]]
+    )
     back = se3.rotation_vector(se3.quat_xyzw_to_rot(quats))
     np.testing.assert_allclose(np.abs(back[0]), np.abs(vecs[0]), atol=1e-6)
     np.testing.assert_allclose(back[1:], vecs[1:], atol=1e-7)
     for q in quats[1:5]:
-        np.testing.assert_allclose(np.abs(se3.rot_to_quat_xyzw(se3.quat_xyzw_to_rot(q))),
-                                   np.abs(q), atol=1e-12)
+        np.testing.assert_allclose(
+            np.abs(se3.rot_to_quat_xyzw(se3.quat_xyzw_to_rot(q))), np.abs(q), atol=1e-12
+        )
 
 
 def _noisy_estimate(gt: tum.Trajectory, seed: int) -> tum.Trajectory:
@@ -108,7 +110,8 @@ def _noisy_estimate(gt: tum.Trajectory, seed: int) -> tum.Trajectory:
     for i in range(len(gt)):
         angle = np.radians(rng.normal(0, 0.3, 3))
         poses[i, :3, :3] = poses[i, :3, :3] @ se3.quat_xyzw_to_rot(
-            np.append(np.sin(angle / 2), 1.0))
+            np.append(np.sin(angle / 2), 1.0)
+        )
     return tum.Trajectory(gt.stamps_s + 0.003, poses)
 
 
@@ -130,11 +133,13 @@ def test_rpe_and_ate_match_evo(fr1_xyz30, tmp_path):
     traj_gt = file_interface.read_tum_trajectory_file(str(fr1_xyz30 / "groundtruth.txt"))
     traj_est = file_interface.read_tum_trajectory_file(str(est_file))
     traj_gt, traj_est = sync.associate_trajectories(traj_gt, traj_est, max_diff=0.02)
-    rpe_t = evo_metrics.RPE(evo_metrics.PoseRelation.translation_part, delta=1,
-                            delta_unit=evo_metrics.Unit.frames)
+    rpe_t = evo_metrics.RPE(
+        evo_metrics.PoseRelation.translation_part, delta=1, delta_unit=evo_metrics.Unit.frames
+    )
     rpe_t.process_data((traj_gt, traj_est))
-    rpe_r = evo_metrics.RPE(evo_metrics.PoseRelation.rotation_angle_deg, delta=1,
-                            delta_unit=evo_metrics.Unit.frames)
+    rpe_r = evo_metrics.RPE(
+        evo_metrics.PoseRelation.rotation_angle_deg, delta=1, delta_unit=evo_metrics.Unit.frames
+    )
     rpe_r.process_data((traj_gt, traj_est))
     aligned = copy.deepcopy(traj_est)
     aligned.align(traj_gt)
@@ -143,11 +148,14 @@ def test_rpe_and_ate_match_evo(fr1_xyz30, tmp_path):
 
     assert len(ours) == len(rpe_t.error) == 29
     assert pairs.rmse(ours.rpe_trans_mm) == pytest.approx(
-        1000 * rpe_t.get_statistic(evo_metrics.StatisticsType.rmse), rel=1e-6)
+        1000 * rpe_t.get_statistic(evo_metrics.StatisticsType.rmse), rel=1e-6
+    )
     assert pairs.rmse(ours.rpe_rot_deg) == pytest.approx(
-        rpe_r.get_statistic(evo_metrics.StatisticsType.rmse), rel=1e-5)
-    assert ours_ate.rmse_m == pytest.approx(ape.get_statistic(evo_metrics.StatisticsType.rmse),
-                                            rel=1e-6)
+        rpe_r.get_statistic(evo_metrics.StatisticsType.rmse), rel=1e-5
+    )
+    assert ours_ate.rmse_m == pytest.approx(
+        ape.get_statistic(evo_metrics.StatisticsType.rmse), rel=1e-6
+    )
 
 
 def test_effect_fit_recovers_known_coefficients():
@@ -164,6 +172,5 @@ def test_effect_fit_recovers_known_coefficients():
     np.testing.assert_allclose(coef, [1, 0.4, 4, 0.1], atol=0.02)
     assert np.all(se < 0.02)
     assert report.effect_fit(make_pairs(t[:5], r[:5], rpe_mm=err[:5])) is None
-    additive, _ = report.effect_fit(make_pairs(t, r, rpe_mm=1 + 0.4 * t + 4 * r),
-                                    interaction=False)
+    additive, _ = report.effect_fit(make_pairs(t, r, rpe_mm=1 + 0.4 * t + 4 * r), interaction=False)
     np.testing.assert_allclose(additive, [1, 0.4, 4], atol=1e-9)

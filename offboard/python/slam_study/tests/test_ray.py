@@ -23,11 +23,13 @@ import pytest
 
 from slam_study import cli
 
-kRayStartTimeoutS = 120.0   # a cold Ray head takes ~10-20 s on 2 busy cores
+kRayStartTimeoutS = 120.0  # a cold Ray head takes ~10-20 s on 2 busy cores
 
-pytestmark = pytest.mark.skipif(os.environ.get("SLAM_STUDY_RAY_TEST") != "1",
-                                reason="Ray cluster test is opt-in (SLAM_STUDY_RAY_TEST=1; "
-                                       "offboard/study.sh runs it): ~20 s of Ray start-up")
+pytestmark = pytest.mark.skipif(
+    os.environ.get("SLAM_STUDY_RAY_TEST") != "1",
+    reason="Ray cluster test is opt-in (SLAM_STUDY_RAY_TEST=1; "
+    "offboard/study.sh runs it): ~20 s of Ray start-up",
+)
 
 
 def _free_port() -> int:
@@ -45,7 +47,7 @@ def _session_pids(sid: int) -> list[int]:
             fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
         except OSError:
             continue
-        if int(fields[3]) == sid:       # field 6 of stat (session id), after pid and (comm)
+        if int(fields[3]) == sid:  # field 6 of stat (session id), after pid and (comm)
             pids.append(int(entry.name))
     return pids
 
@@ -56,14 +58,31 @@ def ray_head():
     if not ray_bin.exists():
         pytest.skip("ray is not installed in this Python environment")
     port = _free_port()
-    temp_dir = tempfile.mkdtemp(prefix="rs", dir="/tmp")   # short: Ray's socket paths < 108 chars
+    temp_dir = tempfile.mkdtemp(prefix="rs", dir="/tmp")  # short: Ray's socket paths < 108 chars
     env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0")
     log = open(Path(temp_dir) / "head.log", "w")  # noqa: SIM115 - open for the node's lifetime
     head = subprocess.Popen(
-        [str(ray_bin), "start", "--head", "--block", "--port", str(port),
-         "--node-ip-address", "127.0.0.1", "--num-cpus", "1", "--include-dashboard=false",
-         "--disable-usage-stats", "--temp-dir", temp_dir],
-        stdout=log, stderr=subprocess.STDOUT, start_new_session=True, env=env)
+        [
+            str(ray_bin),
+            "start",
+            "--head",
+            "--block",
+            "--port",
+            str(port),
+            "--node-ip-address",
+            "127.0.0.1",
+            "--num-cpus",
+            "1",
+            "--include-dashboard=false",
+            "--disable-usage-stats",
+            "--temp-dir",
+            temp_dir,
+        ],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+        env=env,
+    )
     address = f"127.0.0.1:{port}"
     try:
         deadline = time.monotonic() + kRayStartTimeoutS
@@ -104,9 +123,28 @@ def ray_head():
 def test_sweep_on_a_local_ray_cluster(ray_head, tmp_path, fr1_desk9, fake_slam_eval, monkeypatch):
     monkeypatch.setenv("RAY_USAGE_STATS_ENABLED", "0")
     out = tmp_path / "report"
-    assert cli.main(["run", "--data", str(fr1_desk9), "--out", str(out), "--slam-eval",
-                     str(fake_slam_eval), "--features", "sift,orb", "--backends", "vo",
-                     "--k", "1", "--ray", ray_head]) == 0
+    assert (
+        cli.main(
+            [
+                "run",
+                "--data",
+                str(fr1_desk9),
+                "--out",
+                str(out),
+                "--slam-eval",
+                str(fake_slam_eval),
+                "--features",
+                "sift,orb",
+                "--backends",
+                "vo",
+                "--k",
+                "1",
+                "--ray",
+                ray_head,
+            ]
+        )
+        == 0
+    )
     for cfg in ("sift-vo-k1", "orb-vo-k1"):
         result = json.loads((out / "runs" / "fr1_desk_9frames" / cfg / "result.json").read_text())
         assert result["status"] == "ok", result

@@ -23,8 +23,9 @@ def test_shipped_table_is_not_stale():
     with the real TUM excerpts in tests/data. Fix: regenerate (message below)."""
     table = shipped.read()
     problems, checked = shipped.check(table, _excerpts(), include_engine=False)
-    assert not problems, ("guide table stale:\n  " + "\n  ".join(problems) + "\n"
-                          + shipped.regenerate_hint())
+    assert not problems, (
+        "guide table stale:\n  " + "\n  ".join(problems) + "\n" + shipped.regenerate_hint()
+    )
     recomputed = [c for c in checked if "recomputed" in c]
     assert len(recomputed) == 2 and all(" 0 rows" not in c for c in recomputed), checked
 
@@ -36,6 +37,7 @@ def test_guide_says_when_the_engine_changed_since_the_table_was_measured(tmp_pat
     was measured with other engine sources and how to re-measure (`slam-study table --check`
     exits 1 on it)."""
     from slam_study import cli
+
     table = shipped.read()
     stale = _rewrite(table, table.rows, tmp_path / "stale.csv", engine_sources_sha256="0" * 64)
     assert shipped.engine_problem(shipped.read(stale)) is not None
@@ -49,8 +51,12 @@ def test_guide_says_when_the_engine_changed_since_the_table_was_measured(tmp_pat
 def _rewrite(table: shipped.ShippedTable, rows: list[dict], path: Path, **meta) -> Path:
     """A table file with `rows`, keeping the meta but with rows_sha256 recomputed and the engine
     hash of this tree (so that only the fault a test plants shows, whatever the engine's state)."""
-    m = {**table.meta, "rows_sha256": shipped.rows_sha256(rows),
-         "engine_sources_sha256": shipped.engine_sources_sha256(), **meta}
+    m = {
+        **table.meta,
+        "rows_sha256": shipped.rows_sha256(rows),
+        "engine_sources_sha256": shipped.engine_sources_sha256(),
+        **meta,
+    }
     path.write_text("".join(f"# {k}: {v}\n" for k, v in m.items()) + shipped._rows_text(rows))
     return path
 
@@ -65,7 +71,7 @@ def test_check_catches_a_row_edited_by_hand(table, tmp_path):
     assert shipped.check(shipped.read(path), _excerpts())[0] == []
     text = path.read_text()
     row = next(line for line in text.splitlines() if line.startswith("orb-vo,"))
-    edited = row.rsplit(",", 2)[0] + ",1.000," + row.rsplit(",", 1)[1]   # rpe_trans_mm := 1 mm
+    edited = row.rsplit(",", 2)[0] + ",1.000," + row.rsplit(",", 1)[1]  # rpe_trans_mm := 1 mm
     path.write_text(text.replace(row, edited, 1))
     problems, _ = shipped.check(shipped.read(path), _excerpts())
     assert len(problems) == 1 and "rows_sha256" in problems[0]
@@ -75,12 +81,17 @@ def test_check_recomputes_ground_truth_motion_from_tests_data(table, tmp_path):
     # GIVEN a table whose hash is consistent but one fr1/xyz row's motion is off by 0.01 mm
     rows = [dict(r) for r in table.rows]
     first30 = tum.Dataset.load(kTestData / "fr1_xyz_first30")
-    i = next(i for i, r in enumerate(rows) if r["dataset"] == "fr1_xyz_first300"
-             and first30.rgb_stamps_s[0] <= float(r["stamp_s"])
-             and float(r["stamp_s"]) + float(r["dt_s"]) < first30.rgb_stamps_s[-1])
+    i = next(
+        i
+        for i, r in enumerate(rows)
+        if r["dataset"] == "fr1_xyz_first300"
+        and first30.rgb_stamps_s[0] <= float(r["stamp_s"])
+        and float(r["stamp_s"]) + float(r["dt_s"]) < first30.rgb_stamps_s[-1]
+    )
     rows[i]["gt_trans_mm"] = f"{float(rows[i]['gt_trans_mm']) + 0.01:.3f}"
-    problems, _ = shipped.check(shipped.read(_rewrite(table, rows, tmp_path / "t.csv")),
-                                _excerpts())
+    problems, _ = shipped.check(
+        shipped.read(_rewrite(table, rows, tmp_path / "t.csv")), _excerpts()
+    )
     # THEN only the recomputation from the real excerpt finds it
     assert len(problems) == 1 and "recomputed from fr1_xyz_first30" in problems[0]
 
@@ -117,8 +128,9 @@ def test_cli_check_exit_status(tmp_path, capsys, table):
     assert "is stale: regenerate" in capsys.readouterr().err
 
 
-def test_table_from_a_sweep_then_guide(tmp_path, fr1_xyz30, fr1_desk9, fake_slam_eval,
-                                       monkeypatch, capsys):
+def test_table_from_a_sweep_then_guide(
+    tmp_path, fr1_xyz30, fr1_desk9, fake_slam_eval, monkeypatch, capsys
+):
     # GIVEN a sweep (stand-in slam-eval) on the two real excerpts, with the tree's engine hash
     monkeypatch.setattr(cli, "_engine_sha256", lambda _: shipped.engine_sources_sha256())
     out = tmp_path / "study"
@@ -126,19 +138,42 @@ def test_table_from_a_sweep_then_guide(tmp_path, fr1_xyz30, fr1_desk9, fake_slam
     data.mkdir()
     for d in (fr1_xyz30, fr1_desk9):
         (data / d.name).symlink_to(d)
-    assert cli.main(["run", "--data", str(data), "--out", str(out), "--slam-eval",
-                     str(fake_slam_eval), "--features", "sift,orb", "--backends", "vo,glc",
-                     "--k", "1,2", "--jobs", "2", "--no-report"]) == 0
+    assert (
+        cli.main(
+            [
+                "run",
+                "--data",
+                str(data),
+                "--out",
+                str(out),
+                "--slam-eval",
+                str(fake_slam_eval),
+                "--features",
+                "sift,orb",
+                "--backends",
+                "vo,glc",
+                "--k",
+                "1,2",
+                "--jobs",
+                "2",
+                "--no-report",
+            ]
+        )
+        == 0
+    )
     # WHEN the table is written
     path = tmp_path / "guide_pairs.csv"
     assert cli.main(["table", "--report", str(out), "--out", str(path)]) == 0
     t = shipped.read(path)
     # THEN it holds the vo runs only, both datasets, and passes the check on the same excerpts
-    assert t.sources() == ["orb-vo", "sift-vo"] and list(t.datasets) == ["fr1_desk_9frames",
-                                                                         "fr1_xyz_first30"]
+    assert t.sources() == ["orb-vo", "sift-vo"] and list(t.datasets) == [
+        "fr1_desk_9frames",
+        "fr1_xyz_first30",
+    ]
     assert len(t.rows) == 2 * ((29 + 14) + (8 + 4))
-    problems, checked = shipped.check(t, {"fr1_xyz_first30": fr1_xyz30,
-                                          "fr1_desk_9frames": fr1_desk9})
+    problems, checked = shipped.check(
+        t, {"fr1_xyz_first30": fr1_xyz30, "fr1_desk_9frames": fr1_desk9}
+    )
     assert not problems and "same ground-truth file" in " ".join(checked)
     # AND the guide reads it, naming the data per cell
     assert cli.main(["guide", "--trans-vel", "0.2", "--rot-vel", "10", "--table", str(path)]) == 0
@@ -158,8 +193,9 @@ def test_guide_on_a_fresh_clone_states_data_interval_and_range(capsys):
     assert cli.main(["guide", "--trans-vel", "0.1", "--rot-vel", "3"]) == 0
     slow = capsys.readouterr().out
     assert "Data: slam-eval " in slow and "fr1_xyz_first300" in slow and "95 % CI" in slow
-    assert cli.main(["guide", "--trans-vel", "0.41", "--rot-vel", "23", "--target-rpe-mm",
-                     "10"]) == 0
+    assert (
+        cli.main(["guide", "--trans-vel", "0.41", "--rot-vel", "23", "--target-rpe-mm", "10"]) == 0
+    )
     typical = capsys.readouterr().out
     assert "Lowest frame rate meeting 10 mm" in typical or "No candidate rate" in typical
     assert cli.main(["guide", "--trans-vel", "3", "--rot-vel", "200"]) == 0
@@ -170,8 +206,10 @@ def test_guide_on_a_fresh_clone_states_data_interval_and_range(capsys):
 def test_guide_help_shows_an_example(capsys):
     with pytest.raises(SystemExit):
         cli.main(["guide", "--help"])
-    assert "slam-study guide --trans-vel 0.41 --rot-vel 23 --target-rpe-mm 8" in \
-        capsys.readouterr().out
+    assert (
+        "slam-study guide --trans-vel 0.41 --rot-vel 23 --target-rpe-mm 8"
+        in capsys.readouterr().out
+    )
 
 
 def test_flight_summary_from_a_trajectory(tmp_path):

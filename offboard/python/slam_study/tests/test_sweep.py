@@ -8,13 +8,29 @@ from slam_study import cli, sweep
 
 
 def _run_cli(out, data, slam_eval, *extra):
-    return cli.main(["run", "--data", str(data), "--out", str(out), "--slam-eval", str(slam_eval),
-                     "--features", "sift,orb", "--backends", "vo", "--k", "1,2", "--jobs", "2",
-                     *extra])
+    return cli.main(
+        [
+            "run",
+            "--data",
+            str(data),
+            "--out",
+            str(out),
+            "--slam-eval",
+            str(slam_eval),
+            "--features",
+            "sift,orb",
+            "--backends",
+            "vo",
+            "--k",
+            "1,2",
+            "--jobs",
+            "2",
+            *extra,
+        ]
+    )
 
 
-def test_sweep_runs_every_job_resumes_and_reports(tmp_path, fr1_xyz30, fake_slam_eval,
-                                                  monkeypatch):
+def test_sweep_runs_every_job_resumes_and_reports(tmp_path, fr1_xyz30, fake_slam_eval, monkeypatch):
     log = tmp_path / "invocations.txt"
     monkeypatch.setenv("FAKE_SLAM_EVAL_LOG", str(log))
     monkeypatch.setenv("FAKE_SLAM_EVAL_FAIL", "orb")
@@ -25,19 +41,21 @@ def test_sweep_runs_every_job_resumes_and_reports(tmp_path, fr1_xyz30, fake_slam
     ok = json.loads((out / "runs/fr1_xyz_first30/sift-vo-k2/result.json").read_text())
     bad = json.loads((out / "runs/fr1_xyz_first30/orb-vo-k1/result.json").read_text())
     assert ok["status"] == "ok" and bad["status"] == "failed"
-    assert ok["cpu_s"] > 0.0                  # the stand-in's own CPU time, from wait4
+    assert ok["cpu_s"] > 0.0  # the stand-in's own CPU time, from wait4
     assert "exited with 3" in bad["reason"]
     assert "configured to fail" in (out / "runs/fr1_xyz_first30/orb-vo-k1/stderr.txt").read_text()
     report = (out / "report.md").read_text()
     record = json.loads((out / "sweep.json").read_text())["invocations"][-1]
     assert record["runs_ok"] == 2 and record["runs_failed"] == 2
     assert "Table 4.14" in report and "Table 4.20a" in report and "Table 3.4" in report
-    assert ("| fr1_xyz_first30 | orb-vo | 1 | slam-eval exited with 3: fake-slam-eval: orb is "
-            "configured to fail |") in report
+    assert (
+        "| fr1_xyz_first30 | orb-vo | 1 | slam-eval exited with 3: fake-slam-eval: orb is "
+        "configured to fail |"
+    ) in report
     assert (out / "plots" / "traj_fr1_xyz_first30.png").stat().st_size > 1000
     assert (out / "tables" / "table_4_5_rpe.csv").is_file()
     pairs_lines = (out / "pairs.csv").read_text().splitlines()
-    assert len(pairs_lines) == 1 + 29 + 14          # sift at k=1 and k=2
+    assert len(pairs_lines) == 1 + 29 + 14  # sift at k=1 and k=2
     # WHEN it runs again THEN nothing is redone; with --retry-failed only the failures are
     assert _run_cli(out, fr1_xyz30, fake_slam_eval) == 0
     assert len(log.read_text().splitlines()) == 4
@@ -46,27 +64,43 @@ def test_sweep_runs_every_job_resumes_and_reports(tmp_path, fr1_xyz30, fake_slam
     assert len(log.read_text().splitlines()) == 6
     history = json.loads((out / "sweep.json").read_text())["invocations"]
     assert [h["runs_this_invocation"] for h in history] == [4, 0, 2]
-    assert json.loads((out / "runs/fr1_xyz_first30/orb-vo-k1/result.json").read_text())[
-        "status"] == "ok"
+    assert (
+        json.loads((out / "runs/fr1_xyz_first30/orb-vo-k1/result.json").read_text())["status"]
+        == "ok"
+    )
 
 
 def test_run_rejects_missing_binary_and_data(tmp_path, fr1_xyz30, capsys):
     assert _run_cli(tmp_path / "r", fr1_xyz30, tmp_path / "no-slam-eval") == 2
     assert "slam-eval not found" in capsys.readouterr().err
-    assert cli.main(["run", "--data", str(tmp_path), "--out", str(tmp_path / "r"),
-                     "--slam-eval", "/bin/true"]) == 2
+    assert (
+        cli.main(
+            [
+                "run",
+                "--data",
+                str(tmp_path),
+                "--out",
+                str(tmp_path / "r"),
+                "--slam-eval",
+                "/bin/true",
+            ]
+        )
+        == 2
+    )
     assert "no TUM-layout dataset" in capsys.readouterr().err
 
 
 def test_job_list_and_names(fr1_xyz30, fr1_desk9):
-    jobs = sweep.make_jobs([fr1_xyz30, fr1_desk9], ["sift", "surf", "orb"], ["vo", "llc", "glc"],
-                           [1, 2, 3])
+    jobs = sweep.make_jobs(
+        [fr1_xyz30, fr1_desk9], ["sift", "surf", "orb"], ["vo", "llc", "glc"], [1, 2, 3]
+    )
     assert len(jobs) == 2 * 9 * 3
     assert jobs[0].name == "fr1_xyz_first30/sift-vo-k1"
 
 
 def test_progress_line_counts_failures():
     import io
+
     stream = io.StringIO()
     ticks = iter([0.0, 1.5, 3.0])
     progress = sweep.Progress(2, stream, lambda: next(ticks), width=10)

@@ -12,12 +12,15 @@ from slam_study.pairs import PairTable
 def make_pairs(trans_mm, rot_deg, rpe_mm=None, rpe_deg=None, trans_share=None, rot_share=None):
     n = len(trans_mm)
     return PairTable(
-        stamp_s=np.arange(n, dtype=float), dt_s=np.full(n, 1 / 30),
-        gt_trans_mm=np.asarray(trans_mm, float), gt_rot_deg=np.asarray(rot_deg, float),
+        stamp_s=np.arange(n, dtype=float),
+        dt_s=np.full(n, 1 / 30),
+        gt_trans_mm=np.asarray(trans_mm, float),
+        gt_rot_deg=np.asarray(rot_deg, float),
         trans_share=np.asarray(trans_share if trans_share is not None else [[1 / 3] * 3] * n),
         rot_share=np.asarray(rot_share if rot_share is not None else [[1 / 3] * 3] * n),
         rpe_trans_mm=np.asarray(rpe_mm if rpe_mm is not None else np.ones(n), float),
-        rpe_rot_deg=np.asarray(rpe_deg if rpe_deg is not None else np.full(n, 0.1), float))
+        rpe_rot_deg=np.asarray(rpe_deg if rpe_deg is not None else np.full(n, 0.1), float),
+    )
 
 
 def _row(table, label):
@@ -26,12 +29,15 @@ def _row(table, label):
 
 def test_translation_study_selects_low_rotation_and_bins_half_open():
     # GIVEN pairs at bin edges, and one with too much rotation for the translation study
-    p = make_pairs(trans_mm=[1.0, 1.99, 2.0, 5.0, 5.0], rot_deg=[0.1, 0.1, 0.29, 0.1, 0.3],
-                   rpe_mm=[1.0, 3.0, 7.0, 2.0, 100.0])
+    p = make_pairs(
+        trans_mm=[1.0, 1.99, 2.0, 5.0, 5.0],
+        rot_deg=[0.1, 0.1, 0.29, 0.1, 0.3],
+        rpe_mm=[1.0, 3.0, 7.0, 2.0, 100.0],
+    )
     t414, _ = tables.translation_study(p)
     assert _row(t414, "1-2")[1:3] == ["2 (thin)", "2.00 ± 1.00"]
     assert _row(t414, "2-4")[1] == "1 (thin)"
-    assert _row(t414, "4-6")[2] == "2.00 ± 0.00"     # the 0.3 deg pair is excluded
+    assert _row(t414, "4-6")[2] == "2.00 ± 0.00"  # the 0.3 deg pair is excluded
     assert _row(t414, "15-19")[1] == "0"
 
 
@@ -40,20 +46,20 @@ def test_single_axis_translation_needs_more_than_80_percent():
     p = make_pairs([5.0, 5.0, 5.0], [0.1, 0.1, 0.1], rpe_mm=[2.0, 9.0, 4.0], trans_share=shares)
     _, t415 = tables.translation_study(p)
     row = _row(t415, "4-6")
-    assert row[1].startswith("2.00 ± 0.00 [1")   # x: only the 0.81 pair
+    assert row[1].startswith("2.00 ± 0.00 [1")  # x: only the 0.81 pair
     assert row[2].startswith("- [0")
-    assert row[3].startswith("4.00 ± 0.00 [1")   # z
+    assert row[3].startswith("4.00 ± 0.00 [1")  # z
 
 
 def test_rotation_study_selects_low_translation_and_single_axis_at_85_percent():
     shares = [[0.9, 0.05, 0.05], [0.84, 0.16, 0.0], [0.0, 0.0, 1.0]]
     p = make_pairs([1.0, 2.9, 3.0], [0.5, 0.5, 0.5], rpe_deg=[0.2, 0.4, 9.0], rot_share=shares)
     t417, t418 = tables.rotation_study(p)
-    assert _row(t417, "0.4-0.6")[1] == "2 (thin)"   # the 3 mm pair is excluded
+    assert _row(t417, "0.4-0.6")[1] == "2 (thin)"  # the 3 mm pair is excluded
     assert _row(t417, "0.4-0.6")[3] == "0.300 ± 0.100"
     row = _row(t418, "0.4-0.6")
-    assert row[1].startswith("0.200 ± 0.000 [1")     # roll: 0.9 share
-    assert row[3].startswith("- [0")                 # yaw pair is the excluded 3 mm one
+    assert row[1].startswith("0.200 ± 0.000 [1")  # roll: 0.9 share
+    assert row[3].startswith("- [0")  # yaw pair is the excluded 3 mm one
 
 
 def test_joint_grid_is_9x9_and_places_pairs():
@@ -62,7 +68,7 @@ def test_joint_grid_is_9x9_and_places_pairs():
     assert len(cells) == 9 and all(len(row) == 9 for row in cells)
     assert cells[8][8].n == 2 and cells[8][8].trans_mean_mm == pytest.approx(35.0)
     assert cells[0][0].n == 1
-    assert sum(c.n for row in cells for c in row) == 3      # 18.0 mm is outside [16, 18)
+    assert sum(c.n for row in cells for c in row) == 3  # 18.0 mm is outside [16, 18)
     assert t_tab.rows[8][9] == "35.00 ± 5.00 [2]"
     assert len(r_tab.rows) == 9
 
@@ -91,7 +97,7 @@ def test_rate_stats_on_real_excerpt(fr1_xyz30):
     assert s3.fps == pytest.approx(10.0, rel=0.05)
     assert s3.trans_mm_per_frame == pytest.approx(3 * s1.trans_mm_per_frame, rel=0.25)
     assert s3.trans_m_per_s == pytest.approx(s1.trans_m_per_s, rel=0.1)
-    assert s1.window_s == pytest.approx(0.97, abs=0.02)     # the excerpt is shorter than 1 s
+    assert s1.window_s == pytest.approx(0.97, abs=0.02)  # the excerpt is shorter than 1 s
     assert velocity.rate_stats(ds, 30) is None
     with pytest.raises(ValueError):
         velocity.rate_stats(ds, 0)
