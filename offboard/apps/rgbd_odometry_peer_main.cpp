@@ -13,7 +13,7 @@
 
 #include "slam/dataset/tum_dataset.hpp"
 #include "slam/eval/metrics.hpp"
-#include "slam/pipeline/frontend.hpp"
+#include "slam/thesis/frontend.hpp"
 
 namespace fs = std::filesystem;
 

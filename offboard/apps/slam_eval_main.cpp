@@ -3,7 +3,7 @@
 //                 [--mode wait|realtime|sequential] --out DIR
 //     writes DIR/trajectory.tum (final: each frame anchored to its optimised keyframe),
 //     DIR/trajectory_online.tum (poses as estimated at the time), DIR/metrics.json, DIR/map.ply,
-//     DIR/graph_before.g2o, DIR/graph_after.g2o; progress on stderr.
+//     and for the thesis back-ends DIR/graph_before.g2o, DIR/graph_after.g2o; progress on stderr.
 //   slam-eval score --gt GT.txt --est EST.tum    prints the ATE/RPE JSON.
 //   slam-eval vocab --dataset DIR [--dataset DIR2] --out FILE   trains the ORB bag-of-words
 //     vocabulary (deterministic; offboard/slam/data/orb_vocabulary_k10_l3.bin is its output on
@@ -154,10 +154,10 @@ bool write_run_outputs(const RunArgs& a, const slam::Pipeline& pipeline,
       !slam::eval::write_tum_trajectory((out / "trajectory_online.tum").string(),
                                         run->online_trajectory, err))
     return false;
-  const auto& be = pipeline.backend();
-  if (!slam::write_text_file((out / "graph_before.g2o").string(),
-                             be.graph_before_optimisation().to_g2o(), err) ||
-      !slam::write_text_file((out / "graph_after.g2o").string(), be.graph().to_g2o(), err))
+  const slam::BackEnd* be = pipeline.backend();  // the thesis systems' pose graph
+  if (be && (!slam::write_text_file((out / "graph_before.g2o").string(),
+                                    be->graph_before_optimisation().to_g2o(), err) ||
+             !slam::write_text_file((out / "graph_after.g2o").string(), be->graph().to_g2o(), err)))
     return false;
   if (!a.no_map) {
     slam::MapExportOptions mo;
@@ -165,7 +165,7 @@ bool write_run_outputs(const RunArgs& a, const slam::Pipeline& pipeline,
     const std::string ply = (out / "map.ply").string();
     const long map_points = pipeline.is_local_map()
                                 ? slam::write_map_points_ply(ply, *pipeline.local_map(), err)
-                                : slam::write_keyframe_map_ply(ply, be, intr, mo, err);
+                                : slam::write_keyframe_map_ply(ply, *be, intr, mo, err);
     if (map_points < 0) return false;
     run->exported_map_points = map_points;
   }
@@ -328,9 +328,10 @@ int run_command(const RunArgs& a) {
     std::cerr << ", ATE " << m["ate_rmse_m"].get<double>() << " m, RPE "
               << m.value("rpe_trans_rmse_mm", 0.0) << " mm / " << m.value("rpe_rot_rmse_deg", 0.0)
               << " deg";
-  std::cerr << "\nslam-eval: wrote " << a.out
-            << "/{trajectory.tum,trajectory_online.tum,metrics.json,"
-            << (a.no_map ? "" : "map.ply,") << "graph_before.g2o,graph_after.g2o}\n";
+  std::cerr << "\nslam-eval: wrote " << a.out << "/{trajectory.tum,trajectory_online.tum,"
+            << (a.no_map ? "" : "map.ply,") << "metrics.json"
+            << (setup->pipeline->is_local_map() ? "" : ",graph_before.g2o,graph_after.g2o")
+            << "}\n";
   return 0;
 }
 

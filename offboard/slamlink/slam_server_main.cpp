@@ -25,8 +25,8 @@
 #include <map>
 #include <memory>
 
-#include "slam/localmap/map_io.hpp"
-#include "slam/pipeline/thread_priority.hpp"
+#include "slam/core/thread_priority.hpp"
+#include "slam/map/map_io.hpp"
 #include "slam_connection.hpp"
 #include "slam_sessions.hpp"
 

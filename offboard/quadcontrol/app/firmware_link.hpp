@@ -34,7 +34,7 @@
 #include "core/command_scheduler.hpp"
 #include "core/stick_mapping.hpp"
 #include "link/control_codec.hpp"
-#include "slam/pipeline/thread_priority.hpp"
+#include "slam/core/thread_priority.hpp"
 
 namespace rgbdquad::quadcontrol {
 

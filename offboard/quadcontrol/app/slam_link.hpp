@@ -15,8 +15,8 @@
 
 #include "app/frame_mailbox.hpp"
 #include "app/frame_source.hpp"
+#include "slam/core/thread_priority.hpp"
 #include "slam/pipeline/pipeline.hpp"
-#include "slam/pipeline/thread_priority.hpp"
 
 namespace rgbdquad::quadcontrol {
 

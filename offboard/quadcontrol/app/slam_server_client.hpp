@@ -29,7 +29,7 @@
 #include "app/slam_link.hpp"
 #include "app/slam_link_socket.hpp"
 #include "rgbdquad/protocol/codec.hpp"
-#include "slam/pipeline/thread_priority.hpp"
+#include "slam/core/thread_priority.hpp"
 
 namespace rgbdquad::quadcontrol {
 

@@ -6,7 +6,7 @@
 
 #include <string>
 
-#include "slam/pipeline/thread_priority.hpp"
+#include "slam/core/thread_priority.hpp"
 
 namespace rgbdquad::quadcontrol {
 

@@ -14,7 +14,7 @@
 #include "record/channels.hpp"
 #include "rgbdquad/encodings/depth_codec.h"
 #include "rgbdquad/recorder/mcap_writer.hpp"
-#include "slam/pipeline/thread_priority.hpp"
+#include "slam/core/thread_priority.hpp"
 
 namespace rgbdquad::quadcontrol {
 

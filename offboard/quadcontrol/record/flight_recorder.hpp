@@ -41,8 +41,8 @@
 #include "link/control_codec.hpp"
 #include "map/floor_map.hpp"
 #include "record/encoded_image.hpp"
+#include "slam/core/thread_priority.hpp"
 #include "slam/core/types.hpp"
-#include "slam/pipeline/thread_priority.hpp"
 
 namespace rgbdquad::quadcontrol {
 

@@ -1,9 +1,35 @@
 // Intrinsics validation and the named TUM cameras.
 #include "slam/core/types.hpp"
 
+#include <chrono>
 #include <cmath>
+#include <ctime>
 
 namespace slam {
+
+std::int64_t steady_now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+std::int64_t thread_cpu_now_ns() {
+  timespec ts{};
+  if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts) != 0) return 0;
+  return static_cast<std::int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
+}
+
+const char* to_string(TrackingState s) {
+  switch (s) {
+    case TrackingState::kInitialising:
+      return "initialising";
+    case TrackingState::kTracking:
+      return "tracking";
+    case TrackingState::kLost:
+      return "lost";
+  }
+  return "?";
+}
 
 bool Intrinsics::is_valid(std::string* error) const {
   const bool finite = std::isfinite(fx_px) && std::isfinite(fy_px) && std::isfinite(cx_px) &&

@@ -43,6 +43,16 @@ struct RgbdFrame {
   std::optional<Eigen::Quaterniond> q_nav_cam;
 };
 
+/// What a tracker knows of the camera's pose after a frame.
+enum class TrackingState { kInitialising, kTracking, kLost };
+const char* to_string(TrackingState s);
+
+/// Milliseconds elapsed on a steady clock since `start_ns` (instrumentation only, never logic).
+std::int64_t steady_now_ns();
+/// CPU time consumed by the calling thread, nanoseconds (instrumentation only).
+std::int64_t thread_cpu_now_ns();
+inline double ms_since(std::int64_t start_ns) { return (steady_now_ns() - start_ns) * 1e-6; }
+
 /// Rotation angle of a rigid transform in radians.
 inline double rotation_angle_rad(const Eigen::Isometry3d& T) {
   return Eigen::AngleAxisd(T.rotation()).angle();

@@ -5,8 +5,8 @@
 #include <string>
 
 #include "slam/core/types.hpp"
-#include "slam/localmap/tracker.hpp"
-#include "slam/pipeline/backend.hpp"
+#include "slam/thesis/backend.hpp"
+#include "slam/tracking/tracker.hpp"
 
 namespace slam {
 

@@ -27,6 +27,8 @@ namespace {
 void add_local_map_metrics(const RunOutcome& run, json* m) {
   (*m)["keyframes_culled"] = run.summary.keyframes_culled;
   (*m)["relocalisations"] = run.summary.relocalisations;
+  (*m)["frames_lost"] = run.summary.frames_lost;
+  (*m)["segments_started"] = run.summary.segments_started;
   (*m)["cross_checks"] = run.summary.cross_checks;
   (*m)["cross_check_replacements"] = run.summary.cross_check_replacements;
   std::vector<double> map_ms, map_cpu, ba_ms;

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "slam/eval/metrics.hpp"
-#include "slam/localmap/local_mapper.hpp"
-#include "slam/localmap/loop_closer.hpp"
+#include "slam/loopclosing/loop_closer.hpp"
+#include "slam/mapping/local_mapper.hpp"
 #include "slam/pipeline/pipeline.hpp"
 
 namespace slam {

@@ -6,9 +6,9 @@
 #include <utility>
 #include <vector>
 
-#include "slam/keyframes/keyframes.hpp"
-#include "slam/loop/glc_search.hpp"
-#include "slam/loop/loop.hpp"
+#include "slam/thesis/glc_search.hpp"
+#include "slam/thesis/keyframes.hpp"
+#include "slam/thesis/loop.hpp"
 
 namespace slam {
 namespace {

@@ -6,11 +6,11 @@
 #include <random>
 
 #include "slam/features/features.hpp"
-#include "slam/localmap/map.hpp"
-#include "slam/localmap/motion_bound.hpp"
-#include "slam/localmap/place_index.hpp"
-#include "slam/localmap/pose_optimizer.hpp"
-#include "slam/localmap/projection_search.hpp"
+#include "slam/map/map.hpp"
+#include "slam/map/place_index.hpp"
+#include "slam/tracking/motion_bound.hpp"
+#include "slam/tracking/pose_optimizer.hpp"
+#include "slam/tracking/projection_search.hpp"
 
 namespace slam {
 namespace {

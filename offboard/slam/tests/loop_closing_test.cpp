@@ -8,12 +8,12 @@
 #include <random>
 
 #include "slam/dataset/tum_dataset.hpp"
-#include "slam/localmap/keyframe_database.hpp"
-#include "slam/localmap/local_mapper.hpp"
-#include "slam/localmap/loop_closer.hpp"
-#include "slam/localmap/map_io.hpp"
-#include "slam/localmap/place_index.hpp"
-#include "slam/localmap/vocabulary.hpp"
+#include "slam/loopclosing/keyframe_database.hpp"
+#include "slam/loopclosing/loop_closer.hpp"
+#include "slam/loopclosing/vocabulary.hpp"
+#include "slam/map/map_io.hpp"
+#include "slam/map/place_index.hpp"
+#include "slam/mapping/local_mapper.hpp"
 
 namespace slam {
 namespace {

@@ -1,8 +1,8 @@
-// Thread scheduling of the real-time path (slam/pipeline/thread_priority.hpp). What the OS grants
+// Thread scheduling of the real-time path (slam/core/thread_priority.hpp). What the OS grants
 // depends on the host (root or CAP_SYS_NICE in a container, or nothing): each test checks that the
 // result says what the thread really runs under, whichever way it went, and that a refusal names a
 // reason. Every test runs in its own std::thread so the test runner's thread is never changed.
-#include "slam/pipeline/thread_priority.hpp"
+#include "slam/core/thread_priority.hpp"
 
 #include <gtest/gtest.h>
 #include <pthread.h>

@@ -378,7 +378,7 @@ TEST(SlamLinkSession, GivenAFrameFromAnotherCameraMidSessionThenItIsRefusedWithB
 
 // A rotation matrix orthonormal only to rounding can give |w| = 1 + 2e-16, which the codec's
 // range check refuses: before pose_to_wire, slam-server then failed to encode the PoseUpdate and
-// closed the connection without a word (the SLAM-link resets of issue 13).
+// closed the connection without a word (the SLAM-link resets once seen in HIL flights).
 TEST(PoseToWire, GivenRotationsAtTheEdgeOfTheCodecsChecksThenTheWirePoseIsValid) {
   struct Case {
     const char* name;

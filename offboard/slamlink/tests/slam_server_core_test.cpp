@@ -8,7 +8,7 @@
 #include <fstream>
 
 #include "rgbdquad/protocol/codec.hpp"
-#include "slam/localmap/map_io.hpp"
+#include "slam/map/map_io.hpp"
 #include "slam_connection.hpp"
 #include "slam_sessions.hpp"
 
@@ -59,7 +59,8 @@ TEST(SessionRegistry, GivenAParkedSessionWhenTheSameIdComesBackWithinTheGraceThe
 }
 
 TEST(SessionRegistry, GivenACheckpointOfTheAskedIdThenARestartedServerResumesItElseStartsANewMap) {
-  // GIVEN a checkpoint folder holding a whole map file for session 42 and garbage for session 43
+  // GIVEN a checkpoint folder holding a whole map file for session id 42 and garbage for session id
+  // 43
   const std::filesystem::path dir = ::testing::TempDir() + "/registry_checkpoints";
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
@@ -82,14 +83,14 @@ TEST(SessionRegistry, GivenACheckpointOfTheAskedIdThenARestartedServerResumesItE
       << err;
   { std::ofstream(reg.checkpoint_path(43)) << "half a map"; }
   std::vector<std::string> log;
-  // WHEN session 42 is asked for: THEN it resumes from the checkpoint (map and world frame kept)
+  // WHEN session id 42 is asked for: THEN it resumes from the checkpoint (map and world frame kept)
   const AttachResult a = reg.attach(42, 1, 0, &log);
   EXPECT_TRUE(a.resumed);
   ASSERT_EQ(starts.size(), 1u);
   EXPECT_TRUE(starts[0].resume_from_checkpoint);
   EXPECT_EQ(starts[0].checkpoint_path, (dir / "session-000000000000002a.map").string());
   EXPECT_NE(log.back().find("resumed from its checkpoint"), std::string::npos) << log.back();
-  // AND session 43's broken checkpoint starts a new map, saying why
+  // AND session id 43's broken checkpoint starts a new map, saying why
   EXPECT_FALSE(reg.attach(43, 2, 0, &log).resumed);
   EXPECT_FALSE(starts[1].resume_from_checkpoint);
   EXPECT_NE(log.back().find("checkpoint is unusable"), std::string::npos) << log.back();

@@ -167,12 +167,12 @@ class Client:
 
 
 def test_broken_connection_resumes_the_same_map(server_factory):
-    # GIVEN a client that sent 3 frames in session 0x1234
+    # GIVEN a client that sent 3 frames in session 0x12AB
     srv = server_factory()
     tex = texture()
     a = Client(srv.port)
-    h = a.hello(0x1234)
-    assert h["session_id"] == 0x1234 and not h["resumed"] and h["refusal"] == ""
+    h = a.hello(0x12AB)
+    assert h["session_id"] == 0x12AB and not h["resumed"] and h["refusal"] == ""
     for seq in range(3):
         a.send(frame_bytes(seq, tex))
         assert a.next_message().name == "PoseUpdate"
@@ -180,14 +180,14 @@ def test_broken_connection_resumes_the_same_map(server_factory):
     a.close()
     srv.wait_log("closed: peer closed the connection (end of file)")
     b = Client(srv.port)
-    h = b.hello(0x1234)
+    h = b.hello(0x12AB)
     # THEN the map continues: resumed, 3 frames in it, the next pose is tracked (not initialising)
-    assert h["resumed"] and h["session_frames"] == 3 and h["session_id"] == 0x1234
+    assert h["resumed"] and h["session_frames"] == 3 and h["session_id"] == 0x12AB
     b.send(frame_bytes(3, tex))
     u = b.next_message()
     assert u.name == "PoseUpdate" and u.fields["pair_sequence"] == 13
     assert u.fields["tracking_state"] == "TRACKING"
-    assert "session 0000000000001234 resumed" in srv.log()
+    assert "session 00000000000012ab resumed" in srv.log()
     b.close()
 
 

@@ -5,7 +5,7 @@ reports every PoseUpdate that cannot be used and how the connection ended.
     python offboard/slamlink/tools/replay_link.py --port 5700 --data ../shared/data/fr1_xyz_first300 \
         --frames 1500 --max-skip 6 [--spec old_messages.json]
 
-Used to find the SLAM-link resets of issue 13 (docs/control.md). Frames are read once and kept in
+Reproduces SLAM-link resets under a lossy stream (docs/control.md). Frames are read once and kept in
 memory; the replay bounces back and forth through the folder. Exit status 0 when the connection
 survived every frame, 1 when slam-server closed it.
 """

@@ -1,0 +1,414 @@
+// Local mapping; see local_mapper.hpp.
+#include "slam/mapping/local_mapper.hpp"
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+
+#include <algorithm>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "slam/matching/matching.hpp"
+#include "slam/tracking/projection_search.hpp"
+
+namespace slam {
+
+namespace {
+
+/// Whitened RGB-D reprojection residual of one observation. Pose block: angle-axis (3) and
+/// translation (3) of T_cam_world; point block: world position (3).
+struct RgbdReprojectionCost {
+  RgbdReprojectionCost(const Eigen::Vector3d& measurement, const Eigen::Vector3d& sigma_px,
+                       const CameraModel& cam)
+      : z_(measurement), inv_sigma_(sigma_px.cwiseInverse()), cam_(cam) {}
+  template <typename T>
+  bool operator()(const T* pose, const T* point, T* residual) const {
+    T pc[3];
+    ceres::AngleAxisRotatePoint(pose, point, pc);
+    pc[0] += pose[3];
+    pc[1] += pose[4];
+    pc[2] += pose[5];
+    if (pc[2] < T(1e-3)) pc[2] = T(1e-3);  // keeps the residual finite; such an edge is an outlier
+    const T iz = T(1.0) / pc[2];
+    residual[0] = (T(cam_.fx_px) * pc[0] * iz + T(cam_.cx_px) - T(z_.x())) * T(inv_sigma_.x());
+    residual[1] = (T(cam_.fy_px) * pc[1] * iz + T(cam_.cy_px) - T(z_.y())) * T(inv_sigma_.y());
+    residual[2] = (T(cam_.bf_px_m) * iz - T(z_.z())) * T(inv_sigma_.z());
+    return true;
+  }
+  Eigen::Vector3d z_;
+  Eigen::Vector3d inv_sigma_;
+  CameraModel cam_;
+};
+
+std::array<double, 6> to_block(const Eigen::Isometry3d& T_cam_world) {
+  const Eigen::AngleAxisd aa(T_cam_world.rotation());
+  const Eigen::Vector3d w = aa.axis() * aa.angle();
+  const Eigen::Vector3d t = T_cam_world.translation();
+  return {w.x(), w.y(), w.z(), t.x(), t.y(), t.z()};
+}
+
+Eigen::Isometry3d from_block(const std::array<double, 6>& b) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d w(b[0], b[1], b[2]);
+  const double angle = w.norm();
+  if (angle > 1e-12) T.linear() = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(b[3], b[4], b[5]);
+  return T;
+}
+
+double chi2_of(const MapKeyframe& kf, int kp, const Eigen::Vector3d& p_world,
+               const CameraModel& cam) {
+  const Eigen::Vector3d pc = kf.T_world_cam.inverse() * p_world;
+  if (pc.z() <= 1e-3) return 1e9;
+  const auto k = static_cast<std::size_t>(kp);
+  const Eigen::Vector3d e =
+      (cam.project(pc) - kf.features.measurement(k, cam)).cwiseQuotient(kf.features.sigma(k));
+  return e.squaredNorm();
+}
+
+}  // namespace
+
+FuseCounts fuse_into_keyframe(SlamMap& map, const CameraModel& camera, double radius_px,
+                              std::int64_t target, const std::vector<std::int64_t>& pids) {
+  FuseCounts counts;
+  const MapKeyframe* kf = map.keyframe(target);
+  if (!kf) return counts;
+  const Eigen::Isometry3d T_cam_world = kf->T_world_cam.inverse();
+  const cv::Mat& desc = kf->features.features->descriptors;
+  const bool binary = desc.type() == CV_8U;
+  std::vector<int> cand;
+  for (std::int64_t pid : pids) {
+    const MapPoint* p = map.point(pid);
+    if (!p || p->observations.count(target)) continue;
+    const Eigen::Vector3d pc = T_cam_world * p->p_world_m;
+    if (pc.z() <= 0.1) continue;
+    const Eigen::Vector3d uvd = camera.project(pc);
+    if (!camera.in_image(uvd.x(), uvd.y())) continue;
+    kf->features.grid.query(uvd.x(), uvd.y(), radius_px * 8.0, &cand);
+    double best = 1e300;
+    int best_k = -1;
+    for (int k : cand) {
+      const auto ks = static_cast<std::size_t>(k);
+      const Eigen::Vector3d e =
+          (uvd - kf->features.measurement(ks, camera)).cwiseQuotient(kf->features.sigma(ks));
+      if (e.head<2>().norm() > radius_px || e.squaredNorm() > kChi2Rgbd95) continue;
+      const double d = descriptor_distance(p->descriptor, desc.row(k));
+      if (d < best) {
+        best = d;
+        best_k = k;
+      }
+    }
+    if (best_k < 0) continue;
+    // Fusion gate: ORB-SLAM2 TH_LOW (50 bits) for binary; NNMMT for float descriptors.
+    const double gate = binary ? 50.0 : 0.5 * distance_to_origin(desc.row(best_k));
+    if (best > gate) continue;
+    const std::int64_t there = kf->point_ids[static_cast<std::size_t>(best_k)];
+    if (there >= 0 && there != pid) {
+      const MapPoint* q = map.point(there);
+      if (!q) continue;
+      // Keep the point with more observations (ties: the older one).
+      const bool keep_q = q->observations.size() > p->observations.size() ||
+                          (q->observations.size() == p->observations.size() && there < pid);
+      if (keep_q)
+        map.replace_point(pid, there);
+      else
+        map.replace_point(there, pid);
+      ++counts.merged;
+    } else if (there < 0) {
+      map.add_observation(pid, target, best_k);
+      ++counts.attached;
+    }
+    kf = map.keyframe(target);
+    if (!kf) return counts;
+  }
+  return counts;
+}
+
+bool LocalMapperOptions::is_valid(std::string* error) const {
+  auto fail = [&](const char* m) {
+    if (error) *error = std::string("local mapper: ") + m;
+    return false;
+  };
+  if (!(min_found_ratio >= 0 && min_found_ratio < 1))
+    return fail("min_found_ratio must be in [0, 1)");
+  if (cull_after_keyframes < 1 || min_observing_keyframes < 1)
+    return fail("culling counts must be >= 1");
+  if (fuse_neighbours < 0 || !(fuse_radius_px > 0)) return fail("fuse settings must be positive");
+  if (ba_window < 2 || ba_max_fixed < 0 || ba_iterations < 1)
+    return fail("BA window >= 2, iterations >= 1");
+  if (!(redundant_fraction > 0 && redundant_fraction <= 1) || redundant_observers < 1)
+    return fail("redundancy settings out of range");
+  return true;
+}
+
+std::optional<LocalMapper> LocalMapper::create(const LocalMapperOptions& options,
+                                               const CameraModel& camera,
+                                               std::shared_ptr<SharedMap> map, std::string* error) {
+  if (!options.is_valid(error)) return std::nullopt;
+  if (!map) {
+    if (error) *error = "local mapper: no map";
+    return std::nullopt;
+  }
+  return LocalMapper(options, camera, std::move(map));
+}
+
+MapperStats LocalMapper::process(std::int64_t kf_id, const KeyframesWaiting& waiting) {
+  const std::int64_t t0 = steady_now_ns();
+  const std::int64_t c0 = thread_cpu_now_ns();
+  MapperStats stats;
+  stats.keyframe = kf_id;
+  const auto behind = [&] { return waiting && waiting(); };
+  {
+    std::lock_guard<MapMutex> lock(map_->mutex);
+    if (!map_->map.has_keyframe(kf_id)) return stats;
+    stats.points_culled = cull_points(kf_id);
+  }
+  // Point culling runs for every keyframe (it judges points by the keyframe count); the rest works
+  // on the neighbourhood, which the next keyframe shares.
+  stats.caught_up = behind();
+  if (!stats.caught_up) fuse(kf_id, &stats);
+  if (options_.bundle_adjustment && !stats.caught_up) bundle_adjust(kf_id, waiting, &stats);
+  if (!stats.caught_up && !behind()) {
+    std::lock_guard<MapMutex> lock(map_->mutex);
+    stats.keyframes_culled = cull_keyframes(kf_id);
+  }
+  stats.total_ms = ms_since(t0);
+  stats.total_cpu_ms = (thread_cpu_now_ns() - c0) * 1e-6;
+  return stats;
+}
+
+int LocalMapper::cull_points(std::int64_t kf_id) {
+  SlamMap& map = map_->map;
+  const std::int64_t serial_now = map.keyframes_created();
+  const MapKeyframe* kf = map.keyframe(kf_id);
+  for (std::int64_t pid : kf->point_ids)
+    if (pid >= 0)
+      if (const MapPoint* p = map.point(pid); p && p->first_keyframe == kf_id)
+        recent_points_.push_back(pid);
+  int culled = 0;
+  std::vector<std::int64_t> keep;
+  for (std::int64_t pid : recent_points_) {
+    MapPoint* p = map.point(pid);
+    if (!p) continue;
+    const std::int64_t age = serial_now - p->first_keyframe_serial;
+    const bool rarely_found =
+        p->visible >= 1 && static_cast<double>(p->found) < options_.min_found_ratio * p->visible;
+    if (rarely_found ||
+        (age >= options_.cull_after_keyframes &&
+         static_cast<int>(p->observations.size()) < options_.min_observing_keyframes)) {
+      map.erase_point(pid);
+      ++culled;
+    } else if (age < options_.cull_after_keyframes + 1) {
+      keep.push_back(pid);
+    }
+  }
+  recent_points_ = std::move(keep);
+  return culled;
+}
+
+void LocalMapper::fuse(std::int64_t kf_id, MapperStats* stats) {
+  std::lock_guard<MapMutex> lock(map_->mutex);
+  SlamMap& map = map_->map;
+  const auto cov = map.covisible(kf_id, 1);
+  std::vector<std::int64_t> neighbours;
+  for (std::size_t i = 0; i < cov.size() && static_cast<int>(i) < options_.fuse_neighbours; ++i)
+    neighbours.push_back(cov[i].first);
+  auto own_points = [&]() {
+    std::vector<std::int64_t> v;
+    if (const MapKeyframe* kf = map.keyframe(kf_id))
+      for (std::int64_t pid : kf->point_ids)
+        if (pid >= 0) v.push_back(pid);
+    return v;
+  };
+  auto fuse_into = [&](std::int64_t target, const std::vector<std::int64_t>& pids) {
+    const FuseCounts c = fuse_into_keyframe(map, camera_, options_.fuse_radius_px, target, pids);
+    stats->points_fused += c.merged;
+    stats->observations_added += c.attached;
+  };
+  for (std::int64_t n : neighbours) fuse_into(n, own_points());
+  std::vector<std::int64_t> theirs;
+  std::unordered_set<std::int64_t> seen;
+  for (std::int64_t n : neighbours)
+    if (const MapKeyframe* kf = map.keyframe(n))
+      for (std::int64_t pid : kf->point_ids)
+        if (pid >= 0 && seen.insert(pid).second) theirs.push_back(pid);
+  fuse_into(kf_id, theirs);
+}
+
+namespace {
+
+/// Ends a solve after the current iteration once `waiting` says so (ORB-SLAM2's abort flag): the
+/// parameters keep the last accepted iterate, which is no worse than where the solve started.
+class StopWhenKeyframesWait : public ceres::IterationCallback {
+ public:
+  explicit StopWhenKeyframesWait(const LocalMapper::KeyframesWaiting& waiting)
+      : waiting_(waiting) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+    if (!waiting_ || !waiting_()) return ceres::SOLVER_CONTINUE;
+    stopped_ = true;
+    return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+  }
+  bool stopped() const { return stopped_; }
+
+ private:
+  const LocalMapper::KeyframesWaiting& waiting_;
+  bool stopped_ = false;
+};
+
+}  // namespace
+
+void LocalMapper::bundle_adjust(std::int64_t kf_id, const KeyframesWaiting& waiting,
+                                MapperStats* stats) {
+  const std::int64_t t0 = steady_now_ns();
+  struct Obs {
+    std::int64_t kf;
+    std::int64_t pid;
+    Eigen::Vector3d z;
+    Eigen::Vector3d sigma;
+  };
+  std::map<std::int64_t, std::array<double, 6>> poses;
+  std::set<std::int64_t> fixed;
+  std::map<std::int64_t, std::array<double, 3>> points;
+  std::vector<Obs> obs;
+  std::int64_t first_kf = -1;
+  std::uint64_t corrections = 0;
+  {
+    std::lock_guard<MapMutex> lock(map_->mutex);
+    const SlamMap& map = map_->map;
+    if (!map.has_keyframe(kf_id)) return;
+    corrections = map_->corrections;
+    first_kf = map.keyframes().begin()->first;
+    std::vector<std::int64_t> window{kf_id};
+    for (const auto& [n, shared] : map.covisible(kf_id, options_.covisibility_min_shared)) {
+      if (static_cast<int>(window.size()) >= options_.ba_window) break;
+      window.push_back(n);
+    }
+    if (window.size() < 2) return;
+    for (std::int64_t k : window) poses[k] = to_block(map.keyframe(k)->T_world_cam.inverse());
+    std::unordered_map<std::int64_t, int> outside;
+    for (std::int64_t k : window)
+      for (std::int64_t pid : map.keyframe(k)->point_ids) {
+        if (pid < 0 || points.count(pid)) continue;
+        const MapPoint* p = map.point(pid);
+        if (!p) continue;
+        points[pid] = {p->p_world_m.x(), p->p_world_m.y(), p->p_world_m.z()};
+        for (const auto& [o, kp] : p->observations)
+          if (!poses.count(o)) ++outside[o];
+      }
+    std::vector<std::pair<int, std::int64_t>> ranked;
+    for (const auto& [o, n] : outside) ranked.emplace_back(n, o);
+    std::sort(ranked.rbegin(), ranked.rend());
+    for (std::size_t i = 0; i < ranked.size() && static_cast<int>(i) < options_.ba_max_fixed; ++i) {
+      poses[ranked[i].second] = to_block(map.keyframe(ranked[i].second)->T_world_cam.inverse());
+      fixed.insert(ranked[i].second);
+    }
+    // The world is the first keyframe's frame: hold it; with nothing fixed, hold the oldest.
+    if (poses.count(first_kf)) fixed.insert(first_kf);
+    if (fixed.empty()) fixed.insert(poses.begin()->first);
+    for (const auto& [pid, xyz] : points) {
+      const MapPoint* p = map.point(pid);
+      for (const auto& [o, kp] : p->observations) {
+        if (!poses.count(o)) continue;
+        const MapKeyframe* kf = map.keyframe(o);
+        const auto k = static_cast<std::size_t>(kp);
+        obs.push_back(Obs{o, pid, kf->features.measurement(k, camera_), kf->features.sigma(k)});
+      }
+    }
+  }
+  ceres::Problem::Options po;
+  po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(po);
+  ceres::HuberLoss huber(std::sqrt(kChi2Rgbd95));
+  for (const Obs& o : obs) {
+    auto* cost = new ceres::AutoDiffCostFunction<RgbdReprojectionCost, 3, 6, 3>(
+        new RgbdReprojectionCost(o.z, o.sigma, camera_));
+    problem.AddResidualBlock(cost, &huber, poses[o.kf].data(), points[o.pid].data());
+  }
+  for (std::int64_t k : fixed)
+    if (problem.HasParameterBlock(poses[k].data()))
+      problem.SetParameterBlockConstant(poses[k].data());
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::SPARSE_SCHUR;
+  so.max_num_iterations = options_.ba_iterations;
+  so.num_threads = 1;  // the other core belongs to tracking
+  so.logging_type = ceres::SILENT;
+  StopWhenKeyframesWait stop(waiting);
+  so.callbacks.push_back(&stop);
+  ceres::Solver::Summary summary;
+  if (!obs.empty()) ceres::Solve(so, &problem, &summary);
+  stats->ba_interrupted = stop.stopped();
+  stats->ba_keyframes = static_cast<int>(poses.size() - fixed.size());
+  stats->ba_fixed = static_cast<int>(fixed.size());
+  stats->ba_points = static_cast<int>(points.size());
+  if (obs.empty() || !summary.IsSolutionUsable()) {
+    stats->ba_ms = ms_since(t0);
+    return;
+  }
+  {
+    std::lock_guard<MapMutex> lock(map_->mutex);
+    SlamMap& map = map_->map;
+    if (map_->corrections != corrections) {
+      // Solved on poses from before a loop correction: writing it back would undo the correction
+      // in this window (ORB-SLAM2 aborts its local BA for the same reason).
+      stats->ba_discarded = true;
+      stats->ba_ms = ms_since(t0);
+      return;
+    }
+    for (const auto& [k, b] : poses) {
+      if (fixed.count(k)) continue;
+      MapKeyframe* kf = map.keyframe(k);
+      const Eigen::Isometry3d T = from_block(b).inverse();
+      if (kf && T.matrix().allFinite()) kf->T_world_cam = T;
+    }
+    for (const auto& [pid, xyz] : points) {
+      MapPoint* p = map.point(pid);
+      const Eigen::Vector3d v(xyz[0], xyz[1], xyz[2]);
+      if (p && v.allFinite()) p->p_world_m = v;
+    }
+    for (const Obs& o : obs) {
+      const MapPoint* p = map.point(o.pid);
+      const MapKeyframe* kf = map.keyframe(o.kf);
+      if (!p || !kf) continue;
+      auto it = p->observations.find(o.kf);
+      if (it == p->observations.end()) continue;
+      if (chi2_of(*kf, it->second, p->p_world_m, camera_) > kChi2Rgbd95) {
+        map.erase_observation(o.pid, o.kf);
+        ++stats->outliers_removed;
+      }
+    }
+  }
+  stats->ba_ms = ms_since(t0);
+}
+
+int LocalMapper::cull_keyframes(std::int64_t kf_id) {
+  SlamMap& map = map_->map;
+  if (!map.has_keyframe(kf_id)) return 0;
+  const std::int64_t first_kf = map.keyframes().begin()->first;
+  int culled = 0;
+  for (const auto& [n, shared] : map.covisible(kf_id, 1)) {
+    if (n == first_kf || n == kf_id || map.in_loop_edge(n)) continue;
+    const MapKeyframe* kf = map.keyframe(n);
+    if (!kf) continue;
+    int points = 0, redundant = 0;
+    for (std::size_t k = 0; k < kf->point_ids.size(); ++k) {
+      const MapPoint* p = kf->point_ids[k] >= 0 ? map.point(kf->point_ids[k]) : nullptr;
+      if (!p || kf->features.depth_m[k] > options_.near_depth_m) continue;
+      ++points;
+      if (static_cast<int>(p->observations.size()) - 1 >= options_.redundant_observers) ++redundant;
+    }
+    if (points == 0 || redundant < options_.redundant_fraction * points) continue;
+    const auto cov = map.covisible(n, 1);
+    std::int64_t parent = -1;
+    for (const auto& [c, s] : cov)
+      if (c != n) {
+        parent = c;
+        break;
+      }
+    if (parent < 0) continue;
+    map.cull_keyframe(n, parent);
+    ++culled;
+  }
+  return culled;
+}
+
+}  // namespace slam

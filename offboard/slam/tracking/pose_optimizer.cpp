@@ -1,0 +1,91 @@
+// Motion-only RGB-D pose optimisation; see pose_optimizer.hpp.
+//
+// Residual of observation i: e_i = pi(T p_i) - z_i, pi = (fx x/z + cx, fy y/z + cy, bf/z), whitened
+// by sigma_i. A left perturbation T <- exp(delta) T moves the camera point by
+// d(p_c)/d(delta) = [ -[p_c]x  I ], so J_i = d(pi)/d(p_c) * [ -[p_c]x  I ].
+#include "slam/tracking/pose_optimizer.hpp"
+
+#include <Eigen/Cholesky>
+#include <cmath>
+
+namespace slam {
+
+Eigen::Isometry3d apply_left_increment(const Eigen::Matrix<double, 6, 1>& delta,
+                                       const Eigen::Isometry3d& T) {
+  const Eigen::Vector3d w = delta.head<3>();
+  const double angle = w.norm();
+  Eigen::Isometry3d inc = Eigen::Isometry3d::Identity();
+  if (angle > 1e-12) inc.linear() = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+  inc.translation() = delta.tail<3>();
+  Eigen::Isometry3d out = inc * T;
+  // Keep the rotation orthonormal over many updates.
+  out.linear() = Eigen::Quaterniond(out.rotation()).normalized().toRotationMatrix();
+  return out;
+}
+
+PoseOptimizerResult optimize_pose(const Eigen::Isometry3d& T_init,
+                                  const std::vector<PoseObservation>& obs, const CameraModel& cam,
+                                  const PoseOptimizerOptions& o) {
+  PoseOptimizerResult r;
+  r.T_cam_world = T_init;
+  r.inlier.assign(obs.size(), true);
+  if (obs.size() < 3) return r;
+  const double huber = std::sqrt(o.chi2_outlier);
+  Eigen::Isometry3d T = T_init;
+  for (int round = 0; round < o.rounds; ++round) {
+    for (int it = 0; it < o.iterations_per_round; ++it) {
+      Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+      Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+      int used = 0;
+      for (std::size_t i = 0; i < obs.size(); ++i) {
+        if (!r.inlier[i]) continue;
+        const Eigen::Vector3d pc = T * obs[i].p_world_m;
+        if (pc.z() <= 1e-3) continue;
+        const double iz = 1.0 / pc.z(), iz2 = iz * iz;
+        const Eigen::Vector3d e =
+            (cam.project(pc) - obs[i].measurement).cwiseQuotient(obs[i].sigma_px);
+        Eigen::Matrix3d Jp;
+        Jp << cam.fx_px * iz, 0, -cam.fx_px * pc.x() * iz2, 0, cam.fy_px * iz,
+            -cam.fy_px * pc.y() * iz2, 0, 0, -cam.bf_px_m * iz2;
+        Jp = obs[i].sigma_px.cwiseInverse().asDiagonal() * Jp;
+        Eigen::Matrix<double, 3, 6> Jt;
+        Eigen::Matrix3d skew;
+        skew << 0, -pc.z(), pc.y(), pc.z(), 0, -pc.x(), -pc.y(), pc.x(), 0;
+        Jt.leftCols<3>() = -skew;
+        Jt.rightCols<3>() = Eigen::Matrix3d::Identity();
+        const Eigen::Matrix<double, 3, 6> J = Jp * Jt;
+        const double norm = e.norm();
+        const double w = norm <= huber ? 1.0 : huber / norm;
+        H.noalias() += w * J.transpose() * J;
+        b.noalias() += w * J.transpose() * e;
+        ++used;
+      }
+      if (used < 3) return r;
+      Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
+      if (ldlt.info() != Eigen::Success) return r;
+      const Eigen::Matrix<double, 6, 1> delta = ldlt.solve(-b);
+      if (!delta.allFinite()) return r;
+      T = apply_left_increment(delta, T);
+      if (delta.norm() < 1e-9) break;
+    }
+    // Re-classify every observation (an outlier of one round may come back).
+    r.inliers = 0;
+    for (std::size_t i = 0; i < obs.size(); ++i) {
+      const Eigen::Vector3d pc = T * obs[i].p_world_m;
+      bool in = pc.z() > 1e-3;
+      if (in) {
+        const Eigen::Vector3d e =
+            (cam.project(pc) - obs[i].measurement).cwiseQuotient(obs[i].sigma_px);
+        in = e.squaredNorm() <= o.chi2_outlier;
+      }
+      r.inlier[i] = in;
+      r.inliers += in ? 1 : 0;
+    }
+    if (r.inliers < 3) return r;
+  }
+  r.T_cam_world = T;
+  r.ok = T.matrix().allFinite();
+  return r;
+}
+
+}  // namespace slam

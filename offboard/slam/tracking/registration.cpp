@@ -1,0 +1,102 @@
+// Frame-to-map registration; see registration.hpp.
+#include "slam/tracking/registration.hpp"
+
+#include <algorithm>
+#include <numeric>
+
+namespace slam {
+
+KeyframePoints keyframe_points(const SlamMap& map, std::int64_t kf_id) {
+  KeyframePoints out;
+  const MapKeyframe* kf = map.keyframe(kf_id);
+  if (!kf) return out;
+  out.keyframe = kf_id;
+  std::vector<int> rows;
+  for (std::size_t k = 0; k < kf->point_ids.size(); ++k) {
+    const MapPoint* p = kf->point_ids[k] >= 0 ? map.point(kf->point_ids[k]) : nullptr;
+    if (!p) continue;
+    out.p_world_m.push_back(p->p_world_m);
+    out.point_ids.push_back(p->id);
+    rows.push_back(static_cast<int>(k));
+  }
+  const cv::Mat& all = kf->features.features->descriptors;
+  out.descriptors.create(static_cast<int>(rows.size()), all.cols, all.type());
+  for (std::size_t r = 0; r < rows.size(); ++r)
+    all.row(rows[r]).copyTo(out.descriptors.row(static_cast<int>(r)));
+  return out;
+}
+
+std::optional<Registration> register_to_keyframe(const FrameFeatures& frame,
+                                                 const KeyframePoints& kp,
+                                                 const MatchOptions& matching,
+                                                 const RansacOptions& ransac, std::uint64_t seed,
+                                                 int min_inliers) {
+  if (kp.p_world_m.size() < ransac.min_pairs) return std::nullopt;
+  const std::vector<Match> m = match_descriptors(frame.descriptors, kp.descriptors, matching);
+  if (m.size() < ransac.min_pairs) return std::nullopt;
+  std::vector<Eigen::Vector3d> src, dst;
+  std::vector<int> order(m.size());
+  for (const Match& x : m) {
+    src.push_back(frame.points_cam_m[static_cast<std::size_t>(x.query)]);
+    dst.push_back(kp.p_world_m[static_cast<std::size_t>(x.train)]);
+  }
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+    return m[static_cast<std::size_t>(a)].distance < m[static_cast<std::size_t>(b)].distance;
+  });
+  auto est = estimate_motion_ransac(src, dst, order, ransac, seed, nullptr);
+  if (!est || est->inliers.size() < static_cast<std::size_t>(min_inliers)) return std::nullopt;
+  return Registration{est->T_dst_src, m.size(), est->inliers.size()};
+}
+
+ProjectionFit fit_by_projection(const std::vector<LocalPoint>& points, const TrackedFeatures& frame,
+                                const CameraModel& camera, const Eigen::Isometry3d& T_guess,
+                                double first_radius_px, const ProjectionFitOptions& options) {
+  ProjectionFit fit;
+  ProjectionSearchOptions so = options.search;
+  so.radius_px = first_radius_px;
+  ProjectionMatches m = search_by_projection(points, T_guess, frame, camera, so);
+  if (m.matches < options.min_matches_first_pass) {
+    so.radius_px = first_radius_px * options.wide_radius_factor;
+    m = search_by_projection(points, T_guess, frame, camera, so);
+  }
+  if (m.matches < 6) return fit;
+  // Optimises from `T_start` on the matches in `pok`; `kept` receives the inlier matches only.
+  auto optimise = [&](const std::vector<int>& pok, const Eigen::Isometry3d& T_start,
+                      std::vector<int>* kept) {
+    std::vector<PoseObservation> obs;
+    std::vector<int> kp_of_obs;
+    for (std::size_t k = 0; k < pok.size(); ++k) {
+      if (pok[k] < 0) continue;
+      obs.push_back(PoseObservation{points[static_cast<std::size_t>(pok[k])].p_world_m,
+                                    frame.measurement(k, camera), frame.sigma(k)});
+      kp_of_obs.push_back(static_cast<int>(k));
+    }
+    const PoseOptimizerResult r = optimize_pose(T_start, obs, camera, options.pose);
+    kept->assign(pok.size(), -1);
+    if (!r.ok) return r;
+    for (std::size_t i = 0; i < obs.size(); ++i) {
+      const auto k = static_cast<std::size_t>(kp_of_obs[i]);
+      if (r.inlier[i]) (*kept)[k] = pok[k];
+    }
+    return r;
+  };
+  std::vector<int> kept;
+  const PoseOptimizerResult first = optimise(m.point_of_keypoint, T_guess, &kept);
+  if (!first.ok || first.inliers < 6) return fit;
+  // Second pass: keep the inliers, look for more points around the refined projections.
+  so.radius_px = options.refine_radius_px;
+  const ProjectionMatches m2 =
+      search_by_projection(points, first.T_cam_world, frame, camera, so, &kept);
+  std::vector<int> kept2;
+  const PoseOptimizerResult second = optimise(m2.point_of_keypoint, first.T_cam_world, &kept2);
+  if (!second.ok) return fit;
+  fit.ok = true;
+  fit.T_cam_world = second.T_cam_world;
+  fit.point_of_keypoint = std::move(kept2);
+  fit.matches = static_cast<std::size_t>(m2.matches);
+  fit.inliers = static_cast<std::size_t>(second.inliers);
+  return fit;
+}
+
+}  // namespace slam

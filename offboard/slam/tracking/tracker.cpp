@@ -1,0 +1,618 @@
+// Tracking against the local map; see tracker.hpp.
+#include "slam/tracking/tracker.hpp"
+
+#include <algorithm>
+#include <numeric>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "slam/map/place_index.hpp"
+#include "slam/tracking/registration.hpp"
+
+namespace slam {
+
+namespace {
+
+/// The motion T scaled to a fraction s of itself (rotation angle and translation scaled).
+Eigen::Isometry3d scale_motion(const Eigen::Isometry3d& T, double s) {
+  const Eigen::AngleAxisd aa(T.rotation());
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  out.linear() = Eigen::AngleAxisd(aa.angle() * s, aa.axis()).toRotationMatrix();
+  out.translation() = T.translation() * s;
+  return out;
+}
+
+constexpr double kDegPerRad = 57.29577951308232;
+
+/// ORB-SLAM2's nMinObs for the reference keyframe's tracked points: 3 observations, or 2 while the
+/// map has <= 2 keyframes; an RGB-D observation counts 2 there, i.e. 2 keyframes, or 1.
+int keyframe_min_observations(const SlamMap& map) { return map.keyframes().size() > 2 ? 2 : 1; }
+
+}  // namespace
+
+CameraShift camera_shift(const Eigen::Isometry3d& T_cam_world_a,
+                         const Eigen::Isometry3d& T_cam_world_b) {
+  // T_a_b = T_a_world * T_world_b: camera b in camera a's frame.
+  const Eigen::Isometry3d T_a_b = T_cam_world_a * T_cam_world_b.inverse();
+  return {T_a_b.translation().norm(), rotation_angle_rad(T_a_b) * kDegPerRad};
+}
+
+ProjectionFitOptions projection_fit_options(const TrackerOptions& o) {
+  ProjectionFitOptions f;
+  f.search = o.search;
+  f.refine_radius_px = o.refine_radius_px;
+  f.wide_radius_factor = o.wide_radius_factor;
+  f.min_matches_first_pass = o.min_matches_first_pass;
+  f.pose = o.pose;
+  return f;
+}
+
+const char* to_string(KeyframeReason r) {
+  switch (r) {
+    case KeyframeReason::kNone:
+      return "none";
+    case KeyframeReason::kFirst:
+      return "first";
+    case KeyframeReason::kViewChanged:
+      return "view_changed";
+    case KeyframeReason::kNeedNear:
+      return "need_near";
+    case KeyframeReason::kBoth:
+      return "view_changed+need_near";
+    case KeyframeReason::kRedundant:
+      return "redundant";
+    case KeyframeReason::kMapperBusy:
+      return "mapper_busy";
+  }
+  return "?";
+}
+
+bool TrackerOptions::is_valid(std::string* error) const {
+  auto fail = [&](const char* m) {
+    if (error) *error = std::string("tracker: ") + m;
+    return false;
+  };
+  if (!(search.radius_px > 0) || !(refine_radius_px > 0) || !(wide_radius_factor >= 1))
+    return fail("search radii must be positive");
+  if (!(search.ratio > 0 && search.ratio <= 1)) return fail("ratio must be in (0, 1]");
+  if (min_inliers_tracking < 6 || min_inliers_relocalised < min_inliers_tracking)
+    return fail("min_inliers_tracking must be >= 6 and <= min_inliers_relocalised");
+  if (max_local_keyframes < 1 || covisible_per_keyframe < 0)
+    return fail("local map sizes must be positive");
+  if (!(keyframe_tracked_ratio > 0 && keyframe_tracked_ratio < 1))
+    return fail("keyframe_tracked_ratio must be in (0, 1)");
+  if (!(keyframe_busy_tracked_ratio >= 0 && keyframe_busy_tracked_ratio <= keyframe_tracked_ratio))
+    return fail("keyframe_busy_tracked_ratio must be in [0, keyframe_tracked_ratio]");
+  if (!(near_depth_m > 0)) return fail("near_depth_m must be positive");
+  if (pose.rounds < 1 || pose.iterations_per_round < 1)
+    return fail("pose optimiser needs >= 1 round and iteration");
+  if (!(max_velocity_scale >= 1)) return fail("max_velocity_scale must be >= 1");
+  if (!(cross_check_tracked_ratio >= 0 && cross_check_tracked_ratio < 1))
+    return fail("cross_check_tracked_ratio must be in [0, 1)");
+  if (!(cross_check_same_pose_m >= 0) || !(cross_check_same_pose_deg >= 0))
+    return fail("cross_check_same_pose_m and cross_check_same_pose_deg must be >= 0");
+  if (!(max_predicted_gap_s > 0)) return fail("max_predicted_gap_s must be positive");
+  if (!(max_acceleration_m_per_s2 > 0) || !(motion_bound_baseline_s > 0))
+    return fail("max_acceleration_m_per_s2 and motion_bound_baseline_s must be positive");
+  if (!(max_speed_m_per_s > 0) || !(max_rate_rad_per_s > 0) || !(motion_margin_m >= 0) ||
+      !(motion_margin_rad >= 0))
+    return fail("motion bounds must be positive");
+  return matching.is_valid(error) && ransac.is_valid(error);
+}
+
+std::optional<Tracker> Tracker::create(const TrackerOptions& options, const CameraModel& camera,
+                                       std::shared_ptr<SharedMap> map, std::string* error) {
+  if (!options.is_valid(error)) return std::nullopt;
+  if (!map) {
+    if (error) *error = "tracker: no map";
+    return std::nullopt;
+  }
+  return Tracker(options, camera, std::move(map));
+}
+
+std::unique_lock<MapMutex> Tracker::lock_map() const {
+  const std::int64_t t0 = steady_now_ns();
+  std::unique_lock<MapMutex> lock(map_->mutex);
+  lock_wait_ms_ += ms_since(t0);
+  return lock;
+}
+
+Tracker::LocalMap Tracker::build_local_map(const std::vector<std::int64_t>& seed_points,
+                                           std::int64_t fallback_kf) const {
+  LocalMap local;
+  const SlamMap& map = map_->map;
+  // Keyframes that see the seed points, by how many they see.
+  std::unordered_map<std::int64_t, int> votes;
+  for (std::int64_t pid : seed_points)
+    if (const MapPoint* p = map.point(pid))
+      for (const auto& [kf, kp] : p->observations) ++votes[kf];
+  std::vector<std::pair<int, std::int64_t>> ranked;
+  for (const auto& [kf, n] : votes) ranked.emplace_back(n, kf);
+  std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first > b.first : a.second > b.second;
+  });
+  std::unordered_set<std::int64_t> chosen;
+  const auto cap = static_cast<std::size_t>(options_.max_local_keyframes);
+  auto take = [&](std::int64_t kf) {
+    if (local.keyframes.size() >= cap || !map.has_keyframe(kf) || !chosen.insert(kf).second) return;
+    local.keyframes.push_back(kf);
+  };
+  if (ranked.empty() && fallback_kf >= 0) take(fallback_kf);
+  for (const auto& [n, kf] : ranked) take(kf);
+  // Neighbours of the best few, while there is room (covisibility is computed on demand, so the
+  // expansion is limited to the kMaxExpanded best keyframes to bound the per-frame cost).
+  constexpr std::size_t kMaxExpanded = 3;
+  const std::vector<std::int64_t> firsts(
+      local.keyframes.begin(),
+      local.keyframes.begin() + std::min(kMaxExpanded, local.keyframes.size()));
+  for (std::int64_t kf : firsts) {
+    if (local.keyframes.size() >= cap) break;
+    const auto cov = map.covisible(kf, 1);
+    for (std::size_t i = 0; i < cov.size() && static_cast<int>(i) < options_.covisible_per_keyframe;
+         ++i)
+      take(cov[i].first);
+  }
+  std::unordered_set<std::int64_t> seen;
+  for (std::int64_t kf_id : local.keyframes) {
+    const MapKeyframe* kf = map.keyframe(kf_id);
+    for (std::int64_t pid : kf->point_ids) {
+      if (pid < 0 || !seen.insert(pid).second) continue;
+      const MapPoint* p = map.point(pid);
+      if (p) local.points.push_back(LocalPoint{pid, p->p_world_m, p->descriptor});
+    }
+  }
+  return local;
+}
+
+bool Tracker::cross_check_needed(const Fit& fit) const {
+  if (!fit.ok || !(options_.cross_check_tracked_ratio > 0)) return false;
+  if (static_cast<int>(fit.inliers) < options_.min_inliers_relocalised) return true;
+  const auto lock = lock_map();
+  const int ref_tracked =
+      map_->map.tracked_points(reference_kf_, keyframe_min_observations(map_->map));
+  return static_cast<double>(fit.inliers) < options_.cross_check_tracked_ratio * ref_tracked;
+}
+
+Tracker::Fit Tracker::fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
+                                    const Eigen::Isometry3d& T_guess,
+                                    double first_radius_px) const {
+  return fit_by_projection(local.points, frame, camera_, T_guess, first_radius_px,
+                           projection_fit_options(options_));
+}
+
+std::optional<Tracker::KeyframeGuess> Tracker::pose_from_keyframes(
+    const TrackedFeatures& frame, const std::vector<std::int64_t>& candidates,
+    std::uint64_t seed) const {
+  std::optional<KeyframeGuess> best;
+  std::size_t best_inliers = 0;
+  for (std::int64_t kf_id : candidates) {
+    KeyframePoints kp;
+    {
+      const auto lock = lock_map();
+      kp = keyframe_points(map_->map, kf_id);
+    }
+    if (kp.keyframe < 0) continue;
+    const auto reg = register_to_keyframe(*frame.features, kp, options_.matching, options_.ransac,
+                                          seed ^ static_cast<std::uint64_t>(kf_id),
+                                          options_.min_relocalisation_ransac_inliers);
+    if (reg && reg->inliers > best_inliers) {
+      best_inliers = reg->inliers;
+      best = KeyframeGuess{reg->T_world_cam, kf_id};
+    }
+  }
+  return best;
+}
+
+std::int64_t Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf,
+                                      const cv::Mat& thumbnail,
+                                      const Eigen::Isometry3d& T_world_cam, const LocalMap& local,
+                                      const std::vector<int>& point_of_keypoint) {
+  MapKeyframe kf;
+  const auto lock = lock_map();
+  SlamMap& map = map_->map;
+  // Keyframe ids follow the frame index, but never reuse an id of a loaded (or culled) keyframe.
+  std::int64_t id = frame.index;
+  if (!map.keyframes().empty()) id = std::max(id, map.keyframes().rbegin()->first + 1);
+  if (!map.culled().empty()) id = std::max(id, map.culled().rbegin()->first + 1);
+  kf.id = id;
+  kf.stamp_s = frame.stamp_s;
+  kf.T_world_cam = T_world_cam;
+  kf.features = tf;
+  kf.thumbnail = thumbnail;
+  // Near features without a map point become points, nearest first; at least min_new_points.
+  std::vector<int> fresh;
+  for (std::size_t k = 0; k < tf.size(); ++k)
+    if (point_of_keypoint.empty() || point_of_keypoint[k] < 0) fresh.push_back(static_cast<int>(k));
+  std::stable_sort(fresh.begin(), fresh.end(), [&](int a, int b) {
+    return tf.depth_m[static_cast<std::size_t>(a)] < tf.depth_m[static_cast<std::size_t>(b)];
+  });
+  map.add_keyframe(std::move(kf));
+  for (std::size_t k = 0; k < point_of_keypoint.size(); ++k) {
+    if (point_of_keypoint[k] < 0) continue;
+    const std::int64_t pid = local.points[static_cast<std::size_t>(point_of_keypoint[k])].id;
+    if (map.has_point(pid)) map.add_observation(pid, id, static_cast<int>(k));
+  }
+  int created = 0;
+  for (int k : fresh) {
+    const auto ks = static_cast<std::size_t>(k);
+    if (tf.depth_m[ks] > options_.near_depth_m && created >= options_.min_new_points) break;
+    map.add_point(T_world_cam * tf.features->points_cam_m[ks], tf.features->descriptors.row(k), id,
+                  k);
+    ++created;
+  }
+  reference_kf_ = id;
+  return id;
+}
+
+TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFeatures> features,
+                           const FeatureOptions& feature_options, bool keyframe_allowed,
+                           bool mapper_idle) {
+  lock_wait_ms_ = 0;
+  FrameInput in{frame, TrackedFeatures::from(std::move(features), camera_, feature_options),
+                make_thumbnail(frame.rgb),
+                options_.ransac.max_iterations * 0x9E3779B97F4A7C15ull ^
+                    static_cast<std::uint64_t>(frame.index)};
+  TrackResult out = track_steps(in, keyframe_allowed, mapper_idle);
+  out.map_lock_wait_ms = lock_wait_ms_;
+  return out;
+}
+
+TrackResult Tracker::track_steps(const FrameInput& in, bool keyframe_allowed, bool mapper_idle) {
+  bool map_empty;
+  {
+    const auto lock = lock_map();
+    map_empty = map_->map.keyframes().empty();
+  }
+  if (map_empty) return initialise(in);
+  TrackResult out;
+  follow_map_corrections(&out);
+  const Eigen::Isometry3d T_world_pred = predict(in.frame, &out);
+  Attempt attempt = search_local_map(in, T_world_pred, &out);
+  recover_or_cross_check(in, &attempt, &out);
+  out.matches = attempt.fit.matches;
+  out.inliers = attempt.fit.inliers;
+  if (!acceptable(in.frame, attempt, &out)) {
+    if (options_.restart_when_lost && keyframe_allowed &&
+        static_cast<int>(in.tf.size()) >= options_.min_init_features)
+      return start_segment(in, T_world_pred, std::move(out));
+    return declare_lost(&out);
+  }
+  const Eigen::Isometry3d T_world_cam = attempt.fit.T_cam_world.inverse();
+  std::vector<std::int64_t> matched =
+      decide_keyframe(in, attempt, T_world_cam, keyframe_allowed, mapper_idle, &out);
+  advance(in.frame, T_world_cam, std::move(matched), &out);
+  const auto lock = lock_map();
+  out.map_keyframes = map_->map.keyframes().size();
+  out.map_points = map_->map.points().size();
+  return out;
+}
+
+TrackResult Tracker::initialise(const FrameInput& in) {
+  TrackResult out;
+  out.state = TrackingState::kInitialising;
+  if (static_cast<int>(in.tf.size()) < options_.min_init_features) return out;
+  const Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+  last_q_nav_cam_ = in.frame.q_nav_cam;
+  out.keyframe_id = insert_keyframe(in.frame, in.tf, in.thumbnail, T_world_cam, LocalMap{}, {});
+  state_ = TrackingState::kTracking;
+  T_world_last_ = T_world_cam;
+  last_stamp_s_ = in.frame.stamp_s;
+  have_velocity_ = false;
+  motion_bound_.reset();
+  motion_bound_.add(in.frame.stamp_s, T_world_cam.translation());
+  last_points_.clear();
+  out.state = TrackingState::kTracking;
+  out.T_world_cam = T_world_cam;
+  out.reference_keyframe = out.keyframe_id;
+  out.keyframe = true;
+  out.keyframe_wanted = KeyframeReason::kFirst;
+  T_ref_last_ = Eigen::Isometry3d::Identity();
+  return out;
+}
+
+TrackResult Tracker::start_segment(const FrameInput& in, const Eigen::Isometry3d& T_world_guess,
+                                   TrackResult out) {
+  // Neither the prediction nor the keyframe database gave a pose: the frame starts a new map
+  // segment of its own points at the predicted pose, in the same map and world frame, so that
+  // tracking goes on at once. Loop closing joins the segment to the keyframes it does not share
+  // points with when it recognises their place.
+  out.keyframe_id = insert_keyframe(in.frame, in.tf, in.thumbnail, T_world_guess, LocalMap{}, {});
+  out.keyframe = true;
+  out.new_segment = true;
+  out.keyframe_wanted = KeyframeReason::kFirst;
+  out.reference_keyframe = out.keyframe_id;
+  out.T_kf_cam = Eigen::Isometry3d::Identity();
+  motion_bound_.reset();
+  // The motion model carries on: the camera did not stop because the fit failed.
+  advance(in.frame, T_world_guess, {}, &out);
+  const auto lock = lock_map();
+  out.map_keyframes = map_->map.keyframes().size();
+  out.map_points = map_->map.points().size();
+  return out;
+}
+
+void Tracker::follow_map_corrections(TrackResult* out) {
+  // A loop correction moved the map since the last frame: carry the last pose along with its
+  // reference keyframe so that the prediction lands in the corrected map.
+  const auto lock = lock_map();
+  if (map_->corrections != corrections_seen_) {
+    corrections_seen_ = map_->corrections;
+    motion_bound_.reset();  // its positions are in the world frame before the correction
+    if (auto T_kf = map_->map.resolve_pose(reference_kf_)) T_world_last_ = *T_kf * T_ref_last_;
+  }
+  out->map_corrections = corrections_seen_;
+}
+
+Eigen::Isometry3d Tracker::predict(const RgbdFrame& frame, TrackResult* out) const {
+  Eigen::Isometry3d T_world_pred = T_world_last_;
+  if (state_ == TrackingState::kTracking && have_velocity_ && last_interval_s_ > 0) {
+    const double s = std::clamp((frame.stamp_s - last_stamp_s_) / last_interval_s_, 0.0,
+                                options_.max_velocity_scale);
+    T_world_pred = T_world_last_ * scale_motion(T_last_cur_velocity_, s);
+  }
+  if (options_.attitude_prior && state_ == TrackingState::kTracking && frame.q_nav_cam &&
+      last_q_nav_cam_) {
+    const Eigen::Quaterniond q_last_cur =
+        last_q_nav_cam_->normalized().conjugate() * frame.q_nav_cam->normalized();
+    T_world_pred.linear() = T_world_last_.linear() * q_last_cur.toRotationMatrix();
+    out->attitude_predicted = true;
+  }
+  return T_world_pred;
+}
+
+Tracker::Attempt Tracker::search_local_map(const FrameInput& in,
+                                           const Eigen::Isometry3d& T_world_pred,
+                                           TrackResult* out) {
+  Attempt a;
+  std::int64_t t0 = steady_now_ns();
+  {
+    const auto lock = lock_map();
+    if (!map_->map.has_keyframe(reference_kf_) && !map_->map.keyframes().empty())
+      reference_kf_ = map_->map.keyframes().rbegin()->first;
+    a.local = build_local_map(last_points_, reference_kf_);
+  }
+  out->local_map_ms = ms_since(t0);
+  out->local_points = a.local.points.size();
+  t0 = steady_now_ns();
+  if (state_ == TrackingState::kTracking)
+    a.fit = fit_local_map(a.local, in.tf, T_world_pred.inverse(), options_.search.radius_px);
+  out->search_ms = ms_since(t0);
+  // After a gap the prediction cannot vouch for, a projection fit is held to the relocalisation
+  // bar: the pose is as unconstrained as a keyframe-database guess.
+  out->prediction_stale = state_ == TrackingState::kTracking &&
+                          in.frame.stamp_s - last_stamp_s_ > options_.max_predicted_gap_s;
+  a.needed =
+      out->prediction_stale ? options_.min_inliers_relocalised : options_.min_inliers_tracking;
+  return a;
+}
+
+void Tracker::recover_or_cross_check(const FrameInput& in, Attempt* a, TrackResult* out) {
+  // Recovery from the keyframe database: lost, the prediction found too little, or the gap was
+  // longer than the prediction vouches for. In that last case a projection fit from the stale pose
+  // can lock onto repeated texture at the wrong offset and still pass the relocalisation bar (HIL
+  // scenario 4 after a 1.7 s link stall: 65 inliers 0.21 m off, then a keyframe made there), so
+  // the database is asked as well and the fit with more inliers is kept.
+  // A weak fit (cross_check_needed) gets the same second opinion from the reference keyframe alone.
+  const bool recover =
+      !a->fit.ok || static_cast<int>(a->fit.inliers) < a->needed || out->prediction_stale;
+  out->cross_checked = !recover && cross_check_needed(a->fit);
+  if (!recover && !out->cross_checked) return;
+  const std::int64_t t0 = steady_now_ns();
+  std::vector<std::int64_t> candidates;
+  if (out->cross_checked) {
+    candidates.push_back(reference_kf_);
+  } else {
+    const auto lock = lock_map();
+    candidates =
+        rank_keyframes_by_appearance(map_->map, in.thumbnail, options_.relocalisation_candidates);
+    if (state_ == TrackingState::kTracking && map_->map.has_keyframe(reference_kf_) &&
+        std::find(candidates.begin(), candidates.end(), reference_kf_) == candidates.end())
+      candidates.insert(candidates.begin(), reference_kf_);
+  }
+  const auto guess = pose_from_keyframes(in.tf, candidates, in.seed);
+  if (guess) {
+    LocalMap around;
+    {
+      const auto lock = lock_map();
+      // Local map around the keyframe the guess was registered to (the RANSAC-best candidate,
+      // not the first by appearance: while tracking, that is the reference keyframe).
+      around = build_local_map({}, guess->keyframe);
+    }
+    Fit refit =
+        fit_local_map(around, in.tf, guess->T_world_cam.inverse(), options_.search.radius_px);
+    // A cross-check that lands on the same pose changes nothing: the projection fit, matched
+    // against the local map of the last frame's points, stays (and with it the keyframe's links
+    // to the map). Only a different pose with more inliers replaces it.
+    bool replaces = true;
+    if (out->cross_checked && refit.ok) {
+      const CameraShift d = camera_shift(a->fit.T_cam_world, refit.T_cam_world);
+      out->cross_check_shift_m = d.metres;
+      out->cross_check_shift_deg = d.degrees;
+      replaces = out->cross_check_shift_m > options_.cross_check_same_pose_m ||
+                 out->cross_check_shift_deg > options_.cross_check_same_pose_deg;
+    }
+    if (refit.ok && refit.inliers > a->fit.inliers && replaces) {
+      a->fit = std::move(refit);
+      a->local = std::move(around);
+      out->local_points = a->local.points.size();
+      out->relocalised = true;
+      // A pose from the keyframe database, not from the motion prior, must meet the
+      // relocalisation bar whether or not tracking was lost just before: in a room of repeated
+      // texture a wrong place can reach the tracking bar (seen in a HIL flight: a 1.5 m jump).
+      a->needed = options_.min_inliers_relocalised;
+    }
+  }
+  out->relocalise_ms = ms_since(t0);
+}
+
+bool Tracker::acceptable(const RgbdFrame& frame, const Attempt& a, TrackResult* out) const {
+  const Fit& fit = a.fit;
+  // While tracking, the camera cannot have moved faster than the plausible motion bounds since the
+  // last tracked frame: a larger step is a wrong fit, never handed on as a pose.
+  // Nor can it have left the constant-velocity path by more than the acceleration bound allows.
+  bool implausible = false;
+  if (fit.ok && state_ == TrackingState::kTracking) {
+    const Eigen::Isometry3d step = T_world_last_.inverse() * fit.T_cam_world.inverse();
+    const double dt = std::max(0.0, frame.stamp_s - last_stamp_s_);
+    implausible =
+        step.translation().norm() > options_.max_speed_m_per_s * dt + options_.motion_margin_m ||
+        rotation_angle_rad(step) > options_.max_rate_rad_per_s * dt + options_.motion_margin_rad;
+    const MotionBoundCheck bound =
+        motion_bound_.check(frame.stamp_s, fit.T_cam_world.inverse().translation());
+    if (bound.checked) {
+      out->prediction_deviation_m = bound.deviation_m;
+      out->prediction_deviation_bound_m = bound.bound_m;
+      implausible = implausible || (options_.motion_bound && !bound.within());
+    }
+  }
+  return fit.ok && !implausible && static_cast<int>(fit.inliers) >= a.needed &&
+         fit.T_cam_world.matrix().allFinite();
+}
+
+TrackResult Tracker::declare_lost(TrackResult* out) {
+  // Lost: hold the last pose; the next frames go straight to relocalisation.
+  state_ = TrackingState::kLost;
+  have_velocity_ = false;
+  out->state = TrackingState::kLost;
+  out->T_world_cam = T_world_last_;
+  out->reference_keyframe = reference_kf_;
+  const auto lock = lock_map();
+  if (auto T_kf = map_->map.resolve_pose(reference_kf_))
+    out->T_kf_cam = T_kf->inverse() * T_world_last_;
+  T_ref_last_ = out->T_kf_cam;
+  out->map_keyframes = map_->map.keyframes().size();
+  out->map_points = map_->map.points().size();
+  return std::move(*out);
+}
+
+std::vector<std::int64_t> Tracker::decide_keyframe(const FrameInput& in, const Attempt& a,
+                                                   const Eigen::Isometry3d& T_world_cam,
+                                                   bool keyframe_allowed, bool mapper_idle,
+                                                   TrackResult* out) {
+  const Fit& fit = a.fit;
+  std::vector<std::int64_t> matched_ids;
+  std::vector<bool> matched_near;
+  int near_tracked = 0, near_untracked = 0;
+  for (std::size_t k = 0; k < fit.point_of_keypoint.size(); ++k) {
+    const bool near = in.tf.depth_m[k] <= options_.near_depth_m;
+    if (fit.point_of_keypoint[k] >= 0) {
+      matched_ids.push_back(a.local.points[static_cast<std::size_t>(fit.point_of_keypoint[k])].id);
+      matched_near.push_back(near);
+      near_tracked += near ? 1 : 0;
+    } else {
+      near_untracked += near ? 1 : 0;
+    }
+  }
+  bool make_keyframe = false;
+  {
+    const auto lock = lock_map();
+    SlamMap& map = map_->map;
+    count_visibility(a.local, fit.T_cam_world);
+    std::unordered_map<std::int64_t, int> votes;
+    int near_matched = 0, near_well_observed = 0;
+    for (std::size_t i = 0; i < matched_ids.size(); ++i) {
+      MapPoint* p = map.point(matched_ids[i]);
+      if (!p) continue;
+      ++p->found;
+      for (const auto& [kf, kp] : p->observations) ++votes[kf];
+      if (matched_near[i]) {
+        ++near_matched;
+        near_well_observed +=
+            static_cast<int>(p->observations.size()) >= options_.redundant_observers ? 1 : 0;
+      }
+    }
+    std::int64_t best_kf = reference_kf_;
+    int best_votes = -1;
+    for (const auto& [kf, n] : votes)
+      if (n > best_votes || (n == best_votes && kf > best_kf)) {
+        best_votes = n;
+        best_kf = kf;
+      }
+    if (map.has_keyframe(best_kf)) reference_kf_ = best_kf;
+    // ORB-SLAM2's NeedNewKeyFrame without its clock rule: the reference keyframe's points seen by
+    // nMinObs observations (3, or 2 while the map has <= 2 keyframes), an RGB-D observation
+    // counting 2 there: i.e. 2 keyframes, or 1 while the map has <= 2 keyframes. Ratio 0.75
+    // (0.4 while there is a single keyframe).
+    const std::size_t kfs = map.keyframes().size();
+    const double ratio =
+        kfs < 2 ? options_.keyframe_tracked_ratio_first : options_.keyframe_tracked_ratio;
+    const int ref_tracked = map.tracked_points(reference_kf_, keyframe_min_observations(map));
+    const int tracked = static_cast<int>(fit.inliers);
+    const bool view_changed = tracked < ratio * ref_tracked;
+    const bool need_near =
+        near_tracked < options_.near_tracked_min && near_untracked > options_.near_untracked_min;
+    make_keyframe = keyframe_allowed && (view_changed || need_near) && tracked > 15;
+    out->keyframe_wanted = !(view_changed || need_near) || tracked <= 15 ? KeyframeReason::kNone
+                           : view_changed && need_near                   ? KeyframeReason::kBoth
+                           : view_changed ? KeyframeReason::kViewChanged
+                                          : KeyframeReason::kNeedNear;
+    // ORB-SLAM2 c1b/c1c: with the mapper busy, only weak tracking inserts (otherwise a keyframe
+    // made now would wait behind the mapper while the view it was made for is already tracked
+    // again).
+    const bool weak = tracked < options_.keyframe_busy_tracked_ratio * ref_tracked || need_near;
+    if (make_keyframe && !mapper_idle && !weak) {
+      make_keyframe = false;
+      out->keyframe_wanted = KeyframeReason::kMapperBusy;
+    }
+    if (make_keyframe && view_changed && !need_near && options_.keyframe_needs_new_content &&
+        near_matched > 0) {
+      out->near_redundant = static_cast<double>(near_well_observed) / near_matched;
+      if (out->near_redundant >= options_.redundant_fraction) {
+        make_keyframe = false;
+        out->keyframe_wanted = KeyframeReason::kRedundant;
+      }
+    }
+    out->ref_tracked = ref_tracked;
+    out->near_tracked = near_tracked;
+    out->near_untracked = near_untracked;
+    out->reference_keyframe = reference_kf_;
+    if (auto T_kf = map.resolve_pose(reference_kf_)) out->T_kf_cam = T_kf->inverse() * T_world_cam;
+  }
+  if (make_keyframe) {
+    out->keyframe_id =
+        insert_keyframe(in.frame, in.tf, in.thumbnail, T_world_cam, a.local, fit.point_of_keypoint);
+    out->keyframe = true;
+    out->reference_keyframe = out->keyframe_id;
+    out->T_kf_cam = Eigen::Isometry3d::Identity();
+  }
+  return matched_ids;
+}
+
+void Tracker::count_visibility(const LocalMap& local, const Eigen::Isometry3d& T_cam_world) {
+  // Visibility statistics at the refined pose (for the mapper's point culling). Map locked.
+  SlamMap& map = map_->map;
+  for (const LocalPoint& lp : local.points) {
+    MapPoint* p = map.point(lp.id);
+    if (!p) continue;
+    const Eigen::Vector3d pc = T_cam_world * lp.p_world_m;
+    if (pc.z() < options_.search.min_depth_m) continue;
+    const Eigen::Vector3d uvd = camera_.project(pc);
+    if (camera_.in_image(uvd.x(), uvd.y())) ++p->visible;
+  }
+}
+
+void Tracker::advance(const RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam,
+                      std::vector<std::int64_t> matched_points, TrackResult* out) {
+  // Motion model over the last interval (not across a relocalisation; a cross-check that replaced
+  // the fit continues from a tracked frame, so its motion is the corrected step).
+  const double dt = frame.stamp_s - last_stamp_s_;
+  if (state_ == TrackingState::kTracking && (!out->relocalised || out->cross_checked) && dt > 0) {
+    T_last_cur_velocity_ = T_world_last_.inverse() * T_world_cam;
+    last_interval_s_ = dt;
+    have_velocity_ = true;
+  } else {
+    have_velocity_ = false;
+    motion_bound_.reset();
+  }
+  motion_bound_.add(frame.stamp_s, T_world_cam.translation());
+  state_ = TrackingState::kTracking;
+  T_world_last_ = T_world_cam;
+  T_ref_last_ = out->T_kf_cam;
+  last_stamp_s_ = frame.stamp_s;
+  last_q_nav_cam_ = frame.q_nav_cam;
+  last_points_ = std::move(matched_points);
+  out->state = TrackingState::kTracking;
+  out->T_world_cam = T_world_cam;
+}
+
+}  // namespace slam

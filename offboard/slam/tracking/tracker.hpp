@@ -1,0 +1,357 @@
+// Tracking against the local map (the only stage on the camera-to-command path). Per frame:
+//  1. predict the pose with a constant-velocity model scaled to the frame interval (a gap of
+//     dropped frames is extrapolated, not mistaken for a stop), optionally with a rotation prior
+//     (e.g. the craft's IMU attitude) replacing the predicted rotation;
+//  2. build the local map: the keyframes that observed the last frame's points (most first) and
+//     their covisible neighbours, bounded in count, and the points they see;
+//  3. match those points by projection (wide radius), optimise the pose, match again with a narrow
+//     radius around the refined projection, optimise again (motion-only, RGB-D residual);
+//  4. when projection finds too little (fast rotation), after a gap longer than the prediction
+//     vouches for (always: the projection fit is then kept only if it beats the database's), or
+//     when tracking was lost: recover the pose from descriptor matches against keyframes ranked
+//     by appearance (thumbnails) with 3D-3D RANSAC, then refine against the local map
+//     (relocalisation, same map and world frame); a fit that is weak (the frame is about to
+//     become a keyframe) is cross-checked the same way against the reference keyframe alone;
+//  5. decide a keyframe by view change (tracked points fall below a fraction of the reference
+//     keyframe's, or too few near points are tracked), never by the clock; insert it and its new
+//     near points into the map for the mapper to refine.
+// Thresholds follow ORB-SLAM2's RGB-D tracking (cited per field).
+//
+// Thread safety: one Tracker per camera stream; it locks the shared map only for short copies and
+// insertions (`SharedMap::mutex`), never while extracting features or optimising.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "slam/core/thread_priority.hpp"
+#include "slam/features/features.hpp"
+#include "slam/map/map.hpp"
+#include "slam/matching/matching.hpp"
+#include "slam/motion/motion.hpp"
+#include "slam/tracking/motion_bound.hpp"
+#include "slam/tracking/pose_optimizer.hpp"
+#include "slam/tracking/projection_search.hpp"
+#include "slam/tracking/registration.hpp"
+
+namespace slam {
+
+/// The map's lock. Priority inheritance: the mapper and the loop closer run below tracking (niced,
+/// or SCHED_OTHER under a real-time tracker); preempted while holding the map they would keep a
+/// real-time tracker waiting behind the machine's other work (p95 16 ms, max 26 ms at load 7-10).
+/// With PTHREAD_PRIO_INHERIT the holder runs at the waiting tracker's real-time priority until it
+/// unlocks. (Between SCHED_OTHER threads the kernel's boost does not change CFS weights: it helps
+/// where tracking is real-time, as in slam-server and quad-control.)
+using MapMutex = PriorityInheritanceMutex;
+
+/// The map with the mutex that guards it; shared by the tracker, the mapper and the loop closer.
+struct SharedMap {
+  explicit SharedMap(bool priority_inheritance = true) : mutex(priority_inheritance) {}
+  MapMutex mutex;
+  SlamMap map;
+  /// Bumped (under `mutex`) by every loop correction that moved keyframes and points: the tracker
+  /// re-anchors its last pose to its reference keyframe, the mapper drops a bundle adjustment
+  /// solved on poses from before the correction.
+  std::uint64_t corrections = 0;
+};
+
+/// Why the keyframe rule asked for a keyframe (logged per frame; see Tracker::track step 5).
+/// kRedundant: the view changed, but the map already sees this view from enough keyframes (a
+/// revisit): the keyframe would be culled as redundant at once, so none was made.
+/// kMapperBusy: the view changed, but the mapper was still busy and tracking was not weak
+/// (ORB-SLAM2 NeedNewKeyFrame c1b/c1c): the keyframe is left to a later frame.
+enum class KeyframeReason {
+  kNone,
+  kFirst,
+  kViewChanged,
+  kNeedNear,
+  kBoth,
+  kRedundant,
+  kMapperBusy
+};
+const char* to_string(KeyframeReason r);
+
+struct TrackerOptions {
+  ProjectionSearchOptions search;  ///< first pass: radius 15 px (ORB-SLAM2 motion model)
+  double refine_radius_px =
+      3.0;  ///< second pass around the refined pose (ORB-SLAM2: 3 after relocalisation, 1
+            ///< otherwise; 3 tolerates our coarser ORB levels)
+  double wide_radius_factor = 3.0;  ///< when the first pass finds too little (gaps)
+  PoseOptimizerOptions pose;
+  int min_matches_first_pass = 20;       ///< ORB-SLAM2 TrackWithMotionModel: < 20 -> wider search
+  int min_inliers_tracking = 30;         ///< ORB-SLAM2 TrackLocalMap: >= 30 inliers
+  int min_inliers_relocalised = 50;      ///< ORB-SLAM2 Relocalization / after it: >= 50
+  int max_local_keyframes = 30;          ///< bounds the per-frame cost (ORB-SLAM2: 80)
+  int covisible_per_keyframe = 10;       ///< ORB-SLAM2 UpdateLocalKeyFrames: best 10 neighbours
+  double keyframe_tracked_ratio = 0.75;  ///< ORB-SLAM2 RGB-D thRefRatio
+  double keyframe_tracked_ratio_first =
+      0.4;  ///< ORB-SLAM2 thRefRatio while the map has one keyframe
+  /// While the mapper is busy (ORB-SLAM2 NeedNewKeyFrame c1b false) only weak tracking makes a
+  /// keyframe: inliers < this x the reference keyframe's tracked points (c1c: 0.25), or the near
+  /// rule.
+  double keyframe_busy_tracked_ratio = 0.25;
+  double near_depth_m = 3.1;    ///< ORB-SLAM2 ThDepth: 40 baselines of the Kinect (bf 40 / fx 517)
+  int near_tracked_min = 100;   ///< ORB-SLAM2 bNeedToInsertClose: < 100 near tracked...
+  int near_untracked_min = 70;  ///< ...and > 70 near untracked -> keyframe
+  int min_new_points = 100;     ///< ORB-SLAM2 CreateNewKeyFrame: at least the 100 nearest
+  int min_init_features = 100;  ///< a first keyframe needs this many features with depth
+  /// Revisits: a view change alone does not make a keyframe that the mapper's culling would judge
+  /// redundant at once - when >= `redundant_fraction` of the frame's tracked near points are
+  /// already observed by >= `redundant_observers` keyframes (ORB-SLAM2 KeyFrameCulling's test, the
+  /// same values as LocalMapperOptions). Without it, a revisited place keeps getting keyframes that
+  /// the culling then removes. Weak tracking (the near rule) still inserts.
+  bool keyframe_needs_new_content = true;
+  double redundant_fraction = 0.9;
+  int redundant_observers = 3;
+  std::size_t relocalisation_candidates = 4;  ///< keyframes tried, by appearance
+  MatchOptions matching;               ///< descriptor matching for relocalisation (thesis NNMMT...
+  double relocalisation_ratio = 0.75;  ///< ...with ORB-SLAM2's Relocalization ratio: views far
+                                       ///< apart match fewer pairs than consecutive frames)
+  int min_relocalisation_ransac_inliers = 10;  ///< a guess only (ORB-SLAM2: 10 PnP inliers); the
+                                               ///< local-map refit needs min_inliers_relocalised
+  RansacOptions ransac;                        ///< 3D-3D RANSAC for relocalisation (thesis values)
+  /// Motion bounds between two tracked frames: an indoor quadcopter (and a hand-held Kinect in the
+  /// TUM sequences, 0.4 m/s and 40 deg/s on average) stays well below 2 m/s and 180 deg/s; a pose
+  /// step beyond them plus a margin for estimation noise is a wrong fit (tracking is declared
+  /// lost).
+  double max_speed_m_per_s = 2.0;
+  double max_rate_rad_per_s = 3.14159;
+  double motion_margin_m = 0.05;
+  double motion_margin_rad = 0.0873;  ///< 5 deg
+  /// Bound on the deviation of a tracked position from the recent constant-velocity path over the
+  /// gap dt (MotionBound: motion_margin_m + a dt (dt + baseline) / 2). 5 m/s^2: the TUM ground
+  /// truth deviates from constant velocity at most 88.6 mm over 260 ms on fr1_xyz (~2.6 m/s^2),
+  /// 248.9 mm over 500 ms, 68.3 mm over 260 ms on fr2_desk; a craft tilted 27 deg accelerates
+  /// 5 m/s^2 horizontally, past what an indoor waypoint flight commands. Unlike the speed bound it
+  /// stays tight on short gaps: 0.27 m at 260 ms, where a 0.32 m wrong fit was accepted in a `make
+  /// demo-loop` run. Needs two tracked positions since the last relocalisation or loop correction.
+  double max_acceleration_m_per_s2 = 5.0;
+  double motion_bound_baseline_s = 0.1;  ///< MotionBoundOptions::baseline_s
+  bool motion_bound = true;              ///< false: the bound is computed and logged, not enforced
+  double max_velocity_scale =
+      5.0;  ///< a gap of more than 5 frame intervals is not extrapolated further
+  /// Beyond this gap since the last tracked frame the prediction no longer vouches for the pose:
+  /// the projection fit must then meet the relocalisation bar (`min_inliers_relocalised`), as
+  /// ORB-SLAM2 demands 50 inliers right after a relocalisation, and below it the keyframe database
+  /// is tried. 0.2 s: 6 frame intervals at 30 fps, just past what `max_velocity_scale`
+  /// extrapolates; over 0.2 s the TUM fr1 camera moves up to ~7 cm, the HIL craft at waypoint speed
+  /// ~10 cm: enough for a projection search at the wrong offset in a room of repeated texture to
+  /// reach the tracking bar (HIL scenario 4, 1.7 s link stall: a 45-inlier fit 0.4 m off).
+  double max_predicted_gap_s = 0.2;
+  /// A fit that passes the tracking bar but is weak - fewer inliers than this x the reference
+  /// keyframe's tracked points, or fewer than `min_inliers_relocalised` - is cross-checked: the
+  /// frame is registered to the reference keyframe by descriptors and 3D-3D RANSAC, independent of
+  /// the prediction, refitted against the local map around it, and the fit with more inliers is
+  /// kept. 0.75 is the keyframe rule's `keyframe_tracked_ratio`: such a frame is about to become a
+  /// keyframe, and a keyframe made at a wrong pose misplaces every point it adds and every frame
+  /// tracked against them. On fr1_xyz_first300 with every 4th frame (7.5 fps: 5 cm and 2-3 deg
+  /// between frames, like a 30 fps stream with dropped frames) a constant-velocity prediction past
+  /// a change of direction converged 5 deg and 7 cm off with 183 inliers; the keyframe made there
+  /// put the next 8 frames 0.1 m off. 0 disables the cross-check.
+  double cross_check_tracked_ratio = 0.75;
+  /// The cross-check's fit replaces the projection fit only at a different pose: within these the
+  /// two are one solution and the projection fit stays (with the local map of the last frame's
+  /// points, so a keyframe made here keeps its links to the map). Measured on fr1_xyz_first300
+  /// (every 1st-6th frame): fits of one pose differed by 0.1-8 mm and <= 0.6 deg, the wrong fits
+  /// the cross-check caught by 15-240 mm and 0.3-8.7 deg. (In a HIL flight at 30 fps every
+  /// cross-check landed within 1.4 mm: nothing is replaced there.)
+  double cross_check_same_pose_m = 0.01;
+  double cross_check_same_pose_deg = 0.5;
+  /// Predict the rotation from the caller's attitude (`RgbdFrame::q_nav_cam`) when two consecutive
+  /// frames carry one: an IMU measures rotation directly, where the constant-velocity model
+  /// extrapolates the last interval's (wrong at every change of turn rate, and across gaps).
+  bool attitude_prior = true;
+  /// When a frame can be neither tracked nor relocalised, start a new map segment at once at the
+  /// predicted pose (the frame's near points become a keyframe) instead of holding the last pose
+  /// until the camera returns to mapped ground: a craft turning or flying into unmapped space
+  /// keeps a pose and a local map. The segment lives in the same map and world frame; loop closing
+  /// joins it to the older keyframes when it recognises their place. False: stay lost and
+  /// relocalise.
+  bool restart_when_lost = false;
+  bool is_valid(std::string* error) const;
+};
+
+struct TrackResult {
+  TrackingState state = TrackingState::kInitialising;
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+  std::int64_t reference_keyframe = -1;
+  Eigen::Isometry3d T_kf_cam = Eigen::Isometry3d::Identity();
+  bool keyframe = false;          ///< this frame became a keyframe `keyframe_id`
+  std::int64_t keyframe_id = -1;  ///< the frame index, unless a loaded map already uses it
+  bool relocalised = false;       ///< the pose came from the keyframe database, not the prediction
+  /// Neither tracking nor relocalisation gave a pose: the frame started a new map segment at the
+  /// predicted pose (TrackerOptions::restart_when_lost); `state` is kTracking.
+  bool new_segment = false;
+  /// The fit was weak and was cross-checked against the reference keyframe
+  /// (TrackerOptions::cross_check_tracked_ratio); `relocalised` too when the cross-check's fit won.
+  bool cross_checked = false;
+  /// How far the cross-check's fit was from the projection fit (-1: no cross-check fit).
+  double cross_check_shift_m = -1, cross_check_shift_deg = -1;
+  bool attitude_predicted = false;  ///< the predicted rotation came from RgbdFrame::q_nav_cam
+  bool prediction_stale =
+      false;  ///< the gap since the last tracked frame exceeded max_predicted_gap_s
+  /// Distance of the fitted position from the recent constant-velocity path, and its bound
+  /// (MotionBound); -1 when not checked.
+  double prediction_deviation_m = -1, prediction_deviation_bound_m = -1;
+  std::size_t local_points = 0;  ///< points in the local map this frame was matched against
+  std::size_t matches = 0;       ///< projection matches before the final optimisation
+  std::size_t inliers = 0;
+  double local_map_ms = 0, search_ms = 0, optimise_ms = 0, relocalise_ms = 0;
+  /// Wall time this frame spent waiting to acquire the map lock (all acquisitions summed): what a
+  /// mapper or loop closer holding it costs the camera-to-command path.
+  double map_lock_wait_ms = 0;
+  std::size_t map_keyframes = 0, map_points = 0;  ///< map size after this frame
+  /// The keyframe rule's verdict and inputs (also when the keyframe was deferred: `keyframe`
+  /// false).
+  KeyframeReason keyframe_wanted = KeyframeReason::kNone;
+  int ref_tracked = 0, near_tracked = 0, near_untracked = 0;
+  double near_redundant =
+      -1;  ///< fraction of tracked near points seen by >= 3 keyframes (-1: not computed)
+  /// SharedMap::corrections this pose is expressed after: a change from the previous frame's
+  /// declares that a loop correction moved the world frame under the craft in between.
+  std::uint64_t map_corrections = 0;
+};
+
+/// How far apart two poses of one camera are: the distance between the camera centres and the
+/// angle between the orientations.
+struct CameraShift {
+  double metres = 0, degrees = 0;
+};
+CameraShift camera_shift(const Eigen::Isometry3d& T_cam_world_a,
+                         const Eigen::Isometry3d& T_cam_world_b);
+
+/// The projection-fit settings inside the tracker options.
+ProjectionFitOptions projection_fit_options(const TrackerOptions& options);
+
+class Tracker {
+ public:
+  static std::optional<Tracker> create(const TrackerOptions& options, const CameraModel& camera,
+                                       std::shared_ptr<SharedMap> map, std::string* error);
+
+  /// Tracks one frame whose features are extracted. `keyframe_allowed`: the mapper can take a
+  /// keyframe now (bounded queue). `mapper_idle`: the mapper has nothing queued or in work (always
+  /// true when the caller waits for mapping); while false only weak tracking makes a keyframe.
+  /// When this frame and the last tracked one both carry `RgbdFrame::q_nav_cam` (and
+  /// `TrackerOptions::attitude_prior` is on), the predicted rotation is the last pose's rotated by
+  /// the attitude's change between the two frames instead of the constant-velocity rotation.
+  TrackResult track(const RgbdFrame& frame, std::shared_ptr<const FrameFeatures> features,
+                    const FeatureOptions& feature_options, bool keyframe_allowed,
+                    bool mapper_idle = true);
+
+  /// Forget the motion model and start from relocalisation (after a map load, or a reset).
+  void set_lost() { state_ = TrackingState::kLost; }
+  TrackingState state() const { return state_; }
+
+ private:
+  Tracker(TrackerOptions options, CameraModel camera, std::shared_ptr<SharedMap> map)
+      : options_(std::move(options)),
+        camera_(camera),
+        map_(std::move(map)),
+        motion_bound_(MotionBoundOptions{options_.motion_margin_m,
+                                         options_.max_acceleration_m_per_s2,
+                                         options_.motion_bound_baseline_s}) {}
+
+  struct LocalMap {
+    std::vector<LocalPoint> points;
+    std::vector<std::int64_t> keyframes;
+  };
+  using Fit = ProjectionFit;
+  /// One frame as the steps of track() see it.
+  struct FrameInput {
+    const RgbdFrame& frame;
+    TrackedFeatures tf;
+    cv::Mat thumbnail;
+    std::uint64_t seed = 0;  ///< RANSAC seed of this frame's relocalisation
+  };
+  /// The pose fit under way: the local map it was matched against and the inliers it needs.
+  struct Attempt {
+    LocalMap local;
+    Fit fit;
+    int needed = 0;
+  };
+
+  // The steps of track(), in order.
+  TrackResult track_steps(const FrameInput& in, bool keyframe_allowed, bool mapper_idle);
+  /// The first keyframe of an empty map, at the origin.
+  TrackResult initialise(const FrameInput& in);
+  /// Re-anchors the last pose when a loop correction moved its reference keyframe.
+  void follow_map_corrections(TrackResult* out);
+  /// Constant-velocity prediction over the gap, with the attitude prior's rotation if any.
+  Eigen::Isometry3d predict(const RgbdFrame& frame, TrackResult* out) const;
+  /// Builds the local map and fits the pose to it by projection from the prediction.
+  Attempt search_local_map(const FrameInput& in, const Eigen::Isometry3d& T_world_pred,
+                           TrackResult* out);
+  /// Relocalises when the fit is missing or weak, or cross-checks a weak fit against the
+  /// reference keyframe; replaces the fit when the keyframe database's is better.
+  void recover_or_cross_check(const FrameInput& in, Attempt* attempt, TrackResult* out);
+  /// The fit meets its inlier bar and the motion bounds.
+  bool acceptable(const RgbdFrame& frame, const Attempt& attempt, TrackResult* out) const;
+  /// Holds the last pose; the next frames relocalise.
+  TrackResult declare_lost(TrackResult* out);
+  /// TrackerOptions::restart_when_lost: a new map segment at `T_world_guess`.
+  TrackResult start_segment(const FrameInput& in, const Eigen::Isometry3d& T_world_guess,
+                            TrackResult out);
+  /// Updates point statistics and the reference keyframe, applies the keyframe rule (inserting
+  /// the keyframe); returns the map points the frame matched.
+  std::vector<std::int64_t> decide_keyframe(const FrameInput& in, const Attempt& attempt,
+                                            const Eigen::Isometry3d& T_world_cam,
+                                            bool keyframe_allowed, bool mapper_idle,
+                                            TrackResult* out);
+  /// Counts the local points in view at the fitted pose (map locked by the caller).
+  void count_visibility(const LocalMap& local, const Eigen::Isometry3d& T_cam_world);
+  /// The frame is tracked: motion model, motion bound and last-frame state move on to it.
+  void advance(const RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam,
+               std::vector<std::int64_t> matched_points, TrackResult* out);
+  /// Local keyframes and their points (locks the map). `seed_points`: points of the last frame.
+  LocalMap build_local_map(const std::vector<std::int64_t>& seed_points,
+                           std::int64_t fallback_kf) const;
+  /// Two-pass projection matching and pose optimisation from a pose guess.
+  Fit fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
+                    const Eigen::Isometry3d& T_cam_world_guess, double first_radius_px) const;
+  /// The fit passed the tracking bar but is weak (TrackerOptions::cross_check_tracked_ratio).
+  bool cross_check_needed(const Fit& fit) const;
+  /// A pose guess from the keyframe database and the keyframe it was registered to.
+  struct KeyframeGuess {
+    Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+    std::int64_t keyframe = -1;
+  };
+  /// Pose from descriptor matches against the candidate keyframes' map points (3D-3D RANSAC): the
+  /// candidate with the most RANSAC inliers wins (its local map seeds the refit).
+  std::optional<KeyframeGuess> pose_from_keyframes(const TrackedFeatures& frame,
+                                                   const std::vector<std::int64_t>& candidates,
+                                                   std::uint64_t seed) const;
+  /// Inserts the keyframe and its new points; returns its id.
+  std::int64_t insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf,
+                               const cv::Mat& thumbnail, const Eigen::Isometry3d& T_world_cam,
+                               const LocalMap& local, const std::vector<int>& point_of_keypoint);
+
+  /// Locks the map, adding the wait to `lock_wait_ms_` (reset per frame by track()).
+  std::unique_lock<MapMutex> lock_map() const;
+
+  TrackerOptions options_;
+  CameraModel camera_;
+  mutable double lock_wait_ms_ = 0;
+  std::shared_ptr<SharedMap> map_;
+  TrackingState state_ = TrackingState::kInitialising;
+  Eigen::Isometry3d T_world_last_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_last_cur_velocity_ =
+      Eigen::Isometry3d::Identity();  ///< motion over one interval
+  double last_stamp_s_ = 0, last_interval_s_ = 0;
+  std::optional<Eigen::Quaterniond> last_q_nav_cam_;  ///< the last tracked frame's attitude
+  bool have_velocity_ = false;
+  std::vector<std::int64_t> last_points_;  ///< map points matched in the last tracked frame
+  std::int64_t reference_kf_ = -1;
+  Eigen::Isometry3d T_ref_last_ =
+      Eigen::Isometry3d::Identity();  ///< last pose relative to reference_kf_
+  std::uint64_t corrections_seen_ =
+      0;                      ///< SharedMap::corrections when T_world_last_ was last anchored
+  MotionBound motion_bound_;  ///< tracked positions since the last relocalisation or correction
+};
+
+}  // namespace slam
