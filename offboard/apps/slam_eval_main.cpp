@@ -50,6 +50,9 @@ struct RunArgs {
   std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off",
               keyframe_new_content = "on", depth_noise = "keypoint", map_lock = "pi",
               tracking_policy = "off", local_ba = "on", cross_check = "on",
+              restart_when_lost = slam::TrackerOptions{}.restart_when_lost ? "on" : "off",
+              align_depth_time = slam::TrackerOptions{}.align_depth_time ? "on" : "off",
+              confirm_off_path = slam::TrackerOptions{}.confirm_off_path ? "on" : "off",
               orb_pixel_centres = "on";
   double depth_units_per_m = 0;
   int mapping_rt_priority = slam::PipelineOptions{}.mapping_rt_priority;
@@ -94,6 +97,9 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   po.keyframe_gate_mapper_busy = a.keyframe_gate == "on";
   po.tracker.keyframe_needs_new_content = a.keyframe_new_content == "on";
   if (a.cross_check == "off") po.tracker.cross_check_tracked_ratio = 0;
+  po.tracker.restart_when_lost = a.restart_when_lost == "on";
+  po.tracker.align_depth_time = a.align_depth_time == "on";
+  po.tracker.confirm_off_path = a.confirm_off_path == "on";
   po.frontend.features.orb_pixel_centres = a.orb_pixel_centres == "on";
   po.map_lock_priority_inheritance = a.map_lock == "pi";
   po.mapper.bundle_adjustment = a.local_ba == "on";
@@ -134,6 +140,9 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
   m["loop_closing_option"] = a.loop_closing;
   m["keyframe_new_content"] = a.keyframe_new_content;
   m["cross_check"] = a.cross_check;
+  m["restart_when_lost"] = a.restart_when_lost;
+  m["align_depth_time"] = a.align_depth_time;
+  m["confirm_off_path"] = a.confirm_off_path;
   m["orb_pixel_centres"] = a.orb_pixel_centres;
   m["depth_noise"] = a.depth_noise;
   m["map_lock"] = a.map_lock;
@@ -480,6 +489,21 @@ int main(int argc, char** argv) {
                   "localmap: a view change makes no keyframe that would be culled as redundant at "
                   "once (>= 90 % of "
                   "its tracked near points seen by >= 3 keyframes); off: ORB-SLAM2's rule as is")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  run->add_option("--restart-when-lost", a.restart_when_lost,
+                  "localmap: a frame that can be neither tracked nor relocalised starts a new map "
+                  "segment at the predicted pose instead of staying lost (docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  run->add_option("--confirm-off-path", a.confirm_off_path,
+                  "localmap: a fit only the motion bound refuses is kept when a registration to "
+                  "the reference keyframe lands on the same pose (docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  run->add_option("--align-depth-time", a.align_depth_time,
+                  "localmap: re-time each depth image to its colour image by the predicted "
+                  "rotation (the Kinect's depth is 3-11 ms older in TUM fr1; docs/slam.md)")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   run->add_option("--cross-check", a.cross_check,

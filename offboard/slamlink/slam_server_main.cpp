@@ -312,6 +312,13 @@ int main(int argc, char** argv) {
                  "localmap: loop closing on its own thread (docs/slam.md)")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
+  std::string restart_when_lost = slam::TrackerOptions{}.restart_when_lost ? "on" : "off";
+  app.add_option("--restart-when-lost", restart_when_lost,
+                 "localmap: a frame that can be neither tracked nor relocalised within 0.2 s of "
+                 "the last tracked one starts a new map segment at the predicted pose "
+                 "(docs/slam.md); off: it stays lost until relocalised")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   std::string cross_check = "on";
   app.add_option("--cross-check", cross_check,
                  "localmap: cross-check weak fits against the reference keyframe (docs/slam.md); "
@@ -347,6 +354,7 @@ int main(int argc, char** argv) {
   slam::PipelineOptions options;
   options.loop_closing = loop_closing == "on";
   if (cross_check == "off") options.tracker.cross_check_tracked_ratio = 0;
+  options.tracker.restart_when_lost = restart_when_lost == "on";
   options.mapping_rt_priority = mapping_rt_priority;
   options.checkpoint_period_s = checkpoint_period_s;
   std::string err;

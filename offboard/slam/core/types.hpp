@@ -41,6 +41,10 @@ struct RgbdFrame {
   /// times the camera mount), when the caller has one. The tracker uses only its change between
   /// consecutive frames, so the navigation frame need not be the map's.
   std::optional<Eigen::Quaterniond> q_nav_cam;
+  /// Capture time of the depth image when it differs from `stamp_s` (the Kinect's colour and depth
+  /// run on separate clocks); the tracker re-times the depth to `stamp_s` while the camera turns
+  /// (slam/tracking/depth_time_alignment.hpp).
+  std::optional<double> depth_stamp_s;
 };
 
 /// What a tracker knows of the camera's pose after a frame.

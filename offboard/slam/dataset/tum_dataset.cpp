@@ -113,6 +113,7 @@ std::optional<RgbdFrame> TumDataset::load(std::size_t i, std::string* error) con
   RgbdFrame f;
   f.index = static_cast<std::int64_t>(i);
   f.stamp_s = stamp_from_depth_ ? e.depth_stamp_s : e.rgb_stamp_s;
+  if (!stamp_from_depth_) f.depth_stamp_s = e.depth_stamp_s;
   f.rgb = cv::imread(e.rgb_path, cv::IMREAD_COLOR);
   if (f.rgb.empty()) {
     if (error) *error = "cannot read colour image '" + e.rgb_path + "'";

@@ -3,6 +3,7 @@
 
 #include "slam/loopclosing/vocabulary.hpp"
 #include "slam/map/map_io.hpp"
+#include "slam/tracking/depth_time_alignment.hpp"
 
 namespace slam {
 
@@ -217,9 +218,12 @@ void LocalMappingStage::add_to(PipelineSummary* s) const {
 
 TrackingStage::TrackingStage(FeatureExtractor extractor, Tracker tracker, StagePacing pacing,
                              std::function<KeyframeAdmission()> admission, FrameRecords* records,
-                             std::function<void(std::int64_t)> on_keyframe)
+                             std::function<void(std::int64_t)> on_keyframe,
+                             const Intrinsics& intrinsics, bool align_depth_time)
     : extractor_(std::move(extractor)),
       tracker_(std::move(tracker)),
+      intrinsics_(intrinsics),
+      align_depth_time_(align_depth_time),
       pacing_(pacing),
       admission_(std::move(admission)),
       records_(records),
@@ -268,7 +272,7 @@ TrackingStage::Output TrackingStage::process(const RgbdFrame& frame, KeyframeAdm
   std::string error;
   std::optional<FrameFeatures> feats;
   try {
-    feats = extractor_.extract(frame, &error);
+    feats = extractor_.extract(depth_aligned(frame), &error);
   } catch (const std::exception& e) {  // nothing escapes a thread
     error = std::string("features: exception: ") + e.what();
   }
@@ -296,6 +300,16 @@ TrackingStage::Output TrackingStage::process(const RgbdFrame& frame, KeyframeAdm
   out.record.frontend_ms = ms_since(t0);
   out.record.frontend_cpu_ms = (thread_cpu_now_ns() - c0) * 1e-6;
   if (tr.keyframe) out.keyframe = tr.keyframe_id;
+  return out;
+}
+
+RgbdFrame TrackingStage::depth_aligned(const RgbdFrame& frame) const {
+  if (!align_depth_time_ || !frame.depth_stamp_s) return frame;
+  const auto omega = tracker_.predicted_rotation_rate_rad_per_s();
+  if (!omega) return frame;
+  RgbdFrame out = frame;  // images are shared; only the depth is replaced
+  out.depth = align_depth_to_colour_time(frame.depth, intrinsics_, *omega,
+                                         frame.stamp_s - *frame.depth_stamp_s);
   return out;
 }
 
@@ -393,7 +407,8 @@ std::unique_ptr<LocalMapSystem> LocalMapSystem::create(const PipelineOptions& op
       [self] {
         return keyframe_admission(self->mapping_->load(), self->options_.keyframe_gate_mapper_busy);
       },
-      records, [self](std::int64_t kf) { self->keyframe_made(kf); });
+      records, [self](std::int64_t kf) { self->keyframe_made(kf); }, k,
+      opts.tracker.align_depth_time);
   s->tracking_->start();
   s->mapping_->start();
   if (s->loop_closing_) s->loop_closing_->start();

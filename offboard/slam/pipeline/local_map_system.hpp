@@ -150,7 +150,8 @@ class TrackingStage {
   /// record goes; `on_keyframe(kf)`: hands a new keyframe on (and, in kWait, waits for it).
   TrackingStage(FeatureExtractor extractor, Tracker tracker, StagePacing pacing,
                 std::function<KeyframeAdmission()> admission, FrameRecords* records,
-                std::function<void(std::int64_t)> on_keyframe);
+                std::function<void(std::int64_t)> on_keyframe, const Intrinsics& intrinsics,
+                bool align_depth_time);
   ~TrackingStage() { finish(); }
   TrackingStage(const TrackingStage&) = delete;
   TrackingStage& operator=(const TrackingStage&) = delete;
@@ -168,8 +169,12 @@ class TrackingStage {
  private:
   void run();
   void track(const RgbdFrame& frame);
+  /// The frame with its depth re-timed to the colour image (TrackerOptions::align_depth_time).
+  RgbdFrame depth_aligned(const RgbdFrame& frame) const;
   FeatureExtractor extractor_;
   Tracker tracker_;
+  const Intrinsics intrinsics_;
+  const bool align_depth_time_;
   const StagePacing pacing_;
   std::function<KeyframeAdmission()> admission_;
   FrameRecords* records_;

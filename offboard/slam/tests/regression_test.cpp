@@ -311,24 +311,38 @@ TEST(Regression, LocalMapNeverHandsOnAStepFasterThanTheCameraCanMove) {
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
-  auto p = sequential_orb_local_map();
-  ASSERT_TRUE(p);
-  double last_stamp = 0;
-  for (std::size_t i = 0; i < 10; ++i) {
-    auto f = ds->load(i, &err);
-    last_stamp = f->stamp_s;
-    p->submit(std::move(*f));
+  for (const bool restart : {false, true}) {
+    SCOPED_TRACE(restart ? "restart_when_lost on" : "restart_when_lost off");
+    PipelineOptions o = orb_local_map(PipelineMode::kSequential);
+    o.tracker.restart_when_lost = restart;
+    auto p = Pipeline::create(o, Intrinsics{}, &err);
+    ASSERT_TRUE(p) << err;
+    double last_stamp = 0;
+    for (std::size_t i = 0; i < 10; ++i) {
+      auto f = ds->load(i, &err);
+      last_stamp = f->stamp_s;
+      p->submit(std::move(*f));
+    }
+    auto far = ds->load(25, &err);
+    far->index = 10;
+    far->stamp_s = last_stamp + 0.033;
+    p->submit(std::move(*far));
+    p->finish();
+    const auto recs = p->records();
+    ASSERT_EQ(recs.size(), 11u);
+    const Eigen::Isometry3d step = recs[9].T_world_cam.inverse() * recs[10].T_world_cam;
+    if (restart) {
+      // THEN the frame starts a new map segment at the predicted pose: one frame interval of the
+      // camera's recent motion (a few mm), not the 0.2 m jump
+      EXPECT_EQ(recs[10].state, TrackingState::kTracking);
+      EXPECT_TRUE(recs[10].new_segment);
+      EXPECT_LT(step.translation().norm(), 0.02);
+    } else {
+      // THEN that frame is lost, holding frame 9's pose, instead of jumping
+      EXPECT_EQ(recs[10].state, TrackingState::kLost);
+      EXPECT_TRUE(recs[10].T_world_cam.isApprox(recs[9].T_world_cam, 1e-12));
+    }
   }
-  auto far = ds->load(25, &err);
-  far->index = 10;
-  far->stamp_s = last_stamp + 0.033;
-  p->submit(std::move(*far));
-  p->finish();
-  const auto recs = p->records();
-  // THEN that frame is lost, holding frame 9's pose, instead of jumping
-  ASSERT_EQ(recs.size(), 11u);
-  EXPECT_EQ(recs[10].state, TrackingState::kLost);
-  EXPECT_TRUE(recs[10].T_world_cam.isApprox(recs[9].T_world_cam, 1e-12));
 }
 
 TEST(Regression, LocalMapWithLoopClosingWaitModeEqualsSequentialOnAForwardBackwardRevisit) {

@@ -168,8 +168,7 @@ bool Tracker::cross_check_needed(const Fit& fit) const {
   if (!fit.ok || !(options_.cross_check_tracked_ratio > 0)) return false;
   if (static_cast<int>(fit.inliers) < options_.min_inliers_relocalised) return true;
   const auto lock = lock_map();
-  const int ref_tracked =
-      map_->map.tracked_points(reference_kf_, keyframe_min_observations(map_->map));
+  const int ref_tracked = map_->map.tracked_points(reference_kf_, min_observations());
   return static_cast<double>(fit.inliers) < options_.cross_check_tracked_ratio * ref_tracked;
 }
 
@@ -227,6 +226,7 @@ std::int64_t Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatu
     return tf.depth_m[static_cast<std::size_t>(a)] < tf.depth_m[static_cast<std::size_t>(b)];
   });
   map.add_keyframe(std::move(kf));
+  if (segment_keyframes_) ++*segment_keyframes_;
   for (std::size_t k = 0; k < point_of_keypoint.size(); ++k) {
     if (point_of_keypoint[k] < 0) continue;
     const std::int64_t pid = local.points[static_cast<std::size_t>(point_of_keypoint[k])].id;
@@ -242,6 +242,19 @@ std::int64_t Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatu
   }
   reference_kf_ = id;
   return id;
+}
+
+int Tracker::min_observations() const {
+  // A young map segment (TrackerOptions::restart_when_lost) has keyframes of its own only.
+  if (segment_keyframes_ && *segment_keyframes_ <= 2) return 1;
+  return keyframe_min_observations(map_->map);
+}
+
+std::optional<Eigen::Vector3d> Tracker::predicted_rotation_rate_rad_per_s() const {
+  if (state_ != TrackingState::kTracking || !have_velocity_ || !(last_interval_s_ > 0))
+    return std::nullopt;
+  const Eigen::AngleAxisd aa(T_last_cur_velocity_.rotation());
+  return Eigen::Vector3d(aa.axis() * (aa.angle() / last_interval_s_));
 }
 
 TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFeatures> features,
@@ -271,10 +284,13 @@ TrackResult Tracker::track_steps(const FrameInput& in, bool keyframe_allowed, bo
   recover_or_cross_check(in, &attempt, &out);
   out.matches = attempt.fit.matches;
   out.inliers = attempt.fit.inliers;
-  if (!acceptable(in.frame, attempt, &out)) {
-    if (options_.restart_when_lost && keyframe_allowed &&
-        static_cast<int>(in.tf.size()) >= options_.min_init_features)
-      return start_segment(in, T_world_pred, std::move(out));
+  Verdict verdict = judge(in.frame, attempt, &out);
+  if (verdict == Verdict::kOffPath && options_.confirm_off_path &&
+      confirm_off_path(in, &attempt, &out))
+    verdict = Verdict::kAccepted;
+  if (verdict != Verdict::kAccepted) {
+    if (const auto guess = restart_pose(in, keyframe_allowed))
+      return start_segment(in, *guess, std::move(out));
     return declare_lost(&out);
   }
   const Eigen::Isometry3d T_world_cam = attempt.fit.T_cam_world.inverse();
@@ -310,12 +326,27 @@ TrackResult Tracker::initialise(const FrameInput& in) {
   return out;
 }
 
+std::optional<Eigen::Isometry3d> Tracker::restart_pose(const FrameInput& in,
+                                                       bool keyframe_allowed) const {
+  // Only where the motion model still vouches for the pose: within max_predicted_gap_s of the
+  // last tracked frame. After a longer gap (a link stall, a loaded map, a restarted service) the
+  // pose is unknown and relocalisation, not a guess, must find it.
+  const double gap_s = in.frame.stamp_s - last_stamp_s_;
+  if (!options_.restart_when_lost || !keyframe_allowed || !restart_motion_known_ || !(gap_s > 0) ||
+      gap_s > options_.max_predicted_gap_s ||
+      static_cast<int>(in.tf.size()) < options_.min_init_features)
+    return std::nullopt;
+  const double s = std::clamp(gap_s / last_interval_s_, 0.0, options_.max_velocity_scale);
+  return T_world_last_ * scale_motion(T_last_cur_velocity_, s);
+}
+
 TrackResult Tracker::start_segment(const FrameInput& in, const Eigen::Isometry3d& T_world_guess,
                                    TrackResult out) {
   // Neither the prediction nor the keyframe database gave a pose: the frame starts a new map
   // segment of its own points at the predicted pose, in the same map and world frame, so that
   // tracking goes on at once. Loop closing joins the segment to the keyframes it does not share
   // points with when it recognises their place.
+  segment_keyframes_ = 0;
   out.keyframe_id = insert_keyframe(in.frame, in.tf, in.thumbnail, T_world_guess, LocalMap{}, {});
   out.keyframe = true;
   out.new_segment = true;
@@ -445,28 +476,54 @@ void Tracker::recover_or_cross_check(const FrameInput& in, Attempt* a, TrackResu
   out->relocalise_ms = ms_since(t0);
 }
 
-bool Tracker::acceptable(const RgbdFrame& frame, const Attempt& a, TrackResult* out) const {
+Tracker::Verdict Tracker::judge(const RgbdFrame& frame, const Attempt& a, TrackResult* out) const {
   const Fit& fit = a.fit;
+  if (!fit.ok || static_cast<int>(fit.inliers) < a.needed || !fit.T_cam_world.matrix().allFinite())
+    return Verdict::kTooFewInliers;
+  if (state_ != TrackingState::kTracking) return Verdict::kAccepted;
   // While tracking, the camera cannot have moved faster than the plausible motion bounds since the
   // last tracked frame: a larger step is a wrong fit, never handed on as a pose.
   // Nor can it have left the constant-velocity path by more than the acceleration bound allows.
-  bool implausible = false;
-  if (fit.ok && state_ == TrackingState::kTracking) {
-    const Eigen::Isometry3d step = T_world_last_.inverse() * fit.T_cam_world.inverse();
-    const double dt = std::max(0.0, frame.stamp_s - last_stamp_s_);
-    implausible =
-        step.translation().norm() > options_.max_speed_m_per_s * dt + options_.motion_margin_m ||
-        rotation_angle_rad(step) > options_.max_rate_rad_per_s * dt + options_.motion_margin_rad;
-    const MotionBoundCheck bound =
-        motion_bound_.check(frame.stamp_s, fit.T_cam_world.inverse().translation());
-    if (bound.checked) {
-      out->prediction_deviation_m = bound.deviation_m;
-      out->prediction_deviation_bound_m = bound.bound_m;
-      implausible = implausible || (options_.motion_bound && !bound.within());
-    }
+  const Eigen::Isometry3d step = T_world_last_.inverse() * fit.T_cam_world.inverse();
+  const double dt = std::max(0.0, frame.stamp_s - last_stamp_s_);
+  if (step.translation().norm() > options_.max_speed_m_per_s * dt + options_.motion_margin_m ||
+      rotation_angle_rad(step) > options_.max_rate_rad_per_s * dt + options_.motion_margin_rad)
+    return Verdict::kTooFast;
+  const MotionBoundCheck bound =
+      motion_bound_.check(frame.stamp_s, fit.T_cam_world.inverse().translation());
+  if (bound.checked) {
+    out->prediction_deviation_m = bound.deviation_m;
+    out->prediction_deviation_bound_m = bound.bound_m;
+    if (options_.motion_bound && !bound.within()) return Verdict::kOffPath;
   }
-  return fit.ok && !implausible && static_cast<int>(fit.inliers) >= a.needed &&
-         fit.T_cam_world.matrix().allFinite();
+  return Verdict::kAccepted;
+}
+
+bool Tracker::confirm_off_path(const FrameInput& in, Attempt* a, TrackResult* out) {
+  // The fit is strong but leaves the recent path by more than the acceleration bound allows.
+  // Under fast rotation the estimated path itself is noisy (a few cm per frame on fr1_360), so
+  // the bound can refuse a right fit; a wrong fit from a wrong prediction (repeated texture after
+  // a stall) is what it is for. The frame is registered to the reference keyframe by descriptors
+  // and 3D-3D RANSAC, independent of the prediction, and refitted there: when that lands on the
+  // same pose, the fit has independent support and is kept.
+  if (reference_kf_ < 0) return false;
+  const auto guess = pose_from_keyframes(in.tf, {reference_kf_}, in.seed);
+  if (!guess) return false;
+  LocalMap around;
+  {
+    const auto lock = lock_map();
+    around = build_local_map({}, guess->keyframe);
+  }
+  const Fit refit =
+      fit_local_map(around, in.tf, guess->T_world_cam.inverse(), options_.search.radius_px);
+  if (!refit.ok || static_cast<int>(refit.inliers) < options_.min_inliers_relocalised) return false;
+  const CameraShift d = camera_shift(a->fit.T_cam_world, refit.T_cam_world);
+  out->cross_check_shift_m = d.metres;
+  out->cross_check_shift_deg = d.degrees;
+  const bool same_pose =
+      d.metres <= options_.off_path_same_pose_m && d.degrees <= options_.off_path_same_pose_deg;
+  out->off_path_confirmed = same_pose;
+  return same_pose;
 }
 
 TrackResult Tracker::declare_lost(TrackResult* out) {
@@ -533,10 +590,11 @@ std::vector<std::int64_t> Tracker::decide_keyframe(const FrameInput& in, const A
     // nMinObs observations (3, or 2 while the map has <= 2 keyframes), an RGB-D observation
     // counting 2 there: i.e. 2 keyframes, or 1 while the map has <= 2 keyframes. Ratio 0.75
     // (0.4 while there is a single keyframe).
-    const std::size_t kfs = map.keyframes().size();
+    // A new map segment counts its own keyframes, as a new map would.
+    const std::size_t kfs = segment_keyframes_ ? *segment_keyframes_ : map.keyframes().size();
     const double ratio =
         kfs < 2 ? options_.keyframe_tracked_ratio_first : options_.keyframe_tracked_ratio;
-    const int ref_tracked = map.tracked_points(reference_kf_, keyframe_min_observations(map));
+    const int ref_tracked = map.tracked_points(reference_kf_, min_observations());
     const int tracked = static_cast<int>(fit.inliers);
     const bool view_changed = tracked < ratio * ref_tracked;
     const bool need_near =
@@ -600,8 +658,10 @@ void Tracker::advance(const RgbdFrame& frame, const Eigen::Isometry3d& T_world_c
     T_last_cur_velocity_ = T_world_last_.inverse() * T_world_cam;
     last_interval_s_ = dt;
     have_velocity_ = true;
+    restart_motion_known_ = true;
   } else {
     have_velocity_ = false;
+    restart_motion_known_ = false;
     motion_bound_.reset();
   }
   motion_bound_.add(frame.stamp_s, T_world_cam.translation());

@@ -173,7 +173,19 @@ struct TrackerOptions {
   /// keeps a pose and a local map. The segment lives in the same map and world frame; loop closing
   /// joins it to the older keyframes when it recognises their place. False: stay lost and
   /// relocalise.
-  bool restart_when_lost = false;
+  bool restart_when_lost = true;
+  /// A fit with enough inliers that only the motion bound refuses is checked, not dropped: it is
+  /// kept when the frame's registration to the reference keyframe (descriptors + 3D-3D RANSAC,
+  /// refitted on the local map, >= min_inliers_relocalised) lands within the same-pose tolerance
+  /// below. The tolerance is the cross-check's: fits of one pose differ by up to 8 mm and 0.6 deg
+  /// on fr1_xyz_first300, wrong fits by 15 mm and more; 2 cm and 1 deg leave room for the noisier
+  /// fits of a fast turn.
+  bool confirm_off_path = false;
+  double off_path_same_pose_m = 0.02;
+  double off_path_same_pose_deg = 1.0;
+  /// Re-time each frame's depth to its colour image (RgbdFrame::depth_stamp_s) by the predicted
+  /// rotation before features are lifted to 3D (slam/tracking/depth_time_alignment.hpp).
+  bool align_depth_time = false;
   bool is_valid(std::string* error) const;
 };
 
@@ -188,6 +200,9 @@ struct TrackResult {
   /// Neither tracking nor relocalisation gave a pose: the frame started a new map segment at the
   /// predicted pose (TrackerOptions::restart_when_lost); `state` is kTracking.
   bool new_segment = false;
+  /// The fit left the motion bound but a registration to the reference keyframe confirmed it
+  /// (TrackerOptions::confirm_off_path).
+  bool off_path_confirmed = false;
   /// The fit was weak and was cross-checked against the reference keyframe
   /// (TrackerOptions::cross_check_tracked_ratio); `relocalised` too when the cross-check's fit won.
   bool cross_checked = false;
@@ -244,8 +259,15 @@ class Tracker {
                     const FeatureOptions& feature_options, bool keyframe_allowed,
                     bool mapper_idle = true);
 
+  /// The camera's angular velocity (camera frame, rad/s) the motion model predicts for the next
+  /// frame; nullopt while it has none (initialising, lost, after a relocalisation).
+  std::optional<Eigen::Vector3d> predicted_rotation_rate_rad_per_s() const;
+
   /// Forget the motion model and start from relocalisation (after a map load, or a reset).
-  void set_lost() { state_ = TrackingState::kLost; }
+  void set_lost() {
+    state_ = TrackingState::kLost;
+    restart_motion_known_ = false;
+  }
   TrackingState state() const { return state_; }
 
  private:
@@ -290,10 +312,18 @@ class Tracker {
   /// Relocalises when the fit is missing or weak, or cross-checks a weak fit against the
   /// reference keyframe; replaces the fit when the keyframe database's is better.
   void recover_or_cross_check(const FrameInput& in, Attempt* attempt, TrackResult* out);
-  /// The fit meets its inlier bar and the motion bounds.
-  bool acceptable(const RgbdFrame& frame, const Attempt& attempt, TrackResult* out) const;
+  enum class Verdict { kAccepted, kTooFewInliers, kTooFast, kOffPath };
+  /// Whether the fit meets its inlier bar, the speed bounds and the motion bound (in that order).
+  Verdict judge(const RgbdFrame& frame, const Attempt& attempt, TrackResult* out) const;
+  /// A fit refused by the motion bound alone is kept when a registration to the reference
+  /// keyframe, independent of the prediction, lands on the same pose
+  /// (TrackerOptions::confirm_off_path).
+  bool confirm_off_path(const FrameInput& in, Attempt* attempt, TrackResult* out);
   /// Holds the last pose; the next frames relocalise.
   TrackResult declare_lost(TrackResult* out);
+  /// Where a new map segment starts (TrackerOptions::restart_when_lost), or nullopt when the
+  /// motion model cannot vouch for a pose (gap, no velocity) or the frame cannot start one.
+  std::optional<Eigen::Isometry3d> restart_pose(const FrameInput& in, bool keyframe_allowed) const;
   /// TrackerOptions::restart_when_lost: a new map segment at `T_world_guess`.
   TrackResult start_segment(const FrameInput& in, const Eigen::Isometry3d& T_world_guess,
                             TrackResult out);
@@ -345,6 +375,9 @@ class Tracker {
   double last_stamp_s_ = 0, last_interval_s_ = 0;
   std::optional<Eigen::Quaterniond> last_q_nav_cam_;  ///< the last tracked frame's attitude
   bool have_velocity_ = false;
+  /// The velocity of the last tracked frame still predicts the pose (kept across a loss, unlike
+  /// have_velocity_; false after a relocalisation or set_lost()).
+  bool restart_motion_known_ = false;
   std::vector<std::int64_t> last_points_;  ///< map points matched in the last tracked frame
   std::int64_t reference_kf_ = -1;
   Eigen::Isometry3d T_ref_last_ =
@@ -352,6 +385,10 @@ class Tracker {
   std::uint64_t corrections_seen_ =
       0;                      ///< SharedMap::corrections when T_world_last_ was last anchored
   MotionBound motion_bound_;  ///< tracked positions since the last relocalisation or correction
+  /// Keyframes of the current map segment, once one was started (restart_when_lost).
+  std::optional<std::size_t> segment_keyframes_;
+  /// ORB-SLAM2's nMinObs for the reference keyframe's tracked points (map locked by the caller).
+  int min_observations() const;
 };
 
 }  // namespace slam
