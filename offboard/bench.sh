@@ -107,7 +107,33 @@ if [ -d "$DATA/fr1_xyz_first300" ]; then
         --out "$OUT/longrun" 2> "$OUT/longrun.log" || status=1
   fi
 fi
+# Fast motion and the anchor: the default system on every sequence, wait and real time, with the
+# new-segment restart on (default) and off; ORB-SLAM2's published runs scored on the same frames.
+mkdir -p "$OUT/anchor"
+for seqdir in "$DATA"/*/; do
+  seq=$(basename "$seqdir")
+  [ -f "$seqdir/rgb.txt" ] || continue
+  for mode in wait realtime; do
+    for restart in on off; do
+      echo "bench: [$(( $(date +%s) - start ))s] anchor: $seq $mode, restart $restart"
+      "$BIN/slam-eval" run --dataset "$seqdir" --mode "$mode" --restart-when-lost "$restart" \
+        --no-map --quiet --out "$OUT/anchor/${seq}_${mode}_restart_$restart" \
+        2> "$OUT/anchor/${seq}_${mode}_restart_$restart.log" || status=1
+    done
+  done
+done
+if [ -d "$DATA/fr1_xyz_first300" ]; then
+  last=$(grep -v '^#' "$DATA/fr1_xyz_first300/rgb.txt" | tail -1 | cut -d' ' -f1)
+  for ref in "$DATA"/reference_trajectories/freiburg1_xyz-orbslam2_rgbd_*.txt; do
+    [ -f "$ref" ] || continue
+    name=$(basename "$ref" .txt | sed 's/freiburg1_xyz-//')
+    awk -v last="$last" '/^#/ || $1 <= last + 0.001' "$ref" > "$OUT/anchor/$name.first300.txt"
+    "$BIN/slam-eval" score --gt "$DATA/fr1_xyz_first300/groundtruth.txt" \
+      --est "$OUT/anchor/$name.first300.txt" > "$OUT/anchor/$name.json" 2> /dev/null || true
+  done
+fi
 python3 offboard/tools/bench_table.py "$OUT"
+python3 offboard/tools/anchor_table.py "$OUT"
 if [ -f "$OUT/longrun/metrics.json" ]; then
   echo; echo "### Long run (real time), per minute of data"
   python3 offboard/tools/longrun.py table "$OUT/longrun" || status=1

@@ -55,6 +55,7 @@ struct RunArgs {
               confirm_off_path = slam::TrackerOptions{}.confirm_off_path ? "on" : "off",
               orb_pixel_centres = "on";
   double depth_units_per_m = 0;
+  double colour_stamp_lag_s = slam::TrackerOptions{}.colour_stamp_lag_s;
   int mapping_rt_priority = slam::PipelineOptions{}.mapping_rt_priority;
 };
 
@@ -99,6 +100,7 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   if (a.cross_check == "off") po.tracker.cross_check_tracked_ratio = 0;
   po.tracker.restart_when_lost = a.restart_when_lost == "on";
   po.tracker.align_depth_time = a.align_depth_time == "on";
+  po.tracker.colour_stamp_lag_s = a.colour_stamp_lag_s;
   po.tracker.confirm_off_path = a.confirm_off_path == "on";
   po.frontend.features.orb_pixel_centres = a.orb_pixel_centres == "on";
   po.map_lock_priority_inheritance = a.map_lock == "pi";
@@ -142,6 +144,7 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
   m["cross_check"] = a.cross_check;
   m["restart_when_lost"] = a.restart_when_lost;
   m["align_depth_time"] = a.align_depth_time;
+  m["colour_stamp_lag_s"] = a.colour_stamp_lag_s;
   m["confirm_off_path"] = a.confirm_off_path;
   m["orb_pixel_centres"] = a.orb_pixel_centres;
   m["depth_noise"] = a.depth_noise;
@@ -500,6 +503,10 @@ int main(int argc, char** argv) {
                   "localmap: a fit only the motion bound refuses is kept when a registration to "
                   "the reference keyframe lands on the same pose (docs/slam.md)")
       ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  run->add_option("--colour-stamp-lag-s", a.colour_stamp_lag_s,
+                  "localmap, with --align-depth-time: how long after the colour exposure its "
+                  "stamp was taken (s)")
       ->capture_default_str();
   run->add_option("--align-depth-time", a.align_depth_time,
                   "localmap: re-time each depth image to its colour image by the predicted "

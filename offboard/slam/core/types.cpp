@@ -59,6 +59,7 @@ bool Intrinsics::from_name(const std::string& name, Intrinsics* out, std::string
   k.cx_px = cam->cx_px;
   k.cy_px = cam->cy_px;
   k.distortion = cam->distortion;
+  k.depth_units_per_m = cam->depth_units_per_m;
   *out = k;
   return true;
 }

@@ -219,11 +219,13 @@ void LocalMappingStage::add_to(PipelineSummary* s) const {
 TrackingStage::TrackingStage(FeatureExtractor extractor, Tracker tracker, StagePacing pacing,
                              std::function<KeyframeAdmission()> admission, FrameRecords* records,
                              std::function<void(std::int64_t)> on_keyframe,
-                             const Intrinsics& intrinsics, bool align_depth_time)
+                             const Intrinsics& intrinsics, bool align_depth_time,
+                             double colour_stamp_lag_s)
     : extractor_(std::move(extractor)),
       tracker_(std::move(tracker)),
       intrinsics_(intrinsics),
       align_depth_time_(align_depth_time),
+      colour_stamp_lag_s_(colour_stamp_lag_s),
       pacing_(pacing),
       admission_(std::move(admission)),
       records_(records),
@@ -308,8 +310,9 @@ RgbdFrame TrackingStage::depth_aligned(const RgbdFrame& frame) const {
   const auto omega = tracker_.predicted_rotation_rate_rad_per_s();
   if (!omega) return frame;
   RgbdFrame out = frame;  // images are shared; only the depth is replaced
+  const double colour_exposure_s = frame.stamp_s - colour_stamp_lag_s_;
   out.depth = align_depth_to_colour_time(frame.depth, intrinsics_, *omega,
-                                         frame.stamp_s - *frame.depth_stamp_s);
+                                         colour_exposure_s - *frame.depth_stamp_s);
   return out;
 }
 
@@ -408,7 +411,7 @@ std::unique_ptr<LocalMapSystem> LocalMapSystem::create(const PipelineOptions& op
         return keyframe_admission(self->mapping_->load(), self->options_.keyframe_gate_mapper_busy);
       },
       records, [self](std::int64_t kf) { self->keyframe_made(kf); }, k,
-      opts.tracker.align_depth_time);
+      opts.tracker.align_depth_time, opts.tracker.colour_stamp_lag_s);
   s->tracking_->start();
   s->mapping_->start();
   if (s->loop_closing_) s->loop_closing_->start();

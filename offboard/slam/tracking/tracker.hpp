@@ -186,6 +186,9 @@ struct TrackerOptions {
   /// Re-time each frame's depth to its colour image (RgbdFrame::depth_stamp_s) by the predicted
   /// rotation before features are lifted to 3D (slam/tracking/depth_time_alignment.hpp).
   bool align_depth_time = false;
+  /// How long after the colour image's exposure its stamp was taken (align_depth_time re-times the
+  /// depth to the exposure). 0: the stamp is the exposure.
+  double colour_stamp_lag_s = 0.0;
   bool is_valid(std::string* error) const;
 };
 

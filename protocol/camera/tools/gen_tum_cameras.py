@@ -62,6 +62,9 @@ def generate_hpp(spec: dict) -> str:
         "  std::string_view name;",
         "  double fx_px, fy_px, cx_px, cy_px;",
         "  std::array<double, 5> distortion;  ///< k1 k2 p1 p2 k3",
+        "  /// Raw depth units per metre of this camera's readings (the file scale unless a published",
+        "  /// calibration of the sensor says otherwise; see its model).",
+        "  double depth_units_per_m;",
         "};",
         "",
         f"/// {spec['depth_doc']}",
@@ -74,9 +77,12 @@ def generate_hpp(spec: dict) -> str:
         names.append(const)
         dist = ", ".join(num(d) for d in c["distortion"])
         out.append(f"/// {c['doc']}.")
+        if "depth_source" in c:
+            out.append(f"/// Depth scale: {c['depth_source']}.")
         out.append(
             f'inline constexpr TumCamera {const}{{"{c["name"]}", {num(c["fx_px"])}, '
-            f"{num(c['fy_px'])}, {num(c['cx_px'])}, {num(c['cy_px'])}, {{{dist}}}}};"
+            f"{num(c['fy_px'])}, {num(c['cx_px'])}, {num(c['cy_px'])}, {{{dist}}}, "
+            f"{num(c['depth_units_per_m'])}}};"
         )
     out += [
         "",
@@ -117,6 +123,7 @@ def generate_py(spec: dict) -> str:
         "    cx_px: float",
         "    cy_px: float",
         "    distortion: tuple[float, float, float, float, float]  # k1 k2 p1 p2 k3",
+        "    depth_units_per_m: float  # this camera's readings: file scale unless calibrated",
         "",
         "    def intrinsics(self) -> dict:",
         '        """The SLAM link / stream handshake field layout (fx_px, ..., distortion)."""',
@@ -133,9 +140,11 @@ def generate_py(spec: dict) -> str:
         names.append((c["name"], const))
         dist = ", ".join(num(d) for d in c["distortion"])
         out.append(f"#: {c['doc']}.")
+        if "depth_source" in c:
+            out.append(f"#: Depth scale: {c['depth_source']}.")
         out.append(
             f'{const} = TumCamera("{c["name"]}", {num(c["fx_px"])}, {num(c["fy_px"])}, '
-            f"{num(c['cx_px'])}, {num(c['cy_px'])}, ({dist}))"
+            f"{num(c['cx_px'])}, {num(c['cy_px'])}, ({dist}), {num(c['depth_units_per_m'])})"
         )
     out.append("#: Every model by name.")
     out.append("TUM_CAMERAS = {" + ", ".join(f'"{n}": {k}' for n, k in names) + "}")

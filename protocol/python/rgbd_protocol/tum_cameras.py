@@ -17,6 +17,7 @@ class TumCamera(NamedTuple):
     cx_px: float
     cy_px: float
     distortion: tuple[float, float, float, float, float]  # k1 k2 p1 p2 k3
+    depth_units_per_m: float  # this camera's readings: file scale unless calibrated
 
     def intrinsics(self) -> dict:
         """The SLAM link / stream handshake field layout (fx_px, ..., distortion)."""
@@ -27,12 +28,13 @@ class TumCamera(NamedTuple):
 #: TUM depth PNGs store 16-bit depth scaled by 5000: 5000 units = 1 m (the benchmark's 'factor = 5000').
 TUM_DEPTH_UNITS_PER_M = 5000.0
 #: Freiburg 1 colour camera (fr1/* sequences, the shared excerpts in tests/data).
-TUM_FR1 = TumCamera("fr1", 517.3, 516.5, 318.6, 255.3, (0.2624, -0.9531, -0.0054, 0.0026, 1.1633))
+TUM_FR1 = TumCamera("fr1", 517.3, 516.5, 318.6, 255.3, (0.2624, -0.9531, -0.0054, 0.0026, 1.1633), 5000.0)
 #: Freiburg 2 colour camera (fr2/* sequences).
-TUM_FR2 = TumCamera("fr2", 520.9, 521.0, 325.1, 249.7, (0.2312, -0.7849, -0.0033, -0.0001, 0.9172))
+#: Depth scale: ORB-SLAM2's TUM2 setting (raulmur/ORB_SLAM2 @ 0d9b0cd, Examples/RGB-D/TUM2.yaml, DepthMapFactor 5208): the fr2 Kinect's depth reads about 4 % long against its file scale of 5000.
+TUM_FR2 = TumCamera("fr2", 520.9, 521.0, 325.1, 249.7, (0.2312, -0.7849, -0.0033, -0.0001, 0.9172), 5208.0)
 #: Freiburg 3 colour camera (fr3/* sequences; its images are already undistorted).
-TUM_FR3 = TumCamera("fr3", 535.4, 539.2, 320.1, 247.6, (0.0, 0.0, 0.0, 0.0, 0.0))
+TUM_FR3 = TumCamera("fr3", 535.4, 539.2, 320.1, 247.6, (0.0, 0.0, 0.0, 0.0, 0.0), 5000.0)
 #: ROS default Kinect colour model, which the benchmark recommends for registered depth; a live Kinect's default when not calibrated.
-TUM_ROS_DEFAULT = TumCamera("ros_default", 525.0, 525.0, 319.5, 239.5, (0.0, 0.0, 0.0, 0.0, 0.0))
+TUM_ROS_DEFAULT = TumCamera("ros_default", 525.0, 525.0, 319.5, 239.5, (0.0, 0.0, 0.0, 0.0, 0.0), 5000.0)
 #: Every model by name.
 TUM_CAMERAS = {"fr1": TUM_FR1, "fr2": TUM_FR2, "fr3": TUM_FR3, "ros_default": TUM_ROS_DEFAULT}

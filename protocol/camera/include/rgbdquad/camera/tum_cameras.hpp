@@ -14,6 +14,9 @@ struct TumCamera {
   std::string_view name;
   double fx_px, fy_px, cx_px, cy_px;
   std::array<double, 5> distortion;  ///< k1 k2 p1 p2 k3
+  /// Raw depth units per metre of this camera's readings (the file scale unless a published
+  /// calibration of the sensor says otherwise; see its model).
+  double depth_units_per_m;
 };
 
 /// TUM depth PNGs store 16-bit depth scaled by 5000: 5000 units = 1 m (the benchmark's 'factor =
@@ -21,17 +24,21 @@ struct TumCamera {
 inline constexpr double kTumDepthUnitsPerM = 5000.0;
 
 /// Freiburg 1 colour camera (fr1/* sequences, the shared excerpts in tests/data).
-inline constexpr TumCamera kTumFr1{"fr1", 517.3, 516.5,
-                                   318.6, 255.3, {0.2624, -0.9531, -0.0054, 0.0026, 1.1633}};
+inline constexpr TumCamera kTumFr1{
+    "fr1", 517.3, 516.5, 318.6, 255.3, {0.2624, -0.9531, -0.0054, 0.0026, 1.1633}, 5000.0};
 /// Freiburg 2 colour camera (fr2/* sequences).
-inline constexpr TumCamera kTumFr2{"fr2", 520.9, 521.0,
-                                   325.1, 249.7, {0.2312, -0.7849, -0.0033, -0.0001, 0.9172}};
+/// Depth scale: ORB-SLAM2's TUM2 setting (raulmur/ORB_SLAM2 @ 0d9b0cd, Examples/RGB-D/TUM2.yaml,
+/// DepthMapFactor 5208): the fr2 Kinect's depth reads about 4 % long against its file scale of
+/// 5000.
+inline constexpr TumCamera kTumFr2{
+    "fr2", 520.9, 521.0, 325.1, 249.7, {0.2312, -0.7849, -0.0033, -0.0001, 0.9172}, 5208.0};
 /// Freiburg 3 colour camera (fr3/* sequences; its images are already undistorted).
-inline constexpr TumCamera kTumFr3{"fr3", 535.4, 539.2, 320.1, 247.6, {0.0, 0.0, 0.0, 0.0, 0.0}};
+inline constexpr TumCamera kTumFr3{"fr3", 535.4, 539.2, 320.1, 247.6, {0.0, 0.0, 0.0, 0.0, 0.0},
+                                   5000.0};
 /// ROS default Kinect colour model, which the benchmark recommends for registered depth; a live
 /// Kinect's default when not calibrated.
-inline constexpr TumCamera kTumRosDefault{"ros_default", 525.0, 525.0,
-                                          319.5,         239.5, {0.0, 0.0, 0.0, 0.0, 0.0}};
+inline constexpr TumCamera kTumRosDefault{
+    "ros_default", 525.0, 525.0, 319.5, 239.5, {0.0, 0.0, 0.0, 0.0, 0.0}, 5000.0};
 
 /// Every model, for lookup by name.
 inline constexpr std::array<TumCamera, 4> kTumCameras{kTumFr1, kTumFr2, kTumFr3, kTumRosDefault};

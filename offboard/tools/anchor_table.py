@@ -1,0 +1,108 @@
+#!/usr/bin/env python3
+"""Prints the fast-motion and anchor table of `make bench` with its verdicts.
+
+Reads OUT/anchor/<sequence>_<mode>_restart_<on|off>/metrics.json (written by offboard/bench.sh:
+the default system, slam-eval --mode wait and --mode realtime, with the new-segment restart on and
+off) and OUT/anchor/orbslam2_<name>.json (ORB-SLAM2's published runs scored by `slam-eval score`
+on the same frames). One row per sequence and mode: ATE, frames lost, segments started, local
+BAs interrupted per 100 frames, and real time against wait mode.
+
+Targets (the SLAM fast-motion capability): 0 lost frames on every sequence in both modes;
+fr1_xyz_first300 in real time <= 0.0105 m (below ORB-SLAM2's median on the same frames) with 0
+frames dropped; real-time ATE <= 1.05 x wait-mode ATE on every sequence. Standard library only.
+"""
+
+import json
+import sys
+from pathlib import Path
+
+XYZ_TARGET_M = 0.0105
+RT_OVER_WAIT_MAX = 1.05
+
+
+def load(path: Path):
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def verdict(ok: bool) -> str:
+    return "PASS" if ok else "MISS"
+
+
+def fmt(x, spec="{:.4f}"):
+    return "n/a" if x is None else spec.format(x)
+
+
+def main(out_dir: str) -> int:
+    root = Path(out_dir) / "anchor"
+    runs = sorted(p for p in root.glob("*_restart_*") if p.is_dir()) if root.is_dir() else []
+    if not runs:
+        print("anchor: no runs under", root)
+        return 0
+    print("\n### Fast motion and the anchor (default local map ORB; restart = new map segment)")
+    print(
+        "| sequence | mode | restart | ATE m | lost | segments | BA interrupted /100 frames "
+        "| dropped |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    table = {}
+    for run in runs:
+        m = load(run / "metrics.json")
+        seq, rest = (
+            run.name.split("_wait_") if "_wait_" in run.name else run.name.split("_realtime_")
+        )
+        mode = "wait" if "_wait_" in run.name else "realtime"
+        restart = rest.rsplit("_", 1)[-1]
+        if m is None:
+            print(f"| {seq} | {mode} | {restart} | failed | | | | |")
+            continue
+        frames = max(1, m.get("frames", 1))
+        row = {
+            "ate": m.get("ate_rmse_m"),
+            "lost": m.get("frames_lost", 0),
+            "segments": m.get("segments_started", 0),
+            "ba": 100.0 * m.get("mapper_ba_interrupted", 0) / frames,
+            "dropped": m.get("frontend_dropped", 0),
+        }
+        table[(seq, mode, restart)] = row
+        print(
+            f"| {seq} | {mode} | {restart} | {fmt(row['ate'])} | {row['lost']} | "
+            f"{row['segments']} | {row['ba']:.1f} | {row['dropped']} |"
+        )
+    refs = sorted(root.glob("orbslam2_*.json"))
+    if refs:
+        print("\nORB-SLAM2 (published RGB-D runs, scored here on the same frames):")
+        for r in refs:
+            s = load(r)
+            print(f"- {r.stem}: ATE {fmt(s.get('ate_rmse_m') if s else None)} m")
+    print("\nVerdicts (restart on, the default):")
+    status = 0
+    seqs = sorted({k[0] for k in table})
+    for seq in seqs:
+        for mode in ("wait", "realtime"):
+            row = table.get((seq, mode, "on"))
+            if row is None:
+                continue
+            ok = row["lost"] == 0
+            print(f"- {verdict(ok)} {seq} {mode}: {row['lost']} frames lost (target 0)")
+        wait, rt = table.get((seq, "wait", "on")), table.get((seq, "realtime", "on"))
+        if wait and rt and wait["ate"] and rt["ate"] is not None:
+            ratio = rt["ate"] / wait["ate"]
+            print(
+                f"- {verdict(ratio <= RT_OVER_WAIT_MAX)} {seq}: real time / wait ATE "
+                f"{ratio:.3f} (target <= {RT_OVER_WAIT_MAX})"
+            )
+    xyz = table.get(("fr1_xyz_first300", "realtime", "on"))
+    if xyz and xyz["ate"] is not None:
+        ok = xyz["ate"] <= XYZ_TARGET_M and xyz["dropped"] == 0
+        print(
+            f"- {verdict(ok)} fr1_xyz_first300 real time: ATE {xyz['ate']:.4f} m, "
+            f"{xyz['dropped']} dropped (target <= {XYZ_TARGET_M} m, 0 dropped)"
+        )
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1] if len(sys.argv) > 1 else "out/bench"))
