@@ -7,6 +7,8 @@
 #include <avr/io.h>
 #include <util/atomic.h>
 
+#include "../core/limits.h"
+#include "../core/rx_ring.h"
 #include "board.h"
 
 namespace drivers {
@@ -27,44 +29,19 @@ struct PwmState {
 };
 PwmState g_pwm;
 
-/// Ring buffer size for the bridge RX: a whole 128-byte request fits while a reply is being sent.
-constexpr uint8_t kBridgeRxRingBytes = 128;
 /// Telemetry RX ring: 64 bytes = 11 ms of 57600-baud MAVLink, far more than one main-loop pass.
 constexpr uint8_t kTelemetryRingBytes = 64;
 
-template <uint8_t N>
-struct Ring {
-  static_assert((N & (N - 1)) == 0, "power of two");
-  uint8_t data[N];
-  volatile uint8_t head;  // written by the ISR
-  volatile uint8_t tail;  // written by main
-  volatile uint16_t overruns;
-  void push_isr(uint8_t b) {
-    const uint8_t next = static_cast<uint8_t>((head + 1) & (N - 1));
-    if (next == tail) {
-      overruns = static_cast<uint16_t>(overruns + 1);
-      return;
-    }
-    data[head] = b;
-    head = next;
-  }
-  bool pop(uint8_t* b) {
-    const uint8_t t = tail;
-    if (t == head) return false;
-    *b = data[t];
-    tail = static_cast<uint8_t>((t + 1) & (N - 1));
-    return true;
-  }
-};
-
-Ring<kBridgeRxRingBytes> g_bridge_rx;
+/// Bridge RX: fw::kBridgeRxRingBytes (core/limits.h, sized for two queued requests); a request
+/// that does not fit is dropped whole (core/rx_ring.h).
+fw::LineRing<fw::kBridgeRxRingBytes> g_bridge_rx;
 struct TxState {
   const char* volatile ptr;
   volatile uint16_t left;
 };
 TxState g_tx = {nullptr, 0};
 
-Ring<kTelemetryRingBytes> g_telemetry_rx;
+fw::ByteRing<kTelemetryRingBytes> g_telemetry_rx;
 struct SoftUartState {
   uint16_t sample_pos_fp;  // next sample time, Timer2 ticks in 8.8 fixed point (mod 256 ticks)
   uint8_t bit_index;       // 0 = start bit, 1..8 data bits 0..7
@@ -171,7 +148,7 @@ bool bridge_tx_busy() {
 
 uint16_t bridge_rx_overruns() {
   uint16_t v;
-  ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { v = g_bridge_rx.overruns; }
+  ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { v = g_bridge_rx.dropped_bytes(); }
   return v;
 }
 
@@ -180,7 +157,7 @@ uint16_t bridge_rx_overruns() {
 ISR(USART_RX_vect) {
   const uint8_t b = UDR0;
   sei();
-  g_bridge_rx.push_isr(b);
+  g_bridge_rx.push_line_byte(b);
 }
 
 // The data-register-empty interrupt is masked while this ISR runs (it would re-trigger as soon as
@@ -213,7 +190,7 @@ bool telemetry_read(uint8_t* byte) { return g_telemetry_rx.pop(byte); }
 
 uint16_t telemetry_overruns() {
   uint16_t v;
-  ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { v = g_telemetry_rx.overruns; }
+  ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { v = g_telemetry_rx.dropped_bytes(); }
   return v;
 }
 
@@ -248,7 +225,7 @@ ISR(TIMER2_COMPA_vect) {
   } else {
     g_suart.shift = static_cast<uint8_t>((g_suart.shift >> 1) | (high ? 0x80 : 0));
     if (i == 8) {
-      g_telemetry_rx.push_isr(g_suart.shift);
+      g_telemetry_rx.push(g_suart.shift);
       TIMSK2 = 0;
       EIFR = _BV(INTF0);
       EIMSK = _BV(INT0);

@@ -18,7 +18,8 @@ uint32_t millis();
 void pwm_init(const uint16_t slot_ticks[5]);
 void pwm_set(const uint16_t slot_ticks[5]);
 
-/// USART0 to the WiFi bridge: RX into a ring buffer, TX of one reply at a time from the caller's
+/// USART0 to the WiFi bridge: RX into a line ring (core/rx_ring.h: a line that does not fit is
+/// replaced by fw::kLineCutMarker, never cut short), TX of one reply at a time from the caller's
 /// buffer (which must stay unchanged until bridge_tx_busy() is false).
 void bridge_init();
 bool bridge_read(uint8_t* byte);

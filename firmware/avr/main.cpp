@@ -60,28 +60,20 @@ class App {
     const uint32_t now_ms = drivers::millis();
     uint8_t b;
     while (drivers::telemetry_read(&b)) mavlink_.feed(b, now_ms, imu_);
-    // The rest of an over-long line was answered 414 on its first excess byte; drain it even while
-    // that reply is still being sent, so it cannot fill the RX ring and lose its own newline (which
-    // would swallow the next request). Stops right after the newline: the next line waits as usual.
-    while (assembler_.discarding() && drivers::bridge_read(&b)) assembler_.feed(b, now_ms);
-    if (!drivers::bridge_tx_busy()) {
+    receive(now_ms);
+    // A reply is formatted into reply_, which the UART is still sending until it is idle; the
+    // request waits in the assembler meanwhile (receive() stops feeding it).
+    if (pending_ != fw::LineEvent::kNone && !drivers::bridge_tx_busy()) {
       size_t n = 0;
-      while (n == 0 && drivers::bridge_read(&b)) {
-        switch (assembler_.feed(b, now_ms)) {
-          case fw::LineEvent::kLine:
-            n = controller_.handle_line(assembler_.line(), assembler_.length(), now_ms, imu_,
-                                        reply_, sizeof(reply_));
-            break;
-          case fw::LineEvent::kTooLong:
-            n = controller_.reply_error(fw::Status::kTooLong, now_ms, imu_, reply_, sizeof(reply_));
-            break;
-          default:
-            break;
-        }
+      if (pending_ == fw::LineEvent::kLine) {
+        n = controller_.handle_line(assembler_.line(), assembler_.length(), now_ms, imu_, reply_,
+                                    sizeof(reply_));
+      } else {
+        const fw::Status status =
+            pending_ == fw::LineEvent::kTooLong ? fw::Status::kTooLong : fw::Status::kStalled;
+        n = controller_.reply_error(status, now_ms, imu_, reply_, sizeof(reply_));
       }
-      if (n == 0 && assembler_.poll(now_ms) == fw::LineEvent::kStalled) {
-        n = controller_.reply_error(fw::Status::kStalled, now_ms, imu_, reply_, sizeof(reply_));
-      }
+      pending_ = fw::LineEvent::kNone;
       if (n > 0) drivers::bridge_send(reply_, n);
     }
     controller_.update(now_ms);
@@ -93,12 +85,32 @@ class App {
   }
 
  private:
+  /// Moves bridge bytes from the RX ring into the line assembler - also while a reply is being
+  /// sent, so the ring only has to hold what arrives while a request is being checked (limits.h
+  /// kBridgeRxRingBytes) - until the next line needs a reply; that line then waits in pending_.
+  void receive(uint32_t now_ms) {
+    uint8_t b;
+    // The rest of an over-long line was answered 414 on its first excess byte; drain it even while
+    // that reply is pending, so it cannot fill the RX ring and lose its own newline (which would
+    // swallow the next request). Stops right after the newline: the next line waits as usual.
+    while (assembler_.discarding() && drivers::bridge_read(&b)) assembler_.feed(b, now_ms);
+    while (pending_ == fw::LineEvent::kNone && drivers::bridge_read(&b)) {
+      const fw::LineEvent e = assembler_.feed(b, now_ms);
+      // kDropped: the line lost bytes in the full RX ring; nothing in it can be trusted, and the
+      // sender learns of the loss from the missing reply, as from a request lost on WiFi.
+      if (e != fw::LineEvent::kDropped) pending_ = e;
+    }
+    if (pending_ == fw::LineEvent::kNone) pending_ = assembler_.poll(now_ms);
+  }
+
   EepromSeqStore seq_store_;  // declared before controller_, which holds a pointer to it
   fw::Controller controller_;
   fw::LineAssembler assembler_;
   fw::ImuCache imu_;
   fw::MavlinkImuReader mavlink_;
   char reply_[fw::kReplyBufferBytes];
+  /// The assembler's event waiting for a reply (kLine, kTooLong, kStalled), or kNone.
+  fw::LineEvent pending_ = fw::LineEvent::kNone;
 };
 
 }  // namespace

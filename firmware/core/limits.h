@@ -115,6 +115,25 @@ static_assert(rgbd_control::kMaxRequestBytes <= 255, "the line assembler counts 
 /// whole requests back to back (10 us per byte at 1 Mbaud), so 100 ms of silence only happens to a
 /// truncated request.
 constexpr uint32_t kLineStallTimeoutMs = 100;
+/// Longest valid control request line (bytes, without its line end): the sequence number at its
+/// 10-digit maximum, `PUT
+/// /control?seq=4294967295&arm=1&roll=2000&pitch=2000&thr=2000&yaw=2000&mac=` and 16 hex digits
+/// (checked against the protocol codec by hil/arduino/tests/test_simavr.py).
+constexpr uint8_t kLongestValidRequestBytes = 93;
+/// The same on the wire, with a "\r\n" line end.
+constexpr uint8_t kLongestValidRequestLineBytes = kLongestValidRequestBytes + 2;
+/// Requests the bridge RX ring holds behind the one being answered. While the main loop checks a
+/// request and formats its reply (6.1 ms in simavr, SipHash 2.7 ms of it) it reads no byte; the
+/// bridge delivers a byte every 10 us at 1 Mbaud (20-40 us from the WiFi bridge under test), so
+/// 150-610 bytes can arrive meanwhile - up to the whole rest of a burst of three requests. While
+/// the reply goes out (196-240 bytes, 2.0-2.4 ms on the wire) the main loop moves the next request
+/// into the line assembler. So three requests back to back are kept at any byte period; a third
+/// queued one (95 B more) would pass the 75 % static RAM budget. docs/firmware.md ("Receive path")
+/// has the measured limit.
+constexpr uint8_t kBridgeRxQueuedRequests = 2;
+/// Bridge RX ring (bytes): the queued requests, plus the slot a ring keeps empty to tell full from
+/// empty and one for a cut marker (core/rx_ring.h). 192 B: RAM stays below the 75 % static budget.
+constexpr uint8_t kBridgeRxRingBytes = kBridgeRxQueuedRequests * kLongestValidRequestLineBytes + 2;
 
 }  // namespace fw
 

@@ -10,6 +10,11 @@ LineEvent LineAssembler::feed(uint8_t byte, uint32_t now_ms) {
     len_ = 0;
   }
   last_byte_ms_ = now_ms;
+  if (byte == kLineCutMarker) {  // ends an over-long line being discarded too (its '\n' was lost)
+    discarding_ = false;
+    fill_ = 0;
+    return LineEvent::kDropped;
+  }
   if (discarding_) {
     if (byte == '\n') discarding_ = false;  // end of the over-long line, already answered
     return LineEvent::kNone;

@@ -3,7 +3,9 @@
 // 414) at once, on its first excess byte - not at its newline, which may never come - and the rest
 // of it is then discarded silently up to its newline. A line that gets no byte for
 // kLineStallTimeoutMs is discarded: reported (kStalled, reply 408) if it was a partial request,
-// silently if it was the rest of an over-long line (that line was already answered 414).
+// silently if it was the rest of an over-long line (that line was already answered 414). A
+// kLineCutMarker byte (core/rx_ring.h: the RX ring was full and dropped the rest of the line) ends
+// the line and discards it whole (kDropped, no reply): a line that lost bytes is never parsed.
 // Exactly one event is reported per line. Time is passed in. Not thread-safe: feed from one
 // context (the main loop).
 #ifndef FIRMWARE_CORE_LINE_ASSEMBLER_H_
@@ -13,6 +15,7 @@
 #include <stdint.h>
 
 #include "limits.h"
+#include "rx_ring.h"
 
 namespace fw {
 
@@ -22,6 +25,7 @@ enum class LineEvent : uint8_t {
   kTooLong,  ///< the line exceeded kMaxRequestBytes; its rest is being discarded (reply 414)
   kStalled,  ///< an incomplete line got no byte for kLineStallTimeoutMs and was discarded (reply
              ///< 408)
+  kDropped,  ///< the line lost bytes in the RX ring (kLineCutMarker) and was discarded (no reply)
 };
 
 class LineAssembler {

@@ -1,7 +1,10 @@
 // fw_sim: runs the real firmware .elf on simavr's ATmega328P @ 16 MHz and plays a scenario script.
 //
-// Usage: fw_sim --elf FILE [--eeprom FILE] [--interactive] < script > log
+// Usage: fw_sim --elf FILE [--eeprom FILE] [--bridge-byte-us US] [--interactive] < script > log
 //   --elf FILE       firmware image (firmware/.pio/build/uno_wifi/program.elf)
+//   --bridge-byte-us US  period of the bridge bytes fed to the firmware (default 16, simavr's own
+//                    UART byte time at 1 Mbaud, which is also the shortest it accepts); e.g. 20 or
+//                    40 to model a WiFi bridge that forwards bytes more slowly than the wire
 //   --eeprom FILE    raw bytes loaded into EEPROM at address 0 before reset (the key record)
 //   --eeprom-out FILE  write the whole EEPROM (1024 bytes) to FILE when the simulation ends, to
 //                    start a later run from it (a reset / power cycle of the board)
@@ -18,7 +21,7 @@
 //                 reply line has arrived (the bridge forwards one request at a time); a reply that
 //                 arrives while the line is still going out (a 414) counts as its reply
 //   raw  T HEX    send raw bytes on the bridge UART at T (no reply awaited)
-//                 Bridge bytes go out one per kBridgeByteCycles, and only while simavr's UART takes
+//                 Bridge bytes go out one per --bridge-byte-us, and only while simavr's UART takes
 //                 them: not before the firmware has enabled its receiver (simavr drops bytes sent
 //                 to a disabled receiver; the real bridge chip is not forwarding requests within
 //                 the ~1 ms the ATmega takes to boot either), and never into a full input FIFO
@@ -57,11 +60,11 @@ namespace {
 
 constexpr uint32_t kCpuHz = 16000000;
 constexpr double kCyclesPerUs = kCpuHz / 1e6;
-/// Bridge link bytes are fed at simavr 1.6's own UART byte time at the firmware's 1000000 baud,
-/// 16 us (it models a byte as 16 bit times, measured from the firmware's TX; real 8N1 is 10 bit
-/// times = 10 us): faster feeding would pile bytes up in simavr's input FIFO and overflow it on
-/// long lines. (At 500000 baud it was 32 us = 512 cycles.)
-constexpr uint64_t kBridgeByteCycles = 256;
+/// Bridge link bytes are fed by default at simavr 1.6's own UART byte time at the firmware's
+/// 1000000 baud, 16 us (it models a byte as 16 bit times, measured from the firmware's TX; real 8N1
+/// is 10 bit times = 10 us): faster feeding would pile bytes up in simavr's input FIFO and overflow
+/// it on long lines, so it is also the shortest period --bridge-byte-us accepts.
+constexpr uint64_t kMinBridgeByteCycles = 256;
 /// MAVLink telemetry: 57600 baud; a bit lasts 16e6 / 57600 = 277.78 cycles.
 constexpr double kMavBitCycles = kCpuHz / 57600.0;
 /// ATmega328P SRAM ends at 0x8FF; the stack starts there and grows down.
@@ -169,7 +172,7 @@ void append_serial_edges(std::vector<PinEdge>* edges, uint64_t start, const std:
 int usage(const char* msg) {
   std::fprintf(stderr,
                "fw_sim: %s\nusage: fw_sim --elf FILE [--eeprom FILE] [--eeprom-out FILE] "
-               "[--stack-paint ADDR] [--interactive] < script > log\n",
+               "[--stack-paint ADDR] [--bridge-byte-us US] [--interactive] < script > log\n",
                msg);
   return 2;
 }
@@ -187,6 +190,7 @@ struct Feeder {
   uint64_t tx_next = 0;
   uint64_t tx_start = 0;
   bool tx_is_request = false;
+  uint64_t byte_cycles = kMinBridgeByteCycles;  // bridge byte period (--bridge-byte-us)
 
   void add_raw(const Request& r) {
     auto it = std::upper_bound(
@@ -254,9 +258,9 @@ int run_until(Sim* sim, Feeder* f, avr_irq_t* uart_in, avr_irq_t* mav_pin, uint6
         // On schedule, bytes keep the exact byte time; the first byte and the first one after a
         // flow-control pause restart the schedule, so the rest of a line never goes out in a burst.
         if (f->tx_pos == 0) f->tx_start = now;
-        if (f->tx_pos == 0 || now - f->tx_next > kBridgeByteCycles) f->tx_next = now;
+        if (f->tx_pos == 0 || now - f->tx_next > f->byte_cycles) f->tx_next = now;
         avr_raise_irq(uart_in, static_cast<uint8_t>(f->tx[f->tx_pos++]));
-        f->tx_next += kBridgeByteCycles;
+        f->tx_next += f->byte_cycles;
         if (f->tx_pos == f->tx.size() && f->tx_is_request) {
           std::printf("sent %.3f %.3f\n", us(f->tx_start), us(f->tx_next));
         }
@@ -292,6 +296,7 @@ int main(int argc, char** argv) {
   std::string eeprom_path;
   std::string eeprom_out_path;
   long stack_paint_addr = -1;
+  double bridge_byte_us = static_cast<double>(kMinBridgeByteCycles) / kCyclesPerUs;
   bool interactive = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -305,12 +310,17 @@ int main(int argc, char** argv) {
       stack_paint_addr = std::strtol(argv[++i], nullptr, 0);
       if (stack_paint_addr < 0x100 || stack_paint_addr > kRamEnd)
         return usage("--stack-paint: address outside SRAM");
+    } else if (a == "--bridge-byte-us" && i + 1 < argc) {
+      bridge_byte_us = std::strtod(argv[++i], nullptr);
+      if (!(bridge_byte_us * kCyclesPerUs >= static_cast<double>(kMinBridgeByteCycles)) ||
+          bridge_byte_us > 1e6)
+        return usage("--bridge-byte-us: below simavr's 16 us UART byte time or not a number");
     } else if (a == "--interactive") {
       interactive = true;
     } else if (a == "-h" || a == "--help") {
       std::printf(
           "usage: fw_sim --elf FILE [--eeprom FILE] [--eeprom-out FILE] [--stack-paint ADDR] "
-          "[--interactive] < script > log\n"
+          "[--bridge-byte-us US] [--interactive] < script > log\n"
           "Runs the firmware image on simavr (ATmega328P, 16 MHz) and plays the script;\n"
           "see the header of hil/arduino/fw_sim.cpp for the script and log formats.\n");
       return 0;
@@ -322,6 +332,7 @@ int main(int argc, char** argv) {
 
   // Batch mode reads the whole script first; interactive mode reads it as it goes (below).
   Feeder feeder;
+  feeder.byte_cycles = static_cast<uint64_t>(bridge_byte_us * kCyclesPerUs + 0.5);
   uint64_t end_cycle = 0;
   std::string line;
   int line_no = 0;

@@ -170,9 +170,11 @@ class Scenario:
         fw_sim: pathlib.Path | None = None,
         elf: pathlib.Path | None = None,
         timeout_s: float = RUN_TIMEOUT_S,
+        bridge_byte_us: float | None = None,
     ) -> Result:
         """Runs fw_sim; key_record is the EEPROM content from address 0 (None: erased EEPROM, no
-        key), e.g. a key record or the `eeprom` of an earlier Result (a reboot)."""
+        key), e.g. a key record or the `eeprom` of an earlier Result (a reboot). bridge_byte_us:
+        period of the bridge bytes (None: fw_sim's default, simavr's 16 us; at least 16)."""
         sim, elf = _require(fw_sim, elf)
         with tempfile.TemporaryDirectory(dir=workdir) as tmp:
             # A private copy of the image: the one in the tree can be rebuilt while this runs.
@@ -188,6 +190,8 @@ class Scenario:
                 args += ["--eeprom-out", str(ee_out)]
             if stack_paint_from is not None:
                 args += ["--stack-paint", hex(stack_paint_from)]
+            if bridge_byte_us is not None:
+                args += ["--bridge-byte-us", f"{bridge_byte_us:g}"]
             proc = subprocess.run(
                 args,
                 input=self.script(),

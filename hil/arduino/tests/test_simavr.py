@@ -479,3 +479,84 @@ def test_stack_high_water_mark_under_full_load():
         f"({r.stack_free} B never touched)"
     )
     assert r.stack_free >= 128
+
+
+#: Requests the bridge RX ring holds behind the one being answered, and the longest valid request
+#: (firmware/core/limits.h): a burst of QUEUED_REQUESTS + 1 requests is kept at any byte period.
+QUEUED_REQUESTS = FW_LIMITS["kBridgeRxQueuedRequests"]
+LONGEST_VALID_REQUEST_BYTES = FW_LIMITS["kLongestValidRequestBytes"]
+#: Sequence numbers with 10 digits make every request of a burst the longest valid one.
+LONG_SEQ = 4_000_000_000
+
+
+def test_longest_valid_request_is_the_one_the_rx_ring_is_sized_for():
+    longest = cmd(2**32 - 1, roll=2000, pitch=2000, thr=2000, yaw=2000)
+    assert len(longest) == LONGEST_VALID_REQUEST_BYTES
+
+
+def _run_burst(n, byte_us):
+    """An armed firmware, then n longest valid commands back to back ("\\r\\n" line ends, as a WiFi
+    bridge that queued them forwards them), bytes every byte_us; status reads 80 ms and 400 ms after
+    the burst started. Returns (result, burst seqs, burst throttles, burst start)."""
+    sc = Scenario()
+    sc.req(10 * MS, cmd(1))
+    seqs = [LONG_SEQ + i for i in range(n)]
+    thrs = [1200 + 10 * i for i in range(n)]
+    burst = "".join(cmd(s, thr=t) + "\r\n" for s, t in zip(seqs, thrs, strict=True))
+    t0 = 40 * MS
+    sc.raw(t0, burst.encode())
+    sc.req(t0 + 80 * MS, build_status_request())
+    sc.req(t0 + 400 * MS, build_status_request())
+    sc.end(t0 + 440 * MS)
+    return sc.run(RECORD, bridge_byte_us=byte_us), seqs, thrs, t0
+
+
+@pytest.mark.parametrize("byte_us", [20, 40])
+@pytest.mark.parametrize("n", range(2, QUEUED_REQUESTS + 2))
+def test_back_to_back_requests_are_all_applied(n, byte_us):
+    # GIVEN an armed firmware, WHEN n valid commands arrive back to back (no wait for replies)
+    r, seqs, thrs, t0 = _run_burst(n, byte_us)
+    got = [parse_reply(x.text + "\n") for x in r.replies]
+    print(
+        f"\nsimavr {n} back-to-back requests at {byte_us} us/byte: "
+        f"{[(g.status, g.seq) for g in got[1 : 1 + n]]}, last reply "
+        f"{(r.replies[n].end_us - t0) / MS:.1f} ms after the burst started"
+    )
+    # THEN every one is answered 200 in order, the last one's output is on the pin, and the status
+    # read behind the burst shows its sequence number
+    assert [(g.status, g.seq) for g in got[1 : 1 + n]] == [(200, s) for s in seqs]
+    assert [g.out_us[2] for g in got[1 : 1 + n]] == thrs
+    assert got[1 + n].status == 200 and got[1 + n].seq == seqs[-1] and got[1 + n].state == "armed"
+    thr_after = r.pulses_of(3, after_us=r.replies[n].end_us + FRAME_US)
+    assert thr_after and abs(thr_after[0].width_us - thrs[-1]) <= PULSE_TOLERANCE_US
+
+
+@pytest.mark.parametrize(("n", "byte_us"), [(QUEUED_REQUESTS + 2, 20), (8, 40)])
+def test_requests_beyond_the_rx_ring_are_dropped_whole_and_failsafe_still_engages(n, byte_us):
+    # GIVEN an armed firmware, WHEN more valid commands arrive back to back than the RX ring holds
+    # while the first is being answered
+    r, seqs, thrs, t0 = _run_burst(n, byte_us)
+    got = [parse_reply(x.text + "\n") for x in r.replies]
+    burst = got[1:-2]
+    kept = [g.seq for g in burst]
+    print(
+        f"\nsimavr {n} back-to-back requests at {byte_us} us/byte: {len(kept)} applied "
+        f"({[(g.status, g.seq) for g in burst]}), then status {got[-2].state}, {got[-1].state}"
+    )
+    # THEN the ones that fit are applied in order, the rest are dropped whole: no reply at all for
+    # them - no 400/401/404/414 from a line spliced out of two requests - and nothing else changed
+    assert [g.status for g in got] == [200] * len(got)
+    assert QUEUED_REQUESTS + 1 <= len(kept) < n
+    assert kept == seqs[: len(kept)]
+    assert [g.out_us[2] for g in burst] == thrs[: len(kept)]
+    # AND the link works on: the status read is answered and shows the last applied command
+    assert got[-2].seq == kept[-1] and got[-2].state == "armed"
+    # AND a real link loss still ends in failsafe: nothing but status reads for 400 ms
+    assert got[-1].state == "failsafe"
+    t_last_valid = r.replies[len(kept)].start_us
+    first_low = next(
+        p
+        for p in r.pulses_of(3, after_us=t_last_valid)
+        if abs(p.width_us - FAILSAFE_THROTTLE_US) <= PULSE_TOLERANCE_US
+    )
+    assert first_low.rise_us <= t_last_valid + FAILSAFE_TIMEOUT_US + FRAME_US + 2 * MS
