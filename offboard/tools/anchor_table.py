@@ -3,7 +3,8 @@
 
 Reads OUT/anchor/<sequence>_<mode>_restart_<on|off>/metrics.json (written by offboard/bench.sh:
 the default system, slam-eval --mode wait and --mode realtime, with the new-segment restart on and
-off) and OUT/anchor/orbslam2_<name>.json (ORB-SLAM2's published runs scored by `slam-eval score`
+off; the real sequences in DATA and the manoeuvres rendered by hil/tools/render_tum.py, hil_*)
+and OUT/anchor/orbslam2_<name>.json (ORB-SLAM2's published runs scored by `slam-eval score`
 on the same frames). One row per sequence and mode: ATE, frames lost, segments started, local
 BAs interrupted per 100 frames, and real time against wait mode.
 
