@@ -28,15 +28,14 @@ import urllib.request
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 sys.path[:0] = [
-    str(REPO / "offboard/dashboard/tests"),
     str(REPO / "protocol/python"),
     str(REPO / "hil"),
     str(REPO / "offboard/python"),
 ]
 
-from dashboard_fixtures import KEY, QuadControl, write_config  # noqa: E402
-from firmware_double import FirmwareDouble  # noqa: E402
 from hilrig.thread_cpu import process_cpu_s as cpu_s  # noqa: E402
+from quadcontrol_harness.firmware_double import FirmwareDouble  # noqa: E402
+from quadcontrol_harness.quad_control import KEY, QuadControl, write_config  # noqa: E402
 from rgbd_protocol.control_bridge import WifiBridgeEmulator  # noqa: E402
 
 

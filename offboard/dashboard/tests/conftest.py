@@ -28,7 +28,7 @@ def binary() -> pathlib.Path:
 
 @pytest.fixture(scope="module")
 def firmware():
-    from firmware_double import FirmwareDouble
+    from quadcontrol_harness.firmware_double import FirmwareDouble
     from rgbd_protocol.control_bridge import WifiBridgeEmulator
 
     double = FirmwareDouble(KEY)

@@ -45,18 +45,6 @@ HttpResponse result_reply(const HttpRequest& req, const std::string& error) {
   return json_reply(req, {{"ok", false}, {"error", error}}, http::status::conflict);
 }
 
-std::string query_param(const std::string& target, const std::string& name) {
-  const auto q = target.find('?');
-  if (q == std::string::npos) return {};
-  std::istringstream in(target.substr(q + 1));
-  std::string pair;
-  while (std::getline(in, pair, '&')) {
-    const auto eq = pair.find('=');
-    if (pair.substr(0, eq) == name) return eq == std::string::npos ? "" : pair.substr(eq + 1);
-  }
-  return {};
-}
-
 std::optional<OperatorCommand> operator_command_named(const std::string& name) {
   for (const OperatorCommand c : {OperatorCommand::kArm, OperatorCommand::kDisarm,
                                   OperatorCommand::kTakeOff, OperatorCommand::kLand}) {

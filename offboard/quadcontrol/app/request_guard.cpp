@@ -5,7 +5,6 @@
 #include <boost/asio/ip/address.hpp>
 #include <cctype>
 #include <set>
-#include <sstream>
 
 namespace rgbdquad::quadcontrol {
 
@@ -27,18 +26,6 @@ std::string lower(std::string s) {
 std::string header(const HttpRequest& req, boost::beast::string_view name) {
   const auto it = req.find(name);
   return it == req.end() ? std::string() : std::string(it->value());
-}
-
-std::string query_param(const std::string& target, const std::string& name) {
-  const auto q = target.find('?');
-  if (q == std::string::npos) return {};
-  std::istringstream in(target.substr(q + 1));
-  std::string pair;
-  while (std::getline(in, pair, '&')) {
-    const auto eq = pair.find('=');
-    if (pair.substr(0, eq) == name) return eq == std::string::npos ? "" : pair.substr(eq + 1);
-  }
-  return {};
 }
 
 bool equal_constant_time(const std::string& a, const std::string& b) {

@@ -10,6 +10,8 @@
 #include <optional>
 #include <utility>
 
+#include "rgbdquad/receiver/nearest_stamp.h"
+
 namespace rgbdquad::quadcontrol {
 
 template <typename T>
@@ -28,16 +30,10 @@ class TimestampBuffer {
   /// The sample nearest to t_us if within max_dt_us (ties: the earlier one).
   std::optional<std::pair<std::int64_t, T>> nearest(std::int64_t t_us,
                                                     std::int64_t max_dt_us) const {
-    std::optional<std::pair<std::int64_t, T>> best;
-    std::int64_t best_dt = 0;
-    for (const auto& s : samples_) {
-      const std::int64_t dt = std::llabs(s.first - t_us);
-      if (dt <= max_dt_us && (!best || dt < best_dt)) {
-        best = s;
-        best_dt = dt;
-      }
-    }
-    return best;
+    const auto it = receiver::nearest_stamp(samples_.begin(), samples_.end(), t_us,
+                                            [](const auto& s) { return s.first; });
+    if (it == samples_.end() || std::llabs(it->first - t_us) > max_dt_us) return std::nullopt;
+    return *it;
   }
 
   std::size_t size() const { return samples_.size(); }

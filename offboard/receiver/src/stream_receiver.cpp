@@ -14,6 +14,7 @@
 #include "rgbdquad/encodings/jpeg_codec.h"
 #include "rgbdquad/protocol/codec.hpp"
 #include "rgbdquad/receiver/log_throttle.h"
+#include "rgbdquad/receiver/nearest_stamp.h"
 #include "rgbdquad/receiver/receiver_session.h"
 
 namespace rgbdquad::receiver {
@@ -372,19 +373,32 @@ void StreamReceiver::serve(int index) {
   }
 }
 
+namespace {
+// A stored RGB or depth frame's capture time, the stamp frames are paired by.
+constexpr auto capture_stamp_us = [](const auto& frame) -> std::int64_t {
+  return frame->info.capture_timestamp_us;
+};
+
+// Keeps `frame` in its stream's `history` (the newest `max_frames`) and returns the frame of the
+// other stream nearest to it in capture time (null when there is none). Caller holds the lock.
+template <typename Frame, typename Partner>
+std::shared_ptr<const Partner> remember_and_find_partner(
+    std::deque<std::shared_ptr<const Frame>>& history,
+    const std::deque<std::shared_ptr<const Partner>>& partners,
+    const std::shared_ptr<const Frame>& frame, std::size_t max_frames) {
+  history.push_back(frame);
+  if (history.size() > max_frames) history.pop_front();
+  const auto it = nearest_stamp(partners.begin(), partners.end(), frame->info.capture_timestamp_us,
+                                capture_stamp_us);
+  return it == partners.end() ? nullptr : *it;
+}
+}  // namespace
+
 void StreamReceiver::store_rgb(std::shared_ptr<const ReceivedRgb> frame) {
   std::shared_ptr<const ReceivedDepth> best;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    rgb_history_.push_back(frame);
-    if (rgb_history_.size() > options_.history_frames) rgb_history_.pop_front();
-    for (const auto& d : depth_history_) {
-      if (!best ||
-          std::llabs(d->info.capture_timestamp_us - frame->info.capture_timestamp_us) <
-              std::llabs(best->info.capture_timestamp_us - frame->info.capture_timestamp_us)) {
-        best = d;
-      }
-    }
+    best = remember_and_find_partner(rgb_history_, depth_history_, frame, options_.history_frames);
   }
   if (best) consider_pair(frame, best);
 }
@@ -393,15 +407,7 @@ void StreamReceiver::store_depth(std::shared_ptr<const ReceivedDepth> frame) {
   std::shared_ptr<const ReceivedRgb> best;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    depth_history_.push_back(frame);
-    if (depth_history_.size() > options_.history_frames) depth_history_.pop_front();
-    for (const auto& r : rgb_history_) {
-      if (!best ||
-          std::llabs(r->info.capture_timestamp_us - frame->info.capture_timestamp_us) <
-              std::llabs(best->info.capture_timestamp_us - frame->info.capture_timestamp_us)) {
-        best = r;
-      }
-    }
+    best = remember_and_find_partner(depth_history_, rgb_history_, frame, options_.history_frames);
   }
   if (best) consider_pair(best, frame);
 }
