@@ -8,7 +8,6 @@
 #include <boost/asio/ip/address.hpp>
 #include <boost/beast/core.hpp>
 #include <optional>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -210,18 +209,6 @@ void HttpServer::accept() {
     session->run();
     accept();
   });
-}
-
-std::string query_param(const std::string& target, const std::string& name) {
-  const auto q = target.find('?');
-  if (q == std::string::npos) return {};
-  std::istringstream in(target.substr(q + 1));
-  std::string pair;
-  while (std::getline(in, pair, '&')) {
-    const auto eq = pair.find('=');
-    if (pair.substr(0, eq) == name) return eq == std::string::npos ? "" : pair.substr(eq + 1);
-  }
-  return {};
 }
 
 }  // namespace rgbdquad::quadcontrol

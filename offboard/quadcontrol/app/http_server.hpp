@@ -64,8 +64,4 @@ class HttpServer {
 /// True for 127.0.0.0/8 and ::1.
 bool is_loopback_address(const std::string& address);
 
-/// The raw (not percent-decoded) value of query parameter `name` in a request target
-/// ("/api/x?a=1&b" -> "1" for "a", "" for "b"); empty when absent. Pure, thread-safe.
-std::string query_param(const std::string& target, const std::string& name);
-
 }  // namespace rgbdquad::quadcontrol

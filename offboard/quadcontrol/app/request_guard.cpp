@@ -5,6 +5,7 @@
 #include <boost/asio/ip/address.hpp>
 #include <cctype>
 #include <set>
+#include <sstream>
 
 namespace rgbdquad::quadcontrol {
 
@@ -41,6 +42,18 @@ bool is_ip_literal(const std::string& host) {
   return !ec;
 }
 }  // namespace
+
+std::string query_param(const std::string& target, const std::string& name) {
+  const auto q = target.find('?');
+  if (q == std::string::npos) return {};
+  std::istringstream in(target.substr(q + 1));
+  std::string pair;
+  while (std::getline(in, pair, '&')) {
+    const auto eq = pair.find('=');
+    if (pair.substr(0, eq) == name) return eq == std::string::npos ? "" : pair.substr(eq + 1);
+  }
+  return {};
+}
 
 std::string host_without_port(const std::string& host_header) {
   std::string h = lower(host_header);

@@ -38,6 +38,10 @@ struct Refusal {
 /// nullopt when `request` (to an /api/ route) may proceed, else why not.
 std::optional<Refusal> check_api_request(const HttpRequest& request, const AccessPolicy& policy);
 
+/// The raw (not percent-decoded) value of query parameter `name` in a request target
+/// ("/api/x?a=1&b" -> "1" for "a", "" for "b"); empty when absent. Pure, thread-safe.
+std::string query_param(const std::string& target, const std::string& name);
+
 /// The host part of a Host header value ("[::1]:8080" -> "::1", "Example:80" -> "example").
 std::string host_without_port(const std::string& host_header);
 

@@ -240,5 +240,14 @@ TEST(RequestGuard, TokenStrengthForPublicBinds) {
   }
 }
 
+TEST(QueryParam, GivenATargetWhenAParameterIsAskedThenItsRawValueOrEmptyComesBack) {
+  EXPECT_EQ(query_param("/api/cloud?max=500&token=abc", "max"), "500");
+  EXPECT_EQ(query_param("/api/cloud?max=500&token=abc", "token"), "abc");
+  EXPECT_EQ(query_param("/api/cloud?flag&max=1", "flag"), "");
+  EXPECT_EQ(query_param("/api/cloud?max=1", "token"), "");
+  EXPECT_EQ(query_param("/api/cloud", "max"), "");
+  EXPECT_EQ(query_param("/api/cloud?maximum=9", "max"), "");
+}
+
 }  // namespace
 }  // namespace rgbdquad::quadcontrol
