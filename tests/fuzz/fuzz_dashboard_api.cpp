@@ -62,7 +62,7 @@ class ControllerBackend final : public DashboardBackend {
   std::size_t last_cloud_request = 0;
   bool have_frame = false;
 
-  nlohmann::json state_json() override {
+  nlohmann::json state_json(std::int64_t /*now_us*/) override {
     const ControllerStatus& st = controller_.status();
     return {{"state", to_string(st.state)},
             {"last_event", st.last_event},
@@ -82,14 +82,15 @@ class ControllerBackend final : public DashboardBackend {
     return nlohmann::json::array();
   }
   std::string map_ply() override { return "ply\nformat ascii 1.0\nelement vertex 0\nend_header\n"; }
-  std::string command(OperatorCommand command) override {
-    return controller_.command(now_us, command);
+  std::string command(std::int64_t t_us, OperatorCommand command) override {
+    return controller_.command(t_us, command);
   }
-  std::string waypoint(double x_m, double y_m) override {
-    return controller_.set_waypoint(now_us, x_m, y_m);
+  std::string waypoint(std::int64_t t_us, double x_m, double y_m) override {
+    return controller_.set_waypoint(t_us, x_m, y_m);
   }
-  std::string manual(double forward_m, double left_m, double up_m, double yaw_ccw_deg) override {
-    return controller_.nudge(now_us, forward_m, left_m, up_m, yaw_ccw_deg);
+  std::string manual(std::int64_t t_us, double forward_m, double left_m, double up_m,
+                     double yaw_ccw_deg) override {
+    return controller_.nudge(t_us, forward_m, left_m, up_m, yaw_ccw_deg);
   }
 
  private:
@@ -395,7 +396,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   FuzzedDataProvider in(data, size);
   ControlConfig config;  // the shipped defaults (limits: 5 m from home, 3 m ceiling, 1 m steps)
   ControllerBackend backend(config);
-  DashboardApi api(backend, static_dir(), AccessPolicy{});
+  DashboardApi api(backend, static_dir(), AccessPolicy{}, [&backend] { return backend.now_us; });
   const FlightController& controller = backend.controller();
 
   for (int step = 0; step < kMaxSteps && in.remaining_bytes() > 0; ++step) {

@@ -65,8 +65,8 @@ bool number(const nlohmann::json& j, const char* key, double* out) {
 }  // namespace
 
 DashboardApi::DashboardApi(DashboardBackend& station, const std::string& static_dir,
-                           AccessPolicy policy)
-    : station_(station), policy_(std::move(policy)) {
+                           AccessPolicy policy, std::function<std::int64_t()> now_us)
+    : station_(station), policy_(std::move(policy)), now_us_(std::move(now_us)) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (!fs::is_directory(static_dir, ec))
@@ -100,7 +100,7 @@ HttpResponse DashboardApi::handle(const HttpRequest& req) {
   }
   const bool get = req.method() == http::verb::get;
   const bool post = req.method() == http::verb::post;
-  if (get && path == "/api/state") return json_reply(req, station_.state_json());
+  if (get && path == "/api/state") return json_reply(req, station_.state_json(now_us_()));
   if (get && path == "/api/rgb.jpg") {
     auto jpg = station_.rgb_jpeg();
     if (!jpg) return make(req, http::status::service_unavailable, "text/plain", "no frame yet\n");
@@ -147,7 +147,7 @@ HttpResponse DashboardApi::handle(const HttpRequest& req) {
       const auto command = operator_command_named(name);
       if (!command)
         return result_reply(req, "unknown command '" + name + "' (arm, disarm, takeoff, land)");
-      return result_reply(req, station_.command(*command));
+      return result_reply(req, station_.command(now_us_(), *command));
     }
     if (path == "/api/waypoint") {
       double x, y;
@@ -156,7 +156,7 @@ HttpResponse DashboardApi::handle(const HttpRequest& req) {
         return json_reply(req, {{"ok", false}, {"error", "expected finite numbers x_m, y_m"}},
                           http::status::bad_request);
       }
-      return result_reply(req, station_.waypoint(x, y));
+      return result_reply(req, station_.waypoint(now_us_(), x, y));
     }
     double f, l, u, yaw;
     if (!number(body, "forward_m", &f) || !number(body, "left_m", &l) ||
@@ -164,7 +164,7 @@ HttpResponse DashboardApi::handle(const HttpRequest& req) {
       return json_reply(req, {{"ok", false}, {"error", "manual steps must be finite numbers"}},
                         http::status::bad_request);
     }
-    return result_reply(req, station_.manual(f, l, u, yaw));
+    return result_reply(req, station_.manual(now_us_(), f, l, u, yaw));
   }
   return json_reply(req, {{"ok", false}, {"error", "no such API route"}}, http::status::not_found);
 }

@@ -13,6 +13,8 @@
 // Sec-Fetch-Site, a JSON Content-Type for POST, and the token when one is configured).
 #pragma once
 
+#include <cstdint>
+#include <functional>
 #include <map>
 #include <string>
 
@@ -25,8 +27,10 @@ namespace rgbdquad::quadcontrol {
 class DashboardApi {
  public:
   /// Loads the static assets of `static_dir` (regular files, top level only); throws
-  /// std::runtime_error when the folder or its index.html is missing.
-  DashboardApi(DashboardBackend& station, const std::string& static_dir, AccessPolicy policy);
+  /// std::runtime_error when the folder or its index.html is missing. `now_us` is the clock read
+  /// for each request that needs the time (monotonic_now_us() in quad-control).
+  DashboardApi(DashboardBackend& station, const std::string& static_dir, AccessPolicy policy,
+               std::function<std::int64_t()> now_us);
   HttpResponse handle(const HttpRequest& request);
 
  private:
@@ -34,6 +38,7 @@ class DashboardApi {
   std::map<std::string, std::pair<std::string, std::string>>
       files_;  // path -> (content type, bytes)
   AccessPolicy policy_;
+  std::function<std::int64_t()> now_us_;
 };
 
 }  // namespace rgbdquad::quadcontrol

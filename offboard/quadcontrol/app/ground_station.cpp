@@ -3,9 +3,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cmath>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "app/thread_setup.hpp"
 #include "core/geometry.hpp"
@@ -13,40 +10,9 @@
 namespace rgbdquad::quadcontrol {
 
 namespace {
-constexpr double kFpsEmaWeight = 0.2;      // frame-to-frame fps, smoothed over ~5 frames
-constexpr double kDepthDisplayMaxM = 5.0;  // greyscale: 0 m white .. 5 m black (Kinect range)
 constexpr std::int64_t kUsPerMs = 1000;
 constexpr int kMaxRtPriority = 99;       // SCHED_RR's highest priority on Linux
 constexpr int kCommandPriorityStep = 2;  // firmware link above the SLAM link (and its tracking)
-
-/// The map's points of one frame: camera points (m) into the floor frame, coloured by the RGB
-/// pixel they project to (grey where the projection leaves the image or the image is not BGR).
-std::vector<ColouredPoint> coloured_floor_points(const CameraFrame& frame,
-                                                 const std::vector<Eigen::Vector3d>& cam_points,
-                                                 const Eigen::Isometry3d& T_floor_cam) {
-  std::vector<ColouredPoint> world;
-  world.reserve(cam_points.size());
-  const auto& k = frame.intrinsics;
-  for (const auto& p : cam_points) {
-    const Eigen::Vector3d w = T_floor_cam * p;
-    const int u = static_cast<int>(std::lround(p.x() * k.fx_px / p.z() + k.cx_px));
-    const int v = static_cast<int>(std::lround(p.y() * k.fy_px / p.z() + k.cy_px));
-    ColouredPoint cp{w.cast<float>(), 128, 128, 128};
-    if (u >= 0 && v >= 0 && u < frame.rgb.cols && v < frame.rgb.rows &&
-        frame.rgb.type() == CV_8UC3) {
-      const auto& bgr = frame.rgb.at<cv::Vec3b>(v, u);
-      cp.r = bgr[2];
-      cp.g = bgr[1];
-      cp.b = bgr[0];
-    }
-    world.push_back(cp);
-  }
-  return world;
-}
-
-nlohmann::json pose_json(const CraftPose& p) {
-  return {{"x_m", p.x_m}, {"y_m", p.y_m}, {"z_m", p.z_m}, {"yaw_deg", p.yaw_deg}};
-}
 }  // namespace
 
 CraftPoseTrackerOptions GroundStationOptions::tracker() const {
@@ -82,6 +48,7 @@ GroundStation::GroundStation(GroundStationOptions options, std::unique_ptr<Frame
       controller_(options.controller),
       tracker_(options.tracker()),
       map_(options.map),
+      trajectory_(options.trajectory_max_points),
       log_(std::move(log)),
       recorder_(std::move(recorder)) {
   last_pwm_ = to_pwm(StickCommand{}, spec_.pwm);
@@ -128,7 +95,7 @@ void GroundStation::frame_loop() {
       }
       if (!slam_) {
         std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-        source_error_ = "SLAM link: " + slam_error;
+        stream_.set_error("SLAM link: " + slam_error);
         return;
       }
       slam_ready_ = true;
@@ -136,38 +103,35 @@ void GroundStation::frame_loop() {
     if (!frame) {
       if (stop_) return;
       std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-      source_error_ = error;
+      stream_.set_error(error);
       if (error == "replay finished") return;
       continue;
     }
     {
       std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-      if (last_frame_us_ > 0 && frame->received_us > last_frame_us_) {
-        const double inst = 1e6 / static_cast<double>(frame->received_us - last_frame_us_);
-        fps_ = frames_ <= 1 ? inst : (1.0 - kFpsEmaWeight) * fps_ + kFpsEmaWeight * inst;
-      }
-      last_frame_us_ = frame->received_us;
-      ++frames_;
-      stream_latency_ms_ = frame->link_latency_ms;
-      latest_frame_ = *frame;
-      if (log_)
-        log_->frame(frame->sequence, frame->capture_us, frame->received_us, frame->link_latency_ms);
-      if (recorder_) {
-        recorder_->frame(frame->sequence, frame->capture_us, frame->received_us,
-                         frame->link_latency_ms, fps_, frame->rgb, frame->depth, frame->intrinsics,
-                         frame->rgb_encoded, frame->depth_encoded);
-      }
-      if (auto imu = imu_replies_.nearest(frame->received_us, options_.imu_match_window_us)) {
-        imu_match_dt_ms_ = static_cast<double>(imu->first - frame->received_us) / kUsPerMs;
-      } else {
-        imu_match_dt_ms_.reset();
-      }
-      if (options_.imu_rotation_prior)
-        frame->q_ned_cam =
-            tracker_.camera_attitude_at(frame->capture_us, options_.attitude_match_window_us);
+      take_frame(*frame);
     }
     slam_->submit(*frame);  // dropped when SLAM is busy (thesis behaviour)
   }
+}
+
+void GroundStation::take_frame(CameraFrame& frame) {
+  stream_.on_frame(frame.received_us, frame.link_latency_ms);
+  images_.set_frame(frame);
+  if (log_) log_->frame(frame.sequence, frame.capture_us, frame.received_us, frame.link_latency_ms);
+  if (recorder_) {
+    recorder_->frame(frame.sequence, frame.capture_us, frame.received_us, frame.link_latency_ms,
+                     stream_.fps(), frame.rgb, frame.depth, frame.intrinsics, frame.rgb_encoded,
+                     frame.depth_encoded);
+  }
+  if (auto imu = imu_replies_.nearest(frame.received_us, options_.imu_match_window_us)) {
+    imu_match_dt_ms_ = static_cast<double>(imu->first - frame.received_us) / kUsPerMs;
+  } else {
+    imu_match_dt_ms_.reset();
+  }
+  if (options_.imu_rotation_prior)
+    frame.q_ned_cam =
+        tracker_.camera_attitude_at(frame.capture_us, options_.attitude_match_window_us);
 }
 
 void GroundStation::control_loop() {
@@ -221,28 +185,14 @@ void GroundStation::record_pose(const SlamResult& result, const CameraFrame& fra
                              to_string(st.state)});
 }
 
-std::vector<Eigen::Vector3d> GroundStation::depth_points(const CameraFrame& f, int step) const {
-  std::vector<Eigen::Vector3d> pts;
-  if (f.depth.type() != CV_16UC1) return pts;
-  const auto& k = f.intrinsics;
-  for (int v = 0; v < f.depth.rows; v += step) {
-    const auto* row = f.depth.ptr<std::uint16_t>(v);
-    for (int u = 0; u < f.depth.cols; u += step) {
-      if (row[u] == 0) continue;
-      const double z = row[u] / k.depth_units_per_m;
-      if (z > options_.max_depth_m) continue;
-      pts.emplace_back((u - k.cx_px) * z / k.fx_px, (v - k.cy_px) * z / k.fy_px, z);
-    }
-  }
-  return pts;
-}
-
 void GroundStation::on_slam(const SlamResult& result, const CameraFrame& frame) {
   // The command is computed and sent on the link's thread, after this one released the lock.
-  if (apply_slam_result(result, frame) && firmware_) firmware_->notify_pose();
+  // The SLAM thread's edge: the clock is read here and passed in.
+  if (apply_slam_result(monotonic_now_us(), result, frame) && firmware_) firmware_->notify_pose();
 }
 
-bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFrame& frame) {
+bool GroundStation::apply_slam_result(std::int64_t now, const SlamResult& result,
+                                      const CameraFrame& frame) {
   // Floor plane search on the first frames (outside the lock: RANSAC takes a few ms; fit_floor()
   // reads only the tracker's options).
   std::optional<FloorPlane> found;
@@ -251,13 +201,15 @@ bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFram
     std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
     need_floor = tracker_.searching_floor() && result.tracking;
   }
-  if (need_floor) found = tracker_.fit_floor(depth_points(frame, options_.floor_pixel_step));
+  if (need_floor)
+    found =
+        tracker_.fit_floor(camera_points(frame, options_.floor_pixel_step, options_.max_depth_m));
   std::vector<Eigen::Vector3d> cam_points;
-  if (result.tracking) cam_points = depth_points(frame, options_.map_pixel_step);
+  if (result.tracking)
+    cam_points = camera_points(frame, options_.map_pixel_step, options_.max_depth_m);
 
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   last_slam_ = result;
-  const std::int64_t now = monotonic_now_us();
   const CraftPoseUpdate update = tracker_.update(
       now,
       SlamPoseInput{result.tracking, result.T_world_cam, result.session,
@@ -278,12 +230,9 @@ bool GroundStation::apply_slam_result(const SlamResult& result, const CameraFram
                           T_floor_cam, update.pose.yaw_deg});
   }
   if (recorder_) record_pose(result, frame, now, true, T_floor_cam);
-  if (trajectory_.size() >= options_.trajectory_max_points) trajectory_.erase(trajectory_.begin());
-  trajectory_.push_back({update.pose.x_m, update.pose.y_m});
-
-  map_.add_points(coloured_floor_points(frame, cam_points, T_floor_cam));
-  if (recorder_ && recorder_->map_due(now)) recorder_->map(MapRecord{now, map_.cloud()});
-  ++map_revision_;
+  trajectory_.add(update.pose.x_m, update.pose.y_m);
+  map_.add_frame(frame, cam_points, T_floor_cam);
+  if (recorder_ && recorder_->map_due(now)) recorder_->map(MapRecord{now, map_.map().cloud()});
   return true;
 }
 
@@ -299,7 +248,7 @@ void GroundStation::feed_estimate(std::int64_t now_us) {
     controller_.on_pose(feed->sample, feed->velocity_m_per_s);
 }
 
-nlohmann::json GroundStation::state_json() {
+nlohmann::json GroundStation::state_json(std::int64_t now_us) {
   StationSnapshot snap;
   // The links' own stats (thread-safe copies) outside the lock, then one copy of the hub's state
   // under it; the JSON is built after the lock is released.
@@ -310,7 +259,7 @@ nlohmann::json GroundStation::state_json() {
     snap.slam_link = slam_->link_status();
   }
   if (firmware_) snap.firmware = firmware_->stats();
-  snap.taken_us = monotonic_now_us();
+  snap.taken_us = now_us;
   {
     std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
     snap.controller = controller_.status();
@@ -319,11 +268,11 @@ nlohmann::json GroundStation::state_json() {
     snap.stick = last_stick_;
     snap.pwm = last_pwm_;
     snap.source = source_->describe();
-    snap.frames = frames_;
-    snap.fps = fps_;
-    snap.sequence = latest_frame_ ? latest_frame_->sequence : -1;
-    snap.stream_latency_ms = stream_latency_ms_;
-    snap.source_error = source_error_;
+    snap.frames = stream_.frames();
+    snap.fps = stream_.fps();
+    snap.sequence = images_.sequence();
+    snap.stream_latency_ms = stream_.latency_ms();
+    snap.source_error = stream_.error();
     if (last_slam_) {
       snap.slam_state = last_slam_->state;
       snap.slam_inliers = last_slam_->inliers;
@@ -336,17 +285,15 @@ nlohmann::json GroundStation::state_json() {
     if (recorder_) snap.recording = recorder_->stats();
     snap.floor = tracker_.floor();
     snap.floor_fallback = tracker_.floor_fallback();
-    snap.map_origin_x_m = map_.origin_x_m();
-    snap.map_origin_y_m = map_.origin_y_m();
-    snap.map_resolution_m = map_.resolution_m();
-    snap.map_width_cells = map_.width_cells();
-    snap.map_height_cells = map_.height_cells();
-    snap.map_revision = map_revision_;
-    snap.cloud_points = map_.cloud().size();
-    const std::size_t stride = std::max<std::size_t>(1, trajectory_.size() / 500);
-    snap.trajectory.reserve(trajectory_.size() / stride + 1);
-    for (std::size_t i = 0; i < trajectory_.size(); i += stride)
-      snap.trajectory.push_back(trajectory_[i]);
+    const FloorMap& map = map_.map();
+    snap.map_origin_x_m = map.origin_x_m();
+    snap.map_origin_y_m = map.origin_y_m();
+    snap.map_resolution_m = map.resolution_m();
+    snap.map_width_cells = map.width_cells();
+    snap.map_height_cells = map.height_cells();
+    snap.map_revision = map_.revision();
+    snap.cloud_points = map.cloud().size();
+    snap.trajectory = trajectory_.decimated();
   }
   return to_json(snap);
 }
@@ -475,49 +422,14 @@ ApmStickInput GroundStation::apm_input() const {
   return ApmStickInput{c.apm_stick_deadzone_us, c.apm_throttle_deadband_us, c.hover_throttle_pct};
 }
 
-void GroundStation::invalidate_image_caches_if_new_frame() {
-  if (cache_sequence_ == latest_frame_->sequence) return;
-  rgb_jpeg_cache_.reset();
-  depth_png_cache_.reset();
-  cache_sequence_ = latest_frame_->sequence;
-}
-
 std::optional<std::string> GroundStation::rgb_jpeg() {
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-  if (!latest_frame_) return std::nullopt;
-  invalidate_image_caches_if_new_frame();
-  if (!rgb_jpeg_cache_) {
-    std::vector<std::uint8_t> buf;
-    if (!cv::imencode(".jpg", latest_frame_->rgb, buf, {cv::IMWRITE_JPEG_QUALITY, 80}))
-      return std::nullopt;
-    rgb_jpeg_cache_ = std::string(buf.begin(), buf.end());
-  }
-  return rgb_jpeg_cache_;
+  return images_.rgb_jpeg();
 }
 
 std::optional<std::string> GroundStation::depth_png() {
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-  if (!latest_frame_) return std::nullopt;
-  invalidate_image_caches_if_new_frame();
-  if (!depth_png_cache_) {
-    // 16-bit depth as greyscale: near = bright, far = dark, no reading = black.
-    const cv::Mat& d = latest_frame_->depth;
-    cv::Mat grey(d.rows, d.cols, CV_8UC1);
-    const double units_max = kDepthDisplayMaxM * latest_frame_->intrinsics.depth_units_per_m;
-    for (int v = 0; v < d.rows; ++v) {
-      const auto* in = d.ptr<std::uint16_t>(v);
-      auto* out = grey.ptr<std::uint8_t>(v);
-      for (int u = 0; u < d.cols; ++u) {
-        out[u] = in[u] == 0
-                     ? 0
-                     : static_cast<std::uint8_t>(255.0 - 235.0 * std::min(1.0, in[u] / units_max));
-      }
-    }
-    std::vector<std::uint8_t> buf;
-    if (!cv::imencode(".png", grey, buf)) return std::nullopt;
-    depth_png_cache_ = std::string(buf.begin(), buf.end());
-  }
-  return depth_png_cache_;
+  return images_.depth_png();
 }
 
 std::string GroundStation::map_png() {
@@ -525,51 +437,36 @@ std::string GroundStation::map_png() {
   int n;
   {
     std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-    rgb = map_.render_rgb();
-    n = map_.width_cells();
+    rgb = map_.map().render_rgb();
+    n = map_.map().width_cells();
   }
-  cv::Mat img(n, n, CV_8UC3, rgb.data());
-  cv::Mat bgr;
-  cv::cvtColor(img, bgr, cv::COLOR_RGB2BGR);
-  std::vector<std::uint8_t> buf;
-  cv::imencode(".png", bgr, buf);
-  return std::string(buf.begin(), buf.end());
+  return StationMap::png_of_render(std::move(rgb), n);  // encoded outside the lock
 }
 
 nlohmann::json GroundStation::cloud_json(std::size_t max_points) {
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-  const auto& cloud = map_.cloud();
-  nlohmann::json pts = nlohmann::json::array();
-  const std::size_t stride = std::max<std::size_t>(
-      1, (cloud.size() + max_points - 1) / std::max<std::size_t>(1, max_points));
-  for (std::size_t i = 0; i < cloud.size(); i += stride) {
-    const auto& p = cloud[i];
-    pts.push_back({std::round(p.p_world.x() * 1000) / 1000, std::round(p.p_world.y() * 1000) / 1000,
-                   std::round(p.p_world.z() * 1000) / 1000, p.r, p.g, p.b});
-  }
-  nlohmann::json pose = tracker_.pose() ? pose_json(*tracker_.pose()) : nlohmann::json(nullptr);
-  return {{"points", pts}, {"total", cloud.size()}, {"pose", pose}};
+  return map_.cloud_json(max_points, tracker_.pose());
 }
 
 std::string GroundStation::map_ply() {
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-  return map_.to_ply();
+  return map_.ply();
 }
 
-std::string GroundStation::command(OperatorCommand cmd) {
+std::string GroundStation::command(std::int64_t now_us, OperatorCommand cmd) {
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-  return controller_.command(monotonic_now_us(), cmd);
+  return controller_.command(now_us, cmd);
 }
 
-std::string GroundStation::waypoint(double x_m, double y_m) {
+std::string GroundStation::waypoint(std::int64_t now_us, double x_m, double y_m) {
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-  return controller_.set_waypoint(monotonic_now_us(), x_m, y_m);
+  return controller_.set_waypoint(now_us, x_m, y_m);
 }
 
-std::string GroundStation::manual(double forward_m, double left_m, double up_m,
+std::string GroundStation::manual(std::int64_t now_us, double forward_m, double left_m, double up_m,
                                   double yaw_ccw_deg) {
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-  return controller_.nudge(monotonic_now_us(), forward_m, left_m, up_m, yaw_ccw_deg);
+  return controller_.nudge(now_us, forward_m, left_m, up_m, yaw_ccw_deg);
 }
 
 }  // namespace rgbdquad::quadcontrol

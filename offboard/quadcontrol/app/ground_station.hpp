@@ -10,10 +10,15 @@
 // firmware.send_on_pose on each fresh tracked pose, rate-limited, plus keep-alives), or, with no
 // firmware, the control thread (controller.update(now) every control_period_ms, for the
 // dashboard). The SLAM link is created on the first frame (it needs the intrinsics). Shared state
-// is guarded by one mutex; the tracker and the controller are only touched under it.
-// The logic (tracker, estimator, controller, map) is pure; the hub keeps the threads, the lock, the
-// clock (it reads monotonic_now_us() and passes the time in), the flight log and MCAP recorder
-// calls, the depth sub-sampling, the map colouring and the dashboard's image caches.
+// is guarded by one mutex; everything below is only touched under it.
+//
+// Time is a parameter: the clock is read at the edges only (the control thread's tick, the SLAM
+// callback, the firmware link, the dashboard's HTTP handler) and passed in as `now_us`. The hub
+// itself holds the threads, the lock, the routing between the parts and the flight log and MCAP
+// recorder calls; the state lives in parts of its own, each pure and tested alone: the tracker,
+// the controller, the map (StationMap: FloorMap, revision, renderings, depth sub-sampling), the
+// newest frame's images (FrameImages), the stream figures (StreamStats) and the track
+// (TrajectoryTrail).
 #pragma once
 
 #include <atomic>
@@ -29,12 +34,16 @@
 #include "app/dashboard_backend.hpp"
 #include "app/firmware_link.hpp"
 #include "app/flight_log.hpp"
+#include "app/frame_images.hpp"
 #include "app/frame_source.hpp"
 #include "app/slam_link.hpp"
 #include "app/slam_server_client.hpp"
+#include "app/station_map.hpp"
 #include "core/craft_pose_tracker.hpp"
 #include "core/flight_controller.hpp"
+#include "core/stream_stats.hpp"
 #include "core/timestamp_buffer.hpp"
+#include "core/trajectory_trail.hpp"
 #include "map/floor_map.hpp"
 #include "map/floor_plane.hpp"
 #include "record/flight_recorder.hpp"
@@ -77,7 +86,7 @@ struct GroundStationOptions {
 /// What /api/state shows: copied under the hub's lock (and from the links' own thread-safe stats),
 /// serialised by to_json() after the lock is released.
 struct StationSnapshot {
-  std::int64_t taken_us = 0;  ///< monotonic clock when taken ("connected": a reply within 1 s)
+  std::int64_t taken_us = 0;  ///< `now_us` it was taken at ("connected": a reply within 1 s)
   ControllerStatus controller;
   std::optional<CraftPose> pose;  ///< the tracker's newest tracked pose
   std::uint32_t map_correction_count = 0;
@@ -126,16 +135,18 @@ class GroundStation : public DashboardBackend {
   GroundStation(const GroundStation&) = delete;
   GroundStation& operator=(const GroundStation&) = delete;
 
-  // Dashboard API (thread-safe; dashboard_backend.hpp).
-  nlohmann::json state_json() override;
+  // Dashboard API (thread-safe; dashboard_backend.hpp). `now_us`: monotonic_now_us() read by
+  // the caller.
+  nlohmann::json state_json(std::int64_t now_us) override;
   std::optional<std::string> rgb_jpeg() override;
   std::optional<std::string> depth_png() override;
   std::string map_png() override;
   nlohmann::json cloud_json(std::size_t max_points) override;
   std::string map_ply() override;
-  std::string command(OperatorCommand command) override;
-  std::string waypoint(double x_m, double y_m) override;
-  std::string manual(double forward_m, double left_m, double up_m, double yaw_ccw_deg) override;
+  std::string command(std::int64_t now_us, OperatorCommand command) override;
+  std::string waypoint(std::int64_t now_us, double x_m, double y_m) override;
+  std::string manual(std::int64_t now_us, double forward_m, double left_m, double up_m,
+                     double yaw_ccw_deg) override;
 
  private:
   void frame_loop();
@@ -144,10 +155,13 @@ class GroundStation : public DashboardBackend {
   /// nullopt while the controller hands the craft over to its failsafe (nothing is sent).
   std::optional<PwmCommand> command_at(std::int64_t now_us, std::uint32_t seq);
   void on_slam(const SlamResult& result, const CameraFrame& frame);
-  /// Takes a SLAM result through the tracker into the controller, the logs and the map; true when
-  /// it gave the controller a fresh tracked pose (then the firmware link is told, outside the
-  /// lock).
-  bool apply_slam_result(const SlamResult& result, const CameraFrame& frame);
+  /// Takes a SLAM result, arrived at `now_us`, through the tracker into the controller, the logs
+  /// and the map; true when it gave the controller a fresh tracked pose (then the firmware link is
+  /// told, outside the lock).
+  bool apply_slam_result(std::int64_t now_us, const SlamResult& result, const CameraFrame& frame);
+  /// Counts, logs and records a frame from the source and sets its IMU attitude (caller holds
+  /// mutex_).
+  void take_frame(CameraFrame& frame);
   void on_reply(std::int64_t received_us, const rgbd_control::Reply& reply);
   /// Feeds the controller the estimator's state at `now_us` (caller holds mutex_) when the
   /// estimator is on and has fresh IMU input; else nothing (the raw poses drive the controller).
@@ -157,12 +171,8 @@ class GroundStation : public DashboardBackend {
   void record_command(std::int64_t now_us, std::uint32_t seq, bool sent);
   void record_pose(const SlamResult& result, const CameraFrame& frame, std::int64_t now_us,
                    bool tracking, const Eigen::Isometry3d& T_floor_cam);
-  std::vector<Eigen::Vector3d> depth_points(const CameraFrame& frame, int step) const;
   /// How the APM reads the sticks (dead zones from the controller config).
   ApmStickInput apm_input() const;
-  /// Drops the encoded RGB/depth images when latest_frame_ changed. Caller holds mutex_ and has a
-  /// frame.
-  void invalidate_image_caches_if_new_frame();
 
   GroundStationOptions options_;
   ControlSpec spec_;
@@ -174,20 +184,13 @@ class GroundStation : public DashboardBackend {
   /// SLAM results -> the craft's pose in the floor frame and the controller's input (floor search,
   /// SLAM sessions, declared map corrections, the IMU + pose estimator).
   CraftPoseTracker tracker_;
-  FloorMap map_;
-  std::optional<CameraFrame> latest_frame_;
-  std::optional<std::string> rgb_jpeg_cache_, depth_png_cache_;
-  std::int64_t cache_sequence_ = -1;
-  std::int64_t frames_ = 0;
-  double fps_ = 0.0;
-  std::int64_t last_frame_us_ = 0;
-  double stream_latency_ms_ = 0.0;
-  std::string source_error_;
+  StationMap map_;
+  FrameImages images_;  ///< the newest frame and its dashboard images
+  StreamStats stream_;
   std::optional<SlamResult> last_slam_;
   std::int64_t pose_capture_us_ = -1;  ///< capture stamp of the frame behind the pose (flight log)
   std::int64_t pose_us_ = -1;          ///< when the tracker's pose became available
-  std::int64_t map_revision_ = 0;
-  std::vector<std::array<double, 2>> trajectory_;
+  TrajectoryTrail trajectory_;
   StickCommand last_stick_;
   PwmCommand last_pwm_;
   TimestampBuffer<rgbd_control::Reply> imu_replies_{256};

@@ -188,7 +188,8 @@ int main(int argc, char** argv) {
     GroundStation station(config->station, std::move(source), firmware, generated_control_spec(),
                           key, std::move(flight_log), std::move(recorder));
     DashboardApi api(station, config->dashboard_static_dir,
-                     AccessPolicy{config->dashboard_token, config->dashboard_allowed_hosts});
+                     AccessPolicy{config->dashboard_token, config->dashboard_allowed_hosts},
+                     monotonic_now_us);
     HttpServer server(config->dashboard_bind_address, config->dashboard_port,
                       [&api](const HttpRequest& r) { return api.handle(r); });
     // One write for the whole line: the real-time threads log to the same pipe meanwhile, and a
