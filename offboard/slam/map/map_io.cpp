@@ -234,75 +234,141 @@ bool check_map_file(const std::string& path, std::string* error) {
   return read_verified(path, error).has_value();
 }
 
-std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& ctx,
-                                std::string* error, std::uint64_t* map_corrections) {
-  const auto bytes = read_verified(path, error);
-  if (!bytes) return std::nullopt;
-  const std::vector<std::uint8_t>& b = *bytes;
-  Reader r(b, b.size() - 8);
-  char magic[8];
-  std::uint32_t v2;
-  r.raw(magic, 8);
-  r.get(&v2);
-  const auto corrupt = [&](const char* what) {
-    fail(error, path, std::string("malformed content (") + what + ")");
-    return std::nullopt;
-  };
-  double cam[5];
-  std::int32_t w = 0, h = 0, cols = 0, type = 0;
-  std::uint8_t kind = 0;
-  for (double& x : cam)
-    if (!r.get(&x)) return corrupt("camera");
-  if (!r.get(&w) || !r.get(&h) || !r.get(&kind) || !r.get(&cols) || !r.get(&type))
-    return corrupt("header");
-  const CameraModel& c = ctx.camera;
-  const double expect[5] = {c.fx_px, c.fy_px, c.cx_px, c.cy_px, c.bf_px_m};
-  for (int i = 0; i < 5; ++i)
-    if (!(std::abs(cam[i] - expect[i]) <= 1e-6)) {
-      fail(error, path,
-           "made with another camera (fx " + std::to_string(cam[0]) + " fy " +
-               std::to_string(cam[1]) + " cx " + std::to_string(cam[2]) + " cy " +
-               std::to_string(cam[3]) + "; this run has fx " + std::to_string(c.fx_px) + " fy " +
-               std::to_string(c.fy_px) + " cx " + std::to_string(c.cx_px) + " cy " +
-               std::to_string(c.cy_px) + ")");
-      return std::nullopt;
-    }
-  if (w != c.width_px || h != c.height_px) {
-    fail(error, path, "made for " + std::to_string(w) + "x" + std::to_string(h) + " images");
-    return std::nullopt;
-  }
-  if (kind != kind_code(ctx.features.kind)) {
-    fail(error, path,
-         "made with another feature detector (code " + std::to_string(kind) + ", this run uses " +
-             to_string(ctx.features.kind) + ")");
-    return std::nullopt;
-  }
-  if (cols < 0 || cols > 1024 || (type != CV_8U && type != CV_32F && cols > 0))
-    return corrupt("descriptor shape");
-  const std::size_t elem = type == CV_32F ? 4 : 1;
-  const std::size_t desc_bytes = static_cast<std::size_t>(cols) * elem;
+namespace {
 
-  std::map<std::int64_t, MapKeyframe> kfs;
-  std::uint64_t nkf = 0;
-  if (!r.get(&nkf) || nkf > kMaxKeyframes) return corrupt("keyframe count");
-  for (std::uint64_t i = 0; i < nkf; ++i) {
-    MapKeyframe kf;
+/// Reads the sections of a verified map file in order; each step returns false with `error` set
+/// (the file's path and what is wrong) on the first inconsistency.
+class MapFileParser {
+ public:
+  MapFileParser(const std::vector<std::uint8_t>& bytes, const std::string& path,
+                const MapFileContext& ctx, std::string* error)
+      : r_(bytes, bytes.size() - 8), path_(path), ctx_(ctx), error_(error) {}
+
+  /// Magic and version (checked by read_verified), then the camera, image size and detector the
+  /// map was made with: they must be this run's.
+  bool header() {
+    char magic[8];
+    std::uint32_t version;
+    r_.raw(magic, 8);
+    r_.get(&version);
+    double cam[5];
+    std::int32_t w = 0, h = 0;
+    std::uint8_t kind = 0;
+    for (double& x : cam)
+      if (!r_.get(&x)) return corrupt("camera");
+    if (!r_.get(&w) || !r_.get(&h) || !r_.get(&kind) || !r_.get(&cols_) || !r_.get(&type_))
+      return corrupt("header");
+    const CameraModel& c = ctx_.camera;
+    const double expect[5] = {c.fx_px, c.fy_px, c.cx_px, c.cy_px, c.bf_px_m};
+    for (int i = 0; i < 5; ++i)
+      if (!(std::abs(cam[i] - expect[i]) <= 1e-6))
+        return fail(error_, path_,
+                    "made with another camera (fx " + std::to_string(cam[0]) + " fy " +
+                        std::to_string(cam[1]) + " cx " + std::to_string(cam[2]) + " cy " +
+                        std::to_string(cam[3]) + "; this run has fx " + std::to_string(c.fx_px) +
+                        " fy " + std::to_string(c.fy_px) + " cx " + std::to_string(c.cx_px) +
+                        " cy " + std::to_string(c.cy_px) + ")");
+    if (w != c.width_px || h != c.height_px)
+      return fail(error_, path_,
+                  "made for " + std::to_string(w) + "x" + std::to_string(h) + " images");
+    if (kind != kind_code(ctx_.features.kind))
+      return fail(error_, path_,
+                  "made with another feature detector (code " + std::to_string(kind) +
+                      ", this run uses " + to_string(ctx_.features.kind) + ")");
+    if (cols_ < 0 || cols_ > 1024 || (type_ != CV_8U && type_ != CV_32F && cols_ > 0))
+      return corrupt("descriptor shape");
+    desc_bytes_ = static_cast<std::size_t>(cols_) * (type_ == CV_32F ? 4 : 1);
+    return true;
+  }
+
+  bool keyframes(std::map<std::int64_t, MapKeyframe>* kfs) {
+    std::uint64_t nkf = 0;
+    if (!r_.get(&nkf) || nkf > kMaxKeyframes) return corrupt("keyframe count");
+    for (std::uint64_t i = 0; i < nkf; ++i) {
+      MapKeyframe kf;
+      if (!keyframe(&kf)) return false;
+      const std::int64_t id = kf.id;
+      (*kfs)[id] = std::move(kf);
+    }
+    return true;
+  }
+
+  bool points(const std::map<std::int64_t, MapKeyframe>& kfs,
+              std::map<std::int64_t, MapPoint>* pts) {
+    std::uint64_t np = 0;
+    if (!r_.get(&np) || np > kMaxPoints) return corrupt("point count");
+    for (std::uint64_t i = 0; i < np; ++i) {
+      MapPoint p;
+      if (!point(kfs, &p)) return false;
+      const std::int64_t id = p.id;
+      (*pts)[id] = std::move(p);
+    }
+    // Every keypoint's point must exist (and see it back).
+    for (const auto& [id, kf] : kfs)
+      for (std::size_t k = 0; k < kf.point_ids.size(); ++k) {
+        const std::int64_t pid = kf.point_ids[k];
+        if (pid < 0) continue;
+        auto it = pts->find(pid);
+        if (it == pts->end() || !it->second.observations.count(id))
+          return corrupt("keypoint refers to a missing point");
+      }
+    return true;
+  }
+
+  bool culled(std::map<std::int64_t, CulledKeyframe>* culled) {
+    std::uint64_t nc = 0;
+    if (!r_.get(&nc) || nc > kMaxKeyframes) return corrupt("culled count");
+    for (std::uint64_t i = 0; i < nc; ++i) {
+      std::int64_t id;
+      CulledKeyframe ck;
+      if (!r_.get(&id) || !r_.get(&ck.parent) || !r_.pose(&ck.T_parent_kf))
+        return corrupt("culled keyframe");
+      (*culled)[id] = ck;
+    }
+    return true;
+  }
+
+  bool loop_edges(const std::map<std::int64_t, MapKeyframe>& kfs, std::vector<LoopEdge>* loops) {
+    std::uint64_t nl = 0;
+    if (!r_.get(&nl) || nl > kMaxKeyframes) return corrupt("loop edge count");
+    for (std::uint64_t i = 0; i < nl; ++i) {
+      LoopEdge e;
+      if (!r_.get(&e.a) || !r_.get(&e.b) || !r_.pose(&e.T_a_b)) return corrupt("loop edge");
+      if (!kfs.count(e.a) || !kfs.count(e.b)) return corrupt("loop edge between unknown keyframes");
+      loops->push_back(e);
+    }
+    return true;
+  }
+
+  /// The map's count of loop corrections, which ends the file.
+  bool trailer(std::uint64_t* corrections) {
+    if (!r_.get(corrections)) return corrupt("map corrections");
+    if (r_.left() != 0) return corrupt("trailing bytes");
+    return true;
+  }
+
+ private:
+  bool corrupt(const char* what) {
+    return fail(error_, path_, std::string("malformed content (") + what + ")");
+  }
+
+  bool keyframe(MapKeyframe* kf) {
     std::uint64_t nf = 0;
-    if (!r.get(&kf.id) || !r.get(&kf.stamp_s) || !r.pose(&kf.T_world_cam) || !r.get(&nf) ||
+    if (!r_.get(&kf->id) || !r_.get(&kf->stamp_s) || !r_.pose(&kf->T_world_cam) || !r_.get(&nf) ||
         nf > kMaxFeaturesPerKeyframe)
       return corrupt("keyframe");
     auto f = std::make_shared<FrameFeatures>();
-    f->descriptors.create(static_cast<int>(nf), cols, type == CV_32F ? CV_32F : CV_8U);
-    kf.point_ids.resize(nf);
+    f->descriptors.create(static_cast<int>(nf), cols_, type_ == CV_32F ? CV_32F : CV_8U);
+    kf->point_ids.resize(nf);
     for (std::uint64_t k = 0; k < nf; ++k) {
       float x, y, size, angle, response;
       std::int32_t octave;
       Eigen::Vector3d p;
       cv::Vec3b col;
-      if (!r.get(&x) || !r.get(&y) || !r.get(&size) || !r.get(&angle) || !r.get(&response) ||
-          !r.get(&octave) || !r.get(&p[0]) || !r.get(&p[1]) || !r.get(&p[2]) ||
-          !r.raw(&col[0], 3) || !r.raw(f->descriptors.ptr(static_cast<int>(k)), desc_bytes) ||
-          !r.get(&kf.point_ids[k]))
+      if (!r_.get(&x) || !r_.get(&y) || !r_.get(&size) || !r_.get(&angle) || !r_.get(&response) ||
+          !r_.get(&octave) || !r_.get(&p[0]) || !r_.get(&p[1]) || !r_.get(&p[2]) ||
+          !r_.raw(&col[0], 3) || !r_.raw(f->descriptors.ptr(static_cast<int>(k)), desc_bytes_) ||
+          !r_.get(&kf->point_ids[k]))
         return corrupt("keypoint");
       if (!p.allFinite() || !(p.z() > 0)) return corrupt("keypoint depth");
       f->keypoints.emplace_back(cv::Point2f(x, y), size, angle, response, octave);
@@ -310,75 +376,63 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
       f->colours_bgr.push_back(col);
     }
     f->detected = nf;
-    kf.features = TrackedFeatures::from(f, c, ctx.features);
+    kf->features = TrackedFeatures::from(f, ctx_.camera, ctx_.features);
     std::uint8_t thumb = 0;
-    if (!r.get(&thumb)) return corrupt("thumbnail flag");
+    if (!r_.get(&thumb)) return corrupt("thumbnail flag");
     if (thumb) {
-      kf.thumbnail.create(kThumbnailRows, kThumbnailCols, CV_32F);
-      if (!r.raw(kf.thumbnail.ptr(), kThumbnailCols * kThumbnailRows * sizeof(float)))
+      kf->thumbnail.create(kThumbnailRows, kThumbnailCols, CV_32F);
+      if (!r_.raw(kf->thumbnail.ptr(), kThumbnailCols * kThumbnailRows * sizeof(float)))
         return corrupt("thumbnail");
     }
-    const std::int64_t id = kf.id;
-    kfs[id] = std::move(kf);
+    return true;
   }
-  std::map<std::int64_t, MapPoint> pts;
-  std::uint64_t np = 0;
-  if (!r.get(&np) || np > kMaxPoints) return corrupt("point count");
-  for (std::uint64_t i = 0; i < np; ++i) {
-    MapPoint p;
+
+  bool point(const std::map<std::int64_t, MapKeyframe>& kfs, MapPoint* p) {
     std::uint64_t nobs = 0;
-    p.descriptor.create(1, cols, type == CV_32F ? CV_32F : CV_8U);
-    if (!r.get(&p.id) || !r.get(&p.p_world_m[0]) || !r.get(&p.p_world_m[1]) ||
-        !r.get(&p.p_world_m[2]) || !r.raw(p.descriptor.ptr(), desc_bytes) ||
-        !r.get(&p.first_keyframe) || !r.get(&p.first_keyframe_serial) || !r.get(&p.visible) ||
-        !r.get(&p.found) || !r.get(&nobs) || nobs > kMaxObservations)
+    p->descriptor.create(1, cols_, type_ == CV_32F ? CV_32F : CV_8U);
+    if (!r_.get(&p->id) || !r_.get(&p->p_world_m[0]) || !r_.get(&p->p_world_m[1]) ||
+        !r_.get(&p->p_world_m[2]) || !r_.raw(p->descriptor.ptr(), desc_bytes_) ||
+        !r_.get(&p->first_keyframe) || !r_.get(&p->first_keyframe_serial) || !r_.get(&p->visible) ||
+        !r_.get(&p->found) || !r_.get(&nobs) || nobs > kMaxObservations)
       return corrupt("point");
-    if (!p.p_world_m.allFinite()) return corrupt("point position");
+    if (!p->p_world_m.allFinite()) return corrupt("point position");
     for (std::uint64_t o = 0; o < nobs; ++o) {
       std::int64_t kf;
       std::int32_t kp;
-      if (!r.get(&kf) || !r.get(&kp)) return corrupt("observation");
+      if (!r_.get(&kf) || !r_.get(&kp)) return corrupt("observation");
       auto it = kfs.find(kf);
       if (it == kfs.end() || kp < 0 ||
           static_cast<std::size_t>(kp) >= it->second.point_ids.size() ||
-          it->second.point_ids[static_cast<std::size_t>(kp)] != p.id)
+          it->second.point_ids[static_cast<std::size_t>(kp)] != p->id)
         return corrupt("observation does not match its keyframe");
-      p.observations[kf] = kp;
+      p->observations[kf] = kp;
     }
-    const std::int64_t id = p.id;
-    pts[id] = std::move(p);
+    return true;
   }
-  // Every keypoint's point must exist (and see it back).
-  for (auto& [id, kf] : kfs)
-    for (std::size_t k = 0; k < kf.point_ids.size(); ++k) {
-      const std::int64_t pid = kf.point_ids[k];
-      if (pid < 0) continue;
-      auto it = pts.find(pid);
-      if (it == pts.end() || !it->second.observations.count(id))
-        return corrupt("keypoint refers to a missing point");
-    }
+
+  Reader r_;
+  const std::string& path_;
+  const MapFileContext& ctx_;
+  std::string* error_;
+  std::int32_t cols_ = 0, type_ = 0;
+  std::size_t desc_bytes_ = 0;
+};
+
+}  // namespace
+
+std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& ctx,
+                                std::string* error, std::uint64_t* map_corrections) {
+  const auto bytes = read_verified(path, error);
+  if (!bytes) return std::nullopt;
+  MapFileParser parse(*bytes, path, ctx, error);
+  std::map<std::int64_t, MapKeyframe> kfs;
+  std::map<std::int64_t, MapPoint> pts;
   std::map<std::int64_t, CulledKeyframe> culled;
-  std::uint64_t nc = 0;
-  if (!r.get(&nc) || nc > kMaxKeyframes) return corrupt("culled count");
-  for (std::uint64_t i = 0; i < nc; ++i) {
-    std::int64_t id;
-    CulledKeyframe ck;
-    if (!r.get(&id) || !r.get(&ck.parent) || !r.pose(&ck.T_parent_kf))
-      return corrupt("culled keyframe");
-    culled[id] = ck;
-  }
   std::vector<LoopEdge> loops;
-  std::uint64_t nl = 0;
-  if (!r.get(&nl) || nl > kMaxKeyframes) return corrupt("loop edge count");
-  for (std::uint64_t i = 0; i < nl; ++i) {
-    LoopEdge e;
-    if (!r.get(&e.a) || !r.get(&e.b) || !r.pose(&e.T_a_b)) return corrupt("loop edge");
-    if (!kfs.count(e.a) || !kfs.count(e.b)) return corrupt("loop edge between unknown keyframes");
-    loops.push_back(e);
-  }
   std::uint64_t corrections = 0;
-  if (!r.get(&corrections)) return corrupt("map corrections");
-  if (r.left() != 0) return corrupt("trailing bytes");
+  if (!parse.header() || !parse.keyframes(&kfs) || !parse.points(kfs, &pts) ||
+      !parse.culled(&culled) || !parse.loop_edges(kfs, &loops) || !parse.trailer(&corrections))
+    return std::nullopt;
   SlamMap map;
   map.restore(std::move(kfs), std::move(pts), std::move(culled), std::move(loops));
   if (map_corrections) *map_corrections = corrections;

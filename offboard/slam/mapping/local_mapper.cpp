@@ -257,9 +257,11 @@ class StopWhenKeyframesWait : public ceres::IterationCallback {
 
 }  // namespace
 
-void LocalMapper::bundle_adjust(std::int64_t kf_id, const KeyframesWaiting& waiting,
-                                MapperStats* stats) {
-  const std::int64_t t0 = steady_now_ns();
+namespace {
+
+/// A local BA as collected from the map: the window's poses (and the fixed ones anchoring it),
+/// the points they see, and every observation of those points from those keyframes.
+struct LocalBaProblem {
   struct Obs {
     std::int64_t kf;
     std::int64_t pid;
@@ -270,111 +272,136 @@ void LocalMapper::bundle_adjust(std::int64_t kf_id, const KeyframesWaiting& wait
   std::set<std::int64_t> fixed;
   std::map<std::int64_t, std::array<double, 3>> points;
   std::vector<Obs> obs;
-  std::int64_t first_kf = -1;
-  std::uint64_t corrections = 0;
-  {
-    std::lock_guard<MapMutex> lock(map_->mutex);
-    const SlamMap& map = map_->map;
-    if (!map.has_keyframe(kf_id)) return;
-    corrections = map_->corrections;
-    first_kf = map.keyframes().begin()->first;
-    std::vector<std::int64_t> window{kf_id};
-    for (const auto& [n, shared] : map.covisible(kf_id, options_.covisibility_min_shared)) {
-      if (static_cast<int>(window.size()) >= options_.ba_window) break;
-      window.push_back(n);
-    }
-    if (window.size() < 2) return;
-    for (std::int64_t k : window) poses[k] = to_block(map.keyframe(k)->T_world_cam.inverse());
-    std::unordered_map<std::int64_t, int> outside;
-    for (std::int64_t k : window)
-      for (std::int64_t pid : map.keyframe(k)->point_ids) {
-        if (pid < 0 || points.count(pid)) continue;
-        const MapPoint* p = map.point(pid);
-        if (!p) continue;
-        points[pid] = {p->p_world_m.x(), p->p_world_m.y(), p->p_world_m.z()};
-        for (const auto& [o, kp] : p->observations)
-          if (!poses.count(o)) ++outside[o];
-      }
-    std::vector<std::pair<int, std::int64_t>> ranked;
-    for (const auto& [o, n] : outside) ranked.emplace_back(n, o);
-    std::sort(ranked.rbegin(), ranked.rend());
-    for (std::size_t i = 0; i < ranked.size() && static_cast<int>(i) < options_.ba_max_fixed; ++i) {
-      poses[ranked[i].second] = to_block(map.keyframe(ranked[i].second)->T_world_cam.inverse());
-      fixed.insert(ranked[i].second);
-    }
-    // The world is the first keyframe's frame: hold it; with nothing fixed, hold the oldest.
-    if (poses.count(first_kf)) fixed.insert(first_kf);
-    if (fixed.empty()) fixed.insert(poses.begin()->first);
-    for (const auto& [pid, xyz] : points) {
+};
+
+/// Keyframe `kf_id` and its best covisible neighbours (the window), anchored by up to
+/// `ba_max_fixed` keyframes outside it that see its points most. False when the window has
+/// fewer than two keyframes. Map locked by the caller.
+bool collect_local_ba(const SlamMap& map, std::int64_t kf_id, const LocalMapperOptions& options,
+                      const CameraModel& camera, LocalBaProblem* ba) {
+  const std::int64_t first_kf = map.keyframes().begin()->first;
+  std::vector<std::int64_t> window{kf_id};
+  for (const auto& [n, shared] : map.covisible(kf_id, options.covisibility_min_shared)) {
+    if (static_cast<int>(window.size()) >= options.ba_window) break;
+    window.push_back(n);
+  }
+  if (window.size() < 2) return false;
+  for (std::int64_t k : window) ba->poses[k] = to_block(map.keyframe(k)->T_world_cam.inverse());
+  std::unordered_map<std::int64_t, int> outside;
+  for (std::int64_t k : window)
+    for (std::int64_t pid : map.keyframe(k)->point_ids) {
+      if (pid < 0 || ba->points.count(pid)) continue;
       const MapPoint* p = map.point(pid);
-      for (const auto& [o, kp] : p->observations) {
-        if (!poses.count(o)) continue;
-        const MapKeyframe* kf = map.keyframe(o);
-        const auto k = static_cast<std::size_t>(kp);
-        obs.push_back(Obs{o, pid, kf->features.measurement(k, camera_), kf->features.sigma(k)});
-      }
+      if (!p) continue;
+      ba->points[pid] = {p->p_world_m.x(), p->p_world_m.y(), p->p_world_m.z()};
+      for (const auto& [o, kp] : p->observations)
+        if (!ba->poses.count(o)) ++outside[o];
+    }
+  std::vector<std::pair<int, std::int64_t>> ranked;
+  for (const auto& [o, n] : outside) ranked.emplace_back(n, o);
+  std::sort(ranked.rbegin(), ranked.rend());
+  for (std::size_t i = 0; i < ranked.size() && static_cast<int>(i) < options.ba_max_fixed; ++i) {
+    ba->poses[ranked[i].second] = to_block(map.keyframe(ranked[i].second)->T_world_cam.inverse());
+    ba->fixed.insert(ranked[i].second);
+  }
+  // The world is the first keyframe's frame: hold it; with nothing fixed, hold the oldest.
+  if (ba->poses.count(first_kf)) ba->fixed.insert(first_kf);
+  if (ba->fixed.empty()) ba->fixed.insert(ba->poses.begin()->first);
+  for (const auto& [pid, xyz] : ba->points) {
+    const MapPoint* p = map.point(pid);
+    for (const auto& [o, kp] : p->observations) {
+      if (!ba->poses.count(o)) continue;
+      const MapKeyframe* kf = map.keyframe(o);
+      const auto k = static_cast<std::size_t>(kp);
+      ba->obs.push_back(
+          LocalBaProblem::Obs{o, pid, kf->features.measurement(k, camera), kf->features.sigma(k)});
     }
   }
+  return true;
+}
+
+/// Solves the BA in place (Ceres, RGB-D residual, Huber); stops early when `stop` says so.
+bool solve_local_ba(LocalBaProblem* ba, const CameraModel& camera, int iterations,
+                    ceres::IterationCallback* stop) {
   ceres::Problem::Options po;
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem problem(po);
   ceres::HuberLoss huber(std::sqrt(kChi2Rgbd95));
-  for (const Obs& o : obs) {
+  for (const LocalBaProblem::Obs& o : ba->obs) {
     auto* cost = new ceres::AutoDiffCostFunction<RgbdReprojectionCost, 3, 6, 3>(
-        new RgbdReprojectionCost(o.z, o.sigma, camera_));
-    problem.AddResidualBlock(cost, &huber, poses[o.kf].data(), points[o.pid].data());
+        new RgbdReprojectionCost(o.z, o.sigma, camera));
+    problem.AddResidualBlock(cost, &huber, ba->poses[o.kf].data(), ba->points[o.pid].data());
   }
-  for (std::int64_t k : fixed)
-    if (problem.HasParameterBlock(poses[k].data()))
-      problem.SetParameterBlockConstant(poses[k].data());
+  for (std::int64_t k : ba->fixed)
+    if (problem.HasParameterBlock(ba->poses[k].data()))
+      problem.SetParameterBlockConstant(ba->poses[k].data());
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::SPARSE_SCHUR;
-  so.max_num_iterations = options_.ba_iterations;
+  so.max_num_iterations = iterations;
   so.num_threads = 1;  // the other core belongs to tracking
   so.logging_type = ceres::SILENT;
-  StopWhenKeyframesWait stop(waiting);
-  so.callbacks.push_back(&stop);
+  so.callbacks.push_back(stop);
   ceres::Solver::Summary summary;
-  if (!obs.empty()) ceres::Solve(so, &problem, &summary);
-  stats->ba_interrupted = stop.stopped();
-  stats->ba_keyframes = static_cast<int>(poses.size() - fixed.size());
-  stats->ba_fixed = static_cast<int>(fixed.size());
-  stats->ba_points = static_cast<int>(points.size());
-  if (obs.empty() || !summary.IsSolutionUsable()) {
-    stats->ba_ms = ms_since(t0);
-    return;
+  if (ba->obs.empty()) return false;
+  ceres::Solve(so, &problem, &summary);
+  return summary.IsSolutionUsable();
+}
+
+/// Writes the solved poses and points back and drops the observations the solution makes
+/// outliers. Map locked by the caller.
+void write_back_local_ba(const LocalBaProblem& ba, const CameraModel& camera, SlamMap* map,
+                         MapperStats* stats) {
+  for (const auto& [k, b] : ba.poses) {
+    if (ba.fixed.count(k)) continue;
+    MapKeyframe* kf = map->keyframe(k);
+    const Eigen::Isometry3d T = from_block(b).inverse();
+    if (kf && T.matrix().allFinite()) kf->T_world_cam = T;
   }
+  for (const auto& [pid, xyz] : ba.points) {
+    MapPoint* p = map->point(pid);
+    const Eigen::Vector3d v(xyz[0], xyz[1], xyz[2]);
+    if (p && v.allFinite()) p->p_world_m = v;
+  }
+  for (const LocalBaProblem::Obs& o : ba.obs) {
+    const MapPoint* p = map->point(o.pid);
+    const MapKeyframe* kf = map->keyframe(o.kf);
+    if (!p || !kf) continue;
+    auto it = p->observations.find(o.kf);
+    if (it == p->observations.end()) continue;
+    if (chi2_of(*kf, it->second, p->p_world_m, camera) > kChi2Rgbd95) {
+      map->erase_observation(o.pid, o.kf);
+      ++stats->outliers_removed;
+    }
+  }
+}
+
+}  // namespace
+
+void LocalMapper::bundle_adjust(std::int64_t kf_id, const KeyframesWaiting& waiting,
+                                MapperStats* stats) {
+  const std::int64_t t0 = steady_now_ns();
+  LocalBaProblem ba;
+  std::uint64_t corrections = 0;
   {
     std::lock_guard<MapMutex> lock(map_->mutex);
-    SlamMap& map = map_->map;
+    if (!map_->map.has_keyframe(kf_id)) return;
+    corrections = map_->corrections;
+    if (!collect_local_ba(map_->map, kf_id, options_, camera_, &ba)) return;
+  }
+  StopWhenKeyframesWait stop(waiting);
+  const bool usable = solve_local_ba(&ba, camera_, options_.ba_iterations, &stop);
+  stats->ba_interrupted = stop.stopped();
+  stats->ba_keyframes = static_cast<int>(ba.poses.size() - ba.fixed.size());
+  stats->ba_fixed = static_cast<int>(ba.fixed.size());
+  stats->ba_points = static_cast<int>(ba.points.size());
+  if (usable) {
+    std::lock_guard<MapMutex> lock(map_->mutex);
     if (map_->corrections != corrections) {
       // Solved on poses from before a loop correction: writing it back would undo the correction
       // in this window (ORB-SLAM2 aborts its local BA for the same reason).
       stats->ba_discarded = true;
-      stats->ba_ms = ms_since(t0);
-      return;
-    }
-    for (const auto& [k, b] : poses) {
-      if (fixed.count(k)) continue;
-      MapKeyframe* kf = map.keyframe(k);
-      const Eigen::Isometry3d T = from_block(b).inverse();
-      if (kf && T.matrix().allFinite()) kf->T_world_cam = T;
-    }
-    for (const auto& [pid, xyz] : points) {
-      MapPoint* p = map.point(pid);
-      const Eigen::Vector3d v(xyz[0], xyz[1], xyz[2]);
-      if (p && v.allFinite()) p->p_world_m = v;
-    }
-    for (const Obs& o : obs) {
-      const MapPoint* p = map.point(o.pid);
-      const MapKeyframe* kf = map.keyframe(o.kf);
-      if (!p || !kf) continue;
-      auto it = p->observations.find(o.kf);
-      if (it == p->observations.end()) continue;
-      if (chi2_of(*kf, it->second, p->p_world_m, camera_) > kChi2Rgbd95) {
-        map.erase_observation(o.pid, o.kf);
-        ++stats->outliers_removed;
-      }
+    } else {
+      write_back_local_ba(ba, camera_, &map_->map, stats);
     }
   }
   stats->ba_ms = ms_since(t0);

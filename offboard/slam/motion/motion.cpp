@@ -103,6 +103,110 @@ std::optional<Eigen::Isometry3d> fit_subset(const std::vector<int>& idx,
 
 }  // namespace
 
+namespace {
+
+/// The best hypothesis so far and how many were tried.
+struct Hypotheses {
+  Eigen::Isometry3d best_T = Eigen::Isometry3d::Identity();
+  Scored best;
+  bool have = false;
+  int iterations = 0;
+
+  void consider(const std::vector<int>& sample, const std::vector<Eigen::Vector3d>& src,
+                const std::vector<Eigen::Vector3d>& dst, double threshold_m) {
+    ++iterations;
+    auto T = fit_subset(sample, src, dst);
+    if (!T) return;
+    Scored s = score(*T, src, dst, threshold_m);
+    if (!have || better(s, best)) {
+      best = std::move(s);
+      best_T = *T;
+      have = true;
+    }
+  }
+};
+
+/// The thesis' sampling: consecutive blocks of `thesis_sample_size` pairs in `order` (best matches
+/// first), until one reaches the acceptance ratio.
+void sample_thesis(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+                   const std::vector<int>& order, const RansacOptions& o, Hypotheses* h) {
+  const std::size_t n = src.size();
+  std::vector<int> ord = order;
+  if (ord.size() != n) {
+    ord.resize(n);
+    std::iota(ord.begin(), ord.end(), 0);
+  }
+  const std::size_t k = static_cast<std::size_t>(o.thesis_sample_size);
+  for (int attempt = 0; attempt < o.thesis_max_attempts; ++attempt) {
+    const std::size_t start = static_cast<std::size_t>(attempt) * k;
+    if (start + k > n) break;
+    h->consider(std::vector<int>(ord.begin() + start, ord.begin() + start + k), src, dst,
+                o.inlier_threshold_m);
+    if (h->have && h->best.inliers.size() >= o.accept_inlier_ratio * n) break;
+  }
+}
+
+/// Random minimal samples of 3 pairs, the iteration count adapted to the inlier ratio found so
+/// far (`confidence`), within [min_iterations, max_iterations].
+void sample_random(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+                   const RansacOptions& o, std::uint64_t seed, Hypotheses* h) {
+  const std::size_t n = src.size();
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<int> pick(0, static_cast<int>(n) - 1);
+  int needed = o.max_iterations;
+  for (int it = 0; it < needed && it < o.max_iterations; ++it) {
+    int a = pick(rng), b = pick(rng), c = pick(rng);
+    if (a == b || b == c || a == c) continue;
+    h->consider({a, b, c}, src, dst, o.inlier_threshold_m);
+    if (h->have && !h->best.inliers.empty()) {
+      const double w = static_cast<double>(h->best.inliers.size()) / n;
+      const double p_good = std::pow(w, 3);
+      if (p_good >= 1.0 - 1e-12) {
+        needed = o.min_iterations;
+      } else {
+        const double est = std::log(1.0 - o.confidence) / std::log(1.0 - p_good);
+        needed = std::max(o.min_iterations,
+                          static_cast<int>(std::min<double>(o.max_iterations, std::ceil(est))));
+      }
+    }
+  }
+}
+
+/// Least-squares refit on all inliers, re-classifying until the inlier set stops changing; then,
+/// when asked, a refit weighted by the Kinect's depth noise.
+void refit_on_inliers(const std::vector<Eigen::Vector3d>& src,
+                      const std::vector<Eigen::Vector3d>& dst, const RansacOptions& o,
+                      Hypotheses* h) {
+  for (int r = 0; r < o.refit_rounds; ++r) {
+    auto T = fit_subset(h->best.inliers, src, dst);
+    if (!T) break;
+    Scored s = score(*T, src, dst, o.inlier_threshold_m);
+    if (s.inliers.size() < 3) break;
+    const bool same = s.inliers == h->best.inliers;
+    h->best = std::move(s);
+    h->best_T = *T;
+    if (same) break;
+  }
+  if (!o.depth_weighted_refine) return;
+  // Kinect depth sigma ~ z^2 (Khoshelham & Elberink 2012): weight each pair by 1/(z_src^2
+  // z_dst^2).
+  const std::size_t n = src.size();
+  std::vector<double> w(n, 1.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double zs = std::max(0.3, std::abs(src[i].z())), zd = std::max(0.3, std::abs(dst[i].z()));
+    w[i] = 1.0 / (zs * zs * zd * zd);
+  }
+  if (auto T = fit_subset(h->best.inliers, src, dst, &w)) {
+    Scored s = score(*T, src, dst, o.inlier_threshold_m);
+    if (s.inliers.size() >= h->best.inliers.size()) {
+      h->best = std::move(s);
+      h->best_T = *T;
+    }
+  }
+}
+
+}  // namespace
+
 std::optional<MotionEstimate> estimate_motion_ransac(const std::vector<Eigen::Vector3d>& src,
                                                      const std::vector<Eigen::Vector3d>& dst,
                                                      const std::vector<int>& order,
@@ -118,88 +222,18 @@ std::optional<MotionEstimate> estimate_motion_ransac(const std::vector<Eigen::Ve
     if (why) *why = "ransac: too few pairs (" + std::to_string(n) + ")";
     return std::nullopt;
   }
-  Eigen::Isometry3d best_T = Eigen::Isometry3d::Identity();
-  Scored best;
-  bool have = false;
-  int iterations = 0;
-  auto consider = [&](const std::vector<int>& sample) {
-    ++iterations;
-    auto T = fit_subset(sample, src, dst);
-    if (!T) return;
-    Scored s = score(*T, src, dst, o.inlier_threshold_m);
-    if (!have || better(s, best)) {
-      best = std::move(s);
-      best_T = *T;
-      have = true;
-    }
-  };
-
-  if (o.sampling == RansacSampling::kThesis) {
-    std::vector<int> ord = order;
-    if (ord.size() != n) {
-      ord.resize(n);
-      std::iota(ord.begin(), ord.end(), 0);
-    }
-    const std::size_t k = static_cast<std::size_t>(o.thesis_sample_size);
-    for (int attempt = 0; attempt < o.thesis_max_attempts; ++attempt) {
-      const std::size_t start = static_cast<std::size_t>(attempt) * k;
-      if (start + k > n) break;
-      consider(std::vector<int>(ord.begin() + start, ord.begin() + start + k));
-      if (have && best.inliers.size() >= o.accept_inlier_ratio * n) break;
-    }
-  } else {
-    std::mt19937_64 rng(seed);
-    std::uniform_int_distribution<int> pick(0, static_cast<int>(n) - 1);
-    int needed = o.max_iterations;
-    for (int it = 0; it < needed && it < o.max_iterations; ++it) {
-      int a = pick(rng), b = pick(rng), c = pick(rng);
-      if (a == b || b == c || a == c) continue;
-      consider({a, b, c});
-      if (have && !best.inliers.empty()) {
-        const double w = static_cast<double>(best.inliers.size()) / n;
-        const double p_good = std::pow(w, 3);
-        if (p_good >= 1.0 - 1e-12) {
-          needed = o.min_iterations;
-        } else {
-          const double est = std::log(1.0 - o.confidence) / std::log(1.0 - p_good);
-          needed = std::max(o.min_iterations,
-                            static_cast<int>(std::min<double>(o.max_iterations, std::ceil(est))));
-        }
-      }
-    }
-  }
-  if (!have || best.inliers.size() < 3) {
+  Hypotheses h;
+  if (o.sampling == RansacSampling::kThesis)
+    sample_thesis(src, dst, order, o, &h);
+  else
+    sample_random(src, dst, o, seed, &h);
+  if (!h.have || h.best.inliers.size() < 3) {
     if (why) *why = "ransac: no non-degenerate sample with >= 3 inliers";
     return std::nullopt;
   }
-  // Least-squares refit on all inliers, re-classifying until the inlier set stops changing.
-  for (int r = 0; r < o.refit_rounds; ++r) {
-    auto T = fit_subset(best.inliers, src, dst);
-    if (!T) break;
-    Scored s = score(*T, src, dst, o.inlier_threshold_m);
-    if (s.inliers.size() < 3) break;
-    const bool same = s.inliers == best.inliers;
-    best = std::move(s);
-    best_T = *T;
-    if (same) break;
-  }
-  if (o.depth_weighted_refine) {
-    // Kinect depth sigma ~ z^2 (Khoshelham & Elberink 2012): weight each pair by 1/(z_src^2
-    // z_dst^2).
-    std::vector<double> w(n, 1.0);
-    for (std::size_t i = 0; i < n; ++i) {
-      const double zs = std::max(0.3, std::abs(src[i].z())),
-                   zd = std::max(0.3, std::abs(dst[i].z()));
-      w[i] = 1.0 / (zs * zs * zd * zd);
-    }
-    if (auto T = fit_subset(best.inliers, src, dst, &w)) {
-      Scored s = score(*T, src, dst, o.inlier_threshold_m);
-      if (s.inliers.size() >= best.inliers.size()) {
-        best = std::move(s);
-        best_T = *T;
-      }
-    }
-  }
+  refit_on_inliers(src, dst, o, &h);
+  Eigen::Isometry3d& best_T = h.best_T;
+  Scored& best = h.best;
   if (o.reprojection_camera.fx_px > 0 && o.reprojection_iterations > 0) {
     const Eigen::Isometry3d T =
         refine_reprojection(best_T, src, dst, best.inliers, o.reprojection_camera,
@@ -216,7 +250,7 @@ std::optional<MotionEstimate> estimate_motion_ransac(const std::vector<Eigen::Ve
   m.inlier_ratio = static_cast<double>(best.inliers.size()) / n;
   m.rms_error_m = std::sqrt(best.sq_error_sum / best.inliers.size());
   m.accepted = m.inlier_ratio >= o.accept_inlier_ratio;
-  m.iterations = iterations;
+  m.iterations = h.iterations;
   return m;
 }
 

@@ -139,6 +139,48 @@ PoseGraph BackEnd::graph_before_optimisation() const {
   return g;
 }
 
+void BackEnd::close_global_loop(const FrontendOutput& in, const std::vector<KeyframeMatch>& recent,
+                                Eigen::Isometry3d* pose, BackendOutput* out) {
+  const std::int64_t tg = steady_now_ns();
+  GlcSearchInput search;
+  search.frame_id = in.index;
+  search.iteration = iteration_;
+  search.n_features = in.features->points_cam_m.size();
+  search.min_inliers = options_.min_inliers;
+  search.recency = &recency_;
+  for (const KeyframeMatch& r : recent) search.already_compared.push_back(r.kf);
+  const std::optional<KeyframeMatch> found = search_global_loop(
+      search, options_.loop,
+      [&](std::int64_t kf, std::uint64_t salt) { return compare(in, kf, salt); },
+      [&](std::int64_t kf) { return creation_neighbours(kf); });
+  out->glc_ms = ms_since(tg);
+  if (found) {
+    if (!graph_.has_node(in.index)) {
+      add_keyframe(in, *pose, recent);
+      out->keyframe = true;
+    }
+    PoseGraphEdge e;
+    e.from = found->kf;
+    e.to = in.index;
+    e.T_from_to = found->est->T_dst_src;
+    e.sqrt_information = edge_sqrt_information(found->est->inliers.size(), found->est->rms_error_m,
+                                               mean_depth_m(*in.features));
+    e.loop = true;
+    if (graph_.add_edge(e)) {
+      const std::int64_t tp = steady_now_ns();
+      if (graph_.optimize(options_.graph) >= 0) ++optimisations_;
+      out->posegraph_ms = ms_since(tp);
+      *pose = graph_.pose(in.index);
+      ++loop_closures_;
+      out->loop_closed = true;
+      out->loop_keyframe = found->kf;
+      touch(found->kf);
+      touch(in.index);
+    }
+  }
+  out->glc_ms = ms_since(tg) - out->posegraph_ms;
+}
+
 BackendOutput BackEnd::process(const FrontendOutput& in) {
   const std::int64_t t0 = steady_now_ns();
   const std::int64_t c0 = thread_cpu_now_ns();
@@ -185,46 +227,8 @@ BackendOutput BackEnd::process(const FrontendOutput& in) {
   // 3. Global loop closure.
   if (options_.kind == BackendKind::kGlc &&
       recency_.size() >
-          static_cast<std::size_t>(options_.loop.glc_exclude_latest) + (new_kf ? 1 : 0)) {
-    const std::int64_t tg = steady_now_ns();
-    GlcSearchInput search;
-    search.frame_id = in.index;
-    search.iteration = iteration_;
-    search.n_features = in.features->points_cam_m.size();
-    search.min_inliers = options_.min_inliers;
-    search.recency = &recency_;
-    for (const KeyframeMatch& r : recent) search.already_compared.push_back(r.kf);
-    const std::optional<KeyframeMatch> found = search_global_loop(
-        search, options_.loop,
-        [&](std::int64_t kf, std::uint64_t salt) { return compare(in, kf, salt); },
-        [&](std::int64_t kf) { return creation_neighbours(kf); });
-    out.glc_ms = ms_since(tg);
-    if (found) {
-      if (!graph_.has_node(in.index)) {
-        add_keyframe(in, pose, recent);
-        out.keyframe = true;
-      }
-      PoseGraphEdge e;
-      e.from = found->kf;
-      e.to = in.index;
-      e.T_from_to = found->est->T_dst_src;
-      e.sqrt_information = edge_sqrt_information(
-          found->est->inliers.size(), found->est->rms_error_m, mean_depth_m(*in.features));
-      e.loop = true;
-      if (graph_.add_edge(e)) {
-        const std::int64_t tp = steady_now_ns();
-        if (graph_.optimize(options_.graph) >= 0) ++optimisations_;
-        out.posegraph_ms = ms_since(tp);
-        pose = graph_.pose(in.index);
-        ++loop_closures_;
-        out.loop_closed = true;
-        out.loop_keyframe = found->kf;
-        touch(found->kf);
-        touch(in.index);
-      }
-    }
-    out.glc_ms = ms_since(tg) - out.posegraph_ms;
-  }
+          static_cast<std::size_t>(options_.loop.glc_exclude_latest) + (new_kf ? 1 : 0))
+    close_global_loop(in, recent, &pose, &out);
   out.keyframe = out.keyframe || new_kf;
   if (out.keyframe) {
     out.reference_keyframe = in.index;

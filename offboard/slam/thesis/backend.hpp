@@ -89,6 +89,10 @@ class BackEnd {
   double mean_depth_m(const FrameFeatures& f) const;
   void add_keyframe(const FrontendOutput& in, const Eigen::Isometry3d& T_world_cam,
                     const std::vector<KeyframeMatch>& recent);
+  /// GLC: searches the older keyframes for a loop with frame `in`; on one, adds the loop edge,
+  /// optimises the pose graph and moves `pose` to the frame's optimised pose.
+  void close_global_loop(const FrontendOutput& in, const std::vector<KeyframeMatch>& recent,
+                         Eigen::Isometry3d* pose, BackendOutput* out);
   void touch(std::int64_t kf_id);  ///< move to the end of the recency order
 
   BackendOptions options_;
