@@ -154,14 +154,16 @@ def print_figures(report: dict, args) -> None:
     print("demo: ===== summary (HIL scenario 2, SLAM in the loop) =====")
     if "ate_rmse_m" in a:
         print(
-            f"demo: SLAM ATE RMSE {a['ate_rmse_m'] * 1000:.1f} mm (max {a['ate_max_m'] * 1000:.1f} mm, "
+            f"demo: SLAM ATE RMSE {a['ate_rmse_m'] * 1000:.1f} mm "
+            f"(max {a['ate_max_m'] * 1000:.1f} mm, "
             f"{a['pairs']} poses) against the emulator's truth"
         )
     else:
         print(f"demo: SLAM ATE not available: {a}")
     h = report["hold"]
     print(
-        f"demo: hold at {missions.HOLD_HEIGHT_M} m: max error {h['max_m']:.3f} m, RMS {h['rms_m']:.3f} m"
+        f"demo: hold at {missions.HOLD_HEIGHT_M} m: max error {h['max_m']:.3f} m, "
+        f"RMS {h['rms_m']:.3f} m"
     )
     for i, w in enumerate(report["waypoints"], 1):
         print(f"demo: waypoint {i}: reached in {w['leg_s']} s, position error {w['max_m']:.3f} m")
@@ -177,11 +179,13 @@ def print_figures(report: dict, args) -> None:
         )
         print(
             f"demo: camera (capture stamp) -> PWM median {lat['capture_to_pwm']['median_ms']} ms "
-            f"(p95 {lat['capture_to_pwm']['p95_ms']}) over {lat['frames']} frames at {args.fps:g} fps"
+            f"(p95 {lat['capture_to_pwm']['p95_ms']}) over {lat['frames']} frames "
+            f"at {args.fps:g} fps"
         )
     s = report["stream"]
     print(
-        f"demo: stream {s['received_fps']} fps received, {s['slam_tracked']}/{s['slam_results']} SLAM results tracked"
+        f"demo: stream {s['received_fps']} fps received, "
+        f"{s['slam_tracked']}/{s['slam_results']} SLAM results tracked"
     )
     print(f"demo: {frame_rate_guide(args.out, args.fps)}")
     link = report["slam_link"]
@@ -193,10 +197,12 @@ def print_figures(report: dict, args) -> None:
         busiest = ", ".join(f"{name} {cpu_s:.1f}" for name, cpu_s in list(threads.items())[:6])
         print(f"demo: CPU s by thread, {proc}: {busiest}")
     print(
-        f"demo: report {args.out / 'report.json'}; {report['wall_s']} s, real-time factor {report['realtime_factor']}"
+        f"demo: report {args.out / 'report.json'}; {report['wall_s']} s, "
+        f"real-time factor {report['realtime_factor']}"
     )
     print(
-        f"demo: load average {report.get('load_average')}; send_on_pose {args.send_on_pose or 'default'}; "
+        f"demo: load average {report.get('load_average')}; "
+        f"send_on_pose {args.send_on_pose or 'default'}; "
         f"recording {args.record}; "
         f"scheduling {report.get('scheduling')}"
     )

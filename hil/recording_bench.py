@@ -1,7 +1,8 @@
-"""Recording on vs off, side by side: what MCAP recording costs quad-control (a benchmark; prints
+r"""Recording on vs off, side by side: what MCAP recording costs quad-control (a benchmark; prints
 numbers, asserts nothing).
 
-    PYTHONPATH=hil:protocol/python:offboard/python .venv/bin/python hil/recording_bench.py [--seconds 30] [--pairs 2]
+    PYTHONPATH=hil:protocol/python:offboard/python \
+        .venv/bin/python hil/recording_bench.py [--seconds 30] [--pairs 2]
 
 Runs quad-control on the TUM replay (tests/data/fr1_xyz_first30 bouncing, 30 fps) with in-process
 SLAM and the firmware double behind the HIL WiFi-bridge emulator (loopback), armed, alternately with
@@ -139,12 +140,15 @@ def main() -> int:
     finally:
         bridge.close()
     print(
-        "record | fps | received->command median / p95 ms | quad-control CPU ms/frame | writer CPU ms/frame | MB/min | load"
+        "record | fps | received->command median / p95 ms | quad-control CPU ms/frame | "
+        "writer CPU ms/frame | MB/min | load"
     )
     for r in runs:
         print(
-            f"{'on ' if r['record'] else 'off'} | {r['fps']} | {r['received_to_command_ms_median']} / "
-            f"{r['received_to_command_ms_p95']} | {r['cpu_ms_per_frame']} | {r.get('writer_cpu_ms_per_frame', '-')} | "
+            f"{'on ' if r['record'] else 'off'} | {r['fps']} | "
+            f"{r['received_to_command_ms_median']} / "
+            f"{r['received_to_command_ms_p95']} | {r['cpu_ms_per_frame']} | "
+            f"{r.get('writer_cpu_ms_per_frame', '-')} | "
             f"{r.get('mb_per_min', '-')} | {r['load_average']}"
         )
     return 0

@@ -92,7 +92,8 @@ def main() -> int:
         else Path(__file__).resolve().parents[2] / "test-artifacts/hil"
     )
     print(
-        "latency budget, camera -> PWM (median / p95 ms; thesis Table 4.22: 139 ms @ 6 fps, 187 ms @ 8 fps)"
+        "latency budget, camera -> PWM (median / p95 ms; "
+        "thesis Table 4.22: 139 ms @ 6 fps, 187 ms @ 8 fps)"
     )
     found = closed_loop(d)
     if found is not None:
@@ -109,7 +110,8 @@ def main() -> int:
         print(f"  {'sum of the stage medians':44s} {total:6.1f}")
         verdict = "met" if e2e["median_ms"] <= TARGET_MS else "MISSED"
         print(
-            f"  {'camera (capture stamp) -> PWM, per frame':44s} {e2e['median_ms']:6.1f} / {e2e['p95_ms']:6.1f}"
+            f"  {'camera (capture stamp) -> PWM, per frame':44s} "
+            f"{e2e['median_ms']:6.1f} / {e2e['p95_ms']:6.1f}"
             f"   over {lat.get('frames')} frames ({name}); target <= {TARGET_MS:.0f}: {verdict}"
         )
         # A constant shift of every frame: the median and p95 shift by it too.
@@ -122,7 +124,8 @@ def main() -> int:
         if "exposure_to_pwm" in lat:
             x = lat["exposure_to_pwm"]
             print(
-                f"  {'  as emulated (rig exposure -> PWM)':44s} {x['median_ms']:6.1f} / {x['p95_ms']:6.1f}"
+                f"  {'  as emulated (rig exposure -> PWM)':44s} "
+                f"{x['median_ms']:6.1f} / {x['p95_ms']:6.1f}"
                 "   (the rig's render + write, or its held latency_ms, in place of the sensor's)"
             )
         return 0

@@ -198,8 +198,9 @@ class LiveRig:
     INJECTION_GAP_US = 100_000
 
     def _note_injection(self, t_us: float) -> None:
-        """Caller holds the lock. Records a long simulated gap since the previous injected line, with
-        the lag the rig dropped meanwhile (a stalled rig shows as lag) and the lines still queued."""
+        """Caller holds the lock. Records a long simulated gap since the previous injected line,
+        with the lag the rig dropped meanwhile (a stalled rig shows as lag) and the lines still
+        queued."""
         last = self._last_injected_us
         self._last_injected_us = t_us
         if last is None or t_us - last <= self.INJECTION_GAP_US:

@@ -83,8 +83,9 @@ class FlightLock:
                     if now - start >= self.wait_s:
                         raise FlightLockTimeout(
                             f"another HIL flight holds {self.path} ({self.holder()}) for more than "
-                            f"{self.wait_s:.0f} s; two real-time flights on one machine starve each "
-                            "other, so this one does not start (HIL_FLIGHT_LOCK_WAIT_S to wait longer)"
+                            f"{self.wait_s:.0f} s; two real-time flights on one machine "
+                            "starve each other, so this one does not start "
+                            "(HIL_FLIGHT_LOCK_WAIT_S to wait longer)"
                         ) from busy
                     if now >= next_say:
                         self._say(

@@ -118,9 +118,9 @@ def turn(
     flight: SlamFlight, start_room: np.ndarray, yaw_ccw_deg: float, hold_s: float, progress=None
 ) -> dict:
     """Turns in place by `yaw_ccw_deg` (the dashboard's manual step), waits until quad-control's
-    heading is within TURN_DONE_DEG of the new setpoint, then holds `hold_s` (scored after SETTLE_S).
-    Scores the true camera position during the turn and the hold against the take-off hold point,
-    and the true heading change."""
+    heading is within TURN_DONE_DEG of the new setpoint, then holds `hold_s` (scored after
+    SETTLE_S). Scores the true camera position during the turn and the hold against the take-off
+    hold point, and the true heading change."""
     goal = goal_in_room(start_room, (0.0, 0.0, HOLD_HEIGHT_M))
     _say(progress, f"turn {yaw_ccw_deg:+.0f} deg")
     yaw0 = flight.rig.snapshot().yaw_rad
@@ -146,7 +146,8 @@ def turn(
 
 
 def _setpoint_at(state: dict, x_m: float, y_m: float) -> bool:
-    """quad-control's setpoint is on (x_m, y_m) (floor frame; it is set to the waypoint on arrival)."""
+    """quad-control's setpoint is on (x_m, y_m) (floor frame; it is set to the waypoint on
+    arrival)."""
     sp = state.get("setpoint") or {}
     return (
         abs(sp.get("x_m", 1e9) - x_m) <= SETPOINT_MATCH_M

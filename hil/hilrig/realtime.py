@@ -1,13 +1,15 @@
-"""Scheduling of the HIL rig: the emulated hardware must keep real time however busy the machine is.
+"""Scheduling of the HIL rig: the emulated hardware must keep real time however busy the machine
+is.
 
 In a real flight the FC, the firmware, the Kinect and the craft's onboard computer (rgbd-streamer)
 have their own CPUs; here they share two cores with the ground station and everything else. So the
 rig runs its threads and children under SCHED_RR at RIG_RT_PRIORITY, above the ground station's
-CPU-heavy real-time threads (quad-control / slam-server "realtime" default SCHED_RR 10) and below its
-firmware link thread (12: a hard 250 ms deadline, ~1 ms of CPU per command): the system under test
-can then be slowed down by its neighbours (the load scenario's CPU burners, other engineers'
-builds) but never the emulated hardware, unless the rig's own real-time work no longer fits the
-cores - which the rig measures and reports as "rig overloaded" (hilrig.verdict.rig_health).
+CPU-heavy real-time threads (quad-control / slam-server "realtime" default SCHED_RR 10) and below
+its firmware link thread (12: a hard 250 ms deadline, ~1 ms of CPU per command): the system
+under test can then be slowed down by its neighbours (the load scenario's CPU burners, other
+engineers' builds) but never the emulated hardware, unless the rig's own real-time work no longer
+fits the cores - which the rig measures and reports as "rig overloaded"
+(hilrig.verdict.rig_health).
 
 Linux schedules threads individually and a thread or child inherits its creator's policy, so
 `raise_this_thread()` is called on the thread that then creates the rig's threads and children
@@ -56,8 +58,8 @@ def current_policy() -> str:
 def raise_this_thread(
     priority: int = RIG_RT_PRIORITY, fallback_nice: int = RIG_FALLBACK_NICE
 ) -> str:
-    """SCHED_RR at `priority` for the calling thread (pid 0 = the calling thread on Linux), else nice
-    `fallback_nice`; returns what was applied and, on a fallback, why."""
+    """SCHED_RR at `priority` for the calling thread (pid 0 = the calling thread on Linux), else
+    nice `fallback_nice`; returns what was applied and, on a fallback, why."""
     try:
         os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(priority))
         return f"SCHED_RR {priority}"

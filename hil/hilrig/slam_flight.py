@@ -1,4 +1,5 @@
-"""Closed-loop flight with SLAM in the loop: every board is its emulator, every program the real one.
+"""Closed-loop flight with SLAM in the loop: every board is its emulator, every program the real
+one.
 
     FC emulator (truth) --camera pose at each frame time--> LiveKinect (renders in a child process)
       --fakenect dump, FIFO index--> fakenect + rgbd-streamer (real, through the libfreenect API)
@@ -420,7 +421,8 @@ class SlamFlight:
         self._killed_on_purpose.discard("slam-server")
 
     def sever_stream(self) -> None:
-        """Scenario 4: the stream link drops (both sockets; the streamer reconnects with backoff)."""
+        """Scenario 4: the stream link drops (both sockets; the streamer reconnects with
+        backoff)."""
         if not self.stream_proxies:
             raise RuntimeError("no stream proxies: set SlamFlightOptions.stream_impairment")
         for proxy in self.stream_proxies:
@@ -577,7 +579,8 @@ class SlamFlight:
         up_m: float = 0.0,
         yaw_ccw_deg: float = 0.0,
     ) -> dict:
-        """The dashboard's manual step (POST /api/manual): moves the hold setpoint, turns the heading."""
+        """The dashboard's manual step (POST /api/manual): moves the hold setpoint, turns the
+        heading."""
         body = {"forward_m": forward_m, "left_m": left_m, "up_m": up_m, "yaw_ccw_deg": yaw_ccw_deg}
         status, reply = self._http("POST", "/api/manual", body)
         self.operator_events.append(
@@ -639,7 +642,8 @@ class SlamFlight:
         n = 0
         with open(gt, "w") as f:
             f.write(
-                "# emulator truth: T_room_cam of the rendered frame at the streamer's capture stamp\n"
+                "# emulator truth: T_room_cam of the rendered frame "
+                "at the streamer's capture stamp\n"
             )
             for stamp, rec in zip(stamps, matched, strict=False):
                 if rec is None:
@@ -845,7 +849,8 @@ def goal_in_room(start_cam_room: np.ndarray, floor_goal: tuple[float, float, flo
 def hold_error(
     history, goal_room: np.ndarray, mount: CameraMount, from_us: float, to_us: float
 ) -> dict:
-    """Error of the camera's true position against a goal in the room frame over [from_us, to_us]."""
+    """Error of the camera's true position against a goal in the room frame over
+    [from_us, to_us]."""
     sel = [s for s in history if from_us <= s.t_us <= to_us]
     if not sel:
         return {"samples": 0}

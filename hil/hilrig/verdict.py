@@ -46,7 +46,10 @@ class Check:
     why: str = ""
 
     def line(self) -> str:
-        head = f"{'PASS' if self.passed else 'MISS'} {self.target}: {self.measured} (target {self.limit})"
+        head = (
+            f"{'PASS' if self.passed else 'MISS'} {self.target}: {self.measured} "
+            f"(target {self.limit})"
+        )
         return head if self.passed else f"{head} - {self.why}"
 
 
@@ -117,15 +120,18 @@ def _rig_check(report: dict, fps: float) -> Check:
         why = "the rig did not report its delivered frames / real-time factor"
     else:
         why = (
-            f"rig overloaded: {rig['frames_delivered']} of {rig['frames_requested']} camera frames delivered "
+            f"rig overloaded: {rig['frames_delivered']} of {rig['frames_requested']} "
+            "camera frames delivered "
             f"({rig['frames_superseded']} superseded, render median {rig['render_ms_median']} ms), "
-            f"simulation at {rtf:.2f}x wall clock: the machine could not run the emulators in real time, "
+            f"simulation at {rtf:.2f}x wall clock: "
+            "the machine could not run the emulators in real time, "
             "so other misses may be the rig's, not the system's"
         )
     return Check(
         "rig real-time",
         rig_ok,
-        f"{_fmt(ratio, '', 100, 0).strip()}% frames delivered, {rtf if rtf is not None else 'n/a'}x real time",
+        f"{_fmt(ratio, '', 100, 0).strip()}% frames delivered, "
+        f"{rtf if rtf is not None else 'n/a'}x real time",
         f">= {MIN_DELIVERED_RATIO:.0%} delivered, >= {MIN_REALTIME_FACTOR}x",
         why,
     )
@@ -150,7 +156,8 @@ def _hold_check(report: dict) -> Check:
         f"<= {HOLD_MAX_M} m",
         "not measured (the mission stopped before the hold was scored)"
         if hv is None
-        else f"the craft was {hv:.3f} m from its hold point (horizontal {h.get('max_horizontal_m')} m, "
+        else f"the craft was {hv:.3f} m from its hold point "
+        f"(horizontal {h.get('max_horizontal_m')} m, "
         f"vertical {h.get('max_vertical_m')} m)",
     )
 
@@ -165,7 +172,8 @@ def _ate_check(report: dict) -> Check:
         f"<= {ATE_MAX_M * 1000:.0f} mm",
         f"ATE not available: {ate.get('error', ate)}"
         if av is None
-        else f"SLAM trajectory {av * 1000:.1f} mm RMSE from the truth (max {ate.get('ate_max_m', 0) * 1000:.0f} mm)",
+        else f"SLAM trajectory {av * 1000:.1f} mm RMSE from the truth "
+        f"(max {ate.get('ate_max_m', 0) * 1000:.0f} mm)",
     )
 
 
@@ -223,7 +231,8 @@ def judge(report: dict, resets: dict, fps: float) -> list[Check]:
 
 
 def judge_hold(report: dict, resets: dict, fps: float) -> list[Check]:
-    """The targets of a hold-only flight (the load scenario): rig real-time, hold, SLAM ATE, resets."""
+    """The targets of a hold-only flight (the load scenario): rig real-time, hold, SLAM ATE,
+    resets."""
     return [
         _rig_check(report, fps),
         *_aborted_checks(report, "take-off and hold"),

@@ -421,7 +421,8 @@ class LiveKinect:
         import select
         import sys
 
-        import rgbd_protocol  # the renderer's camera model (protocol/camera): the child needs it too
+        # the renderer's camera model (protocol/camera): the child needs it too
+        import rgbd_protocol
 
         env = dict(os.environ)
         pkg_parent = str(Path(__file__).resolve().parents[1])

@@ -3,9 +3,9 @@
 `make build` (CMake, hil/kinect_emulator/CMakeLists.txt) builds <build>/lib/libkinect_render.so;
 <build> is RGBD_BUILD_DIR or <repo>/build, as for the rig's other build outputs. The library does
 the per-pixel work of KinectEmulator.render (ray cast, texture, depth model); Python keeps the
-random number generator and passes the same noise slices and dropout uniforms the numpy path would draw, so
-the two back ends give the same images (tests/test_native.py) and a frame stays a pure function of
-(pose, index).
+random number generator and passes the same noise slices and dropout uniforms the numpy path would
+draw, so the two back ends give the same images (tests/test_native.py) and a frame stays a pure
+function of (pose, index).
 
 Thread safety: a NativeRenderer may render from several threads at once (the library keeps no
 per-frame state; scratch buffers are per thread).

@@ -116,7 +116,8 @@ def test_failsafe_engages_within_timeout_and_steps_to_the_apm_handover_throttle(
         f"\nsimavr failsafe: still armed {still_armed / MS:.1f} ms after the last valid command, "
         f"failsafe seen by {engaged_by / MS:.1f} ms (10 ms status polling); first neutral roll "
         f"pulse {(first_neutral.rise_us - t_last_valid) / MS:.1f} ms, first "
-        f"{first_low.width_us:.1f} us throttle pulse {(first_low.rise_us - t_last_valid) / MS:.1f} ms; "
+        f"{first_low.width_us:.1f} us throttle pulse "
+        f"{(first_low.rise_us - t_last_valid) / MS:.1f} ms; "
         f"{len([p for p in thr if p.rise_us >= first_low.rise_us])} throttle pulses after it"
     )
     # THEN failsafe engages within 250 ms (+ one 10 ms poll interval of observation granularity)
@@ -256,7 +257,8 @@ def test_mavlink_attitude_and_raw_imu_appear_in_replies(wire_version):
     att_end_ms = 30 + len(b"\x00\x55garbage" + att) * 10 / 57.6
     age_expected = r.replies[1].start_us / MS - att_end_ms
     print(
-        f"\nsimavr MAVLink v{wire_version}: attitude {second.att_mrad} mrad, age {second.att_age_ms} ms "
+        f"\nsimavr MAVLink v{wire_version}: attitude {second.att_mrad} mrad, "
+        f"age {second.att_age_ms} ms "
         f"(expected ~{age_expected:.1f}), raw IMU {second.imu_raw}, age {second.imu_age_ms} ms"
     )
     assert abs(second.att_age_ms - age_expected) <= 3
@@ -314,7 +316,8 @@ def test_overlong_request_gets_one_414_and_the_next_request_follows_at_once():
     r = sc.run(RECORD)
     got = statuses(r)
     print(
-        f"\nsimavr over-long requests {OVERLONG_REQUEST_BYTES} B + raw 612 B, each then a command: {got}"
+        f"\nsimavr over-long requests {OVERLONG_REQUEST_BYTES} B + raw 612 B, "
+        f"each then a command: {got}"
     )
     # THEN each over-long line got exactly one 414 while it was still going out, and the command
     # behind it was not swallowed: its newline ended the discarding, no byte was lost in simavr's
@@ -377,7 +380,8 @@ def test_recorded_commands_cannot_be_replayed_after_a_reset():
     third = sc.run(second.eeprom)
     assert statuses(third) == [200]
     print(
-        f"\nsimavr replay after reset: rejected {len(recorded)}/{len(recorded)}, resumed at seq {resume}"
+        f"\nsimavr replay after reset: rejected {len(recorded)}/{len(recorded)}, "
+        f"resumed at seq {resume}"
     )
 
 

@@ -18,7 +18,10 @@ SERVER_LOG_ONE_SESSION = (
     "slam-server: client #1 connected from 127.0.0.1:5555\n"
     "slam-server: session 00000000000000ab started (a new map)\n"
 )
-QC_LOG_ONE_SESSION = "quad-control: SLAM link: connected to slam-server at x: session 00000000000000ab started (a new map)\n"
+QC_LOG_ONE_SESSION = (
+    "quad-control: SLAM link: connected to slam-server at x: "
+    "session 00000000000000ab started (a new map)\n"
+)
 
 
 def by_target(checks):
@@ -70,12 +73,16 @@ def test_given_resets_in_the_old_log_format_then_they_are_counted():
 
 def test_given_resumed_link_breaks_then_no_reset_is_counted():
     server_log = SERVER_LOG_ONE_SESSION + (
-        "slam-server: client #1 (127.0.0.1:5555) closed: peer closed the connection (end of file); 10 frames\n"
-        "slam-server: session 00000000000000ab resumed (map and world frame kept, 10 frames, parked 3 ms)\n"
+        "slam-server: client #1 (127.0.0.1:5555) closed: "
+        "peer closed the connection (end of file); 10 frames\n"
+        "slam-server: session 00000000000000ab resumed "
+        "(map and world frame kept, 10 frames, parked 3 ms)\n"
     )
     qc_log = QC_LOG_ONE_SESSION + (
-        "quad-control: SLAM link: disconnected: no PoseUpdate for frame 9 within 5000 ms; reconnecting with session ab\n"
-        "quad-control: SLAM link: connected to x: session 00000000000000ab resumed (map and world frame kept, 10 frames)\n"
+        "quad-control: SLAM link: disconnected: no PoseUpdate for frame 9 within 5000 ms; "
+        "reconnecting with session ab\n"
+        "quad-control: SLAM link: connected to x: session 00000000000000ab resumed "
+        "(map and world frame kept, 10 frames)\n"
     )
     resets = session_resets(server_log, qc_log, {"slam": {"sessions_started": 1}})
     assert resets["resets"] == 0 and resets["link_breaks"] == 1 and resets["resumes"] == 1
