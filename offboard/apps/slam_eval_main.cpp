@@ -395,14 +395,8 @@ int vocab_command(const std::vector<std::string>& datasets, const std::string& o
   return 0;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"slam-eval: run the RGB-D SLAM engine on a TUM folder and score it"};
-  app.require_subcommand(1);
-  RunArgs a;
-  auto* run =
-      app.add_subcommand("run", "run SLAM on a TUM RGB-D folder, write trajectory + metrics");
+/// `run`: the dataset, the output, the system and its front-end, the frames taken.
+void add_dataset_and_system_options(CLI::App* run, RunArgs& a) {
   run->add_option("--dataset", a.dataset,
                   "TUM folder (rgb.txt, depth.txt, optional groundtruth.txt)")
       ->required();
@@ -455,6 +449,10 @@ int main(int argc, char** argv) {
          "vo/llc/glc, which align depth-image points) | depth | rgb")
       ->check(CLI::IsMember({"auto", "depth", "rgb"}))
       ->capture_default_str();
+}
+
+/// `run`: front-end switches, a stalled link, map files, ORB pyramid, progress.
+void add_frontend_and_map_file_options(CLI::App* run, RunArgs& a) {
   run->add_flag("--no-reprojection-refine", a.no_reprojection,
                 "skip the Gauss-Newton reprojection refinement after RANSAC");
   run->add_option("--cv-threads", a.cv_threads,
@@ -478,6 +476,10 @@ int main(int argc, char** argv) {
   run->add_option("--orb-scale-factor", a.orb_scale_factor,
                   "ORB pyramid scale factor (0: default, thesis: 2)");
   run->add_flag("--quiet", a.quiet, "no per-25-frame progress");
+}
+
+/// `run`: the flying system's switches for ablations, and its real-time scheduling.
+void add_ablation_options(CLI::App* run, RunArgs& a) {
   run->add_option("--keyframe-gate", a.keyframe_gate,
                   "localmap, realtime: ORB-SLAM2's c1b/c1c rule - while the mapper is busy only "
                   "weak tracking "
@@ -559,28 +561,59 @@ int main(int argc, char** argv) {
                   "mapping thread, below tracking's 10 (0: normal policy, nice below tracking)")
       ->check(CLI::Range(0, 9))
       ->capture_default_str();
+}
+
+/// `score`: ATE/RPE of an estimate against ground truth.
+struct ScoreArgs {
   std::string gt, est;
+};
+
+CLI::App* add_score_command(CLI::App& app, ScoreArgs& s) {
   auto* score = app.add_subcommand(
       "score", "print ATE/RPE of EST against GT as JSON (TUM definitions, 20 ms association)");
-  score->add_option("--gt", gt, "ground truth, TUM format")->required();
-  score->add_option("--est", est, "estimate, TUM format")->required();
-  std::vector<std::string> vocab_datasets;
-  std::string vocab_out;
-  slam::VocabularyOptions vocab_options;
+  score->add_option("--gt", s.gt, "ground truth, TUM format")->required();
+  score->add_option("--est", s.est, "estimate, TUM format")->required();
+  return score;
+}
+
+/// `vocab`: the ORB vocabulary trained on TUM folders.
+struct VocabArgs {
+  std::vector<std::string> datasets;
+  std::string out;
+  slam::VocabularyOptions options;
+};
+
+CLI::App* add_vocab_command(CLI::App& app, VocabArgs& v) {
   auto* vocab = app.add_subcommand(
       "vocab", "train the ORB bag-of-words vocabulary on TUM folders (deterministic)");
-  vocab
-      ->add_option("--dataset", vocab_datasets,
-                   "TUM folder(s) whose frames are the training images")
+  vocab->add_option("--dataset", v.datasets, "TUM folder(s) whose frames are the training images")
       ->required();
-  vocab->add_option("--out", vocab_out, "vocabulary file to write")->required();
-  vocab->add_option("--branching", vocab_options.branching, "k")->capture_default_str();
-  vocab->add_option("--levels", vocab_options.levels, "L")->capture_default_str();
+  vocab->add_option("--out", v.out, "vocabulary file to write")->required();
+  vocab->add_option("--branching", v.options.branching, "k")->capture_default_str();
+  vocab->add_option("--levels", v.options.levels, "L")->capture_default_str();
+  return vocab;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"slam-eval: run the RGB-D SLAM engine on a TUM folder and score it"};
+  app.require_subcommand(1);
+  RunArgs a;
+  auto* run =
+      app.add_subcommand("run", "run SLAM on a TUM RGB-D folder, write trajectory + metrics");
+  add_dataset_and_system_options(run, a);
+  add_frontend_and_map_file_options(run, a);
+  add_ablation_options(run, a);
+  ScoreArgs s;
+  add_score_command(app, s);
+  VocabArgs v;
+  CLI::App* vocab = add_vocab_command(app, v);
   CLI11_PARSE(app, argc, argv);
   try {
     if (*run) return run_command(a);
-    if (*vocab) return vocab_command(vocab_datasets, vocab_out, vocab_options);
-    return slam::eval::run_score_command(gt, est, std::cout, std::cerr);
+    if (*vocab) return vocab_command(v.datasets, v.out, v.options);
+    return slam::eval::run_score_command(s.gt, s.est, std::cout, std::cerr);
   } catch (const std::exception& e) {
     std::cerr << "slam-eval: " << e.what() << "\n";
     return 1;

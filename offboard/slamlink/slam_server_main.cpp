@@ -24,6 +24,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 
 #include "slam/core/thread_priority.hpp"
 #include "slam/map/map_io.hpp"
@@ -247,176 +248,196 @@ class Server {
   int next_id_ = 1;
 };
 
-}  // namespace
+/// Creates the checkpoint folder; false after logging why not (it also needs the localmap
+/// back-end).
+bool make_checkpoint_dir(const std::string& dir, const slam::PipelineOptions& options) {
+  if (options.backend.kind != slam::BackendKind::kLocalMap) {
+    log_line("--checkpoint-dir needs --backend localmap");
+    return false;
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec || !std::filesystem::is_directory(dir)) {
+    log_line("--checkpoint-dir " + dir + ": cannot create it" +
+             (ec ? ": " + ec.message() : std::string()));
+    return false;
+  }
+  return true;
+}
 
-int main(int argc, char** argv) {
-  CLI::App app{"slam-server: RGB-D SLAM on the SLAM link (SlamHello, RgbdFrame -> PoseUpdate)"};
+/// The command line.
+struct ServerArgs {
   std::string bind = "127.0.0.1", features = "orb", backend = "localmap";
   std::string load_map, save_map, tables_dir;
   int port = 5700;
   std::size_t max_clients = 4;
   slam::ConnectionOptions copt;
   slam::SessionRegistryOptions ropt;
-  app.add_option("--bind", bind, "IPv4 address to listen on")->capture_default_str();
-  app.add_option("--port", port, "TCP port")->check(CLI::Range(1, 65535))->capture_default_str();
-  app.add_option("--features", features, "sift | surf | orb")
+  double checkpoint_period_s = slam::PipelineOptions{}.checkpoint_period_s;
+  std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off";
+  std::string restart_when_lost = slam::TrackerOptions{}.restart_when_lost ? "on" : "off";
+  std::string cross_check = "on";
+  std::string thread_policy = "rr";
+  slam::ThreadPriorityOptions priority;
+  int mapping_rt_priority = slam::PipelineOptions{}.mapping_rt_priority;
+};
+
+/// What is served: the address, the SLAM system, its map files and tables, the clients at once.
+void add_serving_options(CLI::App& app, ServerArgs& a) {
+  app.add_option("--bind", a.bind, "IPv4 address to listen on")->capture_default_str();
+  app.add_option("--port", a.port, "TCP port")->check(CLI::Range(1, 65535))->capture_default_str();
+  app.add_option("--features", a.features, "sift | surf | orb")
       ->check(CLI::IsMember({"sift", "surf", "orb"}))
       ->capture_default_str();
   app.add_option(
-         "--load-map", load_map,
+         "--load-map", a.load_map,
          "localmap: every new session starts from this saved map (relocalises in it, poses in its "
          "world frame); a map of another camera/detector/version is refused and logged")
       ->check(CLI::ExistingFile);
-  app.add_option("--save-map", save_map, "localmap: write each session's map here when it ends");
-  app.add_option("--tables-dir", tables_dir,
+  app.add_option("--save-map", a.save_map, "localmap: write each session's map here when it ends");
+  app.add_option("--tables-dir", a.tables_dir,
                  "write each session's per-frame tables (frames.csv: tracking wall and CPU ms, "
                  "features / matching / relocalisation ms, map-lock wait; "
                  "mapping.csv, loops.csv) into DIR/session-N (N from 1 in the order sessions "
                  "start) when it ends");
-  app.add_option("--backend", backend,
+  app.add_option("--backend", a.backend,
                  "localmap (tracking against a local map, the default) | vo | llc | glc (thesis)")
       ->check(CLI::IsMember({"localmap", "vo", "llc", "glc"}))
       ->capture_default_str();
-  app.add_option("--max-clients", max_clients, "connections served at once")
+  app.add_option("--max-clients", a.max_clients, "connections served at once")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
-  app.add_option("--hello-timeout-ms", copt.hello_timeout_ms,
+}
+
+/// The link's timeouts, and the sessions kept for reconnects and their checkpoints.
+void add_link_options(CLI::App& app, ServerArgs& a) {
+  app.add_option("--hello-timeout-ms", a.copt.hello_timeout_ms,
                  "SlamHello due within this of connecting")
       ->capture_default_str();
-  app.add_option("--idle-timeout-ms", copt.idle_timeout_ms, "close a connection silent this long")
+  app.add_option("--idle-timeout-ms", a.copt.idle_timeout_ms, "close a connection silent this long")
       ->capture_default_str();
-  app.add_option("--message-timeout-ms", copt.message_timeout_ms,
+  app.add_option("--message-timeout-ms", a.copt.message_timeout_ms,
                  "a begun message must be complete within this")
       ->capture_default_str();
-  app.add_option("--write-timeout-ms", copt.write_timeout_ms,
+  app.add_option("--write-timeout-ms", a.copt.write_timeout_ms,
                  "the peer must take reply bytes within this")
       ->capture_default_str();
-  app.add_option("--resume-grace-ms", ropt.resume_grace_ms,
+  app.add_option("--resume-grace-ms", a.ropt.resume_grace_ms,
                  "a session without its client is kept this long")
       ->capture_default_str();
-  app.add_option("--checkpoint-dir", ropt.checkpoint_dir,
+  app.add_option("--checkpoint-dir", a.ropt.checkpoint_dir,
                  "localmap: checkpoint each session's map into DIR/session-<id>.map (created if "
                  "missing) every --checkpoint-period-s of data and after each loop correction; a "
                  "restarted slam-server asked for that session resumes its map and world frame "
                  "(SlamHello.resumed) instead of starting a new one; deleted when the session "
                  "ends for good, kept when slam-server stops");
-  double checkpoint_period_s = slam::PipelineOptions{}.checkpoint_period_s;
-  app.add_option("--checkpoint-period-s", checkpoint_period_s,
+  app.add_option("--checkpoint-period-s", a.checkpoint_period_s,
                  "data seconds between map checkpoints (0: after every keyframe)")
       ->check(CLI::Range(0.0, 3600.0))
       ->capture_default_str();
-  app.add_option("--max-sessions", ropt.max_sessions, "maps held at once (attached + parked)")
+  app.add_option("--max-sessions", a.ropt.max_sessions, "maps held at once (attached + parked)")
       ->capture_default_str();
-  std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off";
-  app.add_option("--loop-closing", loop_closing,
+}
+
+/// Ablation switches of the tracker and the scheduling of the serving thread and the mappers.
+void add_tracking_options(CLI::App& app, ServerArgs& a) {
+  app.add_option("--loop-closing", a.loop_closing,
                  "localmap: loop closing on its own thread (docs/slam.md)")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
-  std::string restart_when_lost = slam::TrackerOptions{}.restart_when_lost ? "on" : "off";
-  app.add_option("--restart-when-lost", restart_when_lost,
+  app.add_option("--restart-when-lost", a.restart_when_lost,
                  "localmap: a frame that can be neither tracked nor relocalised within 0.2 s of "
                  "the last tracked one starts a new map segment at the predicted pose "
                  "(docs/slam.md); off: it stays lost until relocalised")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
-  std::string cross_check = "on";
-  app.add_option("--cross-check", cross_check,
+  app.add_option("--cross-check", a.cross_check,
                  "localmap: cross-check weak fits against the reference keyframe (docs/slam.md); "
                  "off for ablations")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
-  std::string thread_policy = "rr";
-  slam::ThreadPriorityOptions priority;
   app.add_option(
-         "--thread-policy", thread_policy,
+         "--thread-policy", a.thread_policy,
          "scheduling of the serving (tracking) thread: rr | fifo (real-time, falls back to nice "
          "with a logged reason) | nice | off; local mapping runs below it (--mapping-rt-priority)")
       ->check(CLI::IsMember({"rr", "fifo", "nice", "off"}))
       ->capture_default_str();
-  app.add_option("--rt-priority", priority.rt_priority, "real-time priority of the serving thread")
+  app.add_option("--rt-priority", a.priority.rt_priority,
+                 "real-time priority of the serving thread")
       ->check(CLI::Range(1, 99))
       ->capture_default_str();
-  int mapping_rt_priority = slam::PipelineOptions{}.mapping_rt_priority;
   app.add_option(
-         "--mapping-rt-priority", mapping_rt_priority,
+         "--mapping-rt-priority", a.mapping_rt_priority,
          "SCHED_RR priority of each session's local-mapping thread while the serving thread "
          "is real-time; must be below --rt-priority (0: normal policy at nice -10)")
       ->check(CLI::Range(0, 98))
       ->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
-  slam::parse_thread_policy(thread_policy, &priority.policy, nullptr);
-  if (mapping_rt_priority >= priority.rt_priority) {
-    log_line("--mapping-rt-priority (" + std::to_string(mapping_rt_priority) +
-             ") must be below --rt-priority (" + std::to_string(priority.rt_priority) +
+}
+
+/// The pipeline's options from the command line, checked (and the checkpoint folder created);
+/// nullopt after logging why not.
+std::optional<slam::PipelineOptions> pipeline_options(ServerArgs& a) {
+  slam::parse_thread_policy(a.thread_policy, &a.priority.policy, nullptr);
+  if (a.mapping_rt_priority >= a.priority.rt_priority) {
+    log_line("--mapping-rt-priority (" + std::to_string(a.mapping_rt_priority) +
+             ") must be below --rt-priority (" + std::to_string(a.priority.rt_priority) +
              "): mapping must never delay tracking");
-    return 2;
+    return std::nullopt;
   }
   slam::PipelineOptions options;
-  options.loop_closing = loop_closing == "on";
-  if (cross_check == "off") options.tracker.cross_check_tracked_ratio = 0;
-  options.tracker.restart_when_lost = restart_when_lost == "on";
-  options.mapping_rt_priority = mapping_rt_priority;
-  options.checkpoint_period_s = checkpoint_period_s;
+  options.loop_closing = a.loop_closing == "on";
+  if (a.cross_check == "off") options.tracker.cross_check_tracked_ratio = 0;
+  options.tracker.restart_when_lost = a.restart_when_lost == "on";
+  options.mapping_rt_priority = a.mapping_rt_priority;
+  options.checkpoint_period_s = a.checkpoint_period_s;
   std::string err;
-  if (!slam::parse_detector_kind(features, &options.frontend.features.kind, &err) ||
-      !slam::parse_backend_kind(backend, &options.backend.kind, &err)) {
+  if (!slam::parse_detector_kind(a.features, &options.frontend.features.kind, &err) ||
+      !slam::parse_backend_kind(a.backend, &options.backend.kind, &err)) {
     log_line(err);
-    return 2;
+    return std::nullopt;
   }
-  if (std::string e = copt.validate() + ropt.validate(); !e.empty()) {
+  if (std::string e = a.copt.validate() + a.ropt.validate(); !e.empty()) {
     log_line(e);
-    return 2;
+    return std::nullopt;
   }
-  if (!ropt.checkpoint_dir.empty()) {
-    if (options.backend.kind != slam::BackendKind::kLocalMap) {
-      log_line("--checkpoint-dir needs --backend localmap");
-      return 2;
-    }
-    std::error_code ec;
-    std::filesystem::create_directories(ropt.checkpoint_dir, ec);
-    if (ec || !std::filesystem::is_directory(ropt.checkpoint_dir)) {
-      log_line("--checkpoint-dir " + ropt.checkpoint_dir + ": cannot create it" +
-               (ec ? ": " + ec.message() : std::string()));
-      return 2;
-    }
-  }
-  sigset_t mask;
-  sigemptyset(&mask);
-  sigaddset(&mask, SIGINT);
-  sigaddset(&mask, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &mask, nullptr);
-  std::signal(SIGPIPE, SIG_IGN);
-  const int sigfd = ::signalfd(-1, &mask, SFD_CLOEXEC);
+  if (!a.ropt.checkpoint_dir.empty() && !make_checkpoint_dir(a.ropt.checkpoint_dir, options))
+    return std::nullopt;
+  return options;
+}
+
+/// Binds and listens on --bind:--port; the listening socket, or -1 after logging why (`*exit_code`
+/// 2 for a bad address, 1 for a socket error).
+int open_listener(const ServerArgs& a, int* exit_code) {
   const int lfd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
-  if (sigfd < 0 || lfd < 0) {
+  if (lfd < 0) {
     log_line("cannot create sockets");
-    return 1;
+    *exit_code = 1;
+    return -1;
   }
   const int one = 1;
   ::setsockopt(lfd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<std::uint16_t>(port));
-  if (::inet_pton(AF_INET, bind.c_str(), &addr.sin_addr) != 1) {
-    log_line("bad --bind address '" + bind + "'");
-    return 2;
+  addr.sin_port = htons(static_cast<std::uint16_t>(a.port));
+  if (::inet_pton(AF_INET, a.bind.c_str(), &addr.sin_addr) != 1) {
+    log_line("bad --bind address '" + a.bind + "'");
+    *exit_code = 2;
+    return -1;
   }
   if (::bind(lfd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 || ::listen(lfd, 8) != 0) {
-    log_line("cannot listen on " + bind + ":" + std::to_string(port) + ": " + std::strerror(errno));
-    return 1;
+    log_line("cannot listen on " + a.bind + ":" + std::to_string(a.port) + ": " +
+             std::strerror(errno));
+    *exit_code = 1;
+    return -1;
   }
-  std::cerr << "slam-server: listening on " << bind << ":" << port << " (features " << features
-            << ", backend " << backend << ", max " << max_clients
-            << " clients, hello/idle/message/write timeouts " << copt.hello_timeout_ms << "/"
-            << copt.idle_timeout_ms << "/" << copt.message_timeout_ms << "/"
-            << copt.write_timeout_ms << " ms, resume grace " << ropt.resume_grace_ms << " ms)"
-            << std::endl;
-  // Tracking runs on this (the poll) thread: it is the real-time path; sessions' mappers place
-  // themselves below it (slam::PipelineOptions::mapping_rt_priority).
-  log_line(slam::raise_current_thread(priority).describe("serving"));
-  slam::SessionRegistry registry(
-      ropt,
-      [options, load_map, save_map, tables_dir,
+  return lfd;
+}
+
+/// The sessions: each new one gets its own SLAM pipeline and map files.
+slam::SessionRegistry make_registry(const ServerArgs& a, const slam::PipelineOptions& options) {
+  return slam::SessionRegistry(
+      a.ropt,
+      [options, load_map = a.load_map, save_map = a.save_map, tables_dir = a.tables_dir,
        sessions = std::make_shared<int>(0)](const slam::SessionStart& start) {
         slam::SessionMapFiles files;
         files.load_path = load_map;
@@ -429,7 +450,47 @@ int main(int argc, char** argv) {
         return std::make_unique<slam::SlamLinkSession>(options, files);
       },
       [](const std::string& path, std::string* why) { return slam::check_map_file(path, why); });
-  Server(lfd, sigfd, max_clients, copt, std::move(registry)).run();
+}
+
+void log_listening(const ServerArgs& a) {
+  std::cerr << "slam-server: listening on " << a.bind << ":" << a.port << " (features "
+            << a.features << ", backend " << a.backend << ", max " << a.max_clients
+            << " clients, hello/idle/message/write timeouts " << a.copt.hello_timeout_ms << "/"
+            << a.copt.idle_timeout_ms << "/" << a.copt.message_timeout_ms << "/"
+            << a.copt.write_timeout_ms << " ms, resume grace " << a.ropt.resume_grace_ms << " ms)"
+            << std::endl;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"slam-server: RGB-D SLAM on the SLAM link (SlamHello, RgbdFrame -> PoseUpdate)"};
+  ServerArgs a;
+  add_serving_options(app, a);
+  add_link_options(app, a);
+  add_tracking_options(app, a);
+  CLI11_PARSE(app, argc, argv);
+  const std::optional<slam::PipelineOptions> options = pipeline_options(a);
+  if (!options) return 2;
+  sigset_t mask;
+  sigemptyset(&mask);
+  sigaddset(&mask, SIGINT);
+  sigaddset(&mask, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &mask, nullptr);
+  std::signal(SIGPIPE, SIG_IGN);
+  const int sigfd = ::signalfd(-1, &mask, SFD_CLOEXEC);
+  if (sigfd < 0) {
+    log_line("cannot create sockets");
+    return 1;
+  }
+  int exit_code = 0;
+  const int lfd = open_listener(a, &exit_code);
+  if (lfd < 0) return exit_code;
+  log_listening(a);
+  // Tracking runs on this (the poll) thread: it is the real-time path; sessions' mappers place
+  // themselves below it (slam::PipelineOptions::mapping_rt_priority).
+  log_line(slam::raise_current_thread(a.priority).describe("serving"));
+  Server(lfd, sigfd, a.max_clients, a.copt, make_registry(a, *options)).run();
   ::close(lfd);
   ::close(sigfd);
   log_line("stopped");

@@ -298,51 +298,27 @@ nlohmann::json GroundStation::state_json(std::int64_t now_us) {
   return to_json(snap);
 }
 
-nlohmann::json to_json(const StationSnapshot& snap) {
-  const ControllerStatus& st = snap.controller;
-  nlohmann::json j;
-  j["state"] = to_string(st.state);
-  j["last_event"] = st.last_event;
-  j["tracking"] = st.tracking;
-  j["rejected_poses"] = st.rejected_poses;
-  j["map_resets"] = st.map_resets;  // declared map corrections flown
-  j["refused_map_corrections"] = st.refused_map_corrections;
-  j["map_correction_count"] = snap.map_correction_count;
-  j["facing_waypoint"] = st.facing_waypoint;
-  j["pose"] = snap.pose ? pose_json(*snap.pose) : nlohmann::json(nullptr);
-  j["setpoint"] = pose_json(st.setpoint);
-  j["waypoint"] = st.waypoint ? nlohmann::json{{"x_m", st.waypoint->x_m}, {"y_m", st.waypoint->y_m}}
-                              : nlohmann::json(nullptr);
-  const StickCommand& stick = snap.stick;
-  const PwmCommand& pwm = snap.pwm;
-  j["command"] = {{"roll_pct", stick.roll_pct},
-                  {"pitch_pct", stick.pitch_pct},
-                  {"yaw_pct", stick.yaw_pct},
-                  {"throttle_pct", stick.throttle_pct},
-                  {"armed", stick.armed},
-                  {"pwm_us", {pwm.roll_us, pwm.pitch_us, pwm.throttle_us, pwm.yaw_us}}};
-  j["stream"] = {{"source", snap.source},
-                 {"frames", snap.frames},
-                 {"fps", snap.fps},
-                 {"sequence", snap.sequence},
-                 {"latency_ms", snap.stream_latency_ms},
-                 {"error", snap.source_error}};
+namespace {
+nlohmann::json slam_json(const StationSnapshot& snap) {
   const SlamStats& slam_stats = snap.slam_stats;
   const SlamLinkStatus& slam_link = snap.slam_link;
-  j["slam"] = {{"link", snap.slam_link_name},
-               {"state", snap.slam_state},
-               {"inliers", snap.slam_inliers},
-               {"submitted", slam_stats.submitted},
-               {"processed", slam_stats.processed},
-               {"dropped_busy", slam_stats.dropped_busy},
-               {"latency_ms", slam_stats.last_latency_ms},
-               {"error", slam_stats.last_error},
-               // New maps (1 in a healthy flight), resumed reconnects, broken connections.
-               {"session_id", slam_link.session_id},
-               {"sessions_started", slam_link.sessions_started},
-               {"resumes", slam_link.resumes},
-               {"disconnects", slam_link.disconnects},
-               {"last_disconnect", slam_link.last_disconnect}};
+  return {{"link", snap.slam_link_name},
+          {"state", snap.slam_state},
+          {"inliers", snap.slam_inliers},
+          {"submitted", slam_stats.submitted},
+          {"processed", slam_stats.processed},
+          {"dropped_busy", slam_stats.dropped_busy},
+          {"latency_ms", slam_stats.last_latency_ms},
+          {"error", slam_stats.last_error},
+          // New maps (1 in a healthy flight), resumed reconnects, broken connections.
+          {"session_id", slam_link.session_id},
+          {"sessions_started", slam_link.sessions_started},
+          {"resumes", slam_link.resumes},
+          {"disconnects", slam_link.disconnects},
+          {"last_disconnect", slam_link.last_disconnect}};
+}
+
+nlohmann::json firmware_json(const StationSnapshot& snap) {
   const std::optional<FirmwareLinkStats>& fw = snap.firmware;
   nlohmann::json fwj = {{"enabled", fw.has_value()}};
   if (fw) {
@@ -377,30 +353,68 @@ nlohmann::json to_json(const StationSnapshot& snap) {
     fwj["imu_match_dt_ms"] =
         snap.imu_match_dt_ms ? nlohmann::json(*snap.imu_match_dt_ms) : nlohmann::json(nullptr);
   }
-  j["firmware"] = fwj;
+  return fwj;
+}
+
+nlohmann::json estimator_json(const StationSnapshot& snap) {
   if (snap.estimate) {
     const StateEstimate& e = *snap.estimate;
     const EstimatorStats& es = snap.estimator_stats;
-    j["estimator"] = {{"enabled", snap.estimator_enabled},
-                      {"valid", e.valid},
-                      {"why_invalid", e.why_invalid},
-                      {"imu_aided", e.imu_aided},
-                      {"age_ms", e.age_ms},
-                      {"pose", pose_json(e.pose)},
-                      {"velocity_m_per_s",
-                       {e.velocity_m_per_s.x(), e.velocity_m_per_s.y(), e.velocity_m_per_s.z()}},
-                      {"position_sigma_m",
-                       {e.position_sigma_m.x(), e.position_sigma_m.y(), e.position_sigma_m.z()}},
-                      {"steps_flown", snap.estimates_flown},
-                      {"imu_samples", es.imu_samples},
-                      {"poses_fused", es.poses_fused},
-                      {"poses_out_of_order", es.poses_out_of_order},
-                      {"poses_rejected", es.poses_rejected},
-                      {"poses_too_old", es.poses_too_old},
-                      {"resets", es.resets}};
-  } else {
-    j["estimator"] = {{"enabled", snap.estimator_enabled}};
+    return {{"enabled", snap.estimator_enabled},
+            {"valid", e.valid},
+            {"why_invalid", e.why_invalid},
+            {"imu_aided", e.imu_aided},
+            {"age_ms", e.age_ms},
+            {"pose", pose_json(e.pose)},
+            {"velocity_m_per_s",
+             {e.velocity_m_per_s.x(), e.velocity_m_per_s.y(), e.velocity_m_per_s.z()}},
+            {"position_sigma_m",
+             {e.position_sigma_m.x(), e.position_sigma_m.y(), e.position_sigma_m.z()}},
+            {"steps_flown", snap.estimates_flown},
+            {"imu_samples", es.imu_samples},
+            {"poses_fused", es.poses_fused},
+            {"poses_out_of_order", es.poses_out_of_order},
+            {"poses_rejected", es.poses_rejected},
+            {"poses_too_old", es.poses_too_old},
+            {"resets", es.resets}};
   }
+  return {{"enabled", snap.estimator_enabled}};
+}
+
+}  // namespace
+
+nlohmann::json to_json(const StationSnapshot& snap) {
+  const ControllerStatus& st = snap.controller;
+  nlohmann::json j;
+  j["state"] = to_string(st.state);
+  j["last_event"] = st.last_event;
+  j["tracking"] = st.tracking;
+  j["rejected_poses"] = st.rejected_poses;
+  j["map_resets"] = st.map_resets;  // declared map corrections flown
+  j["refused_map_corrections"] = st.refused_map_corrections;
+  j["map_correction_count"] = snap.map_correction_count;
+  j["facing_waypoint"] = st.facing_waypoint;
+  j["pose"] = snap.pose ? pose_json(*snap.pose) : nlohmann::json(nullptr);
+  j["setpoint"] = pose_json(st.setpoint);
+  j["waypoint"] = st.waypoint ? nlohmann::json{{"x_m", st.waypoint->x_m}, {"y_m", st.waypoint->y_m}}
+                              : nlohmann::json(nullptr);
+  const StickCommand& stick = snap.stick;
+  const PwmCommand& pwm = snap.pwm;
+  j["command"] = {{"roll_pct", stick.roll_pct},
+                  {"pitch_pct", stick.pitch_pct},
+                  {"yaw_pct", stick.yaw_pct},
+                  {"throttle_pct", stick.throttle_pct},
+                  {"armed", stick.armed},
+                  {"pwm_us", {pwm.roll_us, pwm.pitch_us, pwm.throttle_us, pwm.yaw_us}}};
+  j["stream"] = {{"source", snap.source},
+                 {"frames", snap.frames},
+                 {"fps", snap.fps},
+                 {"sequence", snap.sequence},
+                 {"latency_ms", snap.stream_latency_ms},
+                 {"error", snap.source_error}};
+  j["slam"] = slam_json(snap);
+  j["firmware"] = firmware_json(snap);
+  j["estimator"] = estimator_json(snap);
   j["recording"] = snap.recording ? to_json(*snap.recording) : nlohmann::json{{"enabled", false}};
   const std::optional<FloorPlane>& floor = snap.floor;
   j["floor"] = {{"found", floor.has_value()},

@@ -331,46 +331,54 @@ StickCommand FlightController::position_control(const PoseSample& sample,
 StickCommand FlightController::update(std::int64_t now_us) {
   const bool fresh = has_fresh_pose(now_us);
   status_.tracking = fresh;
-  FlightState s = status_.state;
+  supervise_tracking(now_us, fresh);
+  const StickCommand cmd = command_in_state(now_us, fresh);
+  last_throttle_pct_ = cmd.throttle_pct;
+  return cmd;
+}
 
+void FlightController::supervise_tracking(std::int64_t now_us, bool fresh) {
+  const FlightState s = status_.state;
   if ((s == FlightState::kTakeOff || s == FlightState::kHold || s == FlightState::kGoToWaypoint) &&
       !fresh) {
     interrupted_takeoff_ = s == FlightState::kTakeOff;
     interrupted_waypoint_ = s == FlightState::kGoToWaypoint ? status_.waypoint : std::nullopt;
     enter(FlightState::kLostHold, now_us, "tracking lost, holding neutral");
-    s = status_.state;
   }
-  if (s == FlightState::kLostHold) {
-    if (fresh) {
-      // Keep the integrators (the throttle one holds the learned hover offset); a derivative
-      // across the gap would be meaningless.
-      for (Pid* pid : {&roll_, &pitch_, &yaw_, &throttle_}) pid->restart();
-      pid_pose_us_.reset();
-      if (interrupted_takeoff_) {
-        // A take-off interrupted (e.g. while the floor is still inside the Kinect's 0.5 m minimum
-        // range) climbs on from the setpoint it had reached rather than holding half-way up.
-        takeoff_start_height_m_ = status_.setpoint.z_m;
-        enter(FlightState::kTakeOff, now_us, "tracking back, climbing on");
-      } else {
-        enter(FlightState::kHold, now_us, "tracking back");
-        if (interrupted_waypoint_) {
-          // The operator's waypoint survives a short loss of tracking: turn (if needed) and go on.
-          const Waypoint w = *interrupted_waypoint_;
-          set_waypoint(now_us, w.x_m, w.y_m);
-          status_.last_event = "go-to-waypoint: tracking back, going on";
-        }
-      }
-      interrupted_waypoint_.reset();
-      s = status_.state;
-    } else if (static_cast<double>(now_us - state_entered_us_) >= config_.lost_hold_ms * kUsPerMs) {
-      enter(FlightState::kLand, now_us, "tracking not back in time, landing blind");
-      s = status_.state;
+  if (status_.state != FlightState::kLostHold) return;
+  if (fresh) {
+    resume_after_loss(now_us);
+  } else if (static_cast<double>(now_us - state_entered_us_) >= config_.lost_hold_ms * kUsPerMs) {
+    enter(FlightState::kLand, now_us, "tracking not back in time, landing blind");
+  }
+}
+
+void FlightController::resume_after_loss(std::int64_t now_us) {
+  // Keep the integrators (the throttle one holds the learned hover offset); a derivative
+  // across the gap would be meaningless.
+  for (Pid* pid : {&roll_, &pitch_, &yaw_, &throttle_}) pid->restart();
+  pid_pose_us_.reset();
+  if (interrupted_takeoff_) {
+    // A take-off interrupted (e.g. while the floor is still inside the Kinect's 0.5 m minimum
+    // range) climbs on from the setpoint it had reached rather than holding half-way up.
+    takeoff_start_height_m_ = status_.setpoint.z_m;
+    enter(FlightState::kTakeOff, now_us, "tracking back, climbing on");
+  } else {
+    enter(FlightState::kHold, now_us, "tracking back");
+    if (interrupted_waypoint_) {
+      // The operator's waypoint survives a short loss of tracking: turn (if needed) and go on.
+      const Waypoint w = *interrupted_waypoint_;
+      set_waypoint(now_us, w.x_m, w.y_m);
+      status_.last_event = "go-to-waypoint: tracking back, going on";
     }
   }
+  interrupted_waypoint_.reset();
+}
 
+StickCommand FlightController::command_in_state(std::int64_t now_us, bool fresh) {
   StickCommand cmd;
   const double in_state_ms = static_cast<double>(now_us - state_entered_us_) / kUsPerMs;
-  switch (s) {
+  switch (status_.state) {
     case FlightState::kDisarmed:
       if (disarm_gesture_pending_ && in_state_ms < config_.disarm_gesture_ms) {
         cmd.armed = true;
@@ -388,97 +396,110 @@ StickCommand FlightController::update(std::int64_t now_us) {
       // weight).
       cmd.throttle_pct = std::clamp(config_.hover_throttle_pct + throttle_.integral(), 0.0, 100.0);
       break;
-    case FlightState::kTakeOff: {
-      const double elapsed_s = static_cast<double>(now_us - state_entered_us_) / kUsPerS;
-      const double ramp_m =
-          takeoff_start_height_m_ + config_.takeoff_climb_rate_m_per_s * elapsed_s;
-      set_setpoint_position(status_.setpoint.x_m, status_.setpoint.y_m,
-                            std::min(ramp_m, config_.hold_height_m), SetpointKind::kTakeOff);
-      cmd = position_control(*pose_, status_.setpoint.z_m);
-      if (status_.setpoint.z_m >= config_.hold_height_m &&
-          std::abs(pose_->pose.z_m - config_.hold_height_m) <=
-              config_.takeoff_reached_tolerance_m) {
-        enter(FlightState::kHold, now_us, "reached hold height");
-      }
+    case FlightState::kTakeOff:
+      cmd = takeoff_step(now_us);
       break;
-    }
     case FlightState::kHold:
       cmd = position_control(*pose_, status_.setpoint.z_m);
       break;
-    case FlightState::kGoToWaypoint: {
-      const CraftPose& p = pose_->pose;
-      const Waypoint w = *status_.waypoint;
-      if (!status_.facing_waypoint && std::abs(wrap_deg(status_.setpoint.yaw_deg - p.yaw_deg)) <=
-                                          config_.face_waypoint_tolerance_deg) {
-        status_.facing_waypoint = true;  // turned: now move, heading stays fixed
-        set_setpoint_position(w.x_m, w.y_m, status_.setpoint.z_m, SetpointKind::kHold);
-      }
-      cmd = position_control(*pose_, status_.setpoint.z_m);
-      if (status_.facing_waypoint &&
-          std::hypot(w.x_m - p.x_m, w.y_m - p.y_m) <= config_.waypoint_reached_m) {
-        enter(FlightState::kHold, now_us, "waypoint reached");
-      }
+    case FlightState::kGoToWaypoint:
+      cmd = waypoint_step(now_us);
       break;
-    }
-    case FlightState::kLand: {
-      cmd.armed = true;
-      if (fresh && !handed_over_us_) {
-        // Tracked: the height setpoint sinks at land_descent_rate_m_per_s and the height PID holds
-        // that sink rate. (A thrust ramp alone accelerates the descent when the APM flies thrust,
-        // i.e. Stabilize: measured 1.8 m/s touchdowns in the HIL rig.) Below the ground the PID
-        // keeps pushing down, so the craft stays put until the motors stop.
-        const double elapsed_s = static_cast<double>(now_us - state_entered_us_) / kUsPerS;
-        status_.setpoint.z_m =
-            std::max(0.0, land_start_height_m_ - config_.land_descent_rate_m_per_s * elapsed_s);
-        cmd = position_control(*pose_, status_.setpoint.z_m);
-        cmd.armed = true;
-        if (status_.setpoint.z_m <= config_.motor_stop_height_m && !land_floor_reached_us_) {
-          land_floor_reached_us_ = now_us;
-        }
-      } else {
-        // Blind (no height feedback): hand the craft to the APM's own LAND (barometer, LAND_SPEED)
-        // by sending no command: the firmware's failsafe does the hand-over 250 ms later. Latched:
-        // the firmware's failsafe refuses arm=1 until disarmed, and the APM is landing anyway.
-        // (A blind thrust ramp is a fall in Stabilize: measured 6.6 m/s in the HIL rig.)
-        if (!handed_over_us_) {
-          handed_over_us_ = now_us;
-          status_.last_event = "land: blind, handed over to the craft's failsafe (APM LAND)";
-        }
-        cmd = StickCommand{};
-        cmd.hand_over_to_failsafe = true;
-      }
-      // On the ground = at or below the motor-stop height for land_ground_settle_ms: stopping the
-      // motors the moment an estimate first reads that low drops the craft the rest of the way
-      // whenever the estimate is a few cm low (measured: 0.82 m/s touchdowns in the HIL rig).
-      const bool low = fresh && !handed_over_us_ && pose_->pose.z_m <= config_.motor_stop_height_m;
-      if (!low)
-        low_since_us_.reset();
-      else if (!low_since_us_)
-        low_since_us_ = now_us;
-      const bool near_ground = low && static_cast<double>(now_us - *low_since_us_) >=
-                                          config_.land_ground_settle_ms * kUsPerMs;
-      const bool floor_long_enough =
-          land_floor_reached_us_ && static_cast<double>(now_us - *land_floor_reached_us_) >=
-                                        config_.land_floor_hold_ms * kUsPerMs;
-      const bool failsafe_landed =
-          handed_over_us_ &&
-          static_cast<double>(now_us - *handed_over_us_) >= config_.failsafe_landing_ms * kUsPerMs;
-      if (failsafe_landed) {
-        // The APM landed and disarmed itself; arm=0 clears the firmware's failsafe latch.
-        enter(FlightState::kDisarmed, now_us, "failsafe landing over, firmware disarmed");
-        disarm_gesture_pending_ = false;
-        cmd = StickCommand{};
-      } else if (near_ground || floor_long_enough) {
-        enter(FlightState::kDisarmed, now_us,
-              near_ground ? "landed, motors stopped" : "landed at the floor, motors stopped");
-        cmd = StickCommand{};
-        cmd.armed = true;  // disarm gesture starts now (see kDisarmed)
-        cmd.yaw_pct = -100.0;
-      }
+    case FlightState::kLand:
+      cmd = land_step(now_us, fresh);
       break;
-    }
   }
-  last_throttle_pct_ = cmd.throttle_pct;
+  return cmd;
+}
+
+StickCommand FlightController::takeoff_step(std::int64_t now_us) {
+  const double elapsed_s = static_cast<double>(now_us - state_entered_us_) / kUsPerS;
+  const double ramp_m = takeoff_start_height_m_ + config_.takeoff_climb_rate_m_per_s * elapsed_s;
+  set_setpoint_position(status_.setpoint.x_m, status_.setpoint.y_m,
+                        std::min(ramp_m, config_.hold_height_m), SetpointKind::kTakeOff);
+  const StickCommand cmd = position_control(*pose_, status_.setpoint.z_m);
+  if (status_.setpoint.z_m >= config_.hold_height_m &&
+      std::abs(pose_->pose.z_m - config_.hold_height_m) <= config_.takeoff_reached_tolerance_m) {
+    enter(FlightState::kHold, now_us, "reached hold height");
+  }
+  return cmd;
+}
+
+StickCommand FlightController::waypoint_step(std::int64_t now_us) {
+  const CraftPose& p = pose_->pose;
+  const Waypoint w = *status_.waypoint;
+  if (!status_.facing_waypoint && std::abs(wrap_deg(status_.setpoint.yaw_deg - p.yaw_deg)) <=
+                                      config_.face_waypoint_tolerance_deg) {
+    status_.facing_waypoint = true;  // turned: now move, heading stays fixed
+    set_setpoint_position(w.x_m, w.y_m, status_.setpoint.z_m, SetpointKind::kHold);
+  }
+  const StickCommand cmd = position_control(*pose_, status_.setpoint.z_m);
+  if (status_.facing_waypoint &&
+      std::hypot(w.x_m - p.x_m, w.y_m - p.y_m) <= config_.waypoint_reached_m) {
+    enter(FlightState::kHold, now_us, "waypoint reached");
+  }
+  return cmd;
+}
+
+StickCommand FlightController::land_step(std::int64_t now_us, bool fresh) {
+  StickCommand cmd;
+  cmd.armed = true;
+  if (fresh && !handed_over_us_) {
+    // Tracked: the height setpoint sinks at land_descent_rate_m_per_s and the height PID holds
+    // that sink rate. (A thrust ramp alone accelerates the descent when the APM flies thrust,
+    // i.e. Stabilize: measured 1.8 m/s touchdowns in the HIL rig.) Below the ground the PID
+    // keeps pushing down, so the craft stays put until the motors stop.
+    const double elapsed_s = static_cast<double>(now_us - state_entered_us_) / kUsPerS;
+    status_.setpoint.z_m =
+        std::max(0.0, land_start_height_m_ - config_.land_descent_rate_m_per_s * elapsed_s);
+    cmd = position_control(*pose_, status_.setpoint.z_m);
+    cmd.armed = true;
+    if (status_.setpoint.z_m <= config_.motor_stop_height_m && !land_floor_reached_us_) {
+      land_floor_reached_us_ = now_us;
+    }
+  } else {
+    // Blind (no height feedback): hand the craft to the APM's own LAND (barometer, LAND_SPEED)
+    // by sending no command: the firmware's failsafe does the hand-over 250 ms later. Latched:
+    // the firmware's failsafe refuses arm=1 until disarmed, and the APM is landing anyway.
+    // (A blind thrust ramp is a fall in Stabilize: measured 6.6 m/s in the HIL rig.)
+    if (!handed_over_us_) {
+      handed_over_us_ = now_us;
+      status_.last_event = "land: blind, handed over to the craft's failsafe (APM LAND)";
+    }
+    cmd = StickCommand{};
+    cmd.hand_over_to_failsafe = true;
+  }
+  return land_touchdown(now_us, fresh, cmd);
+}
+
+StickCommand FlightController::land_touchdown(std::int64_t now_us, bool fresh, StickCommand cmd) {
+  // On the ground = at or below the motor-stop height for land_ground_settle_ms: stopping the
+  // motors the moment an estimate first reads that low drops the craft the rest of the way
+  // whenever the estimate is a few cm low (measured: 0.82 m/s touchdowns in the HIL rig).
+  const bool low = fresh && !handed_over_us_ && pose_->pose.z_m <= config_.motor_stop_height_m;
+  if (!low)
+    low_since_us_.reset();
+  else if (!low_since_us_)
+    low_since_us_ = now_us;
+  const bool near_ground = low && static_cast<double>(now_us - *low_since_us_) >=
+                                      config_.land_ground_settle_ms * kUsPerMs;
+  const bool floor_long_enough =
+      land_floor_reached_us_ && static_cast<double>(now_us - *land_floor_reached_us_) >=
+                                    config_.land_floor_hold_ms * kUsPerMs;
+  const bool failsafe_landed = handed_over_us_ && static_cast<double>(now_us - *handed_over_us_) >=
+                                                      config_.failsafe_landing_ms * kUsPerMs;
+  if (failsafe_landed) {
+    // The APM landed and disarmed itself; arm=0 clears the firmware's failsafe latch.
+    enter(FlightState::kDisarmed, now_us, "failsafe landing over, firmware disarmed");
+    disarm_gesture_pending_ = false;
+    cmd = StickCommand{};
+  } else if (near_ground || floor_long_enough) {
+    enter(FlightState::kDisarmed, now_us,
+          near_ground ? "landed, motors stopped" : "landed at the floor, motors stopped");
+    cmd = StickCommand{};
+    cmd.armed = true;  // disarm gesture starts now (see kDisarmed)
+    cmd.yaw_pct = -100.0;
+  }
   return cmd;
 }
 

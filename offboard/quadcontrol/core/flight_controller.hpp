@@ -128,6 +128,24 @@ class FlightController {
 
  private:
   bool has_fresh_pose(std::int64_t now_us) const;
+  // The steps of update(now_us), in order: the state changes tracking (or its loss) causes, then
+  // the command of the state the craft is in.
+  /// Takes-off, holds and goes-to-waypoint fall into LostHold without a fresh pose; LostHold
+  /// resumes when tracking is back, or lands blind after lost_hold_ms.
+  void supervise_tracking(std::int64_t now_us, bool fresh);
+  /// Tracking back in LostHold: PIDs restarted, take-off climbs on, or hold (and the interrupted
+  /// waypoint is taken up again).
+  void resume_after_loss(std::int64_t now_us);
+  StickCommand command_in_state(std::int64_t now_us, bool fresh);
+  /// The climb ramp to hold_height_m; Hold once reached.
+  StickCommand takeoff_step(std::int64_t now_us);
+  /// Turn to face the waypoint, then fly to it; Hold once reached.
+  StickCommand waypoint_step(std::int64_t now_us);
+  /// Tracked: the sinking height setpoint; blind: the hand-over to the craft's failsafe.
+  StickCommand land_step(std::int64_t now_us, bool fresh);
+  /// Disarms (with the disarm gesture) once on the ground, or once the failsafe landing is over;
+  /// else `cmd` unchanged.
+  StickCommand land_touchdown(std::int64_t now_us, bool fresh, StickCommand cmd);
   void enter(FlightState state, std::int64_t now_us, const std::string& why);
   void reset_pids();
   /// Roll/pitch/yaw/throttle from the PIDs, run once per pose sample (see the .cpp).

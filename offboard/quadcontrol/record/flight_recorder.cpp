@@ -710,143 +710,205 @@ struct Encoder {
 };
 }  // namespace
 
-void FlightRecorder::run() {
-  slam::name_current_thread("qc-recorder");
-  Encoder enc{options_, logger_};
-  auto next_flush =
-      std::chrono::steady_clock::now() + std::chrono::milliseconds(options_.flush_period_ms);
-  double cpu_ms_total = 0.0;
-  std::uint64_t frames_recorded = 0, frames_encoded_here = 0;
-  std::int64_t last_t_us = 0;
-  bool failed = false;
-  const double cpu_start_ms = thread_cpu_ms();
-  std::chrono::steady_clock::time_point stop_seen{};
-  for (;;) {
-    bool stopping;
-    {
-      std::unique_lock<slam::PriorityInheritanceMutex> lock(mutex_);
-      wake_.wait_until(lock, next_flush, [this] { return stop_ || !queue_.empty(); });
-      stopping = stop_;
-    }
-    if (stopping && stop_seen == std::chrono::steady_clock::time_point{}) {
-      stop_seen = std::chrono::steady_clock::now();
-    }
-    // Drain: each event stays in the queue (and in its byte count) until it is written, so the
-    // bound covers everything the writer holds. References to a deque's front survive push_back.
-    std::size_t queued = 0;
-    while (!failed) {
-      const Event* e = nullptr;
-      {
-        std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-        if (queue_.empty()) break;
-        e = &queue_.front();
-        queued = queue_.size();
+// The writer thread's loop and what it has done so far (its own state, not shared): wait for
+// events or the flush period, drain the queue into the file, close a chunk and write the
+// recorder's own stats every flush period, publish the stats, and end on stop or on a failed file.
+class FlightRecorder::WriterLoop {
+ public:
+  explicit WriterLoop(FlightRecorder& recorder)
+      : r_(recorder),
+        enc_{recorder.options_, recorder.logger_},
+        next_flush_(std::chrono::steady_clock::now() +
+                    std::chrono::milliseconds(recorder.options_.flush_period_ms)),
+        cpu_start_ms_(thread_cpu_ms()) {}
+
+  void run() {
+    for (;;) {
+      const bool stopping = wait_for_work();
+      drain(stopping);
+      flush_if_due(stopping);
+      const bool queue_empty = publish_stats();
+      if (failed_ && r_.stats().failed) {
+        wait_for_stop_after_failure();
+        return;
       }
-      bool ok = true;
-      bool counted_frame = false;
-      if (const auto* f = std::get_if<FrameRecord>(e)) {
-        counted_frame = f->images;
-        // Stopping with a backlog: once the drain has taken kStopDrainBudget, the remaining images
-        // are skipped (counted) so that quad-control exits within its supervisor's grace period
-        // with the summary written (a loaded machine starves this thread; HIL's grace is 3 s).
-        const bool over_budget =
-            stopping && std::chrono::steady_clock::now() - stop_seen > kStopDrainBudget;
-        double cpu = 0.0;
-        bool here = false;
-        ok = enc.frame(*writer_, *f, !over_budget, &cpu, &here);
-        last_t_us = std::max(last_t_us, f->received_us);
-        if (f->images && !over_budget) {
-          cpu_ms_total += cpu;
-          ++frames_recorded;
-          if (here) ++frames_encoded_here;
-        } else if (f->images) {
-          std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-          ++stats_.images_dropped;
-        }
-      } else if (const auto* p = std::get_if<PoseRecord>(e)) {
-        ok = enc.pose(*writer_, *p);
-        last_t_us = std::max(last_t_us, p->pose_us);
-      } else if (const auto* c = std::get_if<CommandRecord>(e)) {
-        ok = enc.command(*writer_, *c);
-        last_t_us = std::max(last_t_us, c->send_us);
-      } else if (const auto* r = std::get_if<ReplyRecord>(e)) {
-        ok = enc.reply(*writer_, *r);
-        last_t_us = std::max(last_t_us, r->received_us);
-      } else if (const auto* ev = std::get_if<EventRecord>(e)) {
-        ok = enc.event(*writer_, *ev);
-        last_t_us = std::max(last_t_us, ev->t_us);
-      } else if (const auto* m = std::get_if<MapRecord>(e)) {
-        ok = enc.map(*writer_, *m);
+      if (stopping && queue_empty) {
+        if (!r_.writer_->close())
+          r_.logger_("recording: closing " + r_.writer_->file() + ": " + r_.writer_->error());
+        return;
       }
-      {
-        std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-        queued_bytes_ -= event_bytes(queue_.front());
-        if (counted_frame) --frames_queued_;
-        stats_.queued_bytes = queued_bytes_;
-        queue_.pop_front();
-      }
-      if (!ok) failed = true;
-      // A long backlog still gets its chunk closed every flush period (crash safety).
-      if (std::chrono::steady_clock::now() >= next_flush) break;
-    }
-    const auto now = std::chrono::steady_clock::now();
-    if (!failed && (now >= next_flush || stopping)) {
-      next_flush = now + std::chrono::milliseconds(options_.flush_period_ms);
-      // Stamped with the newest event's time (the recorder has no clock of its own); none yet: no
-      // stats.
-      RecorderStats s = stats();
-      failed =
-          (last_t_us > 0 &&
-           !writer_->write(
-               record::kTopicRecorder, last_t_us,
-               {{"messages", writer_->messages()},
-                {"bytes", writer_->bytes()},
-                {"dropped_queue_full", s.dropped_queue_full},
-                {"images_dropped", s.images_dropped},
-                {"frames_recorded", frames_recorded},
-                {"encode_ms_per_frame", frames_recorded ? cpu_ms_total / frames_recorded : 0.0},
-                {"queued", queued},
-                {"queued_bytes", s.queued_bytes}})) ||
-          !writer_->flush();
-    }
-    bool queue_empty = false;
-    {
-      std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-      stats_.messages = writer_->messages();
-      stats_.bytes = writer_->bytes();
-      stats_.file = writer_->file();
-      stats_.files = writer_->files();
-      stats_.deleted_files = writer_->deleted();
-      stats_.frames_recorded = frames_recorded;
-      stats_.frames_encoded_here = frames_encoded_here;
-      stats_.encode_ms_per_frame = frames_recorded ? cpu_ms_total / frames_recorded : 0.0;
-      stats_.writer_cpu_ms = thread_cpu_ms() - cpu_start_ms;
-      if (failed && !stats_.failed) {
-        stats_.failed = true;
-        stats_.error = writer_->error();
-        stats_.dropped_after_failure += queue_.size();
-        queue_.clear();
-        queued_bytes_ = 0;
-        frames_queued_ = 0;
-        stats_.queued_bytes = 0;
-      }
-      queue_empty = queue_.empty();
-    }
-    if (failed && stats().failed) {
-      // One line, then the thread only waits for the end of the flight; the flight goes on.
-      logger_("recording stopped: " + writer_->error() +
-              " (the flight goes on; the file is readable up to the last second before the error)");
-      writer_->close();
-      std::unique_lock<slam::PriorityInheritanceMutex> lock(mutex_);
-      wake_.wait(lock, [this] { return stop_; });
-      return;
-    }
-    if (stopping && queue_empty) {
-      if (!writer_->close())
-        logger_("recording: closing " + writer_->file() + ": " + writer_->error());
-      return;
     }
   }
+
+ private:
+  /// Sleeps until an event is queued, the stop is asked or the flush is due; true when stopping.
+  bool wait_for_work() {
+    bool stopping;
+    {
+      std::unique_lock<slam::PriorityInheritanceMutex> lock(r_.mutex_);
+      r_.wake_.wait_until(lock, next_flush_, [this] { return r_.stop_ || !r_.queue_.empty(); });
+      stopping = r_.stop_;
+    }
+    if (stopping && stop_seen_ == std::chrono::steady_clock::time_point{}) {
+      stop_seen_ = std::chrono::steady_clock::now();
+    }
+    return stopping;
+  }
+
+  // Drain: each event stays in the queue (and in its byte count) until it is written, so the
+  // bound covers everything the writer holds. References to a deque's front survive push_back.
+  void drain(bool stopping) {
+    queued_ = 0;
+    while (!failed_) {
+      const Event* e = nullptr;
+      {
+        std::lock_guard<slam::PriorityInheritanceMutex> lock(r_.mutex_);
+        if (r_.queue_.empty()) break;
+        e = &r_.queue_.front();
+        queued_ = r_.queue_.size();
+      }
+      bool counted_frame = false;
+      const bool ok = write(*e, stopping, &counted_frame);
+      pop_written(counted_frame);
+      if (!ok) failed_ = true;
+      // A long backlog still gets its chunk closed every flush period (crash safety).
+      if (std::chrono::steady_clock::now() >= next_flush_) break;
+    }
+  }
+
+  /// Writes one event; false once the file failed. `counted_frame`: a frame holding images.
+  bool write(const Event& e, bool stopping, bool* counted_frame) {
+    Writer& w = *r_.writer_;
+    if (const auto* f = std::get_if<FrameRecord>(&e)) {
+      *counted_frame = f->images;
+      return write_frame(*f, stopping);
+    }
+    if (const auto* p = std::get_if<PoseRecord>(&e)) {
+      last_t_us_ = std::max(last_t_us_, p->pose_us);
+      return enc_.pose(w, *p);
+    }
+    if (const auto* c = std::get_if<CommandRecord>(&e)) {
+      last_t_us_ = std::max(last_t_us_, c->send_us);
+      return enc_.command(w, *c);
+    }
+    if (const auto* r = std::get_if<ReplyRecord>(&e)) {
+      last_t_us_ = std::max(last_t_us_, r->received_us);
+      return enc_.reply(w, *r);
+    }
+    if (const auto* ev = std::get_if<EventRecord>(&e)) {
+      last_t_us_ = std::max(last_t_us_, ev->t_us);
+      return enc_.event(w, *ev);
+    }
+    if (const auto* m = std::get_if<MapRecord>(&e)) return enc_.map(w, *m);
+    return true;
+  }
+
+  bool write_frame(const FrameRecord& f, bool stopping) {
+    // Stopping with a backlog: once the drain has taken kStopDrainBudget, the remaining images
+    // are skipped (counted) so that quad-control exits within its supervisor's grace period
+    // with the summary written (a loaded machine starves this thread; HIL's grace is 3 s).
+    const bool over_budget =
+        stopping && std::chrono::steady_clock::now() - stop_seen_ > kStopDrainBudget;
+    double cpu = 0.0;
+    bool here = false;
+    const bool ok = enc_.frame(*r_.writer_, f, !over_budget, &cpu, &here);
+    last_t_us_ = std::max(last_t_us_, f.received_us);
+    if (f.images && !over_budget) {
+      cpu_ms_total_ += cpu;
+      ++frames_recorded_;
+      if (here) ++frames_encoded_here_;
+    } else if (f.images) {
+      std::lock_guard<slam::PriorityInheritanceMutex> lock(r_.mutex_);
+      ++r_.stats_.images_dropped;
+    }
+    return ok;
+  }
+
+  void pop_written(bool counted_frame) {
+    std::lock_guard<slam::PriorityInheritanceMutex> lock(r_.mutex_);
+    r_.queued_bytes_ -= event_bytes(r_.queue_.front());
+    if (counted_frame) --r_.frames_queued_;
+    r_.stats_.queued_bytes = r_.queued_bytes_;
+    r_.queue_.pop_front();
+  }
+
+  double encode_ms_per_frame() const {
+    return frames_recorded_ ? cpu_ms_total_ / frames_recorded_ : 0.0;
+  }
+
+  /// Every flush period (and when stopping): the recorder's stats message, then a flush.
+  void flush_if_due(bool stopping) {
+    const auto now = std::chrono::steady_clock::now();
+    if (failed_ || (now < next_flush_ && !stopping)) return;
+    next_flush_ = now + std::chrono::milliseconds(r_.options_.flush_period_ms);
+    // Stamped with the newest event's time (the recorder has no clock of its own); none yet: no
+    // stats.
+    Writer& w = *r_.writer_;
+    RecorderStats s = r_.stats();
+    failed_ = (last_t_us_ > 0 && !w.write(record::kTopicRecorder, last_t_us_,
+                                          {{"messages", w.messages()},
+                                           {"bytes", w.bytes()},
+                                           {"dropped_queue_full", s.dropped_queue_full},
+                                           {"images_dropped", s.images_dropped},
+                                           {"frames_recorded", frames_recorded_},
+                                           {"encode_ms_per_frame", encode_ms_per_frame()},
+                                           {"queued", queued_},
+                                           {"queued_bytes", s.queued_bytes}})) ||
+              !w.flush();
+  }
+
+  /// Copies the writer's figures into the shared stats; on the first failure also drops the
+  /// queue (counted). True when the queue is empty.
+  bool publish_stats() {
+    std::lock_guard<slam::PriorityInheritanceMutex> lock(r_.mutex_);
+    RecorderStats& st = r_.stats_;
+    const Writer& w = *r_.writer_;
+    st.messages = w.messages();
+    st.bytes = w.bytes();
+    st.file = w.file();
+    st.files = w.files();
+    st.deleted_files = w.deleted();
+    st.frames_recorded = frames_recorded_;
+    st.frames_encoded_here = frames_encoded_here_;
+    st.encode_ms_per_frame = encode_ms_per_frame();
+    st.writer_cpu_ms = thread_cpu_ms() - cpu_start_ms_;
+    if (failed_ && !st.failed) {
+      st.failed = true;
+      st.error = w.error();
+      st.dropped_after_failure += r_.queue_.size();
+      r_.queue_.clear();
+      r_.queued_bytes_ = 0;
+      r_.frames_queued_ = 0;
+      st.queued_bytes = 0;
+    }
+    return r_.queue_.empty();
+  }
+
+  void wait_for_stop_after_failure() {
+    // One line, then the thread only waits for the end of the flight; the flight goes on.
+    r_.logger_("recording stopped: " + r_.writer_->error() +
+               " (the flight goes on; the file is readable up to the last second before the "
+               "error)");
+    r_.writer_->close();
+    std::unique_lock<slam::PriorityInheritanceMutex> lock(r_.mutex_);
+    r_.wake_.wait(lock, [this] { return r_.stop_; });
+  }
+
+  FlightRecorder& r_;
+  Encoder enc_;
+  std::chrono::steady_clock::time_point next_flush_;
+  const double cpu_start_ms_;
+  std::chrono::steady_clock::time_point stop_seen_{};
+  double cpu_ms_total_ = 0.0;
+  std::uint64_t frames_recorded_ = 0, frames_encoded_here_ = 0;
+  std::int64_t last_t_us_ = 0;
+  std::size_t queued_ = 0;  ///< queue length when the last event was taken (for the stats)
+  bool failed_ = false;
+};
+
+void FlightRecorder::run() {
+  slam::name_current_thread("qc-recorder");
+  WriterLoop(*this).run();
 }
 
 }  // namespace rgbdquad::quadcontrol

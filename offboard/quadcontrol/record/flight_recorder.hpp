@@ -181,9 +181,9 @@ class FlightRecorder {
   class Writer;
   FlightRecorder(RecorderOptions options, std::unique_ptr<Writer> writer, Logger logger);
   void push(Event e, bool is_frame);
+  /// The writer thread: WriterLoop (the .cpp) drains the queue into the file until stopped.
   void run();
-  /// Writes one event (writer thread); false once the file failed.
-  bool write_event(const Event& e, bool stopping, std::chrono::steady_clock::time_point stop_seen);
+  class WriterLoop;
 
   RecorderOptions options_;
   Logger logger_;

@@ -155,6 +155,7 @@ class StreamReceiver {
   bool connected(protocol::StreamKind kind) const;
 
  private:
+  class Channel;  // one stream's listener and connections, served by its own thread
   void serve(int index);
   void store_rgb(std::shared_ptr<const ReceivedRgb> frame);
   void store_depth(std::shared_ptr<const ReceivedDepth> frame);
