@@ -5,12 +5,12 @@ HIL_LONG_FLIGHT_MIN minutes (default 10), then lands.
 
 What it shows, per minute of flight: every waypoint's true arrival error, the SLAM estimate's error
 against the rendered camera poses (one rigid alignment over the whole flight, so drift shows as a
-growing error), camera -> pose latency (the SLAM part of the camera -> PWM path, from quad-control's
-flight log), and the resident memory of slam-server and quad-control. A system whose back-end cost or
-memory grows with flight time, or whose estimate walks away, fails here where the 30-60 s scenarios
-pass. Targets: every waypoint within WAYPOINT_TOLERANCE_M, SLAM error <= 30 mm in every minute, no
-SLAM session reset, the last minute's camera -> pose p95 <= 1.5x the second minute's, slam-server's
-memory in the last minute <= 1.5x the second minute's.
+growing error), camera -> pose latency (the SLAM part of the camera -> PWM path, from
+quad-control's flight log), and the resident memory of slam-server and quad-control. A system whose
+back-end cost or memory grows with flight time, or whose estimate walks away, fails here where the
+30-60 s scenarios pass. Targets: every waypoint within WAYPOINT_TOLERANCE_M, SLAM error <= 30 mm
+in every minute, no SLAM session reset, the last minute's camera -> pose p95 <= 1.5x the second
+minute's, slam-server's memory in the last minute <= 1.5x the second minute's.
 Report: test-artifacts/hil/slam_long_flight.json (printed by make hil).
 """
 
@@ -145,7 +145,8 @@ def test_slam_long_flight_box_laps(tmp_path):
                         {"minute": minute, **{n: _rss_mib(p.proc.pid) for n, p in procs.items()}}
                     )
                 print(
-                    f"lap {lap}: {len(legs)} waypoints, worst {max(leg['max_m'] for leg in legs):.3f} m, "
+                    f"lap {lap}: {len(legs)} waypoints, "
+                    f"worst {max(leg['max_m'] for leg in legs):.3f} m, "
                     f"rss {rss[-1]}"
                 )
             landing = missions.land(flight, progress=print)
@@ -153,7 +154,10 @@ def test_slam_long_flight_box_laps(tmp_path):
             TimeoutError,
             RuntimeError,
         ) as e:  # the report is still written, then the test fails
-            aborted = f"after {len(legs)} waypoints, {(time.monotonic() * 1e6 - t0_us) / 6e7:.1f} min: {e}"
+            aborted = (
+                f"after {len(legs)} waypoints, "
+                f"{(time.monotonic() * 1e6 - t0_us) / 6e7:.1f} min: {e}"
+            )
             landing = None
         state = flight.state()
         resets = session_resets(

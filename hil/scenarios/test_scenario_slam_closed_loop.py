@@ -1,9 +1,11 @@
-"""Closed-loop flights with SLAM in the loop (hilrig.slam_flight): the real rgbd-streamer (fed by the
-live Kinect emulator through fakenect), slam-server and quad-control fly the real firmware in simavr
-and the FC emulator. The operator uses quad-control's dashboard API; emulator truth only scores.
+"""Closed-loop flights with SLAM in the loop (hilrig.slam_flight): the real rgbd-streamer (fed by
+the live Kinect emulator through fakenect), slam-server and quad-control fly the real firmware in
+simavr and the FC emulator. The operator uses quad-control's dashboard API; emulator truth only
+scores.
 
   scenario 1  take off, hold 1.7 m for 30 s          -> hold error (truth), ATE, latency per stage
-  scenario 2  take off, hold, two waypoints, land    -> waypoint errors, touchdown speed, ATE, latency
+  scenario 2  take off, hold, two waypoints, land    -> waypoint errors, touchdown speed, ATE,
+                                                        latency
   scenario 3  (SLAM loop) quad-control killed in the hover -> firmware failsafe -> APM LAND
   scenario 4  the stream link (both sockets) drops for 1 s mid-hover and comes back
   scenario 5  degraded stream link (20 +- 10 ms, 2 % loss stalls of 200 ms) during a hover
@@ -12,7 +14,8 @@ and the FC emulator. The operator uses quad-control's dashboard API; emulator tr
               case: a changing turn rate is what constant velocity predicts worst)
   load        take off and hold 30 s with two CPU burners (stress-ng) beside the ground station
 Each fault scenario must end holding or landed, never flying away.
-Reports: test-artifacts/hil/slam_loop_scenario{1..6}.json, slam_loop_load.json (printed by make hil).
+Reports: test-artifacts/hil/slam_loop_scenario{1..6}.json, slam_loop_load.json (printed by
+make hil).
 """
 
 from __future__ import annotations
@@ -320,8 +323,8 @@ def test_slam_loop_load_two_cpu_burners(tmp_path):
     real-time path (quad-control's frame / SLAM-link / firmware-link threads, slam-server's tracking
     thread: SCHED_RR) must hold: hold +-0.15 m, SLAM ATE <= 30 mm, 0 SLAM session resets. The rig
     (SCHED_RR above them, hilrig.realtime) must keep real time; if it did not, the run fails as
-    "rig overloaded" and the other figures are not judged. Flown in make demo's conditions (no gusts,
-    no trim error): scenario 1 holds the gusty case, this one isolates the load."""
+    "rig overloaded" and the other figures are not judged. Flown in make demo's conditions (no
+    gusts, no trim error): scenario 1 holds the gusty case, this one isolates the load."""
     missing = missing_load_tool()
     if missing:
         pytest.skip("not installed: " + ", ".join(missing))
@@ -348,7 +351,8 @@ def test_slam_loop_load_two_cpu_burners(tmp_path):
     (artifacts_dir() / "slam_loop_load.json").write_text(json.dumps(report, indent=2, default=str))
     lat = report["latency_ms"].get("capture_to_pwm", {})
     print(
-        f"load scenario (load average {report['load_average']}): camera->PWM median {lat.get('median_ms')} ms, "
+        f"load scenario (load average {report['load_average']}): "
+        f"camera->PWM median {lat.get('median_ms')} ms, "
         f"p95 {lat.get('p95_ms')} ms; scheduling {report['scheduling']}"
     )
     for c in checks:

@@ -120,7 +120,8 @@ def main(argv=None) -> int:
             f"demo-loop: run {i}: {'PASS' if r['passed'] else 'FAIL (exit %d)' % status}"
             f"{'' if r['passed'] else ' missed ' + ', '.join(r.get('missed', []) or ['?'])}; "
             f"resets {r.get('resets')}, camera->PWM median {r.get('capture_to_pwm_median_ms')} / "
-            f"p95 {r.get('capture_to_pwm_p95_ms')} ms, ATE {r.get('ate_mm')} mm, hold {r.get('hold_m')} m, "
+            f"p95 {r.get('capture_to_pwm_p95_ms')} ms, ATE {r.get('ate_mm')} mm, "
+            f"hold {r.get('hold_m')} m, "
             f"load {load_before} -> {r['load_after']}",
             flush=True,
         )
@@ -130,8 +131,10 @@ def main(argv=None) -> int:
     s = summarise(runs)
     print(
         f"demo-loop: {s['passed']} of {s['runs']} runs passed every target; SLAM session resets "
-        f"{s['resets_total']} in total; camera->PWM median {s['capture_to_pwm_median_ms_range']} ms, "
-        f"p95 {s['capture_to_pwm_p95_ms_range']} ms; ATE {s['ate_mm_range']} mm; load average (1 min) "
+        f"{s['resets_total']} in total; "
+        f"camera->PWM median {s['capture_to_pwm_median_ms_range']} ms, "
+        f"p95 {s['capture_to_pwm_p95_ms_range']} ms; ATE {s['ate_mm_range']} mm; "
+        "load average (1 min) "
         f"{s['load_average_range']}; misses by target {s['targets_missed'] or 'none'}"
     )
     print(f"demo-loop: summary {args.out / 'summary.json'}")

@@ -44,7 +44,8 @@ def api_post(url: str, path: str, body, headers: dict | None = None) -> tuple[in
 def raw_request(
     url: str, method: str, path: str, headers: dict, body: bytes = b""
 ) -> tuple[int, bytes]:
-    """One request with exactly these headers (Host included): what a foreign page's browser sends."""
+    """One request with exactly these headers (Host included): what a foreign page's browser
+    sends."""
     port = int(url.rstrip("/").rsplit(":", 1)[1])
     conn = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
     try:

@@ -1,5 +1,6 @@
 """The live path: the real rgbd-streamer (TUM source, loopback) -> offboard/receiver inside
-quad-control -> dashboard API. Skipped when rgbd-streamer is not built. Processes are stopped by PID.
+quad-control -> dashboard API. Skipped when rgbd-streamer is not built. Processes are stopped by
+PID.
 """
 
 from __future__ import annotations

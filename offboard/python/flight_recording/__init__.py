@@ -1,1 +1,2 @@
-"""quad-control's MCAP flight recordings (docs/recording.md): tolerant reading, summaries, SLAM replay."""
+"""quad-control's MCAP flight recordings (docs/recording.md): tolerant reading, summaries, SLAM
+replay."""

@@ -110,7 +110,8 @@ def read_tolerant(path: Path) -> Recording:
             rec.errors.append(f"damaged record opcode 0x{opcode:02x} at byte {pos} skipped: {e}")
         except Exception as e:  # noqa: BLE001 - zstd/json errors surface as various types
             rec.errors.append(
-                f"damaged record opcode 0x{opcode:02x} at byte {pos} skipped: {type(e).__name__}: {e}"
+                f"damaged record opcode 0x{opcode:02x} at byte {pos} skipped: "
+                f"{type(e).__name__}: {e}"
             )
         pos = end
         rec.bytes_read = pos

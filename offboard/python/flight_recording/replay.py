@@ -1,6 +1,8 @@
-"""Replays a quad-control MCAP recording through SLAM and compares with the poses recorded in flight.
+r"""Replays a quad-control MCAP recording through SLAM and compares with the poses recorded in
+flight.
 
-    PYTHONPATH=offboard/python:protocol/python python -m flight_recording.replay FLIGHT.mcap --out DIR [--slam-eval BIN] [--tum-score BIN]
+    PYTHONPATH=offboard/python:protocol/python python -m flight_recording.replay FLIGHT.mcap \
+        --out DIR [--slam-eval BIN] [--tum-score BIN]
 
   1. extracts the recorded frames into a TUM RGB-D folder DIR/tum: rgb/<t>.jpg (the recorded JPEG
      bytes, not re-encoded), depth/<t>.png (16-bit, decoded from /camera/depth/compressed - RVL or

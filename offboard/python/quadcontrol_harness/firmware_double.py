@@ -3,9 +3,9 @@
 It answers the serial-link lines of protocol/control (`PUT /control?...&mac=..` and `GET /status`)
 using rgbd_protocol.control (MAC, field order, ranges and reply fields come from the spec), with
 the behaviour the browser tests need: MAC check (401), replay check (409), arming state, a fake
-attitude reading. It is fronted by the WiFi-bridge emulator (rgbd_protocol.control_bridge), so quad-control
-talks HTTP to it exactly as to the real bridge. Not the real firmware: the simavr harness
-(hil/arduino, hilrig.LiveRig) can replace it through the same `transact` callable.
+attitude reading. It is fronted by the WiFi-bridge emulator (rgbd_protocol.control_bridge), so
+quad-control talks HTTP to it exactly as to the real bridge. Not the real firmware: the simavr
+harness (hil/arduino, hilrig.LiveRig) can replace it through the same `transact` callable.
 Thread-safe (one lock).
 """
 

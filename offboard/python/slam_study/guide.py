@@ -346,7 +346,8 @@ def flight_summary(
 
 def platform_table(pairs: PairTable) -> Table:
     """Table 4.21: at each rate, the fastest platform motion the measured data covers (upper edge
-    of the largest pure-motion bin with enough pairs, times the rate) and the error measured there."""
+    of the largest pure-motion bin with enough pairs, times the rate) and the error measured
+    there."""
     table = Table(
         "table_4_21_platform",
         "Table 4.21 - platform envelope covered by the measured data at 6-30 fps",

@@ -539,8 +539,9 @@ def pair_sections(src: Source, out: Path) -> list[str]:
         "",
         (
             f"{len(p)} consecutive frame pairs. Motion and axis shares in the camera frame of the "
-            "first frame of each pair (x right, y down, z optical axis; roll about z, pitch about x, "
-            f"yaw about y). Cells with fewer than {tables.kMinSamplesPerCell} pairs are marked thin."
+            "first frame of each pair (x right, y down, z optical axis; roll about z, "
+            "pitch about x, yaw about y). "
+            f"Cells with fewer than {tables.kMinSamplesPerCell} pairs are marked thin."
         ),
         "",
     ]

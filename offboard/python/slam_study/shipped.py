@@ -264,7 +264,8 @@ def write(
     """Writes the table from a sweep's runs. Refuses runs whose recorded engine sources differ
     from the tree's (they were measured with another engine; `make study` redoes them).
     engine_commit: what to record as the engine's commit (default: git HEAD of root, marked
-    "+uncommitted" when the engine's sources differ from it; for a tree exported with git archive)."""
+    "+uncommitted" when the engine's sources differ from it; for a tree exported with git
+    archive)."""
     rows, datasets, engine_hashes, ks = collect(report_dir, warn)
     if not rows:
         raise TumFormatError(f"{report_dir}/runs holds no successful {kBackend} run: run the sweep")

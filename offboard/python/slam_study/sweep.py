@@ -3,7 +3,8 @@
 Runs in parallel on local cores (threads, each waiting on one slam-eval process) or on an existing
 Ray cluster. Resumable: a run whose `result.json` exists is not redone (failed runs too, unless
 retry_failed) - unless it was made with other engine sources than the job's (each job carries the
-sha256 of the engine's sources, shipped.engine_sources_sha256, and its result.json records it). Layout under the report folder:
+sha256 of the engine's sources, shipped.engine_sources_sha256, and its result.json records it).
+Layout under the report folder:
     runs/<dataset>/<features>-<backend>-k<k>/{trajectory.tum, metrics.json, result.json, stderr.txt}
 Time is passed in (`clock_s`), for the progress line and the recorded wall time only.
 """
@@ -198,7 +199,8 @@ def run_ray(
                 job = pending.pop(ref)
                 try:
                     result, wall_s = ray.get(ref)
-                except Exception as err:  # noqa: BLE001 - a task that died on its node: record, go on
+                except Exception as err:  # noqa: BLE001
+                    # a task that died on its node: record, go on
                     result, wall_s = (
                         {
                             "status": "failed",

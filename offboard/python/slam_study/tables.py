@@ -2,12 +2,13 @@
 
 Bin edges (per-frame ground-truth motion) and selection thresholds come from the thesis, as quoted
 in the study issue:
-  Tables 4.14/4.15 translation study: pairs with rotation < 0.3 deg, 1-2, 2-4, 4-6, 6-8, 8-10, 10-15,
-    15-19 mm; single-axis when one of x/y/z holds > 80 % of the translation.
-  Tables 4.17/4.18 rotation study: pairs with translation < 3 mm, 0.1-0.2 ... 1.5-1.9 deg; the issue
-    elides the middle edges, we mirror the translation bins at 1/10 scale (0.1-0.2, 0.2-0.4, 0.4-0.6,
-    0.6-0.8, 0.8-1.0, 1.0-1.5, 1.5-1.9); single-axis when roll/pitch/yaw holds > 85 %.
-  Table 4.20 joint grid: translation 1-2, 2-4, ..., 16-18 mm x rotation 0.1-0.2, 0.2-0.4, ..., 1.6-1.8.
+  Tables 4.14/4.15 translation study: pairs with rotation < 0.3 deg, 1-2, 2-4, 4-6, 6-8, 8-10,
+    10-15, 15-19 mm; single-axis when one of x/y/z holds > 80 % of the translation.
+  Tables 4.17/4.18 rotation study: pairs with translation < 3 mm, 0.1-0.2 ... 1.5-1.9 deg; the
+    issue elides the middle edges, we mirror the translation bins at 1/10 scale (0.1-0.2, 0.2-0.4,
+    0.4-0.6, 0.6-0.8, 0.8-1.0, 1.0-1.5, 1.5-1.9); single-axis when roll/pitch/yaw holds > 85 %.
+  Table 4.20 joint grid: translation 1-2, 2-4, ..., 16-18 mm x rotation 0.1-0.2, 0.2-0.4, ...,
+    1.6-1.8.
 Bins are half-open [lo, hi).
 """
 

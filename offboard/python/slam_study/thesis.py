@@ -11,7 +11,8 @@ kNotQuoted = "not quoted"
 # Findings (thesis Chapter 4 summary, as quoted in the issue).
 kFindings = (
     (
-        "rotation hurts more than translation: 1 deg of rotation per frame ~ 4 mm translational error "
+        "rotation hurts more than translation: "
+        "1 deg of rotation per frame ~ 4 mm translational error "
         "and ~20 % rotational error; 10 mm of translation per frame ~ 45 % translational error and "
         "0.2 deg"
     ),
