@@ -162,6 +162,100 @@ nlohmann::json AppConfig::to_json_redacted() const {
           {"recording", recording.to_json()}};
 }
 
+namespace {
+/// The "dashboard" section into `c`; false with `error` at its first bad key.
+bool read_dashboard_section(const json& d, AppConfig& c, std::string* error) {
+  return check_keys(d, "dashboard",
+                    {"bind_address", "port", "token", "static_dir", "allowed_hosts"}, error) &&
+         read(d, "dashboard", "allowed_hosts", c.dashboard_allowed_hosts, error) &&
+         read(d, "dashboard", "bind_address", c.dashboard_bind_address, error) &&
+         read(d, "dashboard", "port", c.dashboard_port, error) &&
+         read(d, "dashboard", "token", c.dashboard_token, error) &&
+         read(d, "dashboard", "static_dir", c.dashboard_static_dir, error);
+}
+
+/// The "stream" section into `c`; false with `error` at its first bad key.
+bool read_stream_section(const json& s, AppConfig& c, std::string& loop, std::string* error) {
+  return check_keys(s, "stream",
+                    {"source", "tum_folder", "loop", "speed", "camera", "bind_address", "rgb_port",
+                     "depth_port", "key_file"},
+                    error) &&
+         read(s, "stream", "key_file", c.stream_key_file, error) &&
+         read(s, "stream", "bind_address", c.receiver.bind_address, error) &&
+         read(s, "stream", "rgb_port", c.receiver.rgb_port, error) &&
+         read(s, "stream", "depth_port", c.receiver.depth_port, error) &&
+         read(s, "stream", "source", c.stream_source, error) &&
+         read(s, "stream", "tum_folder", c.replay.folder, error) &&
+         read(s, "stream", "loop", loop, error) &&
+         read(s, "stream", "speed", c.replay.speed, error) &&
+         read(s, "stream", "camera", c.replay.camera, error);
+}
+
+/// The "slam" section into `c`; false with `error` at its first bad key.
+bool read_slam_section(const json& sl, AppConfig& c, std::string* error) {
+  return check_keys(sl, "slam", {"mode", "host", "port", "timeout_ms"}, error) &&
+         read(sl, "slam", "mode", c.station.slam_mode, error) &&
+         read(sl, "slam", "host", c.station.slam_server.host, error) &&
+         read(sl, "slam", "port", c.station.slam_server.port, error) &&
+         read(sl, "slam", "timeout_ms", c.station.slam_server.reply_timeout_ms, error);
+}
+
+/// The "firmware" section into `c`; false with `error` at its first bad key.
+bool read_firmware_section(const json& f, AppConfig& c, std::string* error) {
+  return check_keys(f, "firmware",
+                    {"enabled", "host", "port", "timeout_ms", "period_ms", "send_on_pose",
+                     "min_interval_ms", "keep_alive_ms", "key_hex"},
+                    error) &&
+         read(f, "firmware", "enabled", c.firmware_enabled, error) &&
+         read(f, "firmware", "host", c.firmware.host, error) &&
+         read(f, "firmware", "port", c.firmware.port, error) &&
+         read(f, "firmware", "timeout_ms", c.firmware.timeout_ms, error) &&
+         read(f, "firmware", "period_ms", c.firmware.period_ms, error) &&
+         read(f, "firmware", "send_on_pose", c.firmware.send_on_pose, error) &&
+         read(f, "firmware", "min_interval_ms", c.firmware.min_interval_ms, error) &&
+         read(f, "firmware", "keep_alive_ms", c.firmware.keep_alive_ms, error) &&
+         read(f, "firmware", "key_hex", c.firmware_key_hex, error);
+}
+
+/// The "camera" section into `c`; false with `error` at its first bad key.
+bool read_camera_section(const json& cam, AppConfig& c, std::string* error) {
+  return check_keys(cam, "camera", {"mount_pitch_down_deg", "imu_rotation_prior"}, error) &&
+         read(cam, "camera", "mount_pitch_down_deg", c.station.mount_pitch_down_deg, error) &&
+         read(cam, "camera", "imu_rotation_prior", c.station.imu_rotation_prior, error);
+}
+
+/// The "floor" section into `c`; false with `error` at its first bad key.
+bool read_floor_section(const json& fl, AppConfig& c, std::string* error) {
+  return check_keys(fl, "floor",
+                    {"iterations", "inlier_distance_m", "max_tilt_deg", "min_inlier_fraction",
+                     "seed", "search_frames"},
+                    error) &&
+         read(fl, "floor", "iterations", c.station.floor.iterations, error) &&
+         read(fl, "floor", "inlier_distance_m", c.station.floor.inlier_distance_m, error) &&
+         read(fl, "floor", "max_tilt_deg", c.station.floor.max_tilt_deg, error) &&
+         read(fl, "floor", "min_inlier_fraction", c.station.floor.min_inlier_fraction, error) &&
+         read(fl, "floor", "seed", c.station.floor.seed, error) &&
+         read(fl, "floor", "search_frames", c.station.floor_search_frames, error);
+}
+
+/// The "map" section into `c`; false with `error` at its first bad key.
+bool read_map_section(const json& m, AppConfig& c, std::string* error) {
+  return check_keys(m, "map", {"resolution_m", "size_m", "max_depth_m"}, error) &&
+         read(m, "map", "resolution_m", c.station.map.resolution_m, error) &&
+         read(m, "map", "size_m", c.station.map.size_m, error) &&
+         read(m, "map", "max_depth_m", c.station.max_depth_m, error);
+}
+
+/// The "realtime" section into `c`; false with `error` at its first bad key.
+bool read_realtime_section(const json& rt, AppConfig& c, std::string& thread_policy,
+                           std::string* error) {
+  return check_keys(rt, "realtime", {"policy", "priority", "fallback_nice"}, error) &&
+         read(rt, "realtime", "policy", thread_policy, error) &&
+         read(rt, "realtime", "priority", c.station.realtime.rt_priority, error) &&
+         read(rt, "realtime", "fallback_nice", c.station.realtime.fallback_nice, error);
+}
+}  // namespace
+
 std::optional<AppConfig> load_app_config(const std::string& path, std::string* error) {
   AppConfig c = default_app_config();
   std::ifstream in(path);
@@ -200,65 +294,10 @@ std::optional<AppConfig> load_app_config(const std::string& path, std::string* e
   }
   std::string loop = "bounce";
   std::string thread_policy = slam::to_string(c.station.realtime.policy);
-  if (!check_keys(d, "dashboard", {"bind_address", "port", "token", "static_dir", "allowed_hosts"},
-                  error) ||
-      !read(d, "dashboard", "allowed_hosts", c.dashboard_allowed_hosts, error) ||
-      !read(d, "dashboard", "bind_address", c.dashboard_bind_address, error) ||
-      !read(d, "dashboard", "port", c.dashboard_port, error) ||
-      !read(d, "dashboard", "token", c.dashboard_token, error) ||
-      !read(d, "dashboard", "static_dir", c.dashboard_static_dir, error) ||
-      !check_keys(s, "stream",
-                  {"source", "tum_folder", "loop", "speed", "camera", "bind_address", "rgb_port",
-                   "depth_port", "key_file"},
-                  error) ||
-      !read(s, "stream", "key_file", c.stream_key_file, error) ||
-      !read(s, "stream", "bind_address", c.receiver.bind_address, error) ||
-      !read(s, "stream", "rgb_port", c.receiver.rgb_port, error) ||
-      !read(s, "stream", "depth_port", c.receiver.depth_port, error) ||
-      !read(s, "stream", "source", c.stream_source, error) ||
-      !read(s, "stream", "tum_folder", c.replay.folder, error) ||
-      !read(s, "stream", "loop", loop, error) ||
-      !read(s, "stream", "speed", c.replay.speed, error) ||
-      !read(s, "stream", "camera", c.replay.camera, error) ||
-      !check_keys(sl, "slam", {"mode", "host", "port", "timeout_ms"}, error) ||
-      !read(sl, "slam", "mode", c.station.slam_mode, error) ||
-      !read(sl, "slam", "host", c.station.slam_server.host, error) ||
-      !read(sl, "slam", "port", c.station.slam_server.port, error) ||
-      !read(sl, "slam", "timeout_ms", c.station.slam_server.reply_timeout_ms, error) ||
-      !check_keys(f, "firmware",
-                  {"enabled", "host", "port", "timeout_ms", "period_ms", "send_on_pose",
-                   "min_interval_ms", "keep_alive_ms", "key_hex"},
-                  error) ||
-      !read(f, "firmware", "enabled", c.firmware_enabled, error) ||
-      !read(f, "firmware", "host", c.firmware.host, error) ||
-      !read(f, "firmware", "port", c.firmware.port, error) ||
-      !read(f, "firmware", "timeout_ms", c.firmware.timeout_ms, error) ||
-      !read(f, "firmware", "period_ms", c.firmware.period_ms, error) ||
-      !read(f, "firmware", "send_on_pose", c.firmware.send_on_pose, error) ||
-      !read(f, "firmware", "min_interval_ms", c.firmware.min_interval_ms, error) ||
-      !read(f, "firmware", "keep_alive_ms", c.firmware.keep_alive_ms, error) ||
-      !read(f, "firmware", "key_hex", c.firmware_key_hex, error) ||
-      !check_keys(cam, "camera", {"mount_pitch_down_deg", "imu_rotation_prior"}, error) ||
-      !read(cam, "camera", "mount_pitch_down_deg", c.station.mount_pitch_down_deg, error) ||
-      !read(cam, "camera", "imu_rotation_prior", c.station.imu_rotation_prior, error) ||
-      !check_keys(fl, "floor",
-                  {"iterations", "inlier_distance_m", "max_tilt_deg", "min_inlier_fraction", "seed",
-                   "search_frames"},
-                  error) ||
-      !read(fl, "floor", "iterations", c.station.floor.iterations, error) ||
-      !read(fl, "floor", "inlier_distance_m", c.station.floor.inlier_distance_m, error) ||
-      !read(fl, "floor", "max_tilt_deg", c.station.floor.max_tilt_deg, error) ||
-      !read(fl, "floor", "min_inlier_fraction", c.station.floor.min_inlier_fraction, error) ||
-      !read(fl, "floor", "seed", c.station.floor.seed, error) ||
-      !read(fl, "floor", "search_frames", c.station.floor_search_frames, error) ||
-      !check_keys(m, "map", {"resolution_m", "size_m", "max_depth_m"}, error) ||
-      !read(m, "map", "resolution_m", c.station.map.resolution_m, error) ||
-      !read(m, "map", "size_m", c.station.map.size_m, error) ||
-      !read(m, "map", "max_depth_m", c.station.max_depth_m, error) ||
-      !check_keys(rt, "realtime", {"policy", "priority", "fallback_nice"}, error) ||
-      !read(rt, "realtime", "policy", thread_policy, error) ||
-      !read(rt, "realtime", "priority", c.station.realtime.rt_priority, error) ||
-      !read(rt, "realtime", "fallback_nice", c.station.realtime.fallback_nice, error)) {
+  if (!(read_dashboard_section(d, c, error) && read_stream_section(s, c, loop, error) &&
+        read_slam_section(sl, c, error) && read_firmware_section(f, c, error) &&
+        read_camera_section(cam, c, error) && read_floor_section(fl, c, error) &&
+        read_map_section(m, c, error) && read_realtime_section(rt, c, thread_policy, error))) {
     return std::nullopt;
   }
   if (!slam::parse_thread_policy(thread_policy, &c.station.realtime.policy, error)) {
