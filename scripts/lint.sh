@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Lint: ruff on every Python file (rules in pyproject.toml [tool.ruff]), a clang-format check
 # (.clang-format, Google style at 100 columns) on every tracked C/C++ file (generated headers
-# included: their generators format them the same way), and the history-word check
-# (scripts/check_history_words.py: docs and comments describe the system, not the work on it).
+# included: their generators format them the same way), the history-word check
+# (scripts/check_history_words.py: docs and comments describe the system, not the work on it) and
+# the function-size check (scripts/check_function_size.py: no production C++ function over 100
+# lines, except those listed with a reason in scripts/function_size_allowlist.txt).
 set -uo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
@@ -28,4 +30,6 @@ if [ "${#unformatted[@]}" -gt 0 ]; then
 fi
 echo "lint: history words"
 python3 scripts/check_history_words.py || status=1
+echo "lint: function size"
+python3 scripts/check_function_size.py || status=1
 exit $status
