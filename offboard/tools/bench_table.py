@@ -52,7 +52,8 @@ def main(out_dir: str) -> int:  # noqa: C901 (one printer per table, in the orde
         print("|---|" + "---|" * len(BACKENDS))
         for d in DETECTORS:
             cells = [
-                f"{cell(runs[d, b], 'rpe_trans_rmse_mm', '{:.2f}')} / {cell(runs[d, b], 'rpe_rot_rmse_deg', '{:.3f}')}"
+                f"{cell(runs[d, b], 'rpe_trans_rmse_mm', '{:.2f}')} / "
+                f"{cell(runs[d, b], 'rpe_rot_rmse_deg', '{:.3f}')}"
                 for b, _ in BACKENDS
             ]
             print(f"| {d.upper()} | " + " | ".join(cells) + " |")
@@ -61,12 +62,14 @@ def main(out_dir: str) -> int:  # noqa: C901 (one printer per table, in the orde
         print("|---|" + "---|" * len(BACKENDS))
         for d in DETECTORS:
             cells = [
-                f"{cell(runs[d, b], 'ate_rmse_m', '{:.4f}')} ({cell(runs[d, b], 'ate_rot_rmse_deg', '{:.2f}')})"
+                f"{cell(runs[d, b], 'ate_rmse_m', '{:.4f}')} "
+                f"({cell(runs[d, b], 'ate_rot_rmse_deg', '{:.2f}')})"
                 for b, _ in BACKENDS
             ]
             print(f"| {d.upper()} | " + " | ".join(cells) + " |")
         print(
-            "\nPer-stage median ms (wall clock; frontend_cpu = CPU ms of the front-end thread, OpenCV single-threaded)"
+            "\nPer-stage median ms (wall clock; frontend_cpu = CPU ms of the front-end thread, "
+            "OpenCV single-threaded)"
         )
         names = [
             "features",
@@ -99,7 +102,8 @@ def main(out_dir: str) -> int:  # noqa: C901 (one printer per table, in the orde
         if peer is not None:
             print(
                 f"\nPeer cv::rgbd::RgbdOdometry: ATE {cell(peer, 'ate_rmse_m', '{:.4f}')} m, "
-                f"RPE {cell(peer, 'rpe_trans_rmse_mm', '{:.2f}')} mm / {cell(peer, 'rpe_rot_rmse_deg', '{:.3f}')} deg, "
+                f"RPE {cell(peer, 'rpe_trans_rmse_mm', '{:.2f}')} mm / "
+                f"{cell(peer, 'rpe_rot_rmse_deg', '{:.3f}')} deg, "
                 f"{cell(peer, 'ms_per_frame_median', '{:.1f}')} ms/frame median wall, "
                 f"{cell(peer, 'cpu_ms_per_frame_median', '{:.1f}')} ms CPU"
             )
@@ -114,16 +118,19 @@ def main(out_dir: str) -> int:  # noqa: C901 (one printer per table, in the orde
                 ratio_t = f"{fe / pm:.2f}" if fe and pm else "n/a"
                 ratio_c = f"{fc / pc:.2f}" if fc and pc else "n/a"
                 print(
-                    f"  {d.upper()} {dict(BACKENDS)[b]} vs peer: ATE ratio {m['ate_rmse_m'] / peer['ate_rmse_m']:.2f}, "
+                    f"  {d.upper()} {dict(BACKENDS)[b]} vs peer: "
+                    f"ATE ratio {m['ate_rmse_m'] / peer['ate_rmse_m']:.2f}, "
                     f"front-end ms ratio {ratio_t} (wall), {ratio_c} (CPU)"
                 )
     rts = sorted(p for p in out.iterdir() if p.is_dir() and p.name.startswith("realtime_"))
     if rts:
         print(
-            "\n### Real-time replay (30 fps pacing, fr1_xyz_first300; wall ms depend on the machine's load)"
+            "\n### Real-time replay (30 fps pacing, fr1_xyz_first300; "
+            "wall ms depend on the machine's load)"
         )
         print(
-            "| run | frames | front-end dropped | back-end skipped | ATE m | RPE mm | tracking CPU median / p95 ms | "
+            "| run | frames | front-end dropped | back-end skipped | ATE m | RPE mm | "
+            "tracking CPU median / p95 ms | "
             "front-end wall median / p95 ms | mapping CPU p95 ms | map-lock wait p95 / max ms |"
         )
         print("|---|---|---|---|---|---|---|---|---|---|")
@@ -133,10 +140,14 @@ def main(out_dir: str) -> int:  # noqa: C901 (one printer per table, in the orde
                 continue
             mp = (rt.get("mapping") or {}).get("mapping_cpu") or {}
             print(
-                f"| {p.name[len('realtime_') :]} | {rt.get('frames_submitted')} | {rt.get('frontend_dropped')} | "
-                f"{rt.get('backend_skipped')} | {cell(rt, 'ate_rmse_m', '{:.4f}')} | {cell(rt, 'rpe_trans_rmse_mm', '{:.2f}')} | "
-                f"{stage(rt, 'frontend_cpu') or float('nan'):.1f} / {stage(rt, 'frontend_cpu', 'p95_ms') or float('nan'):.1f} | "
-                f"{stage(rt, 'frontend') or float('nan'):.1f} / {stage(rt, 'frontend', 'p95_ms') or float('nan'):.1f} | "
+                f"| {p.name[len('realtime_') :]} | {rt.get('frames_submitted')} | "
+                f"{rt.get('frontend_dropped')} | "
+                f"{rt.get('backend_skipped')} | {cell(rt, 'ate_rmse_m', '{:.4f}')} | "
+                f"{cell(rt, 'rpe_trans_rmse_mm', '{:.2f}')} | "
+                f"{stage(rt, 'frontend_cpu') or float('nan'):.1f} / "
+                f"{stage(rt, 'frontend_cpu', 'p95_ms') or float('nan'):.1f} | "
+                f"{stage(rt, 'frontend') or float('nan'):.1f} / "
+                f"{stage(rt, 'frontend', 'p95_ms') or float('nan'):.1f} | "
                 f"{mp.get('p95_ms', float('nan')):.1f} | "
                 f"{stage(rt, 'map_lock_wait', 'p95_ms') or float('nan'):.2f} / "
                 f"{stage(rt, 'map_lock_wait', 'max_ms') or float('nan'):.1f} |"
@@ -144,12 +155,15 @@ def main(out_dir: str) -> int:  # noqa: C901 (one printer per table, in the orde
     loops = sorted(p for p in out.iterdir() if p.is_dir() and p.name.startswith("loop_"))
     if loops:
         print(
-            "\n### Loop closing on vs off (local map ORB; lock = map-lock hold of the correction step, "
+            "\n### Loop closing on vs off (local map ORB; "
+            "lock = map-lock hold of the correction step, "
             "fuse = longest hold of one fusion step)"
         )
         print(
-            "| run | ATE m | RPE mm | keyframes | loop searches | detections | RANSAC-verified | accepted | "
-            "loop closing CPU p95 ms | snapshot lock ms p95 / max | pose graph ms max | lock ms max | fuse ms max | "
+            "| run | ATE m | RPE mm | keyframes | loop searches | detections | RANSAC-verified | "
+            "accepted | "
+            "loop closing CPU p95 ms | snapshot lock ms p95 / max | pose graph ms max | "
+            "lock ms max | fuse ms max | "
             "BA dropped | dropped |"
         )
         print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
@@ -164,12 +178,18 @@ def main(out_dir: str) -> int:  # noqa: C901 (one printer per table, in the orde
                 return f"{v['p95_ms']:.1f}" if "p95_ms" in v else "-"
 
             print(
-                f"| {p.name[len('loop_') :]} | {cell(m, 'ate_rmse_m', '{:.4f}')} | {cell(m, 'rpe_trans_rmse_mm', '{:.2f}')} | "
-                f"{m.get('keyframes')} | {lc.get('keyframes_searched', '-')} | {lc.get('detections', '-')} | "
-                f"{lc.get('ransac_verified', '-')} | {lc.get('accepted', '-')} | {mx('loop_closing_cpu')} | "
-                f"{mx('snapshot_lock')} / {(lc.get('snapshot_lock') or {}).get('max_ms', float('nan')):.1f} | "
-                f"{(lc.get('posegraph') or {}).get('max_ms', '-')} | {(lc.get('apply_lock') or {}).get('max_ms', '-')} | "
-                f"{(lc.get('fuse_lock_max_per_keyframe') or {}).get('max_ms', '-')} | {lc.get('local_ba_discarded', '-')} | "
+                f"| {p.name[len('loop_') :]} | {cell(m, 'ate_rmse_m', '{:.4f}')} | "
+                f"{cell(m, 'rpe_trans_rmse_mm', '{:.2f}')} | "
+                f"{m.get('keyframes')} | {lc.get('keyframes_searched', '-')} | "
+                f"{lc.get('detections', '-')} | "
+                f"{lc.get('ransac_verified', '-')} | {lc.get('accepted', '-')} | "
+                f"{mx('loop_closing_cpu')} | "
+                f"{mx('snapshot_lock')} / "
+                f"{(lc.get('snapshot_lock') or {}).get('max_ms', float('nan')):.1f} | "
+                f"{(lc.get('posegraph') or {}).get('max_ms', '-')} | "
+                f"{(lc.get('apply_lock') or {}).get('max_ms', '-')} | "
+                f"{(lc.get('fuse_lock_max_per_keyframe') or {}).get('max_ms', '-')} | "
+                f"{lc.get('local_ba_discarded', '-')} | "
                 f"{m.get('frontend_dropped')} |"
             )
     rates = sorted(
@@ -181,19 +201,23 @@ def main(out_dir: str) -> int:  # noqa: C901 (one printer per table, in the orde
     )
     if rates:
         print(
-            "\n### Larger steps between frames (local map ORB, wait, fr1_xyz_first300 every k-th frame): "
+            "\n### Larger steps between frames (local map ORB, wait, "
+            "fr1_xyz_first300 every k-th frame): "
             "cross-check of weak fits on / off"
         )
         print(
-            "| k (fps) | ATE m on / off | RPE mm on / off | keyframes on / off | cross-checks (replaced) | "
+            "| k (fps) | ATE m on / off | RPE mm on / off | keyframes on / off | "
+            "cross-checks (replaced) | "
             "lost frames on / off | tracking CPU p95 ms on / off |"
         )
         print("|---|---|---|---|---|---|---|")
         for k in rates:
             on, off = (load(out / f"rate_{k}_cc_{c}" / "metrics.json") or {} for c in ("on", "off"))
             print(
-                f"| {k} ({30 / k:.1f}) | {cell(on, 'ate_rmse_m', '{:.4f}')} / {cell(off, 'ate_rmse_m', '{:.4f}')} | "
-                f"{cell(on, 'rpe_trans_rmse_mm', '{:.2f}')} / {cell(off, 'rpe_trans_rmse_mm', '{:.2f}')} | "
+                f"| {k} ({30 / k:.1f}) | "
+                f"{cell(on, 'ate_rmse_m', '{:.4f}')} / {cell(off, 'ate_rmse_m', '{:.4f}')} | "
+                f"{cell(on, 'rpe_trans_rmse_mm', '{:.2f}')} / "
+                f"{cell(off, 'rpe_trans_rmse_mm', '{:.2f}')} | "
                 f"{on.get('keyframes', '-')} / {off.get('keyframes', '-')} | "
                 f"{on.get('cross_checks', '-')} ({on.get('cross_check_replacements', '-')}) | "
                 f"{on.get('tracking_lost_frames', '-')} / {off.get('tracking_lost_frames', '-')} | "
@@ -209,7 +233,8 @@ def main(out_dir: str) -> int:  # noqa: C901 (one printer per table, in the orde
             print(
                 f"\nRelocalisation, {title}: frames until tracking after the gap/start "
                 f"{m.get('frames_until_tracking_after_gap', m.get('frames_until_first_tracked'))}, "
-                f"relocalisations {m.get('relocalisations')}, lost frames {m.get('tracking_lost_frames')}, "
+                f"relocalisations {m.get('relocalisations')}, "
+                f"lost frames {m.get('tracking_lost_frames')}, "
                 f"ATE {cell(m, 'ate_rmse_m', '{:.4f}')} m"
             )
     return 0

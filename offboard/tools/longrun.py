@@ -9,10 +9,11 @@ slam-eval run on it (keyframes, map points, RSS, tracking and mapping cost).
 
 `make` links the images (no copies) under new names and rewrites every timestamp so that time runs
 forward at the excerpt's own frame period; the ground truth of each new frame is the motion-capture
-pose nearest (<= 20 ms, the TUM rule) to its original rgb stamp (the local map's pose time), restamped. A backward pass is a
-valid camera trajectory (the same poses in reverse order), so the sequence is continuous except for
-the turn-around, where the camera stops for one frame interval. rgb and depth get the same new
-stamp (the excerpt's own rgb/depth offset of up to 20 ms is dropped).
+pose nearest (<= 20 ms, the TUM rule) to its original rgb stamp (the local map's pose time),
+restamped. A backward pass is a valid camera trajectory (the same poses in reverse order), so the
+sequence is continuous except for the turn-around, where the camera stops for one frame interval.
+rgb and depth get the same new stamp (the excerpt's own rgb/depth offset of up to 20 ms is
+dropped).
 
 What a bounded back-end must show (issue: "keyframes level off, the last minute's mapping p95 is at
 most 1.5x the second minute's"): the table prints both checks and a verdict. "Level off" is judged
@@ -166,7 +167,9 @@ def table(run: Path, minute_s: float = 60.0) -> int:
                 "tracking_cpu_p95_ms": _p95([float(f["frontend_cpu_ms"]) for f in fr]),
                 "mapping_p95_ms": _p95([float(x["mapping_ms"]) for x in mp]),
                 "keyframes_mapped": len(mp),
-                "kf_view/near/both": f"{why['view_changed']}/{why['need_near']}/{why['view_changed+need_near']}",
+                "kf_view/near/both": (
+                    f"{why['view_changed']}/{why['need_near']}/{why['view_changed+need_near']}"
+                ),
                 "loops_accepted": sum(1 for x in lp if x["accepted"] == "1"),
                 "deferred_busy": deferred_busy,
             }
@@ -224,8 +227,10 @@ def table(run: Path, minute_s: float = 60.0) -> int:
         )
         print(
             f"keyframes level off: {first['new_keyframes']} new in minute 1 (exploring), "
-            f"{second['new_keyframes']} in minute 2, {lastm['new_keyframes']} in minute {lastm['minute']} "
-            f"(target <= {allowed}, {kSteadyKeyframeFraction:.0%} of minute 1); map {first['keyframes_end']} "
+            f"{second['new_keyframes']} in minute 2, "
+            f"{lastm['new_keyframes']} in minute {lastm['minute']} "
+            f"(target <= {allowed}, {kSteadyKeyframeFraction:.0%} of minute 1); "
+            f"map {first['keyframes_end']} "
             f"keyframes after minute 1, {lastm['keyframes_end']} after minute {lastm['minute']} "
             f"(target <= {first['keyframes_end'] + allowed}): "
             f"{'met' if ok_kf else 'MISSED'}"

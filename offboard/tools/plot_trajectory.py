@@ -71,9 +71,11 @@ def main(argv):
     fig.savefig(argv[4])
     path_len = float(np.sum(np.linalg.norm(np.diff(est_xyz, axis=0), axis=1)))
     print(
-        f"trajectory: {len(est)} poses over {est[-1, 0] - est[0, 0]:.2f} s, path length {path_len:.3f} m, "
+        f"trajectory: {len(est)} poses over {est[-1, 0] - est[0, 0]:.2f} s, "
+        f"path length {path_len:.3f} m, "
         f"start ({est_xyz[0, 0]:.3f}, {est_xyz[0, 1]:.3f}, {est_xyz[0, 2]:.3f}) m, "
-        f"end ({est_xyz[-1, 0]:.3f}, {est_xyz[-1, 1]:.3f}, {est_xyz[-1, 2]:.3f}) m (ground-truth frame)"
+        f"end ({est_xyz[-1, 0]:.3f}, {est_xyz[-1, 1]:.3f}, {est_xyz[-1, 2]:.3f}) m "
+        "(ground-truth frame)"
     )
     return 0
 

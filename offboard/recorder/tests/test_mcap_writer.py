@@ -1,4 +1,5 @@
-"""rgbd_mcap (offboard/recorder) files read by the Python `mcap` library: complete, cut, damaged, full disk.
+"""rgbd_mcap (offboard/recorder) files read by the Python `mcap` library: complete, cut, damaged,
+full disk.
 
 The C++ writer is driven through build/bin/mcap-sample (MCAP_SAMPLE_BIN overrides).
 """

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Generates the TUM RGB-D camera models from protocol/camera/tum_cameras.json, so no component types
-517.3 or 5000 again:
+"""Generates the TUM RGB-D camera models from protocol/camera/tum_cameras.json,
+so no component types 517.3 or 5000 again:
 
   protocol/camera/include/rgbdquad/camera/tum_cameras.hpp   C++17 (CMake target rgbd_tum_cameras)
   protocol/python/rgbd_protocol/tum_cameras.py              Python
@@ -48,8 +48,10 @@ def generate_hpp(spec: dict) -> str:
     out = [
         f"// {HEADER}",
         f"// {REGEN}",
-        "// Camera models of TUM RGB-D data (Sturm et al., IROS 2012; the benchmark's file-format page):",
-        "// pinhole intrinsics of the colour cameras in pixels, OpenCV radial-tangential distortion",
+        "// Camera models of TUM RGB-D data "
+        "(Sturm et al., IROS 2012; the benchmark's file-format page):",
+        "// pinhole intrinsics of the colour cameras in pixels, "
+        "OpenCV radial-tangential distortion",
         "// k1 k2 p1 p2 k3, and the depth PNG scale. Header-only constants; no state.",
         "#pragma once",
         "",
@@ -62,7 +64,8 @@ def generate_hpp(spec: dict) -> str:
         "  std::string_view name;",
         "  double fx_px, fy_px, cx_px, cy_px;",
         "  std::array<double, 5> distortion;  ///< k1 k2 p1 p2 k3",
-        "  /// Raw depth units per metre of this camera's readings (the file scale unless a published",
+        "  /// Raw depth units per metre of this camera's readings "
+        "(the file scale unless a published",
         "  /// calibration of the sensor says otherwise; see its model).",
         "  double depth_units_per_m;",
         "};",
@@ -107,7 +110,8 @@ def generate_py(spec: dict) -> str:
         f'"""{HEADER}',
         "",
         f"{REGEN}",
-        "Camera models of TUM RGB-D data: pinhole intrinsics of the colour cameras in pixels, OpenCV",
+        "Camera models of TUM RGB-D data: "
+        "pinhole intrinsics of the colour cameras in pixels, OpenCV",
         "radial-tangential distortion k1 k2 p1 p2 k3, and the depth PNG scale.",
         '"""',
         "",

@@ -1,5 +1,5 @@
-"""WiFi-bridge emulator (rgbd_protocol.control_bridge) against a scripted serial side (no simavr): line format, status mapping,
-malformed HTTP, timeouts."""
+"""WiFi-bridge emulator (rgbd_protocol.control_bridge) against a scripted serial side (no
+simavr): line format, status mapping, malformed HTTP, timeouts."""
 
 import http.client
 import json

@@ -2,9 +2,10 @@
 """Generates the control link's constants and types from protocol/control/control_spec.json, the way
 protocol/tools/gen_cpp.py does for messages.json, so no codec restates the spec:
 
-  include/rgbd_control/control_spec_generated.h   C++ for the firmware (avr-gcc gnu++14, <stdint.h>
-                                                  only) and the ground station: schema version, serial
-                                                  link, field ranges, routes, Status + reason words
+  include/rgbd_control/control_spec_generated.h   C++ for the firmware (avr-gcc gnu++14,
+                                                  <stdint.h> only) and the ground station: schema
+                                                  version, serial link, field ranges, routes,
+                                                  Status + reason words
   include/rgbd_control/control_types_generated.hpp  C++17 value types of the ground station: Reply
   ../python/rgbd_protocol/control_spec_generated.py Python: the same constants, Status, Reply
 
@@ -53,7 +54,8 @@ def unit_suffix(unit: str) -> str:
 
 
 def channel_range(spec: dict) -> tuple[int, int]:
-    """The one protocol range every RC channel shares (the generator refuses a spec where they differ)."""
+    """The one protocol range every RC channel shares (the generator refuses a spec where they
+    differ)."""
     ranges = {tuple(f["range"]) for f in spec["control_fields"] if f["name"] in CHANNELS}
     if len(ranges) != 1:
         raise SystemExit(
@@ -76,8 +78,10 @@ def generate_h(spec: dict) -> str:
     out = [
         f"// {HEADER}",
         f"// {REGEN}",
-        "// Shared by the ATmega328P firmware (avr-gcc gnu++14, no STL) and the ground station (C++17), so",
-        "// it uses only <stdint.h> and <stddef.h>; unused constants cost the firmware no flash or RAM.",
+        "// Shared by the ATmega328P firmware (avr-gcc gnu++14, no STL) "
+        "and the ground station (C++17), so",
+        "// it uses only <stdint.h> and <stddef.h>; "
+        "unused constants cost the firmware no flash or RAM.",
         "#ifndef RGBD_CONTROL_CONTROL_SPEC_GENERATED_H_",
         "#define RGBD_CONTROL_CONTROL_SPEC_GENERATED_H_",
         "",
@@ -86,10 +90,12 @@ def generate_h(spec: dict) -> str:
         "",
         "namespace rgbd_control {",
         "",
-        '/// Control-link schema version, the reply\'s first key "ver": a ground station refuses a reply',
+        '/// Control-link schema version, the reply\'s first key "ver": '
+        "a ground station refuses a reply",
         "/// with another one (its peer speaks another layout).",
         f"constexpr uint8_t kControlLinkVersion = {spec['version']};",
-        "/// The same as a string literal, for the firmware's reply writer (joined at compile time to the",
+        "/// The same as a string literal, for the firmware's reply writer "
+        "(joined at compile time to the",
         "/// text around it: no number formatting, no extra flash).",
         f'#define RGBD_CONTROL_LINK_VERSION_STRING "{spec["version"]}"',
         "",
@@ -131,7 +137,8 @@ def generate_h(spec: dict) -> str:
     out += [
         "};",
         "",
-        '/// The reason word of a status (the reply\'s "err" key); "unknown" for a value outside the enum.',
+        '/// The reason word of a status (the reply\'s "err" key); '
+        '"unknown" for a value outside the enum.',
         "inline const char* status_reason(Status s) {",
         "  switch (s) {",
     ]
@@ -259,7 +266,8 @@ def generate_py(spec: dict) -> str:
         "from dataclasses import dataclass",
         "from enum import IntEnum",
         "",
-        '#: Control-link schema version, the reply\'s first key "ver" (a reply with another is refused).',
+        '#: Control-link schema version, the reply\'s first key "ver" '
+        "(a reply with another is refused).",
         f"CONTROL_LINK_VERSION = {spec['version']}",
         f"BRIDGE_BAUD = {spec['serial_link']['baud']}",
         f"MAX_REQUEST_BYTES = {spec['serial_link']['max_request_bytes']}",
@@ -296,7 +304,8 @@ def generate_py(spec: dict) -> str:
         "",
         "@dataclass(frozen=True)",
         "class Reply:",
-        '    """One reply line of the firmware: its status and the reply\'s keys, in wire order."""',
+        '    """One reply line of the firmware: '
+        'its status and the reply\'s keys, in wire order."""',
         "",
         "    status: int",
     ]

@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
 """Writes protocol/control/vectors/control_vectors.json: the golden vectors of the control link.
 
-Every expectation below (status codes, states, pulse widths, failsafe throttle values) is written out
-by hand from control_spec.json, firmware/core/limits.h and docs/failsafe.md; only the request lines
-and their MACs are produced with rgbd_protocol.control. The firmware core (GoogleTest), the C++
-ground-station codec and the Python codec all replay this file.
+Every expectation below (status codes, states, pulse widths, failsafe throttle values) is written
+out by hand from control_spec.json, firmware/core/limits.h and docs/failsafe.md; only the request
+lines and their MACs are produced with rgbd_protocol.control. The firmware core (GoogleTest), the
+C++ ground-station codec and the Python codec all replay this file.
 
 Usage: gen_control_vectors.py [--check]   (--check: exit 1 if the committed file is out of date)
 """
@@ -303,7 +303,8 @@ def scenarios():
 def replies():
     return [
         {
-            "line": '200 {"ver":2,"err":"ok","fw":"0.1.0","state":"armed","seq":2,"out_us":[1600,1450,1500,1550],'
+            "line": '200 {"ver":2,"err":"ok","fw":"0.1.0","state":"armed","seq":2,'
+            '"out_us":[1600,1450,1500,1550],'
             '"clamped":0,"att_mrad":[12,-34,3141],"att_age_ms":20,'
             '"imu_raw":[1,-2,-1000,30,-40,5],"imu_age_ms":21}\n',
             "valid": True,
@@ -323,7 +324,8 @@ def replies():
             },
         },
         {
-            "line": '409 {"ver":2,"err":"stale_seq","fw":"0.1.0","state":"failsafe","seq":4294967295,'
+            "line": '409 {"ver":2,"err":"stale_seq","fw":"0.1.0","state":"failsafe",'
+            '"seq":4294967295,'
             '"out_us":[1500,1500,950,1500],"clamped":15,"att_mrad":[0,0,0],"att_age_ms":null,'
             '"imu_raw":[0,0,0,0,0,0],"imu_age_ms":null}\n',
             "valid": True,
@@ -344,7 +346,8 @@ def replies():
         },
         # Another control-link version: refused by name, whatever follows the version.
         {
-            "line": '200 {"ver":3,"err":"ok","fw":"0.1.0","state":"armed","seq":2,"out_us":[1,2,3,4],'
+            "line": '200 {"ver":3,"err":"ok","fw":"0.1.0","state":"armed","seq":2,'
+            '"out_us":[1,2,3,4],'
             '"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,"imu_raw":[0,0,0,0,0,0],'
             '"imu_age_ms":null}\n',
             "valid": False,
@@ -362,13 +365,15 @@ def replies():
         {"line": "200", "valid": False},
         {"line": '200 {"ver":2,"err":"ok"}\n', "valid": False},
         {
-            "line": '200 {"ver":2,"err":"bad_mac","fw":"0.1.0","state":"armed","seq":2,"out_us":[1,2,3,4],'
+            "line": '200 {"ver":2,"err":"bad_mac","fw":"0.1.0","state":"armed","seq":2,'
+            '"out_us":[1,2,3,4],'
             '"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,"imu_raw":[0,0,0,0,0,0],'
             '"imu_age_ms":null}\n',
             "valid": False,
         },
         {
-            "line": '200 {"ver":2,"err":"ok","fw":"0.1.0","state":"flying","seq":2,"out_us":[1,2,3,4],'
+            "line": '200 {"ver":2,"err":"ok","fw":"0.1.0","state":"flying","seq":2,'
+            '"out_us":[1,2,3,4],'
             '"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,"imu_raw":[0,0,0,0,0,0],'
             '"imu_age_ms":null}\n',
             "valid": False,
@@ -380,7 +385,8 @@ def replies():
             "valid": False,
         },
         {
-            "line": '200 {"ver":2,"err":"ok","fw":"0.1.0","state":"armed","seq":2,"out_us":[1,2,3,4],'
+            "line": '200 {"ver":2,"err":"ok","fw":"0.1.0","state":"armed","seq":2,'
+            '"out_us":[1,2,3,4],'
             '"clamped":0,"att_mrad":[0,0,0],"att_age_ms":null,"imu_raw":[0,0,0,0,0,0],'
             '"imu_age_ms":null',
             "valid": False,

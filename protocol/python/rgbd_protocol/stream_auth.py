@@ -29,7 +29,8 @@ def _zero_mac(codec: Codec, fields: dict) -> dict:
 
 
 def handshake_tag(codec: Codec, key: bytes, receiver_nonce: bytes, handshake: dict) -> list[int]:
-    """The Handshake's mac (a list of ints, as the codec's u8[N] fields) answering receiver_nonce."""
+    """The Handshake's mac (a list of ints, as the codec's u8[N] fields) answering
+    receiver_nonce."""
     body = codec.encode_body("Handshake", _zero_mac(codec, handshake))
     msg = _auth(codec)["handshake_label"].encode("ascii") + bytes(receiver_nonce) + body
     return list(siphash24(key, msg))
