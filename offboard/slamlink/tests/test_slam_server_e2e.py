@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from rgbd_protocol import Codec, StreamDecoder
 from rgbd_protocol.tum_cameras import TUM_DEPTH_UNITS_PER_M, TUM_FR1
 
@@ -32,18 +31,30 @@ def free_port() -> int:
 
 
 def frame_fields(seq: int, texture: np.ndarray) -> dict:
-    rgb = np.ascontiguousarray(texture[:, seq * 4: seq * 4 + W])
+    rgb = np.ascontiguousarray(texture[:, seq * 4 : seq * 4 + W])
     depth = np.full((H, W), DEPTH_UNITS_PER_M, dtype="<u2")
+
     def image(fmt, payload):
-        return {"sequence": seq, "capture_timestamp_us": 1_000_000 + seq * 33_333,
-                "send_timestamp_us": 0, "width": W, "height": H, "pixel_format": fmt,
-                "encoding": "RAW", "payload": payload}
-    return {"pair_sequence": 10 + seq,
-            "intrinsics": {**TUM_FR1.intrinsics(), "distortion": [0.0] * 5},
-            "depth_scale_units_per_m": float(DEPTH_UNITS_PER_M),
-            # a craft's IMU attitude (level, heading north): the tracker's rotation prior path
-            "attitude": {"valid": True, "q_xyzw": [0.5, 0.5, 0.5, 0.5]},
-            "rgb": image("RGB8", rgb.tobytes()), "depth": image("DEPTH16", depth.tobytes())}
+        return {
+            "sequence": seq,
+            "capture_timestamp_us": 1_000_000 + seq * 33_333,
+            "send_timestamp_us": 0,
+            "width": W,
+            "height": H,
+            "pixel_format": fmt,
+            "encoding": "RAW",
+            "payload": payload,
+        }
+
+    return {
+        "pair_sequence": 10 + seq,
+        "intrinsics": {**TUM_FR1.intrinsics(), "distortion": [0.0] * 5},
+        "depth_scale_units_per_m": float(DEPTH_UNITS_PER_M),
+        # a craft's IMU attitude (level, heading north): the tracker's rotation prior path
+        "attitude": {"valid": True, "q_xyzw": [0.5, 0.5, 0.5, 0.5]},
+        "rgb": image("RGB8", rgb.tobytes()),
+        "depth": image("DEPTH16", depth.tobytes()),
+    }
 
 
 @pytest.mark.skipif(not BINARY.exists(), reason=f"{BINARY} not built")
@@ -54,9 +65,21 @@ def test_slam_server_answers_each_frame_with_one_pose_update():
     blocks = rng.integers(0, 256, size=(H // 8, (W + 64) // 8, 3), dtype=np.uint8)
     texture = np.repeat(np.repeat(blocks, 8, axis=0), 8, axis=1)
     port = free_port()
-    proc = subprocess.Popen([str(BINARY), "--bind", "127.0.0.1", "--port", str(port),
-                             "--features", "orb", "--backend", "glc"],
-                            stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            str(BINARY),
+            "--bind",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--features",
+            "orb",
+            "--backend",
+            "glc",
+        ],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         deadline = time.monotonic() + 20
         while True:
@@ -69,11 +92,20 @@ def test_slam_server_answers_each_frame_with_one_pose_update():
                 time.sleep(0.1)
         sock.settimeout(60)
         dec = StreamDecoder(codec)
-        sock.sendall(codec.encode("SlamHello", {"protocol_version": codec.spec.version,
-                                                "schema_hash": codec.spec.schema_hash,
-                                                "peer_name": "pytest", "session_id": 0,
-                                                "resumed": False, "session_frames": 0,
-                                                "refusal": ""}))
+        sock.sendall(
+            codec.encode(
+                "SlamHello",
+                {
+                    "protocol_version": codec.spec.version,
+                    "schema_hash": codec.spec.schema_hash,
+                    "peer_name": "pytest",
+                    "session_id": 0,
+                    "resumed": False,
+                    "session_frames": 0,
+                    "refusal": "",
+                },
+            )
+        )
         for seq in range(3):
             sock.sendall(codec.encode("RgbdFrame", frame_fields(seq, texture)))
         messages = []

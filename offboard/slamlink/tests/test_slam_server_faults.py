@@ -27,7 +27,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from rgbd_protocol import Codec, StreamDecoder
 from rgbd_protocol.tum_cameras import TUM_DEPTH_UNITS_PER_M, TUM_FR1
 
@@ -54,38 +53,73 @@ def texture(seed: int = 42) -> np.ndarray:
 
 
 def frame_bytes(seq: int, tex: np.ndarray, encoding: str = "RAW") -> bytes:
-    rgb = np.ascontiguousarray(tex[:, seq * 4: seq * 4 + W])
+    rgb = np.ascontiguousarray(tex[:, seq * 4 : seq * 4 + W])
     depth = np.full((H, W), DEPTH_UNITS_PER_M, dtype="<u2")
 
     def image(fmt, payload, enc="RAW"):
-        return {"sequence": seq, "capture_timestamp_us": 1_000_000 + seq * 33_333,
-                "send_timestamp_us": 0, "width": W, "height": H, "pixel_format": fmt,
-                "encoding": enc, "payload": payload}
+        return {
+            "sequence": seq,
+            "capture_timestamp_us": 1_000_000 + seq * 33_333,
+            "send_timestamp_us": 0,
+            "width": W,
+            "height": H,
+            "pixel_format": fmt,
+            "encoding": enc,
+            "payload": payload,
+        }
+
     rgb_image = image("RGB8", rgb.tobytes())
     if encoding != "RAW":
         rgb_image = image("RGB8", b"\xff\xd8\xff\xe0" + bytes(60) + b"\xff\xd9", encoding)
-    return CODEC.encode("RgbdFrame", {
-        "pair_sequence": 10 + seq,
-        "intrinsics": {**TUM_FR1.intrinsics(), "distortion": [0.0] * 5},
-        "depth_scale_units_per_m": float(DEPTH_UNITS_PER_M),
-        "attitude": {"valid": False, "q_xyzw": [0.0, 0.0, 0.0, 1.0]},
-        "rgb": rgb_image, "depth": image("DEPTH16", depth.tobytes())})
+    return CODEC.encode(
+        "RgbdFrame",
+        {
+            "pair_sequence": 10 + seq,
+            "intrinsics": {**TUM_FR1.intrinsics(), "distortion": [0.0] * 5},
+            "depth_scale_units_per_m": float(DEPTH_UNITS_PER_M),
+            "attitude": {"valid": False, "q_xyzw": [0.0, 0.0, 0.0, 1.0]},
+            "rgb": rgb_image,
+            "depth": image("DEPTH16", depth.tobytes()),
+        },
+    )
 
 
 def hello_bytes(session_id: int, name: str = "pytest") -> bytes:
-    return CODEC.encode("SlamHello", {"protocol_version": CODEC.spec.version,
-                                      "schema_hash": CODEC.spec.schema_hash, "peer_name": name,
-                                      "session_id": session_id, "resumed": False,
-                                      "session_frames": 0, "refusal": ""})
+    return CODEC.encode(
+        "SlamHello",
+        {
+            "protocol_version": CODEC.spec.version,
+            "schema_hash": CODEC.spec.schema_hash,
+            "peer_name": name,
+            "session_id": session_id,
+            "resumed": False,
+            "session_frames": 0,
+            "refusal": "",
+        },
+    )
 
 
 class Server:
     def __init__(self, *extra: str, backend: str = "vo"):
         self.port = free_port()
-        self.log_file = tempfile.NamedTemporaryFile(prefix="slam-server-", suffix=".log", delete=False)
+        self.log_file = tempfile.NamedTemporaryFile(
+            prefix="slam-server-", suffix=".log", delete=False
+        )
         self.proc = subprocess.Popen(
-            [str(BINARY), "--bind", "127.0.0.1", "--port", str(self.port), "--features", "orb",
-             "--backend", backend, *extra], stderr=self.log_file)
+            [
+                str(BINARY),
+                "--bind",
+                "127.0.0.1",
+                "--port",
+                str(self.port),
+                "--features",
+                "orb",
+                "--backend",
+                backend,
+                *extra,
+            ],
+            stderr=self.log_file,
+        )
         deadline = time.monotonic() + DEADLINE_S
         while "listening" not in self.log():
             assert self.proc.poll() is None, self.log()
@@ -121,6 +155,7 @@ def server_factory():
         s = Server(*extra, backend=backend)
         started.append(s)
         return s
+
     yield make
     for s in started:
         assert s.stop() == 0
@@ -267,7 +302,9 @@ def test_client_that_stops_mid_message_is_closed_with_a_cause(server_factory):
     c.hello(5)
     c.send(frame_bytes(0, texture())[:100_000])
     assert c.closed_by_peer()
-    assert "a message begun and not finished within 500 ms (100000 bytes" in srv.wait_log("begun and not finished")
+    assert "a message begun and not finished within 500 ms (100000 bytes" in srv.wait_log(
+        "begun and not finished"
+    )
     c.close()
 
 
@@ -280,7 +317,7 @@ def test_dripping_client_is_closed_with_a_cause(server_factory):
     closed = False
     for i in range(0, len(data), 10):  # 10 bytes every 20 ms: the idle timer never fires
         try:
-            c.send(data[i:i + 10])
+            c.send(data[i : i + 10])
         except (BrokenPipeError, ConnectionResetError):
             closed = True
             break
