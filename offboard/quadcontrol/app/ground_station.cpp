@@ -64,6 +64,9 @@ GroundStation::GroundStation(GroundStationOptions options, std::unique_ptr<Frame
         [this](std::int64_t t, std::uint32_t seq) { return command_at(t, seq); },
         [this](std::int64_t t, const rgbd_control::Reply& r) { on_reply(t, r); });
   }
+}
+
+void GroundStation::start() {
   frame_thread_ = std::thread([this] { frame_loop(); });
   if (!firmware_) control_thread_ = std::thread([this] { control_loop(); });
 }
@@ -107,12 +110,14 @@ void GroundStation::frame_loop() {
       if (error == "replay finished") return;
       continue;
     }
-    {
-      std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-      take_frame(*frame);
-    }
+    on_frame(*frame);
     slam_->submit(*frame);  // dropped when SLAM is busy (thesis behaviour)
   }
+}
+
+void GroundStation::on_frame(CameraFrame& frame) {
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
+  take_frame(frame);
 }
 
 void GroundStation::take_frame(CameraFrame& frame) {
@@ -140,13 +145,16 @@ void GroundStation::control_loop() {
   while (!stop_) {
     next += std::chrono::milliseconds(options_.control_period_ms);
     std::this_thread::sleep_until(next);
-    const std::int64_t now = monotonic_now_us();
-    std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-    feed_estimate(now);
-    last_stick_ = controller_.update(now);
-    last_pwm_ = to_pwm(last_stick_, spec_.pwm, apm_input());
-    if (recorder_) record_command(now, 0, false);  // no craft: state events only, nothing is sent
+    control_step(monotonic_now_us());  // the control thread's edge: the clock is read here
   }
+}
+
+void GroundStation::control_step(std::int64_t now_us) {
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
+  feed_estimate(now_us);
+  last_stick_ = controller_.update(now_us);
+  last_pwm_ = to_pwm(last_stick_, spec_.pwm, apm_input());
+  if (recorder_) record_command(now_us, 0, false);  // no craft: state events only, nothing is sent
 }
 
 std::optional<PwmCommand> GroundStation::command_at(std::int64_t now_us, std::uint32_t seq) {

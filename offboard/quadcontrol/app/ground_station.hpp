@@ -3,12 +3,12 @@
 // sessions, declared map corrections, IMU + pose estimator: core/craft_pose_tracker.hpp), the
 // flight controller, the floor map and the firmware link, and exposes snapshots for the dashboard.
 //
-// Threads (all owned here, joined in the destructor): the frame thread (source -> latest frame ->
-// SLAM hand-over), the SLAM thread (inside SlamLink; its results go through the tracker into the
-// controller, the logs and the map), and either the firmware link's I/O thread, which runs
-// controller.update(now) just before each command it sends (every firmware.period_ms, or with
-// firmware.send_on_pose on each fresh tracked pose, rate-limited, plus keep-alives), or, with no
-// firmware, the control thread (controller.update(now) every control_period_ms, for the
+// Threads (all owned here, started by start(), joined in the destructor): the frame thread (source
+// -> latest frame -> SLAM hand-over), the SLAM thread (inside SlamLink; its results go through the
+// tracker into the controller, the logs and the map), and either the firmware link's I/O thread,
+// which runs controller.update(now) just before each command it sends (every firmware.period_ms, or
+// with firmware.send_on_pose on each fresh tracked pose, rate-limited, plus keep-alives), or, with
+// no firmware, the control thread (controller.update(now) every control_period_ms, for the
 // dashboard). The SLAM link is created on the first frame (it needs the intrinsics). Shared state
 // is guarded by one mutex; everything below is only touched under it.
 //
@@ -18,7 +18,8 @@
 // recorder calls; the state lives in parts of its own, each pure and tested alone: the tracker,
 // the controller, the map (StationMap: FloorMap, revision, renderings, depth sub-sampling), the
 // newest frame's images (FrameImages), the stream figures (StreamStats) and the track
-// (TrajectoryTrail).
+// (TrajectoryTrail). Unstarted, the station is driven by calling the threads' steps
+// (tests/ground_station_test.cpp).
 #pragma once
 
 #include <atomic>
@@ -125,8 +126,9 @@ nlohmann::json to_json(const StationSnapshot& snapshot);
 
 class GroundStation : public DashboardBackend {
  public:
-  /// Starts every thread. `firmware` may be null options (no craft: commands are computed, not
-  /// sent); `log` may be null (no flight recorder).
+  /// Sets up the station; start() starts its threads. `firmware` may be null options (no craft:
+  /// commands are computed, not sent; with options the firmware link starts its own thread here);
+  /// `log` may be null (no flight recorder).
   GroundStation(GroundStationOptions options, std::unique_ptr<FrameSource> source,
                 std::optional<FirmwareLinkOptions> firmware, ControlSpec spec,
                 rgbd_control::Key key, std::unique_ptr<FlightLog> log = nullptr,
@@ -134,6 +136,26 @@ class GroundStation : public DashboardBackend {
   ~GroundStation();
   GroundStation(const GroundStation&) = delete;
   GroundStation& operator=(const GroundStation&) = delete;
+
+  /// Starts the frame thread, and the control thread when there is no firmware link. Once only.
+  void start();
+
+  // The steps the threads run, public so that a test can drive the station without threads
+  // (thread-safe: each takes the lock).
+  /// One frame from the source: counted, logged, recorded, its IMU attitude set (the frame thread,
+  /// before handing it to SLAM).
+  void on_frame(CameraFrame& frame);
+  /// Takes a SLAM result, arrived at `now_us`, through the tracker into the controller, the logs
+  /// and the map; true when it gave the controller a fresh tracked pose (then the firmware link is
+  /// told, outside the lock).
+  bool apply_slam_result(std::int64_t now_us, const SlamResult& result, const CameraFrame& frame);
+  /// The control thread's tick without a craft: the controller at `now_us`, nothing sent.
+  void control_step(std::int64_t now_us);
+  /// The firmware link's command provider: runs the controller at `now_us` on the newest pose;
+  /// nullopt while the controller hands the craft over to its failsafe (nothing is sent).
+  std::optional<PwmCommand> command_at(std::int64_t now_us, std::uint32_t seq);
+  /// A firmware reply received at `received_us` (IMU for the tracker, matched to frames).
+  void on_reply(std::int64_t received_us, const rgbd_control::Reply& reply);
 
   // Dashboard API (thread-safe; dashboard_backend.hpp). `now_us`: monotonic_now_us() read by
   // the caller.
@@ -151,18 +173,9 @@ class GroundStation : public DashboardBackend {
  private:
   void frame_loop();
   void control_loop();
-  /// The firmware link's command provider: runs the controller at `now_us` on the newest pose;
-  /// nullopt while the controller hands the craft over to its failsafe (nothing is sent).
-  std::optional<PwmCommand> command_at(std::int64_t now_us, std::uint32_t seq);
   void on_slam(const SlamResult& result, const CameraFrame& frame);
-  /// Takes a SLAM result, arrived at `now_us`, through the tracker into the controller, the logs
-  /// and the map; true when it gave the controller a fresh tracked pose (then the firmware link is
-  /// told, outside the lock).
-  bool apply_slam_result(std::int64_t now_us, const SlamResult& result, const CameraFrame& frame);
-  /// Counts, logs and records a frame from the source and sets its IMU attitude (caller holds
-  /// mutex_).
+  /// on_frame() with mutex_ held.
   void take_frame(CameraFrame& frame);
-  void on_reply(std::int64_t received_us, const rgbd_control::Reply& reply);
   /// Feeds the controller the estimator's state at `now_us` (caller holds mutex_) when the
   /// estimator is on and has fresh IMU input; else nothing (the raw poses drive the controller).
   void feed_estimate(std::int64_t now_us);

@@ -209,6 +209,7 @@ int serve_until_signal(AppConfig& config, StationParts parts, sigset_t& signals)
     GroundStation station(config.station, std::move(parts.source), parts.firmware,
                           generated_control_spec(), parts.key, std::move(parts.flight_log),
                           std::move(parts.recorder));
+    station.start();
     DashboardApi api(station, config.dashboard_static_dir,
                      AccessPolicy{config.dashboard_token, config.dashboard_allowed_hosts},
                      monotonic_now_us);
