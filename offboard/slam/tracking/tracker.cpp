@@ -440,17 +440,9 @@ void Tracker::recover_or_cross_check(const FrameInput& in, Attempt* a, TrackResu
         std::find(candidates.begin(), candidates.end(), reference_kf_) == candidates.end())
       candidates.insert(candidates.begin(), reference_kf_);
   }
-  const auto guess = pose_from_keyframes(in.tf, candidates, in.seed);
-  if (guess) {
-    LocalMap around;
-    {
-      const auto lock = lock_map();
-      // Local map around the keyframe the guess was registered to (the RANSAC-best candidate,
-      // not the first by appearance: while tracking, that is the reference keyframe).
-      around = build_local_map({}, guess->keyframe);
-    }
-    Fit refit =
-        fit_local_map(around, in.tf, guess->T_world_cam.inverse(), options_.search.radius_px);
+  if (auto from_keyframes = fit_from_keyframes(in, candidates)) {
+    LocalMap& around = from_keyframes->local;
+    Fit& refit = from_keyframes->fit;
     // A cross-check that lands on the same pose changes nothing: the projection fit, matched
     // against the local map of the last frame's points, stays (and with it the keyframe's links
     // to the map). Only a different pose with more inliers replaces it.
@@ -474,6 +466,21 @@ void Tracker::recover_or_cross_check(const FrameInput& in, Attempt* a, TrackResu
     }
   }
   out->relocalise_ms = ms_since(t0);
+}
+
+std::optional<Tracker::Attempt> Tracker::fit_from_keyframes(
+    const FrameInput& in, const std::vector<std::int64_t>& candidates) const {
+  const auto guess = pose_from_keyframes(in.tf, candidates, in.seed);
+  if (!guess) return std::nullopt;
+  Attempt a;
+  {
+    const auto lock = lock_map();
+    // Local map around the keyframe the guess was registered to (the RANSAC-best candidate, not
+    // the first by appearance: while tracking, that is the reference keyframe).
+    a.local = build_local_map({}, guess->keyframe);
+  }
+  a.fit = fit_local_map(a.local, in.tf, guess->T_world_cam.inverse(), options_.search.radius_px);
+  return a;
 }
 
 Tracker::Verdict Tracker::judge(const RgbdFrame& frame, const Attempt& a, TrackResult* out) const {
@@ -507,15 +514,9 @@ bool Tracker::confirm_off_path(const FrameInput& in, Attempt* a, TrackResult* ou
   // and 3D-3D RANSAC, independent of the prediction, and refitted there: when that lands on the
   // same pose, the fit has independent support and is kept.
   if (reference_kf_ < 0) return false;
-  const auto guess = pose_from_keyframes(in.tf, {reference_kf_}, in.seed);
-  if (!guess) return false;
-  LocalMap around;
-  {
-    const auto lock = lock_map();
-    around = build_local_map({}, guess->keyframe);
-  }
-  const Fit refit =
-      fit_local_map(around, in.tf, guess->T_world_cam.inverse(), options_.search.radius_px);
+  const auto from_keyframes = fit_from_keyframes(in, {reference_kf_});
+  if (!from_keyframes) return false;
+  const Fit& refit = from_keyframes->fit;
   if (!refit.ok || static_cast<int>(refit.inliers) < options_.min_inliers_relocalised) return false;
   const CameraShift d = camera_shift(a->fit.T_cam_world, refit.T_cam_world);
   out->cross_check_shift_m = d.metres;

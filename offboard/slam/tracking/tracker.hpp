@@ -317,6 +317,12 @@ class Tracker {
   /// Relocalises when the fit is missing or weak, or cross-checks a weak fit against the
   /// reference keyframe; replaces the fit when the keyframe database's is better.
   void recover_or_cross_check(const FrameInput& in, Attempt* attempt, TrackResult* out);
+  /// The frame registered to `candidates` by descriptors and 3D-3D RANSAC (independent of the
+  /// prediction), then fitted by projection to the local map around the keyframe that won;
+  /// nullopt when no candidate registers. Used by relocalisation, the cross-check of weak fits and
+  /// confirm_off_path.
+  std::optional<Attempt> fit_from_keyframes(const FrameInput& in,
+                                            const std::vector<std::int64_t>& candidates) const;
   enum class Verdict { kAccepted, kTooFewInliers, kTooFast, kOffPath };
   /// Whether the fit meets its inlier bar, the speed bounds and the motion bound (in that order).
   Verdict judge(const RgbdFrame& frame, const Attempt& attempt, TrackResult* out) const;
