@@ -7,7 +7,9 @@ loss to the application: a lost segment shows up as a stall of one retransmissio
 minimum RTO is 200 ms) after which the data arrives in order. So each chunk forwarded is delayed by
 `delay_ms` (+ uniform `jitter_ms`), and with probability `loss` it is held an extra `rto_ms`; order
 is kept (a stalled chunk holds back the ones behind it, as TCP's in-order delivery does).
-`sever()` drops every connection and refuses new ones until `restore()`.
+`sever()` drops every connection and refuses new ones until `restore()`. `stall(seconds)` holds
+every chunk for that long (a WiFi link that stops carrying data and then delivers the backlog, as
+TCP does after a stall); `impairment` may be replaced while the proxy runs.
 Randomness: one seeded generator per proxy. Wall clock: read through the `clock` passed in (the
 proxy is a real-time component between real processes). Threads are joined by close().
 """
@@ -47,6 +49,7 @@ class _Pipe:
         self.queue: deque[tuple[float, bytes]] = deque()
         self.cv = threading.Condition()
         self.closed = False
+        self.finished = False  # the writer is done: nothing more goes through this direction
         self.threads = [
             threading.Thread(target=self._read, daemon=True),
             threading.Thread(target=self._write, daemon=True),
@@ -95,6 +98,7 @@ class _Pipe:
             self.dst.shutdown(socket.SHUT_WR)
         except OSError:
             pass
+        self.finished = True
 
 
 class LinkProxy:
@@ -114,6 +118,7 @@ class LinkProxy:
         self._conns: list[tuple[socket.socket, socket.socket, _Pipe, _Pipe]] = []
         self.stalls = 0
         self.chunks = 0
+        self._stall_until = 0.0  # clock() before which nothing is released (stall())
         self._listener: socket.socket | None = None
         self.port = 0
         self._stop = threading.Event()
@@ -136,7 +141,16 @@ class LinkProxy:
             self.chunks += 1
             if lost:
                 self.stalls += 1
-        return self.clock() + (imp.delay_ms + extra + (imp.rto_ms if lost else 0.0)) / 1000.0
+        release = self.clock() + (imp.delay_ms + extra + (imp.rto_ms if lost else 0.0)) / 1000.0
+        return max(release, self._stall_until)
+
+    def stall(self, seconds: float) -> None:
+        """The link carries nothing for `seconds` from now; what is sent meanwhile arrives in order
+        when the stall ends (connections stay open)."""
+        if not seconds >= 0:
+            raise ValueError("stall seconds must be >= 0")
+        with self._rng_lock:
+            self._stall_until = max(self._stall_until, self.clock() + seconds)
 
     def _accept(self) -> None:
         while not self._stop.is_set():
@@ -154,9 +168,24 @@ class LinkProxy:
                 continue
             client.settimeout(None)
             with self._lock:
+                self._close_finished()
                 self._conns.append(
                     (client, upstream, _Pipe(client, upstream, self), _Pipe(upstream, client, self))
                 )
+
+    def _close_finished(self) -> None:
+        """Caller holds _lock. Closes the sockets of connections finished both ways: a client that
+        opens a connection per request (quad-control's firmware link does, `Connection: close`)
+        would otherwise leave two descriptors behind per request (~60 a second)."""
+        keep = []
+        for conn in self._conns:
+            a, b, p1, p2 = conn
+            if p1.finished and p2.finished:
+                a.close()
+                b.close()
+            else:
+                keep.append(conn)
+        self._conns = keep
 
     def sever(self) -> None:
         """The link goes down: every connection is reset and the port refuses new ones."""

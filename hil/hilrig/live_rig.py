@@ -101,6 +101,15 @@ class LiveRig:
         self.lag_events: list[tuple[int, float, float]] = []
         self._last_injected_us: float | None = None
         self.injection_gaps: list[dict] = []
+        # Back-to-back fault: while > 0, the bridge forwards each request with this many
+        # `GET /status` lines right behind it, as one burst of bytes (a second HTTP client on the
+        # bridge, e.g. a telemetry poller, whose requests the chip queues and forwards without
+        # waiting). The firmware keeps three back to back (docs/firmware.md, Receive path), so
+        # 1-2 extra lines must cost nothing. Set from any thread; read by the rig thread.
+        self.back_to_back_extra = 0
+        self.bursts_sent = 0
+        self._burst_replies_left = 0  # extra replies still due; no new line until they are in
+        self._burst_sent_us = 0.0
         self._thread = threading.Thread(target=self._run, name="live-rig", daemon=True)
 
     # ---- API ------------------------------------------------------------------------------------
@@ -196,6 +205,9 @@ class LiveRig:
     # A gap between injected lines this long (simulated us) is recorded: two keep-alive periods of
     # quad-control (50 ms), 40 % of the firmware's 250 ms failsafe (as quad-control's own gap log).
     INJECTION_GAP_US = 100_000
+    # A burst's replies all arrive within ~3 x 11 ms (docs/firmware.md: ~10.6 ms per request at
+    # 1 Mbaud); one missing after 100 ms was dropped (the firmware keeps three back to back).
+    BURST_REPLY_TIMEOUT_US = 100_000
 
     def _note_injection(self, t_us: float) -> None:
         """Caller holds the lock. Records a long simulated gap since the previous injected line,
@@ -218,14 +230,32 @@ class LiveRig:
     def _step(self, t_next: int) -> None:
         s = self._session
         with self._lock:
-            if self._inflight is None:
+            if (
+                self._burst_replies_left
+                and self.sim_us - self._burst_sent_us > self.BURST_REPLY_TIMEOUT_US
+            ):
+                # A line of the burst was dropped by the firmware (no reply comes): the bridge
+                # gives up on it, as on any request lost on the wire.
+                if self._inflight is not None and self._inflight.injected_us == self._burst_sent_us:
+                    self._inflight.done.set()
+                    self._inflight = None
+                self._burst_replies_left = 0
+            if self._inflight is None and not self._burst_replies_left:
                 while self._queue and self._queue[0].abandoned:
                     self._queue.popleft()
                 if self._queue:
                     self._inflight = self._queue.popleft()
                     self._inflight.injected_us = max(float(self.sim_us), s.now_us)
                     self._note_injection(self._inflight.injected_us)
-                    s.req(self._inflight.injected_us, self._inflight.line)
+                    extra = max(0, int(self.back_to_back_extra))
+                    if extra:
+                        burst = self._inflight.line + "\n" + "GET /status\n" * extra
+                        s.raw(self._inflight.injected_us, burst.encode())
+                        self._burst_replies_left = extra
+                        self._burst_sent_us = self._inflight.injected_us
+                        self.bursts_sent += 1
+                    else:
+                        s.req(self._inflight.injected_us, self._inflight.line)
         for t, data in self._mav:
             s.mav(t, data)
         self._mav.clear()
@@ -251,6 +281,8 @@ class LiveRig:
                 p = self._inflight
                 self._inflight = None
                 if p is None:
+                    # The reply to a burst's extra line (or a stray one): nobody waits for it.
+                    self._burst_replies_left = max(0, self._burst_replies_left - 1)
                     continue
                 p.reply = r.text
                 p.reply_end_us = r.end_us

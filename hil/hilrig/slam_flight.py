@@ -177,6 +177,12 @@ class SlamFlightOptions:
     imu_rotation_prior: bool | None = field(
         default_factory=lambda: _env_flag("HIL_IMU_ROTATION_PRIOR")
     )
+    # Faults: the WiFi link between quad-control and the bridge goes through a LinkProxy
+    # (`control_proxy`); None = direct.
+    control_impairment: LinkImpairment | None = None
+    # Builds the camera: (dump_dir, KinectOptions) -> a LiveKinect (or a subclass that injects
+    # camera faults, as the soak's); None = LiveKinect.
+    kinect_factory: object = None
 
     def validate(self) -> None:
         if not 1.0 <= self.fps <= 30.0:
@@ -217,6 +223,10 @@ class SlamFlight:
         self._saved_sched = None
         self._flight_lock: FlightLock | None = None
         self.stream_proxies: list[LinkProxy] = []
+        self.control_proxy: LinkProxy | None = None
+        self._qc_ports: tuple[int, int, int] | None = (
+            None  # slam, rgb, depth (restart_ground_station)
+        )
         self._pump_stop = threading.Event()
         self._pump: threading.Thread | None = None
         self._pump_error: BaseException | None = None
@@ -266,7 +276,10 @@ class SlamFlight:
                 workdir=self.workdir,
             ).start()
             self.bridge = WifiBridgeEmulator(self.rig.transact).start()
+            if o.control_impairment is not None:
+                self.control_proxy = LinkProxy(self.bridge.port, o.control_impairment)
             slam_port, rgb_port, depth_port = free_ports(3)
+            self._qc_ports = (slam_port, rgb_port, depth_port)
             self._start(
                 "slam-server",
                 [
@@ -310,7 +323,7 @@ class SlamFlight:
                 system=True,
             )
             self.dashboard_port = self._wait_dashboard_port(qc)
-            self.kinect = LiveKinect(
+            self.kinect = (o.kinect_factory or LiveKinect)(
                 self.workdir / "kinect-dump",
                 KinectOptions(
                     fps=o.fps, seed=o.kinect_seed, blank_frames=frozenset(o.blank_frames)
@@ -362,6 +375,8 @@ class SlamFlight:
             p.stop()
         for proxy in self.stream_proxies:
             proxy.close()
+        if self.control_proxy is not None:
+            self.control_proxy.close()
         if self.bridge is not None:
             self.bridge.close()
         if self._saved_sched is not None:
@@ -388,6 +403,47 @@ class SlamFlight:
             if name == "quad-control" and p.alive():
                 p.proc.kill()
                 p.proc.wait(timeout=5)
+
+    def restart_ground_station(self, log_dir: Path, recording_dir: Path) -> None:
+        """A new quad-control (the operator starts the ground station for the next flight): the
+        old one, alive or killed, is stopped by its PID; the new one gets the same configuration
+        with its own flight log and recording folder, and the dashboard port it prints."""
+        if self._qc_ports is None:
+            raise RuntimeError("the flight is not started")
+        for name, p in self._procs:
+            if name == "quad-control":
+                p.stop()
+        self._procs = [(n, p) for n, p in self._procs if n != "quad-control"]
+        self.log_dir, self.recording_dir = Path(log_dir), Path(recording_dir)
+        self.log_dir.parent.mkdir(parents=True, exist_ok=True)
+        config = self._write_quad_control_config(*self._qc_ports)
+        qc = self._start(
+            "quad-control",
+            [
+                find_binary("quad-control"),
+                "--config",
+                config,
+                "--port",
+                "0",
+                "--flight-log",
+                self.log_dir,
+            ],
+            system=True,
+            log_path=self.log_dir.parent / "quad-control.log",
+        )
+        self.dashboard_port = self._wait_dashboard_port(qc)
+
+    def process_ids(self) -> dict[str, int]:
+        """PID of each running process the flight started, by program name."""
+        out = {name: p.pid for name, p in self._procs if p.alive()}
+        if self.kinect is not None and getattr(self.kinect, "_proc", None) is not None:
+            if self.kinect.alive():
+                out["kinect-renderer"] = self.kinect._proc.pid
+        if self.rig is not None:
+            fw = getattr(self.rig._session, "_proc", None)
+            if fw is not None and fw.poll() is None:
+                out["fw_sim"] = fw.pid
+        return out
 
     def kill_slam_server(self) -> None:
         """slam-server dies mid-flight (SIGKILL: no goodbye, its maps are gone)."""
@@ -432,14 +488,18 @@ class SlamFlight:
         for proxy in self.stream_proxies:
             proxy.restore()
 
-    def _start(self, name: str, argv, env=None, system: bool = False) -> ManagedProcess:
+    def _start(
+        self, name: str, argv, env=None, system: bool = False, log_path: Path | None = None
+    ) -> ManagedProcess:
         """`system`: a process of the ground station (or the load), started under the normal policy
         whatever the rig runs under (it raises its own real-time threads, as on its own machine)."""
         from hilrig.realtime import normal_policy_argv
 
         argv = [str(a) for a in argv]
         p = ManagedProcess(
-            normal_policy_argv(argv) if system else argv, self.workdir / f"{name}.log", env=env
+            normal_policy_argv(argv) if system else argv,
+            log_path or self.workdir / f"{name}.log",
+            env=env,
         )
         self._procs.append((name, p))
         return p
@@ -484,7 +544,7 @@ class SlamFlight:
             "firmware": {
                 "enabled": True,
                 "host": "127.0.0.1",
-                "port": self.bridge.port,
+                "port": self.control_proxy.port if self.control_proxy else self.bridge.port,
                 "key_hex": o.key.hex(),
                 **({} if o.send_on_pose is None else {"send_on_pose": o.send_on_pose}),
             },
