@@ -8,6 +8,8 @@
 #   make results         docs/results.md from out/results/*.json (written by bench, hil, demo-loop)
 #   make fuzz            longer libFuzzer runs (FUZZ_SECONDS per target, default 300)
 #   make hil             all hardware-in-loop scenarios
+#   make soak            HIL missions back to back for SOAK_MINUTES (60) under a seeded fault schedule
+#                        (SOAK_SEED), then a report in out/soak/ and a replay check (docs/hil.md, Soak)
 #   make firmware        build the ATmega328P image, print flash/RAM use
 #   make flash PORT=/dev/ttyACM0   upload the firmware with avrdude
 #   make install-onboard install rgbd-streamer + config + systemd unit on this (onboard) machine (.deb)
@@ -29,7 +31,7 @@ define component
 endef
 
 .PHONY: all deps build build-cpp build-asan firmware test demo demo-loop bench study fuzz hil flash \
-        install-onboard run-offboard clean help onboard-arm bench-arm results
+        install-onboard run-offboard clean help onboard-arm bench-arm results soak
 
 all: build
 
@@ -71,6 +73,9 @@ fuzz: build
 
 hil: build
 	$(call component,hil/run.sh,)
+
+soak: build
+	$(call component,hil/soak/run.sh,)
 
 flash: firmware
 	$(call component,firmware/flash.sh,$(PORT))
