@@ -16,6 +16,9 @@ flight.
      trajectory against the in-flight poses with tum-score (rigid alignment: the replay's world is
      its first camera, the flight's is the floor frame; 20 ms association).
 Prints one JSON object (frames, poses, ATE of replay vs flight) and writes it to DIR/replay.json.
+A recording cut short (quad-control killed, disk full) or with a damaged chunk is replayed up to the
+damage (a damaged chunk is skipped, the frames after it are kept): a warning on stderr says where
+the file is damaged and how many frames are replayed, and the JSON carries it as `damage`.
 The camera is recognised from the recorded calibration (slam-eval knows the TUM cameras); a
 recording with other intrinsics is refused with the reason.
 """
@@ -84,7 +87,11 @@ def extract(mcap: Path, out: Path) -> dict:
     }
     cal = rec.topic("/camera/calibration")
     if not cal:
-        raise ValueError(f"{mcap}: no /camera/calibration message (recorded without images?)")
+        damage = damage_summary(mcap, rec, 0)
+        raise ValueError(
+            f"{mcap}: no /camera/calibration message "
+            f"({damage if damage else 'recorded without images?'})"
+        )
     calib = cal[0].data
     units = float(calib.get("depth_units_per_m", TUM_DEPTH_UNITS_PER_M))
     tum = out / "tum"
@@ -135,12 +142,36 @@ def extract(mcap: Path, out: Path) -> dict:
         "distortion": any(abs(x) > 0 for x in D),
         "errors": rec.errors,
         "complete": rec.complete,
+        "damage": damage_summary(mcap, rec, len(stamps)),
     }
+
+
+def damage_summary(mcap: Path, rec, frames: int) -> str | None:
+    """One sentence on what is wrong with a recording that is not whole, or None if it is."""
+    if rec.complete and not rec.errors:
+        return None
+    size = mcap.stat().st_size
+    # The reader's own findings, without its note that the seeking read failed (always the case
+    # for such a file; the streaming read's errors say why).
+    found = [e for e in rec.errors if not e.startswith("seeking read failed")]
+    if not rec.complete and not found:
+        found = [f"no footer: the file ends after its last whole record at byte {rec.bytes_read}"]
+    return (
+        f"{mcap.name} is {'damaged' if rec.complete else 'incomplete'} ({size} bytes, "
+        f"{rec.bytes_read} usable): {'; '.join(found)}; replaying the {frames} frames read "
+        "(a damaged chunk's frames are missing, a cut file ends at its last whole chunk)"
+    )
+
+
+def _warn_damage(info: dict) -> None:
+    if info.get("damage"):
+        print(f"flight_recording.replay: WARNING: {info['damage']}", file=sys.stderr)
 
 
 def run(mcap: Path, out: Path, slam_eval: Path, tum_score: Path) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     info = extract(mcap, out)
+    _warn_damage(info)
     if info["frames"] < 2 or info["flight_poses"] < 2:
         raise ValueError(
             f"{mcap}: {info['frames']} frames and {info['flight_poses']} poses: nothing to replay"
@@ -202,12 +233,15 @@ def main(argv: list[str] | None = None) -> int:
         help="write the TUM folder and flight.tum, run nothing",
     )
     a = ap.parse_args(argv)
+    if not a.recording.is_file():
+        print(f"flight_recording.replay: {a.recording}: no such file", file=sys.stderr)
+        return 1
     try:
-        result = (
-            extract(a.recording, a.out)
-            if a.extract_only
-            else run(a.recording, a.out, a.slam_eval, a.tum_score)
-        )
+        if a.extract_only:
+            result = extract(a.recording, a.out)
+            _warn_damage(result)
+        else:
+            result = run(a.recording, a.out, a.slam_eval, a.tum_score)
     except (ValueError, subprocess.CalledProcessError) as e:
         detail = getattr(e, "stderr", "") or ""
         print(f"flight_recording.replay: {e}\n{detail}", file=sys.stderr)
