@@ -101,7 +101,7 @@ def build(soak, replays) -> dict:
             ),
         }
         for m in missions
-        if m.get("outcome") not in ("completed", "landed by failsafe as expected")
+        if m.get("outcome") not in ("completed", "landed by failsafe as expected", "interrupted")
     ]
     flown_s = max((m.get("ended_elapsed_s") or 0 for m in missions), default=0)
     replay_ok = replays is None or all(

@@ -63,8 +63,9 @@ TOUCHDOWN_LIMIT_MPS = 0.51
 LANDING_WAIT_S = 60.0
 # Resource samples of every process (RSS, open descriptors) this often.
 SAMPLE_PERIOD_S = 10.0
-# Recordings of missions that went as expected are deleted after the first few (the check replays
-# three of them); those of every other mission are kept. A mission records ~200 MB a minute.
+# Recordings of missions that went as expected are deleted but for the first few completed ones
+# (the check replays three of them); those of every other mission are kept. A mission records
+# ~1 GB (two 512 MB files), so an hour would fill ~30 GB.
 KEEP_EXPECTED_RECORDINGS = 5
 
 
@@ -138,6 +139,9 @@ class Soak:
                 self._fly(plan, deadline)
         except KeyboardInterrupt:
             self.interrupted = True
+            if self.missions and "outcome" not in self.missions[-1]:
+                self.missions[-1]["outcome"] = "interrupted"
+                self.missions[-1]["reason"] = "Ctrl-C during the mission (not judged)"
             _say("soak: interrupted: stopping every process it started (by PID)")
         except Exception as e:  # noqa: BLE001 - the report must still be written
             self.fatal = f"{e!r}\n{traceback.format_exc()[-3000:]}"
@@ -316,8 +320,8 @@ class Soak:
             _say(f"soak: mission {n}: stopped after '{last}': {rec['gave_up'][:200]}")
         finally:
             inj.stop()
-        rec["faults_injected"] = list(inj.injected)
-        rec["fault_errors"] = list(inj.errors)
+            rec["faults_injected"] = list(inj.injected)
+            rec["fault_errors"] = list(inj.errors)
         if not rec["completed_steps"]:
             self._bring_down(rec)
         self._judge(rec, events_before, touch_before, sim_start, goals_room)
@@ -523,18 +527,19 @@ class Soak:
         rec["ended_elapsed_s"] = round(self.elapsed_s(), 1)
 
     def _prune_recording(self, rec: dict, mdir: Path) -> None:
-        expected = rec["outcome"] in ("completed", "landed by failsafe as expected")
-        if not expected:
+        """Recordings of failures are kept, and those of the first completed missions (the replay
+        check's); the rest are deleted."""
+        if rec["outcome"] not in ("completed", "landed by failsafe as expected"):
             return
         if (
-            self.expected_recordings_kept < KEEP_EXPECTED_RECORDINGS
-            or rec["outcome"] != "completed"
+            rec["outcome"] == "completed"
+            and self.expected_recordings_kept < KEEP_EXPECTED_RECORDINGS
         ):
-            if rec["outcome"] == "completed":
-                self.expected_recordings_kept += 1
-                return
+            self.expected_recordings_kept += 1
+            return
         shutil.rmtree(mdir / "recording", ignore_errors=True)
-        rec["recording_deleted"] = "an expected outcome (disk: ~200 MB per minute)"
+        rec["recording_deleted"] = rec["recording"]
+        rec["recording"] = []
 
 
 def main(argv=None) -> int:
