@@ -5,6 +5,8 @@
 //     DIR/trajectory_online.tum (poses as estimated at the time), DIR/metrics.json, DIR/map.ply,
 //     and for the thesis back-ends DIR/graph_before.g2o, DIR/graph_after.g2o; progress on stderr.
 //   slam-eval score --gt GT.txt --est EST.tum    prints the ATE/RPE JSON.
+//   slam-eval accel-check --dataset DIR [--dataset DIR2]   checks the accelerometer-to-camera
+//     rotation against the ground truth (spread of the specific force's world direction), JSON.
 //   slam-eval vocab --dataset DIR [--dataset DIR2] --out FILE   trains the ORB bag-of-words
 //     vocabulary (deterministic; offboard/slam/data/orb_vocabulary_k10_l3.bin is its output on
 //     tests/data/fr1_desk_9frames, compiled into the library).
@@ -24,6 +26,8 @@
 #include "slam/dataset/replay_schedule.hpp"
 #include "slam/dataset/tum_dataset.hpp"
 #include "slam/eval/metrics.hpp"
+#include "slam/motion/accel_gate.hpp"
+#include "slam/motion/gravity_consistency.hpp"
 #include "slam/pipeline/map_export.hpp"
 #include "slam/pipeline/pipeline.hpp"
 #include "slam/report/run_metrics.hpp"
@@ -195,6 +199,9 @@ struct RunSetup {
   slam::Intrinsics intr;
   std::optional<slam::TumDataset> ds;
   std::unique_ptr<slam::Pipeline> pipeline;
+  /// Judges each frame's accelerometer sample (accelerometer.txt) at load; its counters go into
+  /// metrics.json "accelerometer".
+  slam::AccelGate accel_gate;
 };
 
 /// Options, intrinsics, dataset, output folder and pipeline (with --load-map); nullopt with the
@@ -258,7 +265,7 @@ std::optional<ReplayStats> replay_dataset(const RunArgs& a, RunSetup& r) {
   std::size_t load_failures = 0;
   std::string err;
   for (std::size_t i = 0; i < ds.size(); ++i) {
-    auto frame = ds.load(i, &err);
+    auto frame = ds.load(i, &err, &r.accel_gate);
     if (!frame) {
       std::cerr << "slam-eval: " << err << "\n";
       if (i == 0 || ++load_failures > 5) {
@@ -286,6 +293,23 @@ std::optional<ReplayStats> replay_dataset(const RunArgs& a, RunSetup& r) {
   return stats;
 }
 
+/// metrics.json "accelerometer": the file read (null without one), samples in it, and per frame
+/// loaded the gate's verdict: used, ignored, and ignored per reason.
+json accel_metrics_json(const slam::TumDataset& ds, const slam::AccelGate& gate) {
+  const slam::AccelCounts& c = gate.counts();
+  json by_reason = json::object();
+  for (std::size_t v = 1; v < slam::kAccelVerdictCount; ++v)
+    by_reason[slam::to_string(static_cast<slam::AccelVerdict>(v))] = c.by_verdict[v];
+  json m;
+  m["file"] = ds.accelerometer_path().empty() ? json(nullptr) : json(ds.accelerometer_path());
+  m["samples_in_file"] = ds.accel_sample_count();
+  m["frames_used"] = c.accepted();
+  m["frames_ignored"] = c.ignored();
+  m["ignored_by_reason"] = by_reason;
+  m["max_stamp_gap_s"] = gate.options().max_stamp_gap_s;
+  return m;
+}
+
 /// metrics.json (options, outcome, scores against the ground truth when the dataset has one).
 bool write_metrics(const RunArgs& a, const RunSetup& r, const slam::RunOutcome& run, json* m,
                    std::string* err) {
@@ -297,6 +321,7 @@ bool write_metrics(const RunArgs& a, const RunSetup& r, const slam::RunOutcome& 
     std::cerr << "slam-eval: no groundtruth.txt in " << a.dataset << ": trajectory not scored\n";
     (*m)["ground_truth"] = nullptr;
   }
+  (*m)["accelerometer"] = accel_metrics_json(*r.ds, r.accel_gate);
   std::ofstream mf(fs::path(a.out) / "metrics.json");
   mf << m->dump(2) << "\n";
   if (!mf) *err = "cannot write metrics.json";
@@ -340,6 +365,13 @@ int run_command(const RunArgs& a) {
     std::cerr << ", ATE " << m["ate_rmse_m"].get<double>() << " m, RPE "
               << m.value("rpe_trans_rmse_mm", 0.0) << " mm / " << m.value("rpe_rot_rmse_deg", 0.0)
               << " deg";
+  const slam::AccelCounts& ac = setup->accel_gate.counts();
+  std::cerr << "\nslam-eval: accelerometer: " << ac.accepted() << " frames used, " << ac.ignored()
+            << " ignored (";
+  for (std::size_t v = 1; v < slam::kAccelVerdictCount; ++v)
+    std::cerr << (v > 1 ? ", " : "") << slam::to_string(static_cast<slam::AccelVerdict>(v)) << " "
+              << ac.by_verdict[v];
+  std::cerr << ")" << (setup->ds->accelerometer_path().empty() ? ", no accelerometer.txt" : "");
   std::cerr << "\nslam-eval: wrote " << a.out << "/{trajectory.tum,trajectory_online.tum,"
             << (a.no_map ? "" : "map.ply,") << "metrics.json"
             << (setup->pipeline->is_local_map() ? "" : ",graph_before.g2o,graph_after.g2o")
@@ -392,6 +424,105 @@ int vocab_command(const std::vector<std::string>& datasets, const std::string& o
   std::cerr << "slam-eval vocab: " << images.size() << " images, " << descriptors
             << " descriptors -> " << v->words() << " words (k " << options.branching << ", L "
             << options.levels << "), " << bytes.size() << " bytes to " << out << "\n";
+  return 0;
+}
+
+/// The ground-truth pose nearest stamp_s within the benchmark's 20 ms; `sorted` by stamp.
+const slam::eval::StampedPose* nearest_pose(const slam::eval::Trajectory& sorted, double stamp_s) {
+  auto it =
+      std::lower_bound(sorted.begin(), sorted.end(), stamp_s,
+                       [](const slam::eval::StampedPose& p, double t) { return p.stamp_s < t; });
+  const slam::eval::StampedPose* best = it != sorted.end() ? &*it : nullptr;
+  if (it != sorted.begin() && (!best || stamp_s - std::prev(it)->stamp_s < best->stamp_s - stamp_s))
+    best = &*std::prev(it);
+  if (!best || std::abs(best->stamp_s - stamp_s) > slam::eval::kDefaultMaxDtS) return nullptr;
+  return best;
+}
+
+json spread_json(const std::array<double, 9>& R, const slam::GravitySpread& s) {
+  return {{"R_cam_accel", R},
+          {"rms_deg", s.rms_deg},
+          {"p95_deg", s.p95_deg},
+          {"max_deg", s.max_deg},
+          {"mean_direction_world",
+           {s.mean_direction_world.x(), s.mean_direction_world.y(), s.mean_direction_world.z()}}};
+}
+
+/// One dataset of `accel-check`: every frame whose accelerometer sample passes the gate and that
+/// has a ground-truth pose within 20 ms; the spread for the configured rotation and for each of
+/// the 24 axis-aligned candidates. nullopt (reason in *err) when the folder lacks a file.
+std::optional<json> accel_check_dataset(const std::string& dir, std::string* err) {
+  slam::TumDatasetOptions dso;
+  dso.stamp_from_depth = false;
+  const auto ds = slam::TumDataset::open(dir, dso, err);
+  if (!ds) return std::nullopt;
+  if (ds->accelerometer_path().empty() || ds->groundtruth_path().empty()) {
+    *err = "'" + dir + "' needs accelerometer.txt and groundtruth.txt";
+    return std::nullopt;
+  }
+  auto gt = slam::eval::read_tum_trajectory(ds->groundtruth_path(), err);
+  if (!gt) return std::nullopt;
+  std::sort(gt->begin(), gt->end(),
+            [](const auto& a, const auto& b) { return a.stamp_s < b.stamp_s; });
+  slam::AccelGate gate;  // the defaults: the Kinect v1 model of protocol/camera/tum_cameras.json
+  std::vector<Eigen::Matrix3d> R_world_cam;
+  std::vector<Eigen::Vector3d> f_sensor;
+  for (std::size_t i = 0; i < ds->size(); ++i) {
+    const slam::TumEntry& e = ds->entry(i);
+    if (gate.check(e.rgb_stamp_s, e.accel) != slam::AccelVerdict::kAccepted) continue;
+    const slam::eval::StampedPose* pose = nearest_pose(*gt, e.rgb_stamp_s);
+    if (!pose) continue;
+    R_world_cam.push_back(pose->T_world_cam.rotation());
+    f_sensor.push_back(e.accel->f_sensor_mps2);
+  }
+  auto spread_for = [&](const std::array<double, 9>& R) {
+    const Eigen::Matrix3d M =
+        Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(R.data());
+    std::vector<Eigen::Vector3d> f_cam;
+    for (const Eigen::Vector3d& f : f_sensor) f_cam.push_back(M * f);
+    return slam::gravity_direction_spread(R_world_cam, f_cam);
+  };
+  const auto configured = spread_for(gate.options().R_cam_sensor);
+  if (!configured) {
+    *err = "'" + dir + "': fewer than 2 frames with an accepted sample and a ground-truth pose";
+    return std::nullopt;
+  }
+  std::vector<std::pair<double, std::array<double, 9>>> ranked;
+  for (const auto& R : slam::axis_aligned_rotations()) {
+    const auto s = spread_for(R);
+    if (s) ranked.emplace_back(s->rms_deg, R);
+  }
+  std::sort(ranked.begin(), ranked.end());
+  const std::size_t rank =
+      1 + static_cast<std::size_t>(std::count_if(ranked.begin(), ranked.end(), [&](const auto& r) {
+        return r.first < configured->rms_deg - 1e-12;
+      }));
+  json m;
+  m["dataset"] = dir;
+  m["frames"] = ds->size();
+  m["frames_checked"] = configured->samples;
+  m["ignored_by_gate"] = gate.counts().ignored();
+  m["configured"] = spread_json(gate.options().R_cam_sensor, *configured);
+  m["configured_rank_of_24"] = rank;
+  m["best_candidate"] = spread_json(ranked.front().second, *spread_for(ranked.front().second));
+  if (ranked.size() > 1)
+    m["second_candidate"] = spread_json(ranked[1].second, *spread_for(ranked[1].second));
+  return m;
+}
+
+/// `accel-check`: prints a JSON array, one object per dataset; 1 when a folder cannot be used.
+int accel_check_command(const std::vector<std::string>& datasets) {
+  json out = json::array();
+  for (const std::string& dir : datasets) {
+    std::string err;
+    const auto m = accel_check_dataset(dir, &err);
+    if (!m) {
+      std::cerr << "slam-eval accel-check: " << err << "\n";
+      return 1;
+    }
+    out.push_back(*m);
+  }
+  std::cout << out.dump(2) << "\n";
   return 0;
 }
 
@@ -594,6 +725,17 @@ CLI::App* add_vocab_command(CLI::App& app, VocabArgs& v) {
   return vocab;
 }
 
+/// `accel-check`: the accelerometer rotation against TUM folders with ground truth.
+CLI::App* add_accel_check_command(CLI::App& app, std::vector<std::string>& datasets) {
+  auto* check = app.add_subcommand(
+      "accel-check",
+      "check the accelerometer-to-camera rotation on TUM folders with accelerometer.txt and "
+      "groundtruth.txt: spread (degrees) of the specific force's direction in the mocap world, "
+      "for the configured rotation and the 24 axis-aligned candidates; JSON on stdout");
+  check->add_option("--dataset", datasets, "TUM folder(s)")->required();
+  return check;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -609,9 +751,12 @@ int main(int argc, char** argv) {
   add_score_command(app, s);
   VocabArgs v;
   CLI::App* vocab = add_vocab_command(app, v);
+  std::vector<std::string> accel_datasets;
+  CLI::App* accel_check = add_accel_check_command(app, accel_datasets);
   CLI11_PARSE(app, argc, argv);
   try {
     if (*run) return run_command(a);
+    if (*accel_check) return accel_check_command(accel_datasets);
     if (*vocab) return vocab_command(v.datasets, v.out, v.options);
     return slam::eval::run_score_command(s.gt, s.est, std::cout, std::cerr);
   } catch (const std::exception& e) {

@@ -45,6 +45,15 @@ struct RgbdFrame {
   /// run on separate clocks); the tracker re-times the depth to `stamp_s` while the camera turns
   /// (slam/tracking/depth_time_alignment.hpp).
   std::optional<double> depth_stamp_s;
+  /// The Kinect's accelerometer sample nearest the colour image's capture time, as the specific
+  /// force it measures (acceleration minus gravity: at rest it points UP, magnitude ~9.81 m/s^2),
+  /// in m/s^2, expressed in the colour camera's optical frame (x right, y down, z along the
+  /// optical axis; rotated from the sensor's axes with rgbdquad::camera::kKinectV1Accelerometer).
+  /// Set only when the sample passed slam::AccelGate (slam/motion/accel_gate.hpp): finite, within
+  /// the gate's stamp bound of the colour stamp, unsaturated, of plausible magnitude.
+  std::optional<Eigen::Vector3d> accel_cam_mps2;
+  /// Capture time of that sample, seconds on the same clock as `stamp_s`; set with accel_cam_mps2.
+  std::optional<double> accel_stamp_s;
 };
 
 /// What a tracker knows of the camera's pose after a frame.

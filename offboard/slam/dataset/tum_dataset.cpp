@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
@@ -47,6 +48,57 @@ bool read_tum_list(const std::string& path, std::vector<std::pair<double, std::s
   return true;
 }
 
+bool read_tum_accelerometer(const std::string& path, std::vector<AccelSample>* out,
+                            std::string* error) {
+  std::ifstream in(path);
+  if (!in) {
+    if (error) *error = "cannot open '" + path + "'";
+    return false;
+  }
+  out->clear();
+  std::string line;
+  int line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.empty() || line[0] == '#') continue;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    // strtod rather than operator>>: it reads "nan" and "inf", which the gate then counts.
+    double v[4];
+    const char* p = line.c_str();
+    bool ok = true;
+    for (double& x : v) {
+      char* end = nullptr;
+      x = std::strtod(p, &end);
+      if (end == p) {
+        ok = false;
+        break;
+      }
+      p = end;
+    }
+    if (ok) ok = std::string(p).find_first_not_of(" \t\r") == std::string::npos;
+    if (!ok || !std::isfinite(v[0])) {
+      if (error) *error = path + ":" + std::to_string(line_no) + ": expected 'timestamp ax ay az'";
+      return false;
+    }
+    out->push_back({v[0], Eigen::Vector3d(v[1], v[2], v[3])});
+  }
+  std::stable_sort(out->begin(), out->end(), [](const AccelSample& a, const AccelSample& b) {
+    return a.stamp_s < b.stamp_s;
+  });
+  return true;
+}
+
+std::optional<AccelSample> nearest_accel_sample(const std::vector<AccelSample>& sorted,
+                                                double stamp_s) {
+  if (sorted.empty()) return std::nullopt;
+  auto it = std::lower_bound(sorted.begin(), sorted.end(), stamp_s,
+                             [](const AccelSample& a, double t) { return a.stamp_s < t; });
+  if (it == sorted.end()) return sorted.back();
+  if (it == sorted.begin()) return *it;
+  const auto prev = std::prev(it);
+  return (stamp_s - prev->stamp_s) <= (it->stamp_s - stamp_s) ? *prev : *it;
+}
+
 std::optional<TumDataset> TumDataset::open(const std::string& folder, const TumDatasetOptions& o,
                                            std::string* error) {
   if (!o.is_valid(error)) return std::nullopt;
@@ -71,6 +123,16 @@ std::optional<TumDataset> TumDataset::open(const std::string& folder, const TumD
   ds.stamp_from_depth_ = o.stamp_from_depth;
   const fs::path gt = fs::path(folder) / "groundtruth.txt";
   if (fs::is_regular_file(gt, ec)) ds.groundtruth_path_ = gt.string();
+  std::vector<AccelSample> accel;
+  const fs::path acc = fs::path(folder) / "accelerometer.txt";
+  if (fs::is_regular_file(acc, ec)) {
+    if (!read_tum_accelerometer(acc.string(), &accel, &err)) {
+      if (error) *error = "dataset: " + err;
+      return std::nullopt;
+    }
+    ds.accelerometer_path_ = acc.string();
+    ds.accel_sample_count_ = accel.size();
+  }
   std::vector<TumEntry> all;
   for (const auto& [t, name] : rgb) {
     auto it = std::lower_bound(depth.begin(), depth.end(), std::make_pair(t, std::string()));
@@ -82,7 +144,7 @@ std::optional<TumDataset> TumDataset::open(const std::string& folder, const TumD
     }
     if (!best || std::abs(best->first - t) > o.max_dt_s) continue;
     all.push_back({t, (fs::path(folder) / name).string(), best->first,
-                   (fs::path(folder) / best->second).string()});
+                   (fs::path(folder) / best->second).string(), nearest_accel_sample(accel, t)});
   }
   if (all.empty()) {
     if (error)
@@ -104,7 +166,8 @@ std::optional<TumDataset> TumDataset::open(const std::string& folder, const TumD
   return ds;
 }
 
-std::optional<RgbdFrame> TumDataset::load(std::size_t i, std::string* error) const {
+std::optional<RgbdFrame> TumDataset::load(std::size_t i, std::string* error,
+                                          AccelGate* gate) const {
   if (i >= entries_.size()) {
     if (error) *error = "dataset: frame index out of range";
     return std::nullopt;
@@ -128,6 +191,8 @@ std::optional<RgbdFrame> TumDataset::load(std::size_t i, std::string* error) con
     if (error) *error = "colour and depth sizes differ for '" + e.rgb_path + "'";
     return std::nullopt;
   }
+  // The sample nearest the colour stamp, whichever stamp the frame carries (stamp_from_depth).
+  if (gate) gate->attach(e.rgb_stamp_s, e.accel, &f);
   return f;
 }
 

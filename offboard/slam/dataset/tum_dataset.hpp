@@ -1,6 +1,8 @@
-// Dataset replay input: a TUM RGB-D folder (rgb.txt, depth.txt, optional groundtruth.txt).
-// Each colour image is associated with the nearest depth image within `max_dt_s` (20 ms, the
-// benchmark's own rule); a frame-rate reduction r = 1/k keeps every k-th associated frame.
+// Dataset replay input: a TUM RGB-D folder (rgb.txt, depth.txt, optional groundtruth.txt and
+// accelerometer.txt). Each colour image is associated with the nearest depth image within
+// `max_dt_s` (20 ms, the benchmark's own rule); a frame-rate reduction r = 1/k keeps every k-th
+// associated frame. Each frame also gets the accelerometer sample nearest its colour stamp, however
+// far: whether it is usable (fresh, finite, unsaturated) is slam::AccelGate's decision at load().
 // Pacing (real time or as fast as possible) is the caller's business: this class only indexes and
 // loads, and never reads the clock.
 //
@@ -12,6 +14,7 @@
 #include <vector>
 
 #include "slam/core/types.hpp"
+#include "slam/motion/accel_gate.hpp"
 
 namespace slam {
 
@@ -20,6 +23,8 @@ struct TumEntry {
   std::string rgb_path;  ///< absolute or relative to the working directory
   double depth_stamp_s = 0;
   std::string depth_path;
+  /// The accelerometer.txt sample nearest rgb_stamp_s (raw, sensor axes); none without the file.
+  std::optional<AccelSample> accel;
 };
 
 struct TumDatasetOptions {
@@ -45,15 +50,24 @@ class TumDataset {
   const std::string& folder() const { return folder_; }
   /// Path of groundtruth.txt when it exists, else empty.
   const std::string& groundtruth_path() const { return groundtruth_path_; }
+  /// Path of accelerometer.txt when it exists, else empty.
+  const std::string& accelerometer_path() const { return accelerometer_path_; }
+  /// Samples read from accelerometer.txt (0 without the file).
+  std::size_t accel_sample_count() const { return accel_sample_count_; }
   /// Nominal frame period after rate reduction (median of stamp differences), seconds.
   double frame_period_s() const { return frame_period_s_; }
 
   /// Loads frame i (colour + 16-bit depth). Fails with a message naming the unreadable file.
-  std::optional<RgbdFrame> load(std::size_t i, std::string* error) const;
+  /// With a gate, the frame's accelerometer sample goes through it (AccelGate::attach at the
+  /// colour stamp: accel_cam_mps2 set when accepted, the verdict counted); without, the frame
+  /// carries no accelerometer sample. The gate is the caller's and must not be shared by threads.
+  std::optional<RgbdFrame> load(std::size_t i, std::string* error, AccelGate* gate = nullptr) const;
 
  private:
   std::string folder_;
   std::string groundtruth_path_;
+  std::string accelerometer_path_;
+  std::size_t accel_sample_count_ = 0;
   std::vector<TumEntry> entries_;
   double frame_period_s_ = 1.0 / 30.0;
   bool stamp_from_depth_ = true;
@@ -62,5 +76,15 @@ class TumDataset {
 /// Parses "timestamp filename" lines (comments '#' and blank lines skipped).
 bool read_tum_list(const std::string& path, std::vector<std::pair<double, std::string>>* out,
                    std::string* error);
+
+/// Parses TUM accelerometer.txt: "timestamp ax ay az" lines (m/s^2, the sensor's axes; comments
+/// '#' and blank lines skipped), sorted by stamp. Values may be nan/inf (kept: the gate refuses
+/// them); a line that is not four numbers or has a non-finite stamp fails with its line number.
+bool read_tum_accelerometer(const std::string& path, std::vector<AccelSample>* out,
+                            std::string* error);
+
+/// The sample of `sorted` (by stamp) nearest stamp_s; nullopt when `sorted` is empty.
+std::optional<AccelSample> nearest_accel_sample(const std::vector<AccelSample>& sorted,
+                                                double stamp_s);
 
 }  // namespace slam

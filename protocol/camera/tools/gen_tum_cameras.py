@@ -100,9 +100,64 @@ def generate_hpp(spec: dict) -> str:
         "  return nullptr;",
         "}",
         "",
-        "}  // namespace rgbdquad::camera",
     ]
+    out += accelerometer_hpp(spec["accelerometer"])
+    out += ["", "}  // namespace rgbdquad::camera"]
     return "\n".join(out) + "\n"
+
+
+def accelerometer_hpp(acc: dict) -> list[str]:
+    rows = ", ".join(num(v) for row in acc["R_cam_accel"] for v in row)
+    const = "k" + camel(acc["name"]) + "Accelerometer"
+    return [
+        "/// The colour camera's accelerometer: how its readings map to the optical frame, their",
+        "/// scale and range.",
+        "struct AccelerometerModel {",
+        "  std::string_view name;",
+        "  /// Row-major rotation taking a vector in the accelerometer's axes to the colour",
+        "  /// camera's optical frame (x right, y down, z along the optical axis):",
+        "  /// v_cam = R_cam_accel * v_accel.",
+        "  std::array<double, 9> R_cam_accel;",
+        "  double counts_per_g;           ///< raw counts per g",
+        "  double standard_gravity_mps2;  ///< the g the driver converts counts with, m/s^2",
+        "  double range_g;                ///< per-axis measuring range, +- g",
+        "  /// Per-axis measuring range in m/s^2.",
+        "  constexpr double range_mps2() const { return range_g * standard_gravity_mps2; }",
+        "};",
+        "",
+        f"/// {acc['rotation_doc']}",
+        f"/// Scale: {acc['scale_doc']}",
+        f"/// Range: {acc['range_doc']}",
+        f'inline constexpr AccelerometerModel {const}{{"{acc["name"]}", {{{rows}}}, '
+        f"{num(acc['counts_per_g'])}, {num(acc['standard_gravity_mps2'])}, "
+        f"{num(acc['range_g'])}}};",
+    ]
+
+
+def accelerometer_py(acc: dict) -> list[str]:
+    rows = ", ".join("(" + ", ".join(num(v) for v in row) + ")" for row in acc["R_cam_accel"])
+    const = acc["name"].upper() + "_ACCELEROMETER"
+    return [
+        "",
+        "",
+        "class AccelerometerModel(NamedTuple):",
+        "    name: str",
+        "    #: v_cam = R_cam_accel @ v_accel; optical frame x right, y down, z optical axis",
+        "    R_cam_accel: tuple[tuple[float, float, float], ...]  # noqa: N815 (frames in name)",
+        "    counts_per_g: float",
+        "    standard_gravity_mps2: float",
+        "    range_g: float  # per-axis measuring range, +- g",
+        "",
+        "    def range_mps2(self) -> float:",
+        "        return self.range_g * self.standard_gravity_mps2",
+        "",
+        "",
+        f"#: {acc['rotation_doc']}",
+        f"#: Scale: {acc['scale_doc']}",
+        f"#: Range: {acc['range_doc']}",
+        f'{const} = AccelerometerModel("{acc["name"]}", ({rows}), {num(acc["counts_per_g"])}, '
+        f"{num(acc['standard_gravity_mps2'])}, {num(acc['range_g'])})",
+    ]
 
 
 def generate_py(spec: dict) -> str:
@@ -152,6 +207,7 @@ def generate_py(spec: dict) -> str:
         )
     out.append("#: Every model by name.")
     out.append("TUM_CAMERAS = {" + ", ".join(f'"{n}": {k}' for n, k in names) + "}")
+    out += accelerometer_py(spec["accelerometer"])
     return "\n".join(out) + "\n"
 
 

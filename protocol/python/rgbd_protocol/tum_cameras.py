@@ -38,3 +38,21 @@ TUM_FR3 = TumCamera("fr3", 535.4, 539.2, 320.1, 247.6, (0.0, 0.0, 0.0, 0.0, 0.0)
 TUM_ROS_DEFAULT = TumCamera("ros_default", 525.0, 525.0, 319.5, 239.5, (0.0, 0.0, 0.0, 0.0, 0.0), 5000.0)
 #: Every model by name.
 TUM_CAMERAS = {"fr1": TUM_FR1, "fr2": TUM_FR2, "fr3": TUM_FR3, "ros_default": TUM_ROS_DEFAULT}
+
+
+class AccelerometerModel(NamedTuple):
+    name: str
+    #: v_cam = R_cam_accel @ v_accel; optical frame x right, y down, z optical axis
+    R_cam_accel: tuple[tuple[float, float, float], ...]  # noqa: N815 (frames in name)
+    counts_per_g: float
+    standard_gravity_mps2: float
+    range_g: float  # per-axis measuring range, +- g
+
+    def range_mps2(self) -> float:
+        return self.range_g * self.standard_gravity_mps2
+
+
+#: Rotation taking a vector in the Kinect v1 accelerometer's axes (libfreenect freenect_get_mks_accel x, y, z; TUM accelerometer.txt ax ay az, which are those values: every sample is an integer count times 9.80665/819) to the colour camera's optical frame (x right, y down, z along the optical axis), row-major. The accelerometer axes are x left, y up, z forward (the Kinect for Windows SDK's accelerometer frame: right-handed, z where the sensor points, level = gravity along -y); libfreenect does not document them (include/libfreenect.h refers to the KXSD9 data sheet; src/tilt.c only scales counts), so the rotation was fixed by the data: with the mocap ground truth, R_world_cam * R_cam_accel * f must point the same way over a recording; of the 24 axis permutations with signs this one gives the smallest spread on fr1_xyz_first300 and fr1_360_first60, and the only one of the two closest whose mean points up in the mocap world (`slam-eval accel-check`; its figures in docs/slam.md, Accelerometer input).
+#: Scale: Raw counts per g and the g libfreenect converts with: include/libfreenect.h FREENECT_COUNTS_PER_G 819 (Kionix KXSD9 product brief, the Kinect's accelerometer), src/tilt.c GRAVITY 9.80665; freenect_get_mks_accel = counts / 819 * 9.80665 m/s^2.
+#: Range: Per-axis measuring range, +-2 g: the Kinect for Windows SDK documents the sensor's '3-axis accelerometer configured for a 2g range'; the KXSD9 gives 819 counts/g in its +-2 g setting. A reading at or beyond it on any axis is clipped, so its direction is wrong.
+KINECT_V1_ACCELEROMETER = AccelerometerModel("kinect_v1", ((-1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, 1.0)), 819.0, 9.80665, 2.0)

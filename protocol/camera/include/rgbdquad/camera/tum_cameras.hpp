@@ -51,4 +51,39 @@ inline const TumCamera* find_tum_camera(std::string_view name) {
   return nullptr;
 }
 
+/// The colour camera's accelerometer: how its readings map to the optical frame, their
+/// scale and range.
+struct AccelerometerModel {
+  std::string_view name;
+  /// Row-major rotation taking a vector in the accelerometer's axes to the colour
+  /// camera's optical frame (x right, y down, z along the optical axis):
+  /// v_cam = R_cam_accel * v_accel.
+  std::array<double, 9> R_cam_accel;
+  double counts_per_g;           ///< raw counts per g
+  double standard_gravity_mps2;  ///< the g the driver converts counts with, m/s^2
+  double range_g;                ///< per-axis measuring range, +- g
+  /// Per-axis measuring range in m/s^2.
+  constexpr double range_mps2() const { return range_g * standard_gravity_mps2; }
+};
+
+/// Rotation taking a vector in the Kinect v1 accelerometer's axes (libfreenect
+/// freenect_get_mks_accel x, y, z; TUM accelerometer.txt ax ay az, which are those values: every
+/// sample is an integer count times 9.80665/819) to the colour camera's optical frame (x right, y
+/// down, z along the optical axis), row-major. The accelerometer axes are x left, y up, z forward
+/// (the Kinect for Windows SDK's accelerometer frame: right-handed, z where the sensor points,
+/// level = gravity along -y); libfreenect does not document them (include/libfreenect.h refers to
+/// the KXSD9 data sheet; src/tilt.c only scales counts), so the rotation was fixed by the data:
+/// with the mocap ground truth, R_world_cam * R_cam_accel * f must point the same way over a
+/// recording; of the 24 axis permutations with signs this one gives the smallest spread on
+/// fr1_xyz_first300 and fr1_360_first60, and the only one of the two closest whose mean points up
+/// in the mocap world (`slam-eval accel-check`; its figures in docs/slam.md, Accelerometer input).
+/// Scale: Raw counts per g and the g libfreenect converts with: include/libfreenect.h
+/// FREENECT_COUNTS_PER_G 819 (Kionix KXSD9 product brief, the Kinect's accelerometer), src/tilt.c
+/// GRAVITY 9.80665; freenect_get_mks_accel = counts / 819 * 9.80665 m/s^2. Range: Per-axis
+/// measuring range, +-2 g: the Kinect for Windows SDK documents the sensor's '3-axis accelerometer
+/// configured for a 2g range'; the KXSD9 gives 819 counts/g in its +-2 g setting. A reading at or
+/// beyond it on any axis is clipped, so its direction is wrong.
+inline constexpr AccelerometerModel kKinectV1Accelerometer{
+    "kinect_v1", {-1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0}, 819.0, 9.80665, 2.0};
+
 }  // namespace rgbdquad::camera
