@@ -447,11 +447,12 @@ class SlamFlight:
 
     def kill_slam_server(self) -> None:
         """slam-server dies mid-flight (SIGKILL: no goodbye, its maps are gone)."""
+        # Marked before the kill: check() on another thread must never see it dead and unmarked.
+        self._killed_on_purpose.add("slam-server")
         for name, p in self._procs:
             if name == "slam-server" and p.alive():
                 p.proc.kill()
                 p.proc.wait(timeout=5)
-        self._killed_on_purpose.add("slam-server")
 
     def restart_slam_server(self) -> None:
         """A new slam-server on the same port (what a supervisor would do), with the same arguments:
