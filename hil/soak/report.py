@@ -16,10 +16,12 @@ Fields of report.json:
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from collections import Counter
 from pathlib import Path
+from types import SimpleNamespace
 
 from soak.schedule import FAULT_KINDS
 
@@ -61,7 +63,7 @@ def _resources(samples: dict) -> dict:
     return out
 
 
-def build(soak, replays) -> dict:
+def build(soak, replays, resources: dict | None = None) -> dict:
     missions = soak.missions
     outcomes = Counter(m.get("outcome", "not judged") for m in missions)
     injected = Counter(f["kind"] for m in missions for f in m.get("faults_injected", []))
@@ -131,7 +133,7 @@ def build(soak, replays) -> dict:
         "interrupted": soak.interrupted,
         "fatal": soak.fatal,
         "summary": summary,
-        "resources": _resources(soak.samples),
+        "resources": resources if resources is not None else _resources(soak.samples),
         "failures": failures,
         "exits": soak.exits,
         "replay": replays,
@@ -262,3 +264,55 @@ def write_results(rep: dict) -> None:
             )
         )
     write_result("soak", figs)
+
+
+def rebuild(out: Path) -> dict:
+    """The report again from a soak's folder (its report.json and every mission.json), with each
+    mission judged again by soak.outcome: for a soak flown before a change of the outcome rules."""
+    from soak.outcome import judge
+
+    old = json.loads((out / "report.json").read_text())
+    missions = []
+    for path in sorted((out / "missions").glob("mission-*/mission.json")):
+        m = json.loads(path.read_text())
+        if m.get("outcome") != "interrupted" and "truth" in m:
+            m["outcome"], m["reason"] = judge(
+                m["truth"],
+                m["completed_steps"],
+                m["faults_injected"],
+                m.get("takeoff_sim_s"),
+                (m.get("landing") or {}).get("t_land_sim_s"),
+                m.get("gave_up", ""),
+            )
+            path.write_text(json.dumps(m, indent=1, default=str))
+        missions.append(m)
+    soak = SimpleNamespace(
+        seed=old["seed"],
+        minutes=old["minutes_planned"],
+        missions=missions,
+        exits=old["exits"],
+        interrupted=old["interrupted"],
+        fatal=old["fatal"],
+    )
+    return build(soak, old["replay"], resources=old["resources"])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="soak.report",
+        description="Rebuild a soak's report (report.json/.txt, out/results/soak.json) from its "
+        "folder, judging every mission again with the current outcome rules.",
+    )
+    ap.add_argument("--rebuild", type=Path, required=True, metavar="DIR", help="the soak's folder")
+    args = ap.parse_args(argv)
+    if not (args.rebuild / "report.json").is_file():
+        print(f"soak.report: {args.rebuild}/report.json not found", file=sys.stderr)
+        return 2
+    rep = rebuild(args.rebuild)
+    write(rep, args.rebuild)
+    print(text(rep))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

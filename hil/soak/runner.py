@@ -16,15 +16,7 @@ two turns in place (+-90 deg, 5 s holds), land. The pad is where the first missi
 operator clicks the box relative to it, so the craft does not walk across the room over an hour.
 
 Outcome of a mission, from the emulator's truth only (never from what quad-control says):
-  completed                          the operator's steps all happened, the craft is on the ground
-                                     and disarmed, no radio failsafe before the land command
-  landed by failsafe as expected     a fault that takes the control link away (ground-station
-                                     kill, control-link loss) was on, the APM's radio failsafe
-                                     engaged, and the craft is down and disarmed within 60 s
-  aborted (landed safely)            not completed and no such fault, but down and disarmed, within
-                                     the fly-away radius, touchdown within limit: a finding
-  lost                               not down and disarmed 60 s after the mission gave up, beyond
-                                     2 m of its path, or a touchdown harder than 0.5 m/s
+soak.outcome (completed / landed by failsafe as expected / aborted (landed safely) / lost).
 Ctrl-C (or SIGTERM): the current mission stops, every process the soak started is stopped by its
 PID, and the report covers the missions flown so far.
 """
@@ -53,11 +45,6 @@ TURN_HOLD_S = 5.0
 # The long flight's box, relative to the pad (m, floor frame at the first take-off): the two
 # waypoints of scenario 2 and the way back.
 BOX = ((1.0, 0.0), (1.0, 0.8), (0.0, 0.8), (0.0, 0.0))
-# Outcome limits (hil/scenarios/test_scenario_slam_closed_loop.py): within 2 m of where the
-# mission meant to be (the APM's LAND drifts 0.6-1.5 m in the gusts without a position source),
-# touchdown <= 0.5 m/s (+0.01 for the model's step).
-FLYAWAY_RADIUS_M = 2.0
-TOUCHDOWN_LIMIT_MPS = 0.51
 # After a mission gives up or a ground-station kill: the APM's LAND from 1.7 m at 0.5 m/s takes
 # ~4 s, plus the 500 ms radio-failsafe delay and the 1 s land detector.
 LANDING_WAIT_S = 60.0
@@ -415,6 +402,8 @@ class Soak:
         """The outcome, from the emulator's truth only."""
         from hilrig.slam_flight import camera_room_position
 
+        from soak.outcome import judge
+
         fl = self.flight
         inj = self.injector
         if inj.ground_station_killed_at is not None:
@@ -452,44 +441,18 @@ class Soak:
         rec["truth"] = {
             "armed_at_end": bool(snap.armed),
             "landed_at_end": bool(snap.landed),
-            "failsafe_events": [f"{t / 1e6:.1f} s {e}" for t, e in failsafes],
+            "failsafe_events": [f"{t / 1e6:.2f} s {e}" for t, e in failsafes],
             "touchdowns_mps": [round(v, 3) for v in touchdowns],
             "max_distance_from_path_m": round(far, 3),
         }
-        down = (not snap.armed) and snap.landed
-        hard = bool(touchdowns) and max(touchdowns) > TOUCHDOWN_LIMIT_MPS
-        t_land = rec.get("landing", {}).get("t_land_sim_s")
-        early_failsafe = [(t, e) for t, e in failsafes if t_land is None or t < t_land * 1e6]
-        control_fault = inj.ground_station_killed_at is not None or any(
-            f["kind"] == "control_loss" for f in rec["faults_injected"]
+        rec["outcome"], rec["reason"] = judge(
+            rec["truth"],
+            rec["completed_steps"],
+            rec["faults_injected"],
+            rec.get("takeoff_sim_s"),
+            (rec.get("landing") or {}).get("t_land_sim_s"),
+            rec.get("gave_up", ""),
         )
-        if not down or far > FLYAWAY_RADIUS_M or hard:
-            rec["outcome"] = "lost"
-            why = []
-            if not down:
-                why.append("not down and disarmed")
-            if far > FLYAWAY_RADIUS_M:
-                why.append(f"{far:.2f} m from its path")
-            if hard:
-                why.append(f"touchdown {max(touchdowns):.2f} m/s")
-            rec["reason"] = "; ".join(why)
-        elif early_failsafe and control_fault:
-            rec["outcome"] = "landed by failsafe as expected"
-            rec["reason"] = (
-                "ground station killed"
-                if inj.ground_station_killed_at is not None
-                else "control-link loss"
-            )
-        elif rec["completed_steps"] and not early_failsafe:
-            rec["outcome"] = "completed"
-            rec["reason"] = "all steps"
-        else:
-            rec["outcome"] = "aborted (landed safely)"
-            rec["reason"] = (
-                "radio failsafe without a control-link fault"
-                if early_failsafe
-                else rec.get("gave_up", "")[:200]
-            )
 
     def _scores(self, rec: dict, mdir: Path) -> None:
         """ATE, camera -> PWM latency, SLAM maps of the mission (quad-control's log and flight
@@ -545,6 +508,15 @@ class Soak:
 def main(argv=None) -> int:
     from soak.schedule import DEFAULT_SEED
 
+    env = {}
+    for name, kind in (("SOAK_MINUTES", float), ("SOAK_SEED", int)):
+        value = os.environ.get(name, "").strip()
+        if value:
+            try:
+                env[name] = kind(value)
+            except ValueError:
+                print(f"soak: {name} must be a number, not {value!r}", file=sys.stderr)
+                return 2
     ap = argparse.ArgumentParser(
         prog="soak.runner",
         description="HIL missions back to back with a seeded schedule of faults, then a report "
@@ -553,13 +525,13 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--minutes",
         type=float,
-        default=float(os.environ.get("SOAK_MINUTES") or 60),
+        default=env.get("SOAK_MINUTES", 60.0),
         help="how long to fly missions (default: SOAK_MINUTES or 60)",
     )
     ap.add_argument(
         "--seed",
         type=int,
-        default=int(os.environ.get("SOAK_SEED") or DEFAULT_SEED),
+        default=env.get("SOAK_SEED", DEFAULT_SEED),
         help=f"schedule seed (default: SOAK_SEED or {DEFAULT_SEED})",
     )
     ap.add_argument(
