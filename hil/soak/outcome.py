@@ -12,8 +12,10 @@ landed by failsafe as expected   the APM's radio failsafe engaged when a fault t
                                  and the craft is down and disarmed
 aborted (landed safely)          not completed and not explained so, but down and disarmed within
                                  the fly-away radius with a soft touchdown: a finding
-lost                             not down and disarmed, beyond the fly-away radius of its path, or
-                                 a touchdown harder than the limit
+lost                             not down and disarmed, beyond the fly-away radius of every point
+                                 the mission sent it to (max_distance_from_path_m: the hold point
+                                 and the waypoints clicked so far), or a touchdown harder than the
+                                 limit
 """
 
 from __future__ import annotations
