@@ -142,6 +142,10 @@ struct MapKeyframe {
   TrackedFeatures features;
   std::vector<std::int64_t> point_ids;  ///< per keypoint: map point or -1
   cv::Mat thumbnail;                    ///< place-recognition thumbnail (CV_32F), see place_index
+  /// The first keyframe of a new map segment (TrackerOptions::restart_when_lost): it and the
+  /// keyframes after it share no points with the map before it until the segment is merged.
+  /// Not saved with the map: it matters only to the mapper's culling of recent points.
+  bool starts_segment = false;
 };
 
 /// Where a culled keyframe went: frames anchored to it follow T_parent_kf to a living keyframe.

@@ -30,10 +30,10 @@ double thumbnail_distance(const cv::Mat& a, const cv::Mat& b) {
 }
 
 std::vector<std::int64_t> rank_keyframes_by_appearance(const SlamMap& map, const cv::Mat& thumbnail,
-                                                       std::size_t k) {
+                                                       std::size_t k, std::int64_t below_id) {
   std::vector<std::pair<double, std::int64_t>> scored;
   for (const auto& [id, kf] : map.keyframes())
-    scored.emplace_back(thumbnail_distance(thumbnail, kf.thumbnail), id);
+    if (id < below_id) scored.emplace_back(thumbnail_distance(thumbnail, kf.thumbnail), id);
   std::sort(scored.begin(), scored.end());
   std::vector<std::int64_t> out;
   for (std::size_t i = 0; i < scored.size() && i < k; ++i) out.push_back(scored[i].second);

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <utility>
 #include <vector>
@@ -23,7 +24,9 @@ cv::Mat make_thumbnail(const cv::Mat& image);
 double thumbnail_distance(const cv::Mat& a, const cv::Mat& b);
 
 /// The `k` keyframes whose thumbnails are closest to `thumbnail`, best first.
-std::vector<std::int64_t> rank_keyframes_by_appearance(const SlamMap& map, const cv::Mat& thumbnail,
-                                                       std::size_t k);
+/// With `below_id`, only keyframes with a smaller id compete (the map before a segment started).
+std::vector<std::int64_t> rank_keyframes_by_appearance(
+    const SlamMap& map, const cv::Mat& thumbnail, std::size_t k,
+    std::int64_t below_id = std::numeric_limits<std::int64_t>::max());
 
 }  // namespace slam

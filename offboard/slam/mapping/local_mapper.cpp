@@ -181,6 +181,10 @@ int LocalMapper::cull_points(std::int64_t kf_id) {
   SlamMap& map = map_->map;
   const std::int64_t serial_now = map.keyframes_created();
   const MapKeyframe* kf = map.keyframe(kf_id);
+  // The keyframes of a new segment cannot observe the points of the map before it: culling those
+  // for want of observations would erase the older map's newest ground, which relocalisation and
+  // the segment's merge need. Its recent points stay as they are.
+  if (kf->starts_segment) recent_points_.clear();
   for (std::int64_t pid : kf->point_ids)
     if (pid >= 0)
       if (const MapPoint* p = map.point(pid); p && p->first_keyframe == kf_id)

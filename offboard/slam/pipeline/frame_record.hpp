@@ -27,6 +27,7 @@ struct FrameRecord {
       false;  ///< local-map system: the pose came from the keyframe database (TrackResult)
   bool cross_checked = false;  ///< local-map system: a weak fit was cross-checked (TrackResult)
   bool new_segment = false;    ///< local-map system: the frame started a map segment (TrackResult)
+  bool segment_merged = false;  ///< local-map system: the segment joined the map (TrackResult)
   double cross_check_shift_m = -1, cross_check_shift_deg = -1;  ///< (TrackResult)
   bool prediction_stale =
       false;  ///< local-map system: the gap exceeded the tracker's max_predicted_gap_s
@@ -77,6 +78,8 @@ struct PipelineSummary {
   /// Frames that could be neither tracked nor relocalised and started a new map segment
   /// (TrackerOptions::restart_when_lost).
   std::size_t segments_started = 0;
+  /// Segments moved onto the map before them when their place was recognised.
+  std::size_t segments_merged = 0;
   bool loop_closing_active =
       false;  ///< the loop closer ran (option on and a vocabulary for the detector)
   std::size_t loop_detections = 0;  ///< keyframes with database candidates passed to verification

@@ -4,6 +4,7 @@
 #include "slam/loopclosing/vocabulary.hpp"
 #include "slam/map/map_io.hpp"
 #include "slam/tracking/depth_time_alignment.hpp"
+#include "slam/tracking/rolling_shutter.hpp"
 
 namespace slam {
 
@@ -42,6 +43,7 @@ FrameRecord record_of(const RgbdFrame& frame, const TrackResult& tr) {
   rec.relocalised = tr.relocalised;
   rec.cross_checked = tr.cross_checked;
   rec.new_segment = tr.new_segment;
+  rec.segment_merged = tr.segment_merged;
   rec.cross_check_shift_m = tr.cross_check_shift_m;
   rec.cross_check_shift_deg = tr.cross_check_shift_deg;
   rec.prediction_stale = tr.prediction_stale;
@@ -220,12 +222,13 @@ TrackingStage::TrackingStage(FeatureExtractor extractor, Tracker tracker, StageP
                              std::function<KeyframeAdmission()> admission, FrameRecords* records,
                              std::function<void(std::int64_t)> on_keyframe,
                              const Intrinsics& intrinsics, bool align_depth_time,
-                             double colour_stamp_lag_s)
+                             double colour_stamp_lag_s, double rolling_shutter_readout_s)
     : extractor_(std::move(extractor)),
       tracker_(std::move(tracker)),
       intrinsics_(intrinsics),
       align_depth_time_(align_depth_time),
       colour_stamp_lag_s_(colour_stamp_lag_s),
+      rolling_shutter_readout_s_(rolling_shutter_readout_s),
       pacing_(pacing),
       admission_(std::move(admission)),
       records_(records),
@@ -285,6 +288,9 @@ TrackingStage::Output TrackingStage::process(const RgbdFrame& frame, KeyframeAdm
     out.record.error = error;
     return out;
   }
+  if (rolling_shutter_readout_s_ > 0)
+    if (const auto omega = tracker_.predicted_rotation_rate_rad_per_s())
+      unroll_rotation(&*feats, *omega, rolling_shutter_readout_s_, frame.rgb.rows);
   const double features_ms = ms_since(t0);
   const std::size_t features = feats->points_cam_m.size();
   TrackResult tr;
@@ -328,6 +334,7 @@ void TrackingStage::track(const RgbdFrame& frame) {
     if (r.relocalised && r.cross_checked) ++counts_.cross_check_replacements;
     if (r.state == TrackingState::kLost) ++counts_.frames_lost;
     if (r.new_segment) ++counts_.segments_started;
+    if (r.segment_merged) ++counts_.segments_merged;
   }
   records_->add(std::move(out.record));
   if (out.keyframe) on_keyframe_(*out.keyframe);
@@ -347,6 +354,7 @@ void TrackingStage::add_to(PipelineSummary* s) const {
   s->cross_check_replacements = counts_.cross_check_replacements;
   s->frames_lost = counts_.frames_lost;
   s->segments_started = counts_.segments_started;
+  s->segments_merged = counts_.segments_merged;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -411,7 +419,8 @@ std::unique_ptr<LocalMapSystem> LocalMapSystem::create(const PipelineOptions& op
         return keyframe_admission(self->mapping_->load(), self->options_.keyframe_gate_mapper_busy);
       },
       records, [self](std::int64_t kf) { self->keyframe_made(kf); }, k,
-      opts.tracker.align_depth_time, opts.tracker.colour_stamp_lag_s);
+      opts.tracker.align_depth_time, opts.tracker.colour_stamp_lag_s,
+      opts.tracker.rolling_shutter_readout_s);
   s->tracking_->start();
   s->mapping_->start();
   if (s->loop_closing_) s->loop_closing_->start();

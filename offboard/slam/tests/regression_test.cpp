@@ -345,6 +345,43 @@ TEST(Regression, LocalMapNeverHandsOnAStepFasterThanTheCameraCanMove) {
   }
 }
 
+TEST(Regression, LocalMapSegmentJoinsTheMapWhenItsPlaceIsRecognised) {
+  // GIVEN frames 0-9, then frames 23-29 stamped as if they followed at once (the camera would have
+  // moved ~0.2 m in one frame interval: a new map segment starts at the predicted pose, ~0.2 m
+  // from the truth), then frames 9 down to 0 again (back over the first map's ground)
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  PipelineOptions o = orb_local_map(PipelineMode::kSequential);
+  o.tracker.restart_when_lost = true;
+  auto p = Pipeline::create(o, Intrinsics{}, &err);
+  ASSERT_TRUE(p) << err;
+  std::vector<std::size_t> order;
+  for (std::size_t i = 0; i < 10; ++i) order.push_back(i);
+  for (std::size_t i = 23; i < 30; ++i) order.push_back(i);
+  for (int i = 9; i >= 0; --i) order.push_back(static_cast<std::size_t>(i));
+  double stamp = 0;
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    auto f = ds->load(order[k], &err);
+    ASSERT_TRUE(f) << err;
+    if (k == 0) stamp = f->stamp_s;
+    f->index = static_cast<std::int64_t>(k);
+    f->stamp_s = stamp + 0.033 * static_cast<double>(k);
+    p->submit(std::move(*f));
+  }
+  p->finish();
+  const auto recs = p->records();
+  const PipelineSummary summary = p->summary();
+  ASSERT_EQ(recs.size(), order.size());
+  // THEN the segment started, was moved onto the first map when frames 9..0 were recognised, and
+  // frame 0 seen again is placed where it was the first time (not ~0.2 m off with the segment)
+  EXPECT_GE(summary.segments_started, 1u);
+  EXPECT_EQ(summary.segments_merged, 1u);
+  const Eigen::Isometry3d d = recs.front().T_world_cam.inverse() * recs.back().T_world_cam;
+  EXPECT_LT(d.translation().norm(), 0.02);
+  for (const auto& rec : recs) EXPECT_EQ(rec.state, TrackingState::kTracking) << rec.index;
+}
+
 TEST(Regression, LocalMapWithLoopClosingWaitModeEqualsSequentialOnAForwardBackwardRevisit) {
   // GIVEN the excerpt played forward then backward (a revisit) and a loop closer that searches from
   // the second keyframe on (the 60 frames make too few keyframes for the default bars)

@@ -97,6 +97,11 @@ bool TrackerOptions::is_valid(std::string* error) const {
   if (!(max_speed_m_per_s > 0) || !(max_rate_rad_per_s > 0) || !(motion_margin_m >= 0) ||
       !(motion_margin_rad >= 0))
     return fail("motion bounds must be positive");
+  if (min_segment_features < min_inliers_tracking)
+    return fail("min_segment_features must be >= min_inliers_tracking");
+  if (!(segment_merge_period_s >= 0)) return fail("segment_merge_period_s must be >= 0");
+  if (!(rolling_shutter_readout_s >= 0 && rolling_shutter_readout_s < 0.1))
+    return fail("rolling_shutter_readout_s must be in [0, 0.1) s");
   return matching.is_valid(error) && ransac.is_valid(error);
 }
 
@@ -297,6 +302,9 @@ TrackResult Tracker::track_steps(const FrameInput& in, bool keyframe_allowed, bo
   std::vector<std::int64_t> matched =
       decide_keyframe(in, attempt, T_world_cam, keyframe_allowed, mapper_idle, &out);
   advance(in.frame, T_world_cam, std::move(matched), &out);
+  if (segment_first_kf_ && options_.segment_merge_period_s > 0 &&
+      in.frame.stamp_s - last_merge_try_s_ >= options_.segment_merge_period_s)
+    merge_segment(in, &out);
   const auto lock = lock_map();
   out.map_keyframes = map_->map.keyframes().size();
   out.map_points = map_->map.points().size();
@@ -334,7 +342,7 @@ std::optional<Eigen::Isometry3d> Tracker::restart_pose(const FrameInput& in,
   const double gap_s = in.frame.stamp_s - last_stamp_s_;
   if (!options_.restart_when_lost || !keyframe_allowed || !restart_motion_known_ || !(gap_s > 0) ||
       gap_s > options_.max_predicted_gap_s ||
-      static_cast<int>(in.tf.size()) < options_.min_init_features)
+      static_cast<int>(in.tf.size()) < options_.min_segment_features)
     return std::nullopt;
   const double s = std::clamp(gap_s / last_interval_s_, 0.0, options_.max_velocity_scale);
   return T_world_last_ * scale_motion(T_last_cur_velocity_, s);
@@ -348,6 +356,13 @@ TrackResult Tracker::start_segment(const FrameInput& in, const Eigen::Isometry3d
   // points with when it recognises their place.
   segment_keyframes_ = 0;
   out.keyframe_id = insert_keyframe(in.frame, in.tf, in.thumbnail, T_world_guess, LocalMap{}, {});
+  // A segment started inside a segment not yet merged extends it: both move as one when merged.
+  if (!segment_first_kf_) segment_first_kf_ = out.keyframe_id;
+  last_merge_try_s_ = in.frame.stamp_s;
+  {
+    const auto lock = lock_map();
+    if (MapKeyframe* kf = map_->map.keyframe(out.keyframe_id)) kf->starts_segment = true;
+  }
   out.keyframe = true;
   out.new_segment = true;
   out.keyframe_wanted = KeyframeReason::kFirst;
@@ -360,6 +375,49 @@ TrackResult Tracker::start_segment(const FrameInput& in, const Eigen::Isometry3d
   out.map_keyframes = map_->map.keyframes().size();
   out.map_points = map_->map.points().size();
   return out;
+}
+
+void Tracker::merge_segment(const FrameInput& in, TrackResult* out) {
+  last_merge_try_s_ = in.frame.stamp_s;
+  const std::int64_t first = *segment_first_kf_;
+  std::vector<std::int64_t> candidates;
+  {
+    const auto lock = lock_map();
+    candidates = rank_keyframes_by_appearance(map_->map, in.thumbnail,
+                                              options_.relocalisation_candidates, first);
+  }
+  if (candidates.empty()) return;
+  const std::int64_t t0 = steady_now_ns();
+  const auto found = fit_from_keyframes(in, candidates);
+  out->relocalise_ms += ms_since(t0);
+  if (!found || !found->fit.ok ||
+      static_cast<int>(found->fit.inliers) < options_.min_inliers_relocalised ||
+      !found->fit.T_cam_world.matrix().allFinite())
+    return;
+  // The same camera in both maps: the correction takes the segment's world onto the older map's.
+  const Eigen::Isometry3d T_old_seg = found->fit.T_cam_world.inverse() * out->T_world_cam.inverse();
+  {
+    const auto lock = lock_map();
+    SlamMap& map = map_->map;
+    for (auto& [id, kf] : map.keyframes())
+      if (id >= first) map.keyframe(id)->T_world_cam = T_old_seg * kf.T_world_cam;
+    std::vector<std::int64_t> moved;
+    for (const auto& [pid, p] : map.points())
+      if (p.first_keyframe >= first) moved.push_back(pid);
+    for (std::int64_t pid : moved) {
+      MapPoint* p = map.point(pid);
+      p->p_world_m = T_old_seg * p->p_world_m;
+    }
+    corrections_seen_ = ++map_->corrections;
+  }
+  T_world_last_ = T_old_seg * T_world_last_;
+  out->T_world_cam = T_world_last_;
+  out->map_corrections = corrections_seen_;
+  out->segment_merged = true;
+  // Positions before the merge are in the segment's world: the bound starts again from here.
+  motion_bound_.reset();
+  motion_bound_.add(in.frame.stamp_s, T_world_last_.translation());
+  segment_first_kf_.reset();
 }
 
 void Tracker::follow_map_corrections(TrackResult* out) {

@@ -176,6 +176,19 @@ struct TrackerOptions {
   /// failed once and the next would have relocalised into the map, and the SLAM error stayed at
   /// 15-37 mm a minute instead of falling to 4-7 mm after the first loop correction.
   bool restart_when_lost = false;
+  /// A segment's first keyframe needs this many features with depth: the next frame must find the
+  /// tracking bar (min_inliers_tracking, 30) among them after the matches a turn loses (ORB-SLAM2
+  /// keeps about 2/3 of its matches between fast frames), so 50 - the relocalisation bar. The
+  /// map's very first keyframe keeps min_init_features.
+  int min_segment_features = 50;
+  /// While a segment is not yet joined to the map before it, every `segment_merge_period_s` the
+  /// tracked frame is also relocalised against the keyframes older than the segment (appearance
+  /// ranking, registration, local-map refit to the relocalisation bar); when that succeeds the
+  /// whole segment - keyframes and points - is moved rigidly onto the older map (ORB-SLAM3's Atlas
+  /// merges maps on place recognition; a segment a few frames old is rigid enough to move as
+  /// one). 0.2 s: a relocalisation costs 10-30 ms on 2 cores, so trying ~5 times a second adds
+  /// a few ms per frame on average, and a craft back over mapped ground is merged within 0.2 s.
+  double segment_merge_period_s = 0.2;
   /// A fit with enough inliers that only the motion bound refuses is checked, not dropped: it is
   /// kept when the frame's registration to the reference keyframe (descriptors + 3D-3D RANSAC,
   /// refitted on the local map, >= min_inliers_relocalised) lands within the same-pose tolerance
@@ -191,6 +204,10 @@ struct TrackerOptions {
   /// How long after the colour image's exposure its stamp was taken (align_depth_time re-times the
   /// depth to the exposure). 0: the stamp is the exposure.
   double colour_stamp_lag_s = 0.0;
+  /// Rolling-shutter readout time of the camera, seconds top row to bottom row (0: treat it as a
+  /// global shutter). Each frame's features are rotated to the middle row's time by the predicted
+  /// angular velocity (slam/tracking/rolling_shutter.hpp).
+  double rolling_shutter_readout_s = 0.0;
   bool is_valid(std::string* error) const;
 };
 
@@ -205,6 +222,9 @@ struct TrackResult {
   /// Neither tracking nor relocalisation gave a pose: the frame started a new map segment at the
   /// predicted pose (TrackerOptions::restart_when_lost); `state` is kTracking.
   bool new_segment = false;
+  /// The frame's relocalisation joined the current segment to the map before it (the segment
+  /// moved by a rigid correction; map_corrections counts it).
+  bool segment_merged = false;
   /// The fit left the motion bound but a registration to the reference keyframe confirmed it
   /// (TrackerOptions::confirm_off_path).
   bool off_path_confirmed = false;
@@ -335,6 +355,9 @@ class Tracker {
   /// Where a new map segment starts (TrackerOptions::restart_when_lost), or nullopt when the
   /// motion model cannot vouch for a pose (gap, no velocity) or the frame cannot start one.
   std::optional<Eigen::Isometry3d> restart_pose(const FrameInput& in, bool keyframe_allowed) const;
+  /// TrackerOptions::segment_merge_period_s: relocalises the tracked frame (pose T_world_cam in
+  /// the segment) against the map before the segment and, on success, moves the segment onto it.
+  void merge_segment(const FrameInput& in, TrackResult* out);
   /// TrackerOptions::restart_when_lost: a new map segment at `T_world_guess`.
   TrackResult start_segment(const FrameInput& in, const Eigen::Isometry3d& T_world_guess,
                             TrackResult out);
@@ -398,6 +421,9 @@ class Tracker {
   MotionBound motion_bound_;  ///< tracked positions since the last relocalisation or correction
   /// Keyframes of the current map segment, once one was started (restart_when_lost).
   std::optional<std::size_t> segment_keyframes_;
+  /// First keyframe id of the current segment while it is not joined to the map before it.
+  std::optional<std::int64_t> segment_first_kf_;
+  double last_merge_try_s_ = 0.0;
   /// ORB-SLAM2's nMinObs for the reference keyframe's tracked points (map locked by the caller).
   int min_observations() const;
 };
