@@ -132,7 +132,8 @@ HttpResponse DashboardApi::handle(const HttpRequest& req) {
     }
     return json_reply(req, station_.cloud_json(max_points));
   }
-  if (post && (path == "/api/command" || path == "/api/waypoint" || path == "/api/manual")) {
+  if (post && (path == "/api/command" || path == "/api/waypoint" || path == "/api/manual" ||
+               path == "/api/manoeuvre")) {
     const auto body = nlohmann::json::parse(req.body(), nullptr, false);
     if (body.is_discarded() || !body.is_object()) {
       return json_reply(req, {{"ok", false}, {"error", "body must be a JSON object"}},
@@ -157,6 +158,18 @@ HttpResponse DashboardApi::handle(const HttpRequest& req) {
                           http::status::bad_request);
       }
       return result_reply(req, station_.waypoint(now_us_(), x, y));
+    }
+    if (path == "/api/manoeuvre") {
+      ManoeuvreRequest r;
+      if (!number(body, "forward_m", &r.forward_m) || !number(body, "left_m", &r.left_m) ||
+          !number(body, "yaw_ccw_deg", &r.yaw_ccw_deg) ||
+          !number(body, "speed_m_per_s", &r.speed_m_per_s) ||
+          !number(body, "yaw_rate_deg_per_s", &r.yaw_rate_deg_per_s)) {
+        return json_reply(req,
+                          {{"ok", false}, {"error", "manoeuvre values must be finite numbers"}},
+                          http::status::bad_request);
+      }
+      return result_reply(req, station_.manoeuvre(now_us_(), r));
     }
     double f, l, u, yaw;
     if (!number(body, "forward_m", &f) || !number(body, "left_m", &l) ||

@@ -8,7 +8,8 @@
 //   the whole coloured point-cloud map, ASCII PLY POST /api/command        {"command": "arm" |
 //   "disarm" | "takeoff" | "land"} POST /api/waypoint       {"x_m": .., "y_m": ..}   (floor-aligned
 //   world frame) POST /api/manual         {"forward_m", "left_m", "up_m", "yaw_ccw_deg"} (setpoint
-//   steps)
+//   steps) POST /api/manoeuvre {"forward_m", "left_m", "yaw_ccw_deg", "speed_m_per_s",
+//   "yaw_rate_deg_per_s"} (a timed move/turn of the hold setpoint, FlightController::manoeuvre)
 // Every /api/ request passes check_api_request() first (request_guard.hpp: Host, Origin,
 // Sec-Fetch-Site, a JSON Content-Type for POST, and the token when one is configured).
 #pragma once

@@ -40,6 +40,11 @@ class DashboardBackend {
   virtual std::string waypoint(std::int64_t now_us, double x_m, double y_m) = 0;
   virtual std::string manual(std::int64_t now_us, double forward_m, double left_m, double up_m,
                              double yaw_ccw_deg) = 0;
+  /// A mission's timed turn / straight move of the hold setpoint (FlightController::manoeuvre).
+  /// Backends that fly no controller refuse it.
+  virtual std::string manoeuvre(std::int64_t /*now_us*/, const ManoeuvreRequest& /*request*/) {
+    return "manoeuvre: this backend flies no controller";
+  }
 };
 
 }  // namespace rgbdquad::quadcontrol

@@ -402,6 +402,8 @@ nlohmann::json to_json(const StationSnapshot& snap) {
   j["refused_map_corrections"] = st.refused_map_corrections;
   j["map_correction_count"] = snap.map_correction_count;
   j["facing_waypoint"] = st.facing_waypoint;
+  j["manoeuvre_active"] = st.manoeuvre_active;
+  j["manoeuvres_done"] = st.manoeuvres_done;
   j["pose"] = snap.pose ? pose_json(*snap.pose) : nlohmann::json(nullptr);
   j["setpoint"] = pose_json(st.setpoint);
   j["waypoint"] = st.waypoint ? nlohmann::json{{"x_m", st.waypoint->x_m}, {"y_m", st.waypoint->y_m}}
@@ -489,6 +491,11 @@ std::string GroundStation::manual(std::int64_t now_us, double forward_m, double 
                                   double yaw_ccw_deg) {
   std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
   return controller_.nudge(now_us, forward_m, left_m, up_m, yaw_ccw_deg);
+}
+
+std::string GroundStation::manoeuvre(std::int64_t now_us, const ManoeuvreRequest& request) {
+  std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
+  return controller_.manoeuvre(now_us, request);
 }
 
 }  // namespace rgbdquad::quadcontrol

@@ -169,6 +169,7 @@ class GroundStation : public DashboardBackend {
   std::string waypoint(std::int64_t now_us, double x_m, double y_m) override;
   std::string manual(std::int64_t now_us, double forward_m, double left_m, double up_m,
                      double yaw_ccw_deg) override;
+  std::string manoeuvre(std::int64_t now_us, const ManoeuvreRequest& request) override;
 
  private:
   void frame_loop();

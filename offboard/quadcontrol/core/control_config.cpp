@@ -38,6 +38,24 @@ std::map<std::string, double*> scalar_fields(ControlConfig& c) {
       {"disarm_gesture_ms", &c.disarm_gesture_ms},
       {"apm_stick_deadzone_us", &c.apm_stick_deadzone_us},
       {"apm_throttle_deadband_us", &c.apm_throttle_deadband_us},
+      {"max_manoeuvre_speed_m_per_s", &c.max_manoeuvre_speed_m_per_s},
+      {"max_manoeuvre_yaw_rate_deg_per_s", &c.max_manoeuvre_yaw_rate_deg_per_s},
+      {"max_manoeuvre_distance_m", &c.max_manoeuvre_distance_m},
+      {"max_manoeuvre_turn_deg", &c.max_manoeuvre_turn_deg},
+      {"manoeuvre_accel_mss", &c.manoeuvre_accel_mss},
+      {"manoeuvre_yaw_accel_deg_per_s2", &c.manoeuvre_yaw_accel_deg_per_s2},
+      {"apm_yaw_rate_max_deg_per_s", &c.apm_yaw_rate_max_deg_per_s},
+  };
+}
+
+std::map<std::string, double*> cascade_fields(CascadeGains& g) {
+  return {
+      {"position_kp_per_s", &g.position_kp_per_s},
+      {"velocity_kp_per_s", &g.velocity_kp_per_s},
+      {"velocity_ki_per_s2", &g.velocity_ki_per_s2},
+      {"integral_limit_mss", &g.integral_limit_mss},
+      {"max_correction_speed_m_per_s", &g.max_correction_speed_m_per_s},
+      {"angle_max_deg", &g.angle_max_deg},
   };
 }
 
@@ -46,6 +64,16 @@ std::map<std::string, PidGains*> pid_fields(ControlConfig& c) {
 }
 
 }  // namespace
+
+const char* to_string(PositionLaw law) {
+  switch (law) {
+    case PositionLaw::kPid:
+      return "pid";
+    case PositionLaw::kCascade:
+      return "cascade";
+  }
+  return "?";
+}
 
 std::string ControlConfig::validate() const {
   ControlConfig copy = *this;
@@ -65,6 +93,12 @@ std::string ControlConfig::validate() const {
     return "controller.apm_throttle_deadband_us must be in [0, 300]";
   }
   if (auto e = estimator.validate(); !e.empty()) return e;
+  if (auto e = cascade.validate(); !e.empty()) return e;
+  if (position_law != PositionLaw::kPid && position_law != PositionLaw::kCascade)
+    return "controller.position_law must be \"pid\" or \"cascade\"";
+  if (max_manoeuvre_yaw_rate_deg_per_s >= apm_yaw_rate_max_deg_per_s)
+    return "controller.max_manoeuvre_yaw_rate_deg_per_s must be below apm_yaw_rate_max_deg_per_s";
+  if (max_manoeuvre_turn_deg > 720.0) return "controller.max_manoeuvre_turn_deg must be <= 720";
   if (hover_throttle_pct >= 100.0) return "controller.hover_throttle_pct must be < 100";
   if (motor_stop_height_m >= hold_height_m)
     return "controller.motor_stop_height_m must be below hold_height_m";
@@ -94,6 +128,23 @@ std::string load_control_config(const nlohmann::json& j, ControlConfig& config) 
     if (auto it = scalars.find(key); it != scalars.end()) {
       if (!value.is_number()) return "controller." + key + ": expected a number";
       *it->second = value.get<double>();
+    } else if (key == "position_law") {
+      const std::string law = value.is_string() ? value.get<std::string>() : "";
+      if (law == "pid")
+        config.position_law = PositionLaw::kPid;
+      else if (law == "cascade")
+        config.position_law = PositionLaw::kCascade;
+      else
+        return "controller.position_law: expected \"pid\" or \"cascade\"";
+    } else if (key == "cascade") {
+      if (!value.is_object()) return "controller.cascade: expected an object";
+      auto fields = cascade_fields(config.cascade);
+      for (const auto& [ck, cv] : value.items()) {
+        const auto it = fields.find(ck);
+        if (it == fields.end()) return "controller.cascade." + ck + ": unknown key";
+        if (!cv.is_number()) return "controller.cascade." + ck + ": expected a number";
+        *it->second = cv.get<double>();
+      }
     } else if (key == "estimator") {
       if (auto e = load_estimator_options(value, config.estimator); !e.empty()) return e;
     } else if (auto pit = pids.find(key); pit != pids.end()) {
@@ -130,6 +181,9 @@ nlohmann::json to_json(const ControlConfig& config) {
                {"kd", pid->kd},
                {"output_limit_pct", pid->output_limit_pct}};
   }
+  j["position_law"] = to_string(config.position_law);
+  j["cascade"] = nlohmann::json::object();
+  for (auto& [name, value] : cascade_fields(copy.cascade)) j["cascade"][name] = *value;
   j["estimator"] = to_json(config.estimator);
   return j;
 }

@@ -8,10 +8,18 @@
 #include <nlohmann/json_fwd.hpp>
 #include <string>
 
+#include "core/cascade_position.hpp"
 #include "core/estimator_options.hpp"
 #include "core/pid.hpp"
 
 namespace rgbdquad::quadcontrol {
+
+/// How roll/pitch follow the horizontal position (docs/control.md, "Position law").
+enum class PositionLaw {
+  kPid,      ///< the thesis: one PID per body axis, error in mm -> stick % (Table 3.1 gains)
+  kCascade,  ///< position P -> velocity PI -> lean angle (core/cascade_position.hpp)
+};
+const char* to_string(PositionLaw law);
 
 struct ControlConfig {
   // Table 3.1 (error in mm for roll/pitch/throttle, in degrees for yaw; output in percent of
@@ -21,6 +29,14 @@ struct ControlConfig {
   PidGains pitch{0.015, 0.0, 0.01, 20.0};
   PidGains yaw{0.06, 0.0, 0.02, 30.0};
   PidGains throttle{0.025, 0.013, 0.02, 30.0};
+
+  /// The default is the cascade: in the closed-loop model it holds the gusty hover to about half
+  /// the thesis PID's error (docs/control.md); "pid" flies Table 3.1's structure with `roll` and
+  /// `pitch` above.
+  PositionLaw position_law = PositionLaw::kCascade;
+  /// The cascade's gains (used when position_law is kCascade; its lean is limited by
+  /// roll/pitch output_limit_pct as the PID's is).
+  CascadeGains cascade;
 
   double hold_height_m = 1.7;        ///< thesis: hold at 1.7 m with no instruction
   double hover_throttle_pct = 50.0;  ///< feed-forward; the throttle integrator absorbs the rest
@@ -80,6 +96,28 @@ struct ControlConfig {
   /// thrust. With the APM in AltHold the height PID's output is a climb-rate command (use ki = 0:
   /// the APM holds the hover itself) and hover_throttle_pct must be 50 (mid-stick = no climb).
   double apm_throttle_deadband_us = 0.0;
+  // Manoeuvres (FlightController::manoeuvre: a timed turn and/or straight move of the hold
+  // setpoint at an asked rate, with the rate fed forward). Bounds on what a mission may ask; the
+  // flight envelope still clamps every setpoint.
+  /// 1.5 m/s: the camera bench scores SLAM on 1 m/s dashes (hil/tools/render_tum.py); at the
+  /// 20 % lean limit (~9 deg) the craft's drag balances ~3 m/s, so 1.5 m/s leaves lean for control.
+  double max_manoeuvre_speed_m_per_s = 1.5;
+  /// 90 deg/s: below the firmware's hard yaw limit (+-250 us = 100 deg/s, firmware/core/limits.h);
+  /// the camera bench scores SLAM on 60 and 120 deg/s turns.
+  double max_manoeuvre_yaw_rate_deg_per_s = 90.0;
+  /// Straight-line move of one manoeuvre, at most: half the default 5 m envelope radius.
+  double max_manoeuvre_distance_m = 2.5;
+  /// One manoeuvre's turn, at most: a full turn.
+  double max_manoeuvre_turn_deg = 360.0;
+  /// The setpoint's speed ramps up and down at this rate: 1.0 m/s^2 is two thirds of what the
+  /// 20 % lean limit gives (g tan 9 deg = 1.55 m/s^2), leaving the rest to correct errors.
+  double manoeuvre_accel_mss = 1.0;
+  /// The heading setpoint's rate ramps at this: 60 deg/s is reached in 0.5 s (the camera bench's
+  /// ramp, hil/tools/render_tum.py --ramp-s 0.5).
+  double manoeuvre_yaw_accel_deg_per_s2 = 120.0;
+  /// The APM's yaw rate at full stick (ArduCopter ACRO_YAW_P 4.5 x 45 deg/s): turns a turn rate
+  /// into the yaw stick fed forward. Must match the APM (hil/fc_emulator: 202.5).
+  double apm_yaw_rate_max_deg_per_s = 202.5;
   /// State estimation across pose gaps (IMU + delayed SLAM poses; docs/control.md "Estimator").
   EstimatorOptions estimator;
 

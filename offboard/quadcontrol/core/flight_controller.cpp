@@ -19,6 +19,32 @@ bool finite_pose(const CraftPose& p) {
          std::isfinite(p.yaw_deg);
 }
 
+/// Distance and speed along a trapezoidal profile (rates ramped at accel, capped at max_rate) of
+/// `total` at `t_s` after its start; done once the whole distance is covered.
+struct ProfilePoint {
+  double distance = 0.0;
+  double rate = 0.0;
+  bool done = false;
+};
+ProfilePoint trapezoid(double total, double max_rate, double accel, double t_s) {
+  if (total <= 0.0 || max_rate <= 0.0 || accel <= 0.0) return {total, 0.0, true};
+  double peak = max_rate;
+  double t_ramp = peak / accel;
+  double t_cruise = (total - peak * t_ramp) / peak;
+  if (t_cruise < 0.0) {  // too short to reach the rate: a triangle
+    peak = std::sqrt(total * accel);
+    t_ramp = peak / accel;
+    t_cruise = 0.0;
+  }
+  const double t_end = 2.0 * t_ramp + t_cruise;
+  if (t_s <= 0.0) return {0.0, 0.0, false};
+  if (t_s >= t_end) return {total, 0.0, true};
+  if (t_s < t_ramp) return {0.5 * accel * t_s * t_s, accel * t_s, false};
+  if (t_s < t_ramp + t_cruise) return {0.5 * peak * t_ramp + peak * (t_s - t_ramp), peak, false};
+  const double left_s = t_end - t_s;
+  return {total - 0.5 * accel * left_s * left_s, accel * left_s, false};
+}
+
 bool flying(FlightState s) {
   return s == FlightState::kTakeOff || s == FlightState::kHold || s == FlightState::kGoToWaypoint ||
          s == FlightState::kLostHold || s == FlightState::kLand;
@@ -75,7 +101,9 @@ FlightController::FlightController(ControlConfig config)
       roll_(config.roll),
       pitch_(config.pitch),
       yaw_(config.yaw),
-      throttle_(config.throttle) {
+      throttle_(config.throttle),
+      cascade_(config.cascade,
+               std::min(config.roll.output_limit_pct, config.pitch.output_limit_pct)) {
   const std::string error = config_.validate();
   if (!error.empty()) throw std::invalid_argument(error);
   status_.last_event = "start-up";
@@ -102,12 +130,17 @@ void FlightController::reset_pids() {
   pitch_.reset();
   yaw_.reset();
   throttle_.reset();
+  cascade_.reset();
   pid_pose_us_.reset();
 }
 
 void FlightController::enter(FlightState state, std::int64_t now_us, const std::string& why) {
   status_.state = state;
   status_.last_event = std::string(to_string(state)) + ": " + why;
+  // Every transition ends a manoeuvre where its setpoint is (a lost-hold holds there after).
+  manoeuvre_.reset();
+  status_.manoeuvre_active = false;
+  ff_x_m_per_s_ = ff_y_m_per_s_ = ff_yaw_deg_per_s_ = 0.0;
   state_entered_us_ = now_us;
   if (state != FlightState::kGoToWaypoint) {
     status_.waypoint.reset();
@@ -182,6 +215,9 @@ std::string FlightController::set_waypoint(std::int64_t now_us, double x_m, doub
     return "waypoint: further than max_waypoint_distance_m";
   if (std::string why = envelope_.check_waypoint(x_m, y_m); !why.empty()) return why;
   status_.waypoint = Waypoint{x_m, y_m};
+  manoeuvre_.reset();
+  status_.manoeuvre_active = false;
+  ff_x_m_per_s_ = ff_y_m_per_s_ = ff_yaw_deg_per_s_ = 0.0;
   if (distance_m < config_.turn_skip_distance_m) {
     // Close goal: keep the heading (position never drives yaw), move at once.
     status_.facing_waypoint = true;
@@ -221,12 +257,87 @@ std::string FlightController::nudge(std::int64_t, double forward_m, double left_
     return "manual: step leads to a non-finite setpoint";
   }
   status_.setpoint.yaw_deg = wrap_deg(status_.setpoint.yaw_deg + yaw_ccw_deg);
+  manoeuvre_.reset();
+  status_.manoeuvre_active = false;
+  ff_x_m_per_s_ = ff_y_m_per_s_ = ff_yaw_deg_per_s_ = 0.0;
   status_.state = FlightState::kHold;
   status_.waypoint.reset();
   status_.facing_waypoint = false;
   status_.last_event =
       clamped ? "hold: manual step, clamped to the flight envelope" : "hold: manual step";
   return {};
+}
+
+std::string FlightController::manoeuvre(std::int64_t now_us, const ManoeuvreRequest& r) {
+  for (double v : {r.forward_m, r.left_m, r.yaw_ccw_deg, r.speed_m_per_s, r.yaw_rate_deg_per_s}) {
+    if (!std::isfinite(v)) return "manoeuvre: non-finite value";
+  }
+  if (status_.state != FlightState::kHold) return "manoeuvre: only in hold";
+  if (!has_fresh_pose(now_us)) return "manoeuvre: no tracked pose";
+  if (manoeuvre_) return "manoeuvre: one is in progress";
+  const double distance_m = std::hypot(r.forward_m, r.left_m);
+  if (distance_m == 0.0 && r.yaw_ccw_deg == 0.0) return "manoeuvre: nothing to do";
+  if (distance_m > config_.max_manoeuvre_distance_m)
+    return "manoeuvre: move longer than max_manoeuvre_distance_m";
+  if (std::abs(r.yaw_ccw_deg) > config_.max_manoeuvre_turn_deg)
+    return "manoeuvre: turn larger than max_manoeuvre_turn_deg";
+  if (distance_m > 0.0 &&
+      !(r.speed_m_per_s > 0.0 && r.speed_m_per_s <= config_.max_manoeuvre_speed_m_per_s)) {
+    return "manoeuvre: speed_m_per_s must be in (0, max_manoeuvre_speed_m_per_s]";
+  }
+  if (r.yaw_ccw_deg != 0.0 && !(r.yaw_rate_deg_per_s > 0.0 &&
+                                r.yaw_rate_deg_per_s <= config_.max_manoeuvre_yaw_rate_deg_per_s)) {
+    return "manoeuvre: yaw_rate_deg_per_s must be in (0, max_manoeuvre_yaw_rate_deg_per_s]";
+  }
+  ActiveManoeuvre m;
+  m.start_us = now_us;
+  m.x0_m = status_.setpoint.x_m;
+  m.y0_m = status_.setpoint.y_m;
+  m.yaw0_deg = status_.setpoint.yaw_deg;
+  const double c = std::cos(m.yaw0_deg / kDegPerRad);
+  const double sn = std::sin(m.yaw0_deg / kDegPerRad);
+  const double dx = c * r.forward_m - sn * r.left_m;
+  const double dy = sn * r.forward_m + c * r.left_m;
+  // The end point must be inside the envelope as asked (a manoeuvre is not clamped short).
+  const auto end = envelope_.contain(
+      SetpointPosition{m.x0_m + dx, m.y0_m + dy, status_.setpoint.z_m}, SetpointKind::kHold);
+  if (!end || end->clamped) return "manoeuvre: end point outside the flight envelope";
+  if (distance_m > 0.0) {
+    m.dir_x = dx / distance_m;
+    m.dir_y = dy / distance_m;
+  }
+  m.distance_m = distance_m;
+  m.turn_deg = r.yaw_ccw_deg;
+  m.speed_m_per_s = r.speed_m_per_s;
+  m.yaw_rate_deg_per_s = r.yaw_rate_deg_per_s;
+  manoeuvre_ = m;
+  status_.manoeuvre_active = true;
+  status_.last_event = "hold: manoeuvre started";
+  return {};
+}
+
+void FlightController::advance_manoeuvre(std::int64_t now_us) {
+  ff_x_m_per_s_ = ff_y_m_per_s_ = ff_yaw_deg_per_s_ = 0.0;
+  if (!manoeuvre_ || status_.state != FlightState::kHold) return;
+  const ActiveManoeuvre& m = *manoeuvre_;
+  const double t_s = static_cast<double>(now_us - m.start_us) / kUsPerS;
+  const ProfilePoint move =
+      trapezoid(m.distance_m, m.speed_m_per_s, config_.manoeuvre_accel_mss, t_s);
+  const ProfilePoint turn = trapezoid(std::abs(m.turn_deg), m.yaw_rate_deg_per_s,
+                                      config_.manoeuvre_yaw_accel_deg_per_s2, t_s);
+  set_setpoint_position(m.x0_m + m.dir_x * move.distance, m.y0_m + m.dir_y * move.distance,
+                        status_.setpoint.z_m, SetpointKind::kHold);
+  const double sign = m.turn_deg < 0.0 ? -1.0 : 1.0;
+  status_.setpoint.yaw_deg = wrap_deg(m.yaw0_deg + sign * turn.distance);
+  ff_x_m_per_s_ = m.dir_x * move.rate;
+  ff_y_m_per_s_ = m.dir_y * move.rate;
+  ff_yaw_deg_per_s_ = sign * turn.rate;
+  if (move.done && turn.done) {
+    manoeuvre_.reset();
+    status_.manoeuvre_active = false;
+    ++status_.manoeuvres_done;
+    status_.last_event = "hold: manoeuvre done";
+  }
 }
 
 void FlightController::on_pose(const PoseSample& sample,
@@ -255,6 +366,7 @@ void FlightController::on_pose(const PoseSample& sample,
       ++status_.map_resets;
       // No derivative across the jump (it would kick); the integrators keep the hover offset.
       for (Pid* pid : {&roll_, &pitch_, &yaw_, &throttle_}) pid->restart();
+      cascade_.restart();
       status_.last_event = std::string(to_string(status_.state)) + ": map correction " +
                            std::to_string(s.map_correction_count) + " declared, re-anchored " +
                            std::to_string(jump_m).substr(0, 4) + " m";
@@ -310,15 +422,30 @@ StickCommand FlightController::position_control(const PoseSample& sample,
     left_rate = vb.left_m * kMmPerM;
     up_rate = (*v)[2] * kMmPerM;
   }
-  if (auto out = pitch_.update(now_us, 0.0, -e.forward_m * kMmPerM, forward_rate))
-    cmd.pitch_pct = *out;
-  if (auto out = roll_.update(now_us, 0.0, -e.left_m * kMmPerM, left_rate))
-    cmd.roll_pct = -*out;  // left error -> roll left
+  if (config_.position_law == PositionLaw::kCascade) {
+    std::optional<BodyVector> v_body;
+    if (forward_rate && left_rate)
+      v_body = BodyVector{*forward_rate / kMmPerM, *left_rate / kMmPerM};
+    const BodyError ff = world_to_body(ff_x_m_per_s_, ff_y_m_per_s_, pose.yaw_deg);
+    if (auto out = cascade_.update(now_us, BodyVector{e.forward_m, e.left_m}, v_body,
+                                   BodyVector{ff.forward_m, ff.left_m})) {
+      cmd.pitch_pct = out->forward;  // forward acceleration -> nose down
+      cmd.roll_pct = -out->left;     // left acceleration -> roll left
+    }
+  } else {
+    if (auto out = pitch_.update(now_us, 0.0, -e.forward_m * kMmPerM, forward_rate))
+      cmd.pitch_pct = *out;
+    if (auto out = roll_.update(now_us, 0.0, -e.left_m * kMmPerM, left_rate))
+      cmd.roll_pct = -*out;  // left error -> roll left
+  }
   // Yaw on a continuous (unwrapped) angle so the derivative never sees a 360 deg jump.
   const double yaw_cont = unwrap_yaw(pose.yaw_deg);
   const double yaw_target = yaw_cont + wrap_deg(status_.setpoint.yaw_deg - pose.yaw_deg);
+  // A manoeuvre's turn rate is fed forward as the stick the APM turns at that rate with; the PID
+  // only corrects around it (ccw rate -> stick left).
+  const double yaw_ff_pct = -ff_yaw_deg_per_s_ / config_.apm_yaw_rate_max_deg_per_s * 100.0;
   if (auto out = yaw_.update(now_us, yaw_target, yaw_cont))
-    cmd.yaw_pct = -*out;  // ccw error -> stick left
+    cmd.yaw_pct = yaw_ff_pct - *out;  // ccw error -> stick left
   double throttle_out = 0.0;
   if (auto out = throttle_.update(now_us, height_setpoint_m * kMmPerM, pose.z_m * kMmPerM, up_rate))
     throttle_out = *out;
@@ -332,6 +459,7 @@ StickCommand FlightController::update(std::int64_t now_us) {
   const bool fresh = has_fresh_pose(now_us);
   status_.tracking = fresh;
   supervise_tracking(now_us, fresh);
+  advance_manoeuvre(now_us);
   const StickCommand cmd = command_in_state(now_us, fresh);
   last_throttle_pct_ = cmd.throttle_pct;
   return cmd;
@@ -357,6 +485,7 @@ void FlightController::resume_after_loss(std::int64_t now_us) {
   // Keep the integrators (the throttle one holds the learned hover offset); a derivative
   // across the gap would be meaningless.
   for (Pid* pid : {&roll_, &pitch_, &yaw_, &throttle_}) pid->restart();
+  cascade_.restart();
   pid_pose_us_.reset();
   if (interrupted_takeoff_) {
     // A take-off interrupted (e.g. while the floor is still inside the Kinect's 0.5 m minimum

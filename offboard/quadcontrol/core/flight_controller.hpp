@@ -35,6 +35,7 @@
 #include <optional>
 #include <string>
 
+#include "core/cascade_position.hpp"
 #include "core/control_config.hpp"
 #include "core/flight_envelope.hpp"
 #include "core/pid.hpp"
@@ -84,12 +85,26 @@ struct Waypoint {
   double y_m = 0.0;
 };
 
+/// A timed move of the hold setpoint (a mission's fast turn or dash): the setpoint moves by
+/// (forward_m, left_m) in the body frame of the heading setpoint at the start, at speed_m_per_s,
+/// and turns by yaw_ccw_deg at yaw_rate_deg_per_s, both with ramped rates; the rates are fed
+/// forward. Zero distance / turn needs no rate.
+struct ManoeuvreRequest {
+  double forward_m = 0.0;
+  double left_m = 0.0;
+  double yaw_ccw_deg = 0.0;
+  double speed_m_per_s = 0.0;
+  double yaw_rate_deg_per_s = 0.0;
+};
+
 /// What the controller is doing, for the dashboard and the tests.
 struct ControllerStatus {
   FlightState state = FlightState::kDisarmed;
   bool facing_waypoint = false;  ///< go-to: false while turning, true while moving
   std::optional<Waypoint> waypoint;
-  CraftPose setpoint;  ///< target x, y, z (z = height setpoint) and yaw
+  CraftPose setpoint;             ///< target x, y, z (z = height setpoint) and yaw
+  bool manoeuvre_active = false;  ///< a ManoeuvreRequest is moving the hold setpoint
+  std::uint64_t manoeuvres_done = 0;
   bool tracking = false;
   std::string last_event;  ///< human-readable reason of the last transition
   std::uint64_t rejected_poses =
@@ -113,6 +128,14 @@ class FlightController {
   /// clamped into the envelope (last_event says so).
   std::string nudge(std::int64_t now_us, double forward_m, double left_m, double up_m,
                     double yaw_ccw_deg);
+
+  /// A timed turn and/or straight move (ManoeuvreRequest). Accepted in hold with tracking and no
+  /// manoeuvre in progress; finite values, the rate of each non-zero part > 0 and within
+  /// max_manoeuvre_speed_m_per_s / max_manoeuvre_yaw_rate_deg_per_s, the move within
+  /// max_manoeuvre_distance_m, the turn within max_manoeuvre_turn_deg, and the end point inside the
+  /// flight envelope. The craft stays in hold; status().manoeuvre_active is true until the setpoint
+  /// has arrived. A waypoint, manual step, landing or loss of tracking ends it where it is.
+  std::string manoeuvre(std::int64_t now_us, const ManoeuvreRequest& request);
 
   /// Newest pose estimate. Non-finite poses count as tracking lost. `velocity_m_per_s`: when an
   /// estimator provides one (core/pose_estimator.hpp), the roll/pitch/throttle derivative terms
@@ -147,6 +170,8 @@ class FlightController {
   /// else `cmd` unchanged.
   StickCommand land_touchdown(std::int64_t now_us, bool fresh, StickCommand cmd);
   void enter(FlightState state, std::int64_t now_us, const std::string& why);
+  /// Moves the hold setpoint along the active manoeuvre's profile and sets the feed-forward.
+  void advance_manoeuvre(std::int64_t now_us);
   void reset_pids();
   /// Roll/pitch/yaw/throttle from the PIDs, run once per pose sample (see the .cpp).
   StickCommand position_control(const PoseSample& sample, double height_setpoint_m);
@@ -162,7 +187,18 @@ class FlightController {
   Pid pitch_;
   Pid yaw_;
   Pid throttle_;
+  CascadePosition cascade_;
   ControllerStatus status_;
+  struct ActiveManoeuvre {
+    std::int64_t start_us = 0;
+    double x0_m = 0.0, y0_m = 0.0, yaw0_deg = 0.0;  ///< setpoint at the start
+    double dir_x = 0.0, dir_y = 0.0;                ///< unit direction of the move (world)
+    double distance_m = 0.0, turn_deg = 0.0;        ///< turn signed, ccw +
+    double speed_m_per_s = 0.0, yaw_rate_deg_per_s = 0.0;
+  };
+  std::optional<ActiveManoeuvre> manoeuvre_;
+  double ff_x_m_per_s_ = 0.0, ff_y_m_per_s_ = 0.0;  ///< setpoint velocity (world), fed forward
+  double ff_yaw_deg_per_s_ = 0.0;                   ///< setpoint turn rate (ccw +), fed forward
   std::optional<PoseSample> pose_;
   std::optional<Velocity3> pose_velocity_;             ///< with pose_, when the estimator gave one
   std::optional<CraftPose> last_accepted_pose_;        ///< the jump gate's reference

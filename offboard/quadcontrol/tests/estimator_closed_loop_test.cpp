@@ -1,7 +1,9 @@
 // Closed loop with delayed poses: the FlightController (HIL gains) holding a craft in gusts while
 // the SLAM poses reach it late, in the stalls of HIL scenario 5 (2 % loss -> 200 ms TCP stalls),
 // once flying on the raw poses (the design before the estimator) and once on PoseEstimator's
-// estimate (IMU with gravity, 8 mg noise and a level-trim error, poses fused at capture).
+// estimate (IMU with gravity, 8 mg noise and a level-trim error, poses fused at capture). Then the
+// two position laws (the thesis PID and the cascade) against gust strength: the model half of the
+// wind table (docs/control.md, "Position law").
 // A model, not the HIL rig: APM AltHold (height on a climb-rate stick), stick -> lean angle with
 // the APM's ~0.2 s attitude response, drag, Gauss-Markov gusts; seeded, time passed in.
 #include <gtest/gtest.h>
@@ -35,10 +37,11 @@ constexpr std::int64_t kCommandLatencyUs = 30000;  // command -> PWM at the APM 
 constexpr std::int64_t kStallUs = 200000;          // LinkProxy's retransmission stall
 constexpr double kFrameStallProbability = 0.06;  // 2 % per segment, ~3 segments per JPEG+zstd frame
 
-ControlConfig hil_config(bool estimator) {
+ControlConfig hil_config(bool estimator, PositionLaw law = PositionLaw::kPid) {
   ControlConfig c;
-  c.roll = {0.03, 0.0, 0.03, 20.0};  // hil/hilrig/slam_flight.py HIL_CONTROLLER_GAINS
-  c.pitch = {0.03, 0.0, 0.03, 20.0};
+  c.position_law = law;
+  c.roll = {0.04, 0.0, 0.04, 20.0};  // hil/hilrig/slam_flight.py HIL_CONTROLLER_GAINS
+  c.pitch = {0.04, 0.0, 0.04, 20.0};
   c.yaw = {0.15, 0.0, 0.02, 30.0};
   c.throttle = {0.025, 0.0, 0.0, 30.0};
   c.apm_throttle_deadband_us = 100.0;
@@ -47,6 +50,7 @@ ControlConfig hil_config(bool estimator) {
 }
 
 struct Craft {
+  double gust_std_mss = kGustStdMss;
   Eigen::Vector2d p{0, 0}, v{0, 0}, gust{0, 0};
   double z = 0.3, roll = 0, pitch = 0;  // roll + = right, pitch + = nose up (NED/FRD)
   Eigen::Vector2d accel{0, 0};
@@ -59,7 +63,7 @@ struct Craft {
     roll += (roll_target - roll) * dt / kAttitudeTauS;
     pitch += (pitch_target - pitch) * dt / kAttitudeTauS;
     const double a = std::exp(-dt / kGustTauS);
-    std::normal_distribution<double> n(0.0, kGustStdMss * std::sqrt(1.0 - a * a));
+    std::normal_distribution<double> n(0.0, gust_std_mss * std::sqrt(1.0 - a * a));
     gust = a * gust + Eigen::Vector2d(n(rng), n(rng));
     // Heading +x (yaw 0): forward = +x, right = -y (floor z up). Hover thrust holds the height.
     const double fwd = -kG * std::tan(pitch), right = kG * std::tan(roll);
@@ -91,11 +95,13 @@ struct HoldResult {
 };
 
 /// Take-off, then 30 s of hold; the hold error (truth against the take-off point) after 5 s.
-HoldResult fly(bool estimator, bool stalls, unsigned seed, std::int64_t stall_us = kStallUs) {
-  ControlConfig config = hil_config(estimator);
+HoldResult fly(bool estimator, bool stalls, unsigned seed, std::int64_t stall_us = kStallUs,
+               PositionLaw law = PositionLaw::kPid, double gust_std_mss = kGustStdMss) {
+  ControlConfig config = hil_config(estimator, law);
   FlightController fc(config);
   PoseEstimator est(config.estimator);
   Craft craft;
+  craft.gust_std_mss = gust_std_mss;
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::int64_t link_free_us = 0;                             // stream link stalled until then
@@ -231,6 +237,53 @@ TEST(EstimatorClosedLoop, GivenNoStallsThenTheEstimatorIsNoWorse) {
               worst_raw, worst_est);
   EXPECT_LE(worst_est, worst_raw * 1.1);
 }
+
+struct WindCase {
+  const char* name;
+  double gust_std_mss;
+};
+
+class PositionLawInWind : public ::testing::TestWithParam<WindCase> {};
+
+// The model half of the wind table: both laws (estimator on, as flown), 5 seeds per gust level,
+// hold error after 5 s in hold. Printed for docs/control.md; the assertion is the design claim at
+// the rig's gust level and below: the cascade holds tighter than the thesis PID.
+TEST_P(PositionLawInWind, GivenGustsThenTheCascadeHoldsNoWorseThanThePid) {
+  const WindCase c = GetParam();
+  double max_pid = 0, max_cas = 0, rms_pid = 0, rms_cas = 0;
+  int held_pid = 0, held_cas = 0;
+  for (unsigned seed : {1u, 2u, 3u, 4u, 5u}) {
+    const HoldResult pid = fly(true, false, seed, kStallUs, PositionLaw::kPid, c.gust_std_mss);
+    const HoldResult cas = fly(true, false, seed, kStallUs, PositionLaw::kCascade, c.gust_std_mss);
+    max_pid = std::max(max_pid, pid.max_m);
+    max_cas = std::max(max_cas, cas.max_m);
+    rms_pid += pid.rms_m / 5;
+    rms_cas += cas.rms_m / 5;
+    held_pid += pid.held;
+    held_cas += cas.held;
+  }
+  std::printf(
+      "wind %s (%.2f m/s^2): pid max %.3f rms %.3f held %d/5; cascade max %.3f rms %.3f "
+      "held %d/5\n",
+      c.name, c.gust_std_mss, max_pid, rms_pid, held_pid, max_cas, rms_cas, held_cas);
+  EXPECT_EQ(held_cas, 5);
+  // Where the lean limit is not reached (up to 0.5 m/s^2) the velocity integral takes a quarter
+  // or more off the RMS; beyond it both laws are saturated and only "no worse" is claimed.
+  if (c.gust_std_mss > 0.0) {
+    EXPECT_LT(rms_cas, (c.gust_std_mss <= 0.5 ? 0.75 : 1.0) * rms_pid);
+  }
+  // At the rig's level (0.15 m/s^2) the HIL target, +-0.15 m, is met in every seed with 20 %
+  // margin.
+  if (c.gust_std_mss <= kGustStdMss) {
+    EXPECT_LE(max_cas, 0.12);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Gusts, PositionLawInWind,
+                         ::testing::Values(WindCase{"calm", 0.0}, WindCase{"rig_0_15", 0.15},
+                                           WindCase{"g0_3", 0.3}, WindCase{"g0_5", 0.5},
+                                           WindCase{"g0_8", 0.8}),
+                         [](const auto& info) { return std::string(info.param.name); });
 
 }  // namespace
 }  // namespace rgbdquad::quadcontrol

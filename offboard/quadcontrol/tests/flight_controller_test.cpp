@@ -581,6 +581,170 @@ TEST_F(Flight, DeclaredCorrectionDoesNotKickTheDerivative) {
   EXPECT_LT(std::abs(declared), std::abs(undeclared));
 }
 
+TEST_F(Flight, PositionLawIsSelectableAndTheThesisPidIsUnchanged) {
+  // GIVEN the same hold 0.2 m behind the setpoint, flown once with each law
+  struct Row {
+    const char* name;
+    PositionLaw law;
+    double expected_pitch_pct;
+  };
+  // The thesis PID: P alone, 0.015 %/mm x 200 mm (D on a zero velocity, no ki in Table 3.1). The
+  // cascade: 1/s x 0.2 m -> 0.2 m/s asked, 3.5/s -> 0.7 m/s^2, atan(0.7 / g) of 45 deg.
+  const double cascade_pct = std::atan(0.7 / 9.80665) * 57.29577951308232 / 45.0 * 100.0;
+  const Row table[] = {{"pid (Table 3.1)", PositionLaw::kPid, 0.015 * 200.0},
+                       {"cascade", PositionLaw::kCascade, cascade_pct}};
+  for (const auto& row : table) {
+    SCOPED_TRACE(row.name);
+    ControlConfig config;
+    config.position_law = row.law;
+    config.cascade.velocity_ki_per_s2 = 0.0;  // compare the proportional paths alone
+    FlightController c{config};
+    pose = {0.0, 0.0, 0.3, 0.0};
+    std::swap(c, fc);
+    to_hold();
+    // WHEN the craft sits 0.2 m behind the setpoint at rest (the estimator's velocity: 0)
+    pose.x_m -= 0.2;
+    StickCommand s;
+    for (int i = 0; i < 3; ++i) {
+      now_us += kStepUs;
+      fc.on_pose(PoseSample{now_us, true, pose}, Velocity3{0.0, 0.0, 0.0});
+      s = fc.update(now_us);
+    }
+    // THEN each law asks for its own lean forward
+    EXPECT_NEAR(s.pitch_pct, row.expected_pitch_pct, 1e-6);
+    EXPECT_NEAR(s.roll_pct, 0.0, 1e-9);
+  }
+}
+
+TEST_F(Flight, ManoeuvreRequestsAreCheckedAgainstTheirBounds) {
+  to_hold();
+  struct Row {
+    const char* name;
+    ManoeuvreRequest request;
+    const char* refusal;  // "" = accepted
+  };
+  constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+  const Row table[] = {
+      {"nothing", {}, "manoeuvre: nothing to do"},
+      {"NaN", {kNan, 0, 0, 1.0, 0}, "manoeuvre: non-finite value"},
+      {"too far", {3.0, 0, 0, 1.0, 0}, "manoeuvre: move longer than max_manoeuvre_distance_m"},
+      {"too fast",
+       {1.0, 0, 0, 2.0, 0},
+       "manoeuvre: speed_m_per_s must be in (0, max_manoeuvre_speed_m_per_s]"},
+      {"move without a speed",
+       {1.0, 0, 0, 0.0, 0},
+       "manoeuvre: speed_m_per_s must be in (0, max_manoeuvre_speed_m_per_s]"},
+      {"turn too fast",
+       {0, 0, 90.0, 0, 120.0},
+       "manoeuvre: yaw_rate_deg_per_s must be in (0, max_manoeuvre_yaw_rate_deg_per_s]"},
+      {"two turns and more",
+       {0, 0, 400.0, 0, 60.0},
+       "manoeuvre: turn larger than max_manoeuvre_turn_deg"},
+      {"a half turn at 60 deg/s", {0, 0, 180.0, 0, 60.0}, ""},
+  };
+  for (const auto& row : table) {
+    SCOPED_TRACE(row.name);
+    EXPECT_EQ(fc.manoeuvre(now_us, row.request), row.refusal);
+  }
+  // A second one while the first runs is refused.
+  EXPECT_EQ(fc.manoeuvre(now_us, {0, 0, 90.0, 0, 60.0}), "manoeuvre: one is in progress");
+}
+
+TEST_F(Flight, ManoeuvreEndingOutsideTheEnvelopeIsRefusedNotShortened) {
+  // GIVEN a 2 m envelope around home and the setpoint 0.5 m ahead of home
+  ControlConfig config;
+  config.max_distance_from_home_m = 2.0;
+  config.max_manoeuvre_distance_m = 2.0;
+  FlightController c{config};
+  std::swap(c, fc);
+  to_hold();
+  ASSERT_EQ(fc.nudge(now_us, 0.5, 0.0, 0.0, 0.0), "");
+  step();
+  // WHEN a 2 m dash forward is asked THEN it is refused (it would end 2.5 m out), and one that
+  // ends inside is accepted
+  EXPECT_EQ(fc.manoeuvre(now_us, {2.0, 0.0, 0.0, 1.0, 0.0}),
+            "manoeuvre: end point outside the flight envelope");
+  EXPECT_FALSE(fc.status().manoeuvre_active);
+  EXPECT_EQ(fc.manoeuvre(now_us, {-2.0, 0.0, 0.0, 1.0, 0.0}), "");
+}
+
+TEST_F(Flight, DashMovesTheSetpointOnARampedProfileAndFeedsItsSpeedForward) {
+  to_hold();
+  const double x0 = fc.status().setpoint.x_m;
+  // GIVEN hold facing +x WHEN a 2 m dash forward at 1 m/s is asked (1 m/s^2 ramps: 1 s up,
+  // 1 s at 1 m/s, 1 s down, 3 s in all)
+  ASSERT_EQ(fc.manoeuvre(now_us, {2.0, 0.0, 0.0, 1.0, 0.0}), "");
+  const std::int64_t start = now_us;
+  std::optional<double> x_at_half_s, x_at_1_5_s;
+  while (fc.status().manoeuvre_active && now_us - start < 5'000'000) {
+    step();
+    pose.x_m = fc.status().setpoint.x_m;  // the ideal craft follows
+    const std::int64_t t = now_us - start;
+    if (!x_at_half_s && t >= 500'000) x_at_half_s = fc.status().setpoint.x_m - x0;
+    if (!x_at_1_5_s && t >= 1'500'000) x_at_1_5_s = fc.status().setpoint.x_m - x0;
+  }
+  // THEN the setpoint follows 0.5 a t^2 on the ramp and 1 m/s in the middle, ends on the goal
+  // within the 3 s profile, and the craft is back in plain hold
+  ASSERT_TRUE(x_at_half_s && x_at_1_5_s);
+  EXPECT_NEAR(*x_at_half_s, 0.125, 0.021);  // one 20 ms step of slack
+  EXPECT_NEAR(*x_at_1_5_s, 1.0, 0.021);
+  EXPECT_NEAR(now_us - start, 3'000'000, kStepUs);
+  EXPECT_NEAR(fc.status().setpoint.x_m - x0, 2.0, 1e-9);
+  EXPECT_EQ(fc.status().state, FlightState::kHold);
+  EXPECT_EQ(fc.status().manoeuvres_done, 1u);
+}
+
+TEST_F(Flight, DashFeedForwardLeansIntoTheMoveBeforeAnErrorBuildsUp) {
+  to_hold();
+  ASSERT_EQ(fc.manoeuvre(now_us, {1.0, 0.0, 0.0, 1.0, 0.0}), "");
+  // WHEN the craft follows the setpoint exactly (no error) at its speed, through the estimator's
+  // velocity, in the middle of the ramp-up
+  StickCommand s;
+  double last_x = pose.x_m;
+  for (int i = 0; i < 25; ++i) {
+    now_us += kStepUs;
+    fc.update(now_us);
+    const double v = (fc.status().setpoint.x_m - last_x) / (kStepUs / 1e6);
+    last_x = fc.status().setpoint.x_m;
+    pose.x_m = fc.status().setpoint.x_m;
+    fc.on_pose(PoseSample{now_us, true, pose}, Velocity3{v, 0.0, 0.0});
+    s = fc.update(now_us);
+  }
+  // THEN the cascade asks for (almost) no lean: the move is the feed-forward's, not an error's
+  EXPECT_NEAR(s.pitch_pct, 0.0, 1.0);
+}
+
+TEST_F(Flight, TurnFeedsTheRateForwardAsYawStick) {
+  to_hold();
+  // GIVEN a half turn counter-clockwise at 60 deg/s (ramped at 120 deg/s^2: 0.5 s up)
+  ASSERT_EQ(fc.manoeuvre(now_us, {0.0, 0.0, 180.0, 0.0, 60.0}), "");
+  const std::int64_t start = now_us;
+  StickCommand mid;
+  while (fc.status().manoeuvre_active && now_us - start < 10'000'000) {
+    const StickCommand s = step();
+    pose.yaw_deg = fc.status().setpoint.yaw_deg;  // the ideal craft follows
+    if (now_us - start >= 1'500'000 && now_us - start < 1'500'000 + kStepUs) mid = s;
+  }
+  // THEN at full rate the stick is the APM's stick for 60 deg/s to the left (of 202.5 at full
+  // stick), minus the yaw PID's derivative on the measured rate; 180 deg take 3.5 s
+  const double ff_pct = -60.0 / 202.5 * 100.0;
+  EXPECT_NEAR(mid.yaw_pct, ff_pct, 2.0);
+  EXPECT_LT(mid.yaw_pct, -fc.config().yaw.output_limit_pct + 2.0);
+  EXPECT_NEAR(now_us - start, 3'500'000, kStepUs);
+  EXPECT_NEAR(std::abs(fc.status().setpoint.yaw_deg), 180.0, 1e-6);
+}
+
+TEST_F(Flight, LandingEndsAManoeuvreWhereItIs) {
+  to_hold();
+  ASSERT_EQ(fc.manoeuvre(now_us, {2.0, 0.0, 0.0, 1.0, 0.0}), "");
+  for (int i = 0; i < 50; ++i) step();  // 1 s in: the setpoint is ~0.5 m along
+  ASSERT_EQ(fc.command(now_us, OperatorCommand::kLand), "");
+  EXPECT_FALSE(fc.status().manoeuvre_active);
+  const double x = fc.status().setpoint.x_m;
+  for (int i = 0; i < 50; ++i) step();
+  EXPECT_DOUBLE_EQ(fc.status().setpoint.x_m, x);
+}
+
 TEST(FlightControllerConfig, InvalidConfigThrowsAtStartUp) {
   ControlConfig c;
   c.hover_throttle_pct = -1.0;
