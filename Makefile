@@ -8,6 +8,7 @@
 #   make results         docs/results.md from out/results/*.json (written by bench, hil, demo-loop)
 #   make fuzz            longer libFuzzer runs (FUZZ_SECONDS per target, default 300)
 #   make hil             all hardware-in-loop scenarios
+#   make wind-table      HIL hold against gust strength for both position laws -> out/results/wind.json
 #   make soak            HIL missions back to back for SOAK_MINUTES (60) under a seeded fault schedule
 #                        (SOAK_SEED), then a report in out/soak/ and a replay check (docs/hil.md, Soak)
 #   make firmware        build the ATmega328P image, print flash/RAM use
@@ -31,7 +32,7 @@ define component
 endef
 
 .PHONY: all deps build build-cpp build-asan firmware test demo demo-loop bench study fuzz hil flash \
-        install-onboard run-offboard clean help onboard-arm bench-arm results soak
+        install-onboard run-offboard clean help onboard-arm bench-arm results soak wind-table
 
 all: build
 
@@ -57,6 +58,10 @@ demo: build
 demo-loop: build
 	@.venv/bin/python hil/tools/demo_loop.py --runs $(or $(RUNS),10); status=$$?; \
 	  python3 scripts/results_write.py demo-loop || true; exit $$status
+
+# Hold error against gust strength, cascade and thesis PID (hil/tools/wind_table.py; docs/hil.md).
+wind-table: build
+	@.venv/bin/python hil/tools/wind_table.py
 
 bench: build
 	@scripts/bench.sh
