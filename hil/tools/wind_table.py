@@ -8,10 +8,11 @@ Each flight is a hilrig.slam_flight.SlamFlight (every board its emulator, every 
 one; it takes the machine-wide HIL flight lock, so it may wait for another flight): take off, hold
 1.7 m for --hold-s after the 5 s settling, scored on the FC emulator's truth. The gusts are the
 FC emulator's Gauss-Markov air currents (QuadParams.gust_accel_std_mss, 2 s correlation) with
-scenario 1's trim error (0.5 / -0.3 deg) and disturbance seed. For each law the gust levels are
-flown in increasing order until the loop fails - the hold exceeds --fail-bound-m, tracking was lost
-for good (quad-control no longer in hold at the end), a failsafe fired, or the mission could not go
-on - and stronger levels are not flown for that law. SLAM frames lost are reported either way.
+scenario 1's trim error (0.5 / -0.3 deg) and disturbance seed. The gust levels are flown in
+increasing order, every law at each level, until the loop fails for a law - the hold exceeds
+--fail-bound-m, tracking was lost for good (quad-control no longer in hold at the end), a failsafe
+fired, or the mission could not go on - and stronger levels are not flown for that law. SLAM
+frames lost are reported either way.
 
 Per flight: hold max / rms (truth), the share of commands with roll or pitch at quad-control's lean
 limit (attitude authority), SLAM frames lost and ATE, camera -> PWM latency, the machine's load.
@@ -191,6 +192,22 @@ def markdown(flights: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def write_outputs(flights: list[dict], args) -> None:
+    """<out>/table.md and <results-dir>/wind.json from the flights so far."""
+    from results_write import make_result
+
+    (args.out / "table.md").write_text(markdown(flights))
+    record = make_result("wind", figures(flights, args.hold_s))
+    record["note"] = (
+        "Hold error (FC emulator truth) against gust strength (Gauss-Markov, 2 s correlation, "
+        f"trim {TRIM_ERROR_DEG[0]} / {TRIM_ERROR_DEG[1]} deg, seed {DISTURBANCE_SEED}), "
+        f"HIL scenario 1 with SLAM in the loop, hold {args.hold_s:g} s after 5 s settling; "
+        "mode = quad-control's position law (cascade: the default; pid: the thesis). "
+        "Levels above a law's first failure were not flown (hil/tools/wind_table.py, docs/hil.md)."
+    )
+    (args.results_dir / "wind.json").write_text(json.dumps(record, indent=2) + "\n")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         description="Hold error against gust strength for each position law (HIL flights).",
@@ -239,12 +256,16 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         print("wind_table: not built / not installed: " + ", ".join(missing), file=sys.stderr)
         return 2
-    from results_write import make_result
 
     args.out.mkdir(parents=True, exist_ok=True)
+    args.results_dir.mkdir(parents=True, exist_ok=True)
     flights: list[dict] = []
-    for law in args.laws:
-        for gust in args.gusts:
+    failed: set[str] = set()
+    # Gust level by gust level, both laws at each, so an interrupted run still compares them.
+    for gust in args.gusts:
+        for law in args.laws:
+            if law in failed:
+                continue  # stronger gusts are not flown for a law that failed
             name = f"{law}-g{gust:g}"
             print(f"wind_table: {name}", flush=True)
             f = fly_one(law, gust, args.hold_s, args.out / name)
@@ -252,23 +273,13 @@ def main(argv: list[str] | None = None) -> int:
             (args.out / f"{name}.json").write_text(json.dumps(f, indent=2, default=str))
             flights.append(f)
             print(f"wind_table: {name}: hold {f.get('hold')}, {f['failure'] or 'held'}", flush=True)
+            # The table and the result file after every flight: an interrupted run keeps what it
+            # flew.
+            write_outputs(flights, args)
             if f["failure"]:
-                break  # stronger gusts: not flown for this law
-    table = markdown(flights)
-    (args.out / "table.md").write_text(table)
-    print(table)
-    record = make_result("wind", figures(flights, args.hold_s))
-    record["note"] = (
-        "Hold error (FC emulator truth) against gust strength (Gauss-Markov, 2 s correlation, "
-        f"trim {TRIM_ERROR_DEG[0]} / {TRIM_ERROR_DEG[1]} deg, seed {DISTURBANCE_SEED}), "
-        f"HIL scenario 1 with SLAM in the loop, hold {args.hold_s:g} s after 5 s settling; "
-        "mode = quad-control's position law (cascade: the default; pid: the thesis). "
-        "Levels above a law's first failure were not flown (hil/tools/wind_table.py, docs/hil.md)."
-    )
-    args.results_dir.mkdir(parents=True, exist_ok=True)
-    path = args.results_dir / "wind.json"
-    path.write_text(json.dumps(record, indent=2) + "\n")
-    print(f"wind_table: {path}")
+                failed.add(law)
+    print((args.out / "table.md").read_text())
+    print(f"wind_table: {args.results_dir / 'wind.json'}")
     return 0
 
 
