@@ -76,6 +76,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from rgbd_protocol.tum_cameras import KINECT_V1_ACCELEROMETER
 
 from kinect_emulator.renderer import KinectEmulator, KinectOptions
 from kinect_emulator.room import Room, default_room
@@ -114,6 +115,47 @@ SYNC_CONTENT = b"sync\n"
 # 11-bit -> mm for 307 200 pixels, takes a few ms): 1.5 frame periods at 30 fps.
 FAKENECT_WAIT_S = 0.05
 SYNC_POLL_S = 0.0002  # 0.2 ms: well below the wait, a few hundred polls at most per frame
+# The Kinect's accelerometer, written as fakenect accelerometer records ('a-*.dump': libfreenect's
+# freenect_raw_tilt_state, int16 x y z counts, int8 tilt angle, int tilt status, native layout)
+# before each frame's lines, so the streamer's freenect_update_tilt_state after the colour image
+# reads it. Counts per g, g and the axes come from the one model (protocol/camera/tum_cameras.json).
+ACCEL_MODEL = KINECT_V1_ACCELEROMETER
+R_CAM_ACCEL = np.array(ACCEL_MODEL.R_cam_accel)
+TILT_STATE = struct.Struct("@3hbi")  # freenect_raw_tilt_state on the streamer's host
+ACCEL_NOISE_STREAM = 0xACC  # (seed, this) seeds the accelerometer noise, apart from the images'
+# Accelerometer noise, m/s^2 per axis (1 sigma): about 4 counts of 819/g, the spread of single
+# samples of TUM's Kinect at rest (fr1 recordings: a few counts), before quantisation to counts.
+ACCEL_NOISE_MPS2 = 0.05
+# Gravity in the room frame (x north, y west, z up): the specific force at rest points up.
+GRAVITY_ROOM_MPS2 = np.array([0.0, 0.0, -ACCEL_MODEL.standard_gravity_mps2])
+
+
+def accel_counts(
+    T_room_cam: np.ndarray, a_room_mps2: np.ndarray, noise_mps2: np.ndarray | None = None
+) -> tuple[int, int, int]:
+    """What the Kinect's accelerometer reads for a camera at T_room_cam accelerating at a_room
+    (room frame): the specific force a - g rotated into the camera and then the accelerometer
+    axes, plus noise, in counts (819/g), clipped at the sensor's range."""
+    f_room = np.asarray(a_room_mps2, float) - GRAVITY_ROOM_MPS2
+    f_cam = T_room_cam[:3, :3].T @ f_room
+    f_accel = R_CAM_ACCEL.T @ f_cam
+    if noise_mps2 is not None:
+        f_accel = f_accel + noise_mps2
+    per_count = ACCEL_MODEL.standard_gravity_mps2 / ACCEL_MODEL.counts_per_g
+    limit = round(ACCEL_MODEL.range_g * ACCEL_MODEL.counts_per_g)
+    counts = np.clip(np.rint(f_accel / per_count), -limit, limit).astype(int)
+    return int(counts[0]), int(counts[1]), int(counts[2])
+
+
+def acceleration_from_poses(history: list[tuple[float, np.ndarray]]) -> np.ndarray:
+    """The camera's acceleration in the room frame from its last three (time, position) truth
+    samples (second difference); zero until there are three with increasing times."""
+    if len(history) < 3:
+        return np.zeros(3)
+    (t0, p0), (t1, p1), (t2, p2) = history[-3:]
+    if not (t0 < t1 < t2):
+        return np.zeros(3)
+    return 2.0 * ((p2 - p1) / (t2 - t1) - (p1 - p0) / (t1 - t0)) / (t2 - t0)
 
 
 @dataclass(frozen=True)
@@ -225,28 +267,41 @@ class FakenectFifoIndex:
             sleep(SYNC_POLL_S)
 
     def write_frame(
-        self, index: int, t_mono_s: float, rgb: np.ndarray, raw_disparity: np.ndarray, clock
+        self,
+        index: int,
+        t_mono_s: float,
+        rgb: np.ndarray,
+        raw_disparity: np.ndarray,
+        clock,
+        accel: tuple[int, int, int] | None = None,
     ) -> tuple[float, str, str]:
-        """Writes both files completely, then their INDEX lines. Returns (time just before the
-        lines were written, depth file name, rgb file name). Call only after wait_reader_done()
+        """Writes the files completely, then their INDEX lines: the accelerometer record first
+        (`accel` counts, when given), then depth and colour. Returns (time just before the lines
+        were written, depth file name, rgb file name). Call only after wait_reader_done()
         returned True (else the FIFO could queue frames and the stamps would be ambiguous)."""
         h, w = raw_disparity.shape
         ticks = int(t_mono_s * FAKENECT_TICKS_PER_S) & 0xFFFFFFFF
         dname = f"d-{FAKENECT_NO_PACING_TIME}-{ticks}-{index}.pgm"
         rname = f"r-{FAKENECT_NO_PACING_TIME}-{ticks}-{index}.ppm"
-        for name, header, data in (
-            (dname, f"P5 {w} {h} 65535\n", raw_disparity.astype("=u2", copy=False)),
-            (rname, f"P6 {w} {h} 255\n", rgb),
-        ):
+        files = [
+            (dname, f"P5 {w} {h} 65535\n".encode(), raw_disparity.astype("=u2", copy=False)),
+            (rname, f"P6 {w} {h} 255\n".encode(), rgb),
+        ]
+        names = [dname, rname]
+        if accel is not None:
+            aname = f"a-{FAKENECT_NO_PACING_TIME}-{ticks}-{index}.dump"
+            files.insert(0, (aname, TILT_STATE.pack(*accel, 0, 0), np.zeros(0, np.uint8)))
+            names.insert(0, aname)
+        for name, header, data in files:
             tmp = self.dir / f".{name}.tmp"
             with open(tmp, "wb") as f:
-                f.write(header.encode())
+                f.write(header)
                 f.write(np.ascontiguousarray(data).data)
             os.replace(tmp, self.dir / name)
         written_s = clock()
         self.last_written_s = written_s
-        self._write(f"{dname}\n{rname}\n".encode())
-        self._on_disk.append([[self.dir / dname, self.dir / rname], None])
+        self._write("".join(n + "\n" for n in names).encode())
+        self._on_disk.append([[self.dir / n for n in names], None])
         return written_s, dname, rname
 
     def collect(self) -> None:
@@ -318,11 +373,17 @@ def _child_main() -> int:
     sys.stdout.flush()
     buf = bytearray()
     n_rendered = 0
+    # Truth positions of every request (superseded ones too): the camera's acceleration for the
+    # accelerometer record. Its noise: a generator of its own, seeded by the options.
+    history: list[tuple[float, np.ndarray]] = []
+    accel_rng = np.random.default_rng([options.seed, ACCEL_NOISE_STREAM])
     try:
         while True:
             reqs = _read_requests(fd, buf, block=True)
             if reqs is None or any(r[0] == _STOP_SEQ for r in reqs):
                 return 0
+            for _, t_r, *flat_r in reqs:
+                history = history[-2:] + [(t_r, np.array(flat_r).reshape(4, 4)[:3, 3])]
             seq, t_s, *flat = reqs[-1]
             start = time.monotonic()
             rec = {
@@ -356,14 +417,21 @@ def _child_main() -> int:
                 if not index.wait_reader_done(time.monotonic, time.sleep, FAKENECT_WAIT_S):
                     rec["delivered"] = False
                 else:
+                    T = np.array(flat).reshape(4, 4)
+                    counts = accel_counts(
+                        T,
+                        acceleration_from_poses(history),
+                        accel_rng.normal(0.0, ACCEL_NOISE_MPS2, 3),
+                    )
                     written, dname, rname = index.write_frame(
-                        n_rendered, t_s, frame.rgb, lut[frame.depth_mm], time.monotonic
+                        n_rendered, t_s, frame.rgb, lut[frame.depth_mm], time.monotonic, counts
                     )
                     rec.update(
                         delivered=True,
                         index_written_mono_s=written,
                         depth_file=dname,
                         rgb_file=rname,
+                        accel_counts=list(counts),
                     )
             n_rendered += 1
             records.write(json.dumps(rec) + "\n")

@@ -63,8 +63,7 @@ SlamLinkSession::SlamLinkSession(PipelineOptions options, SessionMapFiles map_fi
   options_.mode = PipelineMode::kLive;
 }
 
-std::optional<RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame& m,
-                                                   std::string* error) const {
+std::optional<RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame& m, std::string* error) {
   const auto& rh = m.rgb.header;
   const auto& dh = m.depth.header;
   if (rh.encoding != proto::Encoding::kRaw || dh.encoding != proto::Encoding::kRaw) {
@@ -89,6 +88,12 @@ std::optional<RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame& m,
     const auto& q = m.attitude.q_xyzw;
     f.q_nav_cam = Eigen::Quaterniond(q[3], q[0], q[1], q[2]);
   }
+  // The sample belongs to the colour image: the gate judges it at the colour stamp.
+  std::optional<AccelSample> accel;
+  if (m.accel.valid)
+    accel = AccelSample{static_cast<double>(m.accel.capture_timestamp_us) * 1e-6,
+                        Eigen::Vector3d(m.accel.f_mps2[0], m.accel.f_mps2[1], m.accel.f_mps2[2])};
+  accel_gate_.attach(static_cast<double>(rh.capture_timestamp_us) * 1e-6, accel, &f);
   cv::Mat rgb(rh.height, rh.width, CV_8UC3, const_cast<std::uint8_t*>(m.rgb.payload.data()));
   cv::cvtColor(rgb, f.rgb, cv::COLOR_RGB2BGR);  // copies
   f.depth.create(dh.height, dh.width, CV_16UC1);
@@ -249,6 +254,11 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
 std::string SlamLinkSession::finish_summary() {
   std::ostringstream m;
   m << frames_ << " frames (" << faulted_ << " answered LOST for a fault)";
+  const AccelCounts& a = accel_gate_.counts();
+  m << "; accelerometer: " << a.accepted() << " samples used, " << a.ignored() << " ignored (";
+  for (std::size_t v = 1; v < kAccelVerdictCount; ++v)
+    m << (v > 1 ? ", " : "") << to_string(static_cast<AccelVerdict>(v)) << " " << a.by_verdict[v];
+  m << ")";
   if (pipeline_) {
     pipeline_->finish();
     const auto s = pipeline_->summary();

@@ -25,6 +25,7 @@
 #include <string>
 
 #include "rgbdquad/protocol/messages.hpp"
+#include "slam/motion/accel_gate.hpp"
 #include "slam/pipeline/pipeline.hpp"
 
 namespace slam {
@@ -102,14 +103,16 @@ class SlamLinkSession {
   std::size_t frames_faulted() const { return faulted_; }
   /// Poses the codec refused as computed and that were re-normalised (see pose_to_wire).
   std::size_t poses_repaired() const { return repaired_; }
+  /// Accelerometer samples of the frames so far, per gate verdict (used, and ignored per reason).
+  const AccelCounts& accel_counts() const { return accel_gate_.counts(); }
   /// The pipeline (null before the first frame); finish() it before reading results.
   SessionPipeline* pipeline() { return pipeline_.get(); }
   /// One line for the log: frames, keyframes, loop closures (finishes the pipeline).
   std::string finish_summary();
 
  private:
-  std::optional<RgbdFrame> to_frame(const rgbdquad::protocol::RgbdFrame& m,
-                                    std::string* error) const;
+  /// The SLAM frame of a wire frame; its accelerometer sample goes through the session's gate.
+  std::optional<RgbdFrame> to_frame(const rgbdquad::protocol::RgbdFrame& m, std::string* error);
   rgbdquad::protocol::PoseUpdate lost_update(const rgbdquad::protocol::RgbdFrame& frame,
                                              std::string reason, std::string* error);
 
@@ -125,6 +128,7 @@ class SlamLinkSession {
   std::size_t frames_ = 0;
   std::size_t faulted_ = 0;
   std::size_t repaired_ = 0;
+  AccelGate accel_gate_;  ///< the frames' accelerometer samples, rotated into the camera frame
   rgbdquad::protocol::Pose3 last_good_;  ///< last pose sent while tracking (identity at start)
   std::uint32_t map_corrections_ =
       0;  ///< newest map-correction count sent (LOST answers repeat it)

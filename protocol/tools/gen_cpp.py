@@ -50,11 +50,27 @@ def generate() -> str:
         "",
         "namespace rgbdquad::protocol {",
         "",
-        "/// Protocol major version carried in every envelope; peers with another version refuse.",
+        "/// Protocol version this build writes in every envelope and hello.",
         f"inline constexpr std::uint8_t kProtocolVersion = {spec.version};",
+        "/// Oldest envelope version a decoder still reads (docs/protocol.md, versions): bodies",
+        "/// of kOldestDecodedProtocolVersion..kProtocolVersion decode, every other is refused.",
+        "inline constexpr std::uint8_t kOldestDecodedProtocolVersion = "
+        f"{spec.oldest_decoded_version};",
         "/// First 8 bytes (little-endian) of SHA-256 of the canonical spec "
         "(see docs/protocol.md).",
         f"inline constexpr std::uint64_t kSchemaHash = 0x{spec.schema_hash:016x}ULL;",
+        "/// Schema hash of each decoded version (the spec projected to it), oldest first:",
+        "/// a peer's handshake is accepted when its version is decoded and its hash is that",
+        "/// version's.",
+        "inline constexpr std::uint64_t kSchemaHashByVersion[] = {"
+        + ", ".join(f"0x{spec.at_version(v).schema_hash:016x}ULL" for v in spec.decoded_versions)
+        + "};",
+        "/// The schema hash of `version`, 0 when this build does not decode it.",
+        "constexpr std::uint64_t schema_hash_of_version(unsigned version) {",
+        "  return version >= kOldestDecodedProtocolVersion && version <= kProtocolVersion",
+        "             ? kSchemaHashByVersion[version - kOldestDecodedProtocolVersion]",
+        "             : 0;",
+        "}",
         "/// Envelope magic, resynchronisation marker.",
         "inline constexpr std::uint8_t kMagic[4] = {"
         + ", ".join(f"0x{b:02x}" for b in spec.magic)
@@ -161,6 +177,7 @@ def generate() -> str:
     out.append("      return 0;")
     out.append("  }")
     out.append("}")
+    out += max_body_bytes_by_version(spec)
     out.append("constexpr std::string_view to_string(MessageType t) {")
     out.append("  switch (t) {")
     for m in spec.messages:
@@ -172,6 +189,28 @@ def generate() -> str:
     out.append("")
     out.append("}  // namespace rgbdquad::protocol")
     return "\n".join(out) + "\n"
+
+
+def max_body_bytes_by_version(spec) -> list[str]:
+    """max_body_bytes(type, version): the maxima of older versions where they differ."""
+    out = [
+        "/// Largest valid body of a message type in envelope version `version`; 0 for an",
+        "/// unknown id or a version this build does not decode.",
+        "constexpr std::size_t max_body_bytes(std::uint8_t message_type, unsigned version) {",
+    ]
+    for v in spec.decoded_versions:
+        if v == spec.version:
+            continue
+        old = spec.at_version(v)
+        out += [f"  if (version == {v}) {{", "    switch (message_type) {"]
+        for m in old.messages:
+            if m["max_body_bytes"] != spec.message(m["name"])["max_body_bytes"]:
+                out.append(f"      case {m['id']}:  // {m['name']}")
+                out.append(f"        return {m['max_body_bytes']};")
+        out += ["      default:", "        return max_body_bytes(message_type);", "    }", "  }"]
+    out.append("  return version == kProtocolVersion ? max_body_bytes(message_type) : 0;")
+    out.append("}")
+    return out
 
 
 def outputs() -> dict[Path, str]:

@@ -48,6 +48,7 @@ def field_table(spec, fields) -> list[str]:
         rows.append(
             f"| `{f['name']}` | {wire_type(spec, f)} | {size_text(spec, f)} | "
             f"{f.get('unit', '')} | {'' if rng is None else f'[{rng[0]}, {rng[1]}]'} | "
+            f"{'(since version ' + str(f['since']) + ') ' if 'since' in f else ''}"
             f"{f.get('doc', '')} |"
         )
     return rows
@@ -58,7 +59,14 @@ def generate_tables() -> str:
     out = [
         BEGIN,
         "",
-        f"Protocol version **{spec.version}**, schema hash **`0x{spec.schema_hash:016x}`**.",
+        f"Protocol version **{spec.version}**, schema hash **`0x{spec.schema_hash:016x}`**; "
+        f"decodes versions {spec.oldest_decoded_version}..{spec.version} ("
+        + ", ".join(
+            f"version {v}: schema hash `0x{spec.at_version(v).schema_hash:016x}`"
+            for v in spec.decoded_versions
+            if v != spec.version
+        )
+        + ").",
         "",
         "### Envelope",
         "",

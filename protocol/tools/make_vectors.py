@@ -70,7 +70,7 @@ SENDER_NONCE = bytes(range(0x20, 0x30))
 def handshake(kind="DEPTH", **over):
     """A Handshake signed under AUTH_KEY answering RECEIVER_NONCE (unless `mac` is given)."""
     f = {
-        "protocol_version": 1,
+        "protocol_version": Codec().spec.version,
         "schema_hash": Codec().spec.schema_hash,
         "stream_kind": kind,
         "width": 640,
@@ -203,7 +203,17 @@ LEVEL_NORTH_ATTITUDE = {"valid": True, "q_xyzw": [0.5, 0.5, 0.5, 0.5]}
 NO_ATTITUDE = {"valid": False, "q_xyzw": [0.0, 0.0, 0.0, 1.0]}
 
 
-def rgbd_frame(attitude=None):
+# A level Kinect at rest as libfreenect reports it (x left, y up, z forward): +1 g on y, exactly
+# 819 counts * 9.80665 / 819, with a little tilt on x and z (counts 12 and -40).
+KINECT_LEVEL_ACCEL = {
+    "valid": True,
+    "capture_timestamp_us": 1305031102175304,
+    "f_mps2": [12 * 9.80665 / 819, 9.80665, -40 * 9.80665 / 819],
+}
+NO_ACCEL = {"valid": False, "capture_timestamp_us": 0, "f_mps2": [0.0, 0.0, 0.0]}
+
+
+def rgbd_frame(attitude=None, accel=None):
     return {
         "pair_sequence": 12,
         "intrinsics": FR1,
@@ -211,6 +221,7 @@ def rgbd_frame(attitude=None):
         "attitude": LEVEL_NORTH_ATTITUDE if attitude is None else attitude,
         "rgb": image("RGB8", 2, 2, 12),
         "depth": image("DEPTH16", 2, 2, 12),
+        "accel": KINECT_LEVEL_ACCEL if accel is None else accel,
     }
 
 
@@ -226,8 +237,17 @@ class Builder:
     def msg(self, name, fields):
         return self.codec.encode(name, fields)
 
-    def expect_msg(self, name, fields):
-        return {"event": "message", "message": self.codec.to_view(name, fields)}
+    def expect_msg(self, name, fields, version=None):
+        """The decoded view of `fields` sent as `version` (default: ours): fields that version
+        lacks, or that the caller left out, decode as their defaults."""
+        present = {f["name"] for f in self.codec.message_at(name, version)["fields"]}
+        full = {
+            f["name"]: fields[f["name"]]
+            if f["name"] in fields and f["name"] in present
+            else self.codec.default_value(f)
+            for f in self.codec.spec.message(name)["fields"]
+        }
+        return {"event": "message", "message": self.codec.to_view(name, full)}
 
     @staticmethod
     def expect_err(code, discarded):
@@ -265,16 +285,21 @@ class Builder:
             msg_name, body = body_of
             self.bodies[BODY_FUZZERS[msg_name]][name] = body
 
-    def valid(self, name, description, msg_name, fields, refused=None):
-        data = self.msg(msg_name, fields)
+    def valid(self, name, description, msg_name, fields, refused=None, version=None):
+        """A valid message; `version` writes it as that older version (as a peer that speaks it
+        does): it decodes to `fields` with what that version lacks at its defaults."""
+        data = self.codec.encode(msg_name, fields, version=version)
         self.add(
             name,
             description,
             data,
-            [self.expect_msg(msg_name, fields)],
+            [self.expect_msg(msg_name, fields, version)],
             refused=refused,
             reencodes=True,
-            body_of=(msg_name, data[16:-4]),
+            # An older version's body seeds the body fuzzer only where it is the current layout.
+            body_of=(msg_name, data[16:-4])
+            if data[16:-4] == self.codec.encode_body(msg_name, fields)
+            else None,
         )
         return data
 
@@ -313,11 +338,14 @@ class Builder:
             "HandshakeAck",
             ack(False, "schema hash mismatch: peer 0x0000000000000001"),
         )
+        # Sent before the receiver knows the streamer's version: in the oldest one still decoded.
         self.valid(
             "stream_challenge",
-            "receiver's challenge (first message of a stream connection)",
+            "receiver's challenge (first message of a stream connection), in the oldest "
+            "decoded version",
             "StreamChallenge",
             {"receiver_nonce": list(RECEIVER_NONCE)},
+            version=c.spec.oldest_decoded_version,
         )
         # Decode fine, but their mac must not verify (stream_auth "forged").
         self.valid(
@@ -335,6 +363,35 @@ class Builder:
             handshake("RGB", mac=[0] * 8),
         )
         self.valid("frame_rgb_raw", "4x3 RGB8 RAW frame", "Frame", {"image": image("RGB8")})
+        self.valid(
+            "frame_rgb_accel",
+            "4x3 RGB8 RAW frame with the Kinect's accelerometer sample (level, at rest)",
+            "Frame",
+            {"image": image("RGB8"), "accel": KINECT_LEVEL_ACCEL},
+        )
+        # Version 1 peers (a craft running the previous streamer): still decoded.
+        old = c.spec.oldest_decoded_version
+        self.valid(
+            "frame_rgb_raw_v1",
+            f"4x3 RGB8 RAW frame of protocol version {old} (no accel field)",
+            "Frame",
+            {"image": image("RGB8")},
+            version=old,
+        )
+        self.valid(
+            "handshake_rgb_v1",
+            f"RGB handshake of a version {old} streamer with that version's schema hash",
+            "Handshake",
+            handshake("RGB", protocol_version=old, schema_hash=c.spec.at_version(old).schema_hash),
+            version=old,
+        )
+        self.valid(
+            "handshake_v1_with_v2_hash",
+            f"handshake claiming version {old} with the current schema hash",
+            "Handshake",
+            handshake("RGB", protocol_version=old),
+            refused="schema hash mismatch",
+        )
         self.valid(
             "frame_depth_raw",
             "4x3 DEPTH16 RAW frame (one invalid 0 pixel)",
@@ -374,7 +431,7 @@ class Builder:
             "SLAM link hello (client, new flight)",
             "SlamHello",
             {
-                "protocol_version": 1,
+                "protocol_version": c.spec.version,
                 "schema_hash": c.spec.schema_hash,
                 "peer_name": "quad-control",
                 "session_id": 0x1F2E3D4C5B6A7988,
@@ -388,7 +445,7 @@ class Builder:
             "SLAM link hello (server): the session's map continues",
             "SlamHello",
             {
-                "protocol_version": 1,
+                "protocol_version": c.spec.version,
                 "schema_hash": c.spec.schema_hash,
                 "peer_name": "slam-server",
                 "session_id": 0x1F2E3D4C5B6A7988,
@@ -402,7 +459,7 @@ class Builder:
             "SLAM link hello (server): connection refused",
             "SlamHello",
             {
-                "protocol_version": 1,
+                "protocol_version": c.spec.version,
                 "schema_hash": c.spec.schema_hash,
                 "peer_name": "slam-server",
                 "session_id": 0,
@@ -419,9 +476,16 @@ class Builder:
         )
         self.valid(
             "rgbd_frame_no_attitude",
-            "2x2 RGB-D pair without an attitude",
+            "2x2 RGB-D pair without an attitude or accelerometer sample",
             "RgbdFrame",
-            rgbd_frame(NO_ATTITUDE),
+            rgbd_frame(NO_ATTITUDE, NO_ACCEL),
+        )
+        self.valid(
+            "rgbd_frame_v1",
+            f"2x2 RGB-D pair of protocol version {old} (no accel field)",
+            "RgbdFrame",
+            rgbd_frame(),
+            version=old,
         )
         self.valid(
             "pose_update", "tracking pose with egomotion, keyframe", "PoseUpdate", pose_update()
@@ -492,9 +556,9 @@ class Builder:
         )
         self.valid(
             "handshake_wrong_protocol_version_field",
-            "handshake claiming version 2",
+            f"handshake claiming version {c.spec.version + 1}",
             "Handshake",
-            handshake("RGB", protocol_version=2),
+            handshake("RGB", protocol_version=c.spec.version + 1),
             refused="protocol version mismatch",
         )
         self.valid(
@@ -502,7 +566,7 @@ class Builder:
             "SLAM hello from another spec",
             "SlamHello",
             {
-                "protocol_version": 1,
+                "protocol_version": c.spec.version,
                 "schema_hash": 1,
                 "peer_name": "old-build",
                 "session_id": 0,
@@ -574,10 +638,10 @@ class Builder:
 
         # Header fields.
         body = req[16:-4]
-        data = self.forged("FrameRequest", body, version=2)
+        data = self.forged("FrameRequest", body, version=c.spec.version + 1)
         self.add(
             "wrong_version",
-            "envelope version 2 (valid CRCs)",
+            f"envelope version {c.spec.version + 1} (valid CRCs)",
             data,
             [self.expect_err("unsupported_version", len(data))],
         )
@@ -760,6 +824,27 @@ class Builder:
                 raw(
                     "RgbdFrame",
                     dict(rgbd_frame(), rgb=rgbd_frame()["depth"], depth=rgbd_frame()["rgb"]),
+                ),
+            ),
+            (
+                "accel_not_finite",
+                "Frame accel f_mps2 x = NaN",
+                "Frame",
+                raw(
+                    "Frame",
+                    {
+                        "image": image("RGB8"),
+                        "accel": dict(KINECT_LEVEL_ACCEL, f_mps2=[math.nan, 9.8, 0.0]),
+                    },
+                ),
+            ),
+            (
+                "accel_out_of_range",
+                "RgbdFrame accel f_mps2 z = 2000 m/s^2",
+                "RgbdFrame",
+                raw(
+                    "RgbdFrame",
+                    rgbd_frame(accel=dict(KINECT_LEVEL_ACCEL, f_mps2=[0.0, 9.8, 2000.0])),
                 ),
             ),
         ]

@@ -24,9 +24,12 @@ from kinect_emulator.live import (
     SYNC_CONTENT,
     SYNC_NAME,
     SYNC_POLL_S,
+    TILT_STATE,
     FakenectFifoIndex,
     LiveFrameRecord,
     LiveKinect,
+    accel_counts,
+    acceleration_from_poses,
     match_capture_stamps,
 )
 from kinect_emulator.writers import depth_mm_to_freenect_raw
@@ -149,6 +152,28 @@ def test_fifo_index_sync_protocol_files_complete_and_collected(tmp_path):
     assert SYNC_CONTENT  # fakenect ends the dump on a 0-byte file
 
 
+def test_accelerometer_counts_from_truth_attitude_and_acceleration():
+    """GIVEN the camera's truth pose and acceleration THEN the counts are the specific force a - g
+    in the accelerometer's axes at 819 counts/g, clipped at +-2 g."""
+    T = level_pose(0.0)
+    assert accel_counts(T, np.zeros(3)) == (0, 819, 0)  # at rest: 1 g up = sensor +y
+    # Accelerating forward (room +x = camera z = sensor z) at 1 g: +819 on z as well.
+    assert accel_counts(T, np.array([9.80665, 0.0, 0.0])) == (0, 819, 819)
+    # Free fall reads nothing; 3 g up is clipped at the sensor's +2 g.
+    assert accel_counts(T, np.array([0.0, 0.0, -9.80665])) == (0, 0, 0)
+    assert accel_counts(T, np.array([0.0, 0.0, 2 * 9.80665])) == (0, 1638, 0)
+    # A camera pitched 90 deg down (optical axis = room -z): gravity's reaction is along -z_cam.
+    down = pose_matrix(np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]), [0, 0, 1])
+    assert accel_counts(down, np.zeros(3)) == (0, 0, -819)
+
+
+def test_acceleration_from_poses_is_the_second_difference():
+    h = [(0.0, np.zeros(3)), (0.1, np.array([0.01, 0.0, 0.0])), (0.2, np.array([0.04, 0.0, 0.0]))]
+    np.testing.assert_allclose(acceleration_from_poses(h), [2.0, 0.0, 0.0])  # x = t^2
+    assert not acceleration_from_poses(h[:2]).any()
+    assert not acceleration_from_poses([h[0], h[0], h[1]]).any()  # no time between two samples
+
+
 def test_fifo_index_without_reader_times_out_and_keeps_files(tmp_path):
     """GIVEN nobody reads the FIFO WHEN waiting for the reader THEN it gives up at the deadline
     (clock passed in) with only the sync line queued, and no frame file is ever deleted."""
@@ -222,8 +247,8 @@ def test_live_frames_reach_a_reader_in_order_and_reproducibly(tmp_path, room):
     try:
         reader = FakeFakenect(dump)
 
-        def frames_read():
-            return [item for item in reader.items if item[0] != SYNC_NAME]
+        def frames_read():  # images only (not the sync lines, not the accelerometer records)
+            return [item for item in reader.items if item[0] != SYNC_NAME and item[0][0] != "a"]
 
         poses = [level_pose(-2.0 + 0.1 * k) for k in range(8)]
         for k, T in enumerate(poses):
@@ -241,10 +266,20 @@ def test_live_frames_reach_a_reader_in_order_and_reproducibly(tmp_path, room):
     assert not cam.alive()
     assert reader.eof.wait(WAIT_S), "the reader never saw EOF after close()"
     assert not reader.missing
-    # A sync line before every frame: the reader finished the previous frame before the next.
-    names = [item[0] for item in reader.items]
+    # A sync line before every frame: the reader finished the previous frame before the next. Each
+    # frame's accelerometer record comes before its images (the streamer reads it after the image).
+    all_names = [item[0] for item in reader.items]
+    assert all_names[1].startswith("a-") and all_names[2].startswith("d-")
+    names = [n for n in all_names if not n.startswith("a-")]
     assert names[:4] == [SYNC_NAME, recs_first_d := names[1], names[2], SYNC_NAME]
     assert recs_first_d.startswith("d-") and names[2].startswith("r-")
+    # The camera moves at constant velocity along x, level: the accelerometer reads 1 g up, which
+    # is the sensor's +y (x left, y up, z forward), within 6 sigma of the noise (0.05 m/s^2 = 4.2
+    # counts).
+    for name, data in reader.items:
+        if name.startswith("a-"):
+            x, y, z, _, _ = TILT_STATE.unpack(data)
+            assert abs(x) <= 25 and abs(y - 819) <= 25 and abs(z) <= 25, (name, x, y, z)
     assert not (dump / INDEX_NAME).exists()  # the FIFO is removed; the records stay
     assert (dump / RECORDS_NAME).exists()
     recs = cam.records()

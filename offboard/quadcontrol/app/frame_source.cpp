@@ -89,6 +89,14 @@ std::optional<CameraFrame> TumReplaySource::next(const std::atomic<bool>& stop,
   out.rgb = frame->rgb;
   out.depth = frame->depth;
   out.intrinsics = intrinsics_;
+  // accelerometer.txt's sample, moved onto the replay's clock with its offset from the colour
+  // stamp kept (the gate's staleness check compares the two).
+  const slam::TumEntry& entry = dataset_.entry(static_cast<std::size_t>(position_));
+  if (entry.accel) {
+    out.accel = *entry.accel;
+    out.accel->stamp_s =
+        static_cast<double>(out.capture_us) * 1e-6 + (entry.accel->stamp_s - entry.rgb_stamp_s);
+  }
   position_ += direction_;
   return out;
 }

@@ -15,6 +15,7 @@
 #include "record/encoded_image.hpp"
 #include "slam/core/types.hpp"
 #include "slam/dataset/tum_dataset.hpp"
+#include "slam/motion/accel_gate.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -34,6 +35,10 @@ struct CameraFrame {
   /// camera_attitude_at), set by the ground station when `camera.imu_rotation_prior` is on; the
   /// SLAM (either link) predicts rotation from it (slam::RgbdFrame::q_nav_cam).
   std::optional<Eigen::Quaterniond> q_ned_cam;
+  /// The Kinect's accelerometer sample sent with the colour image (sensor axes, stamp on the
+  /// capture clock in seconds), when the source has one; either SLAM link passes it through its
+  /// gate into slam::RgbdFrame::accel_cam_mps2.
+  std::optional<slam::AccelSample> accel;
 };
 
 class FrameSource {

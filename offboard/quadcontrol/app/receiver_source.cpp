@@ -62,6 +62,11 @@ std::optional<CameraFrame> ReceiverSource::next(const std::atomic<bool>& stop, s
     f.intrinsics.cy_px = k.cy_px;
     for (std::size_t i = 0; i < 5; ++i) f.intrinsics.distortion[i] = k.distortion[i];
     f.intrinsics.depth_units_per_m = depth.units_per_m;
+    if (rgb.accel.valid) {
+      const auto& a = rgb.accel;
+      f.accel = slam::AccelSample{static_cast<double>(a.capture_timestamp_us) * 1e-6,
+                                  Eigen::Vector3d(a.f_mps2[0], a.f_mps2[1], a.f_mps2[2])};
+    }
     if (rgb.encoded && rgb.info.encoding == protocol::Encoding::kRgbJpeg)
       f.rgb_encoded = {"jpeg", rgb.encoded};
     if (depth.encoded && depth.info.encoding == protocol::Encoding::kDepthRvl)

@@ -51,6 +51,7 @@ void InProcessSlam::run() {
     input.rgb = frame.rgb;
     input.depth = frame.depth;
     input.q_nav_cam = frame.q_ned_cam;
+    accel_gate_.attach(input.stamp_s, frame.accel, &input);  // stamp_s is the colour capture
     std::string error;
     std::optional<slam::FrameRecord> rec;
     try {

@@ -77,6 +77,7 @@ class InProcessSlam : public SlamLink {
   std::unique_ptr<slam::Pipeline> pipeline_;
   Callback callback_;
   FrameMailbox mailbox_;
+  slam::AccelGate accel_gate_;  ///< used only by the tracking thread (run())
   std::thread thread_;
 };
 

@@ -2,6 +2,8 @@
 #include "app/slam_server_client.hpp"
 
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <random>
 
@@ -248,6 +250,13 @@ std::optional<SlamResult> SlamServerClient::exchange(const CameraFrame& f, std::
   if (f.q_ned_cam) {
     const Eigen::Quaterniond q = f.q_ned_cam->normalized();
     m.attitude = proto::CameraAttitude{true, {q.x(), q.y(), q.z(), q.w()}};
+  }
+  if (f.accel) {  // as received, sensor axes: slam-server's gate rotates it
+    const auto& a = *f.accel;
+    m.accel =
+        proto::AccelSample{true,
+                           static_cast<std::uint64_t>(std::llround(std::max(0.0, a.stamp_s) * 1e6)),
+                           {a.f_sensor_mps2.x(), a.f_sensor_mps2.y(), a.f_sensor_mps2.z()}};
   }
   m.rgb = image(f, proto::PixelFormat::kRgb8, std::move(rgb));
   m.depth = image(f, proto::PixelFormat::kDepth16, std::move(depth));

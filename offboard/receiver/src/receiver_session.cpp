@@ -59,7 +59,9 @@ ReceiverOutput ReceiverSession::start() const {
   ReceiverOutput out;
   protocol::StreamChallenge challenge;
   challenge.receiver_nonce = receiver_nonce_;
-  append(out.send, protocol::encode_stream_challenge(challenge));
+  // Sent before the peer's version is known: in the oldest version still decoded, which every
+  // streamer from then on reads (a craft running the previous streamer must still connect).
+  append(out.send, protocol::encode(challenge, protocol::kOldestDecodedProtocolVersion));
   return out;
 }
 
@@ -88,7 +90,7 @@ void ReceiverSession::grant(std::uint16_t credits, ReceiverOutput* out) const {
   protocol::FrameRequest request;
   request.credits = credits;
   request.last_received_sequence = last_sequence_;
-  append(out->send, protocol::encode_frame_request(request));
+  append(out->send, protocol::encode(request, peer_version_));
 }
 
 ReceiverOutput ReceiverSession::on_bytes(std::int64_t now_us, const std::uint8_t* data,
@@ -121,7 +123,7 @@ ReceiverOutput ReceiverSession::on_bytes(std::int64_t now_us, const std::uint8_t
       close("first message is not a handshake", &out);
       break;
     }
-    on_handshake(now_us, *hello, &out);
+    on_handshake(now_us, *hello, r.version, &out);
   }
   if (state_ == State::kAwaitingHandshake && !out.close) {
     ReceiverOutput late = on_tick(now_us);
@@ -131,7 +133,9 @@ ReceiverOutput ReceiverSession::on_bytes(std::int64_t now_us, const std::uint8_t
 }
 
 void ReceiverSession::on_handshake(std::int64_t now_us, const protocol::Handshake& hello,
-                                   ReceiverOutput* out) {
+                                   unsigned envelope_version, ReceiverOutput* out) {
+  // Everything this session sends from now on is in the peer's version, which it reads.
+  peer_version_ = envelope_version;
   // The mac first: a peer without the key learns nothing about this port but that it is refused.
   std::string why;
   if (!protocol::tags_equal(hello.mac,
@@ -140,6 +144,9 @@ void ReceiverSession::on_handshake(std::int64_t now_us, const protocol::Handshak
   } else if (now_us > connected_us_ + options_.handshake_deadline_us) {
     why = "handshake later than " + std::to_string(options_.handshake_deadline_us / 1000) +
           " ms after the connect";
+  } else if (hello.protocol_version != envelope_version) {
+    why = "handshake protocol_version " + std::to_string(hello.protocol_version) +
+          " differs from its envelope's " + std::to_string(envelope_version);
   } else {
     why = check_handshake(hello, options_.kind, options_.accepted_encodings);
   }
@@ -147,7 +154,7 @@ void ReceiverSession::on_handshake(std::int64_t now_us, const protocol::Handshak
   ack.accepted = why.empty();
   ack.reason = why;
   ack.mac = protocol::ack_tag(options_.key, receiver_nonce_, hello.sender_nonce, ack);
-  append(out->send, protocol::encode_handshake_ack(ack));
+  append(out->send, protocol::encode(ack, peer_version_));
   if (!why.empty()) {
     out->events.push_back(event(ReceiverEvent::Kind::kHandshakeRefused, why));
     close("handshake not accepted: " + why, out);

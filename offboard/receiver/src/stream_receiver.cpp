@@ -77,6 +77,7 @@ std::optional<DecodedFrame> decode_payload(const protocol::Frame& frame,
       rgb->rgb = payload;  // RAW: the protocol decoder checked the length
     }
     rgb->info = info;
+    rgb->accel = frame.accel;
     rgb->info.decode_us = now_us() - start_us;
     out.rgb = std::move(rgb);
     return out;

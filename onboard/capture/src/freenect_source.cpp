@@ -45,7 +45,10 @@ FreenectSource::FreenectSource(const FreenectOptions& options, Clock* clock)
   };
   if (freenect_init(&context_, nullptr) < 0) fail("freenect_init failed");
   freenect_set_log_level(context_, FREENECT_LOG_ERROR);
-  freenect_select_subdevices(context_, FREENECT_DEVICE_CAMERA);
+  // The motor subdevice carries the accelerometer (freenect_update_tilt_state reads nothing
+  // without it).
+  freenect_select_subdevices(
+      context_, static_cast<freenect_device_flags>(FREENECT_DEVICE_CAMERA | FREENECT_DEVICE_MOTOR));
   const int count = freenect_num_devices(context_);
   if (count <= options_.device_index) {
     fail("no Kinect at index " + std::to_string(options_.device_index) + " (" +
@@ -92,8 +95,25 @@ void FreenectSource::event_loop() {
       error_ = "freenect_process_events failed (device unplugged or end of fakenect dump)";
       break;
     }
+    if (pending_rgb_) queue_rgb_with_accel();
   }
   ready_.notify_all();
+}
+
+void FreenectSource::queue_rgb_with_accel() {
+  RgbFrame frame = std::move(*pending_rgb_);
+  pending_rgb_.reset();
+  if (freenect_update_tilt_state(device_) >= 0) {
+    freenect_raw_tilt_state* state = freenect_get_tilt_state(device_);
+    if (state != nullptr && (state->accelerometer_x != 0 || state->accelerometer_y != 0 ||
+                             state->accelerometer_z != 0)) {
+      AccelReading reading;
+      reading.capture_timestamp_us = clock_->now_us();
+      freenect_get_mks_accel(state, &reading.f_mps2[0], &reading.f_mps2[1], &reading.f_mps2[2]);
+      frame.accel = reading;
+    }
+  }
+  push(std::move(frame));
 }
 
 void FreenectSource::on_depth(const void* data) {
@@ -118,7 +138,9 @@ void FreenectSource::on_video(const void* data) {
   f.height = kKinectHeightPx;
   const auto* bytes = static_cast<const std::uint8_t*>(data);
   f.rgb.assign(bytes, bytes + static_cast<std::size_t>(f.width) * f.height * 3);
-  push(std::move(f));
+  // Queued by the event loop once the batch ends and the accelerometer is read; an image not yet
+  // queued is replaced by a newer one (the queue keeps only the newest anyway).
+  pending_rgb_ = std::move(f);
 }
 
 void FreenectSource::push(SourceFrame frame) {

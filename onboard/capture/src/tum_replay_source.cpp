@@ -39,6 +39,47 @@ std::vector<IndexLine> read_index(const std::string& path) {
   return lines;
 }
 
+// Parses TUM accelerometer.txt ("timestamp ax ay az", m/s^2, '#' comments), sorted by time; an
+// absent file is no readings. Throws on malformed lines, as the image lists.
+std::vector<AccelReading> read_accelerometer(const std::string& path) {
+  std::vector<AccelReading> out;
+  std::ifstream in(path);
+  if (!in) return out;
+  std::string line;
+  int number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    double t = 0;
+    AccelReading r;
+    if (!(fields >> t >> r.f_mps2[0] >> r.f_mps2[1] >> r.f_mps2[2]) || !std::isfinite(t) || t < 0) {
+      throw std::runtime_error("TUM replay: " + path + ":" + std::to_string(number) +
+                               ": expected 'timestamp ax ay az'");
+    }
+    r.capture_timestamp_us = static_cast<std::int64_t>(std::llround(t * 1e6));
+    out.push_back(r);
+  }
+  std::stable_sort(out.begin(), out.end(), [](const AccelReading& a, const AccelReading& b) {
+    return a.capture_timestamp_us < b.capture_timestamp_us;
+  });
+  return out;
+}
+
+// The reading nearest t_us (however far: the ground station's gate judges staleness).
+std::optional<AccelReading> nearest_reading(const std::vector<AccelReading>& sorted,
+                                            std::int64_t t_us) {
+  if (sorted.empty()) return std::nullopt;
+  auto it = std::lower_bound(
+      sorted.begin(), sorted.end(), t_us,
+      [](const AccelReading& r, std::int64_t t) { return r.capture_timestamp_us < t; });
+  if (it == sorted.end()) return sorted.back();
+  if (it != sorted.begin() &&
+      t_us - std::prev(it)->capture_timestamp_us <= it->capture_timestamp_us - t_us)
+    return *std::prev(it);
+  return *it;
+}
+
 }  // namespace
 
 bool TumReplayOptions::is_valid(std::string* error) const {
@@ -63,10 +104,13 @@ TumReplaySource::TumReplaySource(const TumReplayOptions& options, Clock* clock)
     throw std::runtime_error("TUM replay: " + options_.directory +
                              " lists no rgb or no depth frames");
   }
+  const auto accel = read_accelerometer(options_.directory + "/accelerometer.txt");
+  accel_count_ = accel.size();
   for (const auto& l : rgb)
-    entries_.push_back({l.timestamp_us, false, options_.directory + "/" + l.file});
+    entries_.push_back({l.timestamp_us, false, options_.directory + "/" + l.file,
+                        nearest_reading(accel, l.timestamp_us)});
   for (const auto& l : depth)
-    entries_.push_back({l.timestamp_us, true, options_.directory + "/" + l.file});
+    entries_.push_back({l.timestamp_us, true, options_.directory + "/" + l.file, std::nullopt});
   std::stable_sort(entries_.begin(), entries_.end(),
                    [](const Entry& a, const Entry& b) { return a.timestamp_us < b.timestamp_us; });
   const double rgb_period_us =
@@ -150,12 +194,18 @@ std::optional<SourceFrame> TumReplaySource::next() {
     if (stopped_) return std::nullopt;
   }
   ++delivered_;
+  std::optional<SourceFrame> frame;
   if (!preloaded_.empty()) {
-    SourceFrame frame = preloaded_[index];
-    std::visit([&](auto& f) { f.capture_timestamp_us = timestamp_us; }, frame);
-    return frame;
+    frame = preloaded_[index];
+    std::visit([&](auto& f) { f.capture_timestamp_us = timestamp_us; }, *frame);
+  } else {
+    frame = load(entry, timestamp_us);
   }
-  auto frame = load(entry, timestamp_us);
+  // The reading keeps its offset from the image across loops, on the same shifted clock.
+  if (auto* rgb = frame ? std::get_if<RgbFrame>(&*frame) : nullptr; rgb && entry.accel) {
+    rgb->accel = entry.accel;
+    rgb->accel->capture_timestamp_us += loop_offset_us_;
+  }
   return frame;
 }
 

@@ -309,7 +309,14 @@ bool StreamSender::send_newest(int fd, std::optional<std::uint32_t>* last_sent) 
                             : protocol::PixelFormat::kDepth16;
   header.encoding = current_encoding_;
   header.payload_length = static_cast<std::uint32_t>(payload->size());
-  const auto bytes = protocol::encode_frame(header, payload->data(), payload->size());
+  // The colour image's accelerometer reading goes with it (protocol version 2, AccelSample).
+  protocol::AccelSample accel;
+  if (const auto* rgb = std::get_if<capture::RgbFrame>(&*frame); rgb && rgb->accel) {
+    accel.valid = true;
+    accel.capture_timestamp_us = static_cast<std::uint64_t>(rgb->accel->capture_timestamp_us);
+    accel.f_mps2 = rgb->accel->f_mps2;
+  }
+  const auto bytes = protocol::encode_frame(header, payload->data(), payload->size(), accel);
   if (!bytes.ok()) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++counters_.encode_errors;

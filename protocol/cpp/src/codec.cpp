@@ -155,7 +155,17 @@ std::string validate_one(const Handshake& m) {
 std::string validate_one(const HandshakeAck& m) { return check_string(m.reason, "reason"); }
 std::string validate_one(const StreamChallenge&) { return {}; }  // any 16 bytes
 
-std::string validate_one(const Frame& m) { return check_image(m.image, "image"); }
+std::string check_accel(const AccelSample& a, const char* field) {
+  const std::string prefix = std::string(field) + ".f_mps2";
+  for (double f : a.f_mps2)
+    RGBD_CHECK(check_range(f, field_range::kAccelSampleFMps2, prefix.c_str()));
+  return {};
+}
+
+std::string validate_one(const Frame& m) {
+  RGBD_CHECK(check_image(m.image, "image"));
+  return check_accel(m.accel, "accel");
+}
 
 std::string validate_one(const FrameRequest& m) {
   return check_int_range(m.credits, field_range::kFrameRequestCredits, "credits");
@@ -177,7 +187,7 @@ std::string validate_one(const RgbdFrame& m) {
   if (m.rgb.header.pixel_format != PixelFormat::kRgb8) return "rgb.pixel_format: must be RGB8";
   if (m.depth.header.pixel_format != PixelFormat::kDepth16)
     return "depth.pixel_format: must be DEPTH16";
-  return {};
+  return check_accel(m.accel, "accel");
 }
 
 std::string validate_one(const PoseUpdate& m) {
@@ -270,7 +280,19 @@ void put_body(Writer& w, const HandshakeAck& m) {
 void put_body(Writer& w, const StreamChallenge& m) {
   w.raw(m.receiver_nonce.data(), m.receiver_nonce.size());
 }
-void put_body(Writer& w, const Frame& m) { put_image(w, m.image); }
+// Fields a version step added (spec 'since') are written only in envelopes of that version or
+// later; the other put_body overloads ignore the version (their layout never changed).
+constexpr unsigned kAccelSinceVersion = 2;
+void put_accel(Writer& w, const AccelSample& a, unsigned version) {
+  if (version < kAccelSinceVersion) return;
+  w.u8(a.valid ? 1 : 0);
+  w.u64(a.capture_timestamp_us);
+  for (double f : a.f_mps2) w.f64(f);
+}
+void put_body(Writer& w, const Frame& m, unsigned version) {
+  put_image(w, m.image);
+  put_accel(w, m.accel, version);
+}
 void put_body(Writer& w, const FrameRequest& m) {
   w.u16(m.credits);
   w.u32(m.last_received_sequence);
@@ -284,7 +306,7 @@ void put_body(Writer& w, const SlamHello& m) {
   w.u32(m.session_frames);
   put_string(w, m.refusal);
 }
-void put_body(Writer& w, const RgbdFrame& m) {
+void put_body(Writer& w, const RgbdFrame& m, unsigned version) {
   w.u32(m.pair_sequence);
   put_intrinsics(w, m.intrinsics);
   w.f64(m.depth_scale_units_per_m);
@@ -292,6 +314,7 @@ void put_body(Writer& w, const RgbdFrame& m) {
   for (double q : m.attitude.q_xyzw) w.f64(q);
   put_image(w, m.rgb);
   put_image(w, m.depth);
+  put_accel(w, m.accel, version);
 }
 void put_body(Writer& w, const PoseUpdate& m) {
   w.u32(m.pair_sequence);
@@ -334,6 +357,11 @@ void put_body(Writer& w, const FloorMap& m) {
   w.raw(m.cells.data(), m.cells.size());
 }
 
+template <typename T>
+void put_body(Writer& w, const T& m, unsigned /*version*/) {
+  put_body(w, m);
+}
+
 // ---------------------------------------------------------------- structural decode
 // Parsing context: the reader plus the first value error found while parsing (only booleans need
 // it: a bool cannot hold the wire value 2). Value errors are reported only when the body is
@@ -341,6 +369,7 @@ void put_body(Writer& w, const FloorMap& m) {
 struct Parse {
   Reader r;
   std::string invalid;
+  unsigned version = kProtocolVersion;  ///< envelope version: which fields the body has
 };
 
 bool get_bool(Parse& p, const char* field) {
@@ -426,7 +455,16 @@ void get_body(Parse& p, HandshakeAck& m) {
   get_fixed(p, m.mac);
 }
 void get_body(Parse& p, StreamChallenge& m) { get_fixed(p, m.receiver_nonce); }
-void get_body(Parse& p, Frame& m) { get_image(p, m.image, "image.payload"); }
+void get_accel(Parse& p, AccelSample& a, const char* field) {
+  if (p.version < kAccelSinceVersion) return;  // not in this version's body: stays not valid
+  a.valid = get_bool(p, field);
+  a.capture_timestamp_us = p.r.u64();
+  for (double& f : a.f_mps2) f = p.r.f64();
+}
+void get_body(Parse& p, Frame& m) {
+  get_image(p, m.image, "image.payload");
+  get_accel(p, m.accel, "accel.valid");
+}
 void get_body(Parse& p, FrameRequest& m) {
   m.credits = p.r.u16();
   m.last_received_sequence = p.r.u32();
@@ -448,6 +486,7 @@ void get_body(Parse& p, RgbdFrame& m) {
   for (double& q : m.attitude.q_xyzw) q = p.r.f64();
   get_image(p, m.rgb, "rgb.payload");
   get_image(p, m.depth, "depth.payload");
+  get_accel(p, m.accel, "accel.valid");
 }
 void get_body(Parse& p, PoseUpdate& m) {
   m.pair_sequence = p.r.u32();
@@ -511,8 +550,8 @@ void get_body(Parse& p, FloorMap& m) {
 }
 
 template <typename T>
-BodyResult decode_as(const std::uint8_t* data, std::size_t size) {
-  Parse p{Reader(data, size), {}};
+BodyResult decode_as(const std::uint8_t* data, std::size_t size, unsigned version) {
+  Parse p{Reader(data, size), {}, version};
   T message{};
   get_body(p, message);
   BodyResult result;
@@ -575,10 +614,11 @@ constexpr MessageType type_of() {
 // Writes an envelope straight into `out`: header with placeholders, the body by `put_body`, then
 // the length and both CRCs (one pass over a payload for the copy, one for the CRC).
 template <typename PutBody>
-void write_envelope(std::vector<std::uint8_t>& out, MessageType type, PutBody put_body_fn) {
+void write_envelope(std::vector<std::uint8_t>& out, MessageType type, unsigned version,
+                    PutBody put_body_fn) {
   Writer w(out);
   w.raw(kMagic, sizeof kMagic);
-  w.u8(kProtocolVersion);
+  w.u8(static_cast<std::uint8_t>(version));
   w.u8(static_cast<std::uint8_t>(type));
   w.u16(0);
   w.u32(0);  // body_length, patched below
@@ -594,16 +634,22 @@ void write_envelope(std::vector<std::uint8_t>& out, MessageType type, PutBody pu
 }
 
 template <typename T>
-EncodeResult encode_typed(const T& message, bool with_envelope) {
+EncodeResult encode_typed(const T& message, bool with_envelope,
+                          unsigned version = kProtocolVersion) {
   EncodeResult result;
+  if (version < kOldestDecodedProtocolVersion || version > kProtocolVersion) {
+    result.error = "version " + std::to_string(version) + " is not one this build writes";
+    return result;
+  }
   result.error = validate_one(message);
   if (!result.error.empty()) return result;
   result.bytes.reserve(reserve_hint(message));
   if (with_envelope) {
-    write_envelope(result.bytes, type_of<T>(), [&message](Writer& w) { put_body(w, message); });
+    write_envelope(result.bytes, type_of<T>(), version,
+                   [&message, version](Writer& w) { put_body(w, message, version); });
   } else {
     Writer w(result.bytes);
-    put_body(w, message);
+    put_body(w, message, version);
   }
   return result;
 }
@@ -663,11 +709,11 @@ std::string validate(const Message& message) {
   return std::visit([](const auto& m) { return validate_one(m); }, message);
 }
 
-EncodeResult encode(const Message& message) {
-  return std::visit([](const auto& m) { return encode_typed(m, true); }, message);
+EncodeResult encode(const Message& message, unsigned version) {
+  return std::visit([version](const auto& m) { return encode_typed(m, true, version); }, message);
 }
-EncodeResult encode_body(const Message& message) {
-  return std::visit([](const auto& m) { return encode_typed(m, false); }, message);
+EncodeResult encode_body(const Message& message, unsigned version) {
+  return std::visit([version](const auto& m) { return encode_typed(m, false, version); }, message);
 }
 EncodeResult encode_handshake(const Handshake& m) { return encode_typed(m, true); }
 EncodeResult encode_handshake_ack(const HandshakeAck& m) { return encode_typed(m, true); }
@@ -676,44 +722,53 @@ EncodeResult encode_frame_request(const FrameRequest& m) { return encode_typed(m
 EncodeResult encode_stream_challenge(const StreamChallenge& m) { return encode_typed(m, true); }
 
 EncodeResult encode_frame(const FrameHeader& header, const std::uint8_t* payload,
-                          std::size_t payload_size) {
+                          std::size_t payload_size, const AccelSample& accel) {
   EncodeResult result;
   result.error = check_image(header, payload_size, "image");
+  if (result.error.empty()) result.error = check_accel(accel, "accel");
   if (!result.error.empty()) return result;
   if (payload == nullptr && payload_size > 0) {
     result.error = "image.payload: null pointer with a non-zero size";
     return result;
   }
   result.bytes.reserve(payload_size + kFixedPartMarginBytes);
-  write_envelope(result.bytes, MessageType::kFrame, [&](Writer& w) {
+  write_envelope(result.bytes, MessageType::kFrame, kProtocolVersion, [&](Writer& w) {
     put_frame_header(w, header);
     w.raw(payload, payload_size);
+    put_accel(w, accel, kProtocolVersion);
   });
   return result;
 }
 
-BodyResult decode_body(std::uint8_t type, const std::uint8_t* data, std::size_t size) {
+BodyResult decode_body(std::uint8_t type, const std::uint8_t* data, std::size_t size,
+                       unsigned version) {
+  if (version < kOldestDecodedProtocolVersion || version > kProtocolVersion) {
+    BodyResult result;
+    result.error = DecodeError::kUnsupportedVersion;
+    result.detail = "version " + std::to_string(version);
+    return result;
+  }
   switch (static_cast<MessageType>(type)) {
     case MessageType::kHandshake:
-      return decode_as<Handshake>(data, size);
+      return decode_as<Handshake>(data, size, version);
     case MessageType::kHandshakeAck:
-      return decode_as<HandshakeAck>(data, size);
+      return decode_as<HandshakeAck>(data, size, version);
     case MessageType::kFrame:
-      return decode_as<Frame>(data, size);
+      return decode_as<Frame>(data, size, version);
     case MessageType::kFrameRequest:
-      return decode_as<FrameRequest>(data, size);
+      return decode_as<FrameRequest>(data, size, version);
     case MessageType::kSlamHello:
-      return decode_as<SlamHello>(data, size);
+      return decode_as<SlamHello>(data, size, version);
     case MessageType::kRgbdFrame:
-      return decode_as<RgbdFrame>(data, size);
+      return decode_as<RgbdFrame>(data, size, version);
     case MessageType::kPoseUpdate:
-      return decode_as<PoseUpdate>(data, size);
+      return decode_as<PoseUpdate>(data, size, version);
     case MessageType::kPoseGraph:
-      return decode_as<PoseGraph>(data, size);
+      return decode_as<PoseGraph>(data, size, version);
     case MessageType::kFloorMap:
-      return decode_as<FloorMap>(data, size);
+      return decode_as<FloorMap>(data, size, version);
     case MessageType::kStreamChallenge:
-      return decode_as<StreamChallenge>(data, size);
+      return decode_as<StreamChallenge>(data, size, version);
   }
   BodyResult result;
   result.error = DecodeError::kUnknownMessageType;
@@ -722,17 +777,20 @@ BodyResult decode_body(std::uint8_t type, const std::uint8_t* data, std::size_t 
 }
 
 namespace {
+// A peer of any decoded version is compatible when its hash is that version's hash.
 std::string incompatibility(std::uint16_t version, std::uint64_t hash) {
   char buf[200];
-  if (version != kProtocolVersion) {
-    std::snprintf(buf, sizeof buf, "protocol version mismatch: peer %u, ours %u", version,
+  const std::uint64_t expected = schema_hash_of_version(version);
+  if (expected == 0) {
+    std::snprintf(buf, sizeof buf, "protocol version mismatch: peer %u, ours %u..%u", version,
+                  static_cast<unsigned>(kOldestDecodedProtocolVersion),
                   static_cast<unsigned>(kProtocolVersion));
     return buf;
   }
-  if (hash != kSchemaHash) {
-    std::snprintf(buf, sizeof buf, "schema hash mismatch: peer 0x%016llx, ours 0x%016llx",
-                  static_cast<unsigned long long>(hash),
-                  static_cast<unsigned long long>(kSchemaHash));
+  if (hash != expected) {
+    std::snprintf(
+        buf, sizeof buf, "schema hash mismatch: peer 0x%016llx, ours 0x%016llx for version %u",
+        static_cast<unsigned long long>(hash), static_cast<unsigned long long>(expected), version);
     return buf;
   }
   return {};
@@ -807,12 +865,13 @@ DecodeResult StreamDecoder::next() {
     return result;
   };
   if (crc32(h, 12) != header_crc) return header_error(DecodeError::kBadHeaderCrc, "header CRC");
-  if (version != kProtocolVersion) {
-    return header_error(
-        DecodeError::kUnsupportedVersion,
-        "version " + std::to_string(version) + ", ours " + std::to_string(kProtocolVersion));
+  if (version < kOldestDecodedProtocolVersion || version > kProtocolVersion) {
+    return header_error(DecodeError::kUnsupportedVersion,
+                        "version " + std::to_string(version) + ", ours " +
+                            std::to_string(kOldestDecodedProtocolVersion) + ".." +
+                            std::to_string(kProtocolVersion));
   }
-  const std::size_t type_max = max_body_bytes(type);
+  const std::size_t type_max = max_body_bytes(type, version);
   if (type_max == 0) {
     return header_error(DecodeError::kUnknownMessageType, "type " + std::to_string(type));
   }
@@ -835,7 +894,7 @@ DecodeResult StreamDecoder::next() {
     result.bytes_discarded = frame_bytes;
     return result;
   }
-  BodyResult decoded = decode_body(type, body, body_length);
+  BodyResult decoded = decode_body(type, body, body_length, version);
   consume(frame_bytes);
   if (!decoded.ok()) {
     result.status = DecodeStatus::kError;
@@ -846,6 +905,7 @@ DecodeResult StreamDecoder::next() {
   }
   result.status = DecodeStatus::kMessage;
   result.message = std::move(decoded.message);
+  result.version = version;
   return result;
 }
 

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <random>
 
@@ -365,10 +366,58 @@ TEST(Compatibility, MismatchedHashOrVersionIsRefusedLoudly) {
   h.schema_hash ^= 1;
   EXPECT_NE(handshake_incompatibility(h).find("schema hash mismatch"), std::string::npos);
   h = make_handshake();
-  h.protocol_version = 2;
+  h.protocol_version = kProtocolVersion + 1;
   EXPECT_NE(handshake_incompatibility(h).find("version"), std::string::npos);
+  // An older decoded version is accepted with its own schema hash only (a craft running the
+  // previous streamer must still fly).
+  h = make_handshake();
+  h.protocol_version = kOldestDecodedProtocolVersion;
+  EXPECT_NE(handshake_incompatibility(h).find("schema hash mismatch"), std::string::npos);
+  h.schema_hash = schema_hash_of_version(kOldestDecodedProtocolVersion);
+  EXPECT_EQ(handshake_incompatibility(h), "");
   SlamHello hello{kProtocolVersion, kSchemaHash + 1, "x", 0, false, 0, ""};
   EXPECT_NE(hello_incompatibility(hello), "");
+}
+
+TEST(Versions, OldVersionFrameDecodesWithoutAccelAndReencodesInItsVersion) {
+  // GIVEN a frame with an accelerometer sample, encoded as the current and the oldest version
+  Frame f = make_rgb_frame(4, 3, 7);
+  f.accel = {true, f.image.header.capture_timestamp_us, {0.1, 9.8, -0.4}};
+  const EncodeResult now = encode(f);
+  const EncodeResult old = encode(f, kOldestDecodedProtocolVersion);
+  ASSERT_TRUE(now.ok() && old.ok());
+  EXPECT_EQ(old.bytes[4], kOldestDecodedProtocolVersion);
+  EXPECT_EQ(now.bytes.size(), old.bytes.size() + 1 + 8 + 3 * 8);  // the AccelSample
+  // WHEN both are decoded from one stream
+  StreamDecoder decoder;
+  decoder.feed(now.bytes);
+  decoder.feed(old.bytes);
+  const DecodeResult a = decoder.next();
+  const DecodeResult b = decoder.next();
+  ASSERT_EQ(a.status, DecodeStatus::kMessage);
+  ASSERT_EQ(b.status, DecodeStatus::kMessage);
+  // THEN the current one keeps its sample, the old one has none, and each re-encodes as it came
+  EXPECT_EQ(a.version, kProtocolVersion);
+  EXPECT_EQ(b.version, kOldestDecodedProtocolVersion);
+  EXPECT_TRUE(std::get<Frame>(*a.message).accel.valid);
+  EXPECT_EQ(std::get<Frame>(*a.message).accel.f_mps2[1], 9.8);
+  EXPECT_FALSE(std::get<Frame>(*b.message).accel.valid);
+  EXPECT_EQ(encode(*b.message, b.version).bytes, old.bytes);
+  // AND the hot-path encoder writes the same bytes as the message encoder
+  EXPECT_EQ(
+      encode_frame(f.image.header, f.image.payload.data(), f.image.payload.size(), f.accel).bytes,
+      now.bytes);
+}
+
+TEST(Versions, NonFiniteOrOutOfRangeAccelIsRefusedBothWays) {
+  Frame f = make_rgb_frame(4, 3, 7);
+  f.accel = {true, 1, {0.0, std::nan(""), 0.0}};
+  EXPECT_NE(encode(f).error.find("accel.f_mps2"), std::string::npos);
+  f.accel.f_mps2 = {0.0, 0.0, 5000.0};
+  EXPECT_FALSE(encode(f).ok());
+  EXPECT_FALSE(
+      encode_frame(f.image.header, f.image.payload.data(), f.image.payload.size(), f.accel).ok());
+  EXPECT_FALSE(encode(f, kProtocolVersion + 1).ok());  // a version this build does not write
 }
 
 }  // namespace

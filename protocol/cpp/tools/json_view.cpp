@@ -168,11 +168,29 @@ json fields_of(const Handshake& m) {
           {"sender_nonce", m.sender_nonce},
           {"mac", m.mac}};
 }
+json accel_json(const AccelSample& a) {
+  return {
+      {"valid", a.valid}, {"capture_timestamp_us", a.capture_timestamp_us}, {"f_mps2", a.f_mps2}};
+}
+// A view may leave out the accel field (added by protocol version 2): it is then not valid, as
+// the Python codec's default.
+AccelSample accel_from(const json& fields) {
+  AccelSample a;
+  if (!fields.contains("accel")) return a;
+  const json& j = at(fields, "accel");
+  a.valid = boolean(j, "valid");
+  a.capture_timestamp_us = num<std::uint64_t>(j, "capture_timestamp_us");
+  a.f_mps2 = doubles<3>(j, "f_mps2");
+  return a;
+}
+
 json fields_of(const HandshakeAck& m) {
   return {{"accepted", m.accepted}, {"reason", m.reason}, {"mac", m.mac}};
 }
 json fields_of(const StreamChallenge& m) { return {{"receiver_nonce", m.receiver_nonce}}; }
-json fields_of(const Frame& m) { return {{"image", image_json(m.image)}}; }
+json fields_of(const Frame& m) {
+  return {{"image", image_json(m.image)}, {"accel", accel_json(m.accel)}};
+}
 json fields_of(const FrameRequest& m) {
   return {{"credits", m.credits}, {"last_received_sequence", m.last_received_sequence}};
 }
@@ -191,7 +209,8 @@ json fields_of(const RgbdFrame& m) {
           {"depth_scale_units_per_m", m.depth_scale_units_per_m},
           {"attitude", attitude_json(m.attitude)},
           {"rgb", image_json(m.rgb)},
-          {"depth", image_json(m.depth)}};
+          {"depth", image_json(m.depth)},
+          {"accel", accel_json(m.accel)}};
 }
 json fields_of(const PoseUpdate& m) {
   return {{"pair_sequence", m.pair_sequence},
@@ -267,6 +286,7 @@ Message from_fields(const std::string& type, const json& f) {
   if (type == "Frame") {
     Frame m;
     m.image = image_from(at(f, "image"));
+    m.accel = accel_from(f);
     return m;
   }
   if (type == "FrameRequest") {
@@ -294,6 +314,7 @@ Message from_fields(const std::string& type, const json& f) {
     m.attitude = attitude_from(at(f, "attitude"));
     m.rgb = image_from(at(f, "rgb"));
     m.depth = image_from(at(f, "depth"));
+    m.accel = accel_from(f);
     return m;
   }
   if (type == "PoseUpdate") {

@@ -91,6 +91,35 @@ class Codec:
         self._enum_by_code = {
             e: {v: k for k, v in vals.items()} for e, vals in self._enum_by_name.items()
         }
+        # Per decoded version, each message as that version defines it (docs/protocol.md,
+        # "Versions and the schema hash").
+        self._versions = {v: self.spec.at_version(v) for v in self.spec.decoded_versions}
+        self.versions = self._versions  # read-only use by the stream decoder
+
+    def message_at(self, name: str, version: int | None = None) -> dict:
+        """Message `name` as envelope version `version` (default: ours) lays it out."""
+        return self._versions[self.spec.version if version is None else version].message(name)
+
+    def default_value(self, f: dict):
+        """The friendly value a field takes when the body's version lacks it: zeros, False,
+        empty, the first enum value."""
+        t = f["type"]
+        if t == "bool":
+            return False
+        if m := _ARRAY_RE.match(t):
+            zero = 0.0 if m.group(1).startswith("f") else 0
+            return [zero] * int(m.group(2))
+        if t.startswith("enum:"):
+            return next(iter(self._enum_by_name[t[5:]]))
+        if t.startswith("struct:"):
+            return {g["name"]: self.default_value(g) for g in self.spec.struct_fields(t[7:])}
+        if t == "string":
+            return ""
+        if t == "bytes":
+            return b""
+        if t.startswith("array:"):
+            return []
+        return 0.0 if t.startswith("f") else 0
 
     # ------------------------------------------------------------------ structural decode
     def _read(self, f: dict, r: _Reader):
@@ -270,12 +299,15 @@ class Codec:
     def _fields_to_wire(self, fields: list[dict], values: dict, path: str) -> dict:
         if not isinstance(values, dict):
             raise EncodeError(f"{path}: expected an object")
-        missing = [f["name"] for f in fields if f["name"] not in values]
+        # A field a version step added may be left out: it is sent as its default (not valid).
+        missing = [f["name"] for f in fields if f["name"] not in values and "since" not in f]
         if missing:
             raise EncodeError(f"{path}: missing field(s) {missing}")
         return {
             f["name"]: self._to_wire(
-                f, values[f["name"]], f"{path}.{f['name']}" if path else f["name"]
+                f,
+                values[f["name"]] if f["name"] in values else self.default_value(f),
+                f"{path}.{f['name']}" if path else f["name"],
             )
             for f in fields
         }
@@ -305,14 +337,19 @@ class Codec:
             self._write(f, values[f["name"]], out)
 
     # ------------------------------------------------------------------ public API
-    def encode_body(self, name: str, fields: dict, *, validate: bool = True) -> bytes:
-        """Body bytes of message `name`; raises EncodeError when `fields` break the spec.
+    def encode_body(
+        self, name: str, fields: dict, *, validate: bool = True, version: int | None = None
+    ) -> bytes:
+        """Body bytes of message `name` as `version` (default: ours) lays it out; raises
+        EncodeError when `fields` break the spec. Fields that version lacks are left out.
 
         validate=False writes values the spec forbids (enum numbers, NaN, ...): only for forging
         the hostile golden vectors.
         """
+        if version is not None and version not in self._versions:
+            raise EncodeError(f"version {version} is not one this codec writes")
         try:
-            message = self.spec.message(name)
+            message = self.message_at(name, version)
         except KeyError:
             raise EncodeError(f"unknown message {name!r}") from None
         wire = self._fields_to_wire(message["fields"], fields, "")
@@ -322,9 +359,11 @@ class Codec:
         self._write_fields(message["fields"], wire, out)
         return bytes(out)
 
-    def encode(self, name: str, fields: dict) -> bytes:
-        """Full envelope (header, body, trailer) of message `name`."""
-        return self.wrap(self.spec.message(name)["id"], self.encode_body(name, fields))
+    def encode(self, name: str, fields: dict, *, version: int | None = None) -> bytes:
+        """Full envelope (header, body, trailer) of message `name`, in envelope version `version`
+        (default: ours; an older one to answer a peer that speaks it)."""
+        body = self.encode_body(name, fields, version=version)
+        return self.wrap(self.spec.message(name)["id"], body, version=version)
 
     def wrap(
         self, type_id: int, body: bytes, *, version: int | None = None, reserved: int = 0
@@ -340,9 +379,15 @@ class Codec:
             + struct.pack("<I", zlib.crc32(body))
         )
 
-    def decode_body(self, type_id: int, body: bytes) -> tuple[str, dict]:
-        """(message name, fields) of one body; raises DecodeFailure."""
-        message = self.spec.message_by_id(type_id)
+    def decode_body(
+        self, type_id: int, body: bytes, version: int | None = None
+    ) -> tuple[str, dict]:
+        """(message name, fields) of one body of envelope version `version` (default: ours);
+        fields that version lacks come back as their defaults. Raises DecodeFailure."""
+        spec = self._versions.get(self.spec.version if version is None else version)
+        if spec is None:
+            raise DecodeFailure(UNSUPPORTED_VERSION, f"version {version}")
+        message = spec.message_by_id(type_id)
         if message is None:
             raise DecodeFailure(UNKNOWN_MESSAGE_TYPE, f"message type {type_id} is not in the spec")
         r = _Reader(body)
@@ -359,20 +404,24 @@ class Codec:
         except EncodeError as e:
             raise DecodeFailure(INVALID_VALUE, str(e)) from None
         return message["name"], {
-            f["name"]: self._to_friendly(f, wire[f["name"]]) for f in message["fields"]
+            f["name"]: self._to_friendly(f, wire[f["name"]])
+            if f["name"] in wire
+            else self.default_value(f)
+            for f in self.spec.message(message["name"])["fields"]
         }
 
     def incompatibility(self, fields: dict) -> str:
-        """'' when a Handshake/SlamHello's version and schema hash equal ours, else the reason."""
-        if fields["protocol_version"] != self.spec.version:
-            return (
-                f"protocol version mismatch: peer {fields['protocol_version']}, "
-                f"ours {self.spec.version}"
-            )
-        if fields["schema_hash"] != self.spec.schema_hash:
+        """'' when a Handshake/SlamHello's version is one we decode and its schema hash is that
+        version's, else the reason."""
+        version = fields["protocol_version"]
+        spec = self._versions.get(version)
+        if spec is None:
+            lo, hi = self.spec.oldest_decoded_version, self.spec.version
+            return f"protocol version mismatch: peer {version}, ours {lo}..{hi}"
+        if fields["schema_hash"] != spec.schema_hash:
             return (
                 f"schema hash mismatch: peer 0x{fields['schema_hash']:016x}, "
-                f"ours 0x{self.spec.schema_hash:016x}"
+                f"ours 0x{spec.schema_hash:016x} for version {version}"
             )
         return ""
 
@@ -421,6 +470,7 @@ class Event:
     error: str = ""
     detail: str = ""
     bytes_discarded: int = 0
+    version: int = 0  # envelope version of a message (a receiver answers a peer in it)
 
 
 class StreamDecoder:
@@ -478,9 +528,9 @@ class StreamDecoder:
 
         if zlib.crc32(bytes(buf[:12])) != header_crc:
             return header_error(BAD_HEADER_CRC, "header CRC")
-        if version != self.codec.spec.version:
+        if version not in self.codec.spec.decoded_versions:
             return header_error(UNSUPPORTED_VERSION, f"version {version}")
-        message = self.codec.spec.message_by_id(type_id)
+        message = self.codec.versions[version].message_by_id(type_id)
         if message is None:
             return header_error(UNKNOWN_MESSAGE_TYPE, f"type {type_id}")
         if reserved:
@@ -499,10 +549,10 @@ class StreamDecoder:
         if zlib.crc32(body) != body_crc:
             return Event("error", error=BAD_BODY_CRC, detail="body CRC", bytes_discarded=total)
         try:
-            name, fields = self.codec.decode_body(type_id, body)
+            name, fields = self.codec.decode_body(type_id, body, version)
         except DecodeFailure as e:
             return Event("error", error=e.code, detail=e.detail, bytes_discarded=total)
-        return Event("message", name=name, fields=fields)
+        return Event("message", name=name, fields=fields, version=version)
 
     def drain(self) -> list[Event]:
         """Every event until need_more."""

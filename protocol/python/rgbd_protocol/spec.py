@@ -25,6 +25,9 @@ LENGTH_PREFIX_BYTES = {"string": 2, "bytes": 4, "array": 4}
 _ARRAY_RE = re.compile(r"^(u8|u16|u32|u64|f32|f64)\[(\d+)\]$")
 # Keys that document but do not change the wire format: excluded from the schema hash.
 _DOC_KEYS = {"doc", "unit", "direction", "about"}
+# Keys of the version rule itself (protocol.oldest_decoded_version, ...): a projection to an older
+# version removes them, so it reproduces that version's spec and hash exactly.
+_VERSIONING_KEYS = {"oldest_decoded_version", "versions_doc", "since"}
 
 
 class SpecError(ValueError):
@@ -38,6 +41,48 @@ class Spec:
     @property
     def version(self) -> int:
         return self.raw["protocol"]["version"]
+
+    @property
+    def oldest_decoded_version(self) -> int:
+        return self.raw["protocol"].get("oldest_decoded_version", self.version)
+
+    @property
+    def decoded_versions(self) -> range:
+        """Every envelope version a decoder of this spec accepts."""
+        return range(self.oldest_decoded_version, self.version + 1)
+
+    def at_version(self, version: int) -> Spec:
+        """The spec as it was at `version`: fields and structs marked 'since' a later version
+        removed, the versioning keys removed, max_body_bytes recomputed. at_version(version) of
+        the current version is the spec itself."""
+        if version == self.version:
+            return self
+        if version not in self.decoded_versions:
+            raise SpecError(f"version {version} is not decoded by this spec")
+
+        def keep(node) -> bool:
+            return not (isinstance(node, dict) and node.get("since", 0) > version)
+
+        def project(node):
+            if isinstance(node, dict):
+                return {k: project(v) for k, v in node.items() if k not in _VERSIONING_KEYS}
+            if isinstance(node, list):
+                return [project(v) for v in node if keep(v)]
+            return node
+
+        raw = copy.deepcopy(self.raw)
+        raw["structs"] = {k: v for k, v in raw["structs"].items() if keep(v)}
+        raw = project(raw)
+        raw["protocol"]["version"] = version
+        old = Spec(raw)
+        for m in raw["messages"]:
+            m["max_body_bytes"] = old.message_max_body_bytes(m)
+        return old
+
+    @staticmethod
+    def field_since(field: dict) -> int:
+        """The version that added `field` (0: every version has it)."""
+        return field.get("since", 0)
 
     @property
     def magic(self) -> bytes:
@@ -142,6 +187,10 @@ class Spec:
             computed = self.message_max_body_bytes(m)
             if m["max_body_bytes"] != computed:
                 raise SpecError(f"{m['name']}: max_body_bytes {m['max_body_bytes']} != {computed}")
+        for m in self.messages:
+            since = [self.field_since(f) for f in m["fields"]]
+            if since != sorted(since) or any(v > self.version for v in since):
+                raise SpecError(f"{m['name']}: fields of a version step must come last, in order")
         codes = [e["code"] for e in self.raw["encodings"].values()]
         if len(set(codes)) != len(codes) or not all(0 <= c < 256 for c in codes):
             raise SpecError("encoding codes must be unique u8 values")

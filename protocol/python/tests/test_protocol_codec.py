@@ -33,7 +33,8 @@ def test_golden_vector(vector, chunk):
     assert got == vector["expected"]["events"]
     assert buffered == vector["expected"]["buffered_bytes"]
     if vector["reencodes_to_same_bytes"]:
-        assert b"".join(CODEC.encode(e.name, e.fields) for e in events) == data
+        # Each message re-encodes in the envelope version it came in (an older peer's included).
+        assert b"".join(CODEC.encode(e.name, e.fields, version=e.version) for e in events) == data
     for e in events:
         if e.name in ("Handshake", "SlamHello"):
             reason = CODEC.incompatibility(e.fields)
@@ -46,7 +47,7 @@ def test_manifest_is_for_this_schema():
 
 def test_envelope_layout_is_little_endian():
     data = CODEC.encode("FrameRequest", {"credits": 3, "last_received_sequence": 0x01020304})
-    assert data[:4] == b"RGBQ" and data[4] == 1 and data[5] == 4
+    assert data[:4] == b"RGBQ" and data[4] == CODEC.spec.version and data[5] == 4
     assert struct.unpack_from("<HI", data, 6) == (0, 6)
     assert struct.unpack_from("<I", data, 12)[0] == zlib.crc32(data[:12])
     assert data[16:22] == bytes([3, 0, 4, 3, 2, 1])
@@ -67,7 +68,13 @@ def test_full_size_kinect_frames_round_trip():
                 "pixel_format": fmt,
                 "encoding": "RAW",
                 "payload": payload,
-            }
+            },
+            # The RGB stream carries the accelerometer sample, the depth stream none.
+            "accel": {
+                "valid": fmt == "RGB8",
+                "capture_timestamp_us": 2 if fmt == "RGB8" else 0,
+                "f_mps2": [0.5, 9.5, -1.25] if fmt == "RGB8" else [0.0, 0.0, 0.0],
+            },
         }
         dec = StreamDecoder(CODEC)
         dec.feed(CODEC.encode("Frame", fields))
@@ -181,9 +188,53 @@ def test_decoder_cap_refuses_bodies_above_it_before_they_arrive():
 
 
 def test_schema_mismatch_reason_names_both_hashes():
-    reason = CODEC.incompatibility({"protocol_version": 1, "schema_hash": 1})
+    ours = CODEC.spec.version
+    reason = CODEC.incompatibility({"protocol_version": ours, "schema_hash": 1})
     assert "0x0000000000000001" in reason and f"{CODEC.spec.schema_hash:016x}" in reason
-    assert "version" in CODEC.incompatibility({"protocol_version": 2, "schema_hash": 1})
+    assert "version" in CODEC.incompatibility({"protocol_version": ours + 1, "schema_hash": 1})
     assert (
-        CODEC.incompatibility({"protocol_version": 1, "schema_hash": CODEC.spec.schema_hash}) == ""
+        CODEC.incompatibility({"protocol_version": ours, "schema_hash": CODEC.spec.schema_hash})
+        == ""
     )
+
+
+def test_every_decoded_version_is_accepted_with_its_own_schema_hash():
+    """A peer of an older version (a craft running the previous streamer) is accepted with that
+    version's hash, and refused with any other."""
+    old = CODEC.spec.oldest_decoded_version
+    assert old < CODEC.spec.version
+    old_hash = CODEC.spec.at_version(old).schema_hash
+    assert CODEC.incompatibility({"protocol_version": old, "schema_hash": old_hash}) == ""
+    assert "schema hash" in CODEC.incompatibility(
+        {"protocol_version": old, "schema_hash": CODEC.spec.schema_hash}
+    )
+
+
+def test_projection_to_version_1_reproduces_its_published_schema_hash():
+    # 0x77ddddf95a1ffc23: the schema hash every version-1 build carries (docs/protocol.md of
+    # that version); the projection must reproduce it or version-1 streamers are refused.
+    assert CODEC.spec.at_version(1).schema_hash == 0x77DDDDF95A1FFC23
+    assert CODEC.spec.at_version(1).message("Frame")["max_body_bytes"] == 1048606
+
+
+def test_old_version_frame_decodes_with_accel_not_valid_and_reencodes_in_its_version():
+    fields = {
+        "image": {
+            "sequence": 3,
+            "capture_timestamp_us": 10,
+            "send_timestamp_us": 11,
+            "width": 1,
+            "height": 1,
+            "pixel_format": "RGB8",
+            "encoding": "RAW",
+            "payload": b"abc",
+        }
+    }
+    old = CODEC.encode("Frame", fields, version=1)
+    assert old[4] == 1 and len(old) == len(CODEC.encode("Frame", fields)) - 33
+    dec = StreamDecoder(CODEC)
+    dec.feed(old)
+    (event,) = dec.drain()
+    assert event.kind == "message" and event.version == 1
+    assert event.fields["accel"]["valid"] is False
+    assert CODEC.encode("Frame", event.fields, version=event.version) == old

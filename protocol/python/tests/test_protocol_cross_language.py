@@ -41,6 +41,15 @@ def random_messages(seed: int, count: int) -> list[tuple[str, dict]]:
     """Seeded valid messages of every kind, with values spread over their ranges."""
     rng = random.Random(seed)
 
+    def accel():
+        if rng.random() < 0.3:
+            return {"valid": False, "capture_timestamp_us": 0, "f_mps2": [0.0, 0.0, 0.0]}
+        return {
+            "valid": True,
+            "capture_timestamp_us": rng.getrandbits(64),
+            "f_mps2": [rng.uniform(-1000, 1000) for _ in range(3)],
+        }
+
     def q():
         v = [rng.uniform(-1, 1) for _ in range(4)]
         n = sum(x * x for x in v) ** 0.5
@@ -73,7 +82,7 @@ def random_messages(seed: int, count: int) -> list[tuple[str, dict]]:
         lambda: (
             "Handshake",
             {
-                "protocol_version": 1,
+                "protocol_version": CODEC.spec.version,
                 "schema_hash": CODEC.spec.schema_hash,
                 "stream_kind": "DEPTH",
                 "width": rng.randint(1, 4096),
@@ -97,7 +106,8 @@ def random_messages(seed: int, count: int) -> list[tuple[str, dict]]:
             {
                 "image": image(
                     rng.choice(["RGB8", "DEPTH16"]), rng.randint(1, 40), rng.randint(1, 30)
-                )
+                ),
+                "accel": accel(),
             },
         ),
         lambda: (
@@ -107,7 +117,7 @@ def random_messages(seed: int, count: int) -> list[tuple[str, dict]]:
         lambda: (
             "SlamHello",
             {
-                "protocol_version": 1,
+                "protocol_version": CODEC.spec.version,
                 "schema_hash": rng.getrandbits(64),
                 "peer_name": "slam-server",
                 "session_id": rng.getrandbits(64),
@@ -130,6 +140,7 @@ def random_messages(seed: int, count: int) -> list[tuple[str, dict]]:
                 ),
                 "rgb": image("RGB8", 8, 6),
                 "depth": image("DEPTH16", 8, 6),
+                "accel": accel(),
             },
         ),
         lambda: (
@@ -234,7 +245,12 @@ def test_full_size_frames_cross_both_ways():
                     "pixel_format": fmt,
                     "encoding": "RAW",
                     "payload": rng.randbytes(640 * 480 * bpp),
-                }
+                },
+                "accel": {
+                    "valid": fmt == "RGB8",
+                    "capture_timestamp_us": 10 + s if fmt == "RGB8" else 0,
+                    "f_mps2": [0.25, 9.75, -1.5] if fmt == "RGB8" else [0.0, 0.0, 0.0],
+                },
             },
         )
         for s, (fmt, bpp) in enumerate([("RGB8", 3), ("DEPTH16", 2)])

@@ -83,7 +83,8 @@ class ReceiverSession {
 
  private:
   enum class State { kAwaitingHandshake, kLive, kClosed };
-  void on_handshake(std::int64_t now_us, const protocol::Handshake& hello, ReceiverOutput* out);
+  void on_handshake(std::int64_t now_us, const protocol::Handshake& hello,
+                    unsigned envelope_version, ReceiverOutput* out);
   void on_live_message(protocol::DecodeResult& r, ReceiverOutput* out);
   void grant(std::uint16_t credits, ReceiverOutput* out) const;
   void close(std::string why, ReceiverOutput* out);
@@ -96,6 +97,9 @@ class ReceiverSession {
   protocol::StreamDecoder decoder_;
   std::optional<protocol::Handshake> handshake_;
   std::uint32_t last_sequence_ = 0xFFFFFFFFu;  ///< newest frame received (FrameRequest diagnostics)
+  /// Envelope version of the peer's handshake; the ack and every FrameRequest are written in it,
+  /// so a streamer of an older decoded version reads them (docs/protocol.md, versions).
+  unsigned peer_version_ = protocol::kProtocolVersion;
 };
 
 /// Why `hello` cannot be served on a port of `kind` (version, schema, kind, format, encoding,

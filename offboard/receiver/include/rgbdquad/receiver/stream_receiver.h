@@ -58,6 +58,9 @@ struct FrameInfo {
 struct ReceivedRgb {
   FrameInfo info;
   std::vector<std::uint8_t> rgb;  // width*height*3, R,G,B
+  // The Kinect's accelerometer sample sent with this image (sensor axes, m/s^2; not valid from a
+  // streamer without one or of protocol version 1). Rotated into the camera frame by SLAM's gate.
+  protocol::AccelSample accel;
   // The payload as it came off the link when it was encoded (info.encoding kRgbJpeg: one JFIF
   // image), shared so a recorder can store it without re-encoding; null for raw frames.
   std::shared_ptr<const std::vector<std::uint8_t>> encoded;

@@ -4,7 +4,9 @@
 // so RGB can be paired with depth, and frames with IMU readings that arrive by another route.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <variant>
 #include <vector>
@@ -21,11 +23,21 @@ constexpr int kKinectHeightPx = 480;
 constexpr double kMillimetreUnitsPerM = 1000.0;
 constexpr double kTumDepthUnitsPerM = camera::kTumDepthUnitsPerM;
 
+// One reading of the Kinect's accelerometer: specific force (at rest 1 g upwards) in the
+// accelerometer's own axes, m/s^2, as libfreenect's freenect_get_mks_accel and TUM's
+// accelerometer.txt give it (protocol/camera/tum_cameras.json "accelerometer" maps it to the
+// colour camera's frame; the ground station does that).
+struct AccelReading {
+  std::int64_t capture_timestamp_us = 0;  // same clock as the images'
+  std::array<double, 3> f_mps2{};
+};
+
 struct RgbFrame {
   std::int64_t capture_timestamp_us = 0;
   int width = 0;
   int height = 0;
-  std::vector<std::uint8_t> rgb;  // width*height*3 bytes, R,G,B
+  std::vector<std::uint8_t> rgb;      // width*height*3 bytes, R,G,B
+  std::optional<AccelReading> accel;  // the reading nearest this image, when the source has one
 };
 
 struct DepthFrame {

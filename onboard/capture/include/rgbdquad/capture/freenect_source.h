@@ -10,6 +10,13 @@
 //    z = 0.1236 m * tan(raw / 2842.5 + 1.1863) (raw 2047 = no reading). Frames are in the IR
 //    camera's view (registered_to_rgb = false): the pipeline's DepthRegistration aligns them.
 //
+// Accelerometer: a colour image is held back until its event batch ends; the event thread then
+// reads the tilt state (freenect_update_tilt_state, a blocking USB control transfer, so never
+// inside the frame callback), attaches freenect_get_mks_accel stamped with the clock at the read
+// (a few ms after the image's stamp) and queues the image. A failed read, or an all-zero state
+// (libfreenect's state before any read; fakenect dumps without accelerometer records), attaches
+// none.
+//
 // Thread safety: libfreenect's event loop runs on an internal thread owned by this object; frames
 // cross to the consumer through a small queue (the newest kept when the consumer falls behind).
 #pragma once
@@ -19,6 +26,7 @@
 #include <condition_variable>
 #include <deque>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -68,6 +76,7 @@ class FreenectSource final : public FrameSource {
  private:
   void push(SourceFrame frame);
   void event_loop();
+  void queue_rgb_with_accel();
 
   FreenectOptions options_;
   DisparityTable disparity_mm_ = disparity_to_mm_table();
@@ -81,6 +90,7 @@ class FreenectSource final : public FrameSource {
   std::string error_;
   std::atomic<bool> stopped_{false};
   std::atomic<std::uint64_t> overflows_{0};
+  std::optional<RgbFrame> pending_rgb_;  // event thread only: the image awaiting its reading
   std::thread events_;
 };
 

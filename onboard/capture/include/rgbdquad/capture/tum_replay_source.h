@@ -44,6 +44,8 @@ class TumReplaySource final : public FrameSource {
   std::string describe() const override;
 
   std::size_t rgb_count() const;
+  // Readings in accelerometer.txt (0 when the folder has none).
+  std::size_t accel_count() const { return accel_count_; }
   std::size_t depth_count() const;
 
  private:
@@ -51,12 +53,14 @@ class TumReplaySource final : public FrameSource {
     std::int64_t timestamp_us;
     bool is_depth;
     std::string path;
+    std::optional<AccelReading> accel;  // RGB: accelerometer.txt's nearest reading, dataset time
   };
   std::optional<SourceFrame> load(const Entry& entry, std::int64_t timestamp_us);
 
   TumReplayOptions options_;
   Clock* clock_;
   std::vector<Entry> entries_;  // merged, time-ordered
+  std::size_t accel_count_ = 0;
   std::vector<SourceFrame> preloaded_;
   double time_scale_ = 1.0;   // wall seconds per dataset second
   std::int64_t span_us_ = 0;  // dataset span + one RGB period (loop offset)

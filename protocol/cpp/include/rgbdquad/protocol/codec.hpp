@@ -23,7 +23,8 @@ enum class DecodeError : std::uint8_t {
   kNone = 0,
   kGarbageSkipped,      ///< bytes before a magic were discarded
   kBadHeaderCrc,        ///< header CRC mismatch (e.g. corrupt length); resynchronising
-  kUnsupportedVersion,  ///< envelope version != kProtocolVersion
+  kUnsupportedVersion,  ///< envelope version outside
+                        ///< kOldestDecodedProtocolVersion..kProtocolVersion
   kUnknownMessageType,  ///< type id not in the spec
   kReservedNonzero,     ///< reserved header bits set
   kBodyTooLarge,        ///< body_length above the type's max_body_bytes (checked before waiting)
@@ -50,33 +51,39 @@ struct BodyResult {
   bool ok() const { return message.has_value(); }
 };
 
-/// Encode a message into a full envelope. Fails (error set) when the message breaks the spec
-/// (range, enum, length limits, RAW payload size, ...): the same rules the decoder enforces.
-EncodeResult encode(const Message& message);
+/// Encode a message into a full envelope of envelope version `version` (default: ours; an older
+/// decoded version to answer a peer that speaks it: the fields that version lacks are left out).
+/// Fails (error set) when the message breaks the spec (range, enum, length limits, RAW payload
+/// size, ...): the same rules the decoder enforces; or for a version this build does not write.
+EncodeResult encode(const Message& message, unsigned version = kProtocolVersion);
 
 /// Convenience overloads (the same as encode(Message{...}) without the variant copy).
 EncodeResult encode_handshake(const Handshake& message);
 EncodeResult encode_handshake_ack(const HandshakeAck& message);
 EncodeResult encode_frame(const Frame& message);
 /// Frame from a header and payload bytes owned by the caller (header.payload_length must equal
-/// payload_size). Avoids building a Frame for the sender's hot path.
+/// payload_size) and the image's accelerometer sample. Avoids building a Frame for the sender's
+/// hot path.
 EncodeResult encode_frame(const FrameHeader& header, const std::uint8_t* payload,
-                          std::size_t payload_size);
+                          std::size_t payload_size, const AccelSample& accel = {});
 EncodeResult encode_frame_request(const FrameRequest& message);
 EncodeResult encode_stream_challenge(const StreamChallenge& message);
 
-/// Body of a message (no envelope): what encode() wraps. Used by tests and fuzzers.
-EncodeResult encode_body(const Message& message);
+/// Body of a message (no envelope) as `version` lays it out: what encode() wraps. Used by tests
+/// and fuzzers.
+EncodeResult encode_body(const Message& message, unsigned version = kProtocolVersion);
 
 /// Spec checks of a message; empty string when valid, else the reason naming the field.
 std::string validate(const Message& message);
 
-/// Decode one body of the given wire type. Never throws on hostile input; memory it allocates is
+/// Decode one body of the given wire type as envelope version `version` lays it out (fields that
+/// version lacks keep their defaults). Never throws on hostile input; memory it allocates is
 /// bounded by `size`.
-BodyResult decode_body(std::uint8_t message_type, const std::uint8_t* data, std::size_t size);
+BodyResult decode_body(std::uint8_t message_type, const std::uint8_t* data, std::size_t size,
+                       unsigned version = kProtocolVersion);
 
-/// Peer compatibility: empty when the handshake's version and schema hash equal ours, else a
-/// reason to log loudly and to send back in HandshakeAck.
+/// Peer compatibility: empty when the handshake's version is one this build decodes and its schema
+/// hash is that version's, else a reason to log loudly and to send back in HandshakeAck.
 std::string handshake_incompatibility(const Handshake& peer);
 std::string hello_incompatibility(const SlamHello& peer);
 
@@ -95,6 +102,8 @@ struct DecodeResult {
   DecodeError error = DecodeError::kNone;
   std::string detail;
   std::size_t bytes_discarded = 0;  ///< bytes dropped by this error (garbage, bad frame)
+  /// Envelope version of `message`: a peer of an older version is answered in it.
+  unsigned version = kProtocolVersion;
 };
 
 /// Incremental decoder of a byte stream of envelopes (one TCP connection).

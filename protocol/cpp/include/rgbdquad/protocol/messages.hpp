@@ -58,6 +58,17 @@ struct CameraAttitude {
   std::array<double, 4> q_xyzw{0.0, 0.0, 0.0, 1.0};  ///< (0, 0, 0, 1) when not valid
 };
 
+/// The camera's accelerometer at the capture of the image it travels with (spec AccelSample, since
+/// version 2): specific force in the accelerometer's own axes (Kinect v1: libfreenect's
+/// freenect_get_mks_accel), m/s^2; the receiver rotates it into the optical frame
+/// (rgbdquad/camera/tum_cameras.hpp kKinectV1Accelerometer). Decoded from a version-1 body as
+/// not valid.
+struct AccelSample {
+  bool valid = false;
+  std::uint64_t capture_timestamp_us = 0;  ///< sensor clock of the image's capture_timestamp_us
+  std::array<double, 3> f_mps2{};          ///< x y z; zeros when not valid
+};
+
 /// Stream, sender -> receiver, first message on each connection.
 struct Handshake {
   std::uint16_t protocol_version = kProtocolVersion;
@@ -90,6 +101,7 @@ struct StreamChallenge {
 /// Stream, sender -> receiver: one image, sent only against a credit, always the newest held.
 struct Frame {
   ImageFrame image;
+  AccelSample accel;  ///< RGB stream: the sample nearest the image; depth stream: not valid
 };
 
 /// Stream, receiver -> sender: grants `credits` more frames (1..kMaxCreditsPerRequest).
@@ -117,8 +129,9 @@ struct RgbdFrame {
   CameraIntrinsics intrinsics;  ///< of the RGB image; depth is registered to it
   double depth_scale_units_per_m = 1000.0;
   CameraAttitude attitude;
-  ImageFrame rgb;    ///< pixel_format RGB8
-  ImageFrame depth;  ///< pixel_format DEPTH16
+  ImageFrame rgb;     ///< pixel_format RGB8
+  ImageFrame depth;   ///< pixel_format DEPTH16
+  AccelSample accel;  ///< the rgb image's accelerometer sample, sensor axes
 };
 
 /// SLAM link, slam-server -> quad-control: tracking result for one RgbdFrame.

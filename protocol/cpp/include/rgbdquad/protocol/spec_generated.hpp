@@ -8,10 +8,24 @@
 
 namespace rgbdquad::protocol {
 
-/// Protocol major version carried in every envelope; peers with another version refuse.
-inline constexpr std::uint8_t kProtocolVersion = 1;
+/// Protocol version this build writes in every envelope and hello.
+inline constexpr std::uint8_t kProtocolVersion = 2;
+/// Oldest envelope version a decoder still reads (docs/protocol.md, versions): bodies
+/// of kOldestDecodedProtocolVersion..kProtocolVersion decode, every other is refused.
+inline constexpr std::uint8_t kOldestDecodedProtocolVersion = 1;
 /// First 8 bytes (little-endian) of SHA-256 of the canonical spec (see docs/protocol.md).
-inline constexpr std::uint64_t kSchemaHash = 0x77ddddf95a1ffc23ULL;
+inline constexpr std::uint64_t kSchemaHash = 0xb58bb6533aaca636ULL;
+/// Schema hash of each decoded version (the spec projected to it), oldest first:
+/// a peer's handshake is accepted when its version is decoded and its hash is that
+/// version's.
+inline constexpr std::uint64_t kSchemaHashByVersion[] = {0x77ddddf95a1ffc23ULL,
+                                                         0xb58bb6533aaca636ULL};
+/// The schema hash of `version`, 0 when this build does not decode it.
+constexpr std::uint64_t schema_hash_of_version(unsigned version) {
+  return version >= kOldestDecodedProtocolVersion && version <= kProtocolVersion
+             ? kSchemaHashByVersion[version - kOldestDecodedProtocolVersion]
+             : 0;
+}
 /// Envelope magic, resynchronisation marker.
 inline constexpr std::uint8_t kMagic[4] = {0x52, 0x47, 0x42, 0x51};
 inline constexpr std::size_t kEnvelopeHeaderBytes = 16;
@@ -291,6 +305,7 @@ inline constexpr FieldRange kCameraIntrinsicsDistortion{-1000.0, 1000.0};
 inline constexpr FieldRange kImageFrameWidth{1.0, 4096.0};
 inline constexpr FieldRange kImageFrameHeight{1.0, 4096.0};
 inline constexpr FieldRange kCameraAttitudeQXyzw{-1.0, 1.0};
+inline constexpr FieldRange kAccelSampleFMps2{-1000.0, 1000.0};
 inline constexpr FieldRange kPose3TM{-100000.0, 100000.0};
 inline constexpr FieldRange kPose3QXyzw{-1.0, 1.0};
 inline constexpr FieldRange kHandshakeWidth{1.0, 4096.0};
@@ -327,7 +342,7 @@ constexpr std::size_t max_body_bytes(std::uint8_t message_type) {
     case 2:  // HandshakeAck
       return 266;
     case 3:  // Frame
-      return 1048606;
+      return 1048639;
     case 4:  // FrameRequest
       return 6;
     case 5:  // StreamChallenge
@@ -335,7 +350,7 @@ constexpr std::size_t max_body_bytes(std::uint8_t message_type) {
     case 16:  // SlamHello
       return 537;
     case 17:  // RgbdFrame
-      return 2097329;
+      return 2097362;
     case 18:  // PoseUpdate
       return 134;
     case 19:  // PoseGraph
@@ -345,6 +360,21 @@ constexpr std::size_t max_body_bytes(std::uint8_t message_type) {
     default:
       return 0;
   }
+}
+/// Largest valid body of a message type in envelope version `version`; 0 for an
+/// unknown id or a version this build does not decode.
+constexpr std::size_t max_body_bytes(std::uint8_t message_type, unsigned version) {
+  if (version == 1) {
+    switch (message_type) {
+      case 3:  // Frame
+        return 1048606;
+      case 17:  // RgbdFrame
+        return 2097329;
+      default:
+        return max_body_bytes(message_type);
+    }
+  }
+  return version == kProtocolVersion ? max_body_bytes(message_type) : 0;
 }
 constexpr std::string_view to_string(MessageType t) {
   switch (t) {
