@@ -48,6 +48,12 @@ BOX = ((1.0, 0.0), (1.0, 0.8), (0.0, 0.8), (0.0, 0.0))
 # After a mission gives up or a ground-station kill: the APM's LAND from 1.7 m at 0.5 m/s takes
 # ~4 s, plus the 500 ms radio-failsafe delay and the 1 s land detector.
 LANDING_WAIT_S = 60.0
+# Between missions the operator carries a craft that landed more than this far from the pad (or
+# turned more than PAD_YAW_TOLERANCE_DEG) back onto it, as one does between flights: failsafe
+# landings drift 0.6-1.5 m each in the gusts, and a first soak without this walked the craft into
+# the room's wall in 12 missions (the camera then renders nothing and every later mission fails).
+PAD_TOLERANCE_M = 0.3
+PAD_YAW_TOLERANCE_DEG = 10.0
 # Resource samples of every process (RSS, open descriptors) this often.
 SAMPLE_PERIOD_S = 10.0
 # Recordings of missions that went as expected are deleted but for the first few completed ones
@@ -99,6 +105,7 @@ class Soak:
         self.flight = None
         self.injector = None
         self.pad_room: np.ndarray | None = None
+        self.pad_ned: tuple | None = None  # (position NED m, yaw rad) of the craft at the pad
         self.t_start = 0.0
         self.interrupted = False
         self.expected_recordings_kept = 0
@@ -261,6 +268,7 @@ class Soak:
         inj.injected, inj.errors = [], []
         inj.ground_station_killed_at = inj.ground_station_killed_sim_us = None
         inj.control_fault_windows = []
+        self._carry_to_pad(rec)
         fl.restart_ground_station(mdir / "flight-log", mdir / "recording")
         events_before = len(fl.rig.fc.events)
         touch_before = len(fl.rig.fc.touchdowns_mps)
@@ -323,6 +331,36 @@ class Soak:
             f"elapsed {self.elapsed_s() / 60:.1f} min, remaining "
             f"{max(0.0, deadline - time.monotonic()) / 60:.1f} min"
         )
+
+    def _carry_to_pad(self, rec: dict) -> None:
+        """The operator puts a landed craft back on the pad (the airframe model's position, heading
+        and rates are set; the rig thread may be stepping it, so the move is checked and repeated).
+        Done before quad-control starts, so its floor frame is the pad's."""
+        fl = self.flight
+        snap = fl.rig.snapshot()
+        if self.pad_ned is None:
+            self.pad_ned = (np.array(snap.pos_ned_m, float), float(snap.yaw_rad))
+            return
+        if snap.armed or not snap.landed:
+            rec["carried_to_pad"] = "not possible: the craft is not landed and disarmed"
+            return
+        pad, pad_yaw = self.pad_ned
+        off_m = float(np.hypot(*(np.array(snap.pos_ned_m[:2]) - pad[:2])))
+        off_deg = abs(math.degrees((snap.yaw_rad - pad_yaw + math.pi) % (2 * math.pi) - math.pi))
+        if off_m <= PAD_TOLERANCE_M and off_deg <= PAD_YAW_TOLERANCE_DEG:
+            return
+        state = fl.rig.fc.model.state
+        for _ in range(10):
+            state.pos_ned_m = np.array([pad[0], pad[1], state.pos_ned_m[2]])
+            state.vel_ned_mps = np.zeros(3)
+            state.rate_body_rad_s = np.zeros(3)
+            state.yaw_rad = pad_yaw
+            time.sleep(0.2)
+            now = fl.rig.snapshot()
+            if float(np.hypot(*(np.array(now.pos_ned_m[:2]) - pad[:2]))) < 0.01:
+                break
+        rec["carried_to_pad"] = {"from_m": round(off_m, 2), "turned_deg": round(off_deg, 1)}
+        _say(f"soak: mission {rec['mission']}: craft carried back to the pad ({off_m:.2f} m)")
 
     def _take_off(self, fl, rec: dict, plan) -> None:
         """missions.take_off, with the mission's faults started at the take-off command (their
