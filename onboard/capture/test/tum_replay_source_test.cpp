@@ -2,6 +2,10 @@
 #include "rgbdquad/capture/tum_replay_source.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
 
 namespace rgbdquad::capture {
 namespace {
@@ -33,6 +37,7 @@ TEST(TumReplaySource, DeliversEveryFrameInTimeOrderWithDatasetTimestamps) {
     } else {
       const auto& r = std::get<RgbFrame>(*frame);
       EXPECT_EQ(r.rgb.size(), 640u * 480u * 3u);
+      EXPECT_FALSE(r.accel) << "the excerpt has no accelerometer.txt";
       ++rgb;
     }
   }
@@ -75,6 +80,68 @@ TEST(TumReplaySource, FixedRateScalesTimeAndLoopKeepsTimestampsIncreasing) {
   ASSERT_EQ(rgb_wall_us.size(), 18u);
   // 8 RGB periods in the first pass at 10 fps = 800 ms
   EXPECT_NEAR(static_cast<double>(rgb_wall_us[8] - rgb_wall_us[0]), 800000.0, 1.0);
+}
+
+// The shipped excerpt's lists and images plus an accelerometer.txt of our own, in a folder unique
+// per process (parallel runs never share it).
+class TumAccelFolder : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    namespace fs = std::filesystem;
+    dir_ = fs::temp_directory_path() / ("tum_accel_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+    for (const char* name : {"rgb.txt", "depth.txt"})
+      fs::copy_file(fs::path(kDesk) / name, dir_ / name, fs::copy_options::overwrite_existing);
+    for (const char* name : {"rgb", "depth"})
+      fs::create_directory_symlink(fs::path(kDesk) / name, dir_ / name);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  std::filesystem::path dir_;
+};
+
+TEST_F(TumAccelFolder, GivenAccelerometerTxtThenEachRgbFrameCarriesTheNearestReading) {
+  // GIVEN readings 2 ms before and 10 ms after the first colour stamp (1305031453.359684)
+  std::ofstream(dir_ / "accelerometer.txt") << "# accelerometer data\n# timestamp ax ay az\n"
+                                            << "1305031453.369684 0.5 8.0 -4.0\n"
+                                            << "1305031453.357684 -0.1 9.0 -3.0\n";
+  ManualClock clock;
+  TumReplayOptions options;
+  options.directory = dir_.string();
+  options.fps = -1;
+  options.loop = true;
+  TumReplaySource source(options, &clock);
+  EXPECT_EQ(source.accel_count(), 2u);
+  // WHEN the first loop and the first frame of the second are replayed
+  std::vector<RgbFrame> rgb;
+  while (rgb.size() < 10) {
+    auto frame = source.next();
+    ASSERT_TRUE(frame);
+    if (auto* r = std::get_if<RgbFrame>(&*frame)) rgb.push_back(std::move(*r));
+    if (auto* d = std::get_if<DepthFrame>(&*frame)) {
+      EXPECT_EQ(d->depth.size(), 640u * 480u);
+    }
+  }
+  // THEN the first colour frame has the reading 2 ms before it, every frame has one (the nearest,
+  // however far: the ground station judges staleness), and a loop shifts it with the image
+  ASSERT_TRUE(rgb[0].accel);
+  EXPECT_EQ(rgb[0].accel->capture_timestamp_us, 1305031453357684);
+  EXPECT_DOUBLE_EQ(rgb[0].accel->f_mps2[1], 9.0);
+  for (const RgbFrame& r : rgb) ASSERT_TRUE(r.accel);
+  EXPECT_EQ(rgb[9].accel->capture_timestamp_us - rgb[9].capture_timestamp_us,
+            rgb[0].accel->capture_timestamp_us - rgb[0].capture_timestamp_us);
+}
+
+TEST_F(TumAccelFolder, GivenMalformedAccelerometerLineThenClearError) {
+  std::ofstream(dir_ / "accelerometer.txt") << "1305031452.80 0.5 eight -4.0\n";
+  ManualClock clock;
+  TumReplayOptions options;
+  options.directory = dir_.string();
+  try {
+    TumReplaySource source(options, &clock);
+    FAIL() << "expected an exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("accelerometer.txt:1"), std::string::npos) << e.what();
+  }
 }
 
 TEST(TumReplaySource, MissingFolderThrowsClearError) {
