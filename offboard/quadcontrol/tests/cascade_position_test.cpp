@@ -6,6 +6,9 @@
 
 #include <cmath>
 #include <limits>
+#include <nlohmann/json.hpp>
+
+#include "core/control_config.hpp"
 
 namespace rgbdquad::quadcontrol {
 namespace {
@@ -169,6 +172,44 @@ TEST(CascadePosition, GainValidation) {
     }
   }
   EXPECT_THROW(CascadePosition(CascadeGains{}, 0.0), std::invalid_argument);
+}
+
+TEST(CascadeConfig, PositionLawAndCascadeGainsLoadFromJsonAndRoundTrip) {
+  struct Row {
+    const char* json;
+    bool ok;
+  };
+  const Row table[] = {
+      {R"({"position_law": "pid"})", true},
+      {R"({"position_law": "cascade", "cascade": {"velocity_ki_per_s2": 0.5}})", true},
+      {R"({"position_law": "lqr"})", false},
+      {R"({"position_law": 1})", false},
+      {R"({"cascade": {"velocity_kp": 3.0}})", false},
+      {R"({"cascade": {"velocity_kp_per_s": "fast"}})", false},
+      {R"({"cascade": 2})", false},
+      {R"({"max_manoeuvre_yaw_rate_deg_per_s": 45.0})", true},
+  };
+  for (const auto& row : table) {
+    SCOPED_TRACE(row.json);
+    ControlConfig c;
+    EXPECT_EQ(load_control_config(nlohmann::json::parse(row.json), c).empty(), row.ok);
+  }
+  // GIVEN a config with the thesis law and one cascade gain changed WHEN it goes through to_json
+  // THEN it reads back the same, and the defaults are the cascade
+  EXPECT_EQ(ControlConfig{}.position_law, PositionLaw::kCascade);
+  ControlConfig c;
+  ASSERT_EQ(
+      load_control_config(
+          nlohmann::json::parse(R"({"position_law": "pid", "cascade": {"angle_max_deg": 30}})"), c),
+      "");
+  ControlConfig d;
+  ASSERT_EQ(load_control_config(to_json(c), d), "");
+  EXPECT_EQ(d.position_law, PositionLaw::kPid);
+  EXPECT_DOUBLE_EQ(d.cascade.angle_max_deg, 30.0);
+  EXPECT_DOUBLE_EQ(d.cascade.velocity_kp_per_s, CascadeGains{}.velocity_kp_per_s);
+  // A manoeuvre yaw rate at or above the APM's full-stick rate is refused at start-up.
+  d.max_manoeuvre_yaw_rate_deg_per_s = d.apm_yaw_rate_max_deg_per_s;
+  EXPECT_NE(d.validate().find("max_manoeuvre_yaw_rate_deg_per_s"), std::string::npos);
 }
 
 }  // namespace
