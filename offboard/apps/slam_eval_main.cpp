@@ -61,6 +61,7 @@ struct RunArgs {
   double depth_units_per_m = 0;
   double colour_stamp_lag_s = slam::TrackerOptions{}.colour_stamp_lag_s;
   double rolling_shutter_readout_s = slam::TrackerOptions{}.rolling_shutter_readout_s;
+  std::string gravity = slam::TrackerOptions{}.gravity.enabled ? "on" : "off";
   int mapping_rt_priority = slam::PipelineOptions{}.mapping_rt_priority;
 };
 
@@ -107,6 +108,7 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   po.tracker.align_depth_time = a.align_depth_time == "on";
   po.tracker.colour_stamp_lag_s = a.colour_stamp_lag_s;
   po.tracker.rolling_shutter_readout_s = a.rolling_shutter_readout_s;
+  po.tracker.gravity.enabled = a.gravity == "on";
   po.tracker.confirm_off_path = a.confirm_off_path == "on";
   po.frontend.features.orb_pixel_centres = a.orb_pixel_centres == "on";
   po.map_lock_priority_inheritance = a.map_lock == "pi";
@@ -152,6 +154,7 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
   m["align_depth_time"] = a.align_depth_time;
   m["colour_stamp_lag_s"] = a.colour_stamp_lag_s;
   m["rolling_shutter_readout_s"] = a.rolling_shutter_readout_s;
+  m["gravity"] = a.gravity;
   m["confirm_off_path"] = a.confirm_off_path;
   m["orb_pixel_centres"] = a.orb_pixel_centres;
   m["depth_noise"] = a.depth_noise;
@@ -649,6 +652,12 @@ void add_ablation_options(CLI::App* run, RunArgs& a) {
                   "(s; 0: a global shutter); features are rotated to the middle row's time by the "
                   "predicted rotation (docs/slam.md)")
       ->check(CLI::Range(0.0, 0.1))
+      ->capture_default_str();
+  run->add_option("--gravity", a.gravity,
+                  "localmap: gravity's direction (the frame's flight-controller attitude, else "
+                  "the Kinect's accelerometer) as a roll/pitch prior in pose tracking "
+                  "(docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   run->add_option("--align-depth-time", a.align_depth_time,
                   "localmap: re-time each depth image to its colour image by the predicted "

@@ -25,9 +25,10 @@ struct FrameRecord {
   bool loop_closed = false;
   bool relocalised =
       false;  ///< local-map system: the pose came from the keyframe database (TrackResult)
-  bool cross_checked = false;  ///< local-map system: a weak fit was cross-checked (TrackResult)
-  bool new_segment = false;    ///< local-map system: the frame started a map segment (TrackResult)
+  bool cross_checked = false;   ///< local-map system: a weak fit was cross-checked (TrackResult)
+  bool new_segment = false;     ///< local-map system: the frame started a map segment (TrackResult)
   bool segment_merged = false;  ///< local-map system: the segment joined the map (TrackResult)
+  bool gravity_prior = false;   ///< local-map system: the pose fit had a gravity prior
   double cross_check_shift_m = -1, cross_check_shift_deg = -1;  ///< (TrackResult)
   bool prediction_stale =
       false;  ///< local-map system: the gap exceeded the tracker's max_predicted_gap_s
@@ -80,6 +81,8 @@ struct PipelineSummary {
   std::size_t segments_started = 0;
   /// Segments moved onto the map before them when their place was recognised.
   std::size_t segments_merged = 0;
+  /// Frames whose pose fit had a gravity prior (TrackerOptions::gravity).
+  std::size_t gravity_frames = 0;
   bool loop_closing_active =
       false;  ///< the loop closer ran (option on and a vocabulary for the detector)
   std::size_t loop_detections = 0;  ///< keyframes with database candidates passed to verification

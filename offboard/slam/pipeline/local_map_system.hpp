@@ -151,8 +151,7 @@ class TrackingStage {
   TrackingStage(FeatureExtractor extractor, Tracker tracker, StagePacing pacing,
                 std::function<KeyframeAdmission()> admission, FrameRecords* records,
                 std::function<void(std::int64_t)> on_keyframe, const Intrinsics& intrinsics,
-                bool align_depth_time, double colour_stamp_lag_s,
-                double rolling_shutter_readout_s);
+                bool align_depth_time, double colour_stamp_lag_s, double rolling_shutter_readout_s);
   ~TrackingStage() { finish(); }
   TrackingStage(const TrackingStage&) = delete;
   TrackingStage& operator=(const TrackingStage&) = delete;

@@ -8,6 +8,7 @@
 #include "slam/features/features.hpp"
 #include "slam/map/map.hpp"
 #include "slam/map/place_index.hpp"
+#include "slam/tracking/gravity_prior.hpp"
 #include "slam/tracking/motion_bound.hpp"
 #include "slam/tracking/pose_optimizer.hpp"
 #include "slam/tracking/projection_search.hpp"
@@ -177,6 +178,84 @@ TEST(MotionBound, KeepsABoundedHistory) {
   // only the last 4 (t 9.6-9.9 s, x = t) are kept: 1 m/s, so 10.0 s extrapolates to x = 10 m
   // (with the older positions at x = 5 m the mean velocity would be far lower)
   EXPECT_NEAR(b.check(10.0, Eigen::Vector3d(10.0, 0, 0)).deviation_m, 0.0, 1e-9);
+}
+
+/// Angle between the camera's true and estimated gravity direction (its roll/pitch error), rad.
+double tilt_error_rad(const Eigen::Isometry3d& est, const Eigen::Isometry3d& truth,
+                      const Eigen::Vector3d& down_world) {
+  const Eigen::Vector3d a = est.linear() * down_world, b = truth.linear() * down_world;
+  return std::atan2(a.cross(b).norm(), a.dot(b));
+}
+
+TEST(PoseOptimizer, GravityPriorPullsRollAndPitchTowardsTheMeasuredGravity) {
+  // GIVEN 12 points seen with 2 px noise (a weak fit: blur, a bare wall) and gravity measured
+  // exactly in the camera frame, trusted to 1e-4 rad
+  const CameraModel cam = fr1_camera();
+  const Eigen::Vector3d down_world = Eigen::Vector3d(0.1, 0.98, 0.05).normalized();
+  double without = 0, with = 0;
+  for (std::uint32_t seed = 0; seed < 20; ++seed) {
+    const Eigen::Isometry3d truth = pose(0.05, -0.1, 0.03, 0.1, -0.05, 0.2);
+    const auto obs = observe(scene(12, 100 + seed), truth, cam, 2.0, 200 + seed);
+    PoseOptimizerOptions o;
+    without += tilt_error_rad(optimize_pose(truth, obs, cam, o).T_cam_world, truth, down_world);
+    o.gravity = GravityPrior{down_world, truth.linear() * down_world, 1e-4};
+    const PoseOptimizerResult r = optimize_pose(truth, obs, cam, o);
+    ASSERT_TRUE(r.ok);
+    with += tilt_error_rad(r.T_cam_world, truth, down_world);
+  }
+  // THEN the prior removes the tilt error the points leave (summed over 20 scenes)
+  EXPECT_GT(without, 20 * 1e-3);
+  EXPECT_LT(with, 0.1 * without);
+}
+
+TEST(PoseOptimizer, GravityPriorLeavesTheTurnAboutGravityFree) {
+  // GIVEN exact observations of a camera and a gravity prior that agrees with them
+  const CameraModel cam = fr1_camera();
+  const Eigen::Isometry3d truth = pose(0.02, 0.3, -0.01, 0.05, 0.0, 0.1);
+  const auto obs = observe(scene(100, 7), truth, cam, 0.0, 8);
+  PoseOptimizerOptions o;
+  const Eigen::Vector3d down_world = Eigen::Vector3d::UnitY();
+  o.gravity = GravityPrior{down_world, truth.linear() * down_world, 1.0 * M_PI / 180.0};
+  // WHEN it starts 0.1 rad off about gravity (yaw)
+  Eigen::Isometry3d start = truth;
+  start.linear() = truth.linear() * Eigen::AngleAxisd(0.1, down_world).toRotationMatrix();
+  const PoseOptimizerResult r = optimize_pose(start, obs, cam, o);
+  // THEN the points bring the yaw back: the prior neither holds it nor biases the pose
+  ASSERT_TRUE(r.ok);
+  EXPECT_LT(Eigen::AngleAxisd(r.T_cam_world.rotation().transpose() * truth.rotation()).angle(),
+            1e-6);
+}
+
+TEST(GravityPrior, ObservedFromTheAttitudeFirstThenTheAccelerometer) {
+  GravityOptions o;
+  RgbdFrame f;
+  EXPECT_FALSE(observe_gravity(f, o).has_value());
+  // The Kinect at rest, level: the specific force points up, -y in the optical frame
+  f.accel_cam_mps2 = Eigen::Vector3d(0, -9.80665, 0);
+  auto g = observe_gravity(f, o);
+  ASSERT_TRUE(g);
+  EXPECT_TRUE(g->down_cam.isApprox(Eigen::Vector3d::UnitY(), 1e-12));
+  EXPECT_DOUBLE_EQ(g->sigma_rad, o.accel_base_sigma_rad);
+  // 2 m/s^2 beyond g: trusted less, by the departure in radians
+  f.accel_cam_mps2 = Eigen::Vector3d(0, -11.80665, 0);
+  EXPECT_NEAR(observe_gravity(f, o)->sigma_rad, o.accel_base_sigma_rad + 2.0 / 9.80665, 1e-12);
+  // An attitude in NED wins: identity = camera axes along NED, gravity along the camera's +z
+  f.q_nav_cam = Eigen::Quaterniond::Identity();
+  g = observe_gravity(f, o);
+  ASSERT_TRUE(g);
+  EXPECT_TRUE(g->down_cam.isApprox(Eigen::Vector3d::UnitZ(), 1e-12));
+  EXPECT_DOUBLE_EQ(g->sigma_rad, o.attitude_sigma_rad);
+}
+
+TEST(GravityPrior, ReferenceIsTheWeightedMeanOfTheFirstKeyframesThenHeld) {
+  GravityReference ref(2);
+  EXPECT_FALSE(ref.down_world().has_value());
+  ref.add(Eigen::Matrix3d::Identity(), GravityObservation{Eigen::Vector3d::UnitY(), 0.1});
+  ref.add(Eigen::Matrix3d::Identity(), GravityObservation{Eigen::Vector3d::UnitX(), 0.1});
+  ASSERT_TRUE(ref.held());
+  EXPECT_TRUE(ref.down_world()->isApprox(Eigen::Vector3d(1, 1, 0).normalized(), 1e-12));
+  ref.add(Eigen::Matrix3d::Identity(), GravityObservation{Eigen::Vector3d::UnitZ(), 0.1});
+  EXPECT_TRUE(ref.down_world()->isApprox(Eigen::Vector3d(1, 1, 0).normalized(), 1e-12));
 }
 
 TEST(PoseOptimizer, TooFewObservationsIsNotOk) {

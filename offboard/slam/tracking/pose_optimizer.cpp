@@ -23,6 +23,25 @@ Eigen::Isometry3d apply_left_increment(const Eigen::Matrix<double, 6, 1>& delta,
   return out;
 }
 
+namespace {
+
+// Gravity prior: e = (R_cw d_w - d_c) / sigma. Under T <- exp(delta) T the predicted direction
+// v = R_cw d_w moves by -[v]x delta_rot, so J = [ -[v]x  0 ] / sigma (rank 2: a turn about
+// gravity changes nothing).
+void add_gravity_term(const GravityPrior& g, const Eigen::Isometry3d& T,
+                      Eigen::Matrix<double, 6, 6>* H, Eigen::Matrix<double, 6, 1>* b) {
+  const Eigen::Vector3d v = T.linear() * g.down_world;
+  const double inv_sigma = 1.0 / g.sigma_rad;
+  const Eigen::Vector3d e = (v - g.down_cam) * inv_sigma;
+  Eigen::Matrix<double, 3, 6> J = Eigen::Matrix<double, 3, 6>::Zero();
+  J.leftCols<3>() << 0, v.z(), -v.y(), -v.z(), 0, v.x(), v.y(), -v.x(), 0;
+  J *= inv_sigma;
+  H->noalias() += J.transpose() * J;
+  b->noalias() += J.transpose() * e;
+}
+
+}  // namespace
+
 PoseOptimizerResult optimize_pose(const Eigen::Isometry3d& T_init,
                                   const std::vector<PoseObservation>& obs, const CameraModel& cam,
                                   const PoseOptimizerOptions& o) {
@@ -61,6 +80,7 @@ PoseOptimizerResult optimize_pose(const Eigen::Isometry3d& T_init,
         ++used;
       }
       if (used < 3) return r;
+      if (o.gravity) add_gravity_term(*o.gravity, T, &H, &b);
       Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
       if (ldlt.info() != Eigen::Success) return r;
       const Eigen::Matrix<double, 6, 1> delta = ldlt.solve(-b);

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <optional>
 #include <vector>
 
 #include "slam/map/map.hpp"
@@ -19,10 +20,19 @@ struct PoseObservation {
   Eigen::Vector3d sigma_px = Eigen::Vector3d::Ones();     ///< sigmas of (u, v, disparity)
 };
 
+/// Gravity measured in the camera frame against the map's gravity direction: a residual on the
+/// camera's roll and pitch only (rotation about gravity and position are untouched).
+struct GravityPrior {
+  Eigen::Vector3d down_world = Eigen::Vector3d::UnitY();
+  Eigen::Vector3d down_cam = Eigen::Vector3d::UnitY();
+  double sigma_rad = 1.0;
+};
+
 struct PoseOptimizerOptions {
   int rounds = 4;
   int iterations_per_round = 10;
   double chi2_outlier = kChi2Rgbd95;
+  std::optional<GravityPrior> gravity;  ///< slam/tracking/gravity_prior.hpp
 };
 
 struct PoseOptimizerResult {

@@ -100,6 +100,7 @@ bool TrackerOptions::is_valid(std::string* error) const {
   if (min_segment_features < min_inliers_tracking)
     return fail("min_segment_features must be >= min_inliers_tracking");
   if (!(segment_merge_period_s >= 0)) return fail("segment_merge_period_s must be >= 0");
+  if (!gravity.is_valid(error)) return false;
   if (!(rolling_shutter_readout_s >= 0 && rolling_shutter_readout_s < 0.1))
     return fail("rolling_shutter_readout_s must be in [0, 0.1) s");
   return matching.is_valid(error) && ransac.is_valid(error);
@@ -180,8 +181,12 @@ bool Tracker::cross_check_needed(const Fit& fit) const {
 Tracker::Fit Tracker::fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
                                     const Eigen::Isometry3d& T_guess,
                                     double first_radius_px) const {
-  return fit_by_projection(local.points, frame, camera_, T_guess, first_radius_px,
-                           projection_fit_options(options_));
+  ProjectionFitOptions fo = projection_fit_options(options_);
+  if (frame_gravity_)
+    if (const auto down_world = gravity_reference_.down_world())
+      fo.pose.gravity =
+          GravityPrior{*down_world, frame_gravity_->down_cam, frame_gravity_->sigma_rad};
+  return fit_by_projection(local.points, frame, camera_, T_guess, first_radius_px, fo);
 }
 
 std::optional<Tracker::KeyframeGuess> Tracker::pose_from_keyframes(
@@ -232,6 +237,7 @@ std::int64_t Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatu
   });
   map.add_keyframe(std::move(kf));
   if (segment_keyframes_) ++*segment_keyframes_;
+  if (frame_gravity_) gravity_reference_.add(T_world_cam.linear(), *frame_gravity_);
   for (std::size_t k = 0; k < point_of_keypoint.size(); ++k) {
     if (point_of_keypoint[k] < 0) continue;
     const std::int64_t pid = local.points[static_cast<std::size_t>(point_of_keypoint[k])].id;
@@ -266,12 +272,15 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
                            const FeatureOptions& feature_options, bool keyframe_allowed,
                            bool mapper_idle) {
   lock_wait_ms_ = 0;
+  frame_gravity_.reset();
+  if (options_.gravity.enabled) frame_gravity_ = observe_gravity(frame, options_.gravity);
   FrameInput in{frame, TrackedFeatures::from(std::move(features), camera_, feature_options),
                 make_thumbnail(frame.rgb),
                 options_.ransac.max_iterations * 0x9E3779B97F4A7C15ull ^
                     static_cast<std::uint64_t>(frame.index)};
   TrackResult out = track_steps(in, keyframe_allowed, mapper_idle);
   out.map_lock_wait_ms = lock_wait_ms_;
+  out.gravity_prior = frame_gravity_ && gravity_reference_.down_world().has_value();
   return out;
 }
 

@@ -35,6 +35,7 @@
 #include "slam/map/map.hpp"
 #include "slam/matching/matching.hpp"
 #include "slam/motion/motion.hpp"
+#include "slam/tracking/gravity_prior.hpp"
 #include "slam/tracking/motion_bound.hpp"
 #include "slam/tracking/pose_optimizer.hpp"
 #include "slam/tracking/projection_search.hpp"
@@ -208,6 +209,8 @@ struct TrackerOptions {
   /// global shutter). Each frame's features are rotated to the middle row's time by the predicted
   /// angular velocity (slam/tracking/rolling_shutter.hpp).
   double rolling_shutter_readout_s = 0.0;
+  /// Gravity's direction as a roll/pitch prior in the pose fit (slam/tracking/gravity_prior.hpp).
+  GravityOptions gravity;
   bool is_valid(std::string* error) const;
 };
 
@@ -225,6 +228,7 @@ struct TrackResult {
   /// The frame's relocalisation joined the current segment to the map before it (the segment
   /// moved by a rigid correction; map_corrections counts it).
   bool segment_merged = false;
+  bool gravity_prior = false;  ///< the pose fit had a gravity prior (TrackerOptions::gravity)
   /// The fit left the motion bound but a registration to the reference keyframe confirmed it
   /// (TrackerOptions::confirm_off_path).
   bool off_path_confirmed = false;
@@ -302,7 +306,8 @@ class Tracker {
         map_(std::move(map)),
         motion_bound_(MotionBoundOptions{options_.motion_margin_m,
                                          options_.max_acceleration_m_per_s2,
-                                         options_.motion_bound_baseline_s}) {}
+                                         options_.motion_bound_baseline_s}),
+        gravity_reference_(options_.gravity.init_keyframes) {}
 
   struct LocalMap {
     std::vector<LocalPoint> points;
@@ -419,6 +424,9 @@ class Tracker {
   std::uint64_t corrections_seen_ =
       0;                      ///< SharedMap::corrections when T_world_last_ was last anchored
   MotionBound motion_bound_;  ///< tracked positions since the last relocalisation or correction
+  GravityReference gravity_reference_;
+  /// This frame's gravity measurement (set by track(); TrackerOptions::gravity).
+  std::optional<GravityObservation> frame_gravity_;
   /// Keyframes of the current map segment, once one was started (restart_when_lost).
   std::optional<std::size_t> segment_keyframes_;
   /// First keyframe id of the current segment while it is not joined to the map before it.
