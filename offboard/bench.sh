@@ -108,7 +108,7 @@ if [ -d "$DATA/fr1_xyz_first300" ]; then
   fi
 fi
 # Fast motion and the anchor: the default system on every sequence, wait and real time, with the
-# new-segment restart off (default) and on; ORB-SLAM2's published runs scored on the same frames.
+# new-segment restart on (default) and off; ORB-SLAM2's published runs scored on the same frames.
 # Fast manoeuvres rendered by the HIL Kinect emulator (hil/tools/render_tum.py: the HIL room and
 # camera mount, no motion blur, no rolling shutter) join them, to tell the geometry of fast motion
 # from the image degradation of a real camera.

@@ -201,7 +201,7 @@ def anchor_figures(anchor: Path) -> list[dict]:
         mode = "wait" if "_wait_" in run.name else "real time"
         seq = run.name.split("_wait_" if mode == "wait" else "_realtime_")[0]
         restart = run.name.rsplit("_", 1)[-1]
-        default = restart == "off"  # TrackerOptions::restart_when_lost
+        default = restart == "on"  # TrackerOptions::restart_when_lost
         if "ate_rmse_m" in m:
             target = BENCH_ATE_TARGETS_M.get(seq) if default and mode == "real time" else None
             figs.append(

@@ -4,10 +4,10 @@ rgbd-streamer, slam-server and quad-control fly the real firmware in simavr and 
 scenario 1's gusts and trim error; quad-control flies its default position law.
 
 Targets: SLAM ATE <= 30 mm, hold <= 0.15 m after each manoeuvre (truth, after
-manoeuvres.MANOEUVRE_SETTLE_S), no failsafe. Flown with slam-server's default and with
-`--restart-when-lost on` (a frame the tracker cannot place starts a new segment of the same map).
-What SLAM did (frames lost, relocalised, new segments) is in the report either way:
-test-artifacts/hil/slam_loop_fast_manoeuvres{,_restart_when_lost}.json.
+manoeuvres.MANOEUVRE_SETTLE_S), no failsafe. Flown with slam-server's default (a frame the tracker
+cannot place starts a new segment of the same map) and with `--restart-when-lost off` (it stays
+lost until relocalised). What SLAM did (frames lost, relocalised, new segments) is in the report
+either way: test-artifacts/hil/slam_loop_fast_manoeuvres{,_segments_off}.json.
 """
 
 from __future__ import annotations
@@ -56,11 +56,11 @@ def test_slam_loop_fast_manoeuvres(tmp_path):
     _check(_fly(tmp_path, "slam_loop_fast_manoeuvres", ()))
 
 
-def test_slam_loop_fast_manoeuvres_restart_when_lost(tmp_path):
+def test_slam_loop_fast_manoeuvres_segments_off(tmp_path):
     _check(
         _fly(
             tmp_path,
-            "slam_loop_fast_manoeuvres_restart_when_lost",
-            ("--restart-when-lost", "on"),
+            "slam_loop_fast_manoeuvres_segments_off",
+            ("--restart-when-lost", "off"),
         )
     )
