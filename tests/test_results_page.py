@@ -160,9 +160,9 @@ def test_bench_metrics_become_figures_with_verdicts(tmp_path):
         "fr2_desk_first50/orb_localmap": {"ate_rmse_m": 0.0025},
         "realtime_orb_localmap": {"ate_rmse_m": 0.0117, "frontend_dropped": 0},
         "rate_2_cc_on": {"ate_rmse_m": 0.0114},
-        "anchor/fr1_360_first60_wait_restart_off": {"ate_rmse_m": 0.07, "frames_lost": 35},
-        "anchor/fr1_xyz_first300_realtime_restart_off": {"ate_rmse_m": 0.0104, "frames_lost": 0},
-        "anchor/fr1_xyz_first300_realtime_restart_on": {"ate_rmse_m": 0.0117, "frames_lost": 0},
+        "anchor/fr1_360_first60_wait_restart_on": {"ate_rmse_m": 0.09, "frames_lost": 2},
+        "anchor/fr1_xyz_first300_realtime_restart_on": {"ate_rmse_m": 0.0104, "frames_lost": 0},
+        "anchor/fr1_xyz_first300_realtime_restart_off": {"ate_rmse_m": 0.0117, "frames_lost": 0},
     }.items():
         (out / rel).mkdir(parents=True)
         (out / rel / "metrics.json").write_text(json.dumps(metrics))
@@ -173,13 +173,13 @@ def test_bench_metrics_become_figures_with_verdicts(tmp_path):
     assert figs["ATE orb localmap", "fr2_desk_first50", "wait"]["verdict"] is None
     assert figs["ATE sift glc", "fr1_xyz_first300", "wait"]["verdict"] is None
     # AND the anchor runs: frames lost against 0 and fr1_xyz in real time against ORB-SLAM2's
-    # median, for the default (restart off) only
-    assert figs["frames lost orb localmap, restart off", "fr1_360_first60", "wait"]["verdict"] == (
+    # median, for the default (restart on) only
+    assert figs["frames lost orb localmap, restart on", "fr1_360_first60", "wait"]["verdict"] == (
         "MISS"
     )
     rt = "real time"
-    assert figs["ATE orb localmap, restart off", "fr1_xyz_first300", rt]["verdict"] == "PASS"
-    assert figs["ATE orb localmap, restart on", "fr1_xyz_first300", rt]["verdict"] is None
+    assert figs["ATE orb localmap, restart on", "fr1_xyz_first300", rt]["verdict"] == "PASS"
+    assert figs["ATE orb localmap, restart off", "fr1_xyz_first300", rt]["verdict"] is None
     assert figs["frames dropped orb localmap", "fr1_xyz_first300", "real time"]["verdict"] == "PASS"
     assert figs["ATE orb localmap, every 2nd frame, cross-check on", "fr1_xyz_first300", "wait"]
 
