@@ -21,67 +21,72 @@ bool TumDatasetOptions::is_valid(std::string* error) const {
   return true;
 }
 
-bool read_tum_list(const std::string& path, std::vector<std::pair<double, std::string>>* out,
-                   std::string* error) {
+namespace {
+
+/// Calls `parse(line)` for each line of a TUM text file that is not blank or a '#' comment; a
+/// false return stops with "<path>:<line>: expected '<format>'". False also when unreadable.
+template <typename Parse>
+bool for_each_tum_line(const std::string& path, const char* format, std::string* error,
+                       Parse parse) {
   std::ifstream in(path);
   if (!in) {
     if (error) *error = "cannot open '" + path + "'";
     return false;
   }
-  out->clear();
   std::string line;
   int line_no = 0;
   while (std::getline(in, line)) {
     ++line_no;
     if (line.empty() || line[0] == '#') continue;
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    std::istringstream ls(line);
-    double t = 0;
-    std::string name;
-    if (!(ls >> t >> name) || !std::isfinite(t)) {
-      if (error) *error = path + ":" + std::to_string(line_no) + ": expected 'timestamp filename'";
+    if (!parse(line)) {
+      if (error)
+        *error = path + ":" + std::to_string(line_no) + ": expected '" + std::string(format) + "'";
       return false;
     }
-    out->emplace_back(t, name);
   }
+  return true;
+}
+
+}  // namespace
+
+bool read_tum_list(const std::string& path, std::vector<std::pair<double, std::string>>* out,
+                   std::string* error) {
+  out->clear();
+  const bool ok =
+      for_each_tum_line(path, "timestamp filename", error, [&](const std::string& line) {
+        std::istringstream ls(line);
+        double t = 0;
+        std::string name;
+        if (!(ls >> t >> name) || !std::isfinite(t)) return false;
+        out->emplace_back(t, name);
+        return true;
+      });
+  if (!ok) return false;
   std::sort(out->begin(), out->end());
   return true;
 }
 
 bool read_tum_accelerometer(const std::string& path, std::vector<AccelSample>* out,
                             std::string* error) {
-  std::ifstream in(path);
-  if (!in) {
-    if (error) *error = "cannot open '" + path + "'";
-    return false;
-  }
   out->clear();
-  std::string line;
-  int line_no = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    if (line.empty() || line[0] == '#') continue;
-    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    // strtod rather than operator>>: it reads "nan" and "inf", which the gate then counts.
-    double v[4];
-    const char* p = line.c_str();
-    bool ok = true;
-    for (double& x : v) {
-      char* end = nullptr;
-      x = std::strtod(p, &end);
-      if (end == p) {
-        ok = false;
-        break;
-      }
-      p = end;
-    }
-    if (ok) ok = std::string(p).find_first_not_of(" \t\r") == std::string::npos;
-    if (!ok || !std::isfinite(v[0])) {
-      if (error) *error = path + ":" + std::to_string(line_no) + ": expected 'timestamp ax ay az'";
-      return false;
-    }
-    out->push_back({v[0], Eigen::Vector3d(v[1], v[2], v[3])});
-  }
+  const bool ok =
+      for_each_tum_line(path, "timestamp ax ay az", error, [&](const std::string& line) {
+        // strtod rather than operator>>: it reads "nan" and "inf", which the gate then counts.
+        double v[4];
+        const char* p = line.c_str();
+        for (double& x : v) {
+          char* end = nullptr;
+          x = std::strtod(p, &end);
+          if (end == p) return false;
+          p = end;
+        }
+        if (std::string(p).find_first_not_of(" \t\r") != std::string::npos) return false;
+        if (!std::isfinite(v[0])) return false;
+        out->push_back({v[0], Eigen::Vector3d(v[1], v[2], v[3])});
+        return true;
+      });
+  if (!ok) return false;
   std::stable_sort(out->begin(), out->end(), [](const AccelSample& a, const AccelSample& b) {
     return a.stamp_s < b.stamp_s;
   });
