@@ -308,21 +308,7 @@ class SlamFlight:
                 ],
                 system=True,
             )
-            config = self._write_quad_control_config(slam_port, rgb_port, depth_port)
-            qc = self._start(
-                "quad-control",
-                [
-                    find_binary("quad-control"),
-                    "--config",
-                    config,
-                    "--port",
-                    "0",
-                    "--flight-log",
-                    self.log_dir,
-                ],
-                system=True,
-            )
-            self.dashboard_port = self._wait_dashboard_port(qc)
+            self._start_quad_control((slam_port, rgb_port, depth_port))
             self.kinect = (o.kinect_factory or LiveKinect)(
                 self.workdir / "kinect-dump",
                 KinectOptions(
@@ -416,7 +402,14 @@ class SlamFlight:
         self._procs = [(n, p) for n, p in self._procs if n != "quad-control"]
         self.log_dir, self.recording_dir = Path(log_dir), Path(recording_dir)
         self.log_dir.parent.mkdir(parents=True, exist_ok=True)
-        config = self._write_quad_control_config(*self._qc_ports)
+        self._start_quad_control(self._qc_ports, self.log_dir.parent / "quad-control.log")
+
+    def _start_quad_control(
+        self, ports: tuple[int, int, int], log_path: Path | None = None
+    ) -> None:
+        """quad-control on the flight's SLAM and stream ports, with this flight's log folder; sets
+        the dashboard port it prints."""
+        config = self._write_quad_control_config(*ports)
         qc = self._start(
             "quad-control",
             [
@@ -429,7 +422,7 @@ class SlamFlight:
                 self.log_dir,
             ],
             system=True,
-            log_path=self.log_dir.parent / "quad-control.log",
+            log_path=log_path,
         )
         self.dashboard_port = self._wait_dashboard_port(qc)
 
