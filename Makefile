@@ -3,7 +3,9 @@
 #   make build           host C++ build (build/), sanitizer build of protocol/ (build-asan/), firmware image
 #   make test            deps + build, then every test suite (ctest, ASan ctest, fuzz smoke, pytest)
 #   make demo            deps + build, then the end-to-end demo of what exists
-#   make bench           accuracy/speed benchmarks on DATA (default ../shared/data), prints tables
+#   make data            download the TUM sequences (SEQ="fr1_xyz ...", default: every pinned one),
+#                        check size + sha256, cut the bench excerpts into data/tum (docs/data.md)
+#   make bench           accuracy/speed benchmarks on DATA (default ../shared/data, else data/tum)
 #   make study           the frame-rate / spatial-velocity study on DATA
 #   make results         docs/results.md from out/results/*.json (written by bench, hil, demo-loop)
 #   make fuzz            longer libFuzzer runs (FUZZ_SECONDS per target, default 300)
@@ -20,7 +22,7 @@
 #   make clean           remove build outputs (keeps .venv)
 SHELL := /bin/bash
 JOBS ?= $(shell nproc)
-DATA ?= ../shared/data
+DATA ?= $(shell scripts/data-dir.sh)
 PORT ?= /dev/ttyACM0
 FUZZ_SECONDS ?= 300
 ARCH ?= arm64
@@ -31,7 +33,7 @@ define component
 	@if [ -x "$(1)" ]; then "$(1)" $(2); else echo "make $@: not implemented yet ($(1) does not exist)"; exit 1; fi
 endef
 
-.PHONY: all deps build build-cpp build-asan firmware test demo demo-loop bench study fuzz hil flash \
+.PHONY: all deps build build-cpp build-asan firmware test demo demo-loop bench study fuzz hil flash data \
         install-onboard run-offboard clean help onboard-arm bench-arm results soak wind-table
 
 all: build
@@ -65,6 +67,11 @@ wind-table: build
 
 bench: build
 	@scripts/bench.sh
+
+# TUM sequences from the benchmark's site, verified against pinned sizes and sha256, cut into the
+# excerpts the benchmarks read (stdlib Python, no deps). GET_TUM_ARGS: e.g. --trust-on-first-use.
+data:
+	@scripts/get-tum.sh $(GET_TUM_ARGS) $(SEQ)
 
 # The one page of dated figures, from the result files the benchmark runs wrote (stdlib only).
 results:

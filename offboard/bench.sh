@@ -11,15 +11,16 @@
 #   per-minute table). Prints tables shaped like thesis Tables 4.8 (RPE) and 4.10
 #   (ATE), per-stage median ms, the verdicts, and each trajectory's stamp lag against the motion
 #   capture for position and orientation (ours, the peer, and the published RGBD-SLAM / ORB-SLAM2).
-# Env: DATA (default ../shared/data), SLAM_BIN (default build/bin), BENCH_OUT (default out/bench),
-#      BENCH_SEQUENCES (space-separated subset), BENCH_DETECTORS, BENCH_BACKENDS,
-#      LONGRUN_PASSES (default 20: 5960 frames, 200 s of data; 0 skips the long run).
+# Env: DATA (default ../shared/data, else data/tum: scripts/data-dir.sh), SLAM_BIN (default
+#      build/bin), BENCH_OUT (default out/bench), BENCH_SEQUENCES (space-separated subset),
+#      BENCH_DETECTORS, BENCH_BACKENDS, LONGRUN_PASSES (default 20: 5960 frames, 200 s of data;
+#      0 skips the long run).
 # OpenCV runs single-threaded (--cv-threads 1) so the *_cpu timings are complete; the two pipeline
 # threads still overlap. Takes ~10-20 min on 2 cores.
 set -uo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
-DATA=${DATA:-../shared/data}
+DATA=${DATA:-$(scripts/data-dir.sh)}
 BIN=${SLAM_BIN:-build/bin}
 OUT=${BENCH_OUT:-out/bench}
 SEQS=${BENCH_SEQUENCES:-fr1_xyz_first300 fr2_desk_first50 fr1_desk_9frames}
@@ -29,7 +30,7 @@ LONGRUN_PASSES=${LONGRUN_PASSES:-20}
 for tool in slam-eval rgbd-odometry-peer; do
   [ -x "$BIN/$tool" ] || { echo "bench: $BIN/$tool not built (run make build, or set SLAM_BIN)"; exit 1; }
 done
-[ -d "$DATA" ] || { echo "bench: DATA directory '$DATA' not found"; exit 1; }
+[ -d "$DATA" ] || { echo "bench: DATA directory '$DATA' not found (run make data, or set DATA=...)"; exit 1; }
 mkdir -p "$OUT"
 status=0
 start=$(date +%s)

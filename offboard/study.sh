@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# `make study`: the spatial-velocity study (thesis Chapter 4) on DATA (default ../shared/data).
+# `make study`: the spatial-velocity study (thesis Chapter 4) on DATA (default ../shared/data, else
+#   data/tum: scripts/data-dir.sh).
 #   1. sweep: every TUM-layout dataset under DATA x sift/surf/orb x vo/llc/glc x k (slam-study run,
 #      resumable: finished runs in OUT/runs are not redone; wall time printed and kept in sweep.json)
 #   2. report: OUT/report.md + tables/*.csv + plots/*.png + pairs.csv, with the reference
@@ -13,7 +14,7 @@
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
-DATA=${DATA:-../shared/data}
+DATA=${DATA:-$(scripts/data-dir.sh)}
 OUT=${STUDY_OUT:-$root/build/study}
 export RGBD_BUILD_DIR=${RGBD_BUILD_DIR:-$root/build}
 export PYTHONPATH="$root/offboard/python${PYTHONPATH:+:$PYTHONPATH}"
@@ -24,7 +25,7 @@ sel_args=()
 [ -n "${STUDY_BACKENDS:-}" ] && sel_args+=(--backends "$STUDY_BACKENDS")
 [ -n "${STUDY_FEATURES:-}" ] && sel_args+=(--features "$STUDY_FEATURES")
 
-if [ ! -d "$DATA" ]; then echo "study: data directory '$DATA' not found (set DATA=...)"; exit 1; fi
+if [ ! -d "$DATA" ]; then echo "study: data directory '$DATA' not found (run make data, or set DATA=...)"; exit 1; fi
 refs=()
 add_ref() { [ -f "$DATA/reference_trajectories/$2" ] && [ -d "$DATA/$1" ] && refs+=(--reference "$DATA/$1" "$DATA/reference_trajectories/$2"); return 0; }
 add_ref fr1_xyz_first300 freiburg1_xyz-rgbdslam.txt
