@@ -685,6 +685,14 @@ class LiveKinect:
                 )
             return list(self._records)
 
+    def forget_before(self, t_mono_s: float) -> None:
+        """Drops the records of frames exposed before t_mono_s (read so far from the child's
+        records file; later ones are still read). A Kinect that lives for hours (the soak: 30 a
+        second) calls it once the earlier frames have been scored; records() then starts there."""
+        self.records()
+        with self._rec_lock:
+            self._records = [r for r in self._records if r.t_mono_s >= t_mono_s]
+
     def stats(self) -> dict:
         """renderer (back end), submitted, pending, rendered, delivered, dropped (= superseded +
         reader_behind + errors
