@@ -9,13 +9,19 @@ landed by failsafe as expected   the APM's radio failsafe engaged when a fault t
                                  (a stream stall of STALL_CAN_OUTLAST_S or more, a slam-server
                                  kill): quad-control's designed blind landing withholds commands
                                  and the firmware failsafe lands (docs/control.md, state machine);
-                                 and the craft is down and disarmed
+                                 and the craft is down and disarmed. How far the blind landing
+                                 drifted is in the reason when it passed the fly-away radius: the
+                                 APM's LAND has no position source on this craft, so its drift is
+                                 the velocity it had and the air's, not a decision of the software
+                                 (docs/failsafe.md, "Blind landings")
 aborted (landed safely)          not completed and not explained so, but down and disarmed within
                                  the fly-away radius with a soft touchdown: a finding
-lost                             not down and disarmed, beyond the fly-away radius of every point
-                                 the mission sent it to (max_distance_from_path_m: the hold point
-                                 and the waypoints clicked so far), or a touchdown harder than the
-                                 limit
+lost                             not down and disarmed; or a touchdown harder than the limit; or,
+                                 while the craft still flew on quad-control's commands (before any
+                                 radio failsafe), beyond the fly-away radius of every point the
+                                 mission sent it to (max_distance_under_control_m: the hold
+                                 point and the waypoints clicked so far); or beyond it after a
+                                 radio failsafe that no injected fault explains
 """
 
 from __future__ import annotations
@@ -34,7 +40,7 @@ FAILSAFE_AFTER_LOSS_S = 1.0
 
 # quad-control's lost-hold lasts 2000 ms before the blind landing (controller.lost_hold_ms); a pose
 # outage explains a failsafe that engages until this long after the outage's end: the lost-hold,
-# the SLAM link's 1 s reconnect retry after a slam-server restart, relocalisation's first frames.
+# the SLAM link's reconnect (every 100 ms) after a slam-server restart, relocalisation.
 LOST_HOLD_S = 2.0
 POSE_OUTAGE_MARGIN_S = LOST_HOLD_S + 3.0
 # A stall this long, with the frames the receiver and SLAM then take to catch up, can outlast the
@@ -69,17 +75,22 @@ def judge(
     never). A failsafe before the take-off (the previous ground station stopping) does not count."""
     down = not truth["armed_at_end"] and truth["landed_at_end"]
     far = truth["max_distance_from_path_m"]
+    # Older reports have no split: the whole mission counts as flown under control.
+    far_control = truth.get("max_distance_under_control_m", far)
     touchdowns = truth["touchdowns_mps"]
     hard = bool(touchdowns) and max(touchdowns) > TOUCHDOWN_LIMIT_MPS
-    if not down or far > FLYAWAY_RADIUS_M or hard:
+    if not down or far_control > FLYAWAY_RADIUS_M or hard:
         why = []
         if not down:
             why.append("not down and disarmed")
-        if far > FLYAWAY_RADIUS_M:
-            why.append(f"{far:.2f} m from its path")
+        if far_control > FLYAWAY_RADIUS_M:
+            why.append(f"{far_control:.2f} m from its path under control")
         if hard:
             why.append(f"touchdown {max(touchdowns):.2f} m/s")
         return "lost", "; ".join(why)
+    blind = (
+        f"; the blind landing drifted {far:.2f} m from its path" if far > FLYAWAY_RADIUS_M else ""
+    )
     early = [
         t
         for t in failsafe_times_s(truth["failsafe_events"])
@@ -90,12 +101,12 @@ def judge(
         first = early[0]
         for f in faults:
             if f["kind"] == "ground_station_kill" and f["sim_s"] <= first:
-                return "landed by failsafe as expected", "ground station killed"
+                return "landed by failsafe as expected", "ground station killed" + blind
             if (
                 f["kind"] == "control_loss"
                 and f["sim_s"] <= first <= f["sim_s"] + f["duration_s"] + FAILSAFE_AFTER_LOSS_S
             ):
-                return "landed by failsafe as expected", "control-link loss"
+                return "landed by failsafe as expected", "control-link loss" + blind
         for f in faults:
             if (
                 f["kind"] in POSE_OUTAGE_KINDS
@@ -104,8 +115,11 @@ def judge(
             ):
                 return (
                     "landed by failsafe as expected",
-                    f"blind landing after a pose outage ({f['kind']} {f['duration_s']:.1f} s)",
+                    f"blind landing after a pose outage ({f['kind']} {f['duration_s']:.1f} s)"
+                    + blind,
                 )
+        if far > FLYAWAY_RADIUS_M:
+            return "lost", f"{far:.2f} m from its path after a radio failsafe no fault explains"
         return (
             "aborted (landed safely)",
             f"radio failsafe at {first:.1f} s without a fault to explain it",

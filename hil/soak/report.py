@@ -113,6 +113,16 @@ def build(soak, replays, resources: dict | None = None) -> dict:
         for m in missions
         if m.get("outcome") not in ("completed", "landed by failsafe as expected", "interrupted")
     ]
+    # Failsafe landings: how far each drifted from the mission's path with no position source
+    # (docs/failsafe.md, "Blind landings"); beyond the fly-away radius is named, not hidden.
+    blind = [m for m in missions if m.get("outcome") == "landed by failsafe as expected"]
+    worst_blind = _worst(
+        blind,
+        lambda m: [((m.get("truth") or {}).get("max_distance_from_path_m"), m["mission"])],
+    )
+    blind_beyond = [
+        m["mission"] for m in blind if "blind landing drifted" in (m.get("reason") or "")
+    ]
     flown_s = max((m.get("ended_elapsed_s") or 0 for m in missions), default=0)
     replay_ok = replays is None or all(
         (r.get("ate_rmse_m") is not None and r["ate_rmse_m"] <= REPLAY_ATE_TARGET_M)
@@ -131,6 +141,8 @@ def build(soak, replays, resources: dict | None = None) -> dict:
         "worst_waypoint_m": worst_wp,
         "worst_turn_hold_m": worst_turn,
         "worst_capture_to_pwm_p95_ms": worst_p95,
+        "worst_failsafe_landing_drift_m": worst_blind,
+        "failsafe_landings_beyond_flyaway_radius": blind_beyond,
         "worst_ate_m": worst_ate,
         "worst_ate_any_mission_m": worst_ate_all,
         "ok": not failures and not soak.exits and soak.fatal is None and replay_ok,
@@ -169,9 +181,15 @@ def text(rep: dict) -> str:
         ("worst_ate_m", "worst SLAM ATE (completed missions)"),
         ("worst_ate_any_mission_m", "worst SLAM ATE (any mission)"),
         ("worst_capture_to_pwm_p95_ms", "worst camera -> PWM p95"),
+        ("worst_failsafe_landing_drift_m", "worst failsafe landing drift from the path (truth)"),
     ):
         w = s[key]
         lines.append(f"{label}: " + (f"{w['value']} (mission {w['mission']})" if w else "-"))
+    if s.get("failsafe_landings_beyond_flyaway_radius"):
+        lines.append(
+            "failsafe landings that drifted beyond the 2 m fly-away radius (no position source): "
+            "missions " + ", ".join(str(n) for n in s["failsafe_landings_beyond_flyaway_radius"])
+        )
     lines.append("resources (RSS MB first -> last [max], fds first -> last):")
     for key, r in rep["resources"].items():
         if key.startswith("quad-control") or key.startswith("stress-ng"):
@@ -202,7 +220,9 @@ def text(rep: dict) -> str:
     for r in rep["replay"] or []:
         lines.append(
             f"replay mission {r.get('mission')}: ATE replay vs flight {r.get('ate_rmse_m')} m "
-            f"({r.get('frames')} frames){' ' + r['error'] if r.get('error') else ''}"
+            f"({r.get('frames')} frames given to SLAM in flight of {r.get('frames_recorded')} "
+            f"recorded, {len(r.get('recording') or [])} file(s))"
+            f"{' ' + r['error'] if r.get('error') else ''}"
         )
     if rep["fatal"]:
         lines.append("FATAL: " + rep["fatal"].splitlines()[0])
@@ -247,8 +267,9 @@ def write_results(rep: dict) -> None:
         ("worst_ate_m", "worst SLAM ATE (completed missions)", "m"),
         ("worst_ate_any_mission_m", "worst SLAM ATE (any mission)", "m"),
         ("worst_capture_to_pwm_p95_ms", "worst camera->PWM p95", "ms"),
+        ("worst_failsafe_landing_drift_m", "worst failsafe landing drift from the path", "m"),
     ):
-        if s[key]:
+        if s.get(key):
             figs.append(figure(name, s[key]["value"], unit, data=data, mode="soak"))
     for key, r in rep["resources"].items():
         name = key.split()[0]

@@ -269,6 +269,10 @@ class Soak:
         inj.ground_station_killed_at = inj.ground_station_killed_sim_us = None
         inj.control_fault_windows = []
         self._carry_to_pad(rec)
+        # The previous missions are scored: what the rig and the Kinect emulator kept of them is
+        # dropped, so the runner's memory does not grow with the soak's length.
+        fl.rig.forget_before(fl.rig.sim_us)
+        fl.kinect.forget_before(time.monotonic())
         fl.restart_ground_station(mdir / "flight-log", mdir / "recording")
         events_before = len(fl.rig.fc.events)
         touch_before = len(fl.rig.fc.touchdowns_mps)
@@ -454,34 +458,36 @@ class Soak:
         events = [(t, e) for t, e in list(fl.rig.fc.events)[events_before:]]
         failsafes = [(t, e) for t, e in events if "failsafe" in e]
         touchdowns = list(fl.rig.fc.touchdowns_mps)[touch_before:]
-        hist = [h for h in fl.rig.history() if h.t_us >= sim_start]
+        hist = [h for h in fl.rig.history() if h.t_us >= sim_start][::20]
         mount = fl.options.mount
-        pos = (
-            np.array([camera_room_position(h, mount) for h in hist[::20]])
-            if hist
-            else np.zeros((0, 3))
-        )
+        pos = np.array([camera_room_position(h, mount) for h in hist]) if hist else np.zeros((0, 3))
         goals = np.array(goals_room)
-        far = (
-            float(
-                np.max(
-                    np.min(
-                        np.hypot(
-                            pos[:, None, 0] - goals[None, :, 0], pos[:, None, 1] - goals[None, :, 1]
-                        ),
-                        axis=1,
-                    )
-                )
+        dist = (
+            np.min(
+                np.hypot(pos[:, None, 0] - goals[None, :, 0], pos[:, None, 1] - goals[None, :, 1]),
+                axis=1,
             )
             if len(pos)
-            else 0.0
+            else np.zeros(0)
         )
+        far = float(np.max(dist)) if len(dist) else 0.0
+        # Up to the first radio failsafe after the take-off command, the craft flew on
+        # quad-control's commands; after it, the APM's LAND with no position source
+        # (docs/failsafe.md).
+        takeoff_us = (rec.get("takeoff_sim_s") or float("inf")) * 1e6
+        failsafe_us = min(
+            (t for t, e in failsafes if "cleared" not in e and t >= takeoff_us), default=None
+        )
+        t_hist = np.array([h.t_us for h in hist], dtype=float)
+        under_control = dist if failsafe_us is None else dist[t_hist < failsafe_us]
+        far_control = float(np.max(under_control)) if len(under_control) else 0.0
         rec["truth"] = {
             "armed_at_end": bool(snap.armed),
             "landed_at_end": bool(snap.landed),
             "failsafe_events": [f"{t / 1e6:.2f} s {e}" for t, e in failsafes],
             "touchdowns_mps": [round(v, 3) for v in touchdowns],
             "max_distance_from_path_m": round(far, 3),
+            "max_distance_under_control_m": round(far_control, 3),
         }
         rec["outcome"], rec["reason"] = judge(
             rec["truth"],

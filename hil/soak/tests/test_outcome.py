@@ -111,6 +111,58 @@ CASES = [
     ("still armed", truth(armed_at_end=True), False, [], None, "lost", "not down"),
     ("flew away", truth(max_distance_from_path_m=2.5), True, [], LAND, "lost", "2.50 m"),
     ("hard touchdown", truth(touchdowns_mps=[0.3, 0.8]), True, [], LAND, "lost", "touchdown"),
+    (
+        "flew away under control, then a failsafe",
+        truth(
+            failsafe_events=["150.3 s radio failsafe: x"],
+            max_distance_from_path_m=2.6,
+            max_distance_under_control_m=2.2,
+        ),
+        False,
+        [fault("ground_station_kill", 150.0)],
+        None,
+        "lost",
+        "2.20 m from its path under control",
+    ),
+    (
+        "blind landing drifts past the radius after a kill: on the ground, drift named",
+        truth(
+            failsafe_events=["150.3 s radio failsafe: x"],
+            max_distance_from_path_m=2.6,
+            max_distance_under_control_m=0.5,
+        ),
+        False,
+        [fault("ground_station_kill", 150.0)],
+        None,
+        "landed by failsafe as expected",
+        "blind landing drifted 2.60 m",
+    ),
+    (
+        "blind landing drifts past the radius after a slam-server kill",
+        truth(
+            failsafe_events=["154.0 s radio failsafe"],
+            max_distance_from_path_m=2.9,
+            max_distance_under_control_m=0.4,
+        ),
+        False,
+        [fault("slam_server_kill", 150.0, 1.7)],
+        None,
+        "landed by failsafe as expected",
+        "drifted 2.90 m",
+    ),
+    (
+        "an unexplained failsafe that drifts past the radius is lost",
+        truth(
+            failsafe_events=["170.0 s radio failsafe"],
+            max_distance_from_path_m=2.3,
+            max_distance_under_control_m=0.4,
+        ),
+        False,
+        [],
+        None,
+        "lost",
+        "no fault explains",
+    ),
 ]
 
 
