@@ -477,9 +477,11 @@ def fetch_sequence(name: str, table: dict, root: Path, args, tmp: Path) -> Path:
     return target
 
 
-def run(names: list[str], table: dict, root: Path, args) -> list[str]:
-    """Fetches each sequence and cuts its excerpts; returns what was written, for the summary."""
-    done = []
+def run(names: list[str], table: dict, root: Path, args, done: list[str]) -> None:
+    """Fetches each sequence and cuts its excerpts, appending each excerpt written to `done`."""
+    lock = read_lock(root)
+    for name in names:  # a sequence that cannot be verified stops the run before any download
+        expected_for(name, table["sequences"][name], lock, args.trust_on_first_use)
     for name in names:
         tmp = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=root))
         try:
@@ -502,7 +504,6 @@ def run(names: list[str], table: dict, root: Path, args) -> list[str]:
             raise GetTumError(f"{name}: {e}") from e
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
-    return done
 
 
 # ---- command line --------------------------------------------------------------------------------
@@ -590,9 +591,16 @@ def print_table(table: dict, root: Path) -> None:
         print(f"{name}: {s['tum_name']}.tgz, {size}, {check}; excerpts: {', '.join(cuts) or '-'}")
 
 
+def failed(done: list[str], root: Path) -> int:
+    if done:
+        log(f"completed before the failure, in {root / EXCERPTS_DIR}: {', '.join(done)}")
+    return EXIT_FAILED
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     root = args.root.resolve()
+    done: list[str] = []
     try:
         table = load_table(args.table)
         if args.list:
@@ -600,16 +608,16 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         names = resolve_names(args.sequences, table)
         (root / EXCERPTS_DIR).mkdir(parents=True, exist_ok=True)
-        done = run(names, table, root, args)
+        run(names, table, root, args, done)
     except UsageError as e:
         log(f"error: {e}")
         return EXIT_USAGE
     except GetTumError as e:
         log(f"error: {e}")
-        return EXIT_FAILED
+        return failed(done, root)
     except KeyboardInterrupt:
         log("interrupted; temporary files removed, nothing left half-written")
-        return EXIT_FAILED
+        return failed(done, root)
     log(f"done: {root / EXCERPTS_DIR} holds {', '.join(done) or 'no excerpts'}")
     shared = REPO.parent / "shared" / "data"
     if shared.is_dir():

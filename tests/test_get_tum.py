@@ -323,9 +323,11 @@ def test_unpinned_sequence_needs_trust_on_first_use_then_is_checked(tmp_path, se
     body = desk_archive()
     table = make_table(tmp_path, server, {"fr1_desk": body}, pin=False)
     root = tmp_path / "data"
-    r = run_script("fr1_desk", "--root", root, "--table", table)
-    assert r.returncode == 1 and "--trust-on-first-use" in r.stderr
-    assert server.requests == []  # refused before downloading anything
+    # Named after a pinned sequence, it still stops the run before any download starts.
+    r = run_script("fr1_xyz", "fr1_desk", "--root", root, "--table", table)
+    assert r.returncode == 1 and "fr1_desk: no published checksum" in r.stderr
+    assert "--trust-on-first-use" in r.stderr and "downloading" not in r.stderr
+    assert server.requests == []
     r = run_script("fr1_desk", "--trust-on-first-use", "--root", root, "--table", table)
     assert r.returncode == 0, r.stderr
     assert "trust on first use" in r.stderr
@@ -420,3 +422,18 @@ def test_archives_rebuilt_from_shared_data_give_the_same_folders(tmp_path, serve
                 continue
             assert (ours / f).read_bytes() == (theirs / f).read_bytes(), f"{name}/{f}"
     shutil.rmtree(root)
+
+
+@pytest.mark.parametrize(
+    "shared_present, expected", [(True, "../shared/data"), (False, "data/tum")]
+)
+def test_benches_read_data_tum_when_shared_data_is_absent(tmp_path, shared_present, expected):
+    repo = tmp_path / "main"
+    (repo / "scripts").mkdir(parents=True)
+    shutil.copy(REPO / "scripts" / "data-dir.sh", repo / "scripts")
+    if shared_present:
+        (tmp_path / "shared" / "data").mkdir(parents=True)
+    r = subprocess.run(
+        ["bash", str(repo / "scripts" / "data-dir.sh")], capture_output=True, text=True, timeout=30
+    )
+    assert r.returncode == 0 and r.stdout.strip() == expected
