@@ -23,6 +23,7 @@ import hashlib
 import json
 import os
 import shutil
+import socket
 import sys
 import tarfile
 import tempfile
@@ -187,6 +188,8 @@ def describe_url_error(url: str, e: Exception) -> str:
         return f"{url}: the server answered HTTP {e.code} {e.reason}"
     if isinstance(reason, ConnectionRefusedError):
         return f"{url}: connection refused"
+    if isinstance(reason, socket.gaierror):
+        return f"{url}: the host name cannot be resolved (no network, or no DNS)"
     if isinstance(reason, OSError) and reason.errno in (errno.ENETUNREACH, errno.EHOSTUNREACH):
         return f"{url}: network unreachable (no network?)"
     return f"{url}: {reason}"
@@ -607,7 +610,7 @@ def main(argv: list[str] | None = None) -> int:
             print_table(table, root)
             return 0
         names = resolve_names(args.sequences, table)
-        (root / EXCERPTS_DIR).mkdir(parents=True, exist_ok=True)
+        root.mkdir(parents=True, exist_ok=True)  # ROOT/tum appears with its first complete excerpt
         run(names, table, root, args, done)
     except UsageError as e:
         log(f"error: {e}")

@@ -291,6 +291,7 @@ def test_no_network_connection_refused(tmp_path, server):
     assert "could not download the archive from any of its 2 addresses" in r.stderr
     assert "connection refused" in r.stderr
     assert_nothing_left(root, "fr1_desk_9frames", "rgbd_dataset_freiburg1_desk")
+    assert not (root / "tum").exists()  # no empty DATA folder for the benches to run on
 
 
 def test_full_disk_before_download_is_refused(tmp_path, server, monkeypatch, capsys):
