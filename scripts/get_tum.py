@@ -286,7 +286,10 @@ def unpack(archive: Path, into: Path, top: str) -> Path:
     require_space(into, size, f"unpacking {archive.name} ({size / 1e6:.0f} MB)")
     try:
         with tarfile.open(archive, "r:gz") as tar:
-            tar.extractall(into, filter="data")
+            # check_members already refused links and paths leaving the folder; the "data" filter
+            # (Python >= 3.11.4; Debian 12 ships 3.11.2) also drops set-uid bits and owners.
+            extra = {"filter": "data"} if hasattr(tarfile, "data_filter") else {}
+            tar.extractall(into, **extra)
     except (tarfile.TarError, EOFError) as e:
         raise GetTumError(f"unpacking {archive.name} failed: {e}") from e
     folder = into / top
