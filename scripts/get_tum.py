@@ -49,6 +49,7 @@ CHUNK_BYTES = 1 << 20  # read/hash granularity; 1 MiB keeps Python overhead negl
 DISK_MARGIN_BYTES = 256 << 20
 CONNECT_TIMEOUT_S = 30  # per socket operation; a stalled server fails instead of hanging
 PROGRESS_INTERVAL_S = 2.0  # at most one progress line per interval when stderr is not a terminal
+TTY_REFRESH_S = 0.2  # a terminal's progress line is redrawn in place, at most 5 times a second
 # The benchmark's association rule (TUM associate.py): pairs closer than 20 ms.
 ASSOCIATE_MAX_DT_S = 0.02
 # Frames beyond an excerpt's length searched for its first colour/depth pair: the depth stream of
@@ -97,10 +98,27 @@ def load_table(path: Path) -> dict:
         for field in ("tum_name", "urls", "bytes", "sha256"):
             if field not in seq:
                 raise UsageError(f"{path}: sequence {name} has no '{field}'")
+        if not valid_size_and_sha(seq["bytes"], seq["sha256"], allow_none=True):
+            raise UsageError(
+                f"{path}: sequence {name}: bytes must be a count and sha256 64 hex "
+                "digits (or both may be null)"
+            )
     for name, ex in table["excerpts"].items():
         if ex.get("sequence") not in table["sequences"]:
             raise UsageError(f"{path}: excerpt {name} names an unknown sequence")
     return table
+
+
+def valid_size_and_sha(size, sha, allow_none: bool) -> bool:
+    if allow_none and sha is None:
+        return size is None or (isinstance(size, int) and size > 0)
+    return (
+        isinstance(size, int)
+        and size > 0
+        and isinstance(sha, str)
+        and len(sha) == 64
+        and all(c in "0123456789abcdefABCDEF" for c in sha)
+    )
 
 
 def read_lock(root: Path) -> dict:
@@ -108,9 +126,17 @@ def read_lock(root: Path) -> dict:
     if not path.exists():
         return {}
     try:
-        return json.loads(path.read_text())
+        lock = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError) as e:
         raise GetTumError(f"cannot read the lock file {path}: {e}") from e
+    for name, entry in lock.items() if isinstance(lock, dict) else [("", None)]:
+        if not isinstance(entry, dict) or not valid_size_and_sha(
+            entry.get("bytes"), entry.get("sha256"), allow_none=False
+        ):
+            raise GetTumError(
+                f"{path}: entry '{name}' is not a size and a sha256; fix or delete it"
+            )
+    return lock
 
 
 def write_json_atomic(path: Path, value: dict) -> None:
@@ -169,7 +195,7 @@ class Progress:
         if self.quiet:
             return
         now = time.monotonic()
-        if not final and now - self.last < (0.2 if self.tty else PROGRESS_INTERVAL_S):
+        if not final and now - self.last < (TTY_REFRESH_S if self.tty else PROGRESS_INTERVAL_S):
             return
         self.last = now
         pct = f" {100.0 * done / self.total:5.1f}%" if self.total else ""

@@ -438,3 +438,19 @@ def test_benches_read_data_tum_when_shared_data_is_absent(tmp_path, shared_prese
         ["bash", str(repo / "scripts" / "data-dir.sh")], capture_output=True, text=True, timeout=30
     )
     assert r.returncode == 0 and r.stdout.strip() == expected
+
+
+def test_malformed_table_and_lock_file_are_refused_with_their_path(tmp_path, server):
+    table = make_table(tmp_path, server, {"fr1_desk": desk_archive()})
+    t = json.loads(table.read_text())
+    t["sequences"]["fr1_desk"]["sha256"] = "not-a-checksum"
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(t))
+    root = tmp_path / "data"
+    r = run_script("fr1_desk", "--root", root, "--table", bad)
+    assert r.returncode == 2 and "sequence fr1_desk: bytes must be a count" in r.stderr
+    root.mkdir()
+    (root / "tum-lock.json").write_text('{"fr1_360": {"bytes": 5}}')
+    r = run_script("fr1_360", "--root", root, "--table", table)
+    assert r.returncode == 1 and "entry 'fr1_360' is not a size and a sha256" in r.stderr
+    assert server.requests == []
