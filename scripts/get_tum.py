@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import errno
 import hashlib
+import http.client
 import json
 import os
 import shutil
@@ -157,7 +158,7 @@ def expected_for(name: str, seq: dict, lock: dict, trust_first_use: bool) -> Exp
         return Expected(seq["bytes"], seq["sha256"].lower(), "pinned")
     if name in lock:
         entry = lock[name]
-        return Expected(entry["bytes"], entry["sha256"], "lock file")
+        return Expected(entry["bytes"], entry["sha256"].lower(), "lock file")
     if not trust_first_use:
         raise GetTumError(
             f"{name}: no published checksum is pinned for this archive, so its download cannot be "
@@ -239,7 +240,7 @@ def fetch(url: str, dest: Path, exp: Expected, label: str, quiet: bool) -> tuple
             while True:
                 try:
                     chunk = resp.read(CHUNK_BYTES)
-                except (OSError, ValueError) as e:  # http.client.IncompleteRead is a ValueError
+                except (OSError, http.client.HTTPException) as e:  # reset, timeout, IncompleteRead
                     raise GetTumError(
                         f"{label}: the download broke off after {done} bytes ({e})"
                     ) from e
