@@ -1,8 +1,10 @@
 """The soak's replay check: three missions' recordings replayed through SLAM with
-`flight_recording.replay` (slam-eval in wait mode, scored against the poses flown), each reported
-as replay-vs-flight ATE. Missions are taken in this order: completed missions with faults injected,
-then other completed ones, then any with a recording; the first mission whose recording exists from
-each group, three in all.
+`flight_recording.replay` (every file of a rotated recording, in order; the frames the flight's
+SLAM was given; slam-eval in wait mode, scored against the poses flown), each reported as
+replay-vs-flight ATE. Missions are taken in this order: completed missions with faults injected but
+no slam-server kill, then other completed ones, then any with a recording; three in all. A
+slam-server kill is last because its flight resumed from a map checkpoint that lacks the last
+second before the kill, which a replay of the frames cannot reproduce.
 """
 
 from __future__ import annotations
@@ -24,7 +26,12 @@ REPLAY_TIMEOUT_S = 1800
 def choose(missions: list[dict], count: int = REPLAYS) -> list[dict]:
     with_rec = [m for m in missions if m.get("recording")]
     completed = [m for m in with_rec if m.get("outcome") == "completed"]
-    faulted = [m for m in completed if m.get("faults_injected")]
+    faulted = [
+        m
+        for m in completed
+        if m.get("faults_injected")
+        and not any(f["kind"] == "slam_server_kill" for f in m["faults_injected"])
+    ]
     chosen: list[dict] = []
     for group in (faulted, completed, with_rec):
         for m in group:
@@ -53,7 +60,7 @@ def replay_missions(missions: list[dict], out: Path, say=print) -> list[dict]:
             sys.executable,
             "-m",
             "flight_recording.replay",
-            mcaps[0],
+            *mcaps,
             "--out",
             str(d),
             "--slam-eval",
@@ -68,7 +75,7 @@ def replay_missions(missions: list[dict], out: Path, say=print) -> list[dict]:
         except subprocess.TimeoutExpired:
             results.append({"mission": m["mission"], "ate_rmse_m": None, "error": "timed out"})
             continue
-        r = {"mission": m["mission"], "recording": mcaps[0], "wall_s": round(time.monotonic() - t0)}
+        r = {"mission": m["mission"], "recording": mcaps, "wall_s": round(time.monotonic() - t0)}
         if p.returncode != 0:
             r.update(ate_rmse_m=None, error=(p.stderr or p.stdout)[-500:])
         else:
@@ -77,6 +84,10 @@ def replay_missions(missions: list[dict], out: Path, say=print) -> list[dict]:
                 ate_rmse_m=j.get("ate_replay_vs_flight_rmse_m"),
                 ate_max_m=j.get("ate_replay_vs_flight_max_m"),
                 frames=j.get("frames"),
+                frames_recorded=j.get("frames_recorded"),
+                ate_final_trajectory_vs_flight_rmse_m=j.get(
+                    "ate_final_trajectory_vs_flight_rmse_m"
+                ),
                 replay_poses=j.get("replay_poses"),
                 flight_poses=j.get("flight_poses"),
                 complete=j.get("complete"),

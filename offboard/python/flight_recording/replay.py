@@ -27,8 +27,10 @@ from __future__ import annotations
 
 import argparse
 import base64
+import glob
 import io
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -68,81 +70,132 @@ def stamp_s(header: dict) -> float:
     return header["sec"] + header["nsec"] * 1e-9
 
 
-def extract(mcap: Path, out: Path) -> dict:
-    """Writes the TUM folder and flight.tum; returns what was extracted."""
+ROTATED_NAME = re.compile(r"^(?P<stem>.+)-(?P<index>\d{3})\.mcap$")
+
+
+def rotation_files(mcap: Path) -> list[Path]:
+    """Every file of the rotated recording `mcap` belongs to, in recording order. quad-control
+    starts a new file past `recording.max_file_mb` (flight-<date>-<time>-000.mcap, -001, ...); a
+    file not named so is a recording of its own."""
+    m = ROTATED_NAME.match(mcap.name)
+    if not m:
+        return [mcap]
+    siblings = []
+    for f in mcap.parent.glob(f"{glob.escape(m['stem'])}-*.mcap"):
+        s = ROTATED_NAME.match(f.name)
+        if s and s["stem"] == m["stem"]:
+            siblings.append((int(s["index"]), f))
+    return [f for _, f in sorted(siblings)] or [mcap]
+
+
+def _stamp_ns(data: dict) -> int:
+    return data["timestamp"]["sec"] * 10**9 + data["timestamp"]["nsec"]
+
+
+def extract(mcap: Path | list[Path], out: Path, frames: str = "slam") -> dict:
+    """Writes the TUM folder and flight.tum from one file or the files of a rotated recording (in
+    the order given); returns what was extracted. frames: "slam" lists the frames the flight's SLAM
+    answered (/slam/tracking; every recorded frame when the recording has no such channel), "all"
+    every recorded frame. Files are read one at a time, so memory holds one file's messages."""
     from PIL import Image
 
-    rec = read(mcap)
-    rgb = {
-        m.data["timestamp"]["sec"] * 10**9 + m.data["timestamp"]["nsec"]: m.data
-        for m in rec.topic("/camera/rgb/compressed")
-    }
-    # Every recorded frame's depth as the link carried it; older recordings: the 16UC1 channel.
-    depth_topic = (
-        "/camera/depth/compressed" if rec.topic("/camera/depth/compressed") else "/camera/depth/raw"
-    )
-    depth = {
-        m.data["timestamp"]["sec"] * 10**9 + m.data["timestamp"]["nsec"]: m.data
-        for m in rec.topic(depth_topic)
-    }
-    cal = rec.topic("/camera/calibration")
-    if not cal:
-        damage = damage_summary(mcap, rec, 0)
-        raise ValueError(
-            f"{mcap}: no /camera/calibration message "
-            f"({damage if damage else 'recorded without images?'})"
-        )
-    calib = cal[0].data
-    units = float(calib.get("depth_units_per_m", TUM_DEPTH_UNITS_PER_M))
+    files = [mcap] if isinstance(mcap, Path) else list(mcap)
     tum = out / "tum"
     (tum / "rgb").mkdir(parents=True, exist_ok=True)
     (tum / "depth").mkdir(parents=True, exist_ok=True)
-    stamps = sorted(set(rgb) & set(depth))
-    rgb_lines, depth_lines = [], []
-    for t_ns in stamps:
-        t = f"{t_ns * 1e-9:.6f}"
-        (tum / "rgb" / f"{t}.jpg").write_bytes(base64.b64decode(rgb[t_ns]["data"]))
-        d = depth[t_ns]
-        encoding = d.get("encoding") if depth_topic == "/camera/depth/compressed" else "raw"
-        raw = decode_depth(encoding, base64.b64decode(d["data"]), d["width"], d["height"])
-        units = float(d.get("depth_units_per_m", units))
-        scaled = np.clip(
-            np.rint(raw.astype(np.float64) * (TUM_DEPTH_UNITS_PER_M / units)), 0, 65535
-        ).astype(np.uint16)
-        buf = io.BytesIO()
-        Image.fromarray(scaled).save(buf, format="PNG")
-        (tum / "depth" / f"{t}.png").write_bytes(buf.getvalue())
-        rgb_lines.append(f"{t} rgb/{t}.jpg")
-        depth_lines.append(f"{t} depth/{t}.png")
-    header = "# extracted from {} by flight_recording.replay\n# timestamp filename\n".format(
-        mcap.name
-    )
-    (tum / "rgb.txt").write_text(header + "\n".join(rgb_lines) + "\n")
-    (tum / "depth.txt").write_text(header + "\n".join(depth_lines) + "\n")
+    calib = None
+    rgb_wait: dict[int, dict] = {}  # a frame's colour or depth may end one file, the other the next
+    depth_wait: dict[int, tuple[str, dict]] = {}
+    written: list[int] = []
+    answered: set[int] = set()
+    has_tracking = False
     poses = []
-    for m in rec.topic("/slam/pose"):
-        p = m.data["pose"]
-        pos, q = p["position"], p["orientation"]
-        poses.append(
-            f"{stamp_s(m.data['timestamp']):.6f} {pos['x']:.6f} {pos['y']:.6f} {pos['z']:.6f} "
-            f"{q['x']:.9f} {q['y']:.9f} {q['z']:.9f} {q['w']:.9f}"
+    errors: list[str] = []
+    damage: list[str] = []
+    complete = True
+    for f in files:
+        written_before = len(written)
+        rec = read(f)
+        errors += [f"{f.name}: {e}" for e in rec.errors]
+        complete = complete and rec.complete
+        cal = rec.topic("/camera/calibration")
+        if calib is None and cal:
+            calib = cal[0].data
+        for m in rec.topic("/camera/rgb/compressed"):
+            rgb_wait[_stamp_ns(m.data)] = m.data
+        # Every recorded frame's depth as the link carried it; older recordings: the 16UC1 channel.
+        compressed = rec.topic("/camera/depth/compressed")
+        for m in compressed or rec.topic("/camera/depth/raw"):
+            depth_wait[_stamp_ns(m.data)] = ("compressed" if compressed else "raw", m.data)
+        tracking = rec.topic("/slam/tracking")
+        has_tracking = has_tracking or bool(tracking)
+        answered.update(int(m.data["capture_us"]) * 1000 for m in tracking)
+        for m in rec.topic("/slam/pose"):
+            p = m.data["pose"]
+            pos, q = p["position"], p["orientation"]
+            poses.append(
+                f"{stamp_s(m.data['timestamp']):.6f} {pos['x']:.6f} {pos['y']:.6f} {pos['z']:.6f} "
+                f"{q['x']:.9f} {q['y']:.9f} {q['z']:.9f} {q['w']:.9f}"
+            )
+        if calib is None:
+            summary = damage_summary(f, rec, 0)
+            if summary:
+                damage.append(summary)
+            continue  # no image can be scaled yet (a calibration comes with every preview)
+        default_units = float(calib.get("depth_units_per_m", TUM_DEPTH_UNITS_PER_M))
+        for t_ns in sorted(set(rgb_wait) & set(depth_wait)):
+            t = f"{t_ns * 1e-9:.6f}"
+            (tum / "rgb" / f"{t}.jpg").write_bytes(base64.b64decode(rgb_wait.pop(t_ns)["data"]))
+            kind, d = depth_wait.pop(t_ns)
+            encoding = d.get("encoding") if kind == "compressed" else "raw"
+            raw = decode_depth(encoding, base64.b64decode(d["data"]), d["width"], d["height"])
+            units = float(d.get("depth_units_per_m", default_units))
+            scaled = np.clip(
+                np.rint(raw.astype(np.float64) * (TUM_DEPTH_UNITS_PER_M / units)), 0, 65535
+            ).astype(np.uint16)
+            buf = io.BytesIO()
+            Image.fromarray(scaled).save(buf, format="PNG")
+            (tum / "depth" / f"{t}.png").write_bytes(buf.getvalue())
+            written.append(t_ns)
+        summary = damage_summary(f, rec, len(written) - written_before)
+        if summary:
+            damage.append(summary)
+        del rec
+    if calib is None:
+        names = ", ".join(f.name for f in files)
+        raise ValueError(
+            f"{names}: no /camera/calibration message "
+            f"({'; '.join(damage) if damage else 'recorded without images?'})"
         )
-    traj = (
-        "# quad-control in-flight poses T_floor_cam (from {})\n".format(mcap.name)
-        + "\n".join(poses)
-        + "\n"
-    )
+    # The frames slam-server was given in flight: the others were dropped on the way (the SLAM
+    # link's one-frame mailbox keeps the newest while slam-server is busy, a link stall, a
+    # restart). Replaying them would give the replay's map keyframes the flight never had.
+    chosen = [t for t in written if t in answered] if frames == "slam" and has_tracking else written
+    for t_ns in set(written) - set(chosen):
+        t = f"{t_ns * 1e-9:.6f}"
+        (tum / "rgb" / f"{t}.jpg").unlink()
+        (tum / "depth" / f"{t}.png").unlink()
+    names = ", ".join(f.name for f in files)
+    header = f"# extracted from {names} by flight_recording.replay\n# timestamp filename\n"
+    stamps = [f"{t * 1e-9:.6f}" for t in sorted(chosen)]
+    (tum / "rgb.txt").write_text(header + "".join(f"{t} rgb/{t}.jpg\n" for t in stamps))
+    (tum / "depth.txt").write_text(header + "".join(f"{t} depth/{t}.png\n" for t in stamps))
+    traj = f"# quad-control in-flight poses T_floor_cam (from {names})\n" + "\n".join(poses) + "\n"
     (out / "flight.tum").write_text(traj)
     (tum / "groundtruth.txt").write_text(traj)
     D = calib.get("D", [])
     return {
-        "frames": len(stamps),
+        "files": [str(f) for f in files],
+        "frames": len(chosen),
+        "frames_recorded": len(written),
+        "frames_not_given_to_slam_in_flight": len(written) - len(chosen),
+        "frame_selection": "slam" if frames == "slam" and has_tracking else "all",
         "flight_poses": len(poses),
         "camera": camera_name(calib["K"]),
         "distortion": any(abs(x) > 0 for x in D),
-        "errors": rec.errors,
-        "complete": rec.complete,
-        "damage": damage_summary(mcap, rec, len(stamps)),
+        "errors": errors,
+        "complete": complete,
+        "damage": "; ".join(damage) if damage else None,
     }
 
 
@@ -168,13 +221,23 @@ def _warn_damage(info: dict) -> None:
         print(f"flight_recording.replay: WARNING: {info['damage']}", file=sys.stderr)
 
 
-def run(mcap: Path, out: Path, slam_eval: Path, tum_score: Path) -> dict:
+def _score(tum_score: Path, flight: Path, replay: Path) -> dict:
+    score = subprocess.run(
+        [str(tum_score), str(flight), str(replay)], check=True, capture_output=True, text=True
+    )
+    return json.loads(score.stdout)
+
+
+def run(
+    mcap: Path | list[Path], out: Path, slam_eval: Path, tum_score: Path, frames: str = "slam"
+) -> dict:
     out.mkdir(parents=True, exist_ok=True)
-    info = extract(mcap, out)
+    info = extract(mcap, out, frames)
     _warn_damage(info)
     if info["frames"] < 2 or info["flight_poses"] < 2:
         raise ValueError(
-            f"{mcap}: {info['frames']} frames and {info['flight_poses']} poses: nothing to replay"
+            f"{', '.join(info['files'])}: {info['frames']} frames and "
+            f"{info['flight_poses']} poses: nothing to replay"
         )
     cmd = [
         str(slam_eval),
@@ -195,24 +258,23 @@ def run(mcap: Path, out: Path, slam_eval: Path, tum_score: Path) -> dict:
             "--no-undistort"
         )  # the recorded camera has no distortion (e.g. the HIL renderer)
     subprocess.run(cmd, check=True, capture_output=True, text=True)
-    score = subprocess.run(
-        [str(tum_score), str(out / "flight.tum"), str(out / "slam" / "trajectory.tum")],
-        check=True,
-        capture_output=True,
-        text=True,
-    )
-    s = json.loads(score.stdout)
+    # The poses flown are each frame's pose as tracked at the time; the replay's counterpart is
+    # trajectory_online.tum. trajectory.tum re-anchors every frame to its keyframe as optimised
+    # later by local bundle adjustment, which the flight never had: scored too, for reference.
+    online = _score(tum_score, out / "flight.tum", out / "slam" / "trajectory_online.tum")
+    final = _score(tum_score, out / "flight.tum", out / "slam" / "trajectory.tum")
     result = dict(
         info,
         replay_poses=sum(
             1
-            for line in (out / "slam" / "trajectory.tum").read_text().splitlines()
+            for line in (out / "slam" / "trajectory_online.tum").read_text().splitlines()
             if line and not line.startswith("#")
         ),
-        ate_replay_vs_flight_rmse_m=s["ate_rmse_m"],
-        ate_replay_vs_flight_max_m=s["ate_max_m"],
-        ate_rot_rmse_deg=s.get("ate_rot_rmse_deg"),
-        pairs=s["pairs"],
+        ate_replay_vs_flight_rmse_m=online["ate_rmse_m"],
+        ate_replay_vs_flight_max_m=online["ate_max_m"],
+        ate_rot_rmse_deg=online.get("ate_rot_rmse_deg"),
+        pairs=online["pairs"],
+        ate_final_trajectory_vs_flight_rmse_m=final["ate_rmse_m"],
         command=" ".join(cmd),
     )
     (out / "replay.json").write_text(json.dumps(result, indent=2))
@@ -223,25 +285,56 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    ap.add_argument("recording", type=Path)
+    ap.add_argument(
+        "recording",
+        type=Path,
+        nargs="+",
+        help="an MCAP file (a file of a rotated recording, NAME-NNN.mcap, brings the rotation's "
+        "other files, in order), several files (read in the order given), or a folder (its .mcap "
+        "files in name order)",
+    )
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--slam-eval", type=Path, default=ROOT / "build" / "bin" / "slam-eval")
     ap.add_argument("--tum-score", type=Path, default=ROOT / "build" / "bin" / "tum-score")
+    ap.add_argument(
+        "--single-file",
+        action="store_true",
+        help="read only the file named, not the rest of its rotation",
+    )
+    ap.add_argument(
+        "--frames",
+        choices=("slam", "all"),
+        default="slam",
+        help="slam (default): the frames the flight's SLAM was given (/slam/tracking); all: every "
+        "recorded frame",
+    )
     ap.add_argument(
         "--extract-only",
         action="store_true",
         help="write the TUM folder and flight.tum, run nothing",
     )
     a = ap.parse_args(argv)
-    if not a.recording.is_file():
-        print(f"flight_recording.replay: {a.recording}: no such file", file=sys.stderr)
-        return 1
+    files: list[Path] = []
+    for r in a.recording:
+        if r.is_dir():
+            found = sorted(r.glob("*.mcap"))
+            if not found:
+                print(f"flight_recording.replay: {r}: no .mcap file in it", file=sys.stderr)
+                return 1
+            files += found
+        elif not r.is_file():
+            print(f"flight_recording.replay: {r}: no such file", file=sys.stderr)
+            return 1
+        elif len(a.recording) == 1 and not a.single_file:
+            files += rotation_files(r)
+        else:
+            files.append(r)
     try:
         if a.extract_only:
-            result = extract(a.recording, a.out)
+            result = extract(files, a.out, a.frames)
             _warn_damage(result)
         else:
-            result = run(a.recording, a.out, a.slam_eval, a.tum_score)
+            result = run(files, a.out, a.slam_eval, a.tum_score, a.frames)
     except (ValueError, subprocess.CalledProcessError) as e:
         detail = getattr(e, "stderr", "") or ""
         print(f"flight_recording.replay: {e}\n{detail}", file=sys.stderr)
