@@ -9,11 +9,13 @@ second before the kill, which a replay of the frames cannot reproduce.
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from hilrig.paths import find_binary
@@ -21,6 +23,9 @@ from hilrig.paths import find_binary
 REPLAYS = 3
 # A 2-minute mission is ~3600 frames; extraction and slam-eval in wait mode take a few minutes.
 REPLAY_TIMEOUT_S = 1800
+# Two replays at a time: the machine's two cores, the flights being over. Each replay is one
+# Python extraction (single-threaded) and then slam-eval, so two keep both cores busy.
+REPLAY_WORKERS = 2
 
 
 def choose(missions: list[dict], count: int = REPLAYS) -> list[dict]:
@@ -40,8 +45,50 @@ def choose(missions: list[dict], count: int = REPLAYS) -> list[dict]:
     return chosen
 
 
+def _replay_one(m: dict, out: Path, env: dict, say) -> dict:
+    mcaps = m["recording"]
+    d = out / f"mission-{m['mission']:03d}"
+    say(f"soak: replay check, mission {m['mission']} ({len(mcaps)} file(s)) -> {d}")
+    t0 = time.monotonic()
+    cmd = [
+        sys.executable,
+        "-m",
+        "flight_recording.replay",
+        *mcaps,
+        "--out",
+        str(d),
+        "--slam-eval",
+        str(find_binary("slam-eval")),
+        "--tum-score",
+        str(find_binary("tum-score")),
+    ]
+    try:
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=REPLAY_TIMEOUT_S, env=env)
+    except subprocess.TimeoutExpired:
+        return {"mission": m["mission"], "ate_rmse_m": None, "error": "timed out"}
+    r = {"mission": m["mission"], "recording": mcaps, "wall_s": round(time.monotonic() - t0)}
+    if p.returncode != 0:
+        r.update(ate_rmse_m=None, error=(p.stderr or p.stdout)[-500:])
+    else:
+        j = json.loads((d / "replay.json").read_text())
+        r.update(
+            ate_rmse_m=j.get("ate_replay_vs_flight_rmse_m"),
+            ate_max_m=j.get("ate_replay_vs_flight_max_m"),
+            frames=j.get("frames"),
+            frames_recorded=j.get("frames_recorded"),
+            ate_final_trajectory_vs_flight_rmse_m=j.get("ate_final_trajectory_vs_flight_rmse_m"),
+            replay_poses=j.get("replay_poses"),
+            flight_poses=j.get("flight_poses"),
+            complete=j.get("complete"),
+        )
+    say(
+        f"soak: replay mission {m['mission']}: ATE {r.get('ate_rmse_m')} m "
+        f"({r.get('frames')} frames, {r['wall_s'] if 'wall_s' in r else '-'} s)"
+    )
+    return r
+
+
 def replay_missions(missions: list[dict], out: Path, say=print) -> list[dict]:
-    results = []
     root = Path(__file__).resolve().parents[2]
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(
@@ -51,50 +98,37 @@ def replay_missions(missions: list[dict], out: Path, say=print) -> list[dict]:
             env.get("PYTHONPATH", ""),
         ]
     )
-    for m in choose(missions):
-        mcaps = m["recording"]
-        d = out / f"mission-{m['mission']:03d}"
-        say(f"soak: replay check, mission {m['mission']} ({len(mcaps)} file(s)) -> {d}")
-        t0 = time.monotonic()
-        cmd = [
-            sys.executable,
-            "-m",
-            "flight_recording.replay",
-            *mcaps,
-            "--out",
-            str(d),
-            "--slam-eval",
-            str(find_binary("slam-eval")),
-            "--tum-score",
-            str(find_binary("tum-score")),
-        ]
-        try:
-            p = subprocess.run(
-                cmd, capture_output=True, text=True, timeout=REPLAY_TIMEOUT_S, env=env
-            )
-        except subprocess.TimeoutExpired:
-            results.append({"mission": m["mission"], "ate_rmse_m": None, "error": "timed out"})
-            continue
-        r = {"mission": m["mission"], "recording": mcaps, "wall_s": round(time.monotonic() - t0)}
-        if p.returncode != 0:
-            r.update(ate_rmse_m=None, error=(p.stderr or p.stdout)[-500:])
-        else:
-            j = json.loads((d / "replay.json").read_text())
-            r.update(
-                ate_rmse_m=j.get("ate_replay_vs_flight_rmse_m"),
-                ate_max_m=j.get("ate_replay_vs_flight_max_m"),
-                frames=j.get("frames"),
-                frames_recorded=j.get("frames_recorded"),
-                ate_final_trajectory_vs_flight_rmse_m=j.get(
-                    "ate_final_trajectory_vs_flight_rmse_m"
-                ),
-                replay_poses=j.get("replay_poses"),
-                flight_poses=j.get("flight_poses"),
-                complete=j.get("complete"),
-            )
-        say(
-            f"soak: replay mission {m['mission']}: ATE {r.get('ate_rmse_m')} m "
-            f"({r.get('frames')} frames)"
+    chosen = choose(missions)
+    with ThreadPoolExecutor(max_workers=REPLAY_WORKERS) as pool:
+        return list(pool.map(lambda m: _replay_one(m, out, env, say), chosen))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="soak.replay_check",
+        description="The replay check of a soak already flown (e.g. with --no-replay): replays "
+        "three of its missions' recordings and rewrites its report (report.json/.txt, "
+        "out/results/soak.json) with the results.",
+    )
+    ap.add_argument("soak_dir", type=Path, help="the soak's folder (its report.json)")
+    args = ap.parse_args(argv)
+    if not (args.soak_dir / "report.json").is_file():
+        print(f"soak.replay_check: {args.soak_dir}/report.json not found", file=sys.stderr)
+        return 2
+    if find_binary("slam-eval") is None or find_binary("tum-score") is None:
+        print(
+            "soak.replay_check: slam-eval / tum-score not built (RGBD_BUILD_DIR)", file=sys.stderr
         )
-        results.append(r)
-    return results
+        return 3
+    from soak import report
+
+    missions = json.loads((args.soak_dir / "report.json").read_text())["missions"]
+    replays = replay_missions(missions, args.soak_dir / "replay")
+    rep = report.rebuild(args.soak_dir, replays=replays)
+    report.write(rep, args.soak_dir)
+    print(report.text(rep))
+    return 0 if rep["summary"]["ok"] else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -298,9 +298,10 @@ def write_results(rep: dict) -> None:
     write_result("soak", figs)
 
 
-def rebuild(out: Path) -> dict:
+def rebuild(out: Path, replays: list[dict] | None = None) -> dict:
     """The report again from a soak's folder (its report.json and every mission.json), with each
-    mission judged again by soak.outcome: for a soak flown before a change of the outcome rules."""
+    mission judged again by soak.outcome: for a soak flown before a change of the outcome rules.
+    replays: the replay check's results (soak.replay_check), else the report's own."""
     from soak.outcome import judge
 
     old = json.loads((out / "report.json").read_text())
@@ -326,7 +327,9 @@ def rebuild(out: Path) -> dict:
         interrupted=old["interrupted"],
         fatal=old["fatal"],
     )
-    return build(soak, old["replay"], resources=old["resources"])
+    return build(
+        soak, replays if replays is not None else old["replay"], resources=old["resources"]
+    )
 
 
 def main(argv=None) -> int:

@@ -51,6 +51,7 @@ TUM_CAMERAS = {
     if name.startswith("fr")
 }
 INTRINSICS_TOLERANCE_PX = 0.05
+PNG_COMPRESS_LEVEL = 1
 
 
 def camera_name(K: list[float]) -> str:
@@ -154,7 +155,9 @@ def extract(mcap: Path | list[Path], out: Path, frames: str = "slam") -> dict:
                 np.rint(raw.astype(np.float64) * (TUM_DEPTH_UNITS_PER_M / units)), 0, 65535
             ).astype(np.uint16)
             buf = io.BytesIO()
-            Image.fromarray(scaled).save(buf, format="PNG")
+            # zlib level 1: lossless like any level, 3x faster than Pillow's default 6 on these
+            # frames (34 vs 108 ms each on a loaded machine), 25 % larger files.
+            Image.fromarray(scaled).save(buf, format="PNG", compress_level=PNG_COMPRESS_LEVEL)
             (tum / "depth" / f"{t}.png").write_bytes(buf.getvalue())
             written.append(t_ns)
         summary = damage_summary(f, rec, len(written) - written_before)
