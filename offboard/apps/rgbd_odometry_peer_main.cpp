@@ -11,10 +11,12 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/rgbd.hpp>
 
+#include "rgbdquad/eval/metrics.hpp"
 #include "slam/dataset/tum_dataset.hpp"
-#include "slam/eval/metrics.hpp"
 #include "slam/thesis/frontend.hpp"
 
+namespace slam = rgbdquad::slam;
+namespace eval = rgbdquad::eval;
 namespace fs = std::filesystem;
 
 int main(int argc, char** argv) {
@@ -55,7 +57,7 @@ int main(int argc, char** argv) {
   fs::create_directories(out);
   const cv::Mat K = (cv::Mat_<float>(3, 3) << k.fx_px, 0, k.cx_px, 0, k.fy_px, k.cy_px, 0, 0, 1);
   cv::Ptr<cv::rgbd::RgbdOdometry> odo = cv::rgbd::RgbdOdometry::create(K);
-  slam::eval::Trajectory traj;
+  eval::Trajectory traj;
   std::vector<double> ms, cpu_ms;
   cv::Mat prev_grey, prev_depth;
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
@@ -91,7 +93,7 @@ int main(int argc, char** argv) {
     prev_depth = depth;
     traj.push_back({f->stamp_s, T_world_cam});
   }
-  if (!slam::eval::write_tum_trajectory((fs::path(out) / "trajectory.tum").string(), traj, &err)) {
+  if (!eval::write_tum_trajectory((fs::path(out) / "trajectory.tum").string(), traj, &err)) {
     std::cerr << "rgbd-odometry-peer: " << err << "\n";
     return 1;
   }
@@ -110,13 +112,13 @@ int main(int argc, char** argv) {
     m["ms_per_frame_mean"] = s / static_cast<double>(ms.size());
   }
   if (!ds->groundtruth_path().empty()) {
-    auto gt = slam::eval::read_tum_trajectory(ds->groundtruth_path(), &err);
+    auto gt = eval::read_tum_trajectory(ds->groundtruth_path(), &err);
     if (gt) {
-      if (auto ate = slam::eval::compute_ate(*gt, traj, slam::eval::kDefaultMaxDtS, &err)) {
+      if (auto ate = eval::compute_ate(*gt, traj, eval::kDefaultMaxDtS, &err)) {
         m["ate_rmse_m"] = ate->trans_rmse_m;
         m["ate_rot_rmse_deg"] = ate->rot_rmse_deg;
       }
-      if (auto rpe = slam::eval::compute_rpe(*gt, traj, slam::eval::kDefaultMaxDtS, &err)) {
+      if (auto rpe = eval::compute_rpe(*gt, traj, eval::kDefaultMaxDtS, &err)) {
         m["rpe_trans_rmse_mm"] = rpe->trans_rmse_mm;
         m["rpe_rot_rmse_deg"] = rpe->rot_rmse_deg;
       }

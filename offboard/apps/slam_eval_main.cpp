@@ -23,15 +23,18 @@
 #include <optional>
 #include <thread>
 
+#include "rgbdquad/eval/metrics.hpp"
 #include "slam/dataset/replay_schedule.hpp"
 #include "slam/dataset/tum_dataset.hpp"
-#include "slam/eval/metrics.hpp"
 #include "slam/motion/accel_gate.hpp"
 #include "slam/motion/gravity_consistency.hpp"
 #include "slam/pipeline/map_export.hpp"
 #include "slam/pipeline/pipeline.hpp"
 #include "slam/report/run_metrics.hpp"
 #include "slam/report/run_tables.hpp"
+
+namespace slam = rgbdquad::slam;
+namespace eval = rgbdquad::eval;
 
 namespace {
 
@@ -171,10 +174,9 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
 bool write_run_outputs(const RunArgs& a, const slam::Pipeline& pipeline,
                        const slam::Intrinsics& intr, slam::RunOutcome* run, std::string* err) {
   const fs::path out(a.out);
-  if (!slam::eval::write_tum_trajectory((out / "trajectory.tum").string(), run->final_trajectory,
-                                        err) ||
-      !slam::eval::write_tum_trajectory((out / "trajectory_online.tum").string(),
-                                        run->online_trajectory, err))
+  if (!eval::write_tum_trajectory((out / "trajectory.tum").string(), run->final_trajectory, err) ||
+      !eval::write_tum_trajectory((out / "trajectory_online.tum").string(), run->online_trajectory,
+                                  err))
     return false;
   const slam::BackEnd* be = pipeline.backend();  // the thesis systems' pose graph
   if (be && (!slam::write_text_file((out / "graph_before.g2o").string(),
@@ -434,14 +436,13 @@ int vocab_command(const std::vector<std::string>& datasets, const std::string& o
 }
 
 /// The ground-truth pose nearest stamp_s within the benchmark's 20 ms; `sorted` by stamp.
-const slam::eval::StampedPose* nearest_pose(const slam::eval::Trajectory& sorted, double stamp_s) {
-  auto it =
-      std::lower_bound(sorted.begin(), sorted.end(), stamp_s,
-                       [](const slam::eval::StampedPose& p, double t) { return p.stamp_s < t; });
-  const slam::eval::StampedPose* best = it != sorted.end() ? &*it : nullptr;
+const eval::StampedPose* nearest_pose(const eval::Trajectory& sorted, double stamp_s) {
+  auto it = std::lower_bound(sorted.begin(), sorted.end(), stamp_s,
+                             [](const eval::StampedPose& p, double t) { return p.stamp_s < t; });
+  const eval::StampedPose* best = it != sorted.end() ? &*it : nullptr;
   if (it != sorted.begin() && (!best || stamp_s - std::prev(it)->stamp_s < best->stamp_s - stamp_s))
     best = &*std::prev(it);
-  if (!best || std::abs(best->stamp_s - stamp_s) > slam::eval::kDefaultMaxDtS) return nullptr;
+  if (!best || std::abs(best->stamp_s - stamp_s) > eval::kDefaultMaxDtS) return nullptr;
   return best;
 }
 
@@ -466,7 +467,7 @@ std::optional<json> accel_check_dataset(const std::string& dir, std::string* err
     *err = "'" + dir + "' needs accelerometer.txt and groundtruth.txt";
     return std::nullopt;
   }
-  auto gt = slam::eval::read_tum_trajectory(ds->groundtruth_path(), err);
+  auto gt = eval::read_tum_trajectory(ds->groundtruth_path(), err);
   if (!gt) return std::nullopt;
   std::sort(gt->begin(), gt->end(),
             [](const auto& a, const auto& b) { return a.stamp_s < b.stamp_s; });
@@ -476,7 +477,7 @@ std::optional<json> accel_check_dataset(const std::string& dir, std::string* err
   for (std::size_t i = 0; i < ds->size(); ++i) {
     const slam::TumEntry& e = ds->entry(i);
     if (gate.check(e.rgb_stamp_s, e.accel) != slam::AccelVerdict::kAccepted) continue;
-    const slam::eval::StampedPose* pose = nearest_pose(*gt, e.rgb_stamp_s);
+    const eval::StampedPose* pose = nearest_pose(*gt, e.rgb_stamp_s);
     if (!pose) continue;
     R_world_cam.push_back(pose->T_world_cam.rotation());
     f_sensor.push_back(e.accel->f_sensor_mps2);
@@ -776,7 +777,7 @@ int main(int argc, char** argv) {
     if (*run) return run_command(a);
     if (*accel_check) return accel_check_command(accel_datasets);
     if (*vocab) return vocab_command(v.datasets, v.out, v.options);
-    return slam::eval::run_score_command(s.gt, s.est, std::cout, std::cerr);
+    return eval::run_score_command(s.gt, s.est, std::cout, std::cerr);
   } catch (const std::exception& e) {
     std::cerr << "slam-eval: " << e.what() << "\n";
     return 1;

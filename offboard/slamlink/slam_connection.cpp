@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <limits>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace proto = rgbdquad::protocol;
 
@@ -167,4 +167,4 @@ std::string SlamConnection::summary() const {
   return s;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -6,7 +6,7 @@
 #include "slam/report/run_tables.hpp"
 #include "slam_link_session.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace {
 
@@ -70,4 +70,4 @@ PipelineFactory live_pipeline_factory() {
   };
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

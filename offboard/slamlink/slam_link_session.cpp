@@ -9,7 +9,7 @@
 
 #include "rgbdquad/protocol/codec.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace proto = rgbdquad::protocol;
 
@@ -291,4 +291,4 @@ std::string SlamLinkSession::finish_summary() {
   return m.str();
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

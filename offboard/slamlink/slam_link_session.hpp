@@ -28,7 +28,7 @@
 #include "slam/motion/accel_gate.hpp"
 #include "slam/pipeline/pipeline.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// `T` on the wire: translation in metres, unit quaternion (x, y, z, w) re-normalised and each
 /// component clamped to [-1, 1] (a rotation matrix that is orthonormal only to rounding can give
@@ -134,4 +134,4 @@ class SlamLinkSession {
       0;  ///< newest map-correction count sent (LOST answers repeat it)
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

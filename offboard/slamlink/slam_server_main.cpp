@@ -31,6 +31,8 @@
 #include "slam_connection.hpp"
 #include "slam_sessions.hpp"
 
+namespace slam = rgbdquad::slam;
+
 namespace {
 
 // Bytes read from one connection per loop turn: a whole RAW 640x480 frame (1.5 MB) in a few

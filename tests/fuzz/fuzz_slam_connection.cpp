@@ -40,6 +40,8 @@
 #include "slam_link_session.hpp"
 #include "slam_sessions.hpp"
 
+namespace slam = rgbdquad::slam;
+
 namespace {
 
 namespace proto = rgbdquad::protocol;

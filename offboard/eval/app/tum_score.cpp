@@ -6,7 +6,9 @@
 #include <iostream>
 #include <string>
 
-#include "slam/eval/metrics.hpp"
+#include "rgbdquad/eval/metrics.hpp"
+
+namespace eval = rgbdquad::eval;
 
 namespace {
 
@@ -39,8 +41,8 @@ int usage_error(const std::string& message) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  double max_dt_s = slam::eval::kDefaultMaxDtS;
-  auto method = slam::eval::Association::kEvoNearest;
+  double max_dt_s = eval::kDefaultMaxDtS;
+  auto method = eval::Association::kEvoNearest;
   std::string positional[2];
   int positional_count = 0;
   for (int i = 1; i < argc; ++i) {
@@ -59,9 +61,9 @@ int main(int argc, char** argv) {
           return usage_error("--max-dt must be a positive number of seconds, got '" + value + "'");
         }
       } else if (value == "evo") {
-        method = slam::eval::Association::kEvoNearest;
+        method = eval::Association::kEvoNearest;
       } else if (value == "tum") {
-        method = slam::eval::Association::kTumGreedy;
+        method = eval::Association::kTumGreedy;
       } else {
         return usage_error("--association must be 'evo' or 'tum', got '" + value + "'");
       }
@@ -72,6 +74,6 @@ int main(int argc, char** argv) {
     positional[positional_count++] = arg;
   }
   if (positional_count != 2) return usage_error("need GROUNDTRUTH and ESTIMATE");
-  return slam::eval::run_score_command(positional[0], positional[1], max_dt_s, method, std::cout,
-                                       std::cerr);
+  return eval::run_score_command(positional[0], positional[1], max_dt_s, method, std::cout,
+                                 std::cerr);
 }

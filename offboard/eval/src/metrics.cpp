@@ -1,8 +1,8 @@
-// Implementation of the TUM/evo trajectory metrics declared in slam/eval/metrics.hpp.
+// Implementation of the TUM/evo trajectory metrics declared in rgbdquad/eval/metrics.hpp.
 // The association, alignment and error definitions follow evo 1.38.1 (evo/core/sync.py,
 // evo/core/geometry.py umeyama_alignment, evo/core/metrics.py APE/RPE); the pytest
 // offboard/eval/tests/test_against_evo.py checks the numbers against evo itself.
-#include "slam/eval/metrics.hpp"
+#include "rgbdquad/eval/metrics.hpp"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -15,7 +15,7 @@
 #include <sstream>
 #include <utility>
 
-namespace slam::eval {
+namespace rgbdquad::eval {
 namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
@@ -433,4 +433,4 @@ int run_score_command(const std::string& gt_path, const std::string& est_path, d
   return out ? 0 : 1;
 }
 
-}  // namespace slam::eval
+}  // namespace rgbdquad::eval

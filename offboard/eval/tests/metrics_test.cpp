@@ -1,7 +1,7 @@
 // Tests of slam_metrics: TUM I/O and its error messages, association rules, ATE/RPE on
 // synthetic trajectories with known answers, and the numbers evo 1.38.1 gives on the shipped
 // RGBD-SLAM fr1/xyz trajectory (offboard/eval/testdata, see README there).
-#include "slam/eval/metrics.hpp"
+#include "rgbdquad/eval/metrics.hpp"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +12,7 @@
 #include <random>
 #include <sstream>
 
-namespace slam::eval {
+namespace rgbdquad::eval {
 namespace {
 
 namespace fs = std::filesystem;
@@ -366,4 +366,4 @@ TEST(ScoreCommand, GivenBadInputWhenRunThenNonZeroAndMessage) {
 }
 
 }  // namespace
-}  // namespace slam::eval
+}  // namespace rgbdquad::eval

@@ -34,7 +34,7 @@ std::string GroundStationOptions::validate() const {
   if (slam_mode != "server" && slam_mode != "in-process")
     return "slam.mode must be 'server' or 'in-process'";
   if (auto e = slam_server.validate(); !e.empty()) return e;
-  if (auto e = realtime.validate(); !e.empty()) return "realtime." + e;
+  if (std::string e; !realtime.is_valid(&e)) return "realtime." + e;
   return {};
 }
 

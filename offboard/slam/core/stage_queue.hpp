@@ -13,7 +13,7 @@
 #include <optional>
 #include <utility>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 template <typename T>
 class StageQueue {
@@ -124,4 +124,4 @@ void drain_stage_queue(StageQueue<T>& queue, Process&& process) {
   }
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -11,7 +11,7 @@
 #include <cstring>
 #include <system_error>
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 // sched_get_priority_{min,max}(SCHED_RR) on Linux; nice range of setpriority(2).
@@ -48,12 +48,14 @@ ThreadPriorityResult apply_nice(int nice, std::string reason) {
 
 }  // namespace
 
-std::string ThreadPriorityOptions::validate() const {
+bool ThreadPriorityOptions::is_valid(std::string* error) const {
+  const char* problem = nullptr;
   if (rt_priority < kMinRtPriority || rt_priority > kMaxRtPriority)
-    return "rt_priority must be in [1, 99]";
-  if (fallback_nice < kMinNice || fallback_nice > kMaxNice)
-    return "fallback_nice must be in [-20, 19]";
-  return "";
+    problem = "rt_priority must be in [1, 99]";
+  else if (fallback_nice < kMinNice || fallback_nice > kMaxNice)
+    problem = "fallback_nice must be in [-20, 19]";
+  if (problem && error) *error = problem;
+  return problem == nullptr;
 }
 
 bool parse_thread_policy(const std::string& name, ThreadPolicy* out, std::string* error) {
@@ -189,4 +191,4 @@ void PriorityInheritanceMutex::unlock() { ::pthread_mutex_unlock(&mutex_); }
 
 bool PriorityInheritanceMutex::try_lock() { return ::pthread_mutex_trylock(&mutex_) == 0; }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -11,7 +11,7 @@
 
 #include <string>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 enum class ThreadPolicy {
   kOff,         ///< leave the thread as it is
@@ -30,7 +30,8 @@ struct ThreadPriorityOptions {
   // -10 when real-time is refused: a nice-0 neighbour then gets ~1/10 of the CPU weight (CFS: each
   // nice step ~1.25x), the classic "interactive" level; needs CAP_SYS_NICE too, else it is logged.
   int fallback_nice = -10;
-  std::string validate() const;
+  /// Checks the ranges; on failure returns false and, if error is not null, says which field.
+  bool is_valid(std::string* error) const;
 };
 
 /// "off" | "nice" | "rr" | "fifo"; false (and *error) on anything else.
@@ -93,4 +94,4 @@ class PriorityInheritanceMutex {
   pthread_mutex_t mutex_;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <ctime>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 std::int64_t steady_now_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
@@ -64,4 +64,4 @@ bool Intrinsics::from_name(const std::string& name, Intrinsics* out, std::string
   return true;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

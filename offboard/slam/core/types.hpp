@@ -11,7 +11,7 @@
 
 #include "rgbdquad/camera/tum_cameras.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// Pinhole intrinsics of the colour camera (depth is registered to colour in TUM data). Defaults:
 /// the TUM Freiburg 1 colour camera (protocol/camera/tum_cameras.json).
@@ -74,4 +74,4 @@ inline double rotation_angle_rad(const Eigen::Isometry3d& T) {
 /// True when every element of the transform is finite.
 inline bool is_finite(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -6,7 +6,7 @@
 #include <chrono>
 #include <cstddef>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 struct ReplaySchedule {
   double period_s = 0;          ///< the dataset's frame period
@@ -25,4 +25,4 @@ struct ReplaySchedule {
   }
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -9,7 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace fs = std::filesystem;
 
@@ -201,4 +201,4 @@ std::optional<RgbdFrame> TumDataset::load(std::size_t i, std::string* error,
   return f;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -16,7 +16,7 @@
 #include "slam/core/types.hpp"
 #include "slam/motion/accel_gate.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 struct TumEntry {
   double rgb_stamp_s = 0;
@@ -87,4 +87,4 @@ bool read_tum_accelerometer(const std::string& path, std::vector<AccelSample>* o
 std::optional<AccelSample> nearest_accel_sample(const std::vector<AccelSample>& sorted,
                                                 double stamp_s);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

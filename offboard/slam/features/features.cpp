@@ -7,10 +7,10 @@
 #include <opencv2/imgproc.hpp>
 
 #ifdef SLAM_HAVE_SURF
-#include "slam/surf.hpp"
+#include "rgbdquad/surf/surf.hpp"
 #endif
 
-namespace slam {
+namespace rgbdquad::slam {
 
 double depth_slope_m_per_px(const cv::Mat& depth, int u, int v, double units_per_m) {
   const auto at = [&](int x, int y) -> double {
@@ -95,12 +95,12 @@ std::optional<FeatureExtractor> FeatureExtractor::create(const FeatureOptions& o
       break;
     case DetectorKind::kSurf: {
 #ifdef SLAM_HAVE_SURF
-      SurfOptions so;
+      surf::SurfOptions so;
       so.octaves = o.surf_octaves;
       so.scales_per_octave = o.surf_scales_per_octave;
       so.extended = o.surf_extended;
       so.hessian_threshold = o.surf_hessian_threshold;
-      det = create_surf(so);
+      det = surf::create_surf(so);
 #else
       if (error)
         *error =
@@ -212,4 +212,4 @@ std::optional<FrameFeatures> FeatureExtractor::extract(const RgbdFrame& frame,
   return out;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -13,7 +13,7 @@
 
 #include "slam/core/types.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 enum class DetectorKind { kSift, kSurf, kOrb };
 
@@ -115,4 +115,4 @@ inline Eigen::Vector3d back_project(const Intrinsics& k, double u_px, double v_p
   return {(u_px - k.cx_px) * z_m / k.fx_px, (v_px - k.cy_px) * z_m / k.fy_px, z_m};
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -3,7 +3,7 @@
 
 #include <algorithm>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 void KeyframeDatabase::add(std::int64_t id, BowVector bow) {
   erase(id);
@@ -67,4 +67,4 @@ std::vector<KeyframeDatabase::Hit> KeyframeDatabase::query(const BowVector& bow,
   return out;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

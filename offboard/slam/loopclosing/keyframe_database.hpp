@@ -15,7 +15,7 @@
 
 #include "slam/loopclosing/vocabulary.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 class KeyframeDatabase {
  public:
@@ -43,4 +43,4 @@ class KeyframeDatabase {
   std::map<std::int64_t, BowVector> vectors_;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

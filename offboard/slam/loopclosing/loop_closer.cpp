@@ -8,7 +8,7 @@
 
 #include "slam/mapping/local_mapper.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 bool LoopCloserOptions::is_valid(std::string* error) const {
   auto fail = [&](const char* m) {
@@ -364,4 +364,4 @@ void LoopCloser::apply(const Correction& c, LoopStats* stats) {
   }
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -45,7 +45,7 @@
 #include "slam/tracking/registration.hpp"
 #include "slam/tracking/tracker.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 struct LoopCloserOptions {
   int min_keyframes_in_map =
@@ -160,4 +160,4 @@ class LoopCloser {
   std::int64_t last_loop_at_ = -1000000;  ///< `processed_` when the last loop closed
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -8,7 +8,7 @@
 #include <queue>
 #include <utility>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 std::vector<std::size_t> CovisibilityConsistency::update(
     const std::vector<std::set<std::int64_t>>& candidate_groups) {
@@ -115,4 +115,4 @@ std::optional<double> map_path_length_m(const KeyframeGraph& graph, std::int64_t
   return std::nullopt;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -34,7 +34,7 @@
 #include <string>
 #include <vector>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 class CovisibilityConsistency {
  public:
@@ -117,4 +117,4 @@ struct KeyframeGraph {
 /// nullopt: not connected or unknown keyframe.
 std::optional<double> map_path_length_m(const KeyframeGraph& graph, std::int64_t a, std::int64_t b);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

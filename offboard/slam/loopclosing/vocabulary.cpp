@@ -9,7 +9,7 @@
 
 #include "slam/map/map_io.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace {
 
@@ -337,4 +337,4 @@ std::optional<BinaryVocabulary> BinaryVocabulary::from_bytes(const std::vector<s
   return v;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

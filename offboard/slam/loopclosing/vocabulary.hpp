@@ -23,7 +23,7 @@
 #include <utility>
 #include <vector>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// Sparse tf-idf vector: (word id, weight), sorted by word id, weights summing to 1.
 using BowVector = std::vector<std::pair<std::uint32_t, double>>;
@@ -93,4 +93,4 @@ std::optional<BinaryVocabulary> builtin_orb_vocabulary(std::string* error);
 /// The embedded bytes themselves (for the test that retraining reproduces them).
 std::vector<std::uint8_t> builtin_orb_vocabulary_bytes();
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <unordered_map>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 double keypoint_level_scale(const cv::KeyPoint& kp, const FeatureOptions& o) {
   // Finest keypoint size each detector produces, px in the input image:
@@ -296,4 +296,4 @@ void SlamMap::restore(std::map<std::int64_t, MapKeyframe> kfs, std::map<std::int
   keyframes_created_ = static_cast<std::int64_t>(keyframes_.size() + culled_.size());
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -22,7 +22,7 @@
 #include "slam/core/types.hpp"
 #include "slam/features/features.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// Observation model shared by tracking and bundle adjustment: a pinhole camera on undistorted
 /// pixels plus a virtual-stereo disparity d = bf / z for the depth reading (ORB-SLAM2's RGB-D
@@ -219,4 +219,4 @@ class SlamMap {
   std::int64_t keyframes_created_ = 0;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

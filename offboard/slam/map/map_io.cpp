@@ -8,7 +8,7 @@
 #include <iterator>
 #include <vector>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace {
 
@@ -439,4 +439,4 @@ std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& c
   return map;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -20,7 +20,7 @@
 
 #include "slam/map/map.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// Version 2 added the loop-closure edges after the culled keyframes; version 3 the count of map
 /// corrections (SharedMap::corrections) the poses are expressed after, so that a session resumed
@@ -51,4 +51,4 @@ bool check_map_file(const std::string& path, std::string* error);
 std::optional<SlamMap> load_map(const std::string& path, const MapFileContext& context,
                                 std::string* error, std::uint64_t* map_corrections = nullptr);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

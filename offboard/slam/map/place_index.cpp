@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <opencv2/imgproc.hpp>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 cv::Mat make_thumbnail(const cv::Mat& image) {
   if (image.empty()) return {};
@@ -40,4 +40,4 @@ std::vector<std::int64_t> rank_keyframes_by_appearance(const SlamMap& map, const
   return out;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

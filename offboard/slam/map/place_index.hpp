@@ -14,7 +14,7 @@
 
 #include "slam/map/map.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// 40x30 CV_32F thumbnail of an 8-bit colour or grey image: area-downsampled, blurred (sigma 1.5 px
 /// of the thumbnail, 2.5 in PTAM's 1/16 pyramid level), zero mean, unit norm. Empty input: empty.
@@ -29,4 +29,4 @@ std::vector<std::int64_t> rank_keyframes_by_appearance(
     const SlamMap& map, const cv::Mat& thumbnail, std::size_t k,
     std::int64_t below_id = std::numeric_limits<std::int64_t>::max());
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -11,7 +11,7 @@
 #include "slam/matching/matching.hpp"
 #include "slam/tracking/projection_search.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace {
 
@@ -442,4 +442,4 @@ int LocalMapper::cull_keyframes(std::int64_t kf_id) {
   return culled;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -29,7 +29,7 @@
 
 #include "slam/tracking/tracker.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 struct LocalMapperOptions {
   double min_found_ratio = 0.25;  ///< ORB-SLAM2 MapPointCulling
@@ -96,4 +96,4 @@ class LocalMapper {
   std::vector<std::int64_t> recent_points_;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <opencv2/features2d.hpp>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 bool MatchOptions::is_valid(std::string* error) const {
   if (!(lowe_ratio > 0 && lowe_ratio <= 1) || !(nnmmt_fraction > 0)) {
@@ -46,4 +46,4 @@ std::vector<Match> match_descriptors(const cv::Mat& query, const cv::Mat& train,
   return out;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

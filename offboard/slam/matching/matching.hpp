@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 struct MatchOptions {
   double lowe_ratio = 0.6;      ///< thesis Table 4.4
@@ -35,4 +35,4 @@ std::vector<Match> match_descriptors(const cv::Mat& query, const cv::Mat& train,
 /// Distance of a descriptor row to the origin: L2 norm (float) or number of set bits (binary).
 double distance_to_origin(const cv::Mat& descriptor_row);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

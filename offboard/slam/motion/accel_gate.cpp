@@ -6,7 +6,7 @@
 #include <cmath>
 #include <numeric>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace {
 
@@ -108,4 +108,4 @@ Eigen::Vector3d AccelGate::to_camera(const Eigen::Vector3d& f_sensor_mps2) const
   return R_cam_sensor_ * f_sensor_mps2;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

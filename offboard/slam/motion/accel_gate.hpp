@@ -21,7 +21,7 @@
 #include "rgbdquad/camera/tum_cameras.hpp"
 #include "slam/core/types.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// The Kinect v1 accelerometer's per-axis measuring range, m/s^2 (+-2 g at libfreenect's g:
 /// protocol/camera/tum_cameras.json, "accelerometer"). A reading at or beyond it is clipped.
@@ -108,4 +108,4 @@ class AccelGate {
   std::string options_error_;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 std::optional<GravitySpread> gravity_direction_spread(
     const std::vector<Eigen::Matrix3d>& R_world_cam, const std::vector<Eigen::Vector3d>& f_cam) {
@@ -61,4 +61,4 @@ std::vector<std::array<double, 9>> axis_aligned_rotations() {
   return out;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -12,7 +12,7 @@
 #include <optional>
 #include <vector>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// How far the world-frame specific-force directions stray from their mean direction.
 struct GravitySpread {
@@ -33,4 +33,4 @@ std::optional<GravitySpread> gravity_direction_spread(
 /// AccelGateOptions::R_cam_sensor.
 std::vector<std::array<double, 9>> axis_aligned_rotations();
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

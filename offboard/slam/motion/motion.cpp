@@ -7,7 +7,7 @@
 #include <numeric>
 #include <random>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 std::optional<Eigen::Isometry3d> umeyama_rigid(const std::vector<Eigen::Vector3d>& src,
                                                const std::vector<Eigen::Vector3d>& dst,
@@ -364,4 +364,4 @@ Eigen::Isometry3d refine_reprojection(const Eigen::Isometry3d& T0,
   return T;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -23,7 +23,7 @@
 #include <string>
 #include <vector>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// Least-squares rigid transform (no scale) minimising sum w_i |T*src_i - dst_i|^2. Needs >= 3
 /// non-collinear pairs and positive weights (empty weights = all 1). Returns nullopt when
@@ -103,4 +103,4 @@ std::optional<MotionEstimate> estimate_motion_ransac(const std::vector<Eigen::Ve
                                                      const RansacOptions& options,
                                                      std::uint64_t seed, std::string* why);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

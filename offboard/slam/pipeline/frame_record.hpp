@@ -10,7 +10,7 @@
 
 #include "slam/tracking/tracker.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// Everything known about one frame once the pipeline is finished.
 struct FrameRecord {
@@ -98,4 +98,4 @@ struct PipelineSummary {
   std::string checkpoint_error;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

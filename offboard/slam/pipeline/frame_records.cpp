@@ -3,7 +3,7 @@
 
 #include <algorithm>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 void FrameRecords::retire(std::size_t retained, Sink sink) {
   std::lock_guard<std::mutex> lock(mutex_);
@@ -68,4 +68,4 @@ std::size_t FrameRecords::failed() const {
   return failed_;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -13,7 +13,7 @@
 
 #include "slam/pipeline/frame_record.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 class FrameRecords {
  public:
@@ -43,4 +43,4 @@ class FrameRecords {
   Sink sink_;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

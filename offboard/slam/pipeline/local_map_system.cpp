@@ -6,7 +6,7 @@
 #include "slam/tracking/depth_time_alignment.hpp"
 #include "slam/tracking/rolling_shutter.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace {
 
@@ -520,4 +520,4 @@ bool LocalMapSystem::save_map(const std::string& path, std::string* error) const
   return slam::save_map(path, map_->map, map_file_context(), error, map_->corrections);
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

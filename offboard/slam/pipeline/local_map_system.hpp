@@ -36,7 +36,7 @@
 #include "slam/pipeline/slam_system.hpp"
 #include "slam/tracking/tracker.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// Keyframes in the mapper (queued + in work) below which the tracker makes keyframes as it needs
 /// them (realtime/live).
@@ -224,4 +224,4 @@ class LocalMapSystem : public SlamSystem {
   std::unique_ptr<TrackingStage> tracking_;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

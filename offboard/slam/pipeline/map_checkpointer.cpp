@@ -3,7 +3,7 @@
 
 #include <algorithm>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 MapCheckpointer::MapCheckpointer(std::string path, double period_s, std::shared_ptr<SharedMap> map,
                                  MapFileContext context)
@@ -46,4 +46,4 @@ CheckpointStats MapCheckpointer::stats() const {
   return stats_;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -15,7 +15,7 @@
 #include "slam/map/map_io.hpp"
 #include "slam/tracking/tracker.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 struct CheckpointStats {
   std::size_t written = 0;
@@ -47,4 +47,4 @@ class MapCheckpointer {
   CheckpointStats stats_;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

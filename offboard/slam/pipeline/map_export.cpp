@@ -8,7 +8,7 @@
 
 #include "slam/features/features.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace {
 void put_f32(std::vector<char>* buf, float v) {
@@ -102,4 +102,4 @@ bool write_text_file(const std::string& path, const std::string& text, std::stri
   return true;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -8,7 +8,7 @@
 #include "slam/thesis/backend.hpp"
 #include "slam/tracking/tracker.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 struct MapExportOptions {
   int pixel_stride = 8;      ///< every 8th pixel in u and v: ~4800 points per keyframe
@@ -29,4 +29,4 @@ long write_map_points_ply(const std::string& path, SharedMap& map, std::string* 
 /// Writes `text` to `path`; false with `error` on failure.
 bool write_text_file(const std::string& path, const std::string& text, std::string* error);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

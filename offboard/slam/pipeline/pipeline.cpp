@@ -1,7 +1,7 @@
 // The pipeline facade; see pipeline.hpp.
 #include "slam/pipeline/pipeline.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 bool parse_pipeline_mode(const std::string& name, PipelineMode* out, std::string* error) {
   if (name == "sequential") {
@@ -135,4 +135,4 @@ bool Pipeline::save_map(const std::string& path, std::string* error) const {
   return local_->save_map(path, error);
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

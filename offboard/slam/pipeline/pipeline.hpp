@@ -22,7 +22,7 @@
 #include "slam/pipeline/pipeline_options.hpp"
 #include "slam/thesis/thesis_system.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 class Pipeline {
  public:
@@ -81,4 +81,4 @@ class Pipeline {
   std::atomic<bool> finished_{false};
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -11,7 +11,7 @@
 #include "slam/thesis/frontend.hpp"
 #include "slam/tracking/tracker.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// kLive: submit() tracks on the caller's thread (the frame's pose is final when it returns) while
 /// the local map is refined on the mapping thread - for servers that answer every frame
@@ -80,4 +80,4 @@ struct PipelineOptions {
   bool is_valid(std::string* error) const;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -13,7 +13,7 @@
 #include "slam/core/types.hpp"
 #include "slam/pipeline/frame_record.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 class SlamSystem {
  public:
@@ -28,4 +28,4 @@ class SlamSystem {
   virtual std::vector<std::pair<double, Eigen::Isometry3d>> final_trajectory() const = 0;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

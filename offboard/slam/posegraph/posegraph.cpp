@@ -8,7 +8,7 @@
 #include <iomanip>
 #include <sstream>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace {
 
@@ -164,4 +164,4 @@ std::string PoseGraph::to_g2o() const {
   return os.str();
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 struct PoseGraphEdge {
   std::int64_t from = 0;  ///< node a
@@ -68,4 +68,4 @@ class PoseGraph {
   std::int64_t first_ = -1;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

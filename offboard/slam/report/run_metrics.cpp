@@ -3,7 +3,7 @@
 
 #include <algorithm>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 using nlohmann::json;
 
@@ -203,4 +203,4 @@ void add_run_metrics(const RunOutcome& run, const std::string& groundtruth_path,
   if (!groundtruth_path.empty()) add_scores(run, groundtruth_path, m, warning);
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

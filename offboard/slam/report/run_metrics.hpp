@@ -9,12 +9,12 @@
 #include <string>
 #include <vector>
 
-#include "slam/eval/metrics.hpp"
+#include "rgbdquad/eval/metrics.hpp"
 #include "slam/loopclosing/loop_closer.hpp"
 #include "slam/mapping/local_mapper.hpp"
 #include "slam/pipeline/pipeline.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// count, mean, median, p95 and max (ms) of a sample; only the count when it is empty.
 nlohmann::json stage_stats(std::vector<double> v);
@@ -44,4 +44,4 @@ RunOutcome collect_run_outcome(const Pipeline& pipeline);
 void add_run_metrics(const RunOutcome& run, const std::string& groundtruth_path, nlohmann::json* m,
                      std::string* warning);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

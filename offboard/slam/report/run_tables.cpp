@@ -4,7 +4,7 @@
 #include <fstream>
 #include <iomanip>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace fs = std::filesystem;
 
@@ -99,4 +99,4 @@ bool write_keyframe_tables(const fs::path& out_dir, const std::vector<MapperStat
   return true;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

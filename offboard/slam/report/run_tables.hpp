@@ -14,7 +14,7 @@
 #include "slam/mapping/local_mapper.hpp"
 #include "slam/pipeline/pipeline.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// Memory use sampled during a run: (frame stamp s, resident set size MiB).
 using RssSamples = std::vector<std::pair<double, double>>;
@@ -50,4 +50,4 @@ bool write_run_tables(const std::filesystem::path& out_dir, const std::vector<Fr
                       const std::vector<LoopStats>& loop_stats, const RssSamples& rss_samples,
                       std::string* error);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -13,7 +13,7 @@
 
 #include "slam/dataset/tum_dataset.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
@@ -187,4 +187,4 @@ TEST(NearestAccelSample, GivenSortedSamplesThenNearestEitherSide) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

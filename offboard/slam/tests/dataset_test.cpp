@@ -7,7 +7,7 @@
 
 #include "slam/dataset/tum_dataset.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 const std::string kExcerpt = std::string(SLAM_REPO_DIR) + "/tests/data/fr1_xyz_first30";
@@ -65,4 +65,4 @@ TEST(TumDataset, GivenBadInputThenClearErrors) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -8,7 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <string>
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 FrameFeatures orb_features(const cv::Mat& rgb, bool pixel_centres) {
@@ -79,4 +79,4 @@ TEST(OrbKeypoints, ACornerOnACoarseLevelLandsOnTheInputPixelItWasFoundAt) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

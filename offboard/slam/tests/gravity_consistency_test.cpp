@@ -9,7 +9,7 @@
 #include <random>
 #include <set>
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 /// A camera turning through many attitudes; the sensor reads up (world +z) in its own frame.
@@ -95,4 +95,4 @@ TEST(GravityConsistency, GivenBadInputThenNullopt) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -10,7 +10,7 @@
 #include "slam/thesis/keyframes.hpp"
 #include "slam/thesis/loop.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 struct KfCase {
@@ -199,4 +199,4 @@ TEST(GlobalLoopSearch, GivenNothingAcceptedOrNeighboursOffThenNoNeighbourIsTeste
   EXPECT_FALSE(search_global_loop(in, LoopOptions{}, std::ref(one), neighbours_by_id));
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

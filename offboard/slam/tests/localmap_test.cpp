@@ -13,7 +13,7 @@
 #include "slam/tracking/pose_optimizer.hpp"
 #include "slam/tracking/projection_search.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 CameraModel fr1_camera() { return CameraModel::from(Intrinsics{}); }
@@ -393,4 +393,4 @@ TEST(PlaceIndex, ThumbnailsRankTheSameViewFirst) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

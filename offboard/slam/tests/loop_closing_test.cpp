@@ -15,7 +15,7 @@
 #include "slam/map/place_index.hpp"
 #include "slam/mapping/local_mapper.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 constexpr int kBytes = 32;  // ORB
@@ -582,9 +582,9 @@ TEST(OdometryConsistency, MapPathIsTheShortestCovisibilityChain) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 TEST(Relocalisation, RefitsAroundTheKeyframeRansacFoundNotTheFirstCandidate) {
@@ -628,9 +628,9 @@ TEST(Relocalisation, RefitsAroundTheKeyframeRansacFoundNotTheFirstCandidate) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 /// A tracker on the world's map (ratio 0.75, as the other tracker tests), and ORB feature options.
@@ -806,9 +806,9 @@ TEST(TrackingGap, AfterAGapThePredictionCannotVouchForAFitMustMeetTheRelocalisat
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 /// Four keyframes 5 cm apart along x seeing the same 200 landmarks; the map poses of keyframes 1-3
@@ -938,9 +938,9 @@ TEST(AttitudePrior, ASuddenPanIsTrackedByProjectionWhenTheImuAttitudeComesWithTh
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 /// A tracker (cross-check ratio `cross_check_ratio`) on one keyframe seeing 200 landmarks at the
@@ -1020,4 +1020,4 @@ TEST(CrossCheck, AWeakFitAtTheWrongPoseIsReplacedByTheReferenceKeyframesRegistra
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -3,7 +3,7 @@
 
 #include <gtest/gtest.h>
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 cv::Mat rows(std::initializer_list<std::initializer_list<float>> r) {
@@ -67,4 +67,4 @@ TEST(Matching, GivenMismatchedOrEmptyInputThenNoMatchesNoCrash) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -7,7 +7,7 @@
 
 #include "rgbdquad/camera/tum_cameras.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 constexpr const rgbdquad::camera::TumCamera& kFr1 =
@@ -209,4 +209,4 @@ TEST(ReprojectionRefine, GivenAPointBehindTheCameraThenTheTermCarriesNoInformati
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

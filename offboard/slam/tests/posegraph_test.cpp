@@ -6,7 +6,7 @@
 
 #include <cmath>
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
@@ -110,4 +110,4 @@ TEST(PoseGraph, RejectsEdgesToUnknownNodesAndExportsG2o) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

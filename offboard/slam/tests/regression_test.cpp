@@ -14,11 +14,11 @@
 #include <thread>
 #include <vector>
 
+#include "rgbdquad/eval/metrics.hpp"
 #include "slam/dataset/tum_dataset.hpp"
-#include "slam/eval/metrics.hpp"
 #include "slam/pipeline/pipeline.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 const std::string kExcerpt = std::string(SLAM_REPO_DIR) + "/tests/data/fr1_xyz_first30";
@@ -526,4 +526,4 @@ TEST(Regression, MapFilesThatDoNotFitAreRefusedWithAReason) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -6,7 +6,7 @@
 #include <thread>
 #include <vector>
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 TEST(StageQueue, GivenAFullQueueWhenANewerItemIsPushedReplacingThenTheOlderIsDroppedAndCounted) {
@@ -57,4 +57,4 @@ TEST(StageQueue, GivenAClosedEmptyQueueThenPopEndsTheConsumer) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

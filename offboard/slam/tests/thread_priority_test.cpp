@@ -13,7 +13,7 @@
 
 #include <thread>
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 int current_policy() {
@@ -42,12 +42,15 @@ TEST(ThreadPriority, PolicyNamesRoundTripAndBadValuesAreRefused) {
   EXPECT_FALSE(parse_thread_policy("realtime", &p, &error));
   EXPECT_NE(error.find("realtime"), std::string::npos);
   ThreadPriorityOptions o;
-  EXPECT_EQ(o.validate(), "");
+  EXPECT_TRUE(o.is_valid(&error));
   o.rt_priority = 0;
-  EXPECT_NE(o.validate(), "");
+  EXPECT_FALSE(o.is_valid(&error));
+  EXPECT_NE(error.find("rt_priority"), std::string::npos);
   o = ThreadPriorityOptions{};
   o.fallback_nice = -21;
-  EXPECT_NE(o.validate(), "");
+  EXPECT_FALSE(o.is_valid(&error));
+  EXPECT_NE(error.find("fallback_nice"), std::string::npos);
+  EXPECT_FALSE(o.is_valid(nullptr));
 }
 
 TEST(ThreadPriority, OffLeavesTheThreadAsItIs) {
@@ -119,4 +122,4 @@ TEST(ThreadPriority, ASavedScheduleIsRestoredAfterATemporaryRaise) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 bool parse_backend_kind(const std::string& name, BackendKind* out, std::string* error) {
   if (name == "vo") {
@@ -248,4 +248,4 @@ BackendOutput BackEnd::process(const FrontendOutput& in) {
   return out;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

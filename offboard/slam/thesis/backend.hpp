@@ -26,7 +26,7 @@
 #include "slam/thesis/keyframes.hpp"
 #include "slam/thesis/loop.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// kVo/kLlc/kGlc: the thesis back-ends (frame-to-frame front-end). kLocalMap: tracking against a
 /// local map with local mapping (tracking/, mapping/, loopclosing/), the system that flies.
@@ -109,4 +109,4 @@ class BackEnd {
   std::size_t optimisations_ = 0;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

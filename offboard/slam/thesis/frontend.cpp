@@ -6,7 +6,7 @@
 #include <ctime>
 #include <numeric>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 bool FrontendOptions::is_valid(std::string* error) const {
   if (!features.is_valid(error) || !matching.is_valid(error) || !ransac.is_valid(error))
@@ -91,4 +91,4 @@ std::optional<FrontendOutput> FrontEnd::process(const RgbdFrame& frame, std::str
   return out;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -17,7 +17,7 @@
 #include "slam/matching/matching.hpp"
 #include "slam/motion/motion.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 struct FrontendOptions {
   FeatureOptions features;
@@ -72,4 +72,4 @@ std::optional<MotionEstimate> estimate_between(const FrameFeatures& cur, const F
                                                double* matching_ms = nullptr,
                                                double* ransac_ms = nullptr);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -3,7 +3,7 @@
 
 #include <algorithm>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace {
 constexpr std::uint64_t kCandidateSalt = 2;
@@ -39,4 +39,4 @@ std::optional<KeyframeMatch> search_global_loop(const GlcSearchInput& in,
   return found;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -18,7 +18,7 @@
 #include "slam/motion/motion.hpp"
 #include "slam/thesis/loop.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// One keyframe the frame was registered against: descriptor matches and RANSAC's estimate
 /// (nullopt: too few pairs or degenerate).
@@ -49,4 +49,4 @@ std::optional<KeyframeMatch> search_global_loop(const GlcSearchInput& in,
                                                 const RegisterAgainst& compare,
                                                 const CreationNeighbours& neighbours);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 bool KeyframeOptions::is_valid(std::string* error) const {
   if (!(fixed_rate_hz > 0) || !std::isfinite(fixed_rate_hz) ||
@@ -29,4 +29,4 @@ bool decide_new_keyframe(const KeyframeOptions& o, std::optional<double> since_l
   return match_frac < o.min_match_fraction || inlier_frac < o.min_inlier_fraction;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

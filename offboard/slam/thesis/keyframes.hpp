@@ -10,7 +10,7 @@
 #include <optional>
 #include <string>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 enum class KeyframePolicy { kFixedRate, kRansac };
 
@@ -37,4 +37,4 @@ bool decide_new_keyframe(const KeyframeOptions& options,
                          std::optional<double> since_last_keyframe_s,
                          const std::optional<KeyframeEvidence>& best_recent);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

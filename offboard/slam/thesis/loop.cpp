@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 bool LoopOptions::is_valid(std::string* error) const {
   if (!(llc_max_fraction >= 0 && llc_max_fraction <= 1) || glc_blocks < 1 ||
@@ -76,4 +76,4 @@ bool accept_glc_match(const LoopOptions& options, std::size_t n_features, std::s
          inlier_ratio >= options.glc_min_inlier_fraction && inliers >= min_inliers;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 struct LoopOptions {
   double llc_max_fraction = 0.25;         ///< thesis: correction <= 25 % of the frame's edge
@@ -55,4 +55,4 @@ std::vector<std::int64_t> glc_keyframes_to_test(const std::vector<std::int64_t>&
 bool accept_glc_match(const LoopOptions& options, std::size_t n_features, std::size_t matches,
                       double inlier_ratio, std::size_t inliers, std::size_t min_inliers);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -1,7 +1,7 @@
 // The thesis's front-end / back-end systems; see thesis_system.hpp.
 #include "slam/thesis/thesis_system.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 std::unique_ptr<ThesisSystem> ThesisSystem::create(const PipelineOptions& o, const Intrinsics& k,
                                                    FrameRecords* records, std::string* error) {
@@ -172,4 +172,4 @@ std::vector<std::pair<double, Eigen::Isometry3d>> ThesisSystem::final_trajectory
   return out;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

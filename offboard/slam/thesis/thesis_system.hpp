@@ -26,7 +26,7 @@
 #include "slam/thesis/backend.hpp"
 #include "slam/thesis/frontend.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 class ThesisSystem : public SlamSystem {
  public:
@@ -67,4 +67,4 @@ class ThesisSystem : public SlamSystem {
   std::thread backend_thread_;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <cstdint>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 cv::Mat align_depth_to_colour_time(const cv::Mat& depth, const Intrinsics& k,
                                    const Eigen::Vector3d& omega_cam_rad_per_s,
@@ -46,4 +46,4 @@ cv::Mat align_depth_to_colour_time(const cv::Mat& depth, const Intrinsics& k,
   return out;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

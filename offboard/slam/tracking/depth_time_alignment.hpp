@@ -15,7 +15,7 @@
 
 #include "slam/core/types.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// The depth image (CV_16UC1, raw units, 0 = no reading) as it would have been captured
 /// `colour_minus_depth_s` later, by a camera rotating at `omega_cam_rad_per_s` (angular velocity
@@ -25,4 +25,4 @@ cv::Mat align_depth_to_colour_time(const cv::Mat& depth, const Intrinsics& intri
                                    const Eigen::Vector3d& omega_cam_rad_per_s,
                                    double colour_minus_depth_s);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <string>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 bool GravityOptions::is_valid(std::string* error) const {
   if (!(attitude_sigma_rad > 0) || !(accel_base_sigma_rad > 0) || !(standard_gravity_mps2 > 0) ||
@@ -44,4 +44,4 @@ std::optional<Eigen::Vector3d> GravityReference::down_world() const {
   return sum_.normalized();
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -27,7 +27,7 @@
 
 #include "slam/core/types.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 struct GravityOptions {
   bool enabled = false;  ///< off: the tracker ignores gravity (ablations, and until measured)
@@ -67,4 +67,4 @@ class GravityReference {
   Eigen::Vector3d sum_ = Eigen::Vector3d::Zero();
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -1,6 +1,6 @@
 #include "slam/tracking/motion_bound.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 void MotionBound::add(double stamp_s, const Eigen::Vector3d& p_world_m) {
   if (!history_.empty() && !(stamp_s > history_.back().stamp_s)) history_.clear();
@@ -29,4 +29,4 @@ MotionBoundCheck MotionBound::check(double stamp_s, const Eigen::Vector3d& p_wor
   return out;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -11,7 +11,7 @@
 #include <cstddef>
 #include <deque>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 struct MotionBoundOptions {
   double margin_m = 0.05;  ///< pose noise of the new fit (TrackerOptions::motion_margin_m)
@@ -46,4 +46,4 @@ class MotionBound {
   std::deque<Sample> history_;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

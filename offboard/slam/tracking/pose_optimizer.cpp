@@ -8,7 +8,7 @@
 #include <Eigen/Cholesky>
 #include <cmath>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 Eigen::Isometry3d apply_left_increment(const Eigen::Matrix<double, 6, 1>& delta,
                                        const Eigen::Isometry3d& T) {
@@ -108,4 +108,4 @@ PoseOptimizerResult optimize_pose(const Eigen::Isometry3d& T_init,
   return r;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

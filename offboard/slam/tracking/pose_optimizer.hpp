@@ -12,7 +12,7 @@
 
 #include "slam/map/map.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 struct PoseObservation {
   Eigen::Vector3d p_world_m = Eigen::Vector3d::Zero();
@@ -52,4 +52,4 @@ PoseOptimizerResult optimize_pose(const Eigen::Isometry3d& T_cam_world_init,
 Eigen::Isometry3d apply_left_increment(const Eigen::Matrix<double, 6, 1>& delta,
                                        const Eigen::Isometry3d& T);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -7,7 +7,7 @@
 
 #include "slam/matching/matching.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 double descriptor_distance(const cv::Mat& a, const cv::Mat& b) {
   // Raw-pointer kernels: this runs tens of thousands of times per frame.
@@ -86,4 +86,4 @@ ProjectionMatches search_by_projection(const std::vector<LocalPoint>& points,
   return out;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -15,7 +15,7 @@
 
 #include "slam/map/map.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// A map point as tracking sees it (a snapshot: position and descriptor at the time of the copy).
 struct LocalPoint {
@@ -49,4 +49,4 @@ ProjectionMatches search_by_projection(const std::vector<LocalPoint>& points,
                                        const ProjectionSearchOptions& options,
                                        const std::vector<int>* preset = nullptr);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

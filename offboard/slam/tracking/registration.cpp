@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <numeric>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 KeyframePoints keyframe_points(const SlamMap& map, std::int64_t kf_id) {
   KeyframePoints out;
@@ -99,4 +99,4 @@ ProjectionFit fit_by_projection(const std::vector<LocalPoint>& points, const Tra
   return fit;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -19,7 +19,7 @@
 #include "slam/tracking/pose_optimizer.hpp"
 #include "slam/tracking/projection_search.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// A keyframe's map points as the registration needs them (world positions, point ids, and the
 /// descriptors of the keypoints that see them).
@@ -64,4 +64,4 @@ ProjectionFit fit_by_projection(const std::vector<LocalPoint>& points, const Tra
                                 const Eigen::Isometry3d& T_cam_world_guess, double first_radius_px,
                                 const ProjectionFitOptions& options);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

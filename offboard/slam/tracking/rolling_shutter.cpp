@@ -4,7 +4,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
-namespace slam {
+namespace rgbdquad::slam {
 
 bool unroll_rotation(FrameFeatures* features, const Eigen::Vector3d& omega_cam_rad_per_s,
                      double readout_s, int rows) {
@@ -26,4 +26,4 @@ bool unroll_rotation(FrameFeatures* features, const Eigen::Vector3d& omega_cam_r
   return true;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -16,7 +16,7 @@
 
 #include "slam/features/features.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// Rotates each feature of `features` (its 3D point in the camera frame) from the exposure time
 /// of its keypoint's row to the time of the image's middle row, for a camera turning at
@@ -26,4 +26,4 @@ namespace slam {
 bool unroll_rotation(FrameFeatures* features, const Eigen::Vector3d& omega_cam_rad_per_s,
                      double readout_s, int rows);
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

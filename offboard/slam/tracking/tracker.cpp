@@ -9,7 +9,7 @@
 #include "slam/map/place_index.hpp"
 #include "slam/tracking/registration.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 namespace {
 
@@ -743,4 +743,4 @@ void Tracker::advance(const RgbdFrame& frame, const Eigen::Isometry3d& T_world_c
   out->T_world_cam = T_world_cam;
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -41,7 +41,7 @@
 #include "slam/tracking/projection_search.hpp"
 #include "slam/tracking/registration.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 
 /// The map's lock. Priority inheritance: the mapper and the loop closer run below tracking (niced,
 /// or SCHED_OTHER under a real-time tracker); preempted while holding the map they would keep a
@@ -437,4 +437,4 @@ class Tracker {
   int min_observations() const;
 };
 
-}  // namespace slam
+}  // namespace rgbdquad::slam

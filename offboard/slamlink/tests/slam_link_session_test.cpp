@@ -16,7 +16,7 @@
 #include "rgbdquad/protocol/codec.hpp"
 #include "slam/dataset/tum_dataset.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 namespace proto = rgbdquad::protocol;
@@ -419,4 +419,4 @@ TEST(PoseToWire, GivenNoRotationOrNonFiniteValuesThenRefused) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

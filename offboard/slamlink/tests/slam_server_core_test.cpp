@@ -12,7 +12,7 @@
 #include "slam_connection.hpp"
 #include "slam_sessions.hpp"
 
-namespace slam {
+namespace rgbdquad::slam {
 namespace {
 
 namespace proto = rgbdquad::protocol;
@@ -298,4 +298,4 @@ TEST(SlamConnection, GivenGarbageThenItIsSkippedCountedAndLoggedOnce) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::slam

@@ -12,7 +12,9 @@
 
 #include "../tests/invariance.hpp"
 #include "../tests/rgbd_pair.hpp"
-#include "slam/surf.hpp"
+#include "rgbdquad/surf/surf.hpp"
+
+namespace surf = rgbdquad::surf;
 
 namespace {
 
@@ -100,9 +102,9 @@ int main(int argc, char** argv) {
     std::cerr << "surf-bench: no IMAGE given\n\n" << kUsage;
     return 2;
   }
-  const slam::SurfOptions options;
+  const surf::SurfOptions options;
   std::cout << "SURF " << options << ", cv threads " << cv::getNumThreads() << "\n";
-  auto surf = slam::create_surf(options);
+  auto surf = surf::create_surf(options);
   auto sift = cv::SIFT::create();
   std::vector<cv::Mat> grays;
   std::cout << std::fixed << std::setprecision(1);
@@ -138,9 +140,9 @@ int main(int argc, char** argv) {
                     {"rot 30 + scale 1.5", 30, 1.5}};
   for (const auto& t : transforms) {
     const auto a =
-        slam::surf_test::evaluate_invariance(*surf, grays[0], t.angle_deg, t.scale, kRatio, kTolPx);
+        surf::testing::evaluate_invariance(*surf, grays[0], t.angle_deg, t.scale, kRatio, kTolPx);
     const auto b =
-        slam::surf_test::evaluate_invariance(*sift, grays[0], t.angle_deg, t.scale, kRatio, kTolPx);
+        surf::testing::evaluate_invariance(*sift, grays[0], t.angle_deg, t.scale, kRatio, kTolPx);
     std::cout << t.name << " | " << a.match_precision << " | " << a.matches << " | "
               << a.repeatability << " | " << b.match_precision << " | " << b.matches << " | "
               << b.repeatability << "\n";
@@ -150,7 +152,7 @@ int main(int argc, char** argv) {
     /// and the motion-capture ground truth differ by ~8 mm / 0.25 deg after 0.3-1 s (hand-eye
     /// calibration and time sync), i.e. ~5 px at 1 m, so even perfect matches scatter that much.
     constexpr double kPairTolPx = 10.0;
-    const auto frames = slam::surf_test::load_rgbd_sequence(sequence, 121);
+    const auto frames = surf::testing::load_rgbd_sequence(sequence, 121);
     if (frames.size() < 2) {
       std::cerr << "surf-bench: no usable rgb+depth+groundtruth frames in '" << sequence << "'\n";
       return 1;
@@ -160,9 +162,9 @@ int main(int argc, char** argv) {
     for (std::size_t k : {1, 5, 10, 29, 60, 120}) {
       if (k >= frames.size()) break;
       const auto a =
-          slam::surf_test::evaluate_rgbd_pair(*surf, frames[0], frames[k], kRatio, kPairTolPx);
+          surf::testing::evaluate_rgbd_pair(*surf, frames[0], frames[k], kRatio, kPairTolPx);
       const auto b =
-          slam::surf_test::evaluate_rgbd_pair(*sift, frames[0], frames[k], kRatio, kPairTolPx);
+          surf::testing::evaluate_rgbd_pair(*sift, frames[0], frames[k], kRatio, kPairTolPx);
       std::cout << "0-" << k << " (" << std::setprecision(2)
                 << frames[k].stamp_s - frames[0].stamp_s << " s) | " << a.consistent << "/"
                 << a.with_depth << " | " << std::setprecision(3) << a.precision << " | "

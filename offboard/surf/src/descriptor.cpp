@@ -6,7 +6,7 @@
 #include <cmath>
 #include <cstdint>
 
-namespace slam::surf_detail {
+namespace rgbdquad::surf::detail {
 namespace {
 
 constexpr float kPi = 3.14159265358979f;
@@ -233,4 +233,4 @@ void compute_descriptor(const IntegralImage& integral, const cv::KeyPoint& kp, b
   for (int k = 0; k < dims; ++k) out[k] *= inv;
 }
 
-}  // namespace slam::surf_detail
+}  // namespace rgbdquad::surf::detail

@@ -6,7 +6,7 @@
 
 #include "integral_image.hpp"
 
-namespace slam::surf_detail {
+namespace rgbdquad::surf::detail {
 
 /// Gaussian scale s of a keypoint: the 9 px filter approximates sigma = 1.2 (Bay et al. 3.3).
 inline float keypoint_scale(const cv::KeyPoint& kp) { return 1.2f * kp.size / 9.f; }
@@ -30,4 +30,4 @@ float dominant_orientation_deg(const IntegralImage& integral, const cv::KeyPoint
 void compute_descriptor(const IntegralImage& integral, const cv::KeyPoint& kp, bool extended,
                         float* out);
 
-}  // namespace slam::surf_detail
+}  // namespace rgbdquad::surf::detail

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <opencv2/core/utility.hpp>
 
-namespace slam::surf_detail {
+namespace rgbdquad::surf::detail {
 namespace {
 
 // A lobe as flat offsets into the integral table relative to the filter's top-left corner.
@@ -237,4 +237,4 @@ std::vector<cv::KeyPoint> detect_keypoints(const IntegralImage& integral,
   return keypoints;
 }
 
-}  // namespace slam::surf_detail
+}  // namespace rgbdquad::surf::detail

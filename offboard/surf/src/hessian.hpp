@@ -8,7 +8,7 @@
 
 #include "integral_image.hpp"
 
-namespace slam::surf_detail {
+namespace rgbdquad::surf::detail {
 
 /// One lobe of a box filter: the half-open box [x0, x1) x [y0, y1) relative to the filter's
 /// top-left corner, with `weight` = sign / lobe area (so each lobe contributes its mean intensity,
@@ -81,4 +81,4 @@ struct DetectorParams {
 std::vector<cv::KeyPoint> detect_keypoints(const IntegralImage& integral,
                                            const DetectorParams& params);
 
-}  // namespace slam::surf_detail
+}  // namespace rgbdquad::surf::detail

@@ -5,7 +5,7 @@
 #include <cstddef>
 #include <opencv2/core.hpp>
 
-namespace slam::surf_detail {
+namespace rgbdquad::surf::detail {
 
 class IntegralImage {
  public:
@@ -34,4 +34,4 @@ class IntegralImage {
   int height_;
 };
 
-}  // namespace slam::surf_detail
+}  // namespace rgbdquad::surf::detail

@@ -1,6 +1,6 @@
 // The SURF cv::Feature2D: input checks, grey conversion, detection, orientation and
-// descriptors (see slam/surf.hpp and docs/surf.md).
-#include "slam/surf.hpp"
+// descriptors (see rgbdquad/surf/surf.hpp and docs/surf.md).
+#include "rgbdquad/surf/surf.hpp"
 
 #include <cmath>
 #include <opencv2/core/utility.hpp>
@@ -11,7 +11,7 @@
 #include "hessian.hpp"
 #include "integral_image.hpp"
 
-namespace slam {
+namespace rgbdquad::surf {
 namespace {
 
 /// Octaves beyond 8 would need filters of 9 * 2^8 = 2304 px, larger than any camera frame here.
@@ -39,9 +39,9 @@ class Surf final : public cv::Feature2D {
       if (want_descriptors) descriptors.release();
       return;
     }
-    const surf_detail::IntegralImage integral(gray);
+    const detail::IntegralImage integral(gray);
     if (!use_provided_keypoints) {
-      keypoints = surf_detail::detect_keypoints(
+      keypoints = detail::detect_keypoints(
           integral, {options_.octaves, options_.scales_per_octave, options_.hessian_threshold});
       if (!mask.empty()) {
         const cv::Mat m = mask.getMat();
@@ -70,7 +70,7 @@ class Surf final : public cv::Feature2D {
           kp.angle = 0.f;
           continue;
         }
-        const float angle = surf_detail::dominant_orientation_deg(integral, kp);
+        const float angle = detail::dominant_orientation_deg(integral, kp);
         if (angle < 0.f) {
           keep[static_cast<std::size_t>(i)] = 0;  // no gradient sample inside the image
         } else {
@@ -90,8 +90,8 @@ class Surf final : public cv::Feature2D {
     cv::Mat out = descriptors.getMat();
     cv::parallel_for_(cv::Range(0, static_cast<int>(keypoints.size())), [&](const cv::Range& r) {
       for (int i = r.start; i < r.end; ++i) {
-        surf_detail::compute_descriptor(integral, keypoints[static_cast<std::size_t>(i)],
-                                        options_.extended, out.ptr<float>(i));
+        detail::compute_descriptor(integral, keypoints[static_cast<std::size_t>(i)],
+                                   options_.extended, out.ptr<float>(i));
       }
     });
   }
@@ -158,4 +158,4 @@ cv::Ptr<cv::Feature2D> create_surf(const SurfOptions& options) {
   return cv::makePtr<Surf>(options);
 }
 
-}  // namespace slam
+}  // namespace rgbdquad::surf

@@ -8,7 +8,7 @@
 
 #include "hessian.hpp"
 
-namespace slam::surf_detail {
+namespace rgbdquad::surf::detail {
 namespace {
 
 cv::Mat random_image(int rows, int cols, int seed) {
@@ -145,4 +145,4 @@ TEST(HessianLayer, GivenBrightBlobWhenComputedThenDeterminantPeaksAtItsCentreWit
 }
 
 }  // namespace
-}  // namespace slam::surf_detail
+}  // namespace rgbdquad::surf::detail

@@ -9,7 +9,7 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
-namespace slam::surf_test {
+namespace rgbdquad::surf::testing {
 
 struct Warped {
   cv::Mat image;
@@ -131,4 +131,4 @@ inline InvarianceResult evaluate_invariance(cv::Feature2D& features, const cv::M
   return r;
 }
 
-}  // namespace slam::surf_test
+}  // namespace rgbdquad::surf::testing

@@ -8,10 +8,10 @@
 #include <gtest/gtest.h>
 
 #include "rgbd_pair.hpp"
-#include "slam/surf.hpp"
+#include "rgbdquad/surf/surf.hpp"
 #include "test_images.hpp"
 
-namespace slam {
+namespace rgbdquad::surf {
 namespace {
 
 /// Lowe's ratio test threshold used by the project's matcher.
@@ -23,7 +23,7 @@ struct InvarianceCase {
   const char* name;
   double angle_deg, scale;
   double min_precision;      ///< fraction of ratio-test matches within kTolPx
-  double min_repeatability;  ///< see surf_test::evaluate_invariance
+  double min_repeatability;  ///< see testing::evaluate_invariance
 };
 
 // measured (precision / repeatability): rot 30: 0.828 / 0.662; rot 90: 0.979 / 0.905;
@@ -42,10 +42,10 @@ class SurfInvariance : public ::testing::TestWithParam<InvarianceCase> {};
 
 TEST_P(SurfInvariance, GivenWarpedFrameThenMatchesAndDetectionsFollowTheTransform) {
   const auto& c = GetParam();
-  const cv::Mat gray = surf_test::load_gray(surf_test::kXyzFrame);
-  ASSERT_FALSE(gray.empty()) << surf_test::kXyzFrame;
+  const cv::Mat gray = testing::load_gray(testing::kXyzFrame);
+  ASSERT_FALSE(gray.empty()) << testing::kXyzFrame;
   auto surf = create_surf({});
-  const auto r = surf_test::evaluate_invariance(*surf, gray, c.angle_deg, c.scale, kRatio, kTolPx);
+  const auto r = testing::evaluate_invariance(*surf, gray, c.angle_deg, c.scale, kRatio, kTolPx);
   std::cout << "[ measured ] " << c.name << ": keypoints " << r.keypoints_original << " / "
             << r.keypoints_warped << ", matches " << r.matches << ", precision "
             << r.match_precision << ", repeatability " << r.repeatability << "\n";
@@ -65,14 +65,14 @@ INSTANTIATE_TEST_SUITE_P(RealFrame, SurfInvariance, ::testing::ValuesIn(kCases),
 TEST(SurfInvarianceUpright, GivenRotationThenUprightDescriptorsMatchFarWorse) {
   // The orientation assignment is what buys rotation invariance: U-SURF on the 90 deg case
   // must do clearly worse than oriented SURF (guards against an orientation that is ignored).
-  const cv::Mat gray = surf_test::load_gray(surf_test::kXyzFrame);
+  const cv::Mat gray = testing::load_gray(testing::kXyzFrame);
   ASSERT_FALSE(gray.empty());
   SurfOptions upright;
   upright.upright = true;
   auto oriented = create_surf({});
   auto fixed = create_surf(upright);
-  const auto a = surf_test::evaluate_invariance(*oriented, gray, 90, 1.0, kRatio, kTolPx);
-  const auto b = surf_test::evaluate_invariance(*fixed, gray, 90, 1.0, kRatio, kTolPx);
+  const auto a = testing::evaluate_invariance(*oriented, gray, 90, 1.0, kRatio, kTolPx);
+  const auto b = testing::evaluate_invariance(*fixed, gray, 90, 1.0, kRatio, kTolPx);
   EXPECT_GT(a.correct_matches, 3 * b.correct_matches);
 }
 
@@ -80,7 +80,7 @@ TEST(SurfRealMotion, GivenNearbyFr1XyzFramesThenMatchesAgreeWithGroundTruthMotio
   // GIVEN frame 0 and frames 1 and 5 (0.04 s, 0.17 s later) of tests/data/fr1_xyz_first30 with
   // depth and motion-capture poses.
   const auto frames =
-      surf_test::load_rgbd_sequence(std::string(SLAM_REPO_DIR) + "/tests/data/fr1_xyz_first30", 6);
+      testing::load_rgbd_sequence(std::string(SLAM_REPO_DIR) + "/tests/data/fr1_xyz_first30", 6);
   ASSERT_EQ(frames.size(), 6u) << "tests/data/fr1_xyz_first30 incomplete";
   auto surf = create_surf({});
   // Tolerance: PnP on the matches and the ground truth disagree by ~8 mm / 0.25 deg on this
@@ -89,7 +89,7 @@ TEST(SurfRealMotion, GivenNearbyFr1XyzFramesThenMatchesAgreeWithGroundTruthMotio
   // measured: 0-1: 579 of 588 consistent (0.985), 0-5: 585 of 594 (0.985); SIFT 0.928 / 0.935.
   for (std::size_t k : {1u, 5u}) {
     const auto r =
-        surf_test::evaluate_rgbd_pair(*surf, frames[0], frames[k], kRatio, kGroundTruthTolPx);
+        testing::evaluate_rgbd_pair(*surf, frames[0], frames[k], kRatio, kGroundTruthTolPx);
     std::cout << "[ measured ] frames 0-" << k << ": " << r.consistent << " of " << r.with_depth
               << " matches with depth consistent, median error " << r.median_error_px << " px\n";
     EXPECT_GE(r.with_depth, 400u);
@@ -99,4 +99,4 @@ TEST(SurfRealMotion, GivenNearbyFr1XyzFramesThenMatchesAgreeWithGroundTruthMotio
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::surf

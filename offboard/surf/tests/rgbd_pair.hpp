@@ -17,9 +17,9 @@
 #include <vector>
 
 #include "rgbdquad/camera/tum_cameras.hpp"
-#include "slam/eval/metrics.hpp"
+#include "rgbdquad/eval/metrics.hpp"
 
-namespace slam::surf_test {
+namespace rgbdquad::surf::testing {
 
 /// Freiburg 1 colour camera (protocol/camera/tum_cameras.json).
 struct Fr1Camera {
@@ -165,4 +165,4 @@ inline PairResult evaluate_rgbd_pair(cv::Feature2D& features, const RgbdFrame& a
   return r;
 }
 
-}  // namespace slam::surf_test
+}  // namespace rgbdquad::surf::testing

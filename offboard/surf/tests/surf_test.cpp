@@ -1,6 +1,6 @@
 // Tests of the SURF Feature2D: options, the cv::Feature2D contract, detections on a synthetic
 // blob with known position and scale, descriptor norm, determinism and bad input.
-#include "slam/surf.hpp"
+#include "rgbdquad/surf/surf.hpp"
 
 #include <gtest/gtest.h>
 
@@ -15,7 +15,7 @@
 #include "integral_image.hpp"
 #include "test_images.hpp"
 
-namespace slam {
+namespace rgbdquad::surf {
 namespace {
 
 TEST(SurfOptions, GivenDefaultsThenThesisParametersAndValid) {
@@ -89,7 +89,7 @@ TEST(SurfDetect, GivenOneBrightGaussianBlobThenOneKeypointAtItsCentreAndScale) {
   const cv::KeyPoint& kp = kps.front();
   EXPECT_NEAR(kp.pt.x, cx, 0.3);
   EXPECT_NEAR(kp.pt.y, cy, 0.3);
-  EXPECT_NEAR(surf_detail::keypoint_scale(kp), 0.7 * sigma, 0.15 * sigma);
+  EXPECT_NEAR(detail::keypoint_scale(kp), 0.7 * sigma, 0.15 * sigma);
   EXPECT_EQ(kp.class_id, -1);
   EXPECT_GT(kp.response, 550.f);
   for (const auto& k : kps) {  // anything else is far weaker (ring artefacts) or elsewhere
@@ -123,22 +123,22 @@ TEST(SurfDescribe, GivenHaarWaveletOnARampThenResponseIsSlopeTimesWaveletMoment)
   for (int r = 0; r < ramp.rows; ++r)
     for (int c = 0; c < ramp.cols; ++c)
       ramp.at<unsigned char>(r, c) = static_cast<unsigned char>(2 * c);
-  const surf_detail::IntegralImage ii(ramp);
+  const detail::IntegralImage ii(ramp);
   for (float x : {20.f, 20.25f, 20.5f, 31.7f}) {
     float dx = 0, dy = 0;
-    ASSERT_TRUE(surf_detail::haar_response(ii, x, 17.3f, 6, &dx, &dy));
+    ASSERT_TRUE(detail::haar_response(ii, x, 17.3f, 6, &dx, &dy));
     EXPECT_NEAR(dx, 2.0 * 3 * 18, 1e-3) << x;
     EXPECT_NEAR(dy, 0.0, 1e-3) << x;
   }
   float dx = 0, dy = 0;
-  EXPECT_FALSE(surf_detail::haar_response(ii, 1.f, 20.f, 6, &dx, &dy));  // leaves the image
+  EXPECT_FALSE(detail::haar_response(ii, 1.f, 20.f, 6, &dx, &dy));  // leaves the image
 }
 
 class SurfOnRealFrame : public ::testing::Test {
  protected:
   void SetUp() override {
-    gray_ = surf_test::load_gray(surf_test::kXyzFrame);
-    ASSERT_FALSE(gray_.empty()) << "missing " << surf_test::kXyzFrame;
+    gray_ = testing::load_gray(testing::kXyzFrame);
+    ASSERT_FALSE(gray_.empty()) << "missing " << testing::kXyzFrame;
   }
   cv::Mat gray_;
 };
@@ -203,7 +203,7 @@ TEST_F(SurfOnRealFrame, GivenDetectThenComputeThenSameAsDetectAndCompute) {
 }
 
 TEST_F(SurfOnRealFrame, GivenColourInputThenSameAsItsGreyConversion) {
-  const cv::Mat bgr = cv::imread(surf_test::kXyzFrame, cv::IMREAD_COLOR);
+  const cv::Mat bgr = cv::imread(testing::kXyzFrame, cv::IMREAD_COLOR);
   cv::Mat gray;
   cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
   auto surf = create_surf({});
@@ -271,4 +271,4 @@ TEST(SurfBadInput, GivenUnsupportedImagesThenCvExceptionNotCrash) {
 }
 
 }  // namespace
-}  // namespace slam
+}  // namespace rgbdquad::surf

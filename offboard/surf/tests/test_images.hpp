@@ -4,7 +4,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 
-namespace slam::surf_test {
+namespace rgbdquad::surf::testing {
 
 /// First RGB frame of fr1/xyz and the first of fr1/desk (640x480).
 inline const std::string kXyzFrame =
@@ -14,4 +14,4 @@ inline const std::string kDeskFrame =
 
 inline cv::Mat load_gray(const std::string& path) { return cv::imread(path, cv::IMREAD_GRAYSCALE); }
 
-}  // namespace slam::surf_test
+}  // namespace rgbdquad::surf::testing

@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-namespace slam::eval {
+namespace rgbdquad::eval {
 
 struct StampedPose {
   double stamp_s;
@@ -107,4 +107,4 @@ int run_score_command(const std::string& gt_path, const std::string& est_path, d
 /// Rotation angle of R in degrees, in [0, 180] (robust near 0 and 180).
 double rotation_angle_deg(const Eigen::Matrix3d& R);
 
-}  // namespace slam::eval
+}  // namespace rgbdquad::eval

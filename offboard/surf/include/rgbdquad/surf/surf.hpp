@@ -23,7 +23,7 @@
 #include <ostream>
 #include <string>
 
-namespace slam {
+namespace rgbdquad::surf {
 
 struct SurfOptions {
   /// Number of octaves; each doubles the filter sizes and the sampling step. 4 = thesis.
@@ -52,4 +52,4 @@ std::ostream& operator<<(std::ostream& out, const SurfOptions& options);
 /// are not 8-bit with 1, 3 (BGR) or 4 (BGRA) channels.
 cv::Ptr<cv::Feature2D> create_surf(const SurfOptions& options);
 
-}  // namespace slam
+}  // namespace rgbdquad::surf
