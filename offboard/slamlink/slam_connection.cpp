@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <limits>
 
-namespace rgbdquad::slam {
+namespace rgbdquad::slamlink {
 
 namespace proto = rgbdquad::protocol;
 
@@ -107,7 +107,7 @@ std::optional<std::string> SlamConnection::process(SessionRegistry& registry, st
     const auto* frame = std::get_if<proto::RgbdFrame>(&*r.message);
     if (!frame) {
       cause = "unexpected " + std::string(proto::to_string(proto::message_type(*r.message))) +
-              " from a client (slam-server takes SlamHello and RgbdFrame only)";
+              " from a client (slam-server takes SlamHello and slam::RgbdFrame only)";
       break;
     }
     SlamLinkSession* session = session_id_ ? registry.session_of(id_) : nullptr;
@@ -167,4 +167,4 @@ std::string SlamConnection::summary() const {
   return s;
 }
 
-}  // namespace rgbdquad::slam
+}  // namespace rgbdquad::slamlink

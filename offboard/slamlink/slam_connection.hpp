@@ -25,7 +25,7 @@
 #include "rgbdquad/protocol/codec.hpp"
 #include "slam_sessions.hpp"
 
-namespace rgbdquad::slam {
+namespace rgbdquad::slamlink {
 
 struct ConnectionOptions {
   std::int64_t hello_timeout_ms = 5000;  ///< quad-control sends its hello at once
@@ -82,4 +82,4 @@ class SlamConnection {
   std::size_t faults_logged_ = 0;  ///< frames answered LOST for a fault or with a repaired pose
 };
 
-}  // namespace rgbdquad::slam
+}  // namespace rgbdquad::slamlink

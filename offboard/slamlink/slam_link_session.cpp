@@ -9,7 +9,7 @@
 
 #include "rgbdquad/protocol/codec.hpp"
 
-namespace rgbdquad::slam {
+namespace rgbdquad::slamlink {
 
 namespace proto = rgbdquad::protocol;
 
@@ -18,13 +18,13 @@ namespace {
 // (scaled or sheared), which re-normalising would hide.
 constexpr double kMaxQuaternionNormError = 1e-3;
 
-proto::TrackingState to_wire(TrackingState s) {
+proto::TrackingState to_wire(slam::TrackingState s) {
   switch (s) {
-    case TrackingState::kInitialising:
+    case slam::TrackingState::kInitialising:
       return proto::TrackingState::kInitializing;
-    case TrackingState::kTracking:
+    case slam::TrackingState::kTracking:
       return proto::TrackingState::kTracking;
-    case TrackingState::kLost:
+    case slam::TrackingState::kLost:
       return proto::TrackingState::kLost;
   }
   return proto::TrackingState::kLost;
@@ -56,14 +56,15 @@ std::optional<proto::Pose3> pose_to_wire(const Eigen::Isometry3d& T) {
   return p;
 }
 
-SlamLinkSession::SlamLinkSession(PipelineOptions options, SessionMapFiles map_files,
+SlamLinkSession::SlamLinkSession(slam::PipelineOptions options, SessionMapFiles map_files,
                                  PipelineFactory factory)
     : options_(std::move(options)), map_files_(std::move(map_files)), factory_(std::move(factory)) {
   // Tracking answers each frame on the caller's thread; local mapping runs on its own thread.
-  options_.mode = PipelineMode::kLive;
+  options_.mode = slam::PipelineMode::kLive;
 }
 
-std::optional<RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame& m, std::string* error) {
+std::optional<slam::RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame& m,
+                                                         std::string* error) {
   const auto& rh = m.rgb.header;
   const auto& dh = m.depth.header;
   if (rh.encoding != proto::Encoding::kRaw || dh.encoding != proto::Encoding::kRaw) {
@@ -81,7 +82,7 @@ std::optional<RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame& m, st
     if (error) *error = "slam-link: payload size does not match width x height";
     return std::nullopt;
   }
-  RgbdFrame f;
+  slam::RgbdFrame f;
   f.index = static_cast<std::int64_t>(frames_);
   f.stamp_s = static_cast<double>(dh.capture_timestamp_us) * 1e-6;
   if (m.attitude.valid) {  // the codec has checked it is a unit quaternion
@@ -89,10 +90,11 @@ std::optional<RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame& m, st
     f.q_nav_cam = Eigen::Quaterniond(q[3], q[0], q[1], q[2]);
   }
   // The sample belongs to the colour image: the gate judges it at the colour stamp.
-  std::optional<AccelSample> accel;
+  std::optional<slam::AccelSample> accel;
   if (m.accel.valid)
-    accel = AccelSample{static_cast<double>(m.accel.capture_timestamp_us) * 1e-6,
-                        Eigen::Vector3d(m.accel.f_mps2[0], m.accel.f_mps2[1], m.accel.f_mps2[2])};
+    accel =
+        slam::AccelSample{static_cast<double>(m.accel.capture_timestamp_us) * 1e-6,
+                          Eigen::Vector3d(m.accel.f_mps2[0], m.accel.f_mps2[1], m.accel.f_mps2[2])};
   accel_gate_.attach(static_cast<double>(rh.capture_timestamp_us) * 1e-6, accel, &f);
   cv::Mat rgb(rh.height, rh.width, CV_8UC3, const_cast<std::uint8_t*>(m.rgb.payload.data()));
   cv::cvtColor(rgb, f.rgb, cv::COLOR_RGB2BGR);  // copies
@@ -122,8 +124,8 @@ proto::PoseUpdate SlamLinkSession::lost_update(const proto::RgbdFrame& frame, st
 
 namespace {
 
-Intrinsics intrinsics_of(const proto::RgbdFrame& frame) {
-  Intrinsics k;
+slam::Intrinsics intrinsics_of(const proto::RgbdFrame& frame) {
+  slam::Intrinsics k;
   k.fx_px = frame.intrinsics.fx_px;
   k.fy_px = frame.intrinsics.fy_px;
   k.cx_px = frame.intrinsics.cx_px;
@@ -133,12 +135,12 @@ Intrinsics intrinsics_of(const proto::RgbdFrame& frame) {
   return k;
 }
 
-bool same_camera(const Intrinsics& a, const Intrinsics& b) {
+bool same_camera(const slam::Intrinsics& a, const slam::Intrinsics& b) {
   return a.fx_px == b.fx_px && a.fy_px == b.fy_px && a.cx_px == b.cx_px && a.cy_px == b.cy_px &&
          a.distortion == b.distortion && a.depth_units_per_m == b.depth_units_per_m;
 }
 
-std::string describe(const Intrinsics& k) {
+std::string describe(const slam::Intrinsics& k) {
   std::ostringstream m;
   m << "fx " << k.fx_px << " fy " << k.fy_px << " cx " << k.cx_px << " cy " << k.cy_px
     << " px, depth " << k.depth_units_per_m << " units/m";
@@ -149,10 +151,10 @@ std::string describe(const Intrinsics& k) {
 
 proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::string* error) {
   if (error) error->clear();
-  const Intrinsics k = intrinsics_of(frame);
+  const slam::Intrinsics k = intrinsics_of(frame);
   if (!pipeline_) {
     std::string err;
-    PipelineOptions options = options_;
+    slam::PipelineOptions options = options_;
     options.checkpoint_path = map_files_.checkpoint_path;
     pipeline_ = factory_(options, k, &err);
     if (!pipeline_)
@@ -232,7 +234,7 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
   u.inlier_count = static_cast<std::uint32_t>(rec->inliers);
   u.map_correction_count = static_cast<std::uint32_t>(rec->map_corrections);
   map_corrections_ = u.map_correction_count;
-  if (rec->state == TrackingState::kTracking) last_good_ = *T_world_cam;
+  if (rec->state == slam::TrackingState::kTracking) last_good_ = *T_world_cam;
   if (!raw_refusal.empty()) {
     ++repaired_;
     if (error) {
@@ -254,10 +256,11 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
 std::string SlamLinkSession::finish_summary() {
   std::ostringstream m;
   m << frames_ << " frames (" << faulted_ << " answered LOST for a fault)";
-  const AccelCounts& a = accel_gate_.counts();
+  const slam::AccelCounts& a = accel_gate_.counts();
   m << "; accelerometer: " << a.accepted() << " samples used, " << a.ignored() << " ignored (";
-  for (std::size_t v = 1; v < kAccelVerdictCount; ++v)
-    m << (v > 1 ? ", " : "") << to_string(static_cast<AccelVerdict>(v)) << " " << a.by_verdict[v];
+  for (std::size_t v = 1; v < slam::kAccelVerdictCount; ++v)
+    m << (v > 1 ? ", " : "") << to_string(static_cast<slam::AccelVerdict>(v)) << " "
+      << a.by_verdict[v];
   m << ")";
   if (pipeline_) {
     pipeline_->finish();
@@ -291,4 +294,4 @@ std::string SlamLinkSession::finish_summary() {
   return m.str();
 }
 
-}  // namespace rgbdquad::slam
+}  // namespace rgbdquad::slamlink

@@ -28,7 +28,7 @@
 #include "slam/motion/accel_gate.hpp"
 #include "slam/pipeline/pipeline.hpp"
 
-namespace rgbdquad::slam {
+namespace rgbdquad::slamlink {
 
 /// `T` on the wire: translation in metres, unit quaternion (x, y, z, w) re-normalised and each
 /// component clamped to [-1, 1] (a rotation matrix that is orthonormal only to rounding can give
@@ -62,13 +62,13 @@ class SessionPipeline {
  public:
   virtual ~SessionPipeline() = default;
   /// Tracks `frame` (kLive: its record is final when this returns). May throw on a bad frame.
-  virtual void submit(RgbdFrame frame) = 0;
-  virtual std::optional<FrameRecord> record(std::int64_t index) const = 0;
+  virtual void submit(slam::RgbdFrame frame) = 0;
+  virtual std::optional<slam::FrameRecord> record(std::int64_t index) const = 0;
   virtual bool load_map(const std::string& path, std::string* error) = 0;
   virtual bool save_map(const std::string& path, std::string* error) const = 0;
   /// Drains and joins the pipeline's threads. Idempotent.
   virtual void finish() = 0;
-  virtual PipelineSummary summary() const = 0;
+  virtual slam::PipelineSummary summary() const = 0;
   /// Before the first frame: starts the run tables in `dir` (exists). frames.csv then grows row by
   /// row as the pipeline retires records, so that a flight's memory does not grow per frame.
   /// False with `error` when the table cannot be created.
@@ -81,7 +81,7 @@ class SessionPipeline {
 /// Starts a pipeline for the camera a client's first frame describes; null with `error` when the
 /// options or the intrinsics are refused.
 using PipelineFactory = std::function<std::unique_ptr<SessionPipeline>(
-    const PipelineOptions& options, const Intrinsics& intrinsics, std::string* error)>;
+    const slam::PipelineOptions& options, const slam::Intrinsics& intrinsics, std::string* error)>;
 
 /// The real SLAM pipeline (Pipeline::create) behind SessionPipeline.
 PipelineFactory live_pipeline_factory();
@@ -89,7 +89,7 @@ PipelineFactory live_pipeline_factory();
 class SlamLinkSession {
  public:
   /// `options.mode` is forced to kLive (one reply per frame, computed on the caller's thread).
-  explicit SlamLinkSession(PipelineOptions options, SessionMapFiles map_files = {},
+  explicit SlamLinkSession(slam::PipelineOptions options, SessionMapFiles map_files = {},
                            PipelineFactory factory = live_pipeline_factory());
 
   /// Handles one RgbdFrame; always returns its PoseUpdate (see the file comment). `error` is set
@@ -104,7 +104,7 @@ class SlamLinkSession {
   /// Poses the codec refused as computed and that were re-normalised (see pose_to_wire).
   std::size_t poses_repaired() const { return repaired_; }
   /// Accelerometer samples of the frames so far, per gate verdict (used, and ignored per reason).
-  const AccelCounts& accel_counts() const { return accel_gate_.counts(); }
+  const slam::AccelCounts& accel_counts() const { return accel_gate_.counts(); }
   /// The pipeline (null before the first frame); finish() it before reading results.
   SessionPipeline* pipeline() { return pipeline_.get(); }
   /// One line for the log: frames, keyframes, loop closures (finishes the pipeline).
@@ -112,11 +112,12 @@ class SlamLinkSession {
 
  private:
   /// The SLAM frame of a wire frame; its accelerometer sample goes through the session's gate.
-  std::optional<RgbdFrame> to_frame(const rgbdquad::protocol::RgbdFrame& m, std::string* error);
+  std::optional<slam::RgbdFrame> to_frame(const rgbdquad::protocol::RgbdFrame& m,
+                                          std::string* error);
   rgbdquad::protocol::PoseUpdate lost_update(const rgbdquad::protocol::RgbdFrame& frame,
                                              std::string reason, std::string* error);
 
-  PipelineOptions options_;
+  slam::PipelineOptions options_;
   SessionMapFiles map_files_;
   std::string
       map_load_error_;        ///< why the configured map could not be loaded ("" = loaded or none)
@@ -124,14 +125,15 @@ class SlamLinkSession {
   std::string resume_error_;  ///< why the checkpoint to resume could not be loaded ("" = loaded)
   PipelineFactory factory_;
   std::unique_ptr<SessionPipeline> pipeline_;
-  Intrinsics intrinsics_;  ///< what the pipeline was created with (the session's first frame)
+  slam::Intrinsics intrinsics_;  ///< what the pipeline was created with (the session's first frame)
   std::size_t frames_ = 0;
   std::size_t faulted_ = 0;
   std::size_t repaired_ = 0;
-  AccelGate accel_gate_;  ///< the frames' accelerometer samples, rotated into the camera frame
+  slam::AccelGate
+      accel_gate_;  ///< the frames' accelerometer samples, rotated into the camera frame
   rgbdquad::protocol::Pose3 last_good_;  ///< last pose sent while tracking (identity at start)
   std::uint32_t map_corrections_ =
       0;  ///< newest map-correction count sent (LOST answers repeat it)
 };
 
-}  // namespace rgbdquad::slam
+}  // namespace rgbdquad::slamlink

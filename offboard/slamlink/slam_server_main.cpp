@@ -32,6 +32,7 @@
 #include "slam_sessions.hpp"
 
 namespace slam = rgbdquad::slam;
+namespace slamlink = rgbdquad::slamlink;
 
 namespace {
 
@@ -53,15 +54,15 @@ void log_line(const std::string& s) { std::cerr << "slam-server: " << s << std::
 
 struct Client {
   int fd = -1;
-  std::unique_ptr<slam::SlamConnection> conn;
+  std::unique_ptr<slamlink::SlamConnection> conn;
   bool closing_after_flush = false;
   std::string close_cause;
 };
 
 class Server {
  public:
-  Server(int listen_fd, int sig_fd, std::size_t max_clients, slam::ConnectionOptions copt,
-         slam::SessionRegistry registry)
+  Server(int listen_fd, int sig_fd, std::size_t max_clients, slamlink::ConnectionOptions copt,
+         slamlink::SessionRegistry registry)
       : lfd_(listen_fd),
         sigfd_(sig_fd),
         max_clients_(max_clients),
@@ -196,7 +197,7 @@ class Server {
     log_line("client #" + std::to_string(id) + " connected from " + peer);
     Client c;
     c.fd = fd;
-    c.conn = std::make_unique<slam::SlamConnection>(id, peer, copt_, t);
+    c.conn = std::make_unique<slamlink::SlamConnection>(id, peer, copt_, t);
     clients_.emplace(id, std::move(c));
   }
 
@@ -244,8 +245,8 @@ class Server {
   int lfd_;
   int sigfd_;
   std::size_t max_clients_;
-  slam::ConnectionOptions copt_;
-  slam::SessionRegistry registry_;
+  slamlink::ConnectionOptions copt_;
+  slamlink::SessionRegistry registry_;
   std::map<int, Client> clients_;
   int next_id_ = 1;
 };
@@ -273,8 +274,8 @@ struct ServerArgs {
   std::string load_map, save_map, tables_dir;
   int port = 5700;
   std::size_t max_clients = 4;
-  slam::ConnectionOptions copt;
-  slam::SessionRegistryOptions ropt;
+  slamlink::ConnectionOptions copt;
+  slamlink::SessionRegistryOptions ropt;
   double checkpoint_period_s = slam::PipelineOptions{}.checkpoint_period_s;
   std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off";
   std::string restart_when_lost = slam::TrackerOptions{}.restart_when_lost ? "on" : "off";
@@ -436,12 +437,12 @@ int open_listener(const ServerArgs& a, int* exit_code) {
 }
 
 /// The sessions: each new one gets its own SLAM pipeline and map files.
-slam::SessionRegistry make_registry(const ServerArgs& a, const slam::PipelineOptions& options) {
-  return slam::SessionRegistry(
+slamlink::SessionRegistry make_registry(const ServerArgs& a, const slam::PipelineOptions& options) {
+  return slamlink::SessionRegistry(
       a.ropt,
       [options, load_map = a.load_map, save_map = a.save_map, tables_dir = a.tables_dir,
-       sessions = std::make_shared<int>(0)](const slam::SessionStart& start) {
-        slam::SessionMapFiles files;
+       sessions = std::make_shared<int>(0)](const slamlink::SessionStart& start) {
+        slamlink::SessionMapFiles files;
         files.load_path = load_map;
         files.save_path = save_map;
         files.checkpoint_path = start.checkpoint_path;
@@ -449,7 +450,7 @@ slam::SessionRegistry make_registry(const ServerArgs& a, const slam::PipelineOpt
         ++*sessions;
         if (!tables_dir.empty())
           files.tables_dir = tables_dir + "/session-" + std::to_string(*sessions);
-        return std::make_unique<slam::SlamLinkSession>(options, files);
+        return std::make_unique<slamlink::SlamLinkSession>(options, files);
       },
       [](const std::string& path, std::string* why) { return slam::check_map_file(path, why); });
 }

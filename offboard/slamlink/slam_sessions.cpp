@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 
-namespace rgbdquad::slam {
+namespace rgbdquad::slamlink {
 
 namespace {
 // Ids the registry gives itself (client asked with 0): a fixed prefix in the top bits keeps them
@@ -176,4 +176,4 @@ SlamLinkSession* SessionRegistry::session_of(int connection) {
   return nullptr;
 }
 
-}  // namespace rgbdquad::slam
+}  // namespace rgbdquad::slamlink

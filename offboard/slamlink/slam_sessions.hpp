@@ -25,7 +25,7 @@
 
 #include "slam_link_session.hpp"
 
-namespace rgbdquad::slam {
+namespace rgbdquad::slamlink {
 
 struct SessionRegistryOptions {
   /// How long a map waits for its client to come back: longer than quad-control's reply timeout
@@ -104,4 +104,4 @@ class SessionRegistry {
   std::uint64_t next_own_id_ = 1;  ///< ids for clients that ask with 0 (high bit set, see .cpp)
 };
 
-}  // namespace rgbdquad::slam
+}  // namespace rgbdquad::slamlink

@@ -41,6 +41,7 @@
 #include "slam_sessions.hpp"
 
 namespace slam = rgbdquad::slam;
+namespace slamlink = rgbdquad::slamlink;
 
 namespace {
 
@@ -63,7 +64,7 @@ struct Verdict {
 };
 
 /// The script of the fake pipeline: the fuzzer's bytes decide each verdict.
-class FakePipeline final : public slam::SessionPipeline {
+class FakePipeline final : public slamlink::SessionPipeline {
  public:
   FakePipeline(FuzzedDataProvider& in, std::map<std::uint32_t, Verdict>* verdicts)
       : in_(in), verdicts_(verdicts) {}
@@ -190,7 +191,7 @@ bool same_rotation(const Eigen::Quaterniond& a, const std::array<double, 4>& b_x
 }
 
 struct Client {
-  std::unique_ptr<slam::SlamConnection> conn;
+  std::unique_ptr<slamlink::SlamConnection> conn;
   std::deque<std::uint32_t> frames_sent;  ///< pair sequences of well-formed frames, in order
   proto::StreamDecoder replies;
   std::size_t updates = 0;
@@ -303,9 +304,9 @@ void take_output(Client& c, std::int64_t now_ms, const std::map<std::uint32_t, V
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   FuzzedDataProvider in(data, size);
   std::map<std::uint32_t, Verdict> verdicts;
-  slam::PipelineFactory factory =
+  slamlink::PipelineFactory factory =
       [&](const slam::PipelineOptions&, const slam::Intrinsics& k,
-          std::string* error) -> std::unique_ptr<slam::SessionPipeline> {
+          std::string* error) -> std::unique_ptr<slamlink::SessionPipeline> {
     if (!k.is_valid(error)) return nullptr;  // as Pipeline::create (FeatureExtractor::create)
     if (in.ConsumeIntegralInRange<int>(0, 15) == 0) {
       if (error) *error = "fake: refused";
@@ -313,14 +314,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     }
     return std::make_unique<FakePipeline>(in, &verdicts);
   };
-  slam::SessionRegistryOptions ropt;
+  slamlink::SessionRegistryOptions ropt;
   ropt.max_sessions = 2;
   ropt.resume_grace_ms = 3000;
-  slam::SessionRegistry registry(ropt, [&](const slam::SessionStart&) {
-    return std::make_unique<slam::SlamLinkSession>(slam::PipelineOptions{}, slam::SessionMapFiles{},
-                                                   factory);
+  slamlink::SessionRegistry registry(ropt, [&](const slamlink::SessionStart&) {
+    return std::make_unique<slamlink::SlamLinkSession>(slam::PipelineOptions{},
+                                                       slamlink::SessionMapFiles{}, factory);
   });
-  slam::ConnectionOptions copt;
+  slamlink::ConnectionOptions copt;
   copt.hello_timeout_ms = 500;
   copt.idle_timeout_ms = 2000;
   copt.message_timeout_ms = 1000;
@@ -331,7 +332,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   Client clients[kConnections];
   int next_id = 1;
   for (Client& c : clients)
-    c.conn = std::make_unique<slam::SlamConnection>(next_id++, "peer", copt, now_ms);
+    c.conn = std::make_unique<slamlink::SlamConnection>(next_id++, "peer", copt, now_ms);
 
   for (int step = 0; step < kMaxSteps && in.remaining_bytes() > 0; ++step) {
     Client& c = clients[in.ConsumeIntegralInRange<int>(0, kConnections - 1)];
@@ -383,13 +384,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           if (o.conn->id() == id) {  // closed by the server loop: a new connection takes its place
             registry.detach(id, now_ms);
             o = Client{};
-            o.conn = std::make_unique<slam::SlamConnection>(next_id++, "peer", copt, now_ms);
+            o.conn = std::make_unique<slamlink::SlamConnection>(next_id++, "peer", copt, now_ms);
           }
       if (cause) {
         require(!cause->empty());
         registry.detach(c.conn->id(), now_ms);
         c = Client{};
-        c.conn = std::make_unique<slam::SlamConnection>(next_id++, "peer", copt, now_ms);
+        c.conn = std::make_unique<slamlink::SlamConnection>(next_id++, "peer", copt, now_ms);
         break;
       }
     }
@@ -399,7 +400,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       if (late) {
         registry.detach(o.conn->id(), now_ms);
         o = Client{};
-        o.conn = std::make_unique<slam::SlamConnection>(next_id++, "peer", copt, now_ms);
+        o.conn = std::make_unique<slamlink::SlamConnection>(next_id++, "peer", copt, now_ms);
       }
     }
     registry.expire(now_ms);

@@ -16,13 +16,13 @@
 #include "rgbdquad/protocol/codec.hpp"
 #include "slam/dataset/tum_dataset.hpp"
 
-namespace rgbdquad::slam {
+namespace rgbdquad::slamlink {
 namespace {
 
 namespace proto = rgbdquad::protocol;
 const std::string kExcerpt = std::string(SLAM_REPO_DIR) + "/tests/data/fr1_xyz_first30";
 
-proto::RgbdFrame to_wire(const RgbdFrame& f, std::uint32_t seq) {
+proto::RgbdFrame to_wire(const slam::RgbdFrame& f, std::uint32_t seq) {
   proto::RgbdFrame m;
   m.pair_sequence = seq;
   const rgbdquad::camera::TumCamera& fr1 = rgbdquad::camera::kTumFr1;
@@ -70,16 +70,16 @@ proto::PoseUpdate roundtrip(SlamLinkSession* s, const proto::RgbdFrame& m, std::
   return s->on_frame(f ? *f : m, err);
 }
 
-PipelineOptions orb_options() {
-  PipelineOptions o;
-  o.frontend.features.kind = DetectorKind::kOrb;
+slam::PipelineOptions orb_options() {
+  slam::PipelineOptions o;
+  o.frontend.features.kind = slam::DetectorKind::kOrb;
   return o;
 }
 
 TEST(SlamLinkSession, GivenFramesWhenProcessedThenOnePoseUpdatePerFrame) {
   SlamLinkSession s(orb_options());
   std::string err;
-  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  auto ds = slam::TumDataset::open(kExcerpt, slam::TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
   for (std::uint32_t i = 0; i < 5; ++i) {
     auto f = ds->load(i, &err);
@@ -99,11 +99,12 @@ TEST(SlamLinkSession, GivenFramesWhenProcessedThenOnePoseUpdatePerFrame) {
 }
 
 TEST(SlamLinkSession, GivenFramesWithAnImuAttitudeThenTheTrackerPredictsRotationFromIt) {
-  PipelineOptions options = orb_options();
-  options.backend.kind = BackendKind::kLocalMap;  // slam-server's default, the system that flies
+  slam::PipelineOptions options = orb_options();
+  options.backend.kind =
+      slam::BackendKind::kLocalMap;  // slam-server's default, the system that flies
   SlamLinkSession s(options);
   std::string err;
-  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  auto ds = slam::TumDataset::open(kExcerpt, slam::TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
   // GIVEN frames 0, 1 and 3 with an attitude (fr1_xyz barely rotates: a constant one), 2 without
   for (std::uint32_t i = 0; i < 4; ++i) {
@@ -119,17 +120,18 @@ TEST(SlamLinkSession, GivenFramesWithAnImuAttitudeThenTheTrackerPredictsRotation
     const auto rec = s.pipeline()->record(i);
     ASSERT_TRUE(rec) << i;
     EXPECT_EQ(rec->attitude_predicted, i == 1) << i;
-    EXPECT_EQ(rec->state, TrackingState::kTracking) << i;  // the first frame is the first keyframe
+    EXPECT_EQ(rec->state, slam::TrackingState::kTracking)
+        << i;  // the first frame is the first keyframe
   }
 }
 
 TEST(SlamLinkSession, GivenMapFilesThenASessionSavesItsMapAndTheNextStartsInIt) {
-  PipelineOptions o;
-  o.frontend.features.kind = DetectorKind::kOrb;
-  o.backend.kind = BackendKind::kLocalMap;
+  slam::PipelineOptions o;
+  o.frontend.features.kind = slam::DetectorKind::kOrb;
+  o.backend.kind = slam::BackendKind::kLocalMap;
   const std::string map_path = ::testing::TempDir() + "/session.map";
   std::string err;
-  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  auto ds = slam::TumDataset::open(kExcerpt, slam::TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
   {
     // GIVEN a session that saves its map
@@ -154,13 +156,13 @@ TEST(SlamLinkSession, GivenMapFilesThenASessionSavesItsMapAndTheNextStartsInIt) 
 }
 
 TEST(SlamLinkSession, GivenACheckpointWrittenWhileRunningThenARestartResumesTheSameWorldFrame) {
-  PipelineOptions o = orb_options();
-  o.backend.kind = BackendKind::kLocalMap;
+  slam::PipelineOptions o = orb_options();
+  o.backend.kind = slam::BackendKind::kLocalMap;
   o.checkpoint_period_s = 0;  // after every mapped keyframe
   const std::string path = ::testing::TempDir() + "/session-checkpoint.map";
   std::filesystem::remove(path);
   std::string err;
-  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  auto ds = slam::TumDataset::open(kExcerpt, slam::TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
   proto::PoseUpdate before;
   {
@@ -208,7 +210,7 @@ TEST(SlamLinkSession, GivenATablesFolderThenTheEndedSessionWritesOneFrameRowPerF
   std::filesystem::remove_all(dir);
   SlamLinkSession s(orb_options(), SessionMapFiles{"", "", dir, "", false});
   std::string err;
-  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  auto ds = slam::TumDataset::open(kExcerpt, slam::TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
   // WHEN it tracks the 30 frames, then 10 more (the first 10 again, at later indices: more than
   // the second of records a session holds, so that the oldest rows are streamed during the flight)
@@ -243,9 +245,9 @@ TEST(SlamLinkSession, GivenATablesFolderThenTheEndedSessionWritesOneFrameRowPerF
 }
 
 TEST(SlamLinkSession, GivenUnusableFramesThenEachStillGetsALostPoseUpdateWithAReason) {
-  SlamLinkSession s(PipelineOptions{});
+  SlamLinkSession s(slam::PipelineOptions{});
   std::string err;
-  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  auto ds = slam::TumDataset::open(kExcerpt, slam::TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds);
   auto f = ds->load(0, &err);
   ASSERT_TRUE(f);
@@ -278,47 +280,47 @@ TEST(SlamLinkSession, GivenUnusableFramesThenEachStillGetsALostPoseUpdateWithARe
 // compared with what the pipeline said.
 class ScriptedPipeline : public SessionPipeline {
  public:
-  explicit ScriptedPipeline(std::map<std::int64_t, FrameRecord> script)
+  explicit ScriptedPipeline(std::map<std::int64_t, slam::FrameRecord> script)
       : script_(std::move(script)) {}
-  void submit(RgbdFrame) override {}
-  std::optional<FrameRecord> record(std::int64_t index) const override {
+  void submit(slam::RgbdFrame) override {}
+  std::optional<slam::FrameRecord> record(std::int64_t index) const override {
     const auto it = script_.find(index);
-    return it == script_.end() ? std::nullopt : std::optional<FrameRecord>(it->second);
+    return it == script_.end() ? std::nullopt : std::optional<slam::FrameRecord>(it->second);
   }
   bool load_map(const std::string&, std::string*) override { return true; }
   bool save_map(const std::string&, std::string*) const override { return true; }
   void finish() override {}
-  PipelineSummary summary() const override { return {}; }
+  slam::PipelineSummary summary() const override { return {}; }
   bool start_tables(const std::string&, std::string*) override { return true; }
   bool finish_tables(std::string*) override { return true; }
 
  private:
-  std::map<std::int64_t, FrameRecord> script_;
+  std::map<std::int64_t, slam::FrameRecord> script_;
 };
 
 TEST(SlamLinkSession,
      GivenLoopCorrectionsThenEachPoseUpdateDeclaresTheCountItsPoseIsExpressedAfter) {
   // GIVEN a pipeline that tracks frames 0-2 and 4, whose map is corrected before frame 2, and that
   // rejects frame 3
-  std::map<std::int64_t, FrameRecord> script;
+  std::map<std::int64_t, slam::FrameRecord> script;
   for (std::int64_t i = 0; i < 5; ++i) {
-    FrameRecord r;
+    slam::FrameRecord r;
     r.index = i;
     r.ok = i != 3;
     r.error = r.ok ? "" : "scripted rejection";
-    r.state = TrackingState::kTracking;
+    r.state = slam::TrackingState::kTracking;
     r.inliers = 80;
     r.map_corrections = i >= 2 ? 1 : 0;
     r.T_world_cam.translation() =
         Eigen::Vector3d(0.1 * static_cast<double>(i), 0, i >= 2 ? 0.7 : 0.0);
     script[i] = r;
   }
-  auto factory = [&script](const PipelineOptions&, const Intrinsics&, std::string*) {
+  auto factory = [&script](const slam::PipelineOptions&, const slam::Intrinsics&, std::string*) {
     return std::unique_ptr<SessionPipeline>(new ScriptedPipeline(script));
   };
   SlamLinkSession s(orb_options(), {}, factory);
   std::string err;
-  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  auto ds = slam::TumDataset::open(kExcerpt, slam::TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
   auto f = ds->load(0, &err);
   ASSERT_TRUE(f) << err;
@@ -349,7 +351,7 @@ TEST(SlamLinkSession,
 TEST(SlamLinkSession, GivenAFrameFromAnotherCameraMidSessionThenItIsRefusedWithBothCalibrations) {
   SlamLinkSession s(orb_options());
   std::string err;
-  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  auto ds = slam::TumDataset::open(kExcerpt, slam::TumDatasetOptions{}, &err);
   ASSERT_TRUE(ds) << err;
   // GIVEN a session whose map was started with the fr1 camera
   for (std::uint32_t i = 0; i < 3; ++i) roundtrip(&s, to_wire(*ds->load(i, &err), i), &err);
@@ -419,4 +421,4 @@ TEST(PoseToWire, GivenNoRotationOrNonFiniteValuesThenRefused) {
 }
 
 }  // namespace
-}  // namespace rgbdquad::slam
+}  // namespace rgbdquad::slamlink

@@ -12,7 +12,7 @@
 #include "slam_connection.hpp"
 #include "slam_sessions.hpp"
 
-namespace rgbdquad::slam {
+namespace rgbdquad::slamlink {
 namespace {
 
 namespace proto = rgbdquad::protocol;
@@ -21,8 +21,9 @@ SessionRegistry make_registry(std::int64_t grace_ms = 1000, std::size_t max_sess
   SessionRegistryOptions o;
   o.resume_grace_ms = grace_ms;
   o.max_sessions = max_sessions;
-  return SessionRegistry(
-      o, [](const SessionStart&) { return std::make_unique<SlamLinkSession>(PipelineOptions{}); });
+  return SessionRegistry(o, [](const SessionStart&) {
+    return std::make_unique<SlamLinkSession>(slam::PipelineOptions{});
+  });
 }
 
 std::vector<std::uint8_t> hello_bytes(std::uint64_t session_id,
@@ -72,14 +73,14 @@ TEST(SessionRegistry, GivenACheckpointOfTheAskedIdThenARestartedServerResumesItE
       o,
       [&starts](const SessionStart& s) {
         starts.push_back(s);
-        return std::make_unique<SlamLinkSession>(PipelineOptions{});
+        return std::make_unique<SlamLinkSession>(slam::PipelineOptions{});
       },
-      [](const std::string& path, std::string* why) { return check_map_file(path, why); });
+      [](const std::string& path, std::string* why) { return slam::check_map_file(path, why); });
   std::string err;
-  FeatureOptions orb;
-  orb.kind = DetectorKind::kOrb;
-  ASSERT_TRUE(
-      save_map(reg.checkpoint_path(42), SlamMap{}, MapFileContext{CameraModel{}, orb}, &err, 3))
+  slam::FeatureOptions orb;
+  orb.kind = slam::DetectorKind::kOrb;
+  ASSERT_TRUE(save_map(reg.checkpoint_path(42), slam::SlamMap{},
+                       slam::MapFileContext{slam::CameraModel{}, orb}, &err, 3))
       << err;
   { std::ofstream(reg.checkpoint_path(43)) << "half a map"; }
   std::vector<std::string> log;
@@ -298,4 +299,4 @@ TEST(SlamConnection, GivenGarbageThenItIsSkippedCountedAndLoggedOnce) {
 }
 
 }  // namespace
-}  // namespace rgbdquad::slam
+}  // namespace rgbdquad::slamlink
