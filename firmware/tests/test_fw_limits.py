@@ -1,7 +1,7 @@
 """firmware/tools/fw_limits.py (how tests outside the firmware read its constants) against the
-compiler: the host C++ compiler builds a program that prints every constant of firmware/core/limits.h,
-and the reader must find the same names with the same values, so a constant the reader cannot see
-or misreads fails here instead of silently feeding a test a wrong timing."""
+compiler: the host C++ compiler builds a program that prints every constant of
+firmware/core/limits.h, and the reader must find the same names with the same values, so a constant
+the reader cannot see or misreads fails here instead of silently feeding a test a wrong timing."""
 
 import pathlib
 import re

@@ -1,6 +1,6 @@
-"""The firmware's behaviour constants (hard limits, failsafe timings, PWM frame), read from their one
-source, firmware/core/limits.h, for the tests and tools that check the firmware from outside (the
-simavr tests, the HIL failsafe scenario, the flight-controller emulator's tests). Nothing here
+"""The firmware's behaviour constants (hard limits, failsafe timings, PWM frame), read from their
+one source, firmware/core/limits.h, for the tests and tools that check the firmware from outside
+(the simavr tests, the HIL failsafe scenario, the flight-controller emulator's tests). Nothing here
 restates a value: retyping 250 ms or 950 us in a test would let the firmware and its tests drift
 apart silently.
 

@@ -1,8 +1,9 @@
 """Prints quad-control's link figures over a fixed run: firmware command rate/latency/timeouts
-(firmware double behind the control link's WiFi-bridge emulator, loopback), stream fps, SLAM latency and
-drops, on the TUM replay. A benchmark: it prints numbers and asserts nothing.
+(firmware double behind the control link's WiFi-bridge emulator, loopback), stream fps, SLAM
+latency and drops, on the TUM replay. A benchmark: it prints numbers and asserts nothing.
 
-    .venv/bin/python offboard/quadcontrol/tools/measure_links.py [--seconds 20] [--bin build/bin/quad-control]
+    .venv/bin/python offboard/quadcontrol/tools/measure_links.py [--seconds 20] \
+        [--bin build/bin/quad-control]
 """
 
 from __future__ import annotations
@@ -51,19 +52,23 @@ def main() -> int:
         fa, fb = a["firmware"], b["firmware"]
         print(f"window {dt:.1f} s on {b['stream']['source']}")
         print(
-            f"firmware: {(fb['sent'] - fa['sent']) / dt:.1f} requests/s sent, {(fb['ok'] - fa['ok']) / dt:.1f} accepted/s, "
+            f"firmware: {(fb['sent'] - fa['sent']) / dt:.1f} requests/s sent, "
+            f"{(fb['ok'] - fa['ok']) / dt:.1f} accepted/s, "
             f"timeouts {fb['timeouts'] - fa['timeouts']}, stale {fb['stale'] - fa['stale']}, "
-            f"errors {fb['http_errors'] - fa['http_errors']}, latency last {fb['latency_ms']:.1f} ms, "
+            f"errors {fb['http_errors'] - fa['http_errors']}, "
+            f"latency last {fb['latency_ms']:.1f} ms, "
             f"mean {fb['mean_latency_ms']:.1f} ms"
         )
         print(
-            f"stream: {(b['stream']['frames'] - a['stream']['frames']) / dt:.1f} frames/s received, "
+            f"stream: {(b['stream']['frames'] - a['stream']['frames']) / dt:.1f} frames/s "
+            "received, "
             f"fps counter {b['stream']['fps']:.1f}, load+decode {b['stream']['latency_ms']:.1f} ms"
         )
         sa, sb = a["slam"], b["slam"]
         print(
             f"slam: {(sb['processed'] - sa['processed']) / dt:.2f} poses/s, dropped busy "
-            f"{sb['dropped_busy'] - sa['dropped_busy']}, last latency {sb['latency_ms']:.0f} ms, inliers {sb['inliers']}"
+            f"{sb['dropped_busy'] - sa['dropped_busy']}, last latency {sb['latency_ms']:.0f} ms, "
+            f"inliers {sb['inliers']}"
         )
         print(
             f"firmware double accepted {len(double.accepted)} commands, rejected {double.rejected}"
