@@ -54,6 +54,12 @@ LANDING_WAIT_S = 60.0
 # the room's wall in 12 missions (the camera then renders nothing and every later mission fails).
 PAD_TOLERANCE_M = 0.3
 PAD_YAW_TOLERANCE_DEG = 10.0
+# Before each step (waypoint, turn, land) the operator waits for the craft to hold: a step given
+# in quad-control's lost-hold is refused (waypoint, turn) or lands blind (land), where an operator
+# would wait the few seconds a lost-hold lasts. quad-control's lost-hold is 2 s after 300 ms
+# without a pose, then it lands blind itself; 5 s covers that with the reconnect and relocalisation
+# of a restarted slam-server and the first hold-state poll after it.
+WAIT_FOR_HOLD_S = 5.0
 # Resource samples of every process (RSS, open descriptors) this often.
 SAMPLE_PERIOD_S = 10.0
 # Recordings of missions that went as expected are deleted but for the first few completed ones
@@ -290,6 +296,7 @@ class Soak:
             rec["steps"].append("hold")
             rec["waypoints"] = []
             for bx, by in BOX:
+                self._wait_for_hold(fl)
                 # The box is drawn in the pad's frame (room axes), clicked in the floor frame.
                 p_room = self.pad_room + np.array([bx, by, 0.0])
                 x, y = floor_from_room(origin, yaw_room, p_room)
@@ -298,6 +305,7 @@ class Soak:
                 rec["waypoints"].append(self._go_to(fl, goal, x, y))
                 rec["steps"].append(f"waypoint {bx:g},{by:g}")
             for yaw in plan.turns_ccw_deg:
+                self._wait_for_hold(fl)
                 rec.setdefault("turns", []).append(
                     missions.turn(
                         fl,
@@ -307,6 +315,7 @@ class Soak:
                     )
                 )
                 rec["steps"].append(f"turn {yaw:+.0f}")
+            self._wait_for_hold(fl)
             rec["landing"] = missions.land(fl)
             rec["steps"].append("landed")
             rec["completed_steps"] = True
@@ -395,6 +404,16 @@ class Soak:
         self.injector.run_mission(plan.faults, time.monotonic())
         fl.wait_until(lambda s: s["state"] == "hold", timeout_s=60, what="take-off -> hold")
         rec["hold_reached_s"] = round(fl.rig.sim_us / 1e6 - rec["takeoff_sim_s"], 1)
+
+    @staticmethod
+    def _wait_for_hold(fl) -> None:
+        """What an operator does before the next click: waits while quad-control is in lost-hold
+        (the step would be refused or land blind). Any other state is left to the step."""
+        fl.wait_until(
+            lambda s: s["state"] != "lost-hold",
+            timeout_s=WAIT_FOR_HOLD_S,
+            what="the craft out of lost-hold",
+        )
 
     def _go_to(self, fl, goal_room: np.ndarray, x_m: float, y_m: float) -> dict:
         """missions.go_to with the goal in the room frame given (quad-control's floor frame is not
