@@ -3,21 +3,29 @@
 
 #include <algorithm>
 #include <limits>
+#include <utility>
 
 namespace rgbdquad::slamlink {
 
 namespace proto = rgbdquad::protocol;
 
 namespace {
+
+/// The failure path of is_valid(): stores `message` in *error unless error is null; false.
+bool reject(std::string* error, std::string message) {
+  if (error) *error = std::move(message);
+  return false;
+}
+
 constexpr const char* kServerName = "slam-server";
 constexpr std::size_t kMaxFaultLogs =
     20;  // then counted: a stream of bad frames must not flood the log
 }  // namespace
 
-std::string ConnectionOptions::validate() const {
+bool ConnectionOptions::is_valid(std::string* error) const {
   if (hello_timeout_ms < 1 || idle_timeout_ms < 1 || message_timeout_ms < 1 || write_timeout_ms < 1)
-    return "connection timeouts must be >= 1 ms";
-  return {};
+    return reject(error, "connection timeouts must be >= 1 ms");
+  return true;
 }
 
 SlamConnection::SlamConnection(int id, std::string peer, ConnectionOptions options,

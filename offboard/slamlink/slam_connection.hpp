@@ -32,7 +32,8 @@ struct ConnectionOptions {
   std::int64_t idle_timeout_ms = 60000;  ///< quad-control sends frames at up to 30 Hz while flying
   std::int64_t message_timeout_ms = 10000;  ///< a 1.5 MB RAW frame takes ~0.1 s even at 100 Mbit/s
   std::int64_t write_timeout_ms = 10000;    ///< a PoseUpdate is 150 bytes
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
 };
 
 class SlamConnection {

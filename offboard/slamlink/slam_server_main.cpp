@@ -399,8 +399,10 @@ std::optional<slam::PipelineOptions> pipeline_options(ServerArgs& a) {
     log_line(err);
     return std::nullopt;
   }
-  if (std::string e = a.copt.validate() + a.ropt.validate(); !e.empty()) {
-    log_line(e);
+  std::string connection_error, registry_error;
+  const bool connection_ok = a.copt.is_valid(&connection_error);
+  if (!a.ropt.is_valid(&registry_error) || !connection_ok) {
+    log_line(connection_error + registry_error);
     return std::nullopt;
   }
   if (!a.ropt.checkpoint_dir.empty() && !make_checkpoint_dir(a.ropt.checkpoint_dir, options))

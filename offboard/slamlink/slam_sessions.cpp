@@ -3,20 +3,28 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <utility>
 
 namespace rgbdquad::slamlink {
 
 namespace {
+
+/// The failure path of is_valid(): stores `message` in *error unless error is null; false.
+bool reject(std::string* error, std::string message) {
+  if (error) *error = std::move(message);
+  return false;
+}
+
 // Ids the registry gives itself (client asked with 0): a fixed prefix in the top bits keeps them
 // apart from a client's random ids in practice, and they are never resumed.
 constexpr std::uint64_t kOwnIdPrefix = 0x5E55000000000000ull;
 constexpr std::uint64_t kOwnIdPrefixMask = 0xFFFF000000000000ull;
 }  // namespace
 
-std::string SessionRegistryOptions::validate() const {
-  if (resume_grace_ms < 0) return "resume grace must be >= 0 ms";
-  if (max_sessions < 1) return "max sessions must be >= 1";
-  return {};
+bool SessionRegistryOptions::is_valid(std::string* error) const {
+  if (resume_grace_ms < 0) return reject(error, "resume grace must be >= 0 ms");
+  if (max_sessions < 1) return reject(error, "max sessions must be >= 1");
+  return true;
 }
 
 SessionRegistry::SessionRegistry(SessionRegistryOptions options, Factory factory,

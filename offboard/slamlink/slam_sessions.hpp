@@ -37,7 +37,8 @@ struct SessionRegistryOptions {
   std::size_t max_sessions = 4;
   /// Where sessions checkpoint their maps ("" = no checkpoints; the folder must exist).
   std::string checkpoint_dir;
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
 };
 
 struct AttachResult {

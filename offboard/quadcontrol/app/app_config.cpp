@@ -8,6 +8,7 @@
 #include "app/data_paths.hpp"
 #include "app/http_server.hpp"
 #include "app/request_guard.hpp"
+#include "core/options_error.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -93,31 +94,34 @@ bool resolve_data_dirs(AppConfig& config, const std::filesystem::path& exe_path,
   return true;
 }
 
-std::string AppConfig::validate() const {
-  if (dashboard_port == 0) return "dashboard.port must be > 0";
+bool AppConfig::is_valid(std::string* error) const {
+  if (dashboard_port == 0) return reject(error, "dashboard.port must be > 0");
   if (!is_loopback_address(dashboard_bind_address)) {
     if (dashboard_token.empty()) {
-      return "dashboard.bind_address " + dashboard_bind_address +
-             " is not loopback: set dashboard.token (or --token) to expose the dashboard";
+      return reject(
+          error, "dashboard.bind_address " + dashboard_bind_address +
+                     " is not loopback: set dashboard.token (or --token) to expose the dashboard");
     }
     if (const std::string e = check_token_strength(dashboard_token); !e.empty())
-      return "dashboard.token: " + e;
+      return reject(error, "dashboard.token: " + e);
   }
   if (stream_source != "tum" && stream_source != "receiver") {
-    return "stream.source must be 'tum' or 'receiver', not '" + stream_source + "'";
+    return reject(error, "stream.source must be 'tum' or 'receiver', not '" + stream_source + "'");
   }
   if (stream_source == "receiver") {
     std::string e;
-    if (!receiver.is_valid(&e)) return "stream: " + e;
+    if (!receiver.is_valid(&e)) return reject(error, "stream: " + e);
   }
   if (firmware_enabled) {
-    if (auto e = firmware.validate(); !e.empty()) return e;
+    if (!firmware.is_valid(error)) return false;
     if (firmware_key_hex.empty())
-      return "firmware.key_hex is empty: set the craft's 32-hex-digit key (or disable the firmware "
-             "link)";
+      return reject(
+          error,
+          "firmware.key_hex is empty: set the craft's 32-hex-digit key (or disable the firmware "
+          "link)");
   }
-  if (auto e = recording.validate(); !e.empty()) return e;
-  return station.validate();
+  if (!recording.is_valid(error)) return false;
+  return station.is_valid(error);
 }
 
 nlohmann::json AppConfig::to_json_redacted() const {

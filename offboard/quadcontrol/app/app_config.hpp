@@ -49,7 +49,8 @@ struct AppConfig {
   // MCAP flight recorder (section "recording"; docs/recording.md). "~/" in dir = $HOME.
   RecorderOptions recording;
 
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
   nlohmann::json to_json_redacted() const;
 };
 

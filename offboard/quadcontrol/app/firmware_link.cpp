@@ -8,6 +8,7 @@
 #include "app/frame_source.hpp"
 #include "app/log_line.hpp"
 #include "app/thread_setup.hpp"
+#include "core/options_error.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -20,15 +21,17 @@ constexpr double kLatencyEmaWeight =
     0.1;  // ~10-reply memory: smooth yet responsive on the dashboard
 }
 
-std::string FirmwareLinkOptions::validate() const {
-  if (host.empty()) return "firmware.host must not be empty";
-  if (port == 0) return "firmware.port must be > 0";
-  if (timeout_ms < 1 || timeout_ms > 10000) return "firmware.timeout_ms must be in [1, 10000]";
-  if (period_ms < 5 || period_ms > 1000) return "firmware.period_ms must be in [5, 1000]";
+bool FirmwareLinkOptions::is_valid(std::string* error) const {
+  if (host.empty()) return reject(error, "firmware.host must not be empty");
+  if (port == 0) return reject(error, "firmware.port must be > 0");
+  if (timeout_ms < 1 || timeout_ms > 10000)
+    return reject(error, "firmware.timeout_ms must be in [1, 10000]");
+  if (period_ms < 5 || period_ms > 1000)
+    return reject(error, "firmware.period_ms must be in [5, 1000]");
   if (send_on_pose) {
-    if (auto e = schedule().validate(); !e.empty()) return e;
+    if (!schedule().is_valid(error)) return false;
   }
-  return {};
+  return true;
 }
 
 FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, rgbd_control::Key key,
@@ -40,8 +43,7 @@ FirmwareLink::FirmwareLink(FirmwareLinkOptions options, ControlSpec spec, rgbd_c
       callback_(std::move(callback)),
       timer_(io_),
       scheduler_(options_.schedule()) {
-  const std::string error = options_.validate();
-  if (!error.empty()) throw std::runtime_error(error);
+  if (std::string error; !options_.is_valid(&error)) throw std::runtime_error(error);
   asio::ip::tcp::resolver resolver(io_);
   beast::error_code ec;
   endpoints_ = resolver.resolve(options_.host, std::to_string(options_.port), ec);

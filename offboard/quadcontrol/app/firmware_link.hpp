@@ -58,7 +58,8 @@ struct FirmwareLinkOptions {
   CommandScheduleOptions schedule() const {
     return {std::int64_t{min_interval_ms} * 1000, std::int64_t{keep_alive_ms} * 1000};
   }
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
 };
 
 struct FirmwareLinkStats {

@@ -6,6 +6,7 @@
 
 #include "app/thread_setup.hpp"
 #include "core/geometry.hpp"
+#include "core/options_error.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -20,22 +21,22 @@ CraftPoseTrackerOptions GroundStationOptions::tracker() const {
                                  controller.estimator};
 }
 
-std::string GroundStationOptions::validate() const {
-  if (auto e = controller.validate(); !e.empty()) return e;
-  if (auto e = floor.validate(); !e.empty()) return e;
-  if (auto e = map.validate(); !e.empty()) return e;
+bool GroundStationOptions::is_valid(std::string* error) const {
+  if (!controller.is_valid(error)) return false;
+  if (!floor.is_valid(error)) return false;
+  if (!map.is_valid(error)) return false;
   if (!(mount_pitch_down_deg >= 0.0 && mount_pitch_down_deg < 90.0))
-    return "camera.mount_pitch_down_deg must be in [0, 90)";
+    return reject(error, "camera.mount_pitch_down_deg must be in [0, 90)");
   if (floor_search_frames < 1 || floor_pixel_step < 1 || map_pixel_step < 1)
-    return "floor/map steps must be >= 1";
-  if (!(max_depth_m > 0.0)) return "map.max_depth_m must be > 0";
+    return reject(error, "floor/map steps must be >= 1");
+  if (!(max_depth_m > 0.0)) return reject(error, "map.max_depth_m must be > 0");
   if (control_period_ms < 5 || control_period_ms > 200)
-    return "control_period_ms must be in [5, 200]";
+    return reject(error, "control_period_ms must be in [5, 200]");
   if (slam_mode != "server" && slam_mode != "in-process")
-    return "slam.mode must be 'server' or 'in-process'";
-  if (auto e = slam_server.validate(); !e.empty()) return e;
-  if (std::string e; !realtime.is_valid(&e)) return "realtime." + e;
-  return {};
+    return reject(error, "slam.mode must be 'server' or 'in-process'");
+  if (!slam_server.is_valid(error)) return false;
+  if (std::string e; !realtime.is_valid(&e)) return reject(error, "realtime." + e);
+  return true;
 }
 
 GroundStation::GroundStation(GroundStationOptions options, std::unique_ptr<FrameSource> source,

@@ -79,7 +79,8 @@ struct GroundStationOptions {
   /// Scheduling of the real-time path (frame, SLAM link and firmware link threads; config key
   /// "realtime"): SCHED_RR 10 by default, nice -10 where refused, each thread logs what it got.
   slam::ThreadPriorityOptions realtime;
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
   /// The craft-pose tracker's part (floor search, mount angle, estimator).
   CraftPoseTrackerOptions tracker() const;
 };

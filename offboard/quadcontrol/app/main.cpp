@@ -114,7 +114,7 @@ std::optional<AppConfig> effective_config(const CommandLine& a, std::string* err
   // Port 0 is accepted on the command line (tests): validate with a placeholder.
   const std::uint16_t wanted_port = config->dashboard_port;
   if (wanted_port == 0) config->dashboard_port = 1;
-  if (const std::string e = config->validate(); !e.empty()) {
+  if (std::string e; !config->is_valid(&e)) {
     *error = "invalid configuration: " + e;
     return std::nullopt;
   }

@@ -9,6 +9,7 @@
 
 #include "app/log_line.hpp"
 #include "app/thread_setup.hpp"
+#include "core/options_error.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -72,10 +73,11 @@ proto::ImageFrame image(const CameraFrame& f, proto::PixelFormat format,
 }
 }  // namespace
 
-std::string SlamServerOptions::validate() const {
-  if (host.empty() || port == 0) return "slam.host/slam.port must be set";
-  if (reply_timeout_ms < 10 || reconnect_interval_ms < 10) return "slam timeouts must be >= 10 ms";
-  return {};
+bool SlamServerOptions::is_valid(std::string* error) const {
+  if (host.empty() || port == 0) return reject(error, "slam.host/slam.port must be set");
+  if (reply_timeout_ms < 10 || reconnect_interval_ms < 10)
+    return reject(error, "slam timeouts must be >= 10 ms");
+  return true;
 }
 
 SlamServerClient::SlamServerClient(SlamServerOptions options, Callback callback)

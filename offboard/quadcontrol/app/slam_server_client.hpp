@@ -46,7 +46,8 @@ struct SlamServerOptions {
   int reconnect_interval_ms = 100;
   std::uint64_t session_id = 0;  ///< 0: a random id per client (one flight per quad-control run)
   slam::ThreadPriorityOptions thread_priority;  ///< the link thread is on the real-time path
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
 };
 
 class SlamServerClient : public SlamLink {

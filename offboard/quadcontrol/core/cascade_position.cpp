@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "core/geometry.hpp"
+#include "core/options_error.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -24,27 +25,28 @@ BodyVector limit_norm(BodyVector v, double max_norm) {
 }
 }  // namespace
 
-std::string CascadeGains::validate() const {
+bool CascadeGains::is_valid(std::string* error) const {
   for (double g : {position_kp_per_s, velocity_kp_per_s, velocity_ki_per_s2}) {
-    if (!std::isfinite(g) || g < 0.0) return "controller.cascade gains must be finite and >= 0";
+    if (!std::isfinite(g) || g < 0.0)
+      return reject(error, "controller.cascade gains must be finite and >= 0");
   }
   if (!std::isfinite(integral_limit_mss) || integral_limit_mss < 0.0 ||
       integral_limit_mss > kGravityMss) {
-    return "controller.cascade.integral_limit_mss must be in [0, 9.8]";
+    return reject(error, "controller.cascade.integral_limit_mss must be in [0, 9.8]");
   }
   if (!std::isfinite(max_correction_speed_m_per_s) || max_correction_speed_m_per_s <= 0.0) {
-    return "controller.cascade.max_correction_speed_m_per_s must be finite and > 0";
+    return reject(error, "controller.cascade.max_correction_speed_m_per_s must be finite and > 0");
   }
   // ArduCopter's ANGLE_MAX range is 10..80 deg.
   if (!(angle_max_deg >= 10.0 && angle_max_deg <= 80.0)) {
-    return "controller.cascade.angle_max_deg must be in [10, 80]";
+    return reject(error, "controller.cascade.angle_max_deg must be in [10, 80]");
   }
-  return {};
+  return true;
 }
 
 CascadePosition::CascadePosition(CascadeGains gains, double lean_limit_pct)
     : gains_(gains), lean_limit_pct_(lean_limit_pct) {
-  if (const std::string e = gains_.validate(); !e.empty()) throw std::invalid_argument(e);
+  if (std::string e; !gains_.is_valid(&e)) throw std::invalid_argument(e);
   if (!std::isfinite(lean_limit_pct) || lean_limit_pct <= 0.0 || lean_limit_pct > kPercent) {
     throw std::invalid_argument("CascadePosition: lean_limit_pct must be in (0, 100]");
   }

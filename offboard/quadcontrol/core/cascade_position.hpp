@@ -50,8 +50,8 @@ struct CascadeGains {
   /// The APM's ANGLE_MAX (ArduCopter default 45 deg): full stick deflection is this lean.
   double angle_max_deg = 45.0;
 
-  /// Empty when valid, else the reason.
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
 };
 
 /// Body-frame horizontal quantities (m, m/s or m/s^2): forward along the heading, left 90 deg ccw.

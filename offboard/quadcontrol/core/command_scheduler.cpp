@@ -3,6 +3,8 @@
 
 #include <algorithm>
 
+#include "core/options_error.hpp"
+
 namespace rgbdquad::quadcontrol {
 
 namespace {
@@ -12,14 +14,16 @@ constexpr std::int64_t kFirmwareFailsafeUs = 250000;
 constexpr std::int64_t kMinIntervalFloorUs = 1000;  // below 1 ms the timer resolution dominates
 }  // namespace
 
-std::string CommandScheduleOptions::validate() const {
-  if (min_interval_us < kMinIntervalFloorUs) return "firmware.min_interval_ms must be >= 1";
+bool CommandScheduleOptions::is_valid(std::string* error) const {
+  if (min_interval_us < kMinIntervalFloorUs)
+    return reject(error, "firmware.min_interval_ms must be >= 1");
   if (keep_alive_us < min_interval_us)
-    return "firmware.keep_alive_ms must be >= firmware.min_interval_ms";
+    return reject(error, "firmware.keep_alive_ms must be >= firmware.min_interval_ms");
   if (keep_alive_us > kFirmwareFailsafeUs / 2) {
-    return "firmware.keep_alive_ms must be <= 125 (half the firmware's 250 ms failsafe)";
+    return reject(error,
+                  "firmware.keep_alive_ms must be <= 125 (half the firmware's 250 ms failsafe)");
   }
-  return {};
+  return true;
 }
 
 CommandScheduler::CommandScheduler(CommandScheduleOptions options) : options_(options) {}

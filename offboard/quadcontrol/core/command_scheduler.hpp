@@ -30,8 +30,8 @@ struct CommandScheduleOptions {
   /// failsafe (a lost reply or two never trips it), and at 30 fps (33 ms) poses always come first,
   /// so a keep-alive never delays a pose-driven command.
   std::int64_t keep_alive_us = 50000;
-  /// "" when valid, else why not.
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
 };
 
 class CommandScheduler {

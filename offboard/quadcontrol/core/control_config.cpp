@@ -5,6 +5,8 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "core/options_error.hpp"
+
 namespace rgbdquad::quadcontrol {
 
 namespace {
@@ -75,49 +77,54 @@ const char* to_string(PositionLaw law) {
   return "?";
 }
 
-std::string ControlConfig::validate() const {
+bool ControlConfig::is_valid(std::string* error) const {
   ControlConfig copy = *this;
   for (auto& [name, pid] : pid_fields(copy)) {
-    const std::string e = pid->validate();
-    if (!e.empty()) return "controller." + name + ": " + e;
+    if (std::string e; !pid->is_valid(&e)) return reject(error, "controller." + name + ": " + e);
   }
   for (auto& [name, value] : scalar_fields(copy)) {
     if (name == "apm_stick_deadzone_us" || name == "apm_throttle_deadband_us") continue;  // 0: none
     if (!std::isfinite(*value) || *value <= 0.0)
-      return "controller." + name + " must be finite and > 0";
+      return reject(error, "controller." + name + " must be finite and > 0");
   }
   if (!(apm_stick_deadzone_us >= 0.0 && apm_stick_deadzone_us <= 100.0)) {
-    return "controller.apm_stick_deadzone_us must be in [0, 100]";
+    return reject(error, "controller.apm_stick_deadzone_us must be in [0, 100]");
   }
   if (!(apm_throttle_deadband_us >= 0.0 && apm_throttle_deadband_us <= 300.0)) {
-    return "controller.apm_throttle_deadband_us must be in [0, 300]";
+    return reject(error, "controller.apm_throttle_deadband_us must be in [0, 300]");
   }
-  if (auto e = estimator.validate(); !e.empty()) return e;
-  if (auto e = cascade.validate(); !e.empty()) return e;
+  if (!estimator.is_valid(error)) return false;
+  if (!cascade.is_valid(error)) return false;
   if (position_law != PositionLaw::kPid && position_law != PositionLaw::kCascade)
-    return "controller.position_law must be \"pid\" or \"cascade\"";
+    return reject(error, "controller.position_law must be \"pid\" or \"cascade\"");
   if (max_manoeuvre_yaw_rate_deg_per_s >= apm_yaw_rate_max_deg_per_s)
-    return "controller.max_manoeuvre_yaw_rate_deg_per_s must be below apm_yaw_rate_max_deg_per_s";
-  if (max_manoeuvre_turn_deg > 720.0) return "controller.max_manoeuvre_turn_deg must be <= 720";
-  if (hover_throttle_pct >= 100.0) return "controller.hover_throttle_pct must be < 100";
+    return reject(
+        error,
+        "controller.max_manoeuvre_yaw_rate_deg_per_s must be below apm_yaw_rate_max_deg_per_s");
+  if (max_manoeuvre_turn_deg > 720.0)
+    return reject(error, "controller.max_manoeuvre_turn_deg must be <= 720");
+  if (hover_throttle_pct >= 100.0)
+    return reject(error, "controller.hover_throttle_pct must be < 100");
   if (motor_stop_height_m >= hold_height_m)
-    return "controller.motor_stop_height_m must be below hold_height_m";
-  if (hold_height_m > max_height_m) return "controller.hold_height_m must not exceed max_height_m";
+    return reject(error, "controller.motor_stop_height_m must be below hold_height_m");
+  if (hold_height_m > max_height_m)
+    return reject(error, "controller.hold_height_m must not exceed max_height_m");
   // Sanity bounds on the envelope itself: 120 m is the usual legal ceiling for small drones; 1 km
   // is far beyond the WiFi link's range. Larger values are typos, not envelopes.
-  if (max_height_m > 120.0) return "controller.max_height_m must be <= 120";
+  if (max_height_m > 120.0) return reject(error, "controller.max_height_m must be <= 120");
   if (max_distance_from_home_m > 1000.0)
-    return "controller.max_distance_from_home_m must be <= 1000";
+    return reject(error, "controller.max_distance_from_home_m must be <= 1000");
   if (max_manual_step_m > max_distance_from_home_m)
-    return "controller.max_manual_step_m must not exceed max_distance_from_home_m";
+    return reject(error, "controller.max_manual_step_m must not exceed max_distance_from_home_m");
   if (2.0 * motor_stop_height_m >= max_height_m)
-    return "controller.max_height_m must exceed 2 x motor_stop_height_m";
+    return reject(error, "controller.max_height_m must exceed 2 x motor_stop_height_m");
   if (manual_step_m > max_manual_step_m)
-    return "controller.manual_step_m must not exceed max_manual_step_m";
+    return reject(error, "controller.manual_step_m must not exceed max_manual_step_m");
   if (manual_yaw_step_deg > max_manual_yaw_step_deg || max_manual_yaw_step_deg > 180.0) {
-    return "controller.max_manual_yaw_step_deg must be in [manual_yaw_step_deg, 180]";
+    return reject(error,
+                  "controller.max_manual_yaw_step_deg must be in [manual_yaw_step_deg, 180]");
   }
-  return {};
+  return true;
 }
 
 std::string load_control_config(const nlohmann::json& j, ControlConfig& config) {

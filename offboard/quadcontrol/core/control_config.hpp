@@ -1,7 +1,7 @@
 // Options of the position controller and flight state machine, with the thesis defaults
 // (Table 3.1 gains, 1.7 m hold height) and the reason for every other value. Loaded from the
 // "controller" object of the quad-control JSON config
-// (offboard/quadcontrol/config/quad-control.json); absent keys keep these defaults. validate()
+// (offboard/quadcontrol/config/quad-control.json); absent keys keep these defaults. is_valid()
 // names the first bad field.
 #pragma once
 
@@ -121,7 +121,8 @@ struct ControlConfig {
   /// State estimation across pose gaps (IMU + delayed SLAM poses; docs/control.md "Estimator").
   EstimatorOptions estimator;
 
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
 };
 
 /// Reads the fields present in `j` over `config`; returns an error text (empty on success) for a

@@ -6,24 +6,25 @@
 #include <utility>
 
 #include "core/geometry.hpp"
+#include "core/options_error.hpp"
 
 namespace rgbdquad::quadcontrol {
 
 namespace {
 PoseEstimator make_estimator(const CraftPoseTrackerOptions& options) {
-  if (std::string e = options.validate(); !e.empty()) throw std::invalid_argument(e);
+  if (std::string e; !options.is_valid(&e)) throw std::invalid_argument(e);
   return PoseEstimator(options.estimator);
 }
 }  // namespace
 
-std::string CraftPoseTrackerOptions::validate() const {
-  if (std::string e = floor.validate(); !e.empty()) return e;
+bool CraftPoseTrackerOptions::is_valid(std::string* error) const {
+  if (!floor.is_valid(error)) return false;
   if (!(mount_pitch_down_deg >= 0.0 && mount_pitch_down_deg < 90.0)) {
-    return "camera.mount_pitch_down_deg must be in [0, 90)";
+    return reject(error, "camera.mount_pitch_down_deg must be in [0, 90)");
   }
-  if (floor_search_frames < 1) return "floor_search_frames must be >= 1";
-  if (std::string e = estimator.validate(); !e.empty()) return e;
-  return {};
+  if (floor_search_frames < 1) return reject(error, "floor_search_frames must be >= 1");
+  if (!estimator.is_valid(error)) return false;
+  return true;
 }
 
 CraftPose craft_pose_from(const Eigen::Isometry3d& T_floor_cam) {

@@ -44,7 +44,8 @@ struct CraftPoseTrackerOptions {
   double mount_pitch_down_deg = 30.0;  ///< Kinect tilt on the craft (thesis: mounted at an angle)
   int floor_search_frames = 30;        ///< ~1 s at 30 Hz to find the floor, then fall back
   EstimatorOptions estimator;          ///< the controller's ("controller": {"estimator": ...})
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
 };
 
 /// One SLAM result as the tracker needs it (quad-control's SlamResult, app/slam_link.hpp, converted
@@ -95,7 +96,7 @@ Eigen::Quaterniond camera_attitude_ned(const ImuSample& sample, double mount_pit
 
 class CraftPoseTracker {
  public:
-  /// `options` must be valid (validate() empty); throws std::invalid_argument otherwise.
+  /// `options` must be valid (is_valid()); throws std::invalid_argument otherwise.
   explicit CraftPoseTracker(CraftPoseTrackerOptions options);
 
   /// True while the floor frame is unknown: the caller should run fit_floor() on the depth of a

@@ -51,7 +51,8 @@ struct EstimatorOptions {
   /// How far back the event history reaches: longer than max_prediction_ms plus the 400 ms worst
   /// pose delay, so a delayed pose still finds the IMU samples since its capture.
   double history_ms = 1500.0;
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
 };
 
 /// Reads the fields present in `j` over `options` (unknown key or wrong type -> the error text).

@@ -104,8 +104,7 @@ FlightController::FlightController(ControlConfig config)
       throttle_(config.throttle),
       cascade_(config.cascade,
                std::min(config.roll.output_limit_pct, config.pitch.output_limit_pct)) {
-  const std::string error = config_.validate();
-  if (!error.empty()) throw std::invalid_argument(error);
+  if (std::string error; !config_.is_valid(&error)) throw std::invalid_argument(error);
   status_.last_event = "start-up";
 }
 

@@ -115,7 +115,7 @@ struct ControllerStatus {
 
 class FlightController {
  public:
-  /// `config` must be valid (ControlConfig::validate() empty); throws std::invalid_argument else.
+  /// `config` must be valid (ControlConfig::is_valid()); throws std::invalid_argument else.
   explicit FlightController(ControlConfig config);
 
   /// Operator buttons. Returns empty when accepted, else why not (state unchanged).

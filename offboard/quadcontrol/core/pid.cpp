@@ -4,20 +4,22 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/options_error.hpp"
+
 namespace rgbdquad::quadcontrol {
 
 namespace {
 constexpr double kMicrosecondsPerSecond = 1e6;
 }  // namespace
 
-std::string PidGains::validate() const {
+bool PidGains::is_valid(std::string* error) const {
   for (double g : {kp, ki, kd}) {
-    if (!std::isfinite(g) || g < 0.0) return "PID gains must be finite and >= 0";
+    if (!std::isfinite(g) || g < 0.0) return reject(error, "PID gains must be finite and >= 0");
   }
   if (!std::isfinite(output_limit_pct) || output_limit_pct <= 0.0) {
-    return "PID output_limit_pct must be finite and > 0";
+    return reject(error, "PID output_limit_pct must be finite and > 0");
   }
-  return {};
+  return true;
 }
 
 void Pid::restart() {

@@ -22,8 +22,9 @@ struct PidGains {
   double ki = 0.0;                ///< per second
   double kd = 0.0;                ///< seconds
   double output_limit_pct = 0.0;  ///< |output| <= this
-  /// Empty when valid, else the reason (gains finite and >= 0, limit finite and > 0).
-  std::string validate() const;
+  /// True when the gains are finite and >= 0 and the limit finite and > 0; else false and, if
+  /// error is not null, the reason.
+  bool is_valid(std::string* error) const;
 };
 
 /// Contributions of the last accepted update (for the dashboard and tests).

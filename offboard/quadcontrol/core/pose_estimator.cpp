@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "core/geometry.hpp"
+#include "core/options_error.hpp"
 
 namespace rgbdquad::quadcontrol {
 
@@ -41,15 +42,15 @@ bool finite(const CraftPose& p) {
 double wrap_rad(double a) { return wrap_deg(a * kDegPerRad) / kDegPerRad; }
 }  // namespace
 
-std::string EstimatorOptions::validate() const {
+bool EstimatorOptions::is_valid(std::string* error) const {
   EstimatorOptions copy = *this;
   for (auto& [name, value] : scalar_fields(copy)) {
     if (!std::isfinite(*value) || *value <= 0.0)
-      return "controller.estimator." + name + " must be finite and > 0";
+      return reject(error, "controller.estimator." + name + " must be finite and > 0");
   }
   if (history_ms < max_prediction_ms)
-    return "controller.estimator.history_ms must be >= max_prediction_ms";
-  return {};
+    return reject(error, "controller.estimator.history_ms must be >= max_prediction_ms");
+  return true;
 }
 
 std::string load_estimator_options(const nlohmann::json& j, EstimatorOptions& options) {
@@ -119,8 +120,7 @@ const char* to_string(FuseOutcome outcome) {
 }
 
 PoseEstimator::PoseEstimator(EstimatorOptions options) : options_(options) {
-  const std::string error = options_.validate();
-  if (!error.empty()) throw std::invalid_argument(error);
+  if (std::string error; !options_.is_valid(&error)) throw std::invalid_argument(error);
 }
 
 void PoseEstimator::reset() {

@@ -110,7 +110,7 @@ struct EstimatorStats {
 
 class PoseEstimator {
  public:
-  /// `options` must be valid (validate() empty); throws std::invalid_argument otherwise.
+  /// `options` must be valid (is_valid()); throws std::invalid_argument otherwise.
   explicit PoseEstimator(EstimatorOptions options);
 
   /// An IMU sample (time order; a duplicate of the newest, an older or a non-finite one is

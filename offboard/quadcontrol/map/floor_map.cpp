@@ -5,6 +5,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/options_error.hpp"
+
 namespace rgbdquad::quadcontrol {
 
 namespace {
@@ -16,19 +18,21 @@ void bump(std::uint8_t& c) {
 }
 }  // namespace
 
-std::string FloorMapOptions::validate() const {
-  if (!(resolution_m > 0.0) || !(size_m > 0.0)) return "map: resolution_m and size_m must be > 0";
-  if (size_m / resolution_m > kMaxCellsPerSide) return "map: more than 4096 cells per side";
-  if (!(floor_band_m > 0.0) || !(voxel_m > 0.0)) return "map: floor_band_m and voxel_m must be > 0";
+bool FloorMapOptions::is_valid(std::string* error) const {
+  if (!(resolution_m > 0.0) || !(size_m > 0.0))
+    return reject(error, "map: resolution_m and size_m must be > 0");
+  if (size_m / resolution_m > kMaxCellsPerSide)
+    return reject(error, "map: more than 4096 cells per side");
+  if (!(floor_band_m > 0.0) || !(voxel_m > 0.0))
+    return reject(error, "map: floor_band_m and voxel_m must be > 0");
   if (!(obstacle_min_height_m > floor_band_m && obstacle_max_height_m > obstacle_min_height_m)) {
-    return "map: need floor_band_m < obstacle_min_height_m < obstacle_max_height_m";
+    return reject(error, "map: need floor_band_m < obstacle_min_height_m < obstacle_max_height_m");
   }
-  return {};
+  return true;
 }
 
 FloorMap::FloorMap(FloorMapOptions options) : options_(options) {
-  const std::string error = options_.validate();
-  if (!error.empty()) throw std::invalid_argument(error);
+  if (std::string error; !options_.is_valid(&error)) throw std::invalid_argument(error);
   cells_per_side_ = static_cast<int>(std::lround(options_.size_m / options_.resolution_m));
   floor_counts_.assign(static_cast<std::size_t>(cells_per_side_) * cells_per_side_, 0);
   obstacle_counts_ = floor_counts_;

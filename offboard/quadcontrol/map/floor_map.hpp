@@ -25,7 +25,8 @@ struct FloorMapOptions {
   double obstacle_max_height_m = 2.2;     ///< below a typical ceiling
   double voxel_m = 0.03;                  ///< cloud sub-sampling: one point per 3 cm voxel
   std::size_t max_cloud_points = 200000;  ///< ~5 MB of points: bounded memory for long flights
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
 };
 
 struct ColouredPoint {

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <random>
 
+#include "core/options_error.hpp"
+
 namespace rgbdquad::quadcontrol {
 
 namespace {
@@ -13,13 +15,14 @@ constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 constexpr double kMinPlaneArea = 1e-9;  // degenerate (collinear) sample triple
 }  // namespace
 
-std::string FloorPlaneOptions::validate() const {
-  if (iterations < 1) return "floor.iterations must be >= 1";
-  if (!(inlier_distance_m > 0.0)) return "floor.inlier_distance_m must be > 0";
-  if (!(max_tilt_deg > 0.0 && max_tilt_deg < 90.0)) return "floor.max_tilt_deg must be in (0, 90)";
+bool FloorPlaneOptions::is_valid(std::string* error) const {
+  if (iterations < 1) return reject(error, "floor.iterations must be >= 1");
+  if (!(inlier_distance_m > 0.0)) return reject(error, "floor.inlier_distance_m must be > 0");
+  if (!(max_tilt_deg > 0.0 && max_tilt_deg < 90.0))
+    return reject(error, "floor.max_tilt_deg must be in (0, 90)");
   if (!(min_inlier_fraction > 0.0 && min_inlier_fraction <= 1.0))
-    return "floor.min_inlier_fraction must be in (0, 1]";
-  return {};
+    return reject(error, "floor.min_inlier_fraction must be in (0, 1]");
+  return true;
 }
 
 Eigen::Matrix3d rotation_body_cam(double mount_pitch_down_deg) {
@@ -40,7 +43,7 @@ Eigen::Vector3d expected_up_in_camera(double mount_pitch_down_deg) {
 std::optional<FloorPlane> fit_floor_plane(const std::vector<Eigen::Vector3d>& points,
                                           const Eigen::Vector3d& expected_up_cam,
                                           const FloorPlaneOptions& options) {
-  if (!options.validate().empty() || points.size() < 3) return std::nullopt;
+  if (!options.is_valid(nullptr) || points.size() < 3) return std::nullopt;
   if (!expected_up_cam.allFinite() || expected_up_cam.norm() < 1e-9) return std::nullopt;
   const Eigen::Vector3d up = expected_up_cam.normalized();
   const double min_cos = std::cos(options.max_tilt_deg * kDegToRad);

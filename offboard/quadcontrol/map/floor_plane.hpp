@@ -25,7 +25,8 @@ struct FloorPlaneOptions {
   double max_tilt_deg = 30.0;        ///< normal vs expected up: tolerates mount-angle error
   double min_inlier_fraction = 0.1;  ///< below this the floor is not visible enough to trust
   std::uint32_t seed = 1;            ///< RANSAC seed (deterministic runs)
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
 };
 
 /// Plane n . p + d = 0 in the camera frame, n unit, oriented so the camera is on the +n side

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 
+#include "core/options_error.hpp"
 #include "record/channels.hpp"
 #include "rgbdquad/encodings/depth_codec.h"
 #include "rgbdquad/recorder/mcap_writer.hpp"
@@ -116,21 +117,24 @@ std::string base64_encode(const std::string& bytes) {
   return base64_encode(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
 }
 
-std::string RecorderOptions::validate() const {
-  if (!enabled) return {};
-  if (dir.empty()) return "recording.dir must be set when recording.enabled";
-  if (image_every_n_frames < 0) return "recording.image_every_n_frames must be >= 0 (0: no images)";
-  if (jpeg_quality < 1 || jpeg_quality > 100) return "recording.jpeg_quality must be in [1, 100]";
-  if (map_period_ms < 0) return "recording.map_period_ms must be >= 0 (0: no map)";
+bool RecorderOptions::is_valid(std::string* error) const {
+  if (!enabled) return true;
+  if (dir.empty()) return reject(error, "recording.dir must be set when recording.enabled");
+  if (image_every_n_frames < 0)
+    return reject(error, "recording.image_every_n_frames must be >= 0 (0: no images)");
+  if (jpeg_quality < 1 || jpeg_quality > 100)
+    return reject(error, "recording.jpeg_quality must be in [1, 100]");
+  if (map_period_ms < 0) return reject(error, "recording.map_period_ms must be >= 0 (0: no map)");
   if (flush_period_ms < 50 || flush_period_ms > 10000)
-    return "recording.flush_period_ms must be in [50, 10000]";
+    return reject(error, "recording.flush_period_ms must be in [50, 10000]");
   if (!(max_file_mb >= 1.0) || !(max_total_mb >= max_file_mb))
-    return "recording: need 1 <= max_file_mb <= max_total_mb";
+    return reject(error, "recording: need 1 <= max_file_mb <= max_total_mb");
   if (depth_preview_every_n_frames < 0)
-    return "recording.depth_preview_every_n_frames must be >= 0 (0: none)";
+    return reject(error, "recording.depth_preview_every_n_frames must be >= 0 (0: none)");
   if (queue_max_events < 16 || queue_max_frames < 1 || !(queue_max_mb >= 1.0))
-    return "recording: queue too small (events >= 16, frames >= 1, queue_max_mb >= 1)";
-  return {};
+    return reject(error,
+                  "recording: queue too small (events >= 16, frames >= 1, queue_max_mb >= 1)");
+  return true;
 }
 
 json RecorderOptions::to_json() const {
@@ -286,10 +290,7 @@ class FlightRecorder::Writer {
 std::unique_ptr<FlightRecorder> FlightRecorder::open(const RecorderOptions& options,
                                                      const std::string& stem, Logger logger,
                                                      std::string* error) {
-  if (auto e = options.validate(); !e.empty()) {
-    *error = e;
-    return nullptr;
-  }
+  if (!options.is_valid(error)) return nullptr;
   std::error_code ec;
   fs::create_directories(options.dir, ec);
   if (ec) {

@@ -75,7 +75,8 @@ struct RecorderOptions {
   /// must be encoded here (1.5 MB of pixels each). Beyond it images are dropped (counted).
   double queue_max_mb = 48.0;
   bool zstd = true;
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
   nlohmann::json to_json() const;
 };
 

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/control_config.hpp"
+#include "tests/options_problem.hpp"
 
 namespace rgbdquad::quadcontrol {
 namespace {
@@ -166,7 +167,7 @@ TEST(CascadePosition, GainValidation) {
     SCOPED_TRACE(row.name);
     CascadeGains g;
     row.edit(g);
-    EXPECT_EQ(g.validate().empty(), row.valid) << g.validate();
+    EXPECT_EQ(testing::problem(g).empty(), row.valid) << testing::problem(g);
     if (!row.valid) {
       EXPECT_THROW(CascadePosition(g, kLeanLimitPct), std::invalid_argument);
     }
@@ -209,7 +210,7 @@ TEST(CascadeConfig, PositionLawAndCascadeGainsLoadFromJsonAndRoundTrip) {
   EXPECT_DOUBLE_EQ(d.cascade.velocity_kp_per_s, CascadeGains{}.velocity_kp_per_s);
   // A manoeuvre yaw rate at or above the APM's full-stick rate is refused at start-up.
   d.max_manoeuvre_yaw_rate_deg_per_s = d.apm_yaw_rate_max_deg_per_s;
-  EXPECT_NE(d.validate().find("max_manoeuvre_yaw_rate_deg_per_s"), std::string::npos);
+  EXPECT_NE(testing::problem(d).find("max_manoeuvre_yaw_rate_deg_per_s"), std::string::npos);
 }
 
 }  // namespace

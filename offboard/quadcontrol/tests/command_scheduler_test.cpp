@@ -9,6 +9,8 @@
 #include <limits>
 #include <vector>
 
+#include "tests/options_problem.hpp"
+
 namespace rgbdquad::quadcontrol {
 namespace {
 
@@ -98,7 +100,7 @@ TEST(CommandScheduler, PoseTimingTable) {
   for (const auto& row : table) {
     SCOPED_TRACE(row.name);
     CommandScheduler s({row.min_interval_ms * kMs, row.keep_alive_ms * kMs});
-    ASSERT_EQ(s.options().validate(), "");
+    ASSERT_EQ(testing::problem(s.options()), "");
     s.on_sent(0);
     s.on_pose(row.pose_ms * kMs);
     ASSERT_TRUE(s.next_send_us().has_value());
@@ -167,9 +169,9 @@ TEST(CommandScheduleOptions, ValidateTable) {
   for (const auto& row : table) {
     SCOPED_TRACE(row.name);
     const CommandScheduleOptions options{row.min_interval_us, row.keep_alive_us};
-    EXPECT_EQ(options.validate().empty(), row.valid);
+    EXPECT_EQ(testing::problem(options).empty(), row.valid);
   }
-  EXPECT_EQ(CommandScheduleOptions{}.validate(), "");
+  EXPECT_EQ(testing::problem(CommandScheduleOptions{}), "");
 }
 
 }  // namespace

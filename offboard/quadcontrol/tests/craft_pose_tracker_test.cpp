@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/geometry.hpp"
+#include "tests/options_problem.hpp"
 
 namespace rgbdquad::quadcontrol {
 namespace {
@@ -373,12 +374,12 @@ INSTANTIATE_TEST_SUITE_P(CraftPoseTracker, ControllerFeedSource,
 TEST(CraftPoseTracker, InvalidOptionsThrowAtStartUp) {
   CraftPoseTrackerOptions options;
   options.floor_search_frames = 0;
-  EXPECT_NE(options.validate(), "");
+  EXPECT_NE(testing::problem(options), "");
   EXPECT_THROW(CraftPoseTracker{options}, std::invalid_argument);
   options = CraftPoseTrackerOptions{};
   options.mount_pitch_down_deg = 95.0;
   EXPECT_THROW(CraftPoseTracker{options}, std::invalid_argument);
-  EXPECT_EQ(CraftPoseTrackerOptions{}.validate(), "");
+  EXPECT_EQ(testing::problem(CraftPoseTrackerOptions{}), "");
 }
 
 TEST(CraftPoseTracker, CraftPoseIsTheCameraCentreAndTheOpticalAxisHeading) {

@@ -20,6 +20,8 @@
 #include <thread>
 #include <vector>
 
+#include "tests/options_problem.hpp"
+
 namespace rgbdquad::quadcontrol {
 namespace {
 
@@ -182,10 +184,10 @@ TEST(FirmwareLinkOnPose, GivenAWithheldCommandThenNothingIsSentButTheScheduleGoe
 
 TEST(FirmwareLinkOnPose, OptionsAreValidated) {
   FirmwareLinkOptions o = on_pose(10);  // keep-alive shorter than the minimum interval
-  EXPECT_NE(o.validate(), "");
+  EXPECT_NE(testing::problem(o), "");
   o.send_on_pose = false;  // the fixed period ignores them
-  EXPECT_EQ(o.validate(), "");
-  EXPECT_EQ(on_pose(50).validate(), "");
+  EXPECT_EQ(testing::problem(o), "");
+  EXPECT_EQ(testing::problem(on_pose(50)), "");
 }
 
 }  // namespace

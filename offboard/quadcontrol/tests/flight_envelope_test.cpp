@@ -10,6 +10,7 @@
 #include <random>
 
 #include "core/flight_controller.hpp"
+#include "tests/options_problem.hpp"
 
 namespace rgbdquad::quadcontrol {
 namespace {
@@ -301,7 +302,7 @@ TEST(EnvelopeConfig, TakeOffHeightAndLimitsValidated) {
     SCOPED_TRACE(row.name);
     ControlConfig c;
     row.apply(c);
-    EXPECT_EQ(c.validate().empty(), row.valid) << c.validate();
+    EXPECT_EQ(testing::problem(c).empty(), row.valid) << testing::problem(c);
     if (!row.valid) {
       EXPECT_THROW(FlightController{c}, std::invalid_argument);
     }

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/control_config.hpp"
+#include "tests/options_problem.hpp"
 
 namespace rgbdquad::quadcontrol {
 namespace {
@@ -160,7 +161,7 @@ TEST(ControlConfig, Table31Defaults) {
   EXPECT_DOUBLE_EQ(c.throttle.ki, 0.013);
   EXPECT_DOUBLE_EQ(c.throttle.kd, 0.02);
   EXPECT_DOUBLE_EQ(c.hold_height_m, 1.7);
-  EXPECT_EQ(c.validate(), "");
+  EXPECT_EQ(testing::problem(c), "");
 }
 
 TEST(ControlConfig, LoadsOverridesAndRejectsBadInput) {
@@ -195,13 +196,13 @@ TEST(ControlConfig, LoadsOverridesAndRejectsBadInput) {
 TEST(ControlConfig, ValidateNamesTheBadField) {
   ControlConfig c;
   c.throttle.ki = -1.0;
-  EXPECT_NE(c.validate().find("throttle"), std::string::npos);
+  EXPECT_NE(testing::problem(c).find("throttle"), std::string::npos);
   c = ControlConfig{};
   c.failsafe_landing_ms = 0.0;
-  EXPECT_NE(c.validate().find("failsafe_landing_ms"), std::string::npos);
+  EXPECT_NE(testing::problem(c).find("failsafe_landing_ms"), std::string::npos);
   c = ControlConfig{};
   c.hold_height_m = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_NE(c.validate().find("hold_height_m"), std::string::npos);
+  EXPECT_NE(testing::problem(c).find("hold_height_m"), std::string::npos);
 }
 
 }  // namespace

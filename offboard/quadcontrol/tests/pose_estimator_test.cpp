@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/geometry.hpp"
+#include "tests/options_problem.hpp"
 
 namespace rgbdquad::quadcontrol {
 namespace {
@@ -393,12 +394,12 @@ TEST(CaptureClockTest, GivenAnOffsetClockThenCapturesMapToTheFastestTransit) {
 
 TEST(EstimatorOptionsTest, GivenBadValuesThenValidateNamesThem) {
   EstimatorOptions o;
-  EXPECT_EQ(o.validate(), "");
+  EXPECT_EQ(testing::problem(o), "");
   o.max_prediction_ms = -1;
-  EXPECT_NE(o.validate().find("max_prediction_ms"), std::string::npos);
+  EXPECT_NE(testing::problem(o).find("max_prediction_ms"), std::string::npos);
   o = EstimatorOptions{};
   o.pose_sigma_m = std::nan("");
-  EXPECT_NE(o.validate().find("pose_sigma_m"), std::string::npos);
+  EXPECT_NE(testing::problem(o).find("pose_sigma_m"), std::string::npos);
   EXPECT_THROW(PoseEstimator{o}, std::invalid_argument);
 }
 

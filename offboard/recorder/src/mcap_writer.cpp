@@ -10,10 +10,18 @@
 #include <cerrno>
 #include <cstring>
 #include <limits>
+#include <utility>
 
 namespace rgbdquad::recorder {
 
 namespace {
+
+/// The failure path of is_valid(): stores `message` in *error unless error is null; false.
+bool reject(std::string* error, std::string message) {
+  if (error) *error = std::move(message);
+  return false;
+}
+
 // MCAP opcodes (spec "Records").
 enum Op : std::uint8_t {
   kHeader = 0x01,
@@ -70,18 +78,15 @@ std::uint32_t crc32_of(std::uint32_t crc, const std::string& bytes) {
 }
 }  // namespace
 
-std::string McapWriterOptions::validate() const {
+bool McapWriterOptions::is_valid(std::string* error) const {
   if (chunk_max_bytes < 1024 || chunk_max_bytes > (256u << 20))
-    return "recorder: chunk_max_bytes must be in [1 KiB, 256 MiB]";
-  return {};
+    return reject(error, "recorder: chunk_max_bytes must be in [1 KiB, 256 MiB]");
+  return true;
 }
 
 std::unique_ptr<McapWriter> McapWriter::open(const std::string& path, McapWriterOptions options,
                                              std::string* error) {
-  if (auto e = options.validate(); !e.empty()) {
-    *error = e;
-    return nullptr;
-  }
+  if (!options.is_valid(error)) return nullptr;
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) {
     *error = "cannot create " + path + ": " + std::strerror(errno);

@@ -126,7 +126,7 @@ class Surf final : public cv::Feature2D {
 
 }  // namespace
 
-bool SurfOptions::validate(std::string* error) const {
+bool SurfOptions::is_valid(std::string* error) const {
   auto fail = [&](const std::string& message) {
     if (error != nullptr) *error = message;
     return false;
@@ -154,7 +154,7 @@ std::ostream& operator<<(std::ostream& out, const SurfOptions& o) {
 
 cv::Ptr<cv::Feature2D> create_surf(const SurfOptions& options) {
   std::string error;
-  if (!options.validate(&error)) throw std::invalid_argument(error);
+  if (!options.is_valid(&error)) throw std::invalid_argument(error);
   return cv::makePtr<Surf>(options);
 }
 

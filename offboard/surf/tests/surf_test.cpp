@@ -26,7 +26,7 @@ TEST(SurfOptions, GivenDefaultsThenThesisParametersAndValid) {
   EXPECT_EQ(o.hessian_threshold, 550.0);
   EXPECT_FALSE(o.upright);
   std::string error;
-  EXPECT_TRUE(o.validate(&error)) << error;
+  EXPECT_TRUE(o.is_valid(&error)) << error;
   std::ostringstream s;
   s << o;
   EXPECT_NE(s.str().find("hessian_threshold=550"), std::string::npos);
@@ -48,7 +48,7 @@ TEST(SurfOptions, GivenOutOfRangeFieldsWhenValidatedThenErrorNamesTheField) {
   cases[3].field = "hessian_threshold";
   for (const auto& c : cases) {
     std::string error;
-    EXPECT_FALSE(c.options.validate(&error));
+    EXPECT_FALSE(c.options.is_valid(&error));
     EXPECT_NE(error.find(c.field), std::string::npos) << error;
     EXPECT_THROW(create_surf(c.options), std::invalid_argument);
   }

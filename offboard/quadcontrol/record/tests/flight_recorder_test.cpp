@@ -12,6 +12,8 @@
 #include <fstream>
 #include <iterator>
 
+#include "tests/options_problem.hpp"
+
 namespace rgbdquad::quadcontrol {
 namespace {
 namespace fs = std::filesystem;
@@ -190,13 +192,13 @@ TEST(FlightRecorder, GivenAQueueByteBoundThenImagesBeyondItAreDroppedAndCountedT
 
 TEST(RecorderOptions, GivenBadValuesThenValidateSaysWhich) {
   RecorderOptions o;
-  EXPECT_EQ(o.validate(), "");  // disabled: nothing to check
+  EXPECT_EQ(testing::problem(o), "");  // disabled: nothing to check
   o.enabled = true;
-  EXPECT_NE(o.validate().find("dir"), std::string::npos);
+  EXPECT_NE(testing::problem(o).find("dir"), std::string::npos);
   o.dir = "/tmp/x";
-  EXPECT_EQ(o.validate(), "");
+  EXPECT_EQ(testing::problem(o), "");
   o.flush_period_ms = 20000;
-  EXPECT_NE(o.validate().find("flush_period_ms"), std::string::npos);
+  EXPECT_NE(testing::problem(o).find("flush_period_ms"), std::string::npos);
 }
 
 TEST(Base64, GivenRfc4648VectorsThenEncodesThem) {

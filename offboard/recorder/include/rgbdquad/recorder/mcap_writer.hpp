@@ -33,7 +33,8 @@ struct McapWriterOptions {
   /// A chunk is closed when its records exceed this (also on flush_chunk()). 4 MiB: a few image
   /// messages per chunk; readers decompress one chunk at a time.
   std::size_t chunk_max_bytes = 4u << 20;
-  std::string validate() const;
+  /// True when every field is in range; else false and, if error is not null, which one and why.
+  bool is_valid(std::string* error) const;
 };
 
 class McapWriter {

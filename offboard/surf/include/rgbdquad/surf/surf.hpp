@@ -42,7 +42,7 @@ struct SurfOptions {
   bool upright = false;
 
   /// Checks ranges; on failure returns false and, if error is not null, says which field.
-  bool validate(std::string* error) const;
+  bool is_valid(std::string* error) const;
 };
 
 std::ostream& operator<<(std::ostream& out, const SurfOptions& options);
