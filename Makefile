@@ -78,7 +78,7 @@ results:
 	@python3 scripts/results.py
 
 study: build
-	$(call component,offboard/study.sh,)
+	$(call component,offboard/study/study.sh,)
 
 fuzz: build
 	@FUZZ_SECONDS=$(FUZZ_SECONDS) scripts/fuzz.sh
@@ -102,7 +102,7 @@ bench-arm: build
 	@scripts/onboard-arm.sh arm64 && scripts/onboard-arm.sh armhf && onboard/bench-arm.sh
 
 run-offboard: build
-	$(call component,offboard/run-offboard.sh,)
+	$(call component,offboard/quadcontrol/run-offboard.sh,)
 
 clean:
 	rm -rf build build-asan build-fuzz build-arm64 build-armhf firmware/.pio test-artifacts

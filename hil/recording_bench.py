@@ -1,7 +1,7 @@
 r"""Recording on vs off, side by side: what MCAP recording costs quad-control (a benchmark; prints
 numbers, asserts nothing).
 
-    PYTHONPATH=hil:protocol/python:offboard/python \
+    PYTHONPATH=hil:protocol/python:offboard/quadcontrol \
         .venv/bin/python hil/recording_bench.py [--seconds 30] [--pairs 2]
 
 Runs quad-control on the TUM replay (tests/data/fr1_xyz_first30 bouncing, 30 fps) with in-process
@@ -31,7 +31,7 @@ REPO = pathlib.Path(__file__).resolve().parents[1]
 sys.path[:0] = [
     str(REPO / "protocol/python"),
     str(REPO / "hil"),
-    str(REPO / "offboard/python"),
+    str(REPO / "offboard/quadcontrol"),
 ]
 
 from hilrig.thread_cpu import process_cpu_s as cpu_s  # noqa: E402

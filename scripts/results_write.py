@@ -37,7 +37,7 @@ DEFAULT_RESULTS_DIR = ROOT / "out" / "results"
 
 # Targets of the SLAM engine on the TUM excerpts: fr1_xyz_first300 below ORB-SLAM2's median on
 # the same frames (0.0110 m over eight published runs), no frame dropped at 30 fps in real time,
-# and no frame lost on any sequence (offboard/tools/anchor_table.py prints the same verdicts).
+# and no frame lost on any sequence (offboard/bench/tools/anchor_table.py prints the same verdicts).
 BENCH_ATE_TARGETS_M = {"fr1_xyz_first300": 0.0105}
 BENCH_DROPPED_TARGET = 0
 BENCH_LOST_TARGET = 0

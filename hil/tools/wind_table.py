@@ -32,7 +32,15 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-for sub in ("hil", "protocol/python", "offboard/python", "firmware/tools", "scripts"):
+for sub in (
+    "hil",
+    "protocol/python",
+    "offboard/python",
+    "offboard/quadcontrol",
+    "offboard/study",
+    "firmware/tools",
+    "scripts",
+):
     if str(ROOT / sub) not in sys.path:
         sys.path.insert(0, str(ROOT / sub))
 

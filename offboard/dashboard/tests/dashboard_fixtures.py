@@ -1,7 +1,7 @@
 """Functions of the dashboard browser tests (imported by conftest.py and the tests; a unique module
 name, since other components have a conftest.py of their own): the running quad-control and its
-bench configuration (re-exported from offboard/python/quadcontrol_harness, which tools share), plus
-headless Debian chromium driven by Playwright. Everything listens on 127.0.0.1 only.
+bench configuration (re-exported from offboard/quadcontrol/quadcontrol_harness, which tools
+share), plus headless Debian chromium driven by Playwright. Everything listens on 127.0.0.1 only.
 """
 
 from __future__ import annotations

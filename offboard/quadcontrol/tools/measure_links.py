@@ -16,7 +16,7 @@ import time
 import urllib.request
 
 REPO = pathlib.Path(__file__).resolve().parents[3]
-sys.path[:0] = [str(REPO / "offboard/python"), str(REPO / "protocol/python")]
+sys.path[:0] = [str(REPO / "offboard/quadcontrol"), str(REPO / "protocol/python")]
 
 from quadcontrol_harness.firmware_double import FirmwareDouble  # noqa: E402
 from quadcontrol_harness.quad_control import KEY, QuadControl, write_config  # noqa: E402

@@ -1,6 +1,6 @@
 // The per-frame, per-keyframe and memory tables of one pipeline run, as CSV files for long-run
-// analysis (offboard/tools/longrun.py): frames.csv, mapping.csv, loops.csv, rss.csv. Pure writers
-// of what the pipeline recorded; no clock, no threads.
+// analysis (offboard/bench/tools/longrun.py): frames.csv, mapping.csv, loops.csv, rss.csv. Pure
+// writers of what the pipeline recorded; no clock, no threads.
 #pragma once
 
 #include <filesystem>

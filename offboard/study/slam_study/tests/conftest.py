@@ -26,7 +26,7 @@ def fr1_desk9() -> Path:
 def fake_slam_eval(tmp_path: Path) -> Path:
     """An executable with slam-eval's interface (tests/fake_slam_eval.py) run by this Python."""
     script = tmp_path / "slam-eval"
-    pythonpath = os.pathsep.join([str(kRepo / "offboard" / "python")])
+    pythonpath = os.pathsep.join([str(kRepo / "offboard" / "study")])
     script.write_text(
         "#!/bin/sh\n"
         f"PYTHONPATH='{pythonpath}' exec '{sys.executable}' "

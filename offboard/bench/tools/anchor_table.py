@@ -1,12 +1,13 @@
 #!/usr/bin/env python3
 """Prints the fast-motion and anchor table of `make bench` with its verdicts.
 
-Reads OUT/anchor/<sequence>_<mode>_restart_<on|off>/metrics.json, written by offboard/bench.sh:
-the default system, slam-eval --mode wait and --mode realtime, with the new-segment restart on
-(the default) and off, on the real sequences in DATA and on the manoeuvres rendered by
-hil/tools/render_tum.py (hil_*); and OUT/anchor/orbslam2_<name>.json, ORB-SLAM2's published runs
-scored by `slam-eval score` on the same frames. One row per sequence and mode: ATE, frames lost,
-segments started, local BAs interrupted per 100 frames, and real time against wait mode.
+Reads OUT/anchor/<sequence>_<mode>_restart_<on|off>/metrics.json, written by
+offboard/bench/bench.sh: the default system, slam-eval --mode wait and --mode realtime, with the
+new-segment restart on (the default) and off, on the real sequences in DATA and on the manoeuvres
+rendered by hil/tools/render_tum.py (hil_*); and OUT/anchor/orbslam2_<name>.json, ORB-SLAM2's
+published runs scored by `slam-eval score` on the same frames. One row per sequence and mode: ATE,
+frames lost, segments started, local BAs interrupted per 100 frames, and real time against wait
+mode.
 
 Targets (the SLAM fast-motion capability): 0 lost frames on every sequence in both modes;
 fr1_xyz_first300 in real time <= 0.0105 m (below ORB-SLAM2's median on the same frames) with 0

@@ -187,7 +187,7 @@ def build_parser() -> argparse.ArgumentParser:
         "study's grid, its pairs per sequence, mean with a 95 %% confidence interval "
         "and 90th percentile. Motion beyond what was measured, or a cell with < 5 "
         "pairs, gets no prediction. Reads the table shipped in the repository "
-        "(offboard/python/slam_study/data/guide_pairs.csv, made by `make study`) "
+        "(offboard/study/slam_study/data/guide_pairs.csv, made by `make study`) "
         "unless --report names a sweep's report folder.",
         epilog="examples:\n"
         "  slam-study guide --trans-vel 0.41 --rot-vel 23 --target-rpe-mm 8\n"
@@ -230,7 +230,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=Path,
         default=None,
         metavar="CSV",
-        help="shipped-table file (default offboard/python/slam_study/data/guide_pairs.csv)",
+        help="shipped-table file (default offboard/study/slam_study/data/guide_pairs.csv)",
     )
     gd.add_argument(
         "--source",

@@ -358,7 +358,7 @@ int run_command(const RunArgs& a) {
   std::string err;
   json m;
   // Trajectories, graphs, map; the per-frame and per-keyframe tables for long-run analysis
-  // (offboard/tools/longrun.py); metrics.json.
+  // (offboard/bench/tools/longrun.py); metrics.json.
   if (!write_run_outputs(a, *setup->pipeline, setup->intr, &run, &err) ||
       !slam::write_run_tables(a.out, run.records, run.mapper_stats, run.loop_stats,
                               replay->rss_samples, &err) ||

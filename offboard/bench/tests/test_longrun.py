@@ -8,7 +8,9 @@ import importlib.util
 import json
 from pathlib import Path
 
-_spec = importlib.util.spec_from_file_location("longrun", Path(__file__).with_name("longrun.py"))
+_spec = importlib.util.spec_from_file_location(
+    "longrun", Path(__file__).resolve().parents[1] / "tools" / "longrun.py"
+)
 longrun = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(longrun)
 

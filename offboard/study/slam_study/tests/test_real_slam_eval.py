@@ -1,4 +1,4 @@
-"""Integration with the engine's real `slam-eval` (built by offboard/apps): a two-run sweep on the
+"""Integration with the engine's real `slam-eval` (built by offboard/eval): a two-run sweep on the
 9-frame fr1/desk excerpt, and our per-pair RPE against the RPE slam-eval reports itself.
 Skipped, with the reason, when the binary is not built ($RGBD_BUILD_DIR, default <repo>/build)."""
 

@@ -18,7 +18,7 @@
 # OpenCV runs single-threaded (--cv-threads 1) so the *_cpu timings are complete; the two pipeline
 # threads still overlap. Takes ~10-20 min on 2 cores.
 set -uo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+root=$(cd "$(dirname "$0")/../.." && pwd)
 cd "$root"
 DATA=${DATA:-$(scripts/data-dir.sh)}
 BIN=${SLAM_BIN:-build/bin}
@@ -103,7 +103,7 @@ if [ -d "$DATA/fr1_xyz_first300" ]; then
   if [ "$LONGRUN_PASSES" -gt 0 ]; then
     echo "bench: [$(( $(date +%s) - start ))s] long run: $LONGRUN_PASSES forward/backward passes, real time"
     rm -rf "$OUT/longrun_data"
-    python3 offboard/tools/longrun.py make --src "$xyz" --out "$OUT/longrun_data" --passes "$LONGRUN_PASSES" &&
+    python3 offboard/bench/tools/longrun.py make --src "$xyz" --out "$OUT/longrun_data" --passes "$LONGRUN_PASSES" &&
       "$BIN/slam-eval" run --dataset "$OUT/longrun_data" --camera fr1 --mode realtime --no-map --quiet \
         --out "$OUT/longrun" 2> "$OUT/longrun.log" || status=1
   fi
@@ -151,21 +151,21 @@ if [ -d "$DATA/fr1_xyz_first300" ]; then
       --est "$OUT/anchor/$name.first300.txt" > "$OUT/anchor/$name.json" 2> /dev/null || true
   done
 fi
-python3 offboard/tools/bench_table.py "$OUT"
-python3 offboard/tools/anchor_table.py "$OUT"
+python3 offboard/bench/tools/bench_table.py "$OUT"
+python3 offboard/bench/tools/anchor_table.py "$OUT"
 if [ -f "$OUT/longrun/metrics.json" ]; then
   echo; echo "### Long run (real time), per minute of data"
-  python3 offboard/tools/longrun.py table "$OUT/longrun" || status=1
+  python3 offboard/bench/tools/longrun.py table "$OUT/longrun" || status=1
 fi
 # When does each estimate agree with the motion capture, for position and for orientation
-# (offboard/tools/stamp_lag.py; docs/slam.md, Timestamps): the same for every system that reads the
+# (offboard/bench/tools/stamp_lag.py; docs/slam.md, Timestamps): the same for every system that reads the
 # same stamps means the lag is in the data's stamps, not in an estimator. Needs the venv's numpy.
 py=.venv/bin/python; [ -x "$py" ] || py=python3
 if "$py" -c "import numpy" 2> /dev/null; then
   echo; echo "### Stamp lag against the motion capture (wait mode unless named; best shift, ms)"
   lag() {
     [ -f "$2" ] && [ -f "$3" ] || return 0
-    echo "- $1: $(PYTHONPATH=offboard/python "$py" offboard/tools/stamp_lag.py --brief --gt "$3" --est "$2" | tr '\n' '|' | sed 's/|$//; s/|/ | /g')"
+    echo "- $1: $(PYTHONPATH=offboard/study "$py" offboard/bench/tools/stamp_lag.py --brief --gt "$3" --est "$2" | tr '\n' '|' | sed 's/|$//; s/|/ | /g')"
   }
   for seq in fr1_xyz_first300 fr2_desk_first50; do
     gt="$DATA/$seq/groundtruth.txt"

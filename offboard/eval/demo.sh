@@ -5,7 +5,7 @@
 # Output: out/demo/ (trajectory.tum, metrics.json, map.ply, graph_*.g2o, score.json, trajectory_topdown.png).
 # Env: SLAM_BIN (default build/bin).
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+root=$(cd "$(dirname "$0")/../.." && pwd)
 cd "$root"
 BIN=${SLAM_BIN:-build/bin}
 DATASET=tests/data/fr1_xyz_first30
@@ -26,7 +26,7 @@ print(f"demo: ATE RMSE {s['ate_rmse_m'] * 1000:.1f} mm, "
       f"RPE {s['rpe_trans_rmse_mm']:.2f} mm / {s['rpe_rot_rmse_deg']:.3f} deg per frame, {s['pairs']} poses")
 PY
 if "$python" -c "import matplotlib" 2>/dev/null; then
-  "$python" offboard/tools/plot_trajectory.py "$DATASET/groundtruth.txt" "$OUT/trajectory.tum" \
+  "$python" offboard/eval/tools/plot_trajectory.py "$DATASET/groundtruth.txt" "$OUT/trajectory.tum" \
     "$OUT/score.json" "$OUT/trajectory_topdown.png"
   echo "demo: top-down plot written to $OUT/trajectory_topdown.png"
 else

@@ -57,7 +57,7 @@ kBackend = "vo"
 # What slam-eval's trajectories depend on: the engine library, SURF, slam-eval's main. Tests and
 # documents are left out (they do not change a trajectory); so are the top-level CMake files and
 # compiler (a flag change is not caught: rerun `make study` after one).
-kEngineSources = ("offboard/slam", "offboard/surf", "offboard/apps/slam_eval_main.cpp")
+kEngineSources = ("offboard/slam", "offboard/surf", "offboard/eval/app/slam_eval_main.cpp")
 kEngineSuffixes = (".cpp", ".cc", ".h", ".hpp", ".txt")
 kEngineExcludedDirs = ("tests",)
 # The study code that turns trajectories into rows (the test recomputes the motion columns too).

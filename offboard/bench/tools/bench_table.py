@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Prints the SLAM benchmark tables from the metrics.json files that offboard/bench.sh wrote.
+"""Prints the SLAM benchmark tables from the metrics.json files that offboard/bench/bench.sh wrote.
 
 Layout: OUT/<sequence>/<features>_<backend>/metrics.json, OUT/<sequence>/peer/metrics.json,
 OUT/realtime_orb/metrics.json. Tables follow thesis Table 4.8 (RPE, frame to frame) and

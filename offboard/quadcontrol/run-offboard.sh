@@ -18,7 +18,7 @@
 # Without slam-server, set slam.mode to "in-process" in the config. Stop with Ctrl-C: quad-control
 # exits, then slam-server is stopped by its PID.
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+root=$(cd "$(dirname "$0")/../.." && pwd)
 bin=${QUAD_CONTROL_BIN:-$root/build/bin/quad-control}
 slam_bin=${SLAM_SERVER:-$root/build/bin/slam-server}
 checkpoints=${SLAM_CHECKPOINT_DIR:-$HOME/.local/state/rgbdquad/slam-checkpoints}

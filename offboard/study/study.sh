@@ -5,19 +5,19 @@
 #      resumable: finished runs in OUT/runs are not redone; wall time printed and kept in sweep.json)
 #   2. report: OUT/report.md + tables/*.csv + plots/*.png + pairs.csv, with the reference
 #      trajectories in DATA/reference_trajectories analysed as peers
-#   2b. the guide's shipped table offboard/python/slam_study/data/guide_pairs.csv from the sweep's
+#   2b. the guide's shipped table offboard/study/slam_study/data/guide_pairs.csv from the sweep's
 #      vo runs (slam-study table; pytest fails while it is stale)
 #   3. the Ray-cluster test (a private head node on loopback; skip with STUDY_RAY_TEST=0)
 # Env: DATA, STUDY_OUT (default build/study), RGBD_BUILD_DIR (default build), STUDY_K (k list),
 #      STUDY_JOBS (default: nproc), STUDY_BACKENDS / STUDY_FEATURES (comma lists; the shipped table
 #      needs only the vo runs: `STUDY_BACKENDS=vo make study` regenerates it in ~1/3 of the time).
 set -euo pipefail
-root=$(cd "$(dirname "$0")/.." && pwd)
+root=$(cd "$(dirname "$0")/../.." && pwd)
 cd "$root"
 DATA=${DATA:-$(scripts/data-dir.sh)}
 OUT=${STUDY_OUT:-$root/build/study}
 export RGBD_BUILD_DIR=${RGBD_BUILD_DIR:-$root/build}
-export PYTHONPATH="$root/offboard/python${PYTHONPATH:+:$PYTHONPATH}"
+export PYTHONPATH="$root/offboard/study${PYTHONPATH:+:$PYTHONPATH}"
 export MPLBACKEND=Agg RAY_USAGE_STATS_ENABLED=0
 py=$root/.venv/bin/python
 k_args=(); [ -n "${STUDY_K:-}" ] && k_args=(--k "$STUDY_K")
@@ -46,6 +46,6 @@ echo "study: report in $OUT/report.md"
 "$py" -m slam_study guide --trans-vel 0.3 --rot-vel 15 --target-rpe-mm 8 || status=1
 
 if [ "${STUDY_RAY_TEST:-1}" = "1" ]; then
-  SLAM_STUDY_RAY_TEST=1 "$py" -m pytest -q offboard/python/slam_study/tests/test_ray.py || status=1
+  SLAM_STUDY_RAY_TEST=1 "$py" -m pytest -q offboard/study/slam_study/tests/test_ray.py || status=1
 fi
 exit $status

@@ -3,7 +3,7 @@ this test. The node runs in its own session; teardown signals that process group
 process left in the session, by PID (never `ray stop`, which would stop every Ray on the host).
 
 Costs ~15-30 s on 2 cores (Ray start-up), so it is opt-in for `make test`: it runs when
-SLAM_STUDY_RAY_TEST=1 (offboard/study.sh sets it) and is skipped with that reason otherwise.
+SLAM_STUDY_RAY_TEST=1 (offboard/study/study.sh sets it) and is skipped with that reason otherwise.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ kRayStartTimeoutS = 120.0  # a cold Ray head takes ~10-20 s on 2 busy cores
 pytestmark = pytest.mark.skipif(
     os.environ.get("SLAM_STUDY_RAY_TEST") != "1",
     reason="Ray cluster test is opt-in (SLAM_STUDY_RAY_TEST=1; "
-    "offboard/study.sh runs it): ~20 s of Ray start-up",
+    "offboard/study/study.sh runs it): ~20 s of Ray start-up",
 )
 
 
