@@ -8,7 +8,7 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 export RGBD_BUILD_DIR=${RGBD_BUILD_DIR:-$root/build}
-export PYTHONPATH="$root/hil:$root/protocol/python:$root/firmware/tools:$root/offboard/python:$root/offboard/quadcontrol:$root/offboard/study${PYTHONPATH:+:$PYTHONPATH}"
+export PYTHONPATH="$root/hil:$root/protocol/python:$root/firmware/tools:$root/offboard/quadcontrol:$root/offboard/recorder:$root/offboard/study${PYTHONPATH:+:$PYTHONPATH}"
 python=.venv/bin/python
 [ -x "$python" ] || python=python3
 status=0

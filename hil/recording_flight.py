@@ -1,6 +1,6 @@
 """HIL scenario 2 with quad-control's MCAP recording on or off: what the recording holds and costs.
 
-    PYTHONPATH=hil:protocol/python:firmware/tools:offboard/python \
+    PYTHONPATH=hil:protocol/python:firmware/tools:offboard/recorder \
         .venv/bin/python hil/recording_flight.py --record on  --out out/rec-hil-on
     ... --record off --out out/rec-hil-off
 

@@ -17,7 +17,7 @@ export RGBD_BUILD_DIR=${RGBD_BUILD_DIR:-$root/build}
 export MPLBACKEND=Agg
 export HIL_STRICT=${HIL_STRICT:-1}
 # The summary tools below run outside pytest (whose pythonpath is in pyproject.toml): the same paths.
-export PYTHONPATH=$root/protocol/python:$root/offboard/python:$root/offboard/quadcontrol:$root/offboard/study:$root/hil${PYTHONPATH:+:$PYTHONPATH}
+export PYTHONPATH=$root/protocol/python:$root/offboard/quadcontrol:$root/offboard/recorder:$root/offboard/study:$root/hil${PYTHONPATH:+:$PYTHONPATH}
 rm -f test-artifacts/hil/*.json
 .venv/bin/python -m pytest -m hil hil -v -s -rsxX "$@"
 status=$?

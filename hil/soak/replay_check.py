@@ -93,7 +93,7 @@ def replay_missions(missions: list[dict], out: Path, say=print) -> list[dict]:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(
         [
-            str(root / "offboard" / "python"),
+            str(root / "offboard" / "recorder"),
             str(root / "protocol" / "python"),
             env.get("PYTHONPATH", ""),
         ]

@@ -17,5 +17,5 @@ cd "$root"
 export RGBD_BUILD_DIR=${RGBD_BUILD_DIR:-$root/build}
 export MPLBACKEND=Agg
 # The paths pytest uses for the HIL scenarios (pyproject.toml), for a run outside pytest.
-export PYTHONPATH=$root/protocol/python:$root/offboard/python:$root/onboard/python:$root/hil:$root/firmware/tools${PYTHONPATH:+:$PYTHONPATH}
+export PYTHONPATH=$root/protocol/python:$root/offboard/recorder:$root/onboard/python:$root/hil:$root/firmware/tools${PYTHONPATH:+:$PYTHONPATH}
 exec .venv/bin/python -m soak.runner --out "${SOAK_OUT:-$root/out/soak}" "$@"

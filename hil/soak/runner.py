@@ -1,7 +1,7 @@
 """`make soak`: closed-loop HIL missions flown back to back for SOAK_MINUTES with the seeded fault
 schedule of soak.schedule, then a report (soak.report) and the replay check (soak.replay_check).
 
-    PYTHONPATH=protocol/python:offboard/python:hil .venv/bin/python -m soak.runner \
+    PYTHONPATH=protocol/python:offboard/recorder:hil .venv/bin/python -m soak.runner \
         [--minutes 60] [--seed N] [--out out/soak] [--no-replay]
 
 One SlamFlight (hilrig.slam_flight) runs for the whole soak: the rig (firmware in simavr, FC

@@ -35,8 +35,8 @@ ROOT = Path(__file__).resolve().parents[2]
 for sub in (
     "hil",
     "protocol/python",
-    "offboard/python",
     "offboard/quadcontrol",
+    "offboard/recorder",
     "offboard/study",
     "firmware/tools",
     "scripts",

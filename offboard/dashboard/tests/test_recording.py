@@ -1,7 +1,7 @@
 """quad-control's MCAP recording end to end: the real quad-control (TUM replay, in-process SLAM, the
 firmware double behind the HIL WiFi-bridge emulator: the `firmware` fixture of conftest.py, all on
 127.0.0.1) records with --record; the file is read back by the Python `mcap` reader
-(offboard/python/flight_recording; the writer is offboard/recorder, docs/recording.md).
+(offboard/recorder/flight_recording; the writer is offboard/recorder, docs/recording.md).
 
   * a flight stopped with SIGTERM: a complete file (summary, CRCs), every channel of
     docs/recording.md present, images of every frame decodable, the recorded depth (RVL from the
