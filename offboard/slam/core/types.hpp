@@ -30,6 +30,23 @@ struct Intrinsics {
   static bool from_name(const std::string& name, Intrinsics* out, std::string* error);
 };
 
+/// Gravity's direction measured in a camera frame (unit vector) with its angular sigma; where it
+/// comes from and how its sigma is set: slam/tracking/gravity_prior.hpp.
+struct GravityObservation {
+  Eigen::Vector3d down_cam = Eigen::Vector3d::UnitY();
+  double sigma_rad = 1.0;
+};
+
+/// Whitened gravity residual of a camera whose world-to-camera rotation takes the world's gravity
+/// direction to `predicted_down_cam` (R_cw d_w): (R_cw d_w - d_c) / sigma. Both are unit vectors,
+/// so it constrains roll and pitch only; a turn about gravity or a move changes nothing. Shared by
+/// the pose fit, local BA and the loop-closing pose graph (templated for Ceres' Jets).
+template <typename T>
+void gravity_residual(const T predicted_down_cam[3], const GravityObservation& g, T residual[3]) {
+  const T inv_sigma = T(1.0 / g.sigma_rad);
+  for (int i = 0; i < 3; ++i) residual[i] = (predicted_down_cam[i] - T(g.down_cam[i])) * inv_sigma;
+}
+
 /// One synchronised RGB-D frame. `rgb` is CV_8UC3 (BGR as loaded by OpenCV), `depth` CV_16UC1
 /// in `Intrinsics::depth_units_per_m` units, 0 = no reading.
 struct RgbdFrame {

@@ -23,6 +23,8 @@ bool LoopCloserOptions::is_valid(std::string* error) const {
   if (min_ransac_inliers < 3 || min_projection_inliers < 6) return fail("inlier bars too low");
   if (!(fit_first_radius_px > 0) || !(fuse_radius_px > 0)) return fail("radii must be positive");
   if (consistent_keyframes < 0) return fail("consistent_keyframes must be >= 0");
+  if (!(posegraph_edge_rotation_sigma_rad > 0))
+    return fail("posegraph_edge_rotation_sigma_rad must be positive");
   return drift.is_valid(error) && matching.is_valid(error) && ransac.is_valid(error) &&
          posegraph.is_valid(error);
 }
@@ -235,12 +237,20 @@ std::optional<LoopCloser::Correction> LoopCloser::optimise(const Loop& loop,
   std::map<std::int64_t, Eigen::Isometry3d> poses;
   std::vector<PoseGraphEdge> edges;
   std::vector<LoopEdge> loops;
+  std::vector<PoseGraphGravity> gravity;
   {
     std::lock_guard<MapMutex> lock(map_->mutex);
     const std::int64_t l0 = steady_now_ns();
     const SlamMap& map = map_->map;
     if (!map.has_keyframe(kf_id) || !map.has_keyframe(loop.candidate)) return std::nullopt;
-    for (const auto& [id, kf] : map.keyframes()) poses[id] = kf.T_world_cam;
+    for (const auto& [id, kf] : map.keyframes()) {
+      poses[id] = kf.T_world_cam;
+      if (!kf.gravity || !map_->gravity_down_world) continue;
+      // In the graph's units: the measurement's sigma over the rotation sigma of an edge.
+      GravityObservation g = *kf.gravity;
+      g.sigma_rad /= options_.posegraph_edge_rotation_sigma_rad;
+      gravity.push_back(PoseGraphGravity{id, *map_->gravity_down_world, g});
+    }
     std::int64_t previous = -1;
     for (const auto& [id, kf] : map.keyframes()) {
       const auto cov = map.covisible(id, 1);
@@ -287,6 +297,7 @@ std::optional<LoopCloser::Correction> LoopCloser::optimise(const Loop& loop,
     e.sqrt_information.setConstant(loop_weight);
     graph.add_edge(e);
   }
+  for (const PoseGraphGravity& g : gravity) graph.add_gravity(g);
   stats->graph_keyframes = static_cast<int>(poses.size());
   stats->graph_edges = static_cast<int>(graph.edges().size());
   const double cost = graph.optimize(options_.posegraph);

@@ -146,6 +146,9 @@ struct MapKeyframe {
   /// keyframes after it share no points with the map before it until the segment is merged.
   /// Not saved with the map: it matters only to the mapper's culling of recent points.
   bool starts_segment = false;
+  /// Gravity measured when the keyframe was made (TrackerOptions::gravity): a roll/pitch factor in
+  /// local BA and in the loop-closing graph. Not saved with the map (a loaded map has none).
+  std::optional<GravityObservation> gravity;
 };
 
 /// Where a culled keyframe went: frames anchored to it follow T_parent_kf to a living keyframe.

@@ -40,6 +40,22 @@ struct RgbdReprojectionCost {
   CameraModel cam_;
 };
 
+/// Gravity factor of one keyframe (slam/core/types.hpp gravity_residual) on the same pose block.
+struct GravityCost {
+  GravityCost(const Eigen::Vector3d& down_world, const GravityObservation& g)
+      : down_world_(down_world), g_(g) {}
+  template <typename T>
+  bool operator()(const T* pose, T* residual) const {
+    const T d_w[3] = {T(down_world_.x()), T(down_world_.y()), T(down_world_.z())};
+    T d_c[3];
+    ceres::AngleAxisRotatePoint(pose, d_w, d_c);
+    gravity_residual(d_c, g_, residual);
+    return true;
+  }
+  Eigen::Vector3d down_world_;
+  GravityObservation g_;
+};
+
 std::array<double, 6> to_block(const Eigen::Isometry3d& T_cam_world) {
   const Eigen::AngleAxisd aa(T_cam_world.rotation());
   const Eigen::Vector3d w = aa.axis() * aa.angle();
@@ -276,13 +292,18 @@ struct LocalBaProblem {
   std::set<std::int64_t> fixed;
   std::map<std::int64_t, std::array<double, 3>> points;
   std::vector<Obs> obs;
+  /// The window's gravity measurements, with the map's gravity direction (SharedMap).
+  std::optional<Eigen::Vector3d> down_world;
+  std::map<std::int64_t, GravityObservation> gravity;
 };
 
 /// Keyframe `kf_id` and its best covisible neighbours (the window), anchored by up to
 /// `ba_max_fixed` keyframes outside it that see its points most. False when the window has
 /// fewer than two keyframes. Map locked by the caller.
-bool collect_local_ba(const SlamMap& map, std::int64_t kf_id, const LocalMapperOptions& options,
-                      const CameraModel& camera, LocalBaProblem* ba) {
+bool collect_local_ba(const SharedMap& shared, std::int64_t kf_id,
+                      const LocalMapperOptions& options, const CameraModel& camera,
+                      LocalBaProblem* ba) {
+  const SlamMap& map = shared.map;
   const std::int64_t first_kf = map.keyframes().begin()->first;
   std::vector<std::int64_t> window{kf_id};
   for (const auto& [n, shared] : map.covisible(kf_id, options.covisibility_min_shared)) {
@@ -311,6 +332,10 @@ bool collect_local_ba(const SlamMap& map, std::int64_t kf_id, const LocalMapperO
   // The world is the first keyframe's frame: hold it; with nothing fixed, hold the oldest.
   if (ba->poses.count(first_kf)) ba->fixed.insert(first_kf);
   if (ba->fixed.empty()) ba->fixed.insert(ba->poses.begin()->first);
+  ba->down_world = shared.gravity_down_world;
+  if (ba->down_world)
+    for (std::int64_t k : window)
+      if (const auto& g = map.keyframe(k)->gravity; g && !ba->fixed.count(k)) ba->gravity[k] = *g;
   for (const auto& [pid, xyz] : ba->points) {
     const MapPoint* p = map.point(pid);
     for (const auto& [o, kp] : p->observations) {
@@ -336,6 +361,12 @@ bool solve_local_ba(LocalBaProblem* ba, const CameraModel& camera, int iteration
         new RgbdReprojectionCost(o.z, o.sigma, camera));
     problem.AddResidualBlock(cost, &huber, ba->poses[o.kf].data(), ba->points[o.pid].data());
   }
+  // No robust loss: a jolt's sample already carries a large sigma (gravity_prior.hpp).
+  for (const auto& [k, g] : ba->gravity)
+    if (problem.HasParameterBlock(ba->poses[k].data()))
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<GravityCost, 3, 6>(new GravityCost(*ba->down_world, g)),
+          nullptr, ba->poses[k].data());
   for (std::int64_t k : ba->fixed)
     if (problem.HasParameterBlock(ba->poses[k].data()))
       problem.SetParameterBlockConstant(ba->poses[k].data());
@@ -390,7 +421,7 @@ void LocalMapper::bundle_adjust(std::int64_t kf_id, const KeyframesWaiting& wait
     std::lock_guard<MapMutex> lock(map_->mutex);
     if (!map_->map.has_keyframe(kf_id)) return;
     corrections = map_->corrections;
-    if (!collect_local_ba(map_->map, kf_id, options_, camera_, &ba)) return;
+    if (!collect_local_ba(*map_, kf_id, options_, camera_, &ba)) return;
   }
   StopWhenKeyframesWait stop(waiting);
   const bool usable = solve_local_ba(&ba, camera_, options_.ba_iterations, &stop);

@@ -8,7 +8,8 @@
 //  3. local bundle adjustment with Ceres over a bounded window (the new keyframe and its most
 //     covisible neighbours; keyframes outside the window that see the same points are held fixed):
 //     keyframe poses and points, RGB-D reprojection residual, Huber kernel, then outlier
-//     observations removed by the chi-square test;
+//     observations removed by the chi-square test; with gravity measured (TrackerOptions::gravity)
+//     each window keyframe also gets a roll/pitch factor (slam/core/types.hpp gravity_residual);
 //  4. cull redundant keyframes: one whose points are 90 % seen by at least 3 other keyframes.
 // Cost per keyframe is bounded by the window sizes, not by the length of the flight.
 // Catching up (ORB-SLAM2's CheckNewKeyFrames / abort flag): when the caller says more keyframes

@@ -28,7 +28,10 @@ struct FrameRecord {
   bool cross_checked = false;   ///< local-map system: a weak fit was cross-checked (TrackResult)
   bool new_segment = false;     ///< local-map system: the frame started a map segment (TrackResult)
   bool segment_merged = false;  ///< local-map system: the segment joined the map (TrackResult)
-  bool gravity_prior = false;   ///< local-map system: the pose fit had a gravity prior
+  /// Local-map system: a fit only the motion bound refused was confirmed by a registration to the
+  /// reference keyframe and kept (TrackResult).
+  bool off_path_confirmed = false;
+  bool gravity_prior = false;  ///< local-map system: the pose fit had a gravity prior
   double cross_check_shift_m = -1, cross_check_shift_deg = -1;  ///< (TrackResult)
   bool prediction_stale =
       false;  ///< local-map system: the gap exceeded the tracker's max_predicted_gap_s
@@ -81,6 +84,9 @@ struct PipelineSummary {
   std::size_t segments_started = 0;
   /// Segments moved onto the map before them when their place was recognised.
   std::size_t segments_merged = 0;
+  /// Fits only the motion bound refused, kept because the reference keyframe confirmed them
+  /// (TrackerOptions::confirm_off_path).
+  std::size_t off_path_confirmed = 0;
   /// Frames whose pose fit had a gravity prior (TrackerOptions::gravity).
   std::size_t gravity_frames = 0;
   bool loop_closing_active =

@@ -44,6 +44,7 @@ FrameRecord record_of(const RgbdFrame& frame, const TrackResult& tr) {
   rec.cross_checked = tr.cross_checked;
   rec.new_segment = tr.new_segment;
   rec.segment_merged = tr.segment_merged;
+  rec.off_path_confirmed = tr.off_path_confirmed;
   rec.gravity_prior = tr.gravity_prior;
   rec.cross_check_shift_m = tr.cross_check_shift_m;
   rec.cross_check_shift_deg = tr.cross_check_shift_deg;
@@ -336,6 +337,7 @@ void TrackingStage::track(const RgbdFrame& frame) {
     if (r.state == TrackingState::kLost) ++counts_.frames_lost;
     if (r.new_segment) ++counts_.segments_started;
     if (r.segment_merged) ++counts_.segments_merged;
+    if (r.off_path_confirmed) ++counts_.off_path_confirmed;
     if (r.gravity_prior) ++counts_.gravity_frames;
   }
   records_->add(std::move(out.record));
@@ -357,6 +359,7 @@ void TrackingStage::add_to(PipelineSummary* s) const {
   s->frames_lost = counts_.frames_lost;
   s->segments_started = counts_.segments_started;
   s->segments_merged = counts_.segments_merged;
+  s->off_path_confirmed = counts_.off_path_confirmed;
   s->gravity_frames = counts_.gravity_frames;
 }
 

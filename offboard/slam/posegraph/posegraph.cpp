@@ -15,6 +15,21 @@ namespace {
 // Residual of an edge a->b with measurement (p_ab, q_ab):
 //   q_ab_est = q_a^-1 q_b,  p_ab_est = q_a^-1 (p_b - p_a)
 //   r = S * [ p_ab_est - p_ab ; 2 vec(q_ab q_ab_est^-1) ],  S = diag(sqrt information)
+/// Gravity factor on a node's rotation q (of T_world_cam): the predicted down direction in the
+/// camera is q^-1 d_w.
+struct NodeGravityError {
+  explicit NodeGravityError(const PoseGraphGravity& g) : g_(g) {}
+  template <typename T>
+  bool operator()(const T* q_xyzw, T* residual) const {
+    const Eigen::Quaternion<T> q_cam_world =
+        Eigen::Map<const Eigen::Quaternion<T>>(q_xyzw).conjugate();
+    const Eigen::Matrix<T, 3, 1> d_c = q_cam_world * g_.down_world.cast<T>();
+    gravity_residual(d_c.data(), g_.observation, residual);
+    return true;
+  }
+  PoseGraphGravity g_;
+};
+
 struct RelativePoseError {
   RelativePoseError(const Eigen::Isometry3d& T_ab, const Eigen::Matrix<double, 6, 1>& sqrt_info)
       : p_ab(T_ab.translation()),
@@ -80,6 +95,14 @@ bool PoseGraph::add_edge(const PoseGraphEdge& e) {
   return true;
 }
 
+bool PoseGraph::add_gravity(const PoseGraphGravity& g) {
+  if (!nodes_.count(g.node) || !g.down_world.allFinite() || !g.observation.down_cam.allFinite() ||
+      !(g.observation.sigma_rad > 0))
+    return false;
+  gravity_.push_back(g);
+  return true;
+}
+
 Eigen::Isometry3d PoseGraph::pose(std::int64_t id) const {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   auto it = nodes_.find(id);
@@ -113,6 +136,13 @@ double PoseGraph::optimize(const PoseGraphOptions& o, std::string* report) {
     ceres::LossFunction* loss = e.loop ? new ceres::CauchyLoss(o.loop_cauchy_scale) : nullptr;
     problem.AddResidualBlock(cost, loss, a.p.data(), a.q.coeffs().data(), b.p.data(),
                              b.q.coeffs().data());
+  }
+  for (const PoseGraphGravity& g : gravity_) {
+    Node& n = nodes_.at(g.node);
+    if (problem.HasParameterBlock(n.q.coeffs().data()))
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<NodeGravityError, 3, 4>(new NodeGravityError(g)), nullptr,
+          n.q.coeffs().data());
   }
   bool manifold_used = false;
   for (auto& kv : nodes_) {

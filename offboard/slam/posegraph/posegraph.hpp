@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "slam/core/types.hpp"
+
 namespace rgbdquad::slam {
 
 struct PoseGraphEdge {
@@ -39,11 +41,22 @@ struct PoseGraphOptions {
 Eigen::Matrix<double, 6, 1> edge_sqrt_information(std::size_t inliers, double rms_m,
                                                   double depth_m);
 
+/// A gravity factor on one node (slam/core/types.hpp gravity_residual): the camera's roll and
+/// pitch against the world's gravity direction. `observation.sigma_rad` is in the graph's units:
+/// the caller divides the measurement's sigma by the rotation sigma its edges stand for.
+struct PoseGraphGravity {
+  std::int64_t node = 0;
+  Eigen::Vector3d down_world = Eigen::Vector3d::UnitY();
+  GravityObservation observation;
+};
+
 class PoseGraph {
  public:
   void add_node(std::int64_t id, const Eigen::Isometry3d& T_world_cam);
   /// Adds an edge between existing nodes; returns false (ignored) otherwise or when non-finite.
   bool add_edge(const PoseGraphEdge& edge);
+  /// Adds a gravity factor on an existing node; returns false (ignored) otherwise.
+  bool add_gravity(const PoseGraphGravity& gravity);
   /// Optimises with the first added node held fixed; returns the final cost, or a negative value
   /// when there is nothing to do or Ceres failed.
   double optimize(const PoseGraphOptions& options, std::string* report = nullptr);
@@ -65,6 +78,7 @@ class PoseGraph {
   };
   std::map<std::int64_t, Node> nodes_;
   std::vector<PoseGraphEdge> edges_;
+  std::vector<PoseGraphGravity> gravity_;
   std::int64_t first_ = -1;
 };
 

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 namespace rgbdquad::slam {
@@ -72,6 +73,83 @@ TEST(PoseGraph, GivenDriftingLoopWhenTrueLoopEdgeAddedThenDriftCorrected) {
   EXPECT_LT(after, 0.25 * before) << "before " << before << " after " << after;
   // The fixed first node stays put.
   EXPECT_TRUE(g.pose(0).isApprox(circle_pose(0, n), 1e-12));
+}
+
+// A chain whose every edge carries a small roll bias (the tilt drift vision alone leaves free),
+// each node measuring gravity (the world's -Z) truthfully in its camera frame.
+// Tilt of pose T against the truth: the angle between the two down directions in the camera.
+double tilt_rad(const Eigen::Isometry3d& T, const Eigen::Isometry3d& T_true,
+                const Eigen::Vector3d& down_world) {
+  const double c =
+      (T.linear().transpose() * down_world).dot(T_true.linear().transpose() * down_world);
+  return std::acos(std::clamp(c, -1.0, 1.0));
+}
+
+// Heading error: the yaw of the camera's x axis in the world's horizontal plane.
+double yaw_error_rad(const Eigen::Isometry3d& T, const Eigen::Isometry3d& T_true) {
+  const Eigen::Vector3d x = T.linear().col(0), x_true = T_true.linear().col(0);
+  return std::abs(
+      std::remainder(std::atan2(x.y(), x.x()) - std::atan2(x_true.y(), x_true.x()), 2 * kPi));
+}
+
+// A chain whose every edge carries a small roll bias (the tilt drift vision alone leaves free),
+// each node measuring gravity (the world's -Z) truthfully in its camera frame.
+TEST(PoseGraph, GravityFactorsHoldTheTiltTheEdgesDriftInAndLeaveYawAlone) {
+  const int n = 20;
+  const Eigen::Vector3d down_world = -Eigen::Vector3d::UnitZ();
+  for (const bool with_gravity : {false, true}) {
+    SCOPED_TRACE(with_gravity ? "gravity factors" : "edges only");
+    PoseGraph g;
+    Eigen::Isometry3d chained = circle_pose(0, n);
+    g.add_node(0, chained);
+    const Eigen::Isometry3d roll_bias(Eigen::AngleAxisd(0.005, Eigen::Vector3d::UnitX()));
+    double tilt_before = 0;
+    for (int i = 1; i < n; ++i) {
+      const Eigen::Isometry3d rel = circle_pose(i - 1, n).inverse() * circle_pose(i, n) * roll_bias;
+      chained = chained * rel;
+      g.add_node(i, chained);
+      tilt_before = std::max(tilt_before, tilt_rad(chained, circle_pose(i, n), down_world));
+      PoseGraphEdge e;
+      e.from = i - 1;
+      e.to = i;
+      e.T_from_to = rel;
+      e.sqrt_information = sqrt_info(0.01, 0.01);
+      ASSERT_TRUE(g.add_edge(e));
+      if (with_gravity) {
+        GravityObservation obs;
+        obs.down_cam = circle_pose(i, n).linear().transpose() * down_world;
+        obs.sigma_rad = 0.01;  // as strong as an edge's rotation
+        ASSERT_TRUE(g.add_gravity(PoseGraphGravity{i, down_world, obs}));
+      }
+    }
+    std::string report;
+    ASSERT_GE(g.optimize(PoseGraphOptions{}, &report), 0.0) << report;
+    double tilt_after = 0, yaw_after = 0;
+    for (int i = 0; i < n; ++i) {
+      tilt_after = std::max(tilt_after, tilt_rad(g.pose(i), circle_pose(i, n), down_world));
+      yaw_after = std::max(yaw_after, yaw_error_rad(g.pose(i), circle_pose(i, n)));
+    }
+    ASSERT_GT(tilt_before, 0.02);  // the bias did tilt the chain (> 1 deg somewhere)
+    if (with_gravity) {
+      // THEN most of the tilt is gone and the heading stays what the edges say
+      EXPECT_LT(tilt_after, 0.3 * tilt_before) << tilt_after << " vs " << tilt_before;
+      EXPECT_LT(yaw_after, 0.01) << yaw_after;
+    } else {
+      // THEN the edges alone keep the chain's tilt
+      EXPECT_GT(tilt_after, 0.9 * tilt_before) << tilt_after << " vs " << tilt_before;
+    }
+  }
+}
+
+TEST(PoseGraph, RefusesGravityOnUnknownNodesOrWithoutASigma) {
+  PoseGraph g;
+  g.add_node(0, Eigen::Isometry3d::Identity());
+  GravityObservation obs;
+  EXPECT_FALSE(g.add_gravity(PoseGraphGravity{7, -Eigen::Vector3d::UnitZ(), obs}));
+  obs.sigma_rad = 0;
+  EXPECT_FALSE(g.add_gravity(PoseGraphGravity{0, -Eigen::Vector3d::UnitZ(), obs}));
+  obs.sigma_rad = 0.1;
+  EXPECT_TRUE(g.add_gravity(PoseGraphGravity{0, -Eigen::Vector3d::UnitZ(), obs}));
 }
 
 TEST(PoseGraph, GivenFalseLoopClosureThenRobustLossKeepsMapIntact) {

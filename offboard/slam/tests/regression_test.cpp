@@ -345,6 +345,51 @@ TEST(Regression, LocalMapNeverHandsOnAStepFasterThanTheCameraCanMove) {
   }
 }
 
+TEST(Regression, LocalMapKeepsAStrongFitOffTheRecentPathWhenTheReferenceKeyframeConfirmsIt) {
+  // GIVEN frames 0-9, then frame 17's images stamped one frame interval after frame 9: a step of
+  // about 0.1 m, within the speed bound (2 m/s) but beyond the acceleration bound's 6 cm around
+  // the recent path - a strong fit the acceleration bound alone refuses
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  for (const bool confirm : {false, true}) {
+    SCOPED_TRACE(confirm ? "confirm_off_path on" : "confirm_off_path off");
+    PipelineOptions o = orb_local_map(PipelineMode::kSequential);
+    o.tracker.confirm_off_path = confirm;
+    auto p = Pipeline::create(o, Intrinsics{}, &err);
+    ASSERT_TRUE(p) << err;
+    double last_stamp = 0;
+    for (std::size_t i = 0; i < 10; ++i) {
+      auto f = ds->load(i, &err);
+      ASSERT_TRUE(f) << err;
+      last_stamp = f->stamp_s;
+      p->submit(std::move(*f));
+    }
+    auto skipped = ds->load(17, &err);
+    ASSERT_TRUE(skipped) << err;
+    skipped->index = 10;
+    skipped->stamp_s = last_stamp + 0.033;
+    p->submit(std::move(*skipped));
+    p->finish();
+    const auto recs = p->records();
+    ASSERT_EQ(recs.size(), 11u);
+    const double step_m =
+        (recs[9].T_world_cam.inverse() * recs[10].T_world_cam).translation().norm();
+    EXPECT_EQ(recs[10].state, TrackingState::kTracking);
+    if (confirm) {
+      // THEN the registration to the reference keyframe confirms the fit, which is kept: the
+      // frame is placed where its images were taken, in the same map segment
+      EXPECT_TRUE(recs[10].off_path_confirmed);
+      EXPECT_FALSE(recs[10].new_segment);
+      EXPECT_GT(step_m, 0.05);
+    } else {
+      // THEN the bound is final: a new segment starts at the predicted pose, a few mm on
+      EXPECT_TRUE(recs[10].new_segment);
+      EXPECT_LT(step_m, 0.02);
+    }
+  }
+}
+
 TEST(Regression, LocalMapSegmentJoinsTheMapWhenItsPlaceIsRecognised) {
   // GIVEN frames 0-9, then frames 23-29 stamped as if they followed at once (the camera would have
   // moved ~0.2 m in one frame interval: a new map segment starts at the predicted pose, ~0.2 m

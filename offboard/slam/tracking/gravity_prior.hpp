@@ -41,12 +41,6 @@ struct GravityOptions {
   bool is_valid(std::string* error) const;
 };
 
-/// Gravity's direction measured in the camera frame (unit vector) with its angular sigma.
-struct GravityObservation {
-  Eigen::Vector3d down_cam = Eigen::Vector3d::UnitY();
-  double sigma_rad = 1.0;
-};
-
 /// The frame's gravity measurement (attitude first, then the accelerometer), or nullopt.
 std::optional<GravityObservation> observe_gravity(const RgbdFrame& frame,
                                                   const GravityOptions& options);

@@ -60,6 +60,10 @@ struct SharedMap {
   /// re-anchors its last pose to its reference keyframe, the mapper drops a bundle adjustment
   /// solved on poses from before the correction.
   std::uint64_t corrections = 0;
+  /// The map's gravity direction in the world frame (TrackerOptions::gravity, GravityReference):
+  /// written by the tracker as keyframes add to it, read by the mapper's BA and the loop closer's
+  /// pose graph for their gravity factors. Empty while gravity is off or not yet measured.
+  std::optional<Eigen::Vector3d> gravity_down_world;
 };
 
 /// Why the keyframe rule asked for a keyframe (logged per frame; see Tracker::track step 5).
@@ -191,13 +195,18 @@ struct TrackerOptions {
   /// one). 0.2 s: a relocalisation costs 10-30 ms on 2 cores, so trying ~5 times a second adds
   /// a few ms per frame on average, and a craft back over mapped ground is merged within 0.2 s.
   double segment_merge_period_s = 0.2;
-  /// A fit with enough inliers that only the motion bound refuses is checked, not dropped: it is
-  /// kept when the frame's registration to the reference keyframe (descriptors + 3D-3D RANSAC,
-  /// refitted on the local map, >= min_inliers_relocalised) lands within the same-pose tolerance
-  /// below. The tolerance is the cross-check's: fits of one pose differ by up to 8 mm and 0.6 deg
-  /// on fr1_xyz_first300, wrong fits by 15 mm and more; 2 cm and 1 deg leave room for the noisier
-  /// fits of a fast turn.
-  bool confirm_off_path = false;
+  /// A fit with enough inliers that only the motion bound refuses, within max_predicted_gap_s of
+  /// the last tracked frame, is checked, not dropped: it is kept when the frame's registration to
+  /// the reference keyframe (descriptors + 3D-3D RANSAC, refitted on the local map, >=
+  /// min_inliers_relocalised) lands within the same-pose tolerance below. The tolerance is the
+  /// cross-check's: fits of one pose differ by up to 8 mm and 0.6 deg on fr1_xyz_first300, wrong
+  /// fits by 15 mm and more; 2 cm and 1 deg leave room for the noisier fits of a fast turn.
+  /// On by default: the bound's wrong fits came after gaps the prediction no longer vouched for
+  /// (there it stays final), and the alternative to a confirmed fit, a new map segment at the
+  /// predicted pose, is further off: in a fast turn (fr1_360_first60) the bound refused fits of
+  /// 80-170 inliers that the registration confirmed, and each refusal started a segment (8 where
+  /// 2 remain with the check).
+  bool confirm_off_path = true;
   double off_path_same_pose_m = 0.02;
   double off_path_same_pose_deg = 1.0;
   /// Re-time each frame's depth to its colour image (RgbdFrame::depth_stamp_s) by the predicted
