@@ -22,11 +22,17 @@ from slam_study import tables
 from slam_study.pairs import PairTable
 from slam_study.tables import CellStats, Table
 
-# Beyond the thesis's 18 mm / 1.8 deg the guide keeps going with coarser cells: reduced-rate runs
-# (k up to 8) reach ~90 mm and ~4 deg per frame on fr1/xyz (Table 3.4), and a slow frame rate is
-# exactly what the guide is asked about.
-kGuideTransEdgesMm = (0.0,) + tables.kGridTransEdgesMm + (25.0, 35.0, 50.0, 70.0, 100.0)
-kGuideRotEdgesDeg = (0.0,) + tables.kGridRotEdgesDeg + (2.5, 3.5, 5.0)
+# Beyond the thesis's 18 mm / 1.8 deg the guide keeps going with coarser cells, each edge ~1.4x the
+# last (a cell's width grows with the motion, as the error's spread does): reduced-rate runs (k up
+# to 8) reach ~130 mm per frame on fr1/xyz and ~29 deg on fr1/360 (a hand-held turn at up to
+# 80 deg/s), and a slow frame rate or a fast turn is exactly what the guide is asked about. Cells
+# above the measured motion stay empty: the guide answers "outside the measured motion" there.
+kGuideTransEdgesMm = (
+    (0.0,) + tables.kGridTransEdgesMm + (25.0, 35.0, 50.0, 70.0, 100.0, 140.0, 200.0)
+)
+kGuideRotEdgesDeg = (
+    (0.0,) + tables.kGridRotEdgesDeg + (2.5, 3.5, 5.0, 7.0, 10.0, 14.0, 20.0, 28.0, 40.0)
+)
 # Candidate rates: what keeping every k-th frame of the Kinect's 30 fps gives, k = 1..8.
 kCandidateFps = tuple(30.0 / k for k in range(1, 9))
 # Table 4.21's rates: the thesis's platform estimate spans 6-30 fps.

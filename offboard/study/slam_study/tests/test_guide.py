@@ -24,7 +24,7 @@ def test_prediction_uses_the_cell_of_the_per_frame_motion():
     at30, at15, at16, at54, at2 = preds
     assert at30.enough and at30.cell.trans_mean_mm == pytest.approx(3.0)
     assert at15.cell is None and not at15.enough  # 18 mm: above the 17 mm measured
-    assert at2.cell is None  # 135 mm is beyond the grid
+    assert at2.cell is None  # 135 mm: beyond the 17 mm measured
     assert at16.enough and at16.cell.trans_mean_mm == pytest.approx(9.0)
     assert at54.cell.n == 2 and not at54.enough  # thin cell: not enough data
 
@@ -70,7 +70,7 @@ def test_guide_cli_reads_pairs_csv(tmp_path, capsys):
     )
     out = capsys.readouterr().out
     assert "Lowest frame rate meeting 5 mm per frame: 30.00 fps" in out
-    assert "outside the measured motion: no prediction" in out  # 2 fps: 135 mm per frame
+    assert "outside the measured motion: no prediction" in out  # 3.75 fps: 72 mm per frame
     assert "outside what was measured at 15.00, 10.00" in out
     assert (
         cli.main(
@@ -105,3 +105,18 @@ def test_lowest_rate_stops_at_the_first_rate_missing_the_target():
     preds = guide.predict(pairs, 0.27, 15.0, fps_list=(30.0, 16.0, 6.75))
     assert preds[2].enough and preds[2].cell.trans_mean_mm == pytest.approx(3.0)
     assert guide.lowest_fps_meeting(preds, 5.0).fps == 30.0
+
+
+def test_fast_turns_reduced_in_rate_have_cells():
+    # GIVEN pairs of a fast turn with frames dropped: 30 mm + 12 deg per frame (fr1/360 at 10 fps)
+    pairs = make_pairs(
+        [30.0] * 6 + [9.0] * 6, [12.0] * 6 + [0.5] * 6, rpe_mm=[20.0] * 6 + [3.0] * 6
+    )
+    # WHEN the guide is asked about 0.3 m/s, 120 deg/s: 30 mm + 12 deg per frame at 10 fps
+    at10, at5 = guide.predict(pairs, 0.3, 120.0, fps_list=(10.0, 5.0))
+    # THEN that rate is answered from the 25-35 mm x 10-14 deg cell, and 24 deg at 5 fps, above
+    # the 12 deg measured, is outside
+    assert (
+        at10.enough and at10.rot_bin == "10-14" and at10.cell.trans_mean_mm == pytest.approx(20.0)
+    )
+    assert at5.cell is None
