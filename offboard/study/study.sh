@@ -7,6 +7,10 @@
 #      trajectories in DATA/reference_trajectories analysed as peers
 #   2b. the guide's shipped table offboard/study/slam_study/data/guide_pairs.csv from the sweep's
 #      vo runs (slam-study table; pytest fails while it is stale)
+#   2c. with STUDY_RENDERED=DIR (folders rendered by hil/tools/render_tum.py, e.g. out/bench/rendered
+#      from make bench): the same sweep of them on their own into OUT-rendered, slam-eval
+#      --no-undistort (rendered frames have no lens distortion); a report only: the guide's table
+#      rests on recorded sequences (docs/study.md)
 #   3. the Ray-cluster test (a private head node on loopback; skip with STUDY_RAY_TEST=0)
 # Env: DATA, STUDY_OUT (default build/study), RGBD_BUILD_DIR (default build), STUDY_K (k list),
 #      STUDY_JOBS (default: nproc), STUDY_BACKENDS / STUDY_FEATURES (comma lists; the shipped table
@@ -37,6 +41,12 @@ if [ -x "$RGBD_BUILD_DIR/bin/slam-eval" ]; then
   "$py" -m slam_study run --data "$DATA" --out "$OUT" --jobs "${STUDY_JOBS:-$(nproc)}" \
     --slam-eval-args "--no-map --quiet" "${k_args[@]}" "${sel_args[@]}" "${refs[@]}" || status=1
   "$py" -m slam_study table --report "$OUT" || status=1
+  if [ -n "${STUDY_RENDERED:-}" ]; then
+    "$py" -m slam_study run --data "$STUDY_RENDERED" --out "$OUT-rendered" \
+      --jobs "${STUDY_JOBS:-$(nproc)}" --slam-eval-args "--no-map --quiet --no-undistort" \
+      "${k_args[@]}" "${sel_args[@]}" || status=1
+    echo "study: rendered manoeuvres' report in $OUT-rendered/report.md"
+  fi
 else
   echo "study: $RGBD_BUILD_DIR/bin/slam-eval not built: no sweep; report from the reference trajectories only"
   "$py" -m slam_study report --out "$OUT" "${k_args[@]}" "${refs[@]}" || status=1

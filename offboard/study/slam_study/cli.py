@@ -95,7 +95,9 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="+",
         required=True,
         metavar="DIR",
-        help="TUM-layout dataset folders, or folders whose sub-folders are datasets",
+        help="TUM-layout dataset folders, or folders whose sub-folders are datasets; folders "
+        "rendered by hil/tools/render_tum.py are swept on their own, with --slam-eval-args "
+        '"... --no-undistort"',
     )
     run.add_argument(
         "--out",
@@ -319,13 +321,18 @@ def _run(args, warn) -> int:
         return 2
     for d in datasets:
         tum.Dataset.load(d)  # fail early, with the file and line, on a malformed dataset
+    extra_args = tuple(shlex.split(args.slam_eval_args))
+    problem = sweep.undistort_problem(datasets, extra_args)
+    if problem:
+        warn(f"error: {problem}")
+        return 2
     jobs = sweep.make_jobs(
         datasets,
         args.features,
         args.backends,
         args.k,
         args.mode,
-        tuple(shlex.split(args.slam_eval_args)),
+        extra_args,
         _engine_sha256(slam_eval),
     )
     todo = [j for j in jobs if not sweep.is_finished(j, args.out, args.retry_failed)]

@@ -36,7 +36,7 @@ import numpy as np
 
 from slam_study import velocity
 from slam_study.pairs import PairTable, motion_pairs
-from slam_study.tum import Dataset, Trajectory, TumFormatError, read_trajectory
+from slam_study.tum import Dataset, Trajectory, TumFormatError, is_rendered, read_trajectory
 
 kRepoRoot = Path(__file__).resolve().parents[3]
 kTablePath = Path(__file__).resolve().parent / "data" / "guide_pairs.csv"
@@ -237,6 +237,14 @@ def collect(
             continue
         ds_path = job["dataset"]
         name = Path(ds_path).name
+        if is_rendered(ds_path):
+            # The guide predicts a camera's error; rendered frames have no blur, no rolling shutter
+            # and no lens distortion, so their error is a lower bound that would mislead it.
+            raise TumFormatError(
+                f"{result_path.parent}: {name} was rendered by hil/tools/render_tum.py; the "
+                "guide's table rests on recorded sequences only (docs/study.md): read a rendered "
+                "sweep with `slam-study guide --report REPORT_DIR` instead"
+            )
         if name not in cache:
             cache[name] = Dataset.load(ds_path)
             stamps = cache[name].rgb_stamps_s

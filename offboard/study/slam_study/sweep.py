@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TextIO
 
+from slam_study import tum
 from slam_study.worker import execute_job
 
 kFeatures = ("sift", "surf", "orb")
@@ -28,6 +29,45 @@ kBackends = ("vo", "llc", "glc")
 kDefaultKs = (1, 2, 3, 4, 5, 8)
 # A single run on the shared data takes seconds; this only catches a hung process.
 kDefaultRunTimeoutS = 900.0
+
+
+# slam-eval's switch for frames without lens distortion (rendered ones); recordings of the Kinect
+# are undistorted with the sequence's calibration, so they must run without it.
+kNoUndistortArg = "--no-undistort"
+
+
+def undistort_problem(datasets: list[Path], extra_args: tuple[str, ...]) -> str | None:
+    """Why these datasets cannot be swept with these slam-eval options, or None.
+
+    Folders rendered by hil/tools/render_tum.py need --no-undistort, recordings must not have it,
+    and one sweep passes the same options to every run: so rendered folders are swept on their own
+    (into their own report folder, which also keeps synthetic pairs out of the recordings' grid
+    and out of the guide's shipped table, docs/study.md)."""
+    rendered = [d for d in datasets if tum.is_rendered(d)]
+    recorded = [d for d in datasets if d not in rendered]
+    no_undistort = kNoUndistortArg in extra_args
+
+    def names(ds: list[Path]) -> str:
+        return ", ".join(d.name for d in ds)
+
+    if rendered and recorded:
+        return (
+            f"{names(rendered)} rendered by hil/tools/render_tum.py and {names(recorded)} "
+            "recorded by a camera in one sweep: sweep them apart (rendered frames run with "
+            f"{kNoUndistortArg}, recorded ones are undistorted; their pairs are reported apart)"
+        )
+    if rendered and not no_undistort:
+        return (
+            f"{names(rendered)} rendered by hil/tools/render_tum.py: the frames have no lens "
+            f'distortion, add {kNoUndistortArg} to --slam-eval-args (e.g. "--no-map --quiet '
+            f'{kNoUndistortArg}")'
+        )
+    if recorded and no_undistort:
+        return (
+            f"{kNoUndistortArg} with {names(recorded)}: recorded frames carry the camera's lens "
+            "distortion and must be undistorted (the option is for rendered folders only)"
+        )
+    return None
 
 
 @dataclass(frozen=True)

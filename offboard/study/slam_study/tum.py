@@ -174,6 +174,20 @@ class Dataset:
         return Trajectory(stamps[ia], self.groundtruth.poses[ib])
 
 
+# hil/tools/render_tum.py starts rgb.txt (and its other lists) with this line: the frames are the
+# HIL Kinect emulator's, not a camera's (no lens distortion, no motion blur, no rolling shutter).
+kRenderedHeader = "# rendered by hil/tools/render_tum.py"
+
+
+def is_rendered(path: str | Path) -> bool:
+    """True for a dataset folder written by hil/tools/render_tum.py (rgb.txt's first line)."""
+    try:
+        with (Path(path) / "rgb.txt").open() as fh:
+            return fh.readline().startswith(kRenderedHeader)
+    except OSError:
+        return False
+
+
 def is_dataset(path: str | Path) -> bool:
     p = Path(path)
     return (p / "rgb.txt").is_file() and (p / "groundtruth.txt").is_file()

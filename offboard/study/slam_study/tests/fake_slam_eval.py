@@ -4,7 +4,8 @@ of the sweep (the real binary is built by another component and may be absent).
 Its trajectory is the ground truth at every k-th colour frame with seeded noise that grows with the
 per-frame motion (so binned errors have a trend to find). Environment switches:
   FAKE_SLAM_EVAL_FAIL=<features>  exit 3 for that detector (a failing configuration)
-  FAKE_SLAM_EVAL_LOG=<file>       append one line per invocation (to count runs)
+  FAKE_SLAM_EVAL_LOG=<file>       append one line per invocation (to count runs; --no-undistort
+                                  is written at its end when given)
 """
 
 from __future__ import annotations
@@ -37,10 +38,13 @@ def main() -> int:
     run.add_argument("--rate", type=int, default=1)
     run.add_argument("--mode", default="wait")
     run.add_argument("--out", required=True)
+    for flag in ("--no-undistort", "--no-map", "--quiet"):  # the study's --slam-eval-args
+        run.add_argument(flag, action="store_true")
     args = parser.parse_args()
     if os.environ.get("FAKE_SLAM_EVAL_LOG"):
         with open(os.environ["FAKE_SLAM_EVAL_LOG"], "a") as fh:
-            fh.write(f"{args.dataset} {args.features} {args.backend} {args.rate}\n")
+            undistort = " --no-undistort" if args.no_undistort else ""
+            fh.write(f"{args.dataset} {args.features} {args.backend} {args.rate}{undistort}\n")
     if os.environ.get("FAKE_SLAM_EVAL_FAIL") == args.features:
         print(f"fake-slam-eval: {args.features} is configured to fail", file=sys.stderr)
         return 3

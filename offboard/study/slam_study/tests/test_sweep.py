@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from slam_study import cli, sweep
 
 
@@ -119,3 +121,49 @@ def test_a_source_without_pairs_still_renders(tmp_path):
     md = "\n".join(report.pair_sections(report.Source("empty", pairs.empty_pairs(), []), tmp_path))
     assert "not enough data" in md and "Table 4.20a" in md
     assert (tmp_path / "plots" / "empty_grid.png").is_file()
+
+
+def _rendered_copy(src, dst):
+    """A TUM folder as hil/tools/render_tum.py writes it: its lists start with the renderer's
+    line (the frames themselves are not read by the stand-in slam-eval)."""
+    dst.mkdir()
+    (dst / "rgb.txt").write_text(
+        "# rendered by hil/tools/render_tum.py --out x --manoeuvre turn\n"
+        + (src / "rgb.txt").read_text()
+    )
+    (dst / "groundtruth.txt").write_text((src / "groundtruth.txt").read_text())
+    return dst
+
+
+def test_rendered_folders_are_swept_apart_with_no_undistort_and_kept_out_of_the_table(
+    tmp_path, fr1_desk9, fake_slam_eval, monkeypatch, capsys
+):
+    from slam_study import shipped, tum
+
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    rendered = _rendered_copy(fr1_desk9, mixed / "hil_turn")
+    (mixed / "fr1_desk_9frames").symlink_to(fr1_desk9)
+    assert tum.is_rendered(rendered) and not tum.is_rendered(fr1_desk9)
+    log = tmp_path / "invocations.txt"
+    monkeypatch.setenv("FAKE_SLAM_EVAL_LOG", str(log))
+    no_undistort = ("--slam-eval-args", "--no-map --quiet --no-undistort")
+    # WHEN a rendered folder is swept without --no-undistort, or with a recording, or a recording
+    # with --no-undistort THEN the sweep refuses before any run, naming the fix
+    for data, extra, says in (
+        (rendered, (), "add --no-undistort"),
+        (mixed, no_undistort, "sweep them apart"),
+        (fr1_desk9, no_undistort, "must be undistorted"),
+    ):
+        assert _run_cli(tmp_path / "r", data, fake_slam_eval, *extra) == 2
+        assert says in capsys.readouterr().err
+    assert not log.exists()
+    # WHEN it is swept on its own with --no-undistort THEN every run gets the option
+    out = tmp_path / "rendered-report"
+    assert _run_cli(out, rendered, fake_slam_eval, "--no-report", *no_undistort) == 0
+    lines = log.read_text().splitlines()
+    assert len(lines) == 4 and all(line.endswith(" --no-undistort") for line in lines)
+    # AND the guide's shipped table refuses its pairs (the guide predicts a camera's error)
+    with pytest.raises(tum.TumFormatError, match="recorded sequences only"):
+        shipped.write(out, tmp_path / "table.csv", lambda msg: None)
+    assert not (tmp_path / "table.csv").exists()
