@@ -1,7 +1,7 @@
 r"""Replays a quad-control MCAP recording through SLAM and compares with the poses recorded in
 flight.
 
-    PYTHONPATH=offboard/python:protocol/python python -m flight_recording.replay FLIGHT.mcap \
+    PYTHONPATH=offboard/recorder:protocol/python python -m flight_recording.replay FLIGHT.mcap \
         --out DIR [--slam-eval BIN] [--tum-score BIN]
 
   1. extracts the recorded frames into a TUM RGB-D folder DIR/tum: rgb/<t>.jpg (the recorded JPEG
