@@ -280,6 +280,8 @@ struct ServerArgs {
   std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off";
   std::string restart_when_lost = slam::TrackerOptions{}.restart_when_lost ? "on" : "off";
   std::string cross_check = "on";
+  std::string confirm_off_path = slam::TrackerOptions{}.confirm_off_path ? "on" : "off";
+  std::string gravity = slam::TrackerOptions{}.gravity.enabled ? "on" : "off";
   std::string thread_policy = "rr";
   slam::ThreadPriorityOptions priority;
   int mapping_rt_priority = slam::PipelineOptions{}.mapping_rt_priority;
@@ -359,6 +361,17 @@ void add_tracking_options(CLI::App& app, ServerArgs& a) {
                  "off for ablations")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
+  app.add_option("--confirm-off-path", a.confirm_off_path,
+                 "localmap: a fit only the motion bound refuses is kept when a registration to "
+                 "the reference keyframe lands on the same pose (docs/slam.md); off for ablations")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  app.add_option("--gravity", a.gravity,
+                 "localmap: gravity's direction (the frame's flight-controller attitude, else "
+                 "the Kinect's accelerometer) on roll and pitch in tracking, local BA and the "
+                 "loop-closing graph (docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   app.add_option(
          "--thread-policy", a.thread_policy,
          "scheduling of the serving (tracking) thread: rr | fifo (real-time, falls back to nice "
@@ -391,6 +404,8 @@ std::optional<slam::PipelineOptions> pipeline_options(ServerArgs& a) {
   options.loop_closing = a.loop_closing == "on";
   if (a.cross_check == "off") options.tracker.cross_check_tracked_ratio = 0;
   options.tracker.restart_when_lost = a.restart_when_lost == "on";
+  options.tracker.confirm_off_path = a.confirm_off_path == "on";
+  options.tracker.gravity.enabled = a.gravity == "on";
   options.mapping_rt_priority = a.mapping_rt_priority;
   options.checkpoint_period_s = a.checkpoint_period_s;
   std::string err;
