@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-TOOL = Path(__file__).resolve().parent / "render_tum.py"
+TOOL = Path(__file__).resolve().parents[1] / "render_tum.py"
 sys.path.insert(0, str(TOOL.parent))
 import render_tum  # noqa: E402
 
