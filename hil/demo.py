@@ -6,7 +6,7 @@ hold at 1.7 m, fly to two waypoints, land. The dashboard is up during the flight
 printed; open it in a browser to watch). At the end: ATE of the SLAM trajectory against the
 emulator's truth, latency per stage, hold and waypoint errors, touchdown speed, and a PASS/MISS
 line per target (hilrig.verdict: hold and each waypoint +-0.15 m, touchdown <= 0.5 m/s, SLAM ATE
-<= 30 mm, 0 SLAM session resets counted from the processes' logs and quad-control's state, the rig
+<= 30 mm, 0 SLAM map resets counted from the processes' logs and quad-control's state, the rig
 in real time). Exit status: 0 all targets met, 1 a target missed (each miss says why), 2 cannot fly.
 Output: out/demo-hil/ (report.json with the verdict, flight-log/, the processes' logs).
 """
@@ -23,7 +23,7 @@ from pathlib import Path
 from hilrig import missions
 from hilrig.paths import REPO_ROOT
 from hilrig.slam_flight import SlamFlight, SlamFlightOptions, missing_parts
-from hilrig.verdict import judge, session_resets
+from hilrig.verdict import judge, map_resets
 
 
 def frame_rate_guide(out: Path, fps: float) -> str:
@@ -115,7 +115,7 @@ def main(argv=None) -> int:
         if args.linger_s > 0:
             progress(f"landed; everything stays up {args.linger_s:.0f} s more")
             flight.hold_for(args.linger_s)
-    resets = session_resets(
+    resets = map_resets(
         _read(args.out / "slam-server.log"), _read(args.out / "quad-control.log"), final_state
     )
     report["slam_link"] = dict(resets, state=(final_state or {}).get("slam"))

@@ -8,12 +8,13 @@ that refers to a work period, a tracker entry or a person; it exits 1 if there i
 
 Rules (case-insensitive):
 
-* every file: a numbered work period (`session` or `sessions` followed by a number), a tracker entry
-  (`issue` followed by a number, with or without `#`), and the word lead after the definite
-  article. The word session alone is fine (a SLAM map's lifetime is a session); a session named by
-  an identifier is written with a hexadecimal identifier (`0x2a`), which the rule does not match.
-  An option or identifier ending in `-sessions`/`_session` followed by a value (`--max-sessions
-  4`) is not a work period and is not flagged.
+* every file: a numbered work period (`session` or `sessions` followed by a number in any base,
+  `0x2a` included), a tracker entry (`issue` followed by a number, with or without `#`), and the
+  word lead after the definite article. The word session alone is fine (a streaming handshake, an
+  HTTP connection); a SLAM map and its lifetime are called a map, so a map's id follows `map`
+  (`map 000000000000002a resumed`) and never `session`. An option or identifier ending in
+  `-sessions`/`_session` followed by a value (`--max-sessions 4`) is not a work period and is not
+  flagged.
 * prose only (docs/*.md and the top-level README.md): the words lead(s) and helper(s) in any use
   except the verb phrase "lead(s) to". Prose names a thing by what it is ("test support code",
   "the scoring functions"), so both words there can only mean a person. In code and code comments
@@ -38,7 +39,7 @@ import sys
 from pathlib import Path
 
 EVERYWHERE = re.compile(
-    r"(?<![-_])\bsessions?\s+[0-9]+\b|\bissues?\s+#?[0-9]+\b|\bthe\s+lead\b",
+    r"(?<![-_])\bsessions?\s+[0-9]|\bissues?\s+#?[0-9]+\b|\bthe\s+lead\b",
     re.IGNORECASE,
 )
 PROSE_ONLY = re.compile(r"\b(?:lead|helper)s?\b(?!\s+to\b)", re.IGNORECASE)

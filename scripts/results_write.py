@@ -254,7 +254,7 @@ def demo_loop_figures(summary_file: Path) -> list[dict]:
             target=None,
             mode="HIL scenario 2",
         ),
-        figure("SLAM session resets", s["resets_total"], "resets", target=0, mode="HIL scenario 2"),
+        figure("SLAM map resets", s["resets_total"], "resets", target=0, mode="HIL scenario 2"),
         figure(
             "camera -> PWM median", s["capture_to_pwm_median_ms_range"], "ms", mode="HIL scenario 2"
         ),

@@ -43,6 +43,7 @@ def run_checker(root: Path) -> subprocess.CompletedProcess:
         ("docs/slam.md", f"Measured in {WORK_PERIOD}: 0.4 m."),
         ("src/stage.cpp", f"// Raised in {TRACKER_ENTRY} after a flight."),
         ("tool.py", f"# {WORK_PERIOD.upper()} turned this on"),
+        ("src/link.cpp", "// logs " + "sess" + "ion 00000000000000ab resumed"),
         ("docs/hil.md", "Flown by the " + "helper on an idle machine."),
         ("README.md", "A decision for the " + "lead."),
     ],
@@ -58,15 +59,15 @@ def test_planted_history_line_fails_and_is_named(tmp_path, name, line):
 
 
 def test_clean_tree_passes(tmp_path):
-    # GIVEN descriptive text, a map's session without a number, code that says "helper",
-    # a hexadecimal session identifier and the verb phrase "leads to" in prose
+    # GIVEN descriptive text, the word session without a number, code that says "helper",
+    # a map named by its hexadecimal identifier and the verb phrase "leads to" in prose
     root = make_repo(
         tmp_path / "repo",
         {
             "src/geometry.hpp": "// Small geometry helpers: angle wrapping.\n",
-            "src/test.py": '"""Session 0x2a resumes from its checkpoint."""\n',
+            "src/test.py": '"""Map 0x2a resumes from its checkpoint."""\n',
             "README.md": "Run `make test`.\n",
-            "docs/slam.md": "A session keeps one map; a stall leads to relocalisation.\n"
+            "docs/slam.md": "A stream session keeps one key; a stall leads to relocalisation.\n"
             "`slam-server --max-sessions 4` holds four maps.\n",
         },
     )

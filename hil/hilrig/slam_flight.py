@@ -292,8 +292,8 @@ class SlamFlight:
                     o.features,
                     "--backend",
                     o.backend,
-                    # Each session's per-frame tracking stages (frames.csv: wall and CPU ms, lock
-                    # waits, relocalised), written when the session ends: where SLAM spent a flight.
+                    # Each map's per-frame tracking stages (frames.csv: wall and CPU ms, lock
+                    # waits, relocalised), written when the map ends: where SLAM spent a flight.
                     "--tables-dir",
                     str(self.workdir / "slam-tables"),
                     # The deployed setting (run-offboard): each session's map is checkpointed, so
@@ -449,7 +449,7 @@ class SlamFlight:
 
     def restart_slam_server(self) -> None:
         """A new slam-server on the same port (what a supervisor would do), with the same arguments:
-        quad-control's link reconnects with its session id; the new server resumes that session from
+        quad-control's link reconnects with its map id; the new server resumes that map from
         its map checkpoint (--checkpoint-dir) when there is one, else a new map starts and
         quad-control re-anchors it."""
         old = [p for name, p in self._procs if name == "slam-server"]
@@ -797,11 +797,11 @@ class SlamFlight:
         }
 
     def slam_tracking(self) -> dict:
-        """slam-server's per-frame table (--tables-dir, every session of every slam-server run):
+        """slam-server's per-frame table (--tables-dir, every map of every slam-server run):
         frames tracked and lost, and how each tracked pose was found."""
         rows = [
             r
-            for path in sorted(self.workdir.glob("slam-tables*/session-*/frames.csv"))
+            for path in sorted(self.workdir.glob("slam-tables*/map-*/frames.csv"))
             for r in _read_csv(path)
         ]
         if not rows:

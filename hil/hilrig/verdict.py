@@ -9,10 +9,10 @@ Targets:
   waypoint i    position error at each waypoint (last second after settling) <= 0.15 m
   touchdown     hardest ground contact (vertical speed) <= 0.5 m/s
   SLAM ATE      RMSE of quad-control's SLAM trajectory against the emulator's truth <= 30 mm
-  SLAM resets   0 new SLAM sessions (new maps, new world frames) after the first, *observed*: the
-                largest count among slam-server's log ("session ... started (a new map)"),
-                quad-control's log ("... started (a new map" / the old "(a new SLAM session)")
-                and quad-control's /api/state (slam.sessions_started). Not observable -> a miss.
+  SLAM resets   0 new SLAM maps (new world frames) after the first, *observed*: the largest count
+                among slam-server's log ("map <id> started (new"), quad-control's log ("SLAM link:
+                connected to ...: map <id> started (new" / the older "(a new SLAM session)") and
+                quad-control's /api/state (slam.sessions_started). Not observable -> a miss.
   rig real-time the rig kept real time, so a miss above is the system's and not an overloaded
                 emulator's: the Kinect emulator delivered >= 90 % of the frames the camera pump
                 requested (a frame still rendering when the next is due is superseded), and the
@@ -28,7 +28,7 @@ HOLD_MAX_M = 0.15
 WAYPOINT_MAX_M = 0.15
 TOUCHDOWN_MAX_MPS = 0.5
 ATE_MAX_M = 0.030
-MAX_SESSION_RESETS = 0
+MAX_MAP_RESETS = 0
 # Rig health: the camera pump asks for a frame every 1/fps; below 90 % delivered the SLAM sees a
 # different (slower) camera than the flight was designed for.
 MIN_DELIVERED_RATIO = 0.90
@@ -57,18 +57,20 @@ def _fmt(v, unit: str, scale: float = 1.0, digits: int = 3) -> str:
     return "n/a" if v is None else f"{v * scale:.{digits}f} {unit}"
 
 
-def session_resets(
+def map_resets(
     slam_server_log: str | None, quad_control_log: str | None, state: dict | None
 ) -> dict:
-    """New SLAM sessions after the first, from every source that is available."""
+    """New SLAM maps after the first, from every source that is available."""
     sources: dict[str, int] = {}
     if slam_server_log is not None:
-        n = len(re.findall(r"session [0-9a-f]+ started \(a new map\)", slam_server_log))
-        # Before sessions existed, each connection was a new map.
+        n = len(re.findall(r"\bmap [0-9a-f]+ started \(new", slam_server_log))
+        # Before maps outlived connections, each connection was a new map.
         n_old = len(re.findall(r"slam-server: client connected", slam_server_log))
         sources["slam-server log"] = max(n, n_old) - 1 if max(n, n_old) > 0 else 0
     if quad_control_log is not None:
-        n = len(re.findall(r"SLAM link: connected to .*started \(a new map", quad_control_log))
+        n = len(
+            re.findall(r"SLAM link: connected to .*: map [0-9a-f]+ started \(new", quad_control_log)
+        )
         n_old = len(re.findall(r"reconnecting \(a new SLAM session\)", quad_control_log))
         sources["quad-control log"] = max(n - 1, 0) + n_old
     slam_state = (state or {}).get("slam") or {}
@@ -77,7 +79,7 @@ def session_resets(
     disconnects = len(re.findall(r"SLAM link: disconnected: ", quad_control_log or ""))
     causes = re.findall(r"SLAM link: disconnected: (.*?); reconnecting", quad_control_log or "")
     server_closes = re.findall(r"client #\d+ \(.*?\) closed: (.*?);", slam_server_log or "")
-    resumes = len(re.findall(r"session [0-9a-f]+ resumed", slam_server_log or ""))
+    resumes = len(re.findall(r"\bmap [0-9a-f]+ resumed", slam_server_log or ""))
     return {
         "resets": max(sources.values()) if sources else None,
         "sources": sources,
@@ -180,13 +182,13 @@ def _ate_check(report: dict) -> Check:
 def _resets_check(resets: dict) -> Check:
     r = resets.get("resets")
     return Check(
-        "SLAM session resets",
-        r is not None and r <= MAX_SESSION_RESETS,
+        "SLAM map resets",
+        r is not None and r <= MAX_MAP_RESETS,
         "not observed"
         if r is None
         else f"{r} (link breaks {resets.get('link_breaks', 0)}, "
         f"resumed {resets.get('resumes', 0)})",
-        f"{MAX_SESSION_RESETS}",
+        f"{MAX_MAP_RESETS}",
         "no log or state to count them from"
         if r is None
         else f"{r} new map(s) after the first (sources {resets.get('sources')}; causes: "

@@ -9,7 +9,7 @@ growing error), camera -> pose latency (the SLAM part of the camera -> PWM path,
 quad-control's flight log), and the resident memory of slam-server and quad-control. A system whose
 back-end cost or memory grows with flight time, or whose estimate walks away, fails here where the
 30-60 s scenarios pass. Targets: every waypoint within WAYPOINT_TOLERANCE_M, SLAM error <= 30 mm
-in every minute, no SLAM session reset, the last minute's camera -> pose p95 <= 1.5x the second
+in every minute, no SLAM map reset, the last minute's camera -> pose p95 <= 1.5x the second
 minute's, slam-server's memory in the last minute <= 1.5x the second minute's.
 Report: test-artifacts/hil/slam_long_flight.json (printed by make hil).
 """
@@ -27,7 +27,7 @@ from fc_emulator import QuadParams
 from hilrig import missions
 from hilrig.paths import artifacts_dir
 from hilrig.slam_flight import SlamFlight, SlamFlightOptions, missing_parts
-from hilrig.verdict import session_resets
+from hilrig.verdict import map_resets
 from kinect_emulator.live import match_capture_stamps
 from slam_study.se3 import align_rigid
 
@@ -160,7 +160,7 @@ def test_slam_long_flight_box_laps(tmp_path):
             )
             landing = None
         state = flight.state()
-        resets = session_resets(
+        resets = map_resets(
             procs["slam-server"].log_text() if "slam-server" in procs else None,
             procs["quad-control"].log_text() if "quad-control" in procs else None,
             state,

@@ -38,7 +38,7 @@ from hilrig.slam_flight import (
     missing_load_tool,
     missing_parts,
 )
-from hilrig.verdict import judge_hold, session_resets
+from hilrig.verdict import judge_hold, map_resets
 from kinect_emulator.live import match_capture_stamps
 
 pytestmark = pytest.mark.hil
@@ -321,7 +321,7 @@ LOAD_HOLD_S = 30.0
 def test_slam_loop_load_two_cpu_burners(tmp_path):
     """Take off and hold 30 s while `stress-ng --cpu 2` burns both cores. The ground station's
     real-time path (quad-control's frame / SLAM-link / firmware-link threads, slam-server's tracking
-    thread: SCHED_RR) must hold: hold +-0.15 m, SLAM ATE <= 30 mm, 0 SLAM session resets. The rig
+    thread: SCHED_RR) must hold: hold +-0.15 m, SLAM ATE <= 30 mm, 0 SLAM map resets. The rig
     (SCHED_RR above them, hilrig.realtime) must keep real time; if it did not, the run fails as
     "rig overloaded" and the other figures are not judged. Flown in make demo's conditions (no
     gusts, no trim error): scenario 1 holds the gusty case, this one isolates the load."""
@@ -342,7 +342,7 @@ def test_slam_loop_load_two_cpu_burners(tmp_path):
         except Exception:  # noqa: BLE001 - quad-control may have died; its log still counts
             final_state = None
         report = _finish(flight, "slam_loop_load", report)
-        resets = session_resets(
+        resets = map_resets(
             _log(tmp_path / "slam-server.log"), _log(tmp_path / "quad-control.log"), final_state
         )
     report["slam_link"] = resets
@@ -373,10 +373,10 @@ def test_slam_loop_slam_server_killed_and_restarted(tmp_path):
     """slam-server is SIGKILLed in the hover and a new one started on the same port 1 s later (a
     supervisor's restart, same arguments). The flight's map dies with the process but not its
     checkpoint (--checkpoint-dir, written every 5 s of data): the new server resumes quad-control's
-    session from it (SlamHello.resumed), relocalises in the same map and reports poses in the same
+    map from it (SlamHello.resumed), relocalises in the same map and reports poses in the same
     world frame, so the drift during the outage (lost-hold, neutral sticks, no pose) is observed and
     flown back instead of being anchored into a new map (before checkpoints: 0.39-0.61 m off the
-    hold point). Asserted: the broken link logged with its cause, the session resumed from its
+    hold point). Asserted: the broken link logged with its cause, the map resumed from its
     checkpoint, no crash, the craft ends holding with tracking or landed, never climbing or flying
     away; the hold error after the restart is reported."""
     with _flight(tmp_path) as flight:

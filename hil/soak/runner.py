@@ -520,7 +520,7 @@ class Soak:
     def _scores(self, rec: dict, mdir: Path) -> None:
         """ATE, camera -> PWM latency, SLAM maps of the mission (quad-control's log and flight
         log; the soak's outcome never depends on them)."""
-        from hilrig.verdict import session_resets
+        from hilrig.verdict import map_resets
 
         fl = self.flight
         try:
@@ -536,11 +536,11 @@ class Soak:
         qc_log = mdir / "quad-control.log"
         text = qc_log.read_text(errors="replace") if qc_log.exists() else ""
         slam_log = fl.workdir / "slam-server.log"
-        resets = session_resets(None, text, None)
+        resets = map_resets(None, text, None)
         rec["slam"] = {
             "new_maps_after_first": resets["resets"],
             "link_breaks": resets["link_breaks"],
-            "resumed": len(re.findall(r"resumed \(map and world frame kept", text)),
+            "resumed": len(re.findall(r"map [0-9a-f]+ resumed \(world frame kept", text)),
             "disconnect_causes": resets["disconnect_causes"],
             "slam_server_restarts": sum(
                 1 for f in rec["faults_injected"] if f["kind"] == "slam_server_kill"

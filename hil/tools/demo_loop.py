@@ -1,5 +1,5 @@
 """`make demo-loop`: N consecutive `make demo` flights (hil/demo.sh, HIL scenario 2 with SLAM in the
-loop), then one summary: how many passed every target, SLAM session resets, camera->PWM latency
+loop), then one summary: how many passed every target, SLAM map resets, camera->PWM latency
 range, SLAM ATE range, and the machine's load average around each run (other work on the machine
 changes the figures; the report says how busy it was).
 
@@ -130,7 +130,7 @@ def main(argv=None) -> int:
         )
     s = summarise(runs)
     print(
-        f"demo-loop: {s['passed']} of {s['runs']} runs passed every target; SLAM session resets "
+        f"demo-loop: {s['passed']} of {s['runs']} runs passed every target; SLAM map resets "
         f"{s['resets_total']} in total; "
         f"camera->PWM median {s['capture_to_pwm_median_ms_range']} ms, "
         f"p95 {s['capture_to_pwm_p95_ms_range']} ms; ATE {s['ate_mm_range']} mm; "

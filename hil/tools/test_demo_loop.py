@@ -28,7 +28,7 @@ def test_summary_counts_passes_resets_and_ranges():
         demo_loop.run_summary(
             2,
             1,
-            _report(71.5, 0.041, 1, missed=("SLAM session resets",)),
+            _report(71.5, 0.041, 1, missed=("SLAM map resets",)),
             "4.5 3 2",
             "5 3 2",
             160.0,
@@ -41,7 +41,7 @@ def test_summary_counts_passes_resets_and_ranges():
     assert s["capture_to_pwm_median_ms_range"] == "55.0 .. 71.5"
     assert s["ate_mm_range"] == "8.0 .. 41.0"
     assert s["load_average_range"] == "2.0 .. 4.5"
-    assert s["targets_missed"] == {"SLAM session resets": 1, demo_loop.NO_FLIGHT: 1}
+    assert s["targets_missed"] == {"SLAM map resets": 1, demo_loop.NO_FLIGHT: 1}
 
 
 def test_a_demo_that_fell_back_without_flying_is_not_a_pass():

@@ -108,7 +108,7 @@ std::optional<std::string> SlamConnection::process(SessionRegistry& registry, st
       queue(reply);
       if (log)
         log->push_back("client #" + std::to_string(id_) + " (" + hello->peer_name + ", " + peer_ +
-                       "): session " + SessionRegistry::id_text(a.session_id) +
+                       "): map " + SessionRegistry::id_text(a.session_id) +
                        (a.resumed ? " resumed" : " new"));
       continue;
     }
@@ -167,7 +167,7 @@ std::int64_t SlamConnection::next_deadline_ms() const {
 
 std::string SlamConnection::summary() const {
   std::string s = std::to_string(frames_) + " frames on this connection";
-  if (session_id_) s += ", session " + SessionRegistry::id_text(*session_id_);
+  if (session_id_) s += ", map " + SessionRegistry::id_text(*session_id_);
   if (decode_errors_ > 0)
     s += ", " + std::to_string(decode_errors_) + " undecodable byte runs skipped";
   if (faults_logged_ > 0)

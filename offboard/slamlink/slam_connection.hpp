@@ -1,7 +1,7 @@
 // One client connection of slam-server, socket-free: bytes in, bytes out, deadlines, and the
 // reason it must close. The server loop (slam_server_main.cpp) owns the socket and feeds this.
 //
-//   connected --SlamHello (compatible; attached to a session)--> serving: RgbdFrame -> PoseUpdate
+//   connected --SlamHello (compatible; attached to a map)--> serving: RgbdFrame -> PoseUpdate
 //
 // Every way a connection can end has a cause string that the server logs:
 //   * no SlamHello within hello_timeout_ms of connecting (a silent or idle client);
@@ -10,7 +10,7 @@
 //     drips bytes: the clock starts at the message's first byte and is not reset by later ones);
 //   * replies not taken by the peer within write_timeout_ms (a client that does not read);
 //   * an incompatible SlamHello, an RgbdFrame before SlamHello, a message that is not for the
-//     server, a refused attach (registry full), or its session taken over by a newer connection.
+//     server, a refused attach (registry full), or its map taken over by a newer connection.
 // Undecodable bytes are skipped (the decoder resynchronises on the magic) and counted; the first
 // is logged, the rest summarised when the connection closes (no log line per garbage chunk).
 //
@@ -44,7 +44,7 @@ class SlamConnection {
   void on_bytes(const std::uint8_t* data, std::size_t size, std::int64_t now_ms);
   /// Handles every complete message received (SLAM runs here, synchronously). Replies are queued
   /// in output(). Returns the cause when the connection must close (after output() is flushed if
-  /// `flush_first`). A connection whose session was taken over is added to `displaced`.
+  /// `flush_first`). A connection whose map was taken over is added to `displaced`.
   std::optional<std::string> process(SessionRegistry& registry, std::int64_t now_ms,
                                      std::vector<int>* displaced, std::vector<std::string>* log,
                                      bool* flush_first);
@@ -61,7 +61,7 @@ class SlamConnection {
   std::int64_t last_byte_ms() const { return last_byte_ms_; }
   bool hello_done() const { return session_id_.has_value(); }
   std::size_t frames() const { return frames_; }
-  /// "n frames, session <id>, k undecodable byte runs" for the close log line.
+  /// "n frames, map <id>, k undecodable byte runs" for the close log line.
   std::string summary() const;
 
  private:

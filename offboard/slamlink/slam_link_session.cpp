@@ -162,8 +162,8 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
     intrinsics_ = k;
     if (map_files_.resume_from_checkpoint) {
       if (!pipeline_->load_map(map_files_.checkpoint_path, &err))
-        resume_error_ = "slam-link: the session's checkpoint cannot be resumed (" + err +
-                        "); its world frame is lost: start a new session";
+        resume_error_ = "slam-link: the map's checkpoint cannot be resumed (" + err +
+                        "); its world frame is lost: start a new map";
     } else if (!map_files_.load_path.empty() && !pipeline_->load_map(map_files_.load_path, &err)) {
       // The flight goes on in a new map: say so on every frame's first answer, never silently.
       map_load_error_ = "slam-link: map not loaded, starting a new map: " + err;
@@ -180,12 +180,12 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
   if (!same_camera(k, intrinsics_)) {
     // The map is built with the first frame's camera model: a frame with another one (a streamer
     // restarted with another calibration) would be tracked with the wrong projection and its error
-    // would be put silently into the map. Refused with the reason; a new session takes the new
+    // would be put silently into the map. Refused with the reason; a new map takes the new
     // camera.
     return lost_update(frame,
                        "slam-link: frame refused: its camera (" + describe(k) +
-                           ") is not the one this session's map is built with (" +
-                           describe(intrinsics_) + "); start a new session for a new camera",
+                           ") is not the one this map is built with (" + describe(intrinsics_) +
+                           "); start a new map for a new camera",
                        error);
   }
   if (!resume_error_.empty()) return lost_update(frame, resume_error_, error);

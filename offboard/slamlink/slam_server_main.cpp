@@ -1,10 +1,10 @@
 // slam-server: the SLAM engine on the live SLAM link (protocol/spec/messages.json, link "slam").
 // Listens on TCP (default 127.0.0.1:5700) and serves up to --max-clients connections from one
 // poll loop (no client can hold another up for longer than one frame's SLAM). Per connection:
-// SlamHello exchange naming a session (a flight's map), then one PoseUpdate per RgbdFrame. A
-// broken connection parks its session for --resume-grace-ms: the same client reconnecting with the
-// same session id continues the same map and world frame. Every connection that ends logs why.
-// SIGINT/SIGTERM end it cleanly (signalfd; every session is finished and summarised).
+// SlamHello exchange naming a flight's map, then one PoseUpdate per RgbdFrame. A broken
+// connection parks its map for --resume-grace-ms: the same client reconnecting with the same map
+// id continues the same map and world frame. Every connection that ends logs why. SIGINT/SIGTERM
+// end it cleanly (signalfd; every map is finished and summarised).
 // Wiring only: sockets here; the logic is SlamConnection, SessionRegistry and SlamLinkSession.
 #include <arpa/inet.h>
 #include <fcntl.h>
@@ -107,7 +107,7 @@ class Server {
         for (int d : displaced) {
           auto dit = clients_.find(d);
           if (dit != clients_.end() && dit->second.close_cause.empty())
-            dit->second.close_cause = "session taken over by client #" + std::to_string(id) +
+            dit->second.close_cause = "map taken over by client #" + std::to_string(id) +
                                       " (the same flight reconnected)";
         }
         if (cause) {
@@ -237,7 +237,7 @@ class Server {
     registry_.detach(c.conn->id(), now_ms());
     log_line("client #" + std::to_string(c.conn->id()) + " (" + c.conn->peer() +
              ") closed: " + cause + "; " + c.conn->summary() +
-             (had_session ? "; its session is kept for a reconnect" : ""));
+             (had_session ? "; its map is kept for a reconnect" : ""));
     ::close(c.fd);
     c.fd = -1;
   }
@@ -296,14 +296,14 @@ void add_serving_options(CLI::App& app, ServerArgs& a) {
       ->capture_default_str();
   app.add_option(
          "--load-map", a.load_map,
-         "localmap: every new session starts from this saved map (relocalises in it, poses in its "
+         "localmap: every new map starts from this saved map (relocalises in it, poses in its "
          "world frame); a map of another camera/detector/version is refused and logged")
       ->check(CLI::ExistingFile);
-  app.add_option("--save-map", a.save_map, "localmap: write each session's map here when it ends");
+  app.add_option("--save-map", a.save_map, "localmap: write each map here when it ends");
   app.add_option("--tables-dir", a.tables_dir,
-                 "write each session's per-frame tables (frames.csv: tracking wall and CPU ms, "
+                 "write each map's per-frame tables (frames.csv: tracking wall and CPU ms, "
                  "features / matching / relocalisation ms, map-lock wait; "
-                 "mapping.csv, loops.csv) into DIR/session-N (N from 1 in the order sessions "
+                 "mapping.csv, loops.csv) into DIR/map-N (N from 1 in the order maps "
                  "start) when it ends");
   app.add_option("--backend", a.backend,
                  "localmap (tracking against a local map, the default) | vo | llc | glc (thesis)")
@@ -314,7 +314,7 @@ void add_serving_options(CLI::App& app, ServerArgs& a) {
       ->capture_default_str();
 }
 
-/// The link's timeouts, and the sessions kept for reconnects and their checkpoints.
+/// The link's timeouts, and the maps kept for reconnects and their checkpoints.
 void add_link_options(CLI::App& app, ServerArgs& a) {
   app.add_option("--hello-timeout-ms", a.copt.hello_timeout_ms,
                  "SlamHello due within this of connecting")
@@ -328,13 +328,13 @@ void add_link_options(CLI::App& app, ServerArgs& a) {
                  "the peer must take reply bytes within this")
       ->capture_default_str();
   app.add_option("--resume-grace-ms", a.ropt.resume_grace_ms,
-                 "a session without its client is kept this long")
+                 "a map without its client is kept this long")
       ->capture_default_str();
   app.add_option("--checkpoint-dir", a.ropt.checkpoint_dir,
-                 "localmap: checkpoint each session's map into DIR/session-<id>.map (created if "
+                 "localmap: checkpoint each map into DIR/map-<id>.map (created if "
                  "missing) every --checkpoint-period-s of data and after each loop correction; a "
-                 "restarted slam-server asked for that session resumes its map and world frame "
-                 "(SlamHello.resumed) instead of starting a new one; deleted when the session "
+                 "restarted slam-server asked for that map id resumes its map and world frame "
+                 "(SlamHello.resumed) instead of starting a new one; deleted when the map "
                  "ends for good, kept when slam-server stops");
   app.add_option("--checkpoint-period-s", a.checkpoint_period_s,
                  "data seconds between map checkpoints (0: after every keyframe)")
@@ -382,10 +382,9 @@ void add_tracking_options(CLI::App& app, ServerArgs& a) {
                  "real-time priority of the serving thread")
       ->check(CLI::Range(1, 99))
       ->capture_default_str();
-  app.add_option(
-         "--mapping-rt-priority", a.mapping_rt_priority,
-         "SCHED_RR priority of each session's local-mapping thread while the serving thread "
-         "is real-time; must be below --rt-priority (0: normal policy at nice -10)")
+  app.add_option("--mapping-rt-priority", a.mapping_rt_priority,
+                 "SCHED_RR priority of each map's local-mapping thread while the serving thread "
+                 "is real-time; must be below --rt-priority (0: normal policy at nice -10)")
       ->check(CLI::Range(0, 98))
       ->capture_default_str();
 }
@@ -453,20 +452,20 @@ int open_listener(const ServerArgs& a, int* exit_code) {
   return lfd;
 }
 
-/// The sessions: each new one gets its own SLAM pipeline and map files.
+/// The maps: each new one gets its own SLAM pipeline and map files.
 slamlink::SessionRegistry make_registry(const ServerArgs& a, const slam::PipelineOptions& options) {
   return slamlink::SessionRegistry(
       a.ropt,
       [options, load_map = a.load_map, save_map = a.save_map, tables_dir = a.tables_dir,
-       sessions = std::make_shared<int>(0)](const slamlink::SessionStart& start) {
+       maps_started = std::make_shared<int>(0)](const slamlink::SessionStart& start) {
         slamlink::SessionMapFiles files;
         files.load_path = load_map;
         files.save_path = save_map;
         files.checkpoint_path = start.checkpoint_path;
         files.resume_from_checkpoint = start.resume_from_checkpoint;
-        ++*sessions;
+        ++*maps_started;
         if (!tables_dir.empty())
-          files.tables_dir = tables_dir + "/session-" + std::to_string(*sessions);
+          files.tables_dir = tables_dir + "/map-" + std::to_string(*maps_started);
         return std::make_unique<slamlink::SlamLinkSession>(options, files);
       },
       [](const std::string& path, std::string* why) { return slam::check_map_file(path, why); });
@@ -507,7 +506,7 @@ int main(int argc, char** argv) {
   const int lfd = open_listener(a, &exit_code);
   if (lfd < 0) return exit_code;
   log_listening(a);
-  // Tracking runs on this (the poll) thread: it is the real-time path; sessions' mappers place
+  // Tracking runs on this (the poll) thread: it is the real-time path; maps' mappers place
   // themselves below it (slam::PipelineOptions::mapping_rt_priority).
   log_line(slam::raise_current_thread(a.priority).describe("serving"));
   Server(lfd, sigfd, a.max_clients, a.copt, make_registry(a, *options)).run();

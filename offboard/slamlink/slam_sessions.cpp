@@ -1,4 +1,4 @@
-// slam-server's sessions: see slam_sessions.hpp.
+// slam-server's maps held for their clients: see slam_sessions.hpp.
 #include "slam_sessions.hpp"
 
 #include <cstdio>
@@ -41,15 +41,13 @@ std::string SessionRegistry::id_text(std::uint64_t session_id) {
 
 std::string SessionRegistry::checkpoint_path(std::uint64_t session_id) const {
   if (options_.checkpoint_dir.empty() || (session_id & kOwnIdPrefixMask) == kOwnIdPrefix) return {};
-  return (std::filesystem::path(options_.checkpoint_dir) /
-          ("session-" + id_text(session_id) + ".map"))
+  return (std::filesystem::path(options_.checkpoint_dir) / ("map-" + id_text(session_id) + ".map"))
       .string();
 }
 
 std::string SessionRegistry::end_line(std::uint64_t id, Entry& e, const std::string& why,
                                       bool for_good) {
-  std::string line =
-      "session " + id_text(id) + " ended (" + why + "): " + e.session->finish_summary();
+  std::string line = "map " + id_text(id) + " ended (" + why + "): " + e.session->finish_summary();
   if (for_good && !e.checkpoint_path.empty()) {
     std::error_code ec;
     std::filesystem::remove(e.checkpoint_path, ec);
@@ -73,7 +71,7 @@ AttachResult SessionRegistry::attach(std::uint64_t session_id, int connection, s
       r.session_id = session_id;
       r.resumed = true;
       if (log)
-        log->push_back("session " + id_text(session_id) + " resumed (map and world frame kept, " +
+        log->push_back("map " + id_text(session_id) + " resumed (world frame kept, " +
                        std::to_string(e.session->frames_processed()) + " frames" +
                        (r.displaced_connection
                             ? ", taken over from client #" + std::to_string(*r.displaced_connection)
@@ -91,13 +89,11 @@ AttachResult SessionRegistry::attach(std::uint64_t session_id, int connection, s
         victim = it;
     if (victim == sessions_.end()) {
       r.refusal = "slam-server busy: " + std::to_string(sessions_.size()) +
-                  " sessions with a client each (max " + std::to_string(options_.max_sessions) +
-                  ")";
+                  " maps with a client each (max " + std::to_string(options_.max_sessions) + ")";
       return r;
     }
     if (log)
-      log->push_back(
-          end_line(victim->first, victim->second, "dropped to make room for a new session"));
+      log->push_back(end_line(victim->first, victim->second, "dropped to make room for a new map"));
     sessions_.erase(victim);
   }
   if (session_id == 0) {
@@ -125,11 +121,11 @@ AttachResult SessionRegistry::attach(std::uint64_t session_id, int connection, s
   r.resumed = start.resume_from_checkpoint;
   sessions_.emplace(session_id, std::move(e));
   if (log)
-    log->push_back("session " + id_text(session_id) +
+    log->push_back("map " + id_text(session_id) +
                    (r.resumed
                         ? " resumed from its checkpoint " + start.checkpoint_path +
-                              " (slam-server restarted; map and world frame kept)"
-                        : " started (a new map" +
+                              " (slam-server restarted; world frame kept)"
+                        : " started (new" +
                               (unusable.empty() ? std::string()
                                                 : "; its checkpoint is unusable: " + unusable) +
                               ")"));

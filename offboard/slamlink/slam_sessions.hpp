@@ -1,16 +1,17 @@
-// slam-server's sessions, socket-free. A session is one flight's map and world frame (a
-// SlamLinkSession), named by the session_id the client sends in its SlamHello. A connection
-// attaches to a session; when the connection breaks, the session is parked for `resume_grace_ms`
-// so that a reconnecting client of the same flight continues the same map and world frame (a broken
-// link must not discard the map); after that it is finished and dropped. A connection that
-// presents the id of a session another connection still holds takes it over (the caller closes the
-// old connection): a client that timed out reconnects before the server noticed the old socket
-// died. session_id 0 asks for a new map that cannot be resumed; the registry then names it itself.
-// With a checkpoint folder, every session with a client's id keeps its map checkpointed there
-// (session-<id>.map, PipelineOptions::checkpoint_path): a restarted slam-server that is asked for
-// an id it does not hold, and finds that id's whole checkpoint, resumes it (map and world frame
-// kept) instead of starting a new map. A session that ends for good (grace over, dropped for room)
-// deletes its checkpoint; one ended by slam-server stopping keeps it for the next start.
+// slam-server's maps held for their clients, socket-free. Each entry is one flight's map and world
+// frame (a SlamLinkSession), named by the session_id the client sends in its SlamHello (the wire
+// field's name; it names the map). A connection attaches to a map; when the connection breaks, the
+// map is parked for `resume_grace_ms` so that a reconnecting client of the same flight continues
+// the same map and world frame (a broken link must not discard the map); after that it is finished
+// and dropped. A connection that presents the id of a map another connection still holds takes it
+// over (the caller closes the old connection): a client that timed out reconnects before the
+// server noticed the old socket died. session_id 0 asks for a new map that cannot be resumed; the
+// registry then names it itself. With a checkpoint folder, every map with a client's id is
+// checkpointed there (map-<id>.map, PipelineOptions::checkpoint_path): a restarted slam-server
+// that is asked for an id it does not hold, and finds that id's whole checkpoint, resumes it (map
+// and world frame kept) instead of starting a new map. A map that ends for good (grace over,
+// dropped for room) deletes its checkpoint; one ended by slam-server stopping keeps it for the
+// next start.
 //
 // Time is passed in (now_ms, any monotonic origin). Not thread-safe (slam-server's single loop).
 #pragma once
@@ -35,7 +36,7 @@ struct SessionRegistryOptions {
   /// Maps held at once (attached + parked). A map holds keyframes (images + features): a few
   /// hundred MB for a long flight. Beyond it the oldest parked map is dropped.
   std::size_t max_sessions = 4;
-  /// Where sessions checkpoint their maps ("" = no checkpoints; the folder must exist).
+  /// Where maps are checkpointed ("" = no checkpoints; the folder must exist).
   std::string checkpoint_dir;
   /// True when every field is in range; else false and, if error is not null, which one and why.
   bool is_valid(std::string* error) const;
@@ -45,11 +46,11 @@ struct AttachResult {
   SlamLinkSession* session = nullptr;       ///< null: refused (see refusal)
   std::uint64_t session_id = 0;             ///< the id served (the registry's own when 0 was asked)
   bool resumed = false;                     ///< an existing map continues
-  std::optional<int> displaced_connection;  ///< held the session until now: close it
+  std::optional<int> displaced_connection;  ///< held the map until now: close it
   std::string refusal;
 };
 
-/// How a session starts (SessionRegistry's factory fills its SessionMapFiles from it).
+/// How a map starts (SessionRegistry's factory fills its SessionMapFiles from it).
 struct SessionStart {
   std::uint64_t session_id = 0;
   std::string checkpoint_path;          ///< "" = no checkpoint
@@ -66,19 +67,19 @@ class SessionRegistry {
   SessionRegistry(SessionRegistryOptions options, Factory factory,
                   CheckpointCheck checkpoint_check = nullptr);
 
-  /// Attaches `connection` to session `session_id` (new or resumed). Log lines (a session started,
+  /// Attaches `connection` to map `session_id` (new or resumed). Log lines (a map started,
   /// resumed, a parked map dropped to make room) are appended to `log`.
   AttachResult attach(std::uint64_t session_id, int connection, std::int64_t now_ms,
                       std::vector<std::string>* log);
-  /// The connection is gone: its session (if any) is parked until now_ms + resume_grace_ms.
+  /// The connection is gone: its map (if any) is parked until now_ms + resume_grace_ms.
   void detach(int connection, std::int64_t now_ms);
-  /// Finishes and drops sessions parked past their grace period; one log line each.
+  /// Finishes and drops maps parked past their grace period; one log line each.
   std::vector<std::string> expire(std::int64_t now_ms);
-  /// Finishes every session (shutdown); one log line each.
+  /// Finishes every map (shutdown); one log line each.
   std::vector<std::string> finish_all();
-  /// Earliest expiry among parked sessions (for the poll timeout).
+  /// Earliest expiry among parked maps (for the poll timeout).
   std::optional<std::int64_t> next_expiry_ms() const;
-  /// The session a connection holds (null if none).
+  /// The map a connection holds (null if none).
   SlamLinkSession* session_of(int connection);
   std::size_t size() const { return sessions_.size(); }
 
@@ -95,7 +96,7 @@ class SessionRegistry {
     std::int64_t parked_since_ms = 0;
     std::int64_t started_ms = 0;
   };
-  /// Finishes the session; `for_good`: its checkpoint is deleted (the flight's map is over).
+  /// Finishes the map; `for_good`: its checkpoint is deleted (the flight's map is over).
   std::string end_line(std::uint64_t id, Entry& e, const std::string& why, bool for_good = true);
 
   SessionRegistryOptions options_;

@@ -3,8 +3,8 @@
 GIVEN quad-control replaying tests/data/fr1_xyz_first30 (no firmware) to slam-server through the
 HIL rig's LinkProxy, WHEN the proxy severs the link (every connection reset, the port refusing) and
 restores it 1 s later, THEN quad-control logs the disconnect with its cause and reconnects with the
-same session id, slam-server resumes the same map (no new session), and quad-control's /api/state
-counts 1 session, >= 1 resume, >= 1 disconnect. Processes are stopped by PID; loopback only.
+same map id, slam-server resumes the same map (no new map), and quad-control's /api/state counts 1
+map started, >= 1 resume, >= 1 disconnect. Processes are stopped by PID; loopback only.
 Skipped when the binaries are not built.
 """
 
@@ -54,7 +54,7 @@ def stop(proc: subprocess.Popen) -> None:
             proc.wait()
 
 
-def test_severed_slam_link_resumes_the_same_session(tmp_path):
+def test_severed_slam_link_resumes_the_same_map(tmp_path):
     ss_log, qc_log = tmp_path / "slam-server.log", tmp_path / "quad-control.log"
     port = free_port()
     ss = subprocess.Popen(
@@ -98,20 +98,20 @@ def test_severed_slam_link_resumes_the_same_session(tmp_path):
         dash = wait_for(qc_log, r"dashboard on http://127\.0\.0\.1:(\d+)/", deadline).group(1)
         sid = wait_for(
             qc_log,
-            r"SLAM link: connected to .*: session ([0-9a-f]+) started \(a new map\)",
+            r"SLAM link: connected to .*: map ([0-9a-f]+) started \(new\)",
             deadline,
         ).group(1)
-        wait_for(ss_log, r"slam-server: \d+ frames|session [0-9a-f]+ new", deadline)
+        wait_for(ss_log, r"slam-server: \d+ frames|map [0-9a-f]+ new", deadline)
         time.sleep(2.0)  # some frames into the map
         proxy.sever()
         time.sleep(1.0)
         proxy.restore()
         wait_for(
             qc_log,
-            rf"session {sid} resumed \(map and world frame kept",
+            rf"map {sid} resumed \(world frame kept",
             time.monotonic() + DEADLINE_S,
         )
-        wait_for(ss_log, rf"session {sid} resumed", time.monotonic() + DEADLINE_S)
+        wait_for(ss_log, rf"map {sid} resumed", time.monotonic() + DEADLINE_S)
         with urllib.request.urlopen(f"http://127.0.0.1:{dash}/api/state", timeout=10) as r:
             slam = json.load(r)["slam"]
     finally:
@@ -121,8 +121,8 @@ def test_severed_slam_link_resumes_the_same_session(tmp_path):
             proxy.close()
         stop(ss)
     qc_text, ss_text = qc_log.read_text(), ss_log.read_text()
-    assert re.search(r"SLAM link: disconnected: .+; reconnecting with session " + sid, qc_text)
-    assert len(re.findall(r"started \(a new map\)", ss_text)) == 1, ss_text
-    assert re.search(r"closed: .+; \d+ frames on this connection, session " + sid, ss_text)
+    assert re.search(r"SLAM link: disconnected: .+; reconnecting to resume map " + sid, qc_text)
+    assert len(re.findall(r"map [0-9a-f]+ started \(new\)", ss_text)) == 1, ss_text
+    assert re.search(r"closed: .+; \d+ frames on this connection, map " + sid, ss_text)
     assert slam["sessions_started"] == 1 and slam["resumes"] >= 1 and slam["disconnects"] >= 1, slam
     assert slam["session_id"] == sid

@@ -56,18 +56,18 @@ def test_sequence_number_of_a_request_line():
     assert _seq_of("GET /status") is None
 
 
-def test_slam_tracking_counts_every_session_of_every_slam_server_run(tmp_path):
+def test_slam_tracking_counts_every_map_of_every_slam_server_run(tmp_path):
     from types import SimpleNamespace
 
     from hilrig.slam_flight import SlamFlight
 
     header = "index,state,keyframe,relocalised,attitude_predicted,cross_checked,frontend_cpu_ms\n"
-    first = tmp_path / "slam-tables" / "session-1"
+    first = tmp_path / "slam-tables" / "map-1"
     first.mkdir(parents=True)
     (first / "frames.csv").write_text(
         header + "0,tracking,1,0,0,0,5\n1,tracking,0,0,1,1,9\n2,lost,0,0,1,0,7\n"
     )
-    restarted = tmp_path / "slam-tables-1" / "session-1"
+    restarted = tmp_path / "slam-tables-1" / "map-1"
     restarted.mkdir(parents=True)
     (restarted / "frames.csv").write_text(header + "0,tracking,0,1,1,1,11\n")
     out = SlamFlight.slam_tracking(SimpleNamespace(workdir=tmp_path))

@@ -1,7 +1,7 @@
-"""`make demo`'s verdict (hilrig.verdict): every target passes or misses with a reason, session
+"""`make demo`'s verdict (hilrig.verdict): every target passes or misses with a reason, SLAM map
 resets are counted from what the processes logged and reported, a rig that fell behind says so."""
 
-from hilrig.verdict import judge, session_resets
+from hilrig.verdict import judge, map_resets
 
 GOOD = {
     "hold": {"max_m": 0.12, "max_horizontal_m": 0.11, "max_vertical_m": 0.02},
@@ -14,13 +14,12 @@ GOOD = {
     },
     "realtime_factor": 0.99,
 }
-SERVER_LOG_ONE_SESSION = (
+SERVER_LOG_ONE_MAP = (
     "slam-server: client #1 connected from 127.0.0.1:5555\n"
-    "slam-server: session 00000000000000ab started (a new map)\n"
+    "slam-server: map 00000000000000ab started (new)\n"
 )
-QC_LOG_ONE_SESSION = (
-    "quad-control: SLAM link: connected to slam-server at x: "
-    "session 00000000000000ab started (a new map)\n"
+QC_LOG_ONE_MAP = (
+    "quad-control: SLAM link: connected to slam-server at x: map 00000000000000ab started (new)\n"
 )
 
 
@@ -29,9 +28,7 @@ def by_target(checks):
 
 
 def test_given_a_good_flight_when_judged_then_every_target_passes():
-    resets = session_resets(
-        SERVER_LOG_ONE_SESSION, QC_LOG_ONE_SESSION, {"slam": {"sessions_started": 1}}
-    )
+    resets = map_resets(SERVER_LOG_ONE_MAP, QC_LOG_ONE_MAP, {"slam": {"sessions_started": 1}})
     assert resets["resets"] == 0
     checks = judge(GOOD, resets, 30.0)
     assert all(c.passed for c in checks), [c.line() for c in checks if not c.passed]
@@ -42,7 +39,7 @@ def test_given_a_good_flight_when_judged_then_every_target_passes():
         "waypoint 2",
         "touchdown",
         "SLAM ATE",
-        "SLAM session resets",
+        "SLAM map resets",
     }
 
 
@@ -65,31 +62,47 @@ def test_given_resets_in_the_old_log_format_then_they_are_counted():
         ["quad-control: SLAM link: receive: End of file; reconnecting (a new SLAM session)"] * 3
     )
     server_log = "slam-server: client connected\n" * 4
-    resets = session_resets(server_log, qc_log, None)
+    resets = map_resets(server_log, qc_log, None)
     assert resets["resets"] == 3
-    check = by_target(judge(GOOD, resets, 30.0))["SLAM session resets"]
+    check = by_target(judge(GOOD, resets, 30.0))["SLAM map resets"]
     assert not check.passed and "3 new map(s)" in check.why
 
 
 def test_given_resumed_link_breaks_then_no_reset_is_counted():
-    server_log = SERVER_LOG_ONE_SESSION + (
+    server_log = SERVER_LOG_ONE_MAP + (
         "slam-server: client #1 (127.0.0.1:5555) closed: "
         "peer closed the connection (end of file); 10 frames\n"
-        "slam-server: session 00000000000000ab resumed "
-        "(map and world frame kept, 10 frames, parked 3 ms)\n"
+        "slam-server: map 00000000000000ab resumed "
+        "(world frame kept, 10 frames, parked 3 ms)\n"
     )
-    qc_log = QC_LOG_ONE_SESSION + (
+    qc_log = QC_LOG_ONE_MAP + (
         "quad-control: SLAM link: disconnected: no PoseUpdate for frame 9 within 5000 ms; "
-        "reconnecting with session ab\n"
-        "quad-control: SLAM link: connected to x: session 00000000000000ab resumed "
-        "(map and world frame kept, 10 frames)\n"
+        "reconnecting to resume map 00000000000000ab (slam-server keeps it for a grace period)\n"
+        "quad-control: SLAM link: connected to x: map 00000000000000ab resumed "
+        "(world frame kept, 10 frames)\n"
     )
-    resets = session_resets(server_log, qc_log, {"slam": {"sessions_started": 1}})
+    resets = map_resets(server_log, qc_log, {"slam": {"sessions_started": 1}})
     assert resets["resets"] == 0 and resets["link_breaks"] == 1 and resets["resumes"] == 1
 
 
+def test_given_a_new_map_after_a_link_break_then_one_reset_is_counted_from_each_log():
+    # GIVEN a flight whose link broke and whose reconnect got a new map (the grace had run out)
+    server_log = SERVER_LOG_ONE_MAP + (
+        "slam-server: map 00000000000000ab ended (no client for 30000 ms): 10 frames\n"
+        "slam-server: map 00000000000000ab started (new)\n"
+    )
+    qc_log = QC_LOG_ONE_MAP + (
+        "quad-control: SLAM link: connected to x: map 00000000000000ab started "
+        "(new, new world frame: SLAM map reset #1)\n"
+    )
+    # WHEN the resets are counted THEN both logs count one, and nothing was resumed
+    resets = map_resets(server_log, qc_log, None)
+    assert resets["sources"] == {"slam-server log": 1, "quad-control log": 1}
+    assert resets["resets"] == 1 and resets["resumes"] == 0
+
+
 def test_given_no_observation_then_resets_miss():
-    check = by_target(judge(GOOD, session_resets(None, None, None), 30.0))["SLAM session resets"]
+    check = by_target(judge(GOOD, map_resets(None, None, None), 30.0))["SLAM map resets"]
     assert not check.passed and "no log or state" in check.why
 
 
@@ -136,7 +149,7 @@ def test_hold_only_flight_is_judged_on_rig_hold_ate_and_resets():
         "rig real-time",
         "hold",
         "SLAM ATE",
-        "SLAM session resets",
+        "SLAM map resets",
     ]
     assert all(c.passed for c in checks)
     loaded = dict(
@@ -159,5 +172,5 @@ def test_hold_only_flight_is_judged_on_rig_hold_ate_and_resets():
     assert [c.target for c in aborted if not c.passed] == [
         "flight completed",
         "hold",
-        "SLAM session resets",
+        "SLAM map resets",
     ]

@@ -28,8 +28,8 @@ struct SlamResult {
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< world = first camera frame
   std::size_t inliers = 0;
   double latency_ms = 0.0;  ///< hand-over to result
-  /// +1 each time the link starts a new SLAM session (a new map): poses of a new session are in a
-  /// new world frame (its first camera). A reconnect that resumes the map keeps the number.
+  /// +1 each time the link starts a new SLAM map: poses of a new map are in a new world frame (its
+  /// first camera). A reconnect that resumes the map keeps the number.
   std::uint64_t session = 0;
   /// SLAM's map-correction counter (PoseUpdate.map_correction_count): +1 each time SLAM
   /// corrected its world-frame trajectory discontinuously (a loop correction that moved the map).
@@ -38,12 +38,11 @@ struct SlamResult {
 
 /// The link's own health, for the dashboard and the demo's verdict (thread-safe copy).
 struct SlamLinkStatus {
-  std::uint64_t sessions_started =
-      0;                          ///< new maps (1 in a healthy flight; more = SLAM session resets)
-  std::uint64_t resumes = 0;      ///< reconnects that continued the same map and world frame
-  std::uint64_t disconnects = 0;  ///< connections that broke (each logged with its cause)
-  std::string session_id;         ///< hex; "" for the in-process link
-  std::string last_disconnect;    ///< cause of the last one
+  std::uint64_t sessions_started = 0;  ///< new maps (1 in a healthy flight; more = SLAM map resets)
+  std::uint64_t resumes = 0;           ///< reconnects that continued the same map and world frame
+  std::uint64_t disconnects = 0;       ///< connections that broke (each logged with its cause)
+  std::string session_id;              ///< hex; "" for the in-process link
+  std::string last_disconnect;         ///< cause of the last one
 };
 
 class SlamLink {

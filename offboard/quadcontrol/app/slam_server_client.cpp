@@ -210,14 +210,12 @@ bool SlamServerClient::connect(std::string* error) {
     }
   }
   if (peer->resumed && session_ > 0)
-    log_link("connected to " + name() + ": session " + hex_id(peer->session_id) +
-             " resumed (map and world frame kept, " + std::to_string(peer->session_frames) +
-             " frames)");
+    log_link("connected to " + name() + ": map " + hex_id(peer->session_id) +
+             " resumed (world frame kept, " + std::to_string(peer->session_frames) + " frames)");
   else
     log_link(
-        "connected to " + name() + ": session " + hex_id(peer->session_id) + " started (a new map" +
-        (session_ > 1 ? ", new world frame: SLAM session reset #" + std::to_string(session_ - 1)
-                      : "") +
+        "connected to " + name() + ": map " + hex_id(peer->session_id) + " started (new" +
+        (session_ > 1 ? ", new world frame: SLAM map reset #" + std::to_string(session_ - 1) : "") +
         ")");
   return true;
 }
@@ -308,8 +306,8 @@ void SlamServerClient::run() {
     if (connected_) {
       result = exchange(frame, &error);
       if (!result && !stop_) {
-        log_link("disconnected: " + error + "; reconnecting with session " +
-                 hex_id(options_.session_id) + " (slam-server keeps its map for a resume)");
+        log_link("disconnected: " + error + "; reconnecting to resume map " +
+                 hex_id(options_.session_id) + " (slam-server keeps it for a grace period)");
         {
           std::lock_guard<std::mutex> lock(status_mutex_);
           ++status_.disconnects;

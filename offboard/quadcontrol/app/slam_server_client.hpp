@@ -9,12 +9,12 @@
 // (slam_link_socket.hpp: every wait is a poll() with the time left). Frames keep flowing to the
 // dashboard while slam-server is down.
 //
-// Sessions: the client names its flight's map with a session id (random per client, i.e. per
-// quad-control run, unless configured). After a broken connection it reconnects at once (then at
-// most once per reconnect_interval_ms) presenting the same id; slam-server keeps a session without
-// its client for a grace period (30 s by default), so the reconnect continues the same map and
-// world frame (SlamHello.resumed). Only a new map increments SlamResult::session, which is what
-// makes the ground station re-anchor its floor frame. Every connect, resume, new session and
+// Maps: the client names its flight's map with an id (SlamHello.session_id; random per client,
+// i.e. per quad-control run, unless configured). After a broken connection it reconnects at once
+// (then at most once per reconnect_interval_ms) presenting the same id; slam-server keeps a map
+// without its client for a grace period (30 s by default), so the reconnect continues the same map
+// and world frame (SlamHello.resumed). Only a new map increments SlamResult::session, which is what
+// makes the ground station re-anchor its floor frame. Every connect, resume, new map and
 // disconnect is logged on stderr ("quad-control: SLAM link: ..."). The worker thread is joined in
 // the destructor.
 #pragma once

@@ -367,7 +367,7 @@ TEST(SlamLinkSession, GivenAFrameFromAnotherCameraMidSessionThenItIsRefusedWithB
     const proto::PoseUpdate u = roundtrip(&s, other, &err);
     // THEN each is answered LOST, naming both cameras, and is not put into the map
     EXPECT_EQ(u.tracking_state, proto::TrackingState::kLost);
-    EXPECT_NE(err.find("not the one this session's map is built with"), std::string::npos) << err;
+    EXPECT_NE(err.find("not the one this map is built with"), std::string::npos) << err;
     EXPECT_NE(err.find(depth ? "depth 1000 units/m" : "fx 525"), std::string::npos) << err;
   }
   EXPECT_EQ(s.frames_faulted(), 2u);

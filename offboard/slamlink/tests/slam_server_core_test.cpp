@@ -56,7 +56,11 @@ TEST(SessionRegistry, GivenAParkedSessionWhenTheSameIdComesBackWithinTheGraceThe
   EXPECT_TRUE(b.resumed);
   EXPECT_EQ(b.session, a.session);
   EXPECT_FALSE(b.displaced_connection.has_value());
-  EXPECT_NE(log.back().find("resumed"), std::string::npos);
+  ASSERT_EQ(log.size(), 2u);
+  EXPECT_EQ(log.front(), "map 000000000000002a started (new)");
+  EXPECT_EQ(log.back().rfind("map 000000000000002a resumed (world frame kept, ", 0), 0u)
+      << log.back();
+  EXPECT_NE(log.back().find("parked 999 ms)"), std::string::npos) << log.back();
 }
 
 TEST(SessionRegistry, GivenACheckpointOfTheAskedIdThenARestartedServerResumesItElseStartsANewMap) {
@@ -89,8 +93,9 @@ TEST(SessionRegistry, GivenACheckpointOfTheAskedIdThenARestartedServerResumesItE
   EXPECT_TRUE(a.resumed);
   ASSERT_EQ(starts.size(), 1u);
   EXPECT_TRUE(starts[0].resume_from_checkpoint);
-  EXPECT_EQ(starts[0].checkpoint_path, (dir / "session-000000000000002a.map").string());
-  EXPECT_NE(log.back().find("resumed from its checkpoint"), std::string::npos) << log.back();
+  EXPECT_EQ(starts[0].checkpoint_path, (dir / "map-000000000000002a.map").string());
+  EXPECT_EQ(log.back().rfind("map 000000000000002a resumed from its checkpoint", 0), 0u)
+      << log.back();
   // AND session id 43's broken checkpoint starts a new map, saying why
   EXPECT_FALSE(reg.attach(43, 2, 0, &log).resumed);
   EXPECT_FALSE(starts[1].resume_from_checkpoint);

@@ -5,11 +5,12 @@ nothing waits long), stops it by PID, and reads its log (stderr) to check that e
 that ended says why. Deadlines in the tests are generous (the machine is shared); nothing asserts
 a wall-clock duration beyond "it happened before the deadline".
 
-  * a broken connection does not discard the map: the same session id reconnects and continues
-    (SlamHello.resumed, session_frames; the next pose is tracked, not INITIALIZING);
-  * nor does a killed slam-server, given --checkpoint-dir: the next one resumes the session from its
-    checkpoint and tracks the next frame in the same map;
-  * a newer connection with the same session id takes it over; the old one is closed with the cause;
+  * a broken connection does not discard the map: the same map id (SlamHello.session_id)
+    reconnects and continues (SlamHello.resumed, session_frames; the next pose is tracked, not
+    INITIALIZING);
+  * nor does a killed slam-server, given --checkpoint-dir: the next one resumes the map from its
+    checkpoint and tracks the next frame in it;
+  * a newer connection with the same map id takes it over; the old one is closed with the cause;
   * an idle client does not block another one;
   * a client that never says hello, stops mid-message or drips bytes is closed with the cause;
   * every RgbdFrame gets exactly one PoseUpdate, LOST when the frame cannot be used;
@@ -202,7 +203,7 @@ class Client:
 
 
 def test_broken_connection_resumes_the_same_map(server_factory):
-    # GIVEN a client that sent 3 frames in session 0x12AB
+    # GIVEN a client that sent 3 frames to map 0x12AB
     srv = server_factory()
     tex = texture()
     a = Client(srv.port)
@@ -211,7 +212,7 @@ def test_broken_connection_resumes_the_same_map(server_factory):
     for seq in range(3):
         a.send(frame_bytes(seq, tex))
         assert a.next_message().name == "PoseUpdate"
-    # WHEN its connection breaks and it reconnects with the same session id
+    # WHEN its connection breaks and it reconnects with the same map id
     a.close()
     srv.wait_log("closed: peer closed the connection (end of file)")
     b = Client(srv.port)
@@ -222,12 +223,12 @@ def test_broken_connection_resumes_the_same_map(server_factory):
     u = b.next_message()
     assert u.name == "PoseUpdate" and u.fields["pair_sequence"] == 13
     assert u.fields["tracking_state"] == "TRACKING"
-    assert "session 00000000000012ab resumed" in srv.log()
+    assert "map 00000000000012ab resumed (world frame kept, 3 frames" in srv.log()
     b.close()
 
 
 def test_killed_server_with_checkpoints_is_resumed_by_the_next_one(tmp_path):
-    # GIVEN a slam-server that checkpoints its maps, and a client that sent 3 frames in session 0x77
+    # GIVEN a slam-server that checkpoints its maps, and a client that sent 3 frames to map 0x77
     ckpt = tmp_path / "checkpoints"
     first = Server("--checkpoint-dir", str(ckpt), backend="localmap")
     tex = texture()
@@ -236,9 +237,9 @@ def test_killed_server_with_checkpoints_is_resumed_by_the_next_one(tmp_path):
     for seq in range(3):
         a.send(frame_bytes(seq, tex))
         assert a.next_message().fields["tracking_state"] == "TRACKING"
-    path = ckpt / "session-0000000000000077.map"
+    path = ckpt / "map-0000000000000077.map"
     deadline = time.monotonic() + DEADLINE_S
-    while not path.exists():  # written by the session's mapping side after its first keyframe
+    while not path.exists():  # written by the map's mapping side after its first keyframe
         assert time.monotonic() < deadline, first.log()
         time.sleep(0.05)
     # WHEN it is killed (no goodbye, no final save) and a new one is started on the same folder
@@ -250,9 +251,9 @@ def test_killed_server_with_checkpoints_is_resumed_by_the_next_one(tmp_path):
     try:
         b = Client(second.port)
         h = b.hello(0x77)
-        # THEN the session resumes from its checkpoint and the next frame is tracked in that map
+        # THEN the map resumes from its checkpoint and the next frame is tracked in that map
         assert h["resumed"] and h["session_id"] == 0x77, second.log()
-        assert "resumed from its checkpoint" in second.log()
+        assert "map 0000000000000077 resumed from its checkpoint" in second.log()
         b.send(frame_bytes(3, tex))
         assert b.next_message().fields["tracking_state"] == "TRACKING", second.log()
         b.close()
@@ -264,7 +265,7 @@ def test_killed_server_with_checkpoints_is_resumed_by_the_next_one(tmp_path):
         assert second.stop() == 0
 
 
-def test_new_connection_of_the_same_session_takes_it_over(server_factory):
+def test_new_connection_with_the_same_map_id_takes_it_over(server_factory):
     srv = server_factory()
     a = Client(srv.port)
     a.hello(0x77)
@@ -272,7 +273,7 @@ def test_new_connection_of_the_same_session_takes_it_over(server_factory):
     h = b.hello(0x77)
     assert h["resumed"]
     assert a.closed_by_peer()
-    srv.wait_log("session taken over by client #2")
+    srv.wait_log("map taken over by client #2")
     b.close()
 
 
