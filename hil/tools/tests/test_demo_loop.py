@@ -4,7 +4,7 @@ import importlib.util
 from pathlib import Path
 
 _spec = importlib.util.spec_from_file_location(
-    "demo_loop", Path(__file__).with_name("demo_loop.py")
+    "demo_loop", Path(__file__).resolve().parents[1] / "demo_loop.py"
 )
 demo_loop = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(demo_loop)
