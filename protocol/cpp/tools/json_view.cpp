@@ -1,6 +1,7 @@
 // JSON view of messages (see json_view.hpp).
 #include "json_view.hpp"
 
+#include <optional>
 #include <stdexcept>
 #include <type_traits>
 
@@ -254,7 +255,11 @@ json fields_of(const FloorMap& m) {
           {"cells", to_hex(m.cells.data(), m.cells.size())}};
 }
 
-Message from_fields(const std::string& type, const json& f) {
+// The view's fields back into a message, one function per message family of the spec (the
+// stream link's authentication and its frames; the SLAM link's frames and its map). Each returns
+// nullopt for a type outside its family.
+
+std::optional<Message> stream_auth_from(const std::string& type, const json& f) {
   if (type == "Handshake") {
     Handshake m;
     m.protocol_version = num<std::uint16_t>(f, "protocol_version");
@@ -283,6 +288,10 @@ Message from_fields(const std::string& type, const json& f) {
     m.receiver_nonce = byte_array<kStreamAuthNonceBytes>(f, "receiver_nonce");
     return m;
   }
+  return std::nullopt;
+}
+
+std::optional<Message> stream_frames_from(const std::string& type, const json& f) {
   if (type == "Frame") {
     Frame m;
     m.image = image_from(at(f, "image"));
@@ -295,6 +304,10 @@ Message from_fields(const std::string& type, const json& f) {
     m.last_received_sequence = num<std::uint32_t>(f, "last_received_sequence");
     return m;
   }
+  return std::nullopt;
+}
+
+std::optional<Message> slam_frames_from(const std::string& type, const json& f) {
   if (type == "SlamHello") {
     SlamHello m;
     m.protocol_version = num<std::uint16_t>(f, "protocol_version");
@@ -329,26 +342,33 @@ Message from_fields(const std::string& type, const json& f) {
     m.map_correction_count = num<std::uint32_t>(f, "map_correction_count");
     return m;
   }
+  return std::nullopt;
+}
+
+PoseGraphNode graph_node_from(const json& n) {
+  PoseGraphNode node;
+  node.node_id = num<std::uint32_t>(n, "node_id");
+  node.timestamp_us = num<std::uint64_t>(n, "timestamp_us");
+  node.T_world_node = pose_from(at(n, "T_world_node"));
+  return node;
+}
+PoseGraphEdge graph_edge_from(const json& e) {
+  PoseGraphEdge edge;
+  edge.from_id = num<std::uint32_t>(e, "from_id");
+  edge.to_id = num<std::uint32_t>(e, "to_id");
+  edge.kind = enum_from(at(e, "kind"), kAllEdgeKind, "kind");
+  edge.T_from_to = pose_from(at(e, "T_from_to"));
+  return edge;
+}
+
+std::optional<Message> slam_map_from(const std::string& type, const json& f) {
   if (type == "PoseGraph") {
     PoseGraph m;
     m.revision = num<std::uint32_t>(f, "revision");
     m.timestamp_us = num<std::uint64_t>(f, "timestamp_us");
     m.stage = enum_from(at(f, "stage"), kAllGraphStage, "stage");
-    for (const json& n : at(f, "nodes")) {
-      PoseGraphNode node;
-      node.node_id = num<std::uint32_t>(n, "node_id");
-      node.timestamp_us = num<std::uint64_t>(n, "timestamp_us");
-      node.T_world_node = pose_from(at(n, "T_world_node"));
-      m.nodes.push_back(node);
-    }
-    for (const json& e : at(f, "edges")) {
-      PoseGraphEdge edge;
-      edge.from_id = num<std::uint32_t>(e, "from_id");
-      edge.to_id = num<std::uint32_t>(e, "to_id");
-      edge.kind = enum_from(at(e, "kind"), kAllEdgeKind, "kind");
-      edge.T_from_to = pose_from(at(e, "T_from_to"));
-      m.edges.push_back(edge);
-    }
+    for (const json& n : at(f, "nodes")) m.nodes.push_back(graph_node_from(n));
+    for (const json& e : at(f, "edges")) m.edges.push_back(graph_edge_from(e));
     return m;
   }
   if (type == "FloorMap") {
@@ -363,6 +383,13 @@ Message from_fields(const std::string& type, const json& f) {
     m.cell_format = enum_from(at(f, "cell_format"), kAllCellFormat, "cell_format");
     m.cells = from_hex(str(f, "cells"));
     return m;
+  }
+  return std::nullopt;
+}
+
+Message from_fields(const std::string& type, const json& f) {
+  for (auto family : {stream_auth_from, stream_frames_from, slam_frames_from, slam_map_from}) {
+    if (std::optional<Message> m = family(type, f)) return *std::move(m);
   }
   throw std::invalid_argument("unknown message type " + type);
 }
