@@ -7,6 +7,7 @@
 #include <iomanip>
 #include <iostream>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -69,64 +70,76 @@ double median_ms(cv::Feature2D& f, const cv::Mat& gray, int repeats, std::size_t
   return ms[ms.size() / 2];
 }
 
-}  // namespace
+/// What the command line asks for.
+struct BenchOptions {
+  int repeats = 5;                  ///< timed runs per image and detector (the median is shown)
+  std::string sequence;             ///< TUM RGB-D folder for the pair table; empty: no pair table
+  std::vector<std::string> images;  ///< the speed table's images; the first one is warped
+};
 
-int main(int argc, char** argv) {
-  int repeats = 5;
-  std::string sequence;
-  std::vector<std::string> images;
+/// The command line, or nullopt with `exit_code`: 0 after --help, 2 (usage printed) when
+/// malformed.
+std::optional<BenchOptions> parse_command_line(int argc, char** argv, int* exit_code) {
+  auto refuse = [exit_code](const char* why) {
+    std::cerr << "surf-bench: " << why << "\n\n" << kUsage;
+    *exit_code = 2;
+    return std::nullopt;
+  };
+  BenchOptions options;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "-h" || arg == "--help") {
       std::cout << kUsage;
-      return 0;
+      *exit_code = 0;
+      return std::nullopt;
     }
     if (arg == "--repeats") {
-      if (i + 1 >= argc || (repeats = std::atoi(argv[++i])) < 1) {
-        std::cerr << "surf-bench: --repeats needs a positive integer\n\n" << kUsage;
-        return 2;
-      }
+      if (i + 1 >= argc || (options.repeats = std::atoi(argv[++i])) < 1)
+        return refuse("--repeats needs a positive integer");
       continue;
     }
     if (arg == "--sequence") {
-      if (i + 1 >= argc) {
-        std::cerr << "surf-bench: --sequence needs a folder\n\n" << kUsage;
-        return 2;
-      }
-      sequence = argv[++i];
+      if (i + 1 >= argc) return refuse("--sequence needs a folder");
+      options.sequence = argv[++i];
       continue;
     }
-    images.push_back(arg);
+    options.images.push_back(arg);
   }
-  if (images.empty()) {
-    std::cerr << "surf-bench: no IMAGE given\n\n" << kUsage;
-    return 2;
-  }
-  const surf::SurfOptions options;
-  std::cout << "SURF " << options << ", cv threads " << cv::getNumThreads() << "\n";
-  auto surf = surf::create_surf(options);
-  auto sift = cv::SIFT::create();
-  std::vector<cv::Mat> grays;
+  if (options.images.empty()) return refuse("no IMAGE given");
+  return options;
+}
+
+/// Times SURF (with and without descriptors) and SIFT on each image, one row per image; the
+/// images read go to `grays`. False (the image named on stderr) for an unreadable image.
+bool print_speed_table(cv::Feature2D& surf, cv::Feature2D& sift, const BenchOptions& options,
+                       std::vector<cv::Mat>* grays) {
   std::cout << std::fixed << std::setprecision(1);
   std::cout << "image | size | SURF ms (cpu ms) | SURF detect-only ms (cpu ms) | SURF kp | "
                "SIFT ms (cpu ms) | SIFT kp\n";
-  for (const auto& path : images) {
+  for (const auto& path : options.images) {
     const cv::Mat gray = cv::imread(path, cv::IMREAD_GRAYSCALE);
     if (gray.empty()) {
       std::cerr << "surf-bench: cannot read image '" << path << "'\n";
-      return 1;
+      return false;
     }
-    grays.push_back(gray);
+    grays->push_back(gray);
     std::size_t n_surf = 0, n_sift = 0;
     double c_surf = 0, c_detect = 0, c_sift = 0;
-    const double t_surf = median_ms(*surf, gray, repeats, &n_surf, true, &c_surf);
-    const double t_detect = median_ms(*surf, gray, repeats, &n_surf, false, &c_detect);
-    const double t_sift = median_ms(*sift, gray, repeats, &n_sift, true, &c_sift);
+    const int repeats = options.repeats;
+    const double t_surf = median_ms(surf, gray, repeats, &n_surf, true, &c_surf);
+    const double t_detect = median_ms(surf, gray, repeats, &n_surf, false, &c_detect);
+    const double t_sift = median_ms(sift, gray, repeats, &n_sift, true, &c_sift);
     std::cout << std::filesystem::path(path).filename().string() << " | " << gray.cols << "x"
               << gray.rows << " | " << t_surf << " (" << c_surf << ") | " << t_detect << " ("
               << c_detect << ") | " << n_surf << " | " << t_sift << " (" << c_sift << ") | "
               << n_sift << "\n";
   }
+  return true;
+}
+
+/// Match precision, match count and repeatability of both detectors under rotations and
+/// scalings of `gray`, one row per transform.
+void print_invariance_table(cv::Feature2D& surf, cv::Feature2D& sift, const cv::Mat& gray) {
   std::cout << "\ntransform | SURF precision | SURF matches | SURF repeat | SIFT precision | "
                "SIFT matches | SIFT repeat\n";
   std::cout << std::setprecision(3);
@@ -140,37 +153,62 @@ int main(int argc, char** argv) {
                     {"rot 30 + scale 1.5", 30, 1.5}};
   for (const auto& t : transforms) {
     const auto a =
-        surf::testing::evaluate_invariance(*surf, grays[0], t.angle_deg, t.scale, kRatio, kTolPx);
+        surf::testing::evaluate_invariance(surf, gray, t.angle_deg, t.scale, kRatio, kTolPx);
     const auto b =
-        surf::testing::evaluate_invariance(*sift, grays[0], t.angle_deg, t.scale, kRatio, kTolPx);
+        surf::testing::evaluate_invariance(sift, gray, t.angle_deg, t.scale, kRatio, kTolPx);
     std::cout << t.name << " | " << a.match_precision << " | " << a.matches << " | "
               << a.repeatability << " | " << b.match_precision << " | " << b.matches << " | "
               << b.repeatability << "\n";
   }
-  if (!sequence.empty()) {
-    /// Ground-truth reprojection tolerance: on fr1/xyz the motion PnP recovers from the matches
-    /// and the motion-capture ground truth differ by ~8 mm / 0.25 deg after 0.3-1 s (hand-eye
-    /// calibration and time sync), i.e. ~5 px at 1 m, so even perfect matches scatter that much.
-    constexpr double kPairTolPx = 10.0;
-    const auto frames = surf::testing::load_rgbd_sequence(sequence, 121);
-    if (frames.size() < 2) {
-      std::cerr << "surf-bench: no usable rgb+depth+groundtruth frames in '" << sequence << "'\n";
-      return 1;
-    }
-    std::cout << "\npair | SURF consistent/with-depth | SURF precision | SURF median px | "
-                 "SIFT consistent/with-depth | SIFT precision | SIFT median px\n";
-    for (std::size_t k : {1, 5, 10, 29, 60, 120}) {
-      if (k >= frames.size()) break;
-      const auto a =
-          surf::testing::evaluate_rgbd_pair(*surf, frames[0], frames[k], kRatio, kPairTolPx);
-      const auto b =
-          surf::testing::evaluate_rgbd_pair(*sift, frames[0], frames[k], kRatio, kPairTolPx);
-      std::cout << "0-" << k << " (" << std::setprecision(2)
-                << frames[k].stamp_s - frames[0].stamp_s << " s) | " << a.consistent << "/"
-                << a.with_depth << " | " << std::setprecision(3) << a.precision << " | "
-                << a.median_error_px << " | " << b.consistent << "/" << b.with_depth << " | "
-                << b.precision << " | " << b.median_error_px << "\n";
-    }
+}
+
+/// Frame 0 of the TUM folder `sequence` matched against later frames by both detectors, scored
+/// with the ground-truth motion and depth, one row per pair. False (said on stderr) when the
+/// folder has fewer than two usable frames.
+bool print_sequence_table(cv::Feature2D& surf, cv::Feature2D& sift, const std::string& sequence) {
+  /// Ground-truth reprojection tolerance: on fr1/xyz the motion PnP recovers from the matches
+  /// and the motion-capture ground truth differ by ~8 mm / 0.25 deg after 0.3-1 s (hand-eye
+  /// calibration and time sync), i.e. ~5 px at 1 m, so even perfect matches scatter that much.
+  constexpr double kPairTolPx = 10.0;
+  const auto frames = surf::testing::load_rgbd_sequence(sequence, 121);
+  if (frames.size() < 2) {
+    std::cerr << "surf-bench: no usable rgb+depth+groundtruth frames in '" << sequence << "'\n";
+    return false;
   }
+  std::cout << "\npair | SURF consistent/with-depth | SURF precision | SURF median px | "
+               "SIFT consistent/with-depth | SIFT precision | SIFT median px\n";
+  for (std::size_t k : {1, 5, 10, 29, 60, 120}) {
+    if (k >= frames.size()) break;
+    const auto a =
+        surf::testing::evaluate_rgbd_pair(surf, frames[0], frames[k], kRatio, kPairTolPx);
+    const auto b =
+        surf::testing::evaluate_rgbd_pair(sift, frames[0], frames[k], kRatio, kPairTolPx);
+    std::cout << "0-" << k << " (" << std::setprecision(2) << frames[k].stamp_s - frames[0].stamp_s
+              << " s) | " << a.consistent << "/" << a.with_depth << " | " << std::setprecision(3)
+              << a.precision << " | " << a.median_error_px << " | " << b.consistent << "/"
+              << b.with_depth << " | " << b.precision << " | " << b.median_error_px << "\n";
+  }
+  return true;
+}
+
+/// The three tables in turn; the exit code (1: an image or the sequence could not be read).
+int run_bench(const BenchOptions& options) {
+  const surf::SurfOptions surf_options;
+  std::cout << "SURF " << surf_options << ", cv threads " << cv::getNumThreads() << "\n";
+  auto surf = surf::create_surf(surf_options);
+  auto sift = cv::SIFT::create();
+  std::vector<cv::Mat> grays;
+  if (!print_speed_table(*surf, *sift, options, &grays)) return 1;
+  print_invariance_table(*surf, *sift, grays[0]);
+  if (!options.sequence.empty() && !print_sequence_table(*surf, *sift, options.sequence)) return 1;
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int exit_code = 0;
+  const std::optional<BenchOptions> options = parse_command_line(argc, argv, &exit_code);
+  if (!options) return exit_code;
+  return run_bench(*options);
 }
