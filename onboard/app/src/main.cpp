@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <chrono>
+#include <cstdio>
 #include <functional>
 #include <iostream>
 #include <memory>
@@ -137,109 +138,154 @@ int run(const app::StreamerConfig& config, const protocol::StreamKey& key,
   return stop ? 0 : (source->error().empty() || config.source != "freenect" ? 0 : 3);
 }
 
+constexpr int kExitUsage = 2;    // configuration or stream key refused
+constexpr int kExitRuntime = 1;  // an exception while streaming
+
+constexpr const char* kDescription =
+    "rgbd-streamer: capture a Kinect v1 (libfreenect; also replays a fakenect dump under\n"
+    "`fakenect <dump> rgbd-streamer ...`), an OpenNI2 device or a TUM RGB-D folder, drop blank "
+    "and\n"
+    "malformed frames, register depth to RGB where the driver does not, and stream RGB and depth "
+    "to\n"
+    "the ground station over two TCP connections (protocol v1), reconnecting forever.\n"
+    "Settings: built-in defaults < config file < these options. Logs go to stderr.";
+
+/// The settings the command line overrides: each option writes into its own copy of the field,
+/// and apply() copies over the configuration the options that were given. Holds the options'
+/// addresses, so it stays where it was built.
+class SettingOverrides {
+ public:
+  SettingOverrides() = default;
+  SettingOverrides(const SettingOverrides&) = delete;
+  SettingOverrides& operator=(const SettingOverrides&) = delete;
+
+  /// An option taking a value for `field`.
+  template <typename T>
+  void add(CLI::App& parser, const std::string& name, T app::StreamerConfig::*field,
+           const std::string& help) {
+    track(parser.add_option(name, given_.*field, help), field);
+  }
+  /// A flag setting the bool `field`.
+  void add_flag(CLI::App& parser, const std::string& name, bool app::StreamerConfig::*field,
+                const std::string& help) {
+    track(parser.add_flag(name, given_.*field, help), field);
+  }
+  void apply(app::StreamerConfig* config) const {
+    for (const auto& apply_one : appliers_) apply_one(config);
+  }
+
+ private:
+  template <typename T>
+  void track(CLI::Option* option, T app::StreamerConfig::*field) {
+    appliers_.push_back([this, option, field](app::StreamerConfig* c) {
+      if (option->count() > 0) c->*field = given_.*field;
+    });
+  }
+
+  app::StreamerConfig given_;
+  std::vector<std::function<void(app::StreamerConfig*)>> appliers_;
+};
+
+/// The command line.
+struct CommandLine {
+  std::string config_path;
+  bool print_config = false;
+  SettingOverrides overrides;
+};
+
+void add_options(CLI::App& parser, CommandLine& a) {
+  using C = app::StreamerConfig;
+  SettingOverrides& o = a.overrides;
+  parser.add_option(
+      "-c,--config", a.config_path,
+      std::string("YAML config file (default ") + kDefaultConfigPath + " if it exists)");
+  parser.add_flag("--print-config", a.print_config, "print the effective configuration and exit");
+  o.add(parser, "--source", &C::source, "freenect | openni2 | tum (default freenect)");
+  o.add(parser, "--freenect-device", &C::freenect_device_index,
+        "libfreenect device index (default 0)");
+  o.add_flag(parser, "--freenect-disparity-depth", &C::freenect_disparity_depth,
+             "use the 11-bit disparity mode, convert to mm and register in software "
+             "(fakenect dumps: Debian's fakenect replays only this mode)");
+  o.add(parser, "--openni2-uri", &C::openni2_uri, "OpenNI2 device URI (default: first device)");
+  o.add(parser, "--tum-dir", &C::tum_directory,
+        "TUM RGB-D folder (rgb.txt, depth.txt) for --source tum");
+  o.add(parser, "--tum-fps", &C::tum_fps,
+        "0 = original timing, > 0 = RGB frames per second, < 0 = unpaced");
+  o.add(parser, "--tum-loop", &C::tum_loop, "replay forever (true/false, default true)");
+  o.add(parser, "--max-frames", &C::max_frames, "stop after this many captured frames (0 = never)");
+  o.add(parser, "--host", &C::host, "ground-station address (default 192.168.1.10)");
+  o.add(parser, "--stream-key-file", &C::stream_key_file,
+        "file holding the craft's stream key (default /etc/rgbd-streamer/stream.key, mode 0600)");
+  o.add(parser, "--rgb-port", &C::rgb_port, "ground-station RGB stream port (default 5600)");
+  o.add(parser, "--depth-port", &C::depth_port, "ground-station depth stream port (default 5601)");
+  o.add(parser, "--depth-encoding", &C::depth_encoding,
+        "raw | rvl | zstd-delta (default rvl, lossless)");
+  o.add(parser, "--rgb-encoding", &C::rgb_encoding, "raw | jpeg (default raw)");
+  o.add(parser, "--jpeg-quality", &C::jpeg_quality, "JPEG quality 1..100 (default 90)");
+  o.add(parser, "--pair-depth-with-rgb", &C::pair_depth_with_rgb,
+        "send the depth frame nearest the RGB frame just sent (true/false, default true)");
+  o.add(parser, "--stats-period", &C::stats_period_s,
+        "seconds between counter lines, 0 = off (default 5)");
+  o.add(parser, "--log-level", &C::log_level, "trace | debug | info | warn | error (default info)");
+  o.add(parser, "--exit-linger-ms", &C::exit_linger_ms,
+        "after a replay ends, wait this long for the last frames to go (default 2000)");
+}
+
+/// Built-in defaults < the config file (the one given, else the default path if it exists) < the
+/// options given, validated. `file_read` is the config file read (empty: none). Throws (the
+/// message is the line to log) on an unreadable file or an invalid configuration.
+app::StreamerConfig effective_config(const CommandLine& a, std::string* file_read) {
+  app::StreamerConfig config;
+  *file_read = a.config_path;
+  if (file_read->empty()) {
+    if (FILE* f = std::fopen(kDefaultConfigPath, "r")) {
+      std::fclose(f);
+      *file_read = kDefaultConfigPath;
+    }
+  }
+  if (!file_read->empty()) app::load_yaml_file(*file_read, &config);
+  a.overrides.apply(&config);
+  std::string why;
+  if (!config.is_valid(&why)) throw std::runtime_error("invalid configuration: " + why);
+  return config;
+}
+
+std::shared_ptr<spdlog::logger> make_logger() {
+  auto log = spdlog::stderr_color_mt("rgbd-streamer");
+  log->set_pattern("[%Y-%m-%d %H:%M:%S.%e] [%l] %v");
+  return log;
+}
+
+/// Blocks the stop signals (and SIGUSR2, which wakes run()'s signal thread) in this thread, and
+/// so in every thread started after; returns them for sigwait.
+sigset_t block_stop_signals() {
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGUSR2);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  return signals;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  app::StreamerConfig defaults;
-  app::StreamerConfig cli;
-  CLI::App parser{
-      "rgbd-streamer: capture a Kinect v1 (libfreenect; also replays a fakenect dump under\n"
-      "`fakenect <dump> rgbd-streamer ...`), an OpenNI2 device or a TUM RGB-D folder, drop blank "
-      "and\n"
-      "malformed frames, register depth to RGB where the driver does not, and stream RGB and depth "
-      "to\n"
-      "the ground station over two TCP connections (protocol v1), reconnecting forever.\n"
-      "Settings: built-in defaults < config file < these options. Logs go to stderr."};
-  std::string config_path;
-  bool print_config = false;
-  std::vector<std::function<void(app::StreamerConfig*)>> overrides;
-  auto over = [&](CLI::Option* option, auto apply) {
-    overrides.push_back([option, apply](app::StreamerConfig* c) {
-      if (option->count() > 0) apply(c);
-    });
-  };
-  parser.add_option(
-      "-c,--config", config_path,
-      std::string("YAML config file (default ") + kDefaultConfigPath + " if it exists)");
-  parser.add_flag("--print-config", print_config, "print the effective configuration and exit");
-  over(parser.add_option("--source", cli.source, "freenect | openni2 | tum (default freenect)"),
-       [&](auto* c) { c->source = cli.source; });
-  over(parser.add_option("--freenect-device", cli.freenect_device_index,
-                         "libfreenect device index (default 0)"),
-       [&](auto* c) { c->freenect_device_index = cli.freenect_device_index; });
-  over(parser.add_flag("--freenect-disparity-depth", cli.freenect_disparity_depth,
-                       "use the 11-bit disparity mode, convert to mm and register in software "
-                       "(fakenect dumps: Debian's fakenect replays only this mode)"),
-       [&](auto* c) { c->freenect_disparity_depth = cli.freenect_disparity_depth; });
-  over(parser.add_option("--openni2-uri", cli.openni2_uri,
-                         "OpenNI2 device URI (default: first device)"),
-       [&](auto* c) { c->openni2_uri = cli.openni2_uri; });
-  over(parser.add_option("--tum-dir", cli.tum_directory,
-                         "TUM RGB-D folder (rgb.txt, depth.txt) for --source tum"),
-       [&](auto* c) { c->tum_directory = cli.tum_directory; });
-  over(parser.add_option("--tum-fps", cli.tum_fps,
-                         "0 = original timing, > 0 = RGB frames per second, < 0 = unpaced"),
-       [&](auto* c) { c->tum_fps = cli.tum_fps; });
-  over(parser.add_option("--tum-loop", cli.tum_loop, "replay forever (true/false, default true)"),
-       [&](auto* c) { c->tum_loop = cli.tum_loop; });
-  over(parser.add_option("--max-frames", cli.max_frames,
-                         "stop after this many captured frames (0 = never)"),
-       [&](auto* c) { c->max_frames = cli.max_frames; });
-  over(parser.add_option("--host", cli.host, "ground-station address (default 192.168.1.10)"),
-       [&](auto* c) { c->host = cli.host; });
-  over(
-      parser.add_option(
-          "--stream-key-file", cli.stream_key_file,
-          "file holding the craft's stream key (default /etc/rgbd-streamer/stream.key, mode 0600)"),
-      [&](auto* c) { c->stream_key_file = cli.stream_key_file; });
-  over(parser.add_option("--rgb-port", cli.rgb_port,
-                         "ground-station RGB stream port (default 5600)"),
-       [&](auto* c) { c->rgb_port = cli.rgb_port; });
-  over(parser.add_option("--depth-port", cli.depth_port,
-                         "ground-station depth stream port (default 5601)"),
-       [&](auto* c) { c->depth_port = cli.depth_port; });
-  over(parser.add_option("--depth-encoding", cli.depth_encoding,
-                         "raw | rvl | zstd-delta (default rvl, lossless)"),
-       [&](auto* c) { c->depth_encoding = cli.depth_encoding; });
-  over(parser.add_option("--rgb-encoding", cli.rgb_encoding, "raw | jpeg (default raw)"),
-       [&](auto* c) { c->rgb_encoding = cli.rgb_encoding; });
-  over(parser.add_option("--jpeg-quality", cli.jpeg_quality, "JPEG quality 1..100 (default 90)"),
-       [&](auto* c) { c->jpeg_quality = cli.jpeg_quality; });
-  over(parser.add_option(
-           "--pair-depth-with-rgb", cli.pair_depth_with_rgb,
-           "send the depth frame nearest the RGB frame just sent (true/false, default true)"),
-       [&](auto* c) { c->pair_depth_with_rgb = cli.pair_depth_with_rgb; });
-  over(parser.add_option("--stats-period", cli.stats_period_s,
-                         "seconds between counter lines, 0 = off (default 5)"),
-       [&](auto* c) { c->stats_period_s = cli.stats_period_s; });
-  over(parser.add_option("--log-level", cli.log_level,
-                         "trace | debug | info | warn | error (default info)"),
-       [&](auto* c) { c->log_level = cli.log_level; });
-  over(parser.add_option(
-           "--exit-linger-ms", cli.exit_linger_ms,
-           "after a replay ends, wait this long for the last frames to go (default 2000)"),
-       [&](auto* c) { c->exit_linger_ms = cli.exit_linger_ms; });
+  CLI::App parser{kDescription};
+  CommandLine args;
+  add_options(parser, args);
   CLI11_PARSE(parser, argc, argv);
 
-  auto log = spdlog::stderr_color_mt("rgbd-streamer");
-  log->set_pattern("[%Y-%m-%d %H:%M:%S.%e] [%l] %v");
-  app::StreamerConfig config = defaults;
+  auto log = make_logger();
+  app::StreamerConfig config;
+  std::string config_file;
   try {
-    if (!config_path.empty()) {
-      app::load_yaml_file(config_path, &config);
-    } else if (FILE* f = std::fopen(kDefaultConfigPath, "r")) {
-      std::fclose(f);
-      config_path = kDefaultConfigPath;
-      app::load_yaml_file(config_path, &config);
-    }
-    for (auto& apply : overrides) apply(&config);
-    std::string why;
-    if (!config.is_valid(&why)) throw std::runtime_error("invalid configuration: " + why);
+    config = effective_config(args, &config_file);
   } catch (const std::exception& e) {
     log->error("{}", e.what());
-    return 2;
+    return kExitUsage;
   }
-  if (print_config) {
+  if (args.print_config) {
     std::cout << config.to_string();
     return 0;
   }
@@ -247,22 +293,17 @@ int main(int argc, char** argv) {
   const auto key = protocol::load_stream_key_file(config.stream_key_file, &key_error);
   if (!key) {
     log->error("{}", key_error);
-    return 2;
+    return kExitUsage;
   }
   log->set_level(spdlog::level::from_str(config.log_level));
-  log->info("configuration ({}):\n{}", config_path.empty() ? "defaults + options" : config_path,
+  log->info("configuration ({}):\n{}", config_file.empty() ? "defaults + options" : config_file,
             config.to_string());
 
-  sigset_t signals;
-  sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
-  sigaddset(&signals, SIGUSR2);
-  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  const sigset_t signals = block_stop_signals();
   try {
     return run(config, *key, log, signals);
   } catch (const std::exception& e) {
     log->error("{}", e.what());
-    return 1;
+    return kExitRuntime;
   }
 }
