@@ -123,6 +123,35 @@ std::vector<LoopStats> LoopClosingStage::stats() const {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Map checkpoints.
+
+CheckpointStage::CheckpointStage(MapCheckpointer* checkpointer, StagePacing pacing)
+    : checkpointer_(checkpointer), pacing_(pacing) {}
+
+void CheckpointStage::start() {
+  if (pacing_.mode == PipelineMode::kSequential) return;
+  thread_ = std::thread([this] {
+    name_current_thread("slam-checkpoint");
+    // Off every real-time path, like loop closing.
+    if (pacing_.paced()) lower_current_thread(kBelowTrackingNice, kBelowRealtimeTrackingNice);
+    drain_stage_queue(queue_, [this](double now_s) { checkpointer_->write(now_s); });
+  });
+}
+
+void CheckpointStage::request(double now_s) {
+  if (pacing_.mode == PipelineMode::kSequential) {
+    checkpointer_->write(now_s);
+    return;
+  }
+  queue_.push_replacing(now_s);
+}
+
+void CheckpointStage::finish() {
+  queue_.close();
+  if (thread_.joinable()) thread_.join();
+}
+
+// ---------------------------------------------------------------------------------------------
 // Local mapping.
 
 LocalMappingStage::LocalMappingStage(LocalMapper mapper, StagePacing pacing,
@@ -408,16 +437,18 @@ std::unique_ptr<LocalMapSystem> LocalMapSystem::create(const PipelineOptions& op
   LocalMapSystem* self = s.get();
   s->checkpointer_ = std::make_unique<MapCheckpointer>(
       opts.checkpoint_path, opts.checkpoint_period_s, s->map_, s->map_file_context());
+  if (!opts.checkpoint_path.empty())
+    s->checkpoint_ = std::make_unique<CheckpointStage>(s->checkpointer_.get(), pacing);
   if (closer)
-    s->loop_closing_ = std::make_unique<LoopClosingStage>(
-        std::move(*closer), pacing, [self] { self->checkpointer_->write_if_due(false); });
+    s->loop_closing_ = std::make_unique<LoopClosingStage>(std::move(*closer), pacing,
+                                                          [self] { self->map_changed(); });
   s->mapping_ =
       std::make_unique<LocalMappingStage>(std::move(*mapper), pacing, [self](std::int64_t kf) {
         // With loop closing, the checkpoint follows it (the map as loop-corrected).
         if (self->loop_closing_)
           self->loop_closing_->submit(kf);
         else
-          self->checkpointer_->write_if_due(false);
+          self->map_changed();
       });
   s->tracking_ = std::make_unique<TrackingStage>(
       std::move(*extractor), std::move(*tracker), pacing,
@@ -427,6 +458,7 @@ std::unique_ptr<LocalMapSystem> LocalMapSystem::create(const PipelineOptions& op
       records, [self](std::int64_t kf) { self->keyframe_made(kf); }, k,
       opts.tracker.align_depth_time, opts.tracker.colour_stamp_lag_s,
       opts.tracker.rolling_shutter_readout_s);
+  if (s->checkpoint_) s->checkpoint_->start();
   s->tracking_->start();
   s->mapping_->start();
   if (s->loop_closing_) s->loop_closing_->start();
@@ -444,7 +476,18 @@ void LocalMapSystem::keyframe_made(std::int64_t kf) {
   if (loop_closing_) loop_closing_->wait_idle();
 }
 
-void LocalMapSystem::submit(RgbdFrame frame) { tracking_->submit(std::move(frame)); }
+void LocalMapSystem::map_changed() {
+  if (!checkpoint_) return;
+  if (const std::optional<double> now_s = checkpointer_->map_changed())
+    checkpoint_->request(*now_s);
+}
+
+void LocalMapSystem::submit(RgbdFrame frame) {
+  // A checkpoint pending since a keyframe with none after it (a hover) falls due at a frame: a
+  // lock-free check per frame; the map is copied and written on the checkpoint thread.
+  if (checkpoint_ && checkpointer_->take_due(frame.stamp_s)) checkpoint_->request(frame.stamp_s);
+  tracking_->submit(std::move(frame));
+}
 
 void LocalMapSystem::finish() {
   if (finished_.exchange(true)) return;
@@ -452,7 +495,8 @@ void LocalMapSystem::finish() {
   if (tracking_) tracking_->finish();
   if (mapping_) mapping_->finish();
   if (loop_closing_) loop_closing_->finish();
-  if (checkpointer_) checkpointer_->write_if_due(/*force=*/true);
+  if (checkpoint_) checkpoint_->finish();
+  if (checkpointer_) checkpointer_->write_forced();
 }
 
 PipelineSummary LocalMapSystem::summary() const {

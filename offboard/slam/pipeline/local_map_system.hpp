@@ -1,6 +1,7 @@
 // The flying SLAM system: three stages at three rates, each owning its thread and its input queue
 // (ORB-SLAM3's split) - tracking per frame (the camera-to-command path), local mapping per
-// keyframe, loop closing per mapped keyframe - around one shared map. Each stage's process() is a
+// keyframe, loop closing per mapped keyframe - around one shared map; with map checkpoints, a
+// fourth thread writes them (CheckpointStage). Each stage's process() is a
 // plain call, testable without threads; the stage runs it on its own thread or, in sequential
 // mode, inline on the caller's.
 //
@@ -94,6 +95,30 @@ class LoopClosingStage {
   StageQueue<std::int64_t> queue_{1};  // unbounded push(): one per mapped keyframe
   mutable std::mutex stats_mutex_;
   std::vector<LoopStats> stats_;
+  std::thread thread_;
+};
+
+/// Map checkpoints (MapCheckpointer), written on the "slam-checkpoint" thread so that neither
+/// tracking nor mapping waits for a file: a checkpoint falls due after a mapped keyframe or, with
+/// the map changed and no keyframe since, at a later frame (MapCheckpointer says when).
+class CheckpointStage {
+ public:
+  /// `checkpointer` outlives the stage.
+  CheckpointStage(MapCheckpointer* checkpointer, StagePacing pacing);
+  ~CheckpointStage() { finish(); }
+  CheckpointStage(const CheckpointStage&) = delete;
+  CheckpointStage& operator=(const CheckpointStage&) = delete;
+
+  void start();
+  /// Has the claimed checkpoint written at data time `now_s` (sequential mode: inline). Never
+  /// blocks otherwise.
+  void request(double now_s);
+  void finish();
+
+ private:
+  MapCheckpointer* checkpointer_;
+  const StagePacing pacing_;
+  StageQueue<double> queue_{1};  // newest wins: a write covers every change before its copy
   std::thread thread_;
 };
 
@@ -211,6 +236,8 @@ class LocalMapSystem : public SlamSystem {
   LocalMapSystem(const PipelineOptions& options, CameraModel camera, FrameRecords* records);
   /// Tracking's hand-over of keyframe `kf` (in kWait it returns once the keyframe is finished).
   void keyframe_made(std::int64_t kf);
+  /// A keyframe finished changing the map (mapping, or loop closing when on): checkpoint pending.
+  void map_changed();
   MapFileContext map_file_context() const;
 
   const PipelineOptions options_;
@@ -219,6 +246,7 @@ class LocalMapSystem : public SlamSystem {
   FrameRecords* records_;
   std::shared_ptr<SharedMap> map_;
   std::unique_ptr<MapCheckpointer> checkpointer_;
+  std::unique_ptr<CheckpointStage> checkpoint_;     // null: no checkpoints
   std::unique_ptr<LoopClosingStage> loop_closing_;  // null: loop closing off
   std::unique_ptr<LocalMappingStage> mapping_;
   std::unique_ptr<TrackingStage> tracking_;

@@ -64,12 +64,13 @@ struct PipelineOptions {
   LoopCloserOptions
       loop;  ///< matching, RANSAC and projection settings are filled in from the tracker's
   /// BackendKind::kLocalMap: map checkpoints. When set, the map (with its count of loop
-  /// corrections) is written here - through a temporary file renamed into place - after a mapped
-  /// keyframe when `checkpoint_period_s` of data have passed since the last checkpoint or a loop
-  /// correction moved the map since, and once more by finish(). A service restarted after a crash
-  /// loads it and continues in the same map and world frame (slam-server --checkpoint-dir). The
-  /// map is copied under the map lock (the tracker waits for the copy only) and written by the
-  /// thread that finished the keyframe (loop closing, else mapping), never the tracking thread.
+  /// corrections) is written here - through a temporary file renamed into place - once it has
+  /// changed (a keyframe mapped, keyframes culled, a loop correction) and `checkpoint_period_s` of
+  /// data time have passed since the last write, whether or not another keyframe comes (at once
+  /// for the first checkpoint and after a loop correction), and once more by finish()
+  /// (MapCheckpointer). A service restarted after a crash loads it and continues in the same map
+  /// and world frame (slam-server --checkpoint-dir). The map is copied under the map lock (the
+  /// tracker waits for the copy only) and written on its own thread, never the tracking thread.
   std::string checkpoint_path;
   /// 1 s: a restarted service can relocalise only where the checkpoint has keyframes, and the
   /// views of the last seconds are the ones the craft still sees. With 5 s, a HIL restart in the

@@ -173,7 +173,7 @@ TEST(SlamLinkSession, GivenACheckpointWrittenWhileRunningThenARestartResumesTheS
     for (std::uint32_t i = 0; i < 10; ++i)
       before = roundtrip(&first, to_wire(*ds->load(i, &err), i), &err);
     ASSERT_EQ(before.tracking_state, proto::TrackingState::kTracking);
-    // THEN the checkpoint appears while it runs (written by its mapping side, not at the end)
+    // THEN the checkpoint appears while it runs (written by its checkpoint thread, not at the end)
     for (int k = 0; k < 200 && !std::filesystem::exists(path); ++k)
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
     ASSERT_TRUE(std::filesystem::exists(path));
