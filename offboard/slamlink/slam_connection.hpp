@@ -1,5 +1,5 @@
 // One client connection of slam-server, socket-free: bytes in, bytes out, deadlines, and the
-// reason it must close. The server loop (slam_server_main.cpp) owns the socket and feeds this.
+// reason it must close. The server loop (app/slam_server_main.cpp) owns the socket and feeds this.
 //
 //   connected --SlamHello (compatible; attached to a map)--> serving: RgbdFrame -> PoseUpdate
 //
