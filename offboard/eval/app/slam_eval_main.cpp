@@ -46,6 +46,7 @@ struct RunArgs {
   std::string ransac = "random", keyframe_policy = "ransac";
   int cv_threads = -1;
   int orb_features = 0, orb_levels = 0;
+  int orb_spread = slam::PipelineOptions{}.local_map_orb_spread_oversample;
   double orb_scale_factor = 0;
   int rate = 1, max_frames = 0, map_stride = 8, sift_first_octave = 0, max_features = 0;
   std::uint64_t seed = 20260101;
@@ -102,6 +103,7 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   if (a.orb_features > 0) po.frontend.features.orb_features = a.orb_features;
   if (a.orb_levels > 0) po.frontend.features.orb_levels = a.orb_levels;
   if (a.orb_scale_factor > 0) po.frontend.features.orb_scale_factor = a.orb_scale_factor;
+  po.local_map_orb_spread_oversample = a.orb_spread;
   po.frontend.seed = a.seed;
   po.loop_closing = a.loop_closing == "on";
   po.keyframe_gate_mapper_busy = a.keyframe_gate == "on";
@@ -160,6 +162,7 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
   m["gravity"] = a.gravity;
   m["confirm_off_path"] = a.confirm_off_path;
   m["orb_pixel_centres"] = a.orb_pixel_centres;
+  m["orb_spread"] = a.orb_spread;
   m["depth_noise"] = a.depth_noise;
   m["map_lock"] = a.map_lock;
   m["local_ba"] = a.local_ba;
@@ -613,6 +616,11 @@ void add_frontend_and_map_file_options(CLI::App* run, RunArgs& a) {
   run->add_option("--orb-levels", a.orb_levels, "ORB pyramid levels (0: default, thesis: 6)");
   run->add_option("--orb-scale-factor", a.orb_scale_factor,
                   "ORB pyramid scale factor (0: default, thesis: 2)");
+  run->add_option("--orb-spread", a.orb_spread,
+                  "localmap, ORB: detect this many times the feature count and keep them spread "
+                  "over the image per pyramid level (0 or 1: cv::ORB's strongest; docs/slam.md)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   run->add_flag("--quiet", a.quiet, "no per-25-frame progress");
 }
 

@@ -3,6 +3,7 @@
 #include "slam/features/features.hpp"
 
 #include <cmath>
+#include <map>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -69,7 +70,7 @@ bool FeatureOptions::is_valid(std::string* error) const {
   if (surf_octaves < 1 || surf_scales_per_octave < 1 || !(surf_hessian_threshold > 0))
     return fail("features: SURF parameters must be positive");
   if (orb_features < 1 || !(orb_scale_factor > 1.0) || orb_levels < 1 || orb_edge_threshold < 1 ||
-      orb_patch_size < 2)
+      orb_patch_size < 2 || orb_spread_oversample < 0 || !(orb_spread_cell_px >= 4))
     return fail("features: ORB parameters out of range");
   if (!(min_depth_m >= 0) || !(max_depth_m > min_depth_m) || !std::isfinite(max_depth_m))
     return fail("features: need 0 <= min_depth_m < max_depth_m < inf");
@@ -77,13 +78,17 @@ bool FeatureOptions::is_valid(std::string* error) const {
 }
 
 FeatureExtractor::FeatureExtractor(FeatureOptions options, Intrinsics intrinsics,
-                                   cv::Ptr<cv::Feature2D> detector)
-    : options_(options), intrinsics_(intrinsics), detector_(std::move(detector)) {}
+                                   cv::Ptr<cv::Feature2D> detector,
+                                   cv::Ptr<cv::Feature2D> wide_detector)
+    : options_(options),
+      intrinsics_(intrinsics),
+      detector_(std::move(detector)),
+      wide_detector_(std::move(wide_detector)) {}
 
 std::optional<FeatureExtractor> FeatureExtractor::create(const FeatureOptions& o,
                                                          const Intrinsics& k, std::string* error) {
   if (!o.is_valid(error) || !k.is_valid(error)) return std::nullopt;
-  cv::Ptr<cv::Feature2D> det;
+  cv::Ptr<cv::Feature2D> det, wide;
   switch (o.kind) {
     case DetectorKind::kSift:
       det = cv::SIFT::create(o.sift_max_features, o.sift_scales_per_octave,
@@ -92,6 +97,10 @@ std::optional<FeatureExtractor> FeatureExtractor::create(const FeatureOptions& o
     case DetectorKind::kOrb:
       det = cv::ORB::create(o.orb_features, static_cast<float>(o.orb_scale_factor), o.orb_levels,
                             o.orb_edge_threshold, 0, 2, cv::ORB::HARRIS_SCORE, o.orb_patch_size);
+      if (o.orb_spread_oversample > 1)
+        wide = cv::ORB::create(o.orb_features * o.orb_spread_oversample,
+                               static_cast<float>(o.orb_scale_factor), o.orb_levels,
+                               o.orb_edge_threshold, 0, 2, cv::ORB::HARRIS_SCORE, o.orb_patch_size);
       break;
     case DetectorKind::kSurf: {
 #ifdef SLAM_HAVE_SURF
@@ -115,7 +124,70 @@ std::optional<FeatureExtractor> FeatureExtractor::create(const FeatureOptions& o
     if (error) *error = "features: could not create the detector";
     return std::nullopt;
   }
-  return FeatureExtractor(o, k, det);
+  return FeatureExtractor(o, k, det, wide);
+}
+
+std::vector<std::size_t> spread_keypoints(const std::vector<cv::KeyPoint>& candidates,
+                                          std::size_t keep, double scale_factor, double cell_px) {
+  std::vector<std::size_t> out;
+  if (candidates.size() <= keep) {
+    for (std::size_t i = 0; i < candidates.size(); ++i) out.push_back(i);
+    return out;
+  }
+  auto stronger = [&candidates](std::size_t ia, std::size_t ib) {
+    const cv::KeyPoint &a = candidates[ia], &b = candidates[ib];
+    if (a.response != b.response) return a.response > b.response;
+    return a.pt.y != b.pt.y ? a.pt.y < b.pt.y : a.pt.x < b.pt.x;
+  };
+  std::map<int, std::vector<std::size_t>> by_level;
+  for (std::size_t i = 0; i < candidates.size(); ++i)
+    by_level[std::max(0, candidates[i].octave)].push_back(i);
+  out.reserve(keep);
+  const double fraction = static_cast<double>(keep) / static_cast<double>(candidates.size());
+  for (const auto& [level, members] : by_level) {
+    const auto share = static_cast<std::size_t>(std::lround(fraction * members.size()));
+    const double cell = cell_px * std::pow(scale_factor, level);  // input pixels
+    std::map<std::pair<int, int>, std::vector<std::size_t>> cells;
+    for (std::size_t i : members) {
+      const cv::Point2f& pt = candidates[i].pt;
+      cells[{static_cast<int>(pt.y / cell), static_cast<int>(pt.x / cell)}].push_back(i);
+    }
+    for (auto& [c, v] : cells) std::sort(v.begin(), v.end(), stronger);
+    std::size_t taken = 0;
+    for (std::size_t round = 0; taken < share; ++round) {
+      std::vector<std::size_t> layer;
+      for (const auto& [c, v] : cells)
+        if (round < v.size()) layer.push_back(v[round]);
+      if (layer.empty()) break;
+      std::sort(layer.begin(), layer.end(), stronger);
+      for (std::size_t i = 0; i < layer.size() && taken < share; ++i, ++taken)
+        out.push_back(layer[i]);
+    }
+  }
+  return out;
+}
+
+void FeatureExtractor::detect_and_describe(const cv::Mat& grey, std::vector<cv::KeyPoint>* kps,
+                                           cv::Mat* desc) const {
+  if (!wide_detector_) {
+    detector_->detectAndCompute(grey, cv::noArray(), *kps, *desc);
+    return;
+  }
+  // One pyramid for detection and description: describing the few extra corners costs less than
+  // building the pyramid again for the kept ones.
+  std::vector<cv::KeyPoint> candidates;
+  cv::Mat all;
+  wide_detector_->detectAndCompute(grey, cv::noArray(), candidates, all);
+  const std::vector<std::size_t> kept =
+      spread_keypoints(candidates, static_cast<std::size_t>(options_.orb_features),
+                       options_.orb_scale_factor, options_.orb_spread_cell_px);
+  kps->clear();
+  kps->reserve(kept.size());
+  *desc = cv::Mat(static_cast<int>(kept.size()), all.cols, all.type());
+  for (std::size_t r = 0; r < kept.size(); ++r) {
+    kps->push_back(candidates[kept[r]]);
+    all.row(static_cast<int>(kept[r])).copyTo(desc->row(static_cast<int>(r)));
+  }
 }
 
 void FeatureExtractor::orb_keypoints_to_pixel_centres(const cv::Size& input,
@@ -166,7 +238,7 @@ std::optional<FrameFeatures> FeatureExtractor::extract(const RgbdFrame& frame,
         kp.size *= 2.0f;
       }
     } else {
-      detector_->detectAndCompute(grey, cv::noArray(), kps, desc);
+      detect_and_describe(grey, &kps, &desc);
       if (options_.kind == DetectorKind::kOrb && options_.orb_pixel_centres)
         orb_keypoints_to_pixel_centres(grey.size(), &kps);
     }

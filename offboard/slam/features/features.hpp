@@ -57,6 +57,15 @@ struct FeatureOptions {
   /// pose by the difference, and depth is read beside the corner. (The SIFT half-size path below
   /// corrects the same convention.) Off only to measure what it changes.
   bool orb_pixel_centres = true;
+  /// Spread ORB keypoints over the image (spread_keypoints below): cv::ORB detects this many times
+  /// `orb_features` corners, and each pyramid level keeps its share of `orb_features`, taken in
+  /// rounds from cells of `orb_spread_cell_px` level pixels - the strongest corner of every cell,
+  /// then the second, ... cv::ORB alone keeps the strongest corners of each level wherever they
+  /// are, so they bunch on a few high-contrast patches, the more so when blur flattens the rest;
+  /// ORB-SLAM2 spreads its corners (a quadtree over 30 px FAST cells) for the same reason: a pose
+  /// fitted to points spread over the view is better conditioned. 0 or 1: cv::ORB's own choice.
+  int orb_spread_oversample = 0;
+  double orb_spread_cell_px = 30.0;  ///< ORB-SLAM2's FAST cell
   // Lifting to 3D. Kinect v1 depth is unreliable below ~0.4 m and its noise grows with z^2
   // (about 4 cm at 4 m), so points beyond `max_depth_m` are dropped.
   double min_depth_m = 0.3;
@@ -102,13 +111,26 @@ class FeatureExtractor {
   const FeatureOptions& options() const { return options_; }
 
  private:
-  FeatureExtractor(FeatureOptions options, Intrinsics intrinsics, cv::Ptr<cv::Feature2D> detector);
+  FeatureExtractor(FeatureOptions options, Intrinsics intrinsics, cv::Ptr<cv::Feature2D> detector,
+                   cv::Ptr<cv::Feature2D> wide_detector);
+  /// Keypoints and descriptors of the detector, spread when FeatureOptions::orb_spread_oversample.
+  void detect_and_describe(const cv::Mat& grey, std::vector<cv::KeyPoint>* kps,
+                           cv::Mat* desc) const;
   /// FeatureOptions::orb_pixel_centres: level-L keypoints moved to their corner's input pixel.
   void orb_keypoints_to_pixel_centres(const cv::Size& input, std::vector<cv::KeyPoint>* kps) const;
   FeatureOptions options_;
   Intrinsics intrinsics_;
   cv::Ptr<cv::Feature2D> detector_;
+  cv::Ptr<cv::Feature2D> wide_detector_;  ///< ORB with the oversampled count, or empty
 };
+
+/// Of `candidates` (keypoints of a pyramid with scale factor `scale_factor`, level in
+/// `KeyPoint::octave`, positions in input pixels), the indices of `keep` spread over the image:
+/// each level keeps its share of the candidates (so the scale distribution is unchanged), taken in
+/// rounds over a grid of `cell_px` level pixels - in each round the strongest remaining corner of
+/// every cell, strongest cells first. Deterministic (ties by position).
+std::vector<std::size_t> spread_keypoints(const std::vector<cv::KeyPoint>& candidates,
+                                          std::size_t keep, double scale_factor, double cell_px);
 
 /// Back-projects pixel (u, v) with depth z_m to the camera frame.
 inline Eigen::Vector3d back_project(const Intrinsics& k, double u_px, double v_px, double z_m) {

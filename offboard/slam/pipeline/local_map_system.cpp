@@ -415,7 +415,9 @@ std::unique_ptr<LocalMapSystem> LocalMapSystem::create(const PipelineOptions& op
   std::unique_ptr<LocalMapSystem> s(new LocalMapSystem(opts, cam, records));
   const StagePacing pacing{opts.mode, opts.tracking_thread_policy, opts.mapping_rt_priority};
 
-  auto extractor = FeatureExtractor::create(opts.frontend.features, k, error);
+  FeatureOptions features = opts.frontend.features;
+  features.orb_spread_oversample = opts.local_map_orb_spread_oversample;
+  auto extractor = FeatureExtractor::create(features, k, error);
   if (!extractor) return nullptr;
   auto tracker = Tracker::create(to, cam, s->map_, error);
   if (!tracker) return nullptr;

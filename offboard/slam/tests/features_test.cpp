@@ -78,5 +78,46 @@ TEST(OrbKeypoints, ACornerOnACoarseLevelLandsOnTheInputPixelItWasFoundAt) {
   EXPECT_NEAR(as_reported.max_offset_px, 0.5, 1e-3);
 }
 
+TEST(SpreadKeypoints, CornersCrowdedIntoOnePatchLeaveRoomForEveryOtherCell) {
+  // GIVEN 200 strong level-0 corners crowded into one 30 px cell and one weaker corner in each of
+  // 40 other cells
+  std::vector<cv::KeyPoint> candidates;
+  for (int i = 0; i < 200; ++i)
+    candidates.emplace_back(cv::Point2f(5.0f + 0.1f * i, 5.0f), 7.0f, 0.0f, 100.0f + i, 0);
+  for (int c = 1; c <= 40; ++c)
+    candidates.emplace_back(cv::Point2f(30.0f * c + 15.0f, 200.0f), 7.0f, 0.0f, 1.0f, 0);
+  // WHEN 60 are kept
+  const std::vector<std::size_t> kept = spread_keypoints(candidates, 60, 2.0, 30.0);
+  // THEN every other cell keeps its corner and the crowded cell gets the rest, strongest first
+  ASSERT_EQ(kept.size(), 60u);
+  int crowded = 0;
+  float weakest_crowded = 1e9f;
+  for (std::size_t i : kept)
+    if (candidates[i].pt.y < 30.0f) {
+      ++crowded;
+      weakest_crowded = std::min(weakest_crowded, candidates[i].response);
+    }
+  EXPECT_EQ(crowded, 20);
+  EXPECT_EQ(weakest_crowded, 100.0f + 180);
+}
+
+TEST(SpreadKeypoints, EachPyramidLevelKeepsItsShareAndFewCandidatesAreAllKept) {
+  // GIVEN 300 corners on level 0 and 100 on level 1, spread evenly
+  std::vector<cv::KeyPoint> candidates;
+  for (int i = 0; i < 300; ++i)
+    candidates.emplace_back(cv::Point2f(2.0f * i, 10.0f), 7.0f, 0.0f, 1.0f + i, 0);
+  for (int i = 0; i < 100; ++i)
+    candidates.emplace_back(cv::Point2f(6.0f * i, 300.0f), 14.0f, 0.0f, 1.0f + i, 1);
+  // WHEN a quarter are kept
+  const std::vector<std::size_t> kept = spread_keypoints(candidates, 100, 2.0, 30.0);
+  // THEN each level keeps a quarter of its own corners
+  int level1 = 0;
+  for (std::size_t i : kept) level1 += candidates[i].octave == 1 ? 1 : 0;
+  EXPECT_EQ(kept.size(), 100u);
+  EXPECT_EQ(level1, 25);
+  // AND asking for more than there are keeps every candidate
+  EXPECT_EQ(spread_keypoints(candidates, 1000, 2.0, 30.0).size(), candidates.size());
+}
+
 }  // namespace
 }  // namespace rgbdquad::slam
