@@ -296,7 +296,7 @@ class SlamFlight:
                     # waits, relocalised), written when the map ends: where SLAM spent a flight.
                     "--tables-dir",
                     str(self.workdir / "slam-tables"),
-                    # The deployed setting (run-offboard): each session's map is checkpointed, so
+                    # The deployed setting (run-offboard): each map is checkpointed, so
                     # a slam-server restarted after a crash resumes the flight's map and world
                     # frame.
                     *(
@@ -459,7 +459,7 @@ class SlamFlight:
         restarts = len(
             list(self.workdir.glob("slam-server*.log"))
         )  # names this server's log and tables
-        if "--tables-dir" in argv:  # the new server numbers its sessions from 1 again
+        if "--tables-dir" in argv:  # the new server numbers its maps from 1 again
             i = argv.index("--tables-dir") + 1
             argv[i] = str(self.workdir / f"slam-tables-{restarts}")
         self._procs = [(n, p) for n, p in self._procs if p is not old[-1]]

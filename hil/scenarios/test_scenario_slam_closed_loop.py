@@ -372,13 +372,13 @@ def _log(path) -> str | None:
 def test_slam_loop_slam_server_killed_and_restarted(tmp_path):
     """slam-server is SIGKILLed in the hover and a new one started on the same port 1 s later (a
     supervisor's restart, same arguments). The flight's map dies with the process but not its
-    checkpoint (--checkpoint-dir, written every 5 s of data): the new server resumes quad-control's
-    map from it (SlamHello.resumed), relocalises in the same map and reports poses in the same
-    world frame, so the drift during the outage (lost-hold, neutral sticks, no pose) is observed and
-    flown back instead of being anchored into a new map (before checkpoints: 0.39-0.61 m off the
-    hold point). Asserted: the broken link logged with its cause, the map resumed from its
-    checkpoint, no crash, the craft ends holding with tracking or landed, never climbing or flying
-    away; the hold error after the restart is reported."""
+    checkpoint (--checkpoint-dir, written within a second of data after every map change): the new
+    server resumes quad-control's map from it (SlamHello.resumed), relocalises in the same map and
+    reports poses in the same world frame, so the drift during the outage (lost-hold, neutral
+    sticks, no pose) is observed and flown back instead of being anchored into a new map (before
+    checkpoints: 0.39-0.61 m off the hold point). Asserted: the broken link logged with its cause,
+    the map resumed from its checkpoint, no crash, the craft ends holding with tracking or landed,
+    never climbing or flying away; the hold error after the restart is reported."""
     with _flight(tmp_path) as flight:
         to = missions.take_off(flight, progress=print)
         flight.hold_for(missions.SETTLE_S)
