@@ -161,8 +161,15 @@ void FirmwareLink::start(Client& c) {
     provider_us = monotonic_now_us() - asked_us;
     if (!command) {  // nothing to send this period
       ++gap_causes_.withheld;
-      std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
-      ++stats_.withheld;
+      const std::optional<std::string> handover = gap_monitor_.on_withheld(asked_us);
+      {
+        std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
+        ++stats_.withheld;
+        stats_.max_link_pause_ms = static_cast<double>(gap_monitor_.max_pause_us()) / 1000.0;
+      }
+      // Once per blind landing: its start, which the gap's own line (printed when commanding
+      // resumes) cannot give when the ground station dies meanwhile.
+      if (handover) log_line("firmware link: " + *handover);
       return;
     }
   }
@@ -293,6 +300,7 @@ void FirmwareLink::note_command_sent(std::int64_t now_us, std::int64_t provider_
     std::lock_guard<slam::PriorityInheritanceMutex> lock(mutex_);
     stats_.command_gaps = gap_monitor_.gaps();
     stats_.max_command_gap_ms = static_cast<double>(gap_monitor_.max_gap_us()) / 1000.0;
+    stats_.max_link_pause_ms = static_cast<double>(gap_monitor_.max_pause_us()) / 1000.0;
   }
   // Rare (a gap over 100 ms), so the write to the log costs nothing in a healthy flight.
   if (gap) log_line("firmware link: " + *gap);

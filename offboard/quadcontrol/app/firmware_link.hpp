@@ -79,6 +79,9 @@ struct FirmwareLinkStats {
   /// causes), and the longest gap so far.
   std::uint64_t command_gaps = 0;
   double max_command_gap_ms = 0.0;
+  /// Longest time the link went without asking the controller for a command (sent or withheld):
+  /// the link's own health, which a blind landing's hand-over (max_command_gap_ms ~8 s) is not.
+  double max_link_pause_ms = 0.0;
 };
 
 class FirmwareLink {

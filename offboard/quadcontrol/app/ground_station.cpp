@@ -348,6 +348,7 @@ nlohmann::json firmware_json(const StationSnapshot& snap) {
                 {"withheld", fw->withheld},
                 {"command_gaps", fw->command_gaps},
                 {"max_command_gap_ms", fw->max_command_gap_ms},
+                {"max_link_pause_ms", fw->max_link_pause_ms},
                 {"last_error", fw->last_error}});
     if (fw->last_reply) {
       const auto& r = *fw->last_reply;

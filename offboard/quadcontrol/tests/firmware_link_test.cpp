@@ -182,6 +182,24 @@ TEST(FirmwareLinkOnPose, GivenAWithheldCommandThenNothingIsSentButTheScheduleGoe
             sent + 1);  // at most one already in flight when withholding began
 }
 
+TEST(FirmwareLinkOnPose, GivenAHandOverThenTheLinksOwnPauseIsToldApartFromTheCommandGap) {
+  // GIVEN a link sending keep-alives, WHEN the controller withholds 15 asks in a row (a blind
+  // landing's hand-over) and then commands again
+  Fixture f(on_pose(20));
+  ASSERT_TRUE(wait_for([&] { return f.link->stats().keep_alives >= 3; }));
+  f.withhold = true;
+  const int asked = f.provided;
+  ASSERT_TRUE(wait_for([&] { return f.provided >= asked + 15; }));
+  f.withhold = false;
+  ASSERT_TRUE(wait_for([&] { return f.link->stats().command_gaps >= 1; }));
+  // THEN the gap between commands spans the hand-over, while the link's own longest pause
+  // (between two asks, sent or withheld) is a fraction of it: the link kept asking throughout
+  const FirmwareLinkStats st = f.link->stats();
+  EXPECT_GE(st.withheld, 15U);
+  EXPECT_GT(st.max_command_gap_ms, 100.0);
+  EXPECT_LT(st.max_link_pause_ms, st.max_command_gap_ms);
+}
+
 TEST(FirmwareLinkOnPose, OptionsAreValidated) {
   FirmwareLinkOptions o = on_pose(10);  // keep-alive shorter than the minimum interval
   EXPECT_NE(testing::problem(o), "");
