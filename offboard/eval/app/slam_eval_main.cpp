@@ -66,6 +66,8 @@ struct RunArgs {
   double colour_stamp_lag_s = slam::TrackerOptions{}.colour_stamp_lag_s;
   double rolling_shutter_readout_s = slam::TrackerOptions{}.rolling_shutter_readout_s;
   std::string gravity = slam::TrackerOptions{}.gravity.enabled ? "on" : "off";
+  std::string gravity_accelerometer =
+      slam::TrackerOptions{}.gravity.from_accelerometer ? "on" : "off";
   int mapping_rt_priority = slam::PipelineOptions{}.mapping_rt_priority;
 };
 
@@ -114,6 +116,7 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   po.tracker.colour_stamp_lag_s = a.colour_stamp_lag_s;
   po.tracker.rolling_shutter_readout_s = a.rolling_shutter_readout_s;
   po.tracker.gravity.enabled = a.gravity == "on";
+  po.tracker.gravity.from_accelerometer = a.gravity_accelerometer == "on";
   po.tracker.confirm_off_path = a.confirm_off_path == "on";
   po.frontend.features.orb_pixel_centres = a.orb_pixel_centres == "on";
   po.map_lock_priority_inheritance = a.map_lock == "pi";
@@ -160,6 +163,7 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
   m["colour_stamp_lag_s"] = a.colour_stamp_lag_s;
   m["rolling_shutter_readout_s"] = a.rolling_shutter_readout_s;
   m["gravity"] = a.gravity;
+  m["gravity_accelerometer"] = a.gravity_accelerometer;
   m["confirm_off_path"] = a.confirm_off_path;
   m["orb_pixel_centres"] = a.orb_pixel_centres;
   m["orb_spread"] = a.orb_spread;
@@ -664,8 +668,15 @@ void add_ablation_options(CLI::App* run, RunArgs& a) {
       ->capture_default_str();
   run->add_option("--gravity", a.gravity,
                   "localmap: gravity's direction (the frame's flight-controller attitude, else "
-                  "the Kinect's accelerometer) as a roll/pitch prior in pose tracking "
-                  "(docs/slam.md)")
+                  "the Kinect's accelerometer with --gravity-accelerometer on) on roll and pitch "
+                  "in tracking, local BA and the loop-closing graph (docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  run->add_option(
+         "--gravity-accelerometer", a.gravity_accelerometer,
+         "localmap, with --gravity on: the Kinect's accelerometer as a gravity source when "
+         "a frame carries no attitude (off: it measures the camera's acceleration too; "
+         "docs/slam.md)")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   run->add_option("--align-depth-time", a.align_depth_time,

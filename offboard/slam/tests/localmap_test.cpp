@@ -226,12 +226,15 @@ TEST(PoseOptimizer, GravityPriorLeavesTheTurnAboutGravityFree) {
             1e-6);
 }
 
-TEST(GravityPrior, ObservedFromTheAttitudeFirstThenTheAccelerometer) {
+TEST(GravityPrior, ObservedFromTheAttitudeFirstThenTheAccelerometerWhenAskedFor) {
   GravityOptions o;
   RgbdFrame f;
   EXPECT_FALSE(observe_gravity(f, o).has_value());
   // The Kinect at rest, level: the specific force points up, -y in the optical frame
   f.accel_cam_mps2 = Eigen::Vector3d(0, -9.80665, 0);
+  // By default the accelerometer is no source: it measures the camera's acceleration too
+  EXPECT_FALSE(observe_gravity(f, o).has_value());
+  o.from_accelerometer = true;
   auto g = observe_gravity(f, o);
   ASSERT_TRUE(g);
   EXPECT_TRUE(g->down_cam.isApprox(Eigen::Vector3d::UnitY(), 1e-12));

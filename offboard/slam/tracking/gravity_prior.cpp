@@ -22,7 +22,7 @@ std::optional<GravityObservation> observe_gravity(const RgbdFrame& frame, const 
     return GravityObservation{R_nav_cam.transpose() * Eigen::Vector3d::UnitZ(),
                               o.attitude_sigma_rad};
   }
-  if (frame.accel_cam_mps2 && frame.accel_cam_mps2->allFinite()) {
+  if (o.from_accelerometer && frame.accel_cam_mps2 && frame.accel_cam_mps2->allFinite()) {
     const double magnitude = frame.accel_cam_mps2->norm();
     if (!(magnitude > 0)) return std::nullopt;
     const double departure_rad =

@@ -282,6 +282,8 @@ struct ServerArgs {
   std::string cross_check = "on";
   std::string confirm_off_path = slam::TrackerOptions{}.confirm_off_path ? "on" : "off";
   std::string gravity = slam::TrackerOptions{}.gravity.enabled ? "on" : "off";
+  std::string gravity_accelerometer =
+      slam::TrackerOptions{}.gravity.from_accelerometer ? "on" : "off";
   std::string thread_policy = "rr";
   slam::ThreadPriorityOptions priority;
   int mapping_rt_priority = slam::PipelineOptions{}.mapping_rt_priority;
@@ -368,8 +370,14 @@ void add_tracking_options(CLI::App& app, ServerArgs& a) {
       ->capture_default_str();
   app.add_option("--gravity", a.gravity,
                  "localmap: gravity's direction (the frame's flight-controller attitude, else "
-                 "the Kinect's accelerometer) on roll and pitch in tracking, local BA and the "
-                 "loop-closing graph (docs/slam.md)")
+                 "the Kinect's accelerometer with --gravity-accelerometer on) on roll and pitch in "
+                 "tracking, local BA and the loop-closing graph (docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  app.add_option("--gravity-accelerometer", a.gravity_accelerometer,
+                 "localmap, with --gravity on: the Kinect's accelerometer as a gravity source when "
+                 "a frame carries no attitude (off: it measures the camera's acceleration too; "
+                 "docs/slam.md)")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   app.add_option(
@@ -405,6 +413,7 @@ std::optional<slam::PipelineOptions> pipeline_options(ServerArgs& a) {
   options.tracker.restart_when_lost = a.restart_when_lost == "on";
   options.tracker.confirm_off_path = a.confirm_off_path == "on";
   options.tracker.gravity.enabled = a.gravity == "on";
+  options.tracker.gravity.from_accelerometer = a.gravity_accelerometer == "on";
   options.mapping_rt_priority = a.mapping_rt_priority;
   options.checkpoint_period_s = a.checkpoint_period_s;
   std::string err;
