@@ -629,6 +629,23 @@ void add_frontend_and_map_file_options(CLI::App* run, RunArgs& a) {
 }
 
 /// `run`: the flying system's switches for ablations, and its real-time scheduling.
+/// `run`: the gravity measurement and its sources (docs/slam.md, "Gravity on roll and pitch").
+void add_gravity_options(CLI::App* run, RunArgs& a) {
+  run->add_option("--gravity", a.gravity,
+                  "localmap: gravity's direction (the frame's flight-controller attitude, else "
+                  "the Kinect's accelerometer with --gravity-accelerometer on) on roll and pitch "
+                  "in tracking, local BA and the loop-closing graph (docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  run->add_option(
+         "--gravity-accelerometer", a.gravity_accelerometer,
+         "localmap, with --gravity on: the Kinect's accelerometer as a gravity source when "
+         "a frame carries no attitude (off: it measures the camera's acceleration too; "
+         "docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+}
+
 void add_ablation_options(CLI::App* run, RunArgs& a) {
   run->add_option("--keyframe-gate", a.keyframe_gate,
                   "localmap, realtime: ORB-SLAM2's c1b/c1c rule - while the mapper is busy only "
@@ -665,19 +682,6 @@ void add_ablation_options(CLI::App* run, RunArgs& a) {
                   "(s; 0: a global shutter); features are rotated to the middle row's time by the "
                   "predicted rotation (docs/slam.md)")
       ->check(CLI::Range(0.0, 0.1))
-      ->capture_default_str();
-  run->add_option("--gravity", a.gravity,
-                  "localmap: gravity's direction (the frame's flight-controller attitude, else "
-                  "the Kinect's accelerometer with --gravity-accelerometer on) on roll and pitch "
-                  "in tracking, local BA and the loop-closing graph (docs/slam.md)")
-      ->check(CLI::IsMember({"on", "off"}))
-      ->capture_default_str();
-  run->add_option(
-         "--gravity-accelerometer", a.gravity_accelerometer,
-         "localmap, with --gravity on: the Kinect's accelerometer as a gravity source when "
-         "a frame carries no attitude (off: it measures the camera's acceleration too; "
-         "docs/slam.md)")
-      ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   run->add_option("--align-depth-time", a.align_depth_time,
                   "localmap: re-time each depth image to its colour image by the predicted "
@@ -785,6 +789,7 @@ int main(int argc, char** argv) {
   add_dataset_and_system_options(run, a);
   add_frontend_and_map_file_options(run, a);
   add_ablation_options(run, a);
+  add_gravity_options(run, a);
   ScoreArgs s;
   add_score_command(app, s);
   VocabArgs v;
