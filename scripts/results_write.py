@@ -189,41 +189,57 @@ def bench_figures(out: Path) -> list[dict]:
     return figs
 
 
+def _anchor_run_figures(m: dict, seq: str, mode: str, variant: str, default: bool) -> list[dict]:
+    """ATE and frames lost of one anchor run; targets only on the default system."""
+    figs = []
+    if "ate_rmse_m" in m:
+        target = BENCH_ATE_TARGETS_M.get(seq) if default and mode == "real time" else None
+        figs.append(
+            figure(
+                f"ATE orb localmap, {variant}",
+                m["ate_rmse_m"],
+                "m",
+                target=target,
+                data=seq,
+                mode=mode,
+            )
+        )
+    figs.append(
+        figure(
+            f"frames lost orb localmap, {variant}",
+            m.get("frames_lost", 0),
+            "frames",
+            target=BENCH_LOST_TARGET if default else None,
+            data=seq,
+            mode=mode,
+        )
+    )
+    return figs
+
+
 def anchor_figures(anchor: Path) -> list[dict]:
-    """The default system on every sequence, wait and real time, restart on and off; ORB-SLAM2."""
+    """The default system on every sequence, wait and real time, and its variants; ORB-SLAM2."""
     figs = []
     if not anchor.is_dir():
         return figs
-    for run in sorted(p for p in anchor.iterdir() if p.is_dir() and "_restart_" in p.name):
+    # Variants: the new-segment restart on (the default) and off, and gravity factors from the
+    # Kinect's accelerometer (the default's source, the flight controller's attitude, is not in
+    # TUM recordings).
+    variants = ("_restart_", "_accel-gravity_")
+    for run in sorted(
+        p for p in anchor.iterdir() if p.is_dir() and any(v in p.name for v in variants)
+    ):
         m = _metrics(run / "metrics.json")
         if not m:
             continue
         mode = "wait" if "_wait_" in run.name else "real time"
         seq = run.name.split("_wait_" if mode == "wait" else "_realtime_")[0]
-        restart = run.name.rsplit("_", 1)[-1]
-        default = restart == "on"  # TrackerOptions::restart_when_lost
-        if "ate_rmse_m" in m:
-            target = BENCH_ATE_TARGETS_M.get(seq) if default and mode == "real time" else None
-            figs.append(
-                figure(
-                    f"ATE orb localmap, restart {restart}",
-                    m["ate_rmse_m"],
-                    "m",
-                    target=target,
-                    data=seq,
-                    mode=mode,
-                )
-            )
-        figs.append(
-            figure(
-                f"frames lost orb localmap, restart {restart}",
-                m.get("frames_lost", 0),
-                "frames",
-                target=BENCH_LOST_TARGET if default else None,
-                data=seq,
-                mode=mode,
-            )
-        )
+        if "_restart_" in run.name:
+            restart = run.name.rsplit("_", 1)[-1]
+            default = restart == "on"  # TrackerOptions::restart_when_lost
+            figs += _anchor_run_figures(m, seq, mode, f"restart {restart}", default)
+        else:
+            figs += _anchor_run_figures(m, seq, mode, "gravity from the accelerometer", False)
     for ref in sorted(anchor.glob("orbslam2_*.json")):
         m = _metrics(ref)
         if m and "ate_rmse_m" in m:

@@ -139,6 +139,14 @@ for seqdir in "$DATA"/*/ "$rendered"/*/; do
         --no-map --quiet --out "$OUT/anchor/${seq}_${mode}_restart_$restart" \
         2> "$OUT/anchor/${seq}_${mode}_restart_$restart.log" || status=1
     done
+    # Gravity from the Kinect's accelerometer: TUM recordings carry no flight-controller attitude,
+    # the default gravity source, so the default measures none; this is the gravity factors on
+    # real frames (--gravity-accelerometer, docs/slam.md).
+    [ -f "$seqdir/accelerometer.txt" ] || continue
+    echo "bench: [$(( $(date +%s) - start ))s] anchor: $seq $mode, gravity from the accelerometer"
+    "$BIN/slam-eval" run --dataset "$seqdir" --mode "$mode" --gravity-accelerometer on \
+      --no-map --quiet --out "$OUT/anchor/${seq}_${mode}_accel-gravity_on" \
+      2> "$OUT/anchor/${seq}_${mode}_accel-gravity_on.log" || status=1
   done
 done
 if [ -d "$DATA/fr1_xyz_first300" ]; then

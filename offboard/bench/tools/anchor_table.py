@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
 """Prints the fast-motion and anchor table of `make bench` with its verdicts.
 
-Reads OUT/anchor/<sequence>_<mode>_restart_<on|off>/metrics.json, written by
-offboard/bench/bench.sh: the default system, slam-eval --mode wait and --mode realtime, with the
-new-segment restart on (the default) and off, on the real sequences in DATA and on the manoeuvres
+Reads OUT/anchor/<sequence>_<mode>_<variant>/metrics.json, written by offboard/bench/bench.sh:
+the default system, slam-eval --mode wait and --mode realtime, with the new-segment restart on (the
+default, variant restart_on) and off (restart_off), and with gravity from the Kinect's accelerometer
+(accel-gravity_on; TUM carries no flight-controller attitude, the default source, so the default
+measures no gravity there), on the real sequences in DATA and on the manoeuvres
 rendered by hil/tools/render_tum.py (hil_*); and OUT/anchor/orbslam2_<name>.json, ORB-SLAM2's
 published runs scored by `slam-eval score` on the same frames. One row per sequence and mode: ATE,
 frames lost, segments started, local BAs interrupted per 100 frames, and real time against wait
@@ -19,8 +21,19 @@ import sys
 from pathlib import Path
 
 XYZ_TARGET_M = 0.0105
-# TrackerOptions::restart_when_lost: the verdicts judge the default system.
-DEFAULT_RESTART = "on"
+# The variant the verdicts judge: the default system (TrackerOptions::restart_when_lost on).
+DEFAULT_VARIANT = "restart on"
+VARIANTS = ("_restart_", "_accel-gravity_")
+
+
+def variant_of(run_name: str) -> str:
+    """'restart on', 'restart off' or 'accel-gravity on' from a run folder's name."""
+    for v in VARIANTS:
+        if v in run_name:
+            return v.strip("_") + " " + run_name.rsplit("_", 1)[-1]
+    return "?"
+
+
 RT_OVER_WAIT_MAX = 1.05
 
 
@@ -41,26 +54,31 @@ def fmt(x, spec="{:.4f}"):
 
 def main(out_dir: str) -> int:
     root = Path(out_dir) / "anchor"
-    runs = sorted(p for p in root.glob("*_restart_*") if p.is_dir()) if root.is_dir() else []
+    runs = (
+        sorted(p for p in root.iterdir() if p.is_dir() and any(v in p.name for v in VARIANTS))
+        if root.is_dir()
+        else []
+    )
     if not runs:
         print("anchor: no runs under", root)
         return 0
-    print("\n### Fast motion and the anchor (default local map ORB; restart = new map segment)")
     print(
-        "| sequence | mode | restart | ATE m | lost | segments | BA interrupted /100 frames "
+        "\n### Fast motion and the anchor (default local map ORB; restart = new map segment, "
+        "accel-gravity = gravity factors from the Kinect's accelerometer)"
+    )
+    print(
+        "| sequence | mode | variant | ATE m | lost | segments | BA interrupted /100 frames "
         "| dropped |"
     )
     print("|---|---|---|---|---|---|---|---|")
     table = {}
     for run in runs:
         m = load(run / "metrics.json")
-        seq, rest = (
-            run.name.split("_wait_") if "_wait_" in run.name else run.name.split("_realtime_")
-        )
+        seq = run.name.split("_wait_" if "_wait_" in run.name else "_realtime_")[0]
         mode = "wait" if "_wait_" in run.name else "realtime"
-        restart = rest.rsplit("_", 1)[-1]
+        variant = variant_of(run.name)
         if m is None:
-            print(f"| {seq} | {mode} | {restart} | failed | | | | |")
+            print(f"| {seq} | {mode} | {variant} | failed | | | | |")
             continue
         frames = max(1, m.get("frames", 1))
         row = {
@@ -70,9 +88,9 @@ def main(out_dir: str) -> int:
             "ba": 100.0 * m.get("mapper_ba_interrupted", 0) / frames,
             "dropped": m.get("frontend_dropped", 0),
         }
-        table[(seq, mode, restart)] = row
+        table[(seq, mode, variant)] = row
         print(
-            f"| {seq} | {mode} | {restart} | {fmt(row['ate'])} | {row['lost']} | "
+            f"| {seq} | {mode} | {variant} | {fmt(row['ate'])} | {row['lost']} | "
             f"{row['segments']} | {row['ba']:.1f} | {row['dropped']} |"
         )
     refs = sorted(root.glob("orbslam2_*.json"))
@@ -81,25 +99,25 @@ def main(out_dir: str) -> int:
         for r in refs:
             s = load(r)
             print(f"- {r.stem}: ATE {fmt(s.get('ate_rmse_m') if s else None)} m")
-    print("\nVerdicts (restart on, the default):")
+    print("\nVerdicts (the default: restart on, no accelerometer gravity):")
     status = 0
     seqs = sorted({k[0] for k in table})
     for seq in seqs:
         for mode in ("wait", "realtime"):
-            row = table.get((seq, mode, DEFAULT_RESTART))
+            row = table.get((seq, mode, DEFAULT_VARIANT))
             if row is None:
                 continue
             ok = row["lost"] == 0
             print(f"- {verdict(ok)} {seq} {mode}: {row['lost']} frames lost (target 0)")
-        wait = table.get((seq, "wait", DEFAULT_RESTART))
-        rt = table.get((seq, "realtime", DEFAULT_RESTART))
+        wait = table.get((seq, "wait", DEFAULT_VARIANT))
+        rt = table.get((seq, "realtime", DEFAULT_VARIANT))
         if wait and rt and wait["ate"] and rt["ate"] is not None:
             ratio = rt["ate"] / wait["ate"]
             print(
                 f"- {verdict(ratio <= RT_OVER_WAIT_MAX)} {seq}: real time / wait ATE "
                 f"{ratio:.3f} (target <= {RT_OVER_WAIT_MAX})"
             )
-    xyz = table.get(("fr1_xyz_first300", "realtime", DEFAULT_RESTART))
+    xyz = table.get(("fr1_xyz_first300", "realtime", DEFAULT_VARIANT))
     if xyz and xyz["ate"] is not None:
         ok = xyz["ate"] <= XYZ_TARGET_M and xyz["dropped"] == 0
         print(
