@@ -29,12 +29,13 @@ struct PipelineOptions {
   bool reprojection_refine = true;
   TrackerOptions tracker;  ///< BackendKind::kLocalMap only
   /// BackendKind::kLocalMap: its ORB extractor's FeatureOptions::orb_spread_oversample (the
-  /// thesis systems keep `frontend.features`, cv::ORB's own choice as in thesis Table 4.3). 3: at
-  /// level 0 cv::ORB keeps about 770 of 1024 corners over ~330 cells of 30 px, 2.3 a cell; three
-  /// times as many candidates let a cell supply its share where corners crowd 3:1 into part of
-  /// the view, without describing more than three times the corners (fr1_xyz_first300: +4 ms
-  /// per frame on a loaded 2-core machine, results page).
-  int local_map_orb_spread_oversample = 3;
+  /// thesis systems keep `frontend.features`, cv::ORB's own choice as in thesis Table 4.3). 2: at
+  /// level 0 cv::ORB keeps about 770 of 1024 corners over ~330 cells of 30 px, 2.3 a cell; twice
+  /// as many candidates let the crowded half of a view give up corners to the other half. Three
+  /// times as many scored the same on the real excerpts (fr1_360_first60, fr1_xyz_first300) and
+  /// describe twice as many extra corners, on the tracking thread whose CPU per frame is the
+  /// closed loop's margin on a loaded 2-core ground station (results page).
+  int local_map_orb_spread_oversample = 2;
   /// BackendKind::kLocalMap: sigma of the depth (disparity) residual (see DepthNoiseModel).
   DepthNoiseModel depth_noise = DepthNoiseModel::kKeypointSigma;
   /// BackendKind::kLocalMap: the map lock inherits the priority of a waiting real-time tracker
