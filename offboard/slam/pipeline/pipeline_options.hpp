@@ -29,13 +29,14 @@ struct PipelineOptions {
   bool reprojection_refine = true;
   TrackerOptions tracker;  ///< BackendKind::kLocalMap only
   /// BackendKind::kLocalMap: its ORB extractor's FeatureOptions::orb_spread_oversample (the
-  /// thesis systems keep `frontend.features`, cv::ORB's own choice as in thesis Table 4.3). 2: at
-  /// level 0 cv::ORB keeps about 770 of 1024 corners over ~330 cells of 30 px, 2.3 a cell; twice
-  /// as many candidates let the crowded half of a view give up corners to the other half. Three
-  /// times as many scored the same on the real excerpts (fr1_360_first60, fr1_xyz_first300) and
-  /// describe twice as many extra corners, on the tracking thread whose CPU per frame is the
-  /// closed loop's margin on a loaded 2-core ground station (results page).
-  int local_map_orb_spread_oversample = 2;
+  /// thesis systems keep `frontend.features`, cv::ORB's own choice as in thesis Table 4.3). Off
+  /// (0) by default: spreading from twice the corners (2) lowers the wait-mode ATE of the real TUM
+  /// excerpts, but with it the 10-minute HIL flight on a loaded 2-core machine lost its margin -
+  /// the serving thread's CPU rose from 10.8 to 14.4 ms a frame, pose latency p95 doubled, SLAM
+  /// answered 82 % of the frames instead of 96 % and the first minute's error missed 20 mm (results
+  /// page, docs/slam.md). 2 (ORB-SLAM2-like: at level 0 cv::ORB keeps ~770 corners over ~330 cells
+  /// of 30 px, 2.3 a cell) is the value to try where the CPU allows.
+  int local_map_orb_spread_oversample = 0;
   /// BackendKind::kLocalMap: sigma of the depth (disparity) residual (see DepthNoiseModel).
   DepthNoiseModel depth_noise = DepthNoiseModel::kKeypointSigma;
   /// BackendKind::kLocalMap: the map lock inherits the priority of a waiting real-time tracker
