@@ -149,33 +149,38 @@ std::string describe(const slam::Intrinsics& k) {
 
 }  // namespace
 
+std::string SlamLinkSession::start_pipeline(const slam::Intrinsics& k) {
+  std::string err;
+  slam::PipelineOptions options = options_;
+  options.checkpoint_path = map_files_.checkpoint_path;
+  pipeline_ = factory_(options, k, &err);
+  if (!pipeline_) return "slam-link: cannot start the pipeline: " + err;
+  intrinsics_ = k;
+  if (map_files_.resume_from_checkpoint) {
+    if (!pipeline_->load_map(map_files_.checkpoint_path, &err))
+      resume_error_ = "slam-link: the map's checkpoint cannot be resumed (" + err +
+                      "); its world frame is lost: start a new map";
+  } else if (!map_files_.load_path.empty() && !pipeline_->load_map(map_files_.load_path, &err)) {
+    // The flight goes on in a new map: say so on every frame's first answer, never silently.
+    map_load_error_ = "slam-link: map not loaded, starting a new map: " + err;
+  }
+  if (!map_files_.tables_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(map_files_.tables_dir, ec);
+    if (ec)
+      tables_error_ = "cannot create " + map_files_.tables_dir + ": " + ec.message();
+    else if (!pipeline_->start_tables(map_files_.tables_dir, &err))
+      tables_error_ = err;
+  }
+  return "";
+}
+
 proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::string* error) {
   if (error) error->clear();
   const slam::Intrinsics k = intrinsics_of(frame);
   if (!pipeline_) {
-    std::string err;
-    slam::PipelineOptions options = options_;
-    options.checkpoint_path = map_files_.checkpoint_path;
-    pipeline_ = factory_(options, k, &err);
-    if (!pipeline_)
-      return lost_update(frame, "slam-link: cannot start the pipeline: " + err, error);
-    intrinsics_ = k;
-    if (map_files_.resume_from_checkpoint) {
-      if (!pipeline_->load_map(map_files_.checkpoint_path, &err))
-        resume_error_ = "slam-link: the map's checkpoint cannot be resumed (" + err +
-                        "); its world frame is lost: start a new map";
-    } else if (!map_files_.load_path.empty() && !pipeline_->load_map(map_files_.load_path, &err)) {
-      // The flight goes on in a new map: say so on every frame's first answer, never silently.
-      map_load_error_ = "slam-link: map not loaded, starting a new map: " + err;
-    }
-    if (!map_files_.tables_dir.empty()) {
-      std::error_code ec;
-      std::filesystem::create_directories(map_files_.tables_dir, ec);
-      if (ec)
-        tables_error_ = "cannot create " + map_files_.tables_dir + ": " + ec.message();
-      else if (!pipeline_->start_tables(map_files_.tables_dir, &err))
-        tables_error_ = err;
-    }
+    const std::string why = start_pipeline(k);
+    if (!why.empty()) return lost_update(frame, why, error);
   }
   if (!same_camera(k, intrinsics_)) {
     // The map is built with the first frame's camera model: a frame with another one (a streamer
@@ -205,48 +210,53 @@ proto::PoseUpdate SlamLinkSession::on_frame(const proto::RgbdFrame& frame, std::
     return lost_update(
         frame, "slam-link: frame rejected: " + (rec ? rec->error : std::string("no record")),
         error);
-  const auto T_world_cam = pose_to_wire(rec->T_world_cam);
-  const auto T_prev_cur = pose_to_wire(rec->T_prev_cur);
+  return pose_update(frame, *rec, error);
+}
+
+proto::PoseUpdate SlamLinkSession::pose_update(const proto::RgbdFrame& frame,
+                                               const slam::FrameRecord& rec, std::string* error) {
+  const auto T_world_cam = pose_to_wire(rec.T_world_cam);
+  const auto T_prev_cur = pose_to_wire(rec.T_prev_cur);
   // The pose as put on the wire before pose_to_wire (quaternion straight from the matrix): when
   // the codec refuses it, the old server failed to encode its reply and closed the connection.
   std::string raw_refusal;
   {
     proto::PoseUpdate raw;
-    raw.T_world_cam = raw_pose(rec->T_world_cam);
-    raw.T_prev_cur = raw_pose(rec->T_prev_cur);
+    raw.T_world_cam = raw_pose(rec.T_world_cam);
+    raw.T_prev_cur = raw_pose(rec.T_prev_cur);
     raw_refusal = proto::validate(proto::Message{raw});
   }
   if (!T_world_cam || !T_prev_cur) {
     std::ostringstream m;
-    m << "slam-link: pose of frame " << index
+    m << "slam-link: pose of frame " << rec.index
       << " cannot be sent (non-finite or not a rotation): T_world_cam\n"
-      << rec->T_world_cam.matrix() << "\nT_prev_cur\n"
-      << rec->T_prev_cur.matrix();
+      << rec.T_world_cam.matrix() << "\nT_prev_cur\n"
+      << rec.T_prev_cur.matrix();
     return lost_update(frame, m.str(), error);
   }
   proto::PoseUpdate u;
   u.pair_sequence = frame.pair_sequence;
   u.timestamp_us = frame.rgb.header.capture_timestamp_us;
-  u.tracking_state = to_wire(rec->state);
+  u.tracking_state = to_wire(rec.state);
   u.T_world_cam = *T_world_cam;
   u.T_prev_cur = *T_prev_cur;
-  u.is_keyframe = rec->keyframe;
-  u.inlier_count = static_cast<std::uint32_t>(rec->inliers);
-  u.map_correction_count = static_cast<std::uint32_t>(rec->map_corrections);
+  u.is_keyframe = rec.keyframe;
+  u.inlier_count = static_cast<std::uint32_t>(rec.inliers);
+  u.map_correction_count = static_cast<std::uint32_t>(rec.map_corrections);
   map_corrections_ = u.map_correction_count;
-  if (rec->state == slam::TrackingState::kTracking) last_good_ = *T_world_cam;
+  if (rec.state == slam::TrackingState::kTracking) last_good_ = *T_world_cam;
   if (!raw_refusal.empty()) {
     ++repaired_;
     if (error) {
       std::ostringstream m;
       m.precision(17);
-      m << "slam-link: pose of frame " << index
+      m << "slam-link: pose of frame " << rec.index
         << " re-normalised for the wire (as computed the codec refuses it: " << raw_refusal
-        << "; T_world_cam q_xyzw " << raw_pose(rec->T_world_cam).q_xyzw[0] << " "
-        << raw_pose(rec->T_world_cam).q_xyzw[1] << " " << raw_pose(rec->T_world_cam).q_xyzw[2]
-        << " " << raw_pose(rec->T_world_cam).q_xyzw[3] << ", T_prev_cur q_xyzw "
-        << raw_pose(rec->T_prev_cur).q_xyzw[0] << " " << raw_pose(rec->T_prev_cur).q_xyzw[1] << " "
-        << raw_pose(rec->T_prev_cur).q_xyzw[2] << " " << raw_pose(rec->T_prev_cur).q_xyzw[3] << ")";
+        << "; T_world_cam q_xyzw " << raw_pose(rec.T_world_cam).q_xyzw[0] << " "
+        << raw_pose(rec.T_world_cam).q_xyzw[1] << " " << raw_pose(rec.T_world_cam).q_xyzw[2] << " "
+        << raw_pose(rec.T_world_cam).q_xyzw[3] << ", T_prev_cur q_xyzw "
+        << raw_pose(rec.T_prev_cur).q_xyzw[0] << " " << raw_pose(rec.T_prev_cur).q_xyzw[1] << " "
+        << raw_pose(rec.T_prev_cur).q_xyzw[2] << " " << raw_pose(rec.T_prev_cur).q_xyzw[3] << ")";
       *error = m.str();
     }
   }

@@ -116,6 +116,14 @@ class SlamLinkSession {
                                           std::string* error);
   rgbdquad::protocol::PoseUpdate lost_update(const rgbdquad::protocol::RgbdFrame& frame,
                                              std::string reason, std::string* error);
+  /// Builds the pipeline for the first frame's camera `k` and loads the map to resume or load;
+  /// "" when the pipeline runs, else why it cannot. A map that cannot be loaded is kept as a
+  /// reason (resume_error_, map_load_error_), not returned: the link answers with it.
+  std::string start_pipeline(const slam::Intrinsics& k);
+  /// The reply for a tracked frame's record: its poses as the wire carries them, or LOST with the
+  /// reason when they cannot be sent.
+  rgbdquad::protocol::PoseUpdate pose_update(const rgbdquad::protocol::RgbdFrame& frame,
+                                             const slam::FrameRecord& rec, std::string* error);
 
   slam::PipelineOptions options_;
   SessionMapFiles map_files_;
