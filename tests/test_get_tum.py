@@ -335,8 +335,13 @@ def test_unpinned_sequence_needs_trust_on_first_use_then_is_checked(tmp_path, se
     lock = json.loads((root / "tum-lock.json").read_text())
     assert lock["fr1_desk"]["sha256"] == hashlib.sha256(body).hexdigest()
     assert lock["fr1_desk"]["bytes"] == len(body)
-    # The recorded values now guard later downloads: a different archive is refused.
-    server.files["/rgbd_dataset_freiburg1_desk.tgz"] = desk_archive()[:-1] + b"\0"
+    # The recorded values now guard later downloads: a different archive is refused. One byte in
+    # the middle is flipped: the last byte of a gzip file is the top byte of the unpacked size,
+    # already 0 for an archive this small, so overwriting it with 0 changed nothing but the
+    # header's timestamp, and only when the two archives were built in different seconds.
+    other = bytearray(desk_archive())
+    other[len(other) // 2] ^= 0xFF
+    server.files["/rgbd_dataset_freiburg1_desk.tgz"] = bytes(other)
     r = run_script("fr1_desk", "--force", "--root", root, "--table", table)
     assert r.returncode == 1 and "wrong checksum" in r.stderr and "lock file" in r.stderr
 
