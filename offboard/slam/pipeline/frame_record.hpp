@@ -31,6 +31,8 @@ struct FrameRecord {
   /// Local-map system: a fit only the motion bound refused was confirmed by a registration to the
   /// reference keyframe and kept (TrackResult).
   bool off_path_confirmed = false;
+  /// Local-map system: a pose disagreeing with the frame's attitude was refused (TrackResult).
+  bool attitude_refused = false;
   bool gravity_prior = false;  ///< local-map system: the pose fit had a gravity prior
   double cross_check_shift_m = -1, cross_check_shift_deg = -1;  ///< (TrackResult)
   bool prediction_stale =
@@ -87,6 +89,9 @@ struct PipelineSummary {
   /// Fits only the motion bound refused, kept because the reference keyframe confirmed them
   /// (TrackerOptions::confirm_off_path).
   std::size_t off_path_confirmed = 0;
+  /// Relocalisations or segment merges refused for disagreeing with the frame's attitude
+  /// (TrackerOptions::max_attitude_disagreement_deg).
+  std::size_t attitude_refusals = 0;
   /// Frames whose pose fit had a gravity prior (TrackerOptions::gravity).
   std::size_t gravity_frames = 0;
   bool loop_closing_active =

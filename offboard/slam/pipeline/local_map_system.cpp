@@ -45,6 +45,7 @@ FrameRecord record_of(const RgbdFrame& frame, const TrackResult& tr) {
   rec.new_segment = tr.new_segment;
   rec.segment_merged = tr.segment_merged;
   rec.off_path_confirmed = tr.off_path_confirmed;
+  rec.attitude_refused = tr.attitude_refused;
   rec.gravity_prior = tr.gravity_prior;
   rec.cross_check_shift_m = tr.cross_check_shift_m;
   rec.cross_check_shift_deg = tr.cross_check_shift_deg;
@@ -367,6 +368,7 @@ void TrackingStage::track(const RgbdFrame& frame) {
     if (r.new_segment) ++counts_.segments_started;
     if (r.segment_merged) ++counts_.segments_merged;
     if (r.off_path_confirmed) ++counts_.off_path_confirmed;
+    if (r.attitude_refused) ++counts_.attitude_refusals;
     if (r.gravity_prior) ++counts_.gravity_frames;
   }
   records_->add(std::move(out.record));
@@ -389,6 +391,7 @@ void TrackingStage::add_to(PipelineSummary* s) const {
   s->segments_started = counts_.segments_started;
   s->segments_merged = counts_.segments_merged;
   s->off_path_confirmed = counts_.off_path_confirmed;
+  s->attitude_refusals = counts_.attitude_refusals;
   s->gravity_frames = counts_.gravity_frames;
 }
 

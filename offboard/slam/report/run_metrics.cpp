@@ -31,6 +31,7 @@ void add_local_map_metrics(const RunOutcome& run, json* m) {
   (*m)["segments_started"] = run.summary.segments_started;
   (*m)["segments_merged"] = run.summary.segments_merged;
   (*m)["off_path_confirmed"] = run.summary.off_path_confirmed;
+  (*m)["attitude_refusals"] = run.summary.attitude_refusals;
   (*m)["gravity_frames"] = run.summary.gravity_frames;
   (*m)["cross_checks"] = run.summary.cross_checks;
   (*m)["cross_check_replacements"] = run.summary.cross_check_replacements;

@@ -15,7 +15,7 @@ std::optional<FramesTable> FramesTable::create(const fs::path& path, std::string
          "map_lock_wait_ms,relocalised,features_ms,matching_ms,relocalise_ms,prediction_stale,"
          "prediction_deviation_m,prediction_deviation_bound_m,attitude_predicted,cross_checked,"
          "cross_check_shift_m,cross_check_shift_deg,new_segment,segment_merged,off_path_"
-         "confirmed\n";
+         "confirmed,attitude_refused\n";
   if (!out) {
     if (error) *error = "cannot write " + path.string();
     return std::nullopt;
@@ -35,7 +35,8 @@ void FramesTable::append(const FrameRecord& r) {
        << "," << r.prediction_deviation_bound_m << "," << (r.attitude_predicted ? 1 : 0) << ","
        << (r.cross_checked ? 1 : 0) << "," << r.cross_check_shift_m << ","
        << r.cross_check_shift_deg << "," << (r.new_segment ? 1 : 0) << ","
-       << (r.segment_merged ? 1 : 0) << "," << (r.off_path_confirmed ? 1 : 0) << "\n";
+       << (r.segment_merged ? 1 : 0) << "," << (r.off_path_confirmed ? 1 : 0) << ","
+       << (r.attitude_refused ? 1 : 0) << "\n";
 }
 
 bool FramesTable::close(std::string* error) {

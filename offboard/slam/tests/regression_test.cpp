@@ -10,6 +10,8 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <opencv2/imgproc.hpp>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -419,6 +421,110 @@ TEST(Regression, LocalMapSegmentJoinsTheMapWhenItsPlaceIsRecognised) {
   const Eigen::Isometry3d d = recs.front().T_world_cam.inverse() * recs.back().T_world_cam;
   EXPECT_LT(d.translation().norm(), 0.02);
   for (const auto& rec : recs) EXPECT_EQ(rec.state, TrackingState::kTracking) << rec.index;
+}
+
+/// Frames 0-9 of the excerpt, then frames `after` stamped from `gap_s` after frame 9 on, one frame
+/// interval apart, their images changed by `change`; `attitude` (when set) travels with every frame
+/// up to the one `attitude_until` (exclusive), through a sequential ORB local-map pipeline.
+std::vector<FrameRecord> run_after_a_gap(const PipelineOptions& options,
+                                         const std::vector<std::size_t>& after, double gap_s,
+                                         const std::function<void(RgbdFrame*)>& change,
+                                         std::optional<Eigen::Quaterniond> attitude = std::nullopt,
+                                         std::size_t attitude_until = 1000) {
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  EXPECT_TRUE(ds) << err;
+  auto p = ds ? Pipeline::create(options, Intrinsics{}, &err) : nullptr;
+  EXPECT_TRUE(p) << err;
+  if (!p) return {};
+  std::vector<std::size_t> order;
+  for (std::size_t i = 0; i < 10; ++i) order.push_back(i);
+  order.insert(order.end(), after.begin(), after.end());
+  double stamp9 = 0;
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    auto f = ds->load(order[k], &err);
+    EXPECT_TRUE(f) << err;
+    if (!f) return {};
+    if (k == 9) stamp9 = f->stamp_s;
+    if (k >= 10) {
+      f->stamp_s = stamp9 + gap_s + 0.033 * static_cast<double>(k - 10);
+      change(&*f);
+    }
+    f->index = static_cast<std::int64_t>(k);
+    if (attitude && k < attitude_until) f->q_nav_cam = attitude;
+    p->submit(std::move(*f));
+  }
+  p->finish();
+  return p->records();
+}
+
+TEST(Regression, LocalMapStartsASegmentAfterAStaleGapWhenNothingCanPlaceTheFrame) {
+  // GIVEN frames 0-9, then after a 0.5 s gap (past the 0.2 s the prediction vouches for) frames
+  // 10-19 mirrored left-right: a view no keyframe holds, which relocalisation cannot place
+  const auto mirror = [](RgbdFrame* f) {
+    cv::flip(f->rgb, f->rgb, 1);
+    cv::flip(f->depth, f->depth, 1);
+  };
+  std::vector<std::size_t> after;
+  for (std::size_t i = 10; i < 20; ++i) after.push_back(i);
+  for (const bool restart : {false, true}) {
+    SCOPED_TRACE(restart ? "restart_after_gap on" : "restart_after_gap off");
+    PipelineOptions o = orb_local_map(PipelineMode::kSequential);
+    o.tracker.restart_after_gap = restart;
+    const auto recs = run_after_a_gap(o, after, 0.5, mirror);
+    ASSERT_EQ(recs.size(), 20u);
+    if (restart) {
+      // THEN the first frame after the gap starts a segment at a guessed pose - frame 9's moved
+      // on by at most 5 frame intervals of its motion - declared as a map correction, and every
+      // frame after it is tracked in the segment
+      EXPECT_TRUE(recs[10].new_segment);
+      EXPECT_GT(recs[10].map_corrections, recs[9].map_corrections);
+      const double last_step_m =
+          (recs[8].T_world_cam.inverse() * recs[9].T_world_cam).translation().norm();
+      const Eigen::Isometry3d step = recs[9].T_world_cam.inverse() * recs[10].T_world_cam;
+      EXPECT_LT(step.translation().norm(), 5.5 * last_step_m + 0.001);
+      for (std::size_t i = 10; i < recs.size(); ++i)
+        EXPECT_EQ(recs[i].state, TrackingState::kTracking) << i;
+    } else {
+      // THEN without it every frame after the gap stays lost at frame 9's pose
+      for (std::size_t i = 10; i < recs.size(); ++i) {
+        EXPECT_EQ(recs[i].state, TrackingState::kLost) << i;
+        EXPECT_TRUE(recs[i].T_world_cam.isApprox(recs[9].T_world_cam, 1e-12)) << i;
+      }
+    }
+  }
+}
+
+TEST(Regression, LocalMapRefusesARelocalisationThatTurnsAgainstTheAttitude) {
+  // GIVEN frames 0-9 with a level attitude, then after a 2 s gap (long enough for the rate bound
+  // to allow a half turn) frame 9's images turned 180 deg about the principal point:
+  // relocalisation places them at a camera rolled 180 deg
+  const Intrinsics k;
+  const auto turn = [&](RgbdFrame* f) {
+    const cv::Mat m = cv::getRotationMatrix2D(cv::Point2f(k.cx_px, k.cy_px), 180.0, 1.0);
+    cv::warpAffine(f->rgb, f->rgb, m, f->rgb.size(), cv::INTER_LINEAR);
+    cv::warpAffine(f->depth, f->depth, m, f->depth.size(), cv::INTER_NEAREST);
+  };
+  const Eigen::Quaterniond level = Eigen::Quaterniond::Identity();
+  for (const bool with_attitude : {false, true}) {
+    SCOPED_TRACE(with_attitude ? "the turned frame carries the attitude" : "it carries none");
+    const auto recs = run_after_a_gap(orb_local_map(PipelineMode::kSequential), {9}, 2.0, turn,
+                                      level, with_attitude ? 1000 : 10);
+    ASSERT_EQ(recs.size(), 11u);
+    const double roll_deg =
+        Eigen::AngleAxisd((recs[9].T_world_cam.inverse() * recs[10].T_world_cam).linear()).angle() *
+        180.0 / M_PI;
+    if (with_attitude) {
+      // THEN the attitude, which did not turn, refuses it: a segment starts at frame 9's rotation
+      EXPECT_TRUE(recs[10].attitude_refused);
+      EXPECT_TRUE(recs[10].new_segment);
+      EXPECT_LT(roll_deg, 1.0);
+    } else {
+      // THEN without an attitude the turned view is taken (what the gate is for)
+      EXPECT_TRUE(recs[10].relocalised);
+      EXPECT_GT(roll_deg, 170.0);
+    }
+  }
 }
 
 TEST(Regression, LocalMapWithLoopClosingWaitModeEqualsSequentialOnAForwardBackwardRevisit) {

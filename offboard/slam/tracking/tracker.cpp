@@ -100,6 +100,8 @@ bool TrackerOptions::is_valid(std::string* error) const {
   if (min_segment_features < min_inliers_tracking)
     return fail("min_segment_features must be >= min_inliers_tracking");
   if (!(segment_merge_period_s >= 0)) return fail("segment_merge_period_s must be >= 0");
+  if (!(max_attitude_disagreement_deg >= 0))
+    return fail("max_attitude_disagreement_deg must be >= 0 (0: off)");
   if (!gravity.is_valid(error)) return false;
   if (!(rolling_shutter_readout_s >= 0 && rolling_shutter_readout_s < 0.1))
     return fail("rolling_shutter_readout_s must be in [0, 0.1) s");
@@ -309,8 +311,9 @@ TrackResult Tracker::track_steps(const FrameInput& in, bool keyframe_allowed, bo
       confirm_off_path(in, &attempt, &out))
     verdict = Verdict::kAccepted;
   if (verdict != Verdict::kAccepted) {
-    if (const auto guess = restart_pose(in, keyframe_allowed))
-      return start_segment(in, *guess, std::move(out));
+    out.attitude_refused = verdict == Verdict::kAttitudeDisagrees;
+    if (const auto start = restart_pose(in, keyframe_allowed))
+      return start_segment(in, *start, std::move(out));
     return declare_lost(&out);
   }
   const Eigen::Isometry3d T_world_cam = attempt.fit.T_cam_world.inverse();
@@ -335,6 +338,7 @@ TrackResult Tracker::initialise(const FrameInput& in) {
   out.keyframe_id = insert_keyframe(in.frame, in.tf, in.thumbnail, T_world_cam, LocalMap{}, {});
   state_ = TrackingState::kTracking;
   T_world_last_ = T_world_cam;
+  last_pose_known_ = true;
   last_stamp_s_ = in.frame.stamp_s;
   have_velocity_ = false;
   motion_bound_.reset();
@@ -349,22 +353,46 @@ TrackResult Tracker::initialise(const FrameInput& in) {
   return out;
 }
 
-std::optional<Eigen::Isometry3d> Tracker::restart_pose(const FrameInput& in,
-                                                       bool keyframe_allowed) const {
-  // Only where the motion model still vouches for the pose: within max_predicted_gap_s of the
-  // last tracked frame. After a longer gap (a link stall, a loaded map, a restarted service) the
-  // pose is unknown and relocalisation, not a guess, must find it.
+std::optional<Tracker::RestartPose> Tracker::restart_pose(const FrameInput& in,
+                                                          bool keyframe_allowed) const {
   const double gap_s = in.frame.stamp_s - last_stamp_s_;
-  if (!options_.restart_when_lost || !keyframe_allowed || !restart_motion_known_ || !(gap_s > 0) ||
-      gap_s > options_.max_predicted_gap_s ||
+  if (!options_.restart_when_lost || !keyframe_allowed || !last_pose_known_ || !(gap_s > 0) ||
       static_cast<int>(in.tf.size()) < options_.min_segment_features)
     return std::nullopt;
-  const double s = std::clamp(gap_s / last_interval_s_, 0.0, options_.max_velocity_scale);
-  return T_world_last_ * scale_motion(T_last_cur_velocity_, s);
+  // Within max_predicted_gap_s of the last tracked frame the motion model vouches for the pose.
+  if (gap_s <= options_.max_predicted_gap_s) {
+    if (!restart_motion_known_) return std::nullopt;
+    const double s = std::clamp(gap_s / last_interval_s_, 0.0, options_.max_velocity_scale);
+    return RestartPose{T_world_last_ * scale_motion(T_last_cur_velocity_, s), false};
+  }
+  // After a longer gap the pose is a guess (restart_after_gap): the last velocity over at most
+  // max_velocity_scale intervals, the rotation from the attitude when the frames carry one.
+  if (!options_.restart_after_gap) return std::nullopt;
+  Eigen::Isometry3d T_world_guess = T_world_last_;
+  if (restart_motion_known_)
+    T_world_guess = T_world_last_ * scale_motion(T_last_cur_velocity_, options_.max_velocity_scale);
+  T_world_guess.linear() = attitude_rotation(in.frame);
+  return RestartPose{T_world_guess, true};
 }
 
-TrackResult Tracker::start_segment(const FrameInput& in, const Eigen::Isometry3d& T_world_guess,
+Eigen::Matrix3d Tracker::attitude_rotation(const RgbdFrame& frame) const {
+  if (!frame.q_nav_cam || !last_q_nav_cam_) return T_world_last_.linear();
+  const Eigen::Quaterniond q_last_cur =
+      last_q_nav_cam_->normalized().conjugate() * frame.q_nav_cam->normalized();
+  return T_world_last_.linear() * q_last_cur.toRotationMatrix();
+}
+
+bool Tracker::disagrees_with_attitude(const RgbdFrame& frame,
+                                      const Eigen::Isometry3d& T_world_cam) const {
+  if (!(options_.max_attitude_disagreement_deg > 0) || !frame.q_nav_cam || !last_q_nav_cam_)
+    return false;
+  const Eigen::AngleAxisd d(attitude_rotation(frame).transpose() * T_world_cam.linear());
+  return std::abs(d.angle()) * 180.0 / M_PI > options_.max_attitude_disagreement_deg;
+}
+
+TrackResult Tracker::start_segment(const FrameInput& in, const RestartPose& start,
                                    TrackResult out) {
+  const Eigen::Isometry3d& T_world_guess = start.T_world_cam;
   // Neither the prediction nor the keyframe database gave a pose: the frame starts a new map
   // segment of its own points at the predicted pose, in the same map and world frame, so that
   // tracking goes on at once. Loop closing joins the segment to the keyframes it does not share
@@ -384,6 +412,14 @@ TrackResult Tracker::start_segment(const FrameInput& in, const Eigen::Isometry3d
   out.reference_keyframe = out.keyframe_id;
   out.T_kf_cam = Eigen::Isometry3d::Identity();
   motion_bound_.reset();
+  if (start.after_gap) {
+    // A guessed pose: no velocity from it, and the jump from what a consumer estimated meanwhile
+    // is the world frame moving under it, declared like a loop correction.
+    state_ = TrackingState::kLost;
+    const auto lock = lock_map();
+    corrections_seen_ = ++map_->corrections;
+    out.map_corrections = corrections_seen_;
+  }
   // The motion model carries on: the camera did not stop because the fit failed.
   advance(in.frame, T_world_guess, {}, &out);
   const auto lock = lock_map();
@@ -409,6 +445,10 @@ void Tracker::merge_segment(const FrameInput& in, TrackResult* out) {
       static_cast<int>(found->fit.inliers) < options_.min_inliers_relocalised ||
       !found->fit.T_cam_world.matrix().allFinite())
     return;
+  if (disagrees_with_attitude(in.frame, found->fit.T_cam_world.inverse())) {
+    out->attitude_refused = true;
+    return;
+  }
   // The same camera in both maps: the correction takes the segment's world onto the older map's.
   const Eigen::Isometry3d T_old_seg = found->fit.T_cam_world.inverse() * out->T_world_cam.inverse();
   {
@@ -560,6 +600,12 @@ Tracker::Verdict Tracker::judge(const RgbdFrame& frame, const Attempt& a, TrackR
   const Fit& fit = a.fit;
   if (!fit.ok || static_cast<int>(fit.inliers) < a.needed || !fit.T_cam_world.matrix().allFinite())
     return Verdict::kTooFewInliers;
+  // A pose the prediction does not vouch for (lost, a stale gap, the keyframe database's) must
+  // turn as the flight controller measured; a tracked fit is held to the motion bounds below.
+  const bool unvouched =
+      state_ != TrackingState::kTracking || out->prediction_stale || out->relocalised;
+  if (unvouched && disagrees_with_attitude(frame, fit.T_cam_world.inverse()))
+    return Verdict::kAttitudeDisagrees;
   if (state_ != TrackingState::kTracking) return Verdict::kAccepted;
   // While tracking, the camera cannot have moved faster than the plausible motion bounds since the
   // last tracked frame: a larger step is a wrong fit, never handed on as a pose.
@@ -741,6 +787,7 @@ void Tracker::advance(const RgbdFrame& frame, const Eigen::Isometry3d& T_world_c
   motion_bound_.add(frame.stamp_s, T_world_cam.translation());
   state_ = TrackingState::kTracking;
   T_world_last_ = T_world_cam;
+  last_pose_known_ = true;
   T_ref_last_ = out->T_kf_cam;
   last_stamp_s_ = frame.stamp_s;
   last_q_nav_cam_ = frame.q_nav_cam;

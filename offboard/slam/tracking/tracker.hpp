@@ -187,6 +187,27 @@ struct TrackerOptions {
   /// keeps about 2/3 of its matches between fast frames), so 50 - the relocalisation bar. The
   /// map's very first keyframe keeps min_init_features.
   int min_segment_features = 50;
+  /// A frame after a gap the prediction no longer vouches for (max_predicted_gap_s: a link stall,
+  /// a run of dropped frames, a blank stretch) that neither the stale projection fit nor the
+  /// keyframe database can place starts a new segment too (with restart_when_lost), instead of
+  /// holding the last pose until the camera sees mapped ground again: a craft that stalled while
+  /// turning into unmapped space hovers there in lost-hold, and relocalisation cannot find what
+  /// the map never saw (seen in the soak: after a 0.95 s stall every frame stayed lost until the
+  /// 2 s lost-hold ran out). Its pose is a guess - the prediction (at most max_velocity_scale
+  /// intervals of the last velocity), turned by the attitude's change when both frames carry
+  /// one - so the segment is declared as a map correction: a consumer takes the jump from its
+  /// own estimate as the world frame moving, not the craft (as after a loop correction), and the
+  /// merge declares the next one. Needs a tracked frame in this run (not after a map load).
+  bool restart_after_gap = true;
+  /// A pose that the motion model does not vouch for - from the keyframe database, after a stale
+  /// gap, or a segment merge - is refused when its rotation since the last tracked frame
+  /// disagrees with the attitude's change (RgbdFrame::q_nav_cam, both frames) by more than this.
+  /// The flight controller's attitude is filtered to about a degree in roll and pitch, and its
+  /// yaw (gyro and compass) drifts a few degrees over the gaps the craft sees (seconds); a place
+  /// recognised in the wrong part of a room of repeated texture is off by tens of degrees (the
+  /// soak: 84 deg, refused only by quad-control's jump gate after the lost-hold ran out). 0: off.
+  /// Frames without an attitude (TUM, hand-held) are never judged by it.
+  double max_attitude_disagreement_deg = 10.0;
   /// While a segment is not yet joined to the map before it, every `segment_merge_period_s` the
   /// tracked frame is also relocalised against the keyframes older than the segment (appearance
   /// ranking, registration, local-map refit to the relocalisation bar); when that succeeds the
@@ -238,6 +259,9 @@ struct TrackResult {
   /// The frame's relocalisation joined the current segment to the map before it (the segment
   /// moved by a rigid correction; map_corrections counts it).
   bool segment_merged = false;
+  /// A pose was refused because its rotation disagreed with the frame's attitude
+  /// (TrackerOptions::max_attitude_disagreement_deg): a relocalisation or a segment merge.
+  bool attitude_refused = false;
   bool gravity_prior = false;  ///< the pose fit had a gravity prior (TrackerOptions::gravity)
   /// The fit left the motion bound but a registration to the reference keyframe confirmed it
   /// (TrackerOptions::confirm_off_path).
@@ -306,6 +330,7 @@ class Tracker {
   void set_lost() {
     state_ = TrackingState::kLost;
     restart_motion_known_ = false;
+    last_pose_known_ = false;
   }
   TrackingState state() const { return state_; }
 
@@ -358,9 +383,15 @@ class Tracker {
   /// confirm_off_path.
   std::optional<Attempt> fit_from_keyframes(const FrameInput& in,
                                             const std::vector<std::int64_t>& candidates) const;
-  enum class Verdict { kAccepted, kTooFewInliers, kTooFast, kOffPath };
-  /// Whether the fit meets its inlier bar, the speed bounds and the motion bound (in that order).
+  enum class Verdict { kAccepted, kTooFewInliers, kAttitudeDisagrees, kTooFast, kOffPath };
+  /// Whether the fit meets its inlier bar, the attitude (for a pose the prediction does not
+  /// vouch for), the speed bounds and the motion bound (in that order).
   Verdict judge(const RgbdFrame& frame, const Attempt& attempt, TrackResult* out) const;
+  /// The rotation of `T_world_cam` disagrees with the last tracked pose turned by the attitude's
+  /// change (TrackerOptions::max_attitude_disagreement_deg); false when either frame has none.
+  bool disagrees_with_attitude(const RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam) const;
+  /// The last tracked pose turned by the attitude's change since (unchanged without attitudes).
+  Eigen::Matrix3d attitude_rotation(const RgbdFrame& frame) const;
   /// A fit refused by the motion bound alone is kept when a registration to the reference
   /// keyframe, independent of the prediction, lands on the same pose
   /// (TrackerOptions::confirm_off_path).
@@ -368,14 +399,18 @@ class Tracker {
   /// Holds the last pose; the next frames relocalise.
   TrackResult declare_lost(TrackResult* out);
   /// Where a new map segment starts (TrackerOptions::restart_when_lost), or nullopt when the
-  /// motion model cannot vouch for a pose (gap, no velocity) or the frame cannot start one.
-  std::optional<Eigen::Isometry3d> restart_pose(const FrameInput& in, bool keyframe_allowed) const;
+  /// frame cannot start one (too few features, the mapper's queue full, no pose known in this
+  /// run). `after_gap`: the pose is a guess past max_predicted_gap_s (restart_after_gap).
+  struct RestartPose {
+    Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+    bool after_gap = false;
+  };
+  std::optional<RestartPose> restart_pose(const FrameInput& in, bool keyframe_allowed) const;
   /// TrackerOptions::segment_merge_period_s: relocalises the tracked frame (pose T_world_cam in
   /// the segment) against the map before the segment and, on success, moves the segment onto it.
   void merge_segment(const FrameInput& in, TrackResult* out);
   /// TrackerOptions::restart_when_lost: a new map segment at `T_world_guess`.
-  TrackResult start_segment(const FrameInput& in, const Eigen::Isometry3d& T_world_guess,
-                            TrackResult out);
+  TrackResult start_segment(const FrameInput& in, const RestartPose& start, TrackResult out);
   /// Updates point statistics and the reference keyframe, applies the keyframe rule (inserting
   /// the keyframe); returns the map points the frame matched.
   std::vector<std::int64_t> decide_keyframe(const FrameInput& in, const Attempt& attempt,
@@ -427,6 +462,8 @@ class Tracker {
   /// The velocity of the last tracked frame still predicts the pose (kept across a loss, unlike
   /// have_velocity_; false after a relocalisation or set_lost()).
   bool restart_motion_known_ = false;
+  /// A frame was tracked in this run (T_world_last_ is a pose, not the origin of a loaded map).
+  bool last_pose_known_ = false;
   std::vector<std::int64_t> last_points_;  ///< map points matched in the last tracked frame
   std::int64_t reference_kf_ = -1;
   Eigen::Isometry3d T_ref_last_ =
