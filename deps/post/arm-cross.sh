@@ -5,7 +5,7 @@
 # ARM_DEPS=0 skips it (a machine that never cross-builds; `make test` then reports the ARM step failed).
 #
 # Fallback, a sysroot: Multi-Arch: same packages must have one version on every architecture. When
-# apt cannot satisfy that (seen 2026-12-05: the mirror's bookworm-security armhf index failed its
+# apt cannot satisfy that (seen once: the mirror's bookworm-security armhf index failed its
 # checksum, so apt dropped that repository's indexes and offered the ARM libraries only at the
 # bookworm versions while the host's libzstd1, libpng16-16, zlib1g came from security), the ARM
 # -dev packages are instead unpacked with their dependencies into build-sysroot-<arch>/ by

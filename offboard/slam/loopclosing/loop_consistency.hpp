@@ -69,10 +69,9 @@ class CovisibilityConsistency {
 /// How far a map's relative pose between two keyframes may have drifted, per axis, as a function
 /// of the path length L (metres) of the map's chain between them: a random walk,
 /// sigma^2(L) = sigma_0^2 + rate * L, in translation (m^2, m^2/m) and rotation (rad^2, rad^2/m).
-/// The defaults are measured on this project's own flight with loop closing off (HIL 10-minute
-/// flight of 2 Dec 2026 18:37 UTC, notes/evidence/flight_1837_loop_off: SLAM trajectory against
-/// the emulator's truth, relative-pose error over pose pairs D metres of truth path apart; 80 m
-/// flown in 662 s):
+/// The defaults are measured on this project's own flight with loop closing off (the HIL
+/// 10-minute box-laps flight: SLAM trajectory against the emulator's truth, relative-pose error
+/// over pose pairs D metres of truth path apart; 80 m flown in 662 s):
 ///   D = 0.5 m: translation error p95 22.8 mm, rotation p95 0.57 deg;
 ///   D = 8 m:   translation error p95 83.7 mm, rotation p95 1.50 deg.
 /// A 3-D isotropic error's 95th percentile of the norm is sqrt(7.815) = 2.80 sigma per axis, so
