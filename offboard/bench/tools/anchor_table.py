@@ -9,7 +9,9 @@ measures no gravity there), on the real sequences in DATA and on the manoeuvres
 rendered by hil/tools/render_tum.py (hil_*); and OUT/anchor/orbslam2_<name>.json, ORB-SLAM2's
 published runs scored by `slam-eval score` on the same frames. One row per sequence and mode: ATE,
 frames lost, segments started, local BAs interrupted per 100 frames, and real time against wait
-mode.
+mode. Real time depends on the machine's timing, so the default is also run again in real time
+(OUT/anchor_repeats/<sequence>_<k>/, REALTIME_REPEATS in all) and the real-time verdicts take the
+median of the runs.
 
 Targets (the SLAM fast-motion capability): 0 lost frames on every sequence in both modes;
 fr1_xyz_first300 in real time <= 0.0105 m (below ORB-SLAM2's median on the same frames) with 0
@@ -35,6 +37,18 @@ def variant_of(run_name: str) -> str:
 
 
 RT_OVER_WAIT_MAX = 1.05
+
+
+def realtime_repeats(out_dir: Path, seq: str) -> list[dict]:
+    """metrics.json of the default system's repeated real-time runs on `seq`."""
+    runs = sorted(p for p in (out_dir / "anchor_repeats").glob(f"{seq}_*") if p.is_dir())
+    return [m for m in (load(p / "metrics.json") for p in runs) if m and "ate_rmse_m" in m]
+
+
+def median(xs: list[float]) -> float:
+    s = sorted(xs)
+    n = len(s)
+    return s[n // 2] if n % 2 else 0.5 * (s[n // 2 - 1] + s[n // 2])
 
 
 def load(path: Path):
@@ -99,30 +113,47 @@ def main(out_dir: str) -> int:
         for r in refs:
             s = load(r)
             print(f"- {r.stem}: ATE {fmt(s.get('ate_rmse_m') if s else None)} m")
-    print("\nVerdicts (the default: restart on, no accelerometer gravity):")
-    status = 0
     seqs = sorted({k[0] for k in table})
+    medians = {}
+    print("\nReal time, the default run again (median, min-max over the runs):")
+    for seq in seqs:
+        rt = table.get((seq, "realtime", DEFAULT_VARIANT))
+        repeats = realtime_repeats(Path(out_dir), seq)
+        ates = ([rt["ate"]] if rt and rt["ate"] is not None else []) + [
+            m["ate_rmse_m"] for m in repeats
+        ]
+        if rt:
+            rt["dropped"] += sum(m.get("frontend_dropped", 0) for m in repeats)
+            rt["lost"] += sum(m.get("frames_lost", 0) for m in repeats)
+        if ates:
+            medians[seq] = median(ates)
+            print(
+                f"- {seq}: {medians[seq]:.4f} m ({min(ates):.4f}-{max(ates):.4f}, {len(ates)} runs)"
+            )
+    print("\nVerdicts (the default: restart on, no accelerometer gravity; real time: the median):")
+    status = 0
     for seq in seqs:
         for mode in ("wait", "realtime"):
             row = table.get((seq, mode, DEFAULT_VARIANT))
             if row is None:
                 continue
             ok = row["lost"] == 0
-            print(f"- {verdict(ok)} {seq} {mode}: {row['lost']} frames lost (target 0)")
+            over = " over the runs" if mode == "realtime" else ""
+            print(f"- {verdict(ok)} {seq} {mode}: {row['lost']} frames lost{over} (target 0)")
         wait = table.get((seq, "wait", DEFAULT_VARIANT))
-        rt = table.get((seq, "realtime", DEFAULT_VARIANT))
-        if wait and rt and wait["ate"] and rt["ate"] is not None:
-            ratio = rt["ate"] / wait["ate"]
+        if wait and wait["ate"] and seq in medians:
+            ratio = medians[seq] / wait["ate"]
             print(
                 f"- {verdict(ratio <= RT_OVER_WAIT_MAX)} {seq}: real time / wait ATE "
                 f"{ratio:.3f} (target <= {RT_OVER_WAIT_MAX})"
             )
     xyz = table.get(("fr1_xyz_first300", "realtime", DEFAULT_VARIANT))
-    if xyz and xyz["ate"] is not None:
-        ok = xyz["ate"] <= XYZ_TARGET_M and xyz["dropped"] == 0
+    if xyz and "fr1_xyz_first300" in medians:
+        ate = medians["fr1_xyz_first300"]
+        ok = ate <= XYZ_TARGET_M and xyz["dropped"] == 0
         print(
-            f"- {verdict(ok)} fr1_xyz_first300 real time: ATE {xyz['ate']:.4f} m, "
-            f"{xyz['dropped']} dropped (target <= {XYZ_TARGET_M} m, 0 dropped)"
+            f"- {verdict(ok)} fr1_xyz_first300 real time: ATE {ate:.4f} m (median), "
+            f"{xyz['dropped']} dropped over the runs (target <= {XYZ_TARGET_M} m, 0 dropped)"
         )
     return status
 
