@@ -337,6 +337,10 @@ bool write_metrics(const RunArgs& a, const RunSetup& r, const slam::RunOutcome& 
     (*m)["ground_truth"] = nullptr;
   }
   (*m)["accelerometer"] = accel_metrics_json(*r.ds, r.accel_gate);
+  // attitude.txt (a replayed flight's attitude prior): the file read and the frames that got one.
+  (*m)["attitude"] = {
+      {"file", r.ds->attitude_path().empty() ? json(nullptr) : json(r.ds->attitude_path())},
+      {"frames", r.ds->attitude_frames()}};
   std::ofstream mf(fs::path(a.out) / "metrics.json");
   mf << m->dump(2) << "\n";
   if (!mf) *err = "cannot write metrics.json";
@@ -387,6 +391,9 @@ int run_command(const RunArgs& a) {
     std::cerr << (v > 1 ? ", " : "") << slam::to_string(static_cast<slam::AccelVerdict>(v)) << " "
               << ac.by_verdict[v];
   std::cerr << ")" << (setup->ds->accelerometer_path().empty() ? ", no accelerometer.txt" : "");
+  if (!setup->ds->attitude_path().empty())
+    std::cerr << "\nslam-eval: attitude.txt: " << setup->ds->attitude_frames() << " of "
+              << setup->ds->size() << " frames carry an attitude";
   std::cerr << "\nslam-eval: wrote " << a.out << "/{trajectory.tum,trajectory_online.tum,"
             << (a.no_map ? "" : "map.ply,") << "metrics.json"
             << (setup->pipeline->is_local_map() ? "" : ",graph_before.g2o,graph_after.g2o")

@@ -191,7 +191,7 @@ void GroundStation::record_pose(const SlamResult& result, const CameraFrame& fra
   recorder_->pose(PoseRecord{frame.sequence, frame.capture_us, frame.received_us, now_us, tracking,
                              result.state, result.inliers, result.latency_ms, result.session,
                              T_floor_cam, tracker_.pose().value_or(CraftPose{}), st.setpoint,
-                             to_string(st.state)});
+                             to_string(st.state), frame.q_ned_cam});
 }
 
 void GroundStation::on_slam(const SlamResult& result, const CameraFrame& frame) {

@@ -584,6 +584,10 @@ struct Encoder {
       tracking["position_error_m"] = std::sqrt(dx * dx + dy * dy + dz * dz);
       tracking["height_error_m"] = dz;
     }
+    if (p.q_ned_cam) {
+      const Eigen::Quaterniond q = p.q_ned_cam->normalized();
+      tracking["q_ned_cam"] = {{"x", q.x()}, {"y", q.y()}, {"z", q.z()}, {"w", q.w()}};
+    }
     bool ok =
         w.write(record::kTopicTracking, p.pose_us, tracking) &&
         w.write(record::kTopicLatency, p.pose_us,

@@ -105,6 +105,9 @@ struct PoseRecord {
   Eigen::Isometry3d T_floor_cam = Eigen::Isometry3d::Identity();
   CraftPose pose, setpoint;
   std::string flight_state;
+  /// The camera's attitude given to SLAM with the frame (CameraFrame::q_ned_cam): a replay feeds
+  /// SLAM the same rotation prior and gravity direction as the flight did.
+  std::optional<Eigen::Quaterniond> q_ned_cam;
 };
 struct CommandRecord {
   std::uint32_t seq = 0;

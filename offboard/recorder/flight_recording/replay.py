@@ -8,7 +8,9 @@ flight.
      bytes, not re-encoded), depth/<t>.png (16-bit, decoded from /camera/depth/compressed - RVL or
      zstd-delta, flight_recording.depth - or, in older recordings, /camera/depth/raw; rescaled to
      the TUM convention of 5000 units per metre from the recording's depth_units_per_m), rgb.txt,
-     depth.txt, and groundtruth.txt = the
+     depth.txt, attitude.txt = the camera attitude each frame carried to SLAM in flight
+     (/slam/tracking q_ned_cam: the rotation prior and gravity direction; recordings made before
+     it was recorded have none), and groundtruth.txt = the
      poses quad-control used in flight (/slam/pose, T_floor_cam at each frame's capture time);
   2. writes DIR/flight.tum (the same in-flight poses, for evo: `evo_ape tum DIR/flight.tum
      DIR/slam/trajectory.tum -a`);
@@ -109,6 +111,7 @@ def extract(mcap: Path | list[Path], out: Path, frames: str = "slam") -> dict:
     depth_wait: dict[int, tuple[str, dict]] = {}
     written: list[int] = []
     answered: set[int] = set()
+    attitude: dict[int, dict] = {}  # capture stamp (ns) -> q_ned_cam given to SLAM with the frame
     has_tracking = False
     poses = []
     errors: list[str] = []
@@ -131,6 +134,11 @@ def extract(mcap: Path | list[Path], out: Path, frames: str = "slam") -> dict:
         tracking = rec.topic("/slam/tracking")
         has_tracking = has_tracking or bool(tracking)
         answered.update(int(m.data["capture_us"]) * 1000 for m in tracking)
+        attitude.update(
+            (int(m.data["capture_us"]) * 1000, m.data["q_ned_cam"])
+            for m in tracking
+            if "q_ned_cam" in m.data
+        )
         for m in rec.topic("/slam/pose"):
             p = m.data["pose"]
             pos, q = p["position"], p["orientation"]
@@ -183,6 +191,19 @@ def extract(mcap: Path | list[Path], out: Path, frames: str = "slam") -> dict:
     stamps = [f"{t * 1e-9:.6f}" for t in sorted(chosen)]
     (tum / "rgb.txt").write_text(header + "".join(f"{t} rgb/{t}.jpg\n" for t in stamps))
     (tum / "depth.txt").write_text(header + "".join(f"{t} depth/{t}.png\n" for t in stamps))
+    # The attitude each frame carried to SLAM in flight (rotation prior, gravity): slam-eval reads
+    # attitude.txt so that the replay's SLAM gets the same inputs as the flight's.
+    with_attitude = [t for t in sorted(chosen) if t in attitude]
+    if with_attitude:
+        lines = "".join(
+            f"{t * 1e-9:.6f} {attitude[t]['x']:.9f} {attitude[t]['y']:.9f} "
+            f"{attitude[t]['z']:.9f} {attitude[t]['w']:.9f}\n"
+            for t in with_attitude
+        )
+        (tum / "attitude.txt").write_text(
+            f"# camera attitude (NED) given to SLAM in flight, from {names}\n"
+            f"# timestamp qx qy qz qw\n{lines}"
+        )
     traj = f"# quad-control in-flight poses T_floor_cam (from {names})\n" + "\n".join(poses) + "\n"
     (out / "flight.tum").write_text(traj)
     (tum / "groundtruth.txt").write_text(traj)
@@ -193,6 +214,7 @@ def extract(mcap: Path | list[Path], out: Path, frames: str = "slam") -> dict:
         "frames_recorded": len(written),
         "frames_not_given_to_slam_in_flight": len(written) - len(chosen),
         "frame_selection": "slam" if frames == "slam" and has_tracking else "all",
+        "frames_with_attitude": len([t for t in chosen if t in attitude]),
         "flight_poses": len(poses),
         "camera": camera_name(calib["K"]),
         "distortion": any(abs(x) > 0 for x in D),

@@ -93,6 +93,47 @@ bool read_tum_accelerometer(const std::string& path, std::vector<AccelSample>* o
   return true;
 }
 
+bool read_attitude_file(const std::string& path, std::vector<AttitudeSample>* out,
+                        std::string* error) {
+  out->clear();
+  const bool ok =
+      for_each_tum_line(path, "timestamp qx qy qz qw", error, [&](const std::string& line) {
+        std::istringstream ls(line);
+        double t, x, y, z, w;
+        if (!(ls >> t >> x >> y >> z >> w)) return false;
+        std::string rest;
+        if (ls >> rest) return false;
+        const Eigen::Quaterniond q(w, x, y, z);
+        if (!std::isfinite(t) || !q.coeffs().allFinite() || q.norm() < 1e-6) return false;
+        out->push_back({t, q.normalized()});
+        return true;
+      });
+  if (!ok) return false;
+  std::stable_sort(out->begin(), out->end(), [](const AttitudeSample& a, const AttitudeSample& b) {
+    return a.stamp_s < b.stamp_s;
+  });
+  return true;
+}
+
+namespace {
+
+/// The attitude sample within max_dt_s of stamp_s nearest to it, if any.
+std::optional<Eigen::Quaterniond> attitude_at(const std::vector<AttitudeSample>& sorted,
+                                              double stamp_s, double max_dt_s) {
+  auto it = std::lower_bound(sorted.begin(), sorted.end(), stamp_s,
+                             [](const AttitudeSample& a, double t) { return a.stamp_s < t; });
+  const AttitudeSample* best = nullptr;
+  if (it != sorted.end()) best = &*it;
+  if (it != sorted.begin()) {
+    const auto prev = std::prev(it);
+    if (!best || stamp_s - prev->stamp_s < best->stamp_s - stamp_s) best = &*prev;
+  }
+  if (!best || std::abs(best->stamp_s - stamp_s) > max_dt_s) return std::nullopt;
+  return best->q_nav_cam;
+}
+
+}  // namespace
+
 std::optional<AccelSample> nearest_accel_sample(const std::vector<AccelSample>& sorted,
                                                 double stamp_s) {
   if (sorted.empty()) return std::nullopt;
@@ -138,6 +179,15 @@ std::optional<TumDataset> TumDataset::open(const std::string& folder, const TumD
     ds.accelerometer_path_ = acc.string();
     ds.accel_sample_count_ = accel.size();
   }
+  std::vector<AttitudeSample> attitude;
+  const fs::path att = fs::path(folder) / "attitude.txt";
+  if (fs::is_regular_file(att, ec)) {
+    if (!read_attitude_file(att.string(), &attitude, &err)) {
+      if (error) *error = "dataset: " + err;
+      return std::nullopt;
+    }
+    ds.attitude_path_ = att.string();
+  }
   std::vector<TumEntry> all;
   for (const auto& [t, name] : rgb) {
     auto it = std::lower_bound(depth.begin(), depth.end(), std::make_pair(t, std::string()));
@@ -149,7 +199,8 @@ std::optional<TumDataset> TumDataset::open(const std::string& folder, const TumD
     }
     if (!best || std::abs(best->first - t) > o.max_dt_s) continue;
     all.push_back({t, (fs::path(folder) / name).string(), best->first,
-                   (fs::path(folder) / best->second).string(), nearest_accel_sample(accel, t)});
+                   (fs::path(folder) / best->second).string(), nearest_accel_sample(accel, t),
+                   attitude_at(attitude, t, o.max_dt_s)});
   }
   if (all.empty()) {
     if (error)
@@ -159,6 +210,7 @@ std::optional<TumDataset> TumDataset::open(const std::string& folder, const TumD
   }
   for (std::size_t i = 0; i < all.size(); i += static_cast<std::size_t>(o.rate_divisor)) {
     ds.entries_.push_back(all[i]);
+    if (all[i].q_nav_cam) ++ds.attitude_frames_;
     if (o.max_frames > 0 && ds.entries_.size() >= static_cast<std::size_t>(o.max_frames)) break;
   }
   if (ds.entries_.size() >= 2) {
@@ -196,6 +248,7 @@ std::optional<RgbdFrame> TumDataset::load(std::size_t i, std::string* error,
     if (error) *error = "colour and depth sizes differ for '" + e.rgb_path + "'";
     return std::nullopt;
   }
+  f.q_nav_cam = e.q_nav_cam;
   // The sample nearest the colour stamp, whichever stamp the frame carries (stamp_from_depth).
   if (gate) gate->attach(e.rgb_stamp_s, e.accel, &f);
   return f;

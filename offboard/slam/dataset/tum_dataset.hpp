@@ -1,10 +1,10 @@
-// Dataset replay input: a TUM RGB-D folder (rgb.txt, depth.txt, optional groundtruth.txt and
-// accelerometer.txt). Each colour image is associated with the nearest depth image within
-// `max_dt_s` (20 ms, the benchmark's own rule); a frame-rate reduction r = 1/k keeps every k-th
-// associated frame. Each frame also gets the accelerometer sample nearest its colour stamp, however
-// far: whether it is usable (fresh, finite, unsaturated) is slam::AccelGate's decision at load().
-// Pacing (real time or as fast as possible) is the caller's business: this class only indexes and
-// loads, and never reads the clock.
+// Dataset replay input: a TUM RGB-D folder (rgb.txt, depth.txt, optional groundtruth.txt,
+// accelerometer.txt and attitude.txt). Each colour image is associated with the nearest depth image
+// within `max_dt_s` (20 ms, the benchmark's own rule); a frame-rate reduction r = 1/k keeps every
+// k-th associated frame. Each frame also gets the accelerometer sample nearest its colour stamp,
+// however far: whether it is usable (fresh, finite, unsaturated) is slam::AccelGate's decision at
+// load(). Pacing (real time or as fast as possible) is the caller's business: this class only
+// indexes and loads, and never reads the clock.
 //
 // Thread safety: const methods may be called from several threads.
 #pragma once
@@ -25,6 +25,9 @@ struct TumEntry {
   std::string depth_path;
   /// The accelerometer.txt sample nearest rgb_stamp_s (raw, sensor axes); none without the file.
   std::optional<AccelSample> accel;
+  /// The attitude.txt line at rgb_stamp_s (within max_dt_s): the camera's attitude in a
+  /// gravity-aligned navigation frame as the flight gave it to SLAM (RgbdFrame::q_nav_cam).
+  std::optional<Eigen::Quaterniond> q_nav_cam;
 };
 
 struct TumDatasetOptions {
@@ -54,6 +57,9 @@ class TumDataset {
   const std::string& accelerometer_path() const { return accelerometer_path_; }
   /// Samples read from accelerometer.txt (0 without the file).
   std::size_t accel_sample_count() const { return accel_sample_count_; }
+  /// Path of attitude.txt when it exists, else empty; frames that got an attitude from it.
+  const std::string& attitude_path() const { return attitude_path_; }
+  std::size_t attitude_frames() const { return attitude_frames_; }
   /// Nominal frame period after rate reduction (median of stamp differences), seconds.
   double frame_period_s() const { return frame_period_s_; }
 
@@ -68,6 +74,8 @@ class TumDataset {
   std::string groundtruth_path_;
   std::string accelerometer_path_;
   std::size_t accel_sample_count_ = 0;
+  std::string attitude_path_;
+  std::size_t attitude_frames_ = 0;
   std::vector<TumEntry> entries_;
   double frame_period_s_ = 1.0 / 30.0;
   bool stamp_from_depth_ = true;
@@ -76,6 +84,18 @@ class TumDataset {
 /// Parses "timestamp filename" lines (comments '#' and blank lines skipped).
 bool read_tum_list(const std::string& path, std::vector<std::pair<double, std::string>>* out,
                    std::string* error);
+
+/// One line of attitude.txt.
+struct AttitudeSample {
+  double stamp_s = 0;
+  Eigen::Quaterniond q_nav_cam = Eigen::Quaterniond::Identity();
+};
+/// Parses attitude.txt, written by flight_recording.replay from a flight recording: "timestamp qx
+/// qy qz qw" lines (the camera's attitude in the flight controller's NED frame at the colour
+/// stamp, as quad-control gave it to SLAM; comments '#' and blank lines skipped). A non-finite or
+/// zero-length quaternion is a malformed line; the others are normalised. Sorted by stamp.
+bool read_attitude_file(const std::string& path, std::vector<AttitudeSample>* out,
+                        std::string* error);
 
 /// Parses TUM accelerometer.txt: "timestamp ax ay az" lines (m/s^2, the sensor's axes; comments
 /// '#' and blank lines skipped), sorted by stamp. Values may be nan/inf (kept: the gate refuses

@@ -177,6 +177,33 @@ TEST_F(AccelDatasetTest, GivenMalformedAccelerometerLineThenOpenFailsNamingTheLi
   EXPECT_FALSE(TumDataset::open(dir_.string(), TumDatasetOptions{}, &err));
 }
 
+TEST_F(AccelDatasetTest, GivenAnAttitudeFileThenEachFrameCarriesTheAttitudeAtItsColourStamp) {
+  // GIVEN an attitude line at the first colour stamp (not normalised: written by hand) and none
+  // within 20 ms of the second
+  std::ofstream(dir_ / "attitude.txt") << "# timestamp qx qy qz qw\n"
+                                       << "10.000 0 0 0.6 0.8\n"
+                                       << "10.100 0 0 0 2\n";
+  std::string err;
+  auto ds = TumDataset::open(dir_.string(), TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  EXPECT_EQ(ds->attitude_frames(), 1u);
+  // THEN the first frame carries it, normalised, as its q_nav_cam; the second carries none
+  ASSERT_FALSE(ds->entry(1).q_nav_cam);
+  ASSERT_TRUE(ds->entry(0).q_nav_cam);
+  EXPECT_NEAR(ds->entry(0).q_nav_cam->z(), 0.6, 1e-12);
+  EXPECT_NEAR(ds->entry(0).q_nav_cam->w(), 0.8, 1e-12);
+}
+
+TEST_F(AccelDatasetTest, GivenAMalformedAttitudeLineThenOpenFailsNamingTheLine) {
+  for (const char* bad :
+       {"10.0 0 0 0 0\n", "10.0 0 0 nan 1\n", "10.0 0 0 1\n", "10.0 0 0 0 1 5\n"}) {
+    std::ofstream(dir_ / "attitude.txt") << "# header\n" << bad;
+    std::string err;
+    EXPECT_FALSE(TumDataset::open(dir_.string(), TumDatasetOptions{}, &err)) << bad;
+    EXPECT_NE(err.find("attitude.txt:2"), std::string::npos) << err;
+  }
+}
+
 TEST(NearestAccelSample, GivenSortedSamplesThenNearestEitherSide) {
   const std::vector<AccelSample> s = {level_at(1.0), level_at(2.0), level_at(3.0)};
   EXPECT_FALSE(nearest_accel_sample({}, 1.0));

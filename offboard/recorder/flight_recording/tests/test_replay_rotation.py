@@ -61,7 +61,10 @@ def _frame_messages(i: int) -> list:
     )
     out = [rgb, dep]
     if i not in NOT_ANSWERED:
-        out.append(("/slam/tracking", i, {"capture_us": _t_ns(i) // 1000, "tracking": True}))
+        tracking = {"capture_us": _t_ns(i) // 1000, "tracking": True}
+        if i % 2 == 0:  # the attitude given to SLAM with the frame, when the APM sent one
+            tracking["q_ned_cam"] = {"x": 0.0, "y": 0.0, "z": 0.6, "w": 0.8}
+        out.append(("/slam/tracking", i, tracking))
         pose = {
             "position": {"x": 0.01 * i, "y": 0.0, "z": 1.0},
             "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
@@ -122,6 +125,21 @@ def test_whole_rotation_is_extracted_with_the_frames_slam_answered(rotation, tmp
     assert all(f"{_t_ns(i) * 1e-9:.6f}" not in listed for i in NOT_ANSWERED)
     assert listed == sorted(listed)
     assert len(list((tmp_path / "out" / "tum" / "rgb").iterdir())) == len(listed)
+
+
+def test_the_attitude_given_to_slam_goes_to_attitude_txt(rotation, tmp_path, capsys):
+    # GIVEN a recording whose even frames carried an attitude to SLAM
+    first = rotation / "flight-20261206-054521-000.mcap"
+    # WHEN it is extracted
+    assert replay.main([str(first), "--out", str(tmp_path / "out"), "--extract-only"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    # THEN attitude.txt lists exactly the replayed frames that carried one, with its value
+    lines = (tmp_path / "out" / "tum" / "attitude.txt").read_text().splitlines()
+    rows = [line.split() for line in lines if not line.startswith("#")]
+    expected = [i for i in range(FRAMES) if i % 2 == 0 and i not in NOT_ANSWERED]
+    assert [r[0] for r in rows] == [f"{_t_ns(i) * 1e-9:.6f}" for i in expected]
+    assert all([float(x) for x in r[1:]] == [0.0, 0.0, 0.6, 0.8] for r in rows)
+    assert result["frames_with_attitude"] == len(expected)
 
 
 def test_single_file_and_all_frames(rotation, tmp_path, capsys):
