@@ -307,32 +307,46 @@ TEST(Regression, LocalMapSurvivesBlankAndDepthlessFramesWithoutAPoseJump) {
   EXPECT_LT(r.ate_m, 0.015);
 }
 
-/// Frames 0-9 of the excerpt, then frame `jump_to`'s images stamped one frame interval after frame
-/// 9 (the camera seems to have moved as far as it did in between), through a sequential ORB
-/// local-map pipeline with `options`; the 11 records (empty, with a test failure, when refused).
-std::vector<FrameRecord> run_with_a_jump(const PipelineOptions& options, std::size_t jump_to) {
+/// Frames 0-9 of the excerpt, then frames `after` stamped from `gap_s` after frame 9 on, one frame
+/// interval apart, their images changed by `change`; `attitude` (when set) travels with every frame
+/// up to the one `attitude_until` (exclusive), through a sequential ORB local-map pipeline.
+std::vector<FrameRecord> run_after_a_gap(const PipelineOptions& options,
+                                         const std::vector<std::size_t>& after, double gap_s,
+                                         const std::function<void(RgbdFrame*)>& change,
+                                         std::optional<Eigen::Quaterniond> attitude = std::nullopt,
+                                         std::size_t attitude_until = 1000) {
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   EXPECT_TRUE(ds) << err;
   auto p = ds ? Pipeline::create(options, Intrinsics{}, &err) : nullptr;
   EXPECT_TRUE(p) << err;
   if (!p) return {};
-  double last_stamp = 0;
-  for (std::size_t i = 0; i < 10; ++i) {
-    auto f = ds->load(i, &err);
+  std::vector<std::size_t> order;
+  for (std::size_t i = 0; i < 10; ++i) order.push_back(i);
+  order.insert(order.end(), after.begin(), after.end());
+  double stamp9 = 0;
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    auto f = ds->load(order[k], &err);
     EXPECT_TRUE(f) << err;
     if (!f) return {};
-    last_stamp = f->stamp_s;
+    if (k == 9) stamp9 = f->stamp_s;
+    if (k >= 10) {
+      f->stamp_s = stamp9 + gap_s + 0.033 * static_cast<double>(k - 10);
+      change(&*f);
+    }
+    f->index = static_cast<std::int64_t>(k);
+    if (attitude && k < attitude_until) f->q_nav_cam = attitude;
     p->submit(std::move(*f));
   }
-  auto far = ds->load(jump_to, &err);
-  EXPECT_TRUE(far) << err;
-  if (!far) return {};
-  far->index = 10;
-  far->stamp_s = last_stamp + 0.033;
-  p->submit(std::move(*far));
   p->finish();
   return p->records();
+}
+
+/// Frames 0-9 of the excerpt, then frame `jump_to`'s images stamped one frame interval after frame
+/// 9 (the camera seems to have moved as far as it did in between), through a sequential ORB
+/// local-map pipeline with `options`; the 11 records (empty, with a test failure, when refused).
+std::vector<FrameRecord> run_with_a_jump(const PipelineOptions& options, std::size_t jump_to) {
+  return run_after_a_gap(options, {jump_to}, 0.033, [](RgbdFrame*) {});
 }
 
 TEST(Regression, LocalMapNeverHandsOnAStepFasterThanTheCameraCanMove) {
@@ -421,41 +435,6 @@ TEST(Regression, LocalMapSegmentJoinsTheMapWhenItsPlaceIsRecognised) {
   const Eigen::Isometry3d d = recs.front().T_world_cam.inverse() * recs.back().T_world_cam;
   EXPECT_LT(d.translation().norm(), 0.02);
   for (const auto& rec : recs) EXPECT_EQ(rec.state, TrackingState::kTracking) << rec.index;
-}
-
-/// Frames 0-9 of the excerpt, then frames `after` stamped from `gap_s` after frame 9 on, one frame
-/// interval apart, their images changed by `change`; `attitude` (when set) travels with every frame
-/// up to the one `attitude_until` (exclusive), through a sequential ORB local-map pipeline.
-std::vector<FrameRecord> run_after_a_gap(const PipelineOptions& options,
-                                         const std::vector<std::size_t>& after, double gap_s,
-                                         const std::function<void(RgbdFrame*)>& change,
-                                         std::optional<Eigen::Quaterniond> attitude = std::nullopt,
-                                         std::size_t attitude_until = 1000) {
-  std::string err;
-  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
-  EXPECT_TRUE(ds) << err;
-  auto p = ds ? Pipeline::create(options, Intrinsics{}, &err) : nullptr;
-  EXPECT_TRUE(p) << err;
-  if (!p) return {};
-  std::vector<std::size_t> order;
-  for (std::size_t i = 0; i < 10; ++i) order.push_back(i);
-  order.insert(order.end(), after.begin(), after.end());
-  double stamp9 = 0;
-  for (std::size_t k = 0; k < order.size(); ++k) {
-    auto f = ds->load(order[k], &err);
-    EXPECT_TRUE(f) << err;
-    if (!f) return {};
-    if (k == 9) stamp9 = f->stamp_s;
-    if (k >= 10) {
-      f->stamp_s = stamp9 + gap_s + 0.033 * static_cast<double>(k - 10);
-      change(&*f);
-    }
-    f->index = static_cast<std::int64_t>(k);
-    if (attitude && k < attitude_until) f->q_nav_cam = attitude;
-    p->submit(std::move(*f));
-  }
-  p->finish();
-  return p->records();
 }
 
 TEST(Regression, LocalMapStartsASegmentAfterAStaleGapWhenNothingCanPlaceTheFrame) {
