@@ -28,6 +28,7 @@ import argparse
 import datetime
 import json
 import os
+import statistics
 import subprocess
 import sys
 from pathlib import Path
@@ -238,7 +239,7 @@ def _realtime_median_figures(anchor: Path) -> list[dict]:
         if len(ates) < 2:
             continue
         n = len(ates)
-        med = ates[n // 2] if n % 2 else 0.5 * (ates[n // 2 - 1] + ates[n // 2])
+        med = statistics.median(ates)
         figs.append(
             figure(
                 f"ATE orb localmap, restart on, median of {n} real-time runs "

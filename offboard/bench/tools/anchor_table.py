@@ -19,6 +19,7 @@ frames dropped; real-time ATE <= 1.05 x wait-mode ATE on every sequence. Standar
 """
 
 import json
+from statistics import median
 import sys
 from pathlib import Path
 
@@ -43,12 +44,6 @@ def realtime_repeats(out_dir: Path, seq: str) -> list[dict]:
     """metrics.json of the default system's repeated real-time runs on `seq`."""
     runs = sorted(p for p in (out_dir / "anchor_repeats").glob(f"{seq}_*") if p.is_dir())
     return [m for m in (load(p / "metrics.json") for p in runs) if m and "ate_rmse_m" in m]
-
-
-def median(xs: list[float]) -> float:
-    s = sorted(xs)
-    n = len(s)
-    return s[n // 2] if n % 2 else 0.5 * (s[n // 2 - 1] + s[n // 2])
 
 
 def load(path: Path):

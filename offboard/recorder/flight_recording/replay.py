@@ -214,7 +214,7 @@ def extract(mcap: Path | list[Path], out: Path, frames: str = "slam") -> dict:
         "frames_recorded": len(written),
         "frames_not_given_to_slam_in_flight": len(written) - len(chosen),
         "frame_selection": "slam" if frames == "slam" and has_tracking else "all",
-        "frames_with_attitude": len([t for t in chosen if t in attitude]),
+        "frames_with_attitude": len(with_attitude),
         "flight_poses": len(poses),
         "camera": camera_name(calib["K"]),
         "distortion": any(abs(x) > 0 for x in D),

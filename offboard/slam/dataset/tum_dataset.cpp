@@ -48,6 +48,26 @@ bool for_each_tum_line(const std::string& path, const char* format, std::string*
   return true;
 }
 
+/// The sample of `sorted` (by .stamp_s) nearest stamp_s, the earlier on a tie; null when empty.
+template <typename Sample>
+const Sample* nearest_by_stamp(const std::vector<Sample>& sorted, double stamp_s) {
+  if (sorted.empty()) return nullptr;
+  auto it = std::lower_bound(sorted.begin(), sorted.end(), stamp_s,
+                             [](const Sample& a, double t) { return a.stamp_s < t; });
+  if (it == sorted.end()) return &sorted.back();
+  if (it == sorted.begin()) return &*it;
+  const auto prev = std::prev(it);
+  return (stamp_s - prev->stamp_s) <= (it->stamp_s - stamp_s) ? &*prev : &*it;
+}
+
+/// The attitude sample within max_dt_s of stamp_s nearest to it, if any.
+std::optional<Eigen::Quaterniond> attitude_at(const std::vector<AttitudeSample>& sorted,
+                                              double stamp_s, double max_dt_s) {
+  const AttitudeSample* best = nearest_by_stamp(sorted, stamp_s);
+  if (!best || std::abs(best->stamp_s - stamp_s) > max_dt_s) return std::nullopt;
+  return best->q_nav_cam;
+}
+
 }  // namespace
 
 bool read_tum_list(const std::string& path, std::vector<std::pair<double, std::string>>* out,
@@ -115,34 +135,10 @@ bool read_attitude_file(const std::string& path, std::vector<AttitudeSample>* ou
   return true;
 }
 
-namespace {
-
-/// The attitude sample within max_dt_s of stamp_s nearest to it, if any.
-std::optional<Eigen::Quaterniond> attitude_at(const std::vector<AttitudeSample>& sorted,
-                                              double stamp_s, double max_dt_s) {
-  auto it = std::lower_bound(sorted.begin(), sorted.end(), stamp_s,
-                             [](const AttitudeSample& a, double t) { return a.stamp_s < t; });
-  const AttitudeSample* best = nullptr;
-  if (it != sorted.end()) best = &*it;
-  if (it != sorted.begin()) {
-    const auto prev = std::prev(it);
-    if (!best || stamp_s - prev->stamp_s < best->stamp_s - stamp_s) best = &*prev;
-  }
-  if (!best || std::abs(best->stamp_s - stamp_s) > max_dt_s) return std::nullopt;
-  return best->q_nav_cam;
-}
-
-}  // namespace
-
 std::optional<AccelSample> nearest_accel_sample(const std::vector<AccelSample>& sorted,
                                                 double stamp_s) {
-  if (sorted.empty()) return std::nullopt;
-  auto it = std::lower_bound(sorted.begin(), sorted.end(), stamp_s,
-                             [](const AccelSample& a, double t) { return a.stamp_s < t; });
-  if (it == sorted.end()) return sorted.back();
-  if (it == sorted.begin()) return *it;
-  const auto prev = std::prev(it);
-  return (stamp_s - prev->stamp_s) <= (it->stamp_s - stamp_s) ? *prev : *it;
+  if (const AccelSample* best = nearest_by_stamp(sorted, stamp_s)) return *best;
+  return std::nullopt;
 }
 
 std::optional<TumDataset> TumDataset::open(const std::string& folder, const TumDatasetOptions& o,

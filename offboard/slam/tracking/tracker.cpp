@@ -496,9 +496,7 @@ Eigen::Isometry3d Tracker::predict(const RgbdFrame& frame, TrackResult* out) con
   }
   if (options_.attitude_prior && state_ == TrackingState::kTracking && frame.q_nav_cam &&
       last_q_nav_cam_) {
-    const Eigen::Quaterniond q_last_cur =
-        last_q_nav_cam_->normalized().conjugate() * frame.q_nav_cam->normalized();
-    T_world_pred.linear() = T_world_last_.linear() * q_last_cur.toRotationMatrix();
+    T_world_pred.linear() = attitude_rotation(frame);
     out->attitude_predicted = true;
   }
   return T_world_pred;
