@@ -314,7 +314,7 @@ std::vector<FrameRecord> run_after_a_gap(const PipelineOptions& options,
                                          const std::vector<std::size_t>& after, double gap_s,
                                          const std::function<void(RgbdFrame*)>& change,
                                          std::optional<Eigen::Quaterniond> attitude = std::nullopt,
-                                         std::size_t attitude_until = 1000) {
+                                         std::size_t attitude_until = 1000, double stretch = 1.0) {
   std::string err;
   auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
   EXPECT_TRUE(ds) << err;
@@ -324,11 +324,13 @@ std::vector<FrameRecord> run_after_a_gap(const PipelineOptions& options,
   std::vector<std::size_t> order;
   for (std::size_t i = 0; i < 10; ++i) order.push_back(i);
   order.insert(order.end(), after.begin(), after.end());
-  double stamp9 = 0;
+  double stamp0 = 0, stamp9 = 0;
   for (std::size_t k = 0; k < order.size(); ++k) {
     auto f = ds->load(order[k], &err);
     EXPECT_TRUE(f) << err;
     if (!f) return {};
+    if (k == 0) stamp0 = f->stamp_s;
+    if (k < 10) f->stamp_s = stamp0 + stretch * (f->stamp_s - stamp0);
     if (k == 9) stamp9 = f->stamp_s;
     if (k >= 10) {
       f->stamp_s = stamp9 + gap_s + 0.033 * static_cast<double>(k - 10);
@@ -472,6 +474,27 @@ TEST(Regression, LocalMapStartsASegmentAfterAStaleGapWhenNothingCanPlaceTheFrame
       }
     }
   }
+}
+
+TEST(Regression, LocalMapGuessAfterAStaleGapExtrapolatesNoFurtherThanTheGap) {
+  // GIVEN frames 0-9 stamped 0.3 s apart (a 3.3 fps stream: every frame interval is longer than
+  // the 0.2 s the prediction vouches for), then a mirrored frame one interval later that nothing
+  // can place
+  const auto mirror = [](RgbdFrame* f) {
+    cv::flip(f->rgb, f->rgb, 1);
+    cv::flip(f->depth, f->depth, 1);
+  };
+  const double interval_s = 0.3, stretch = interval_s / 0.033;
+  const auto recs = run_after_a_gap(orb_local_map(PipelineMode::kSequential), {10}, interval_s,
+                                    mirror, std::nullopt, 1000, stretch);
+  ASSERT_EQ(recs.size(), 11u);
+  // THEN it starts a segment one interval of the recent motion on, not five
+  EXPECT_TRUE(recs[10].new_segment);
+  const double last_step_m =
+      (recs[8].T_world_cam.inverse() * recs[9].T_world_cam).translation().norm();
+  const double step_m = (recs[9].T_world_cam.inverse() * recs[10].T_world_cam).translation().norm();
+  EXPECT_GT(last_step_m, 0.005);
+  EXPECT_LT(step_m, 1.5 * last_step_m + 0.001);
 }
 
 TEST(Regression, LocalMapRefusesARelocalisationThatTurnsAgainstTheAttitude) {

@@ -359,20 +359,19 @@ std::optional<Tracker::RestartPose> Tracker::restart_pose(const FrameInput& in,
   if (!options_.restart_when_lost || !keyframe_allowed || !last_pose_known_ || !(gap_s > 0) ||
       static_cast<int>(in.tf.size()) < options_.min_segment_features)
     return std::nullopt;
-  // Within max_predicted_gap_s of the last tracked frame the motion model vouches for the pose.
-  if (gap_s <= options_.max_predicted_gap_s) {
-    if (!restart_motion_known_) return std::nullopt;
-    const double s = std::clamp(gap_s / last_interval_s_, 0.0, options_.max_velocity_scale);
-    return RestartPose{T_world_last_ * scale_motion(T_last_cur_velocity_, s), false};
-  }
-  // After a longer gap the pose is a guess (restart_after_gap): the last velocity over at most
-  // max_velocity_scale intervals, the rotation from the attitude when the frames carry one.
-  if (!options_.restart_after_gap) return std::nullopt;
+  // Within max_predicted_gap_s of the last tracked frame the motion model vouches for the pose;
+  // after a longer gap the pose is a guess (restart_after_gap), its rotation from the attitude
+  // when the frames carry one. Either way the last velocity is extrapolated over the gap, at most
+  // max_velocity_scale intervals, as predict() does.
+  const bool after_gap = gap_s > options_.max_predicted_gap_s;
+  if (after_gap ? !options_.restart_after_gap : !restart_motion_known_) return std::nullopt;
   Eigen::Isometry3d T_world_guess = T_world_last_;
-  if (restart_motion_known_)
-    T_world_guess = T_world_last_ * scale_motion(T_last_cur_velocity_, options_.max_velocity_scale);
-  T_world_guess.linear() = attitude_rotation(in.frame);
-  return RestartPose{T_world_guess, true};
+  if (restart_motion_known_) {
+    const double s = std::clamp(gap_s / last_interval_s_, 0.0, options_.max_velocity_scale);
+    T_world_guess = T_world_last_ * scale_motion(T_last_cur_velocity_, s);
+  }
+  if (after_gap) T_world_guess.linear() = attitude_rotation(in.frame);
+  return RestartPose{T_world_guess, after_gap};
 }
 
 Eigen::Matrix3d Tracker::attitude_rotation(const RgbdFrame& frame) const {
