@@ -19,9 +19,9 @@ frames dropped; real-time ATE <= 1.05 x wait-mode ATE on every sequence. Standar
 """
 
 import json
-from statistics import median
 import sys
 from pathlib import Path
+from statistics import median
 
 XYZ_TARGET_M = 0.0105
 # The variant the verdicts judge: the default system (TrackerOptions::restart_when_lost on).
