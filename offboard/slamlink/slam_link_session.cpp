@@ -153,6 +153,20 @@ std::string SlamLinkSession::start_pipeline(const slam::Intrinsics& k) {
   std::string err;
   slam::PipelineOptions options = options_;
   options.checkpoint_path = map_files_.checkpoint_path;
+  bool tables_dir_ok = false;
+  if (!map_files_.tables_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(map_files_.tables_dir, ec);
+    if (ec)
+      tables_error_ = "cannot create " + map_files_.tables_dir + ": " + ec.message();
+    else
+      tables_dir_ok = true;
+  }
+  // Beside the map's frames.csv: what a replay of the recorded frames needs to give the same
+  // poses (flight_recording.replay --lock-schedule).
+  if (tables_dir_ok)
+    options.lock_schedule_record_path =
+        (std::filesystem::path(map_files_.tables_dir) / kLockScheduleFile).string();
   pipeline_ = factory_(options, k, &err);
   if (!pipeline_) return "slam-link: cannot start the pipeline: " + err;
   intrinsics_ = k;
@@ -164,14 +178,7 @@ std::string SlamLinkSession::start_pipeline(const slam::Intrinsics& k) {
     // The flight goes on in a new map: say so on every frame's first answer, never silently.
     map_load_error_ = "slam-link: map not loaded, starting a new map: " + err;
   }
-  if (!map_files_.tables_dir.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(map_files_.tables_dir, ec);
-    if (ec)
-      tables_error_ = "cannot create " + map_files_.tables_dir + ": " + ec.message();
-    else if (!pipeline_->start_tables(map_files_.tables_dir, &err))
-      tables_error_ = err;
-  }
+  if (tables_dir_ok && !pipeline_->start_tables(map_files_.tables_dir, &err)) tables_error_ = err;
   return "";
 }
 
@@ -279,6 +286,7 @@ std::string SlamLinkSession::finish_summary() {
       << s.mapper_caught_up << " keyframes caught up, " << s.mapper_ba_interrupted
       << " BAs interrupted";
     if (!s.mapping_thread.empty()) m << " (" << s.mapping_thread << ")";
+    if (!s.lock_schedule.empty()) m << "; " << s.lock_schedule;
     if (!map_load_error_.empty()) m << "; " << map_load_error_;
     if (!resume_error_.empty()) m << "; " << resume_error_;
     if (!map_files_.checkpoint_path.empty()) {

@@ -37,6 +37,9 @@ namespace rgbdquad::slamlink {
 /// exceeds the spec's range.
 std::optional<rgbdquad::protocol::Pose3> pose_to_wire(const Eigen::Isometry3d& T);
 
+/// The lock schedule's name in a session's tables folder (slam/core/lock_schedule.hpp).
+inline constexpr const char* kLockScheduleFile = "lock_schedule.txt";
+
 /// Map files of a session (local-map back-end only): a map to start from (the flight relocalises
 /// in it and reports poses in its world frame) and where to save the map when the session ends.
 struct SessionMapFiles {
@@ -45,7 +48,8 @@ struct SessionMapFiles {
   /// When set: the session's per-frame, per-keyframe and loop tables (frames.csv with each frame's
   /// tracking stages in ms, mapping.csv, loops.csv; slam/report/run_tables.hpp) are written into
   /// this folder (created with the pipeline; frames.csv grows during the flight, the others are
-  /// written when the session ends) - what slam-eval writes for a dataset, for a flight.
+  /// written when the session ends) - what slam-eval writes for a dataset, for a flight - and
+  /// the map's lock schedule (kLockScheduleFile), which replays the flight's poses exactly.
   std::string tables_dir;
   /// When set: the map is checkpointed here while the session runs (PipelineOptions::
   /// checkpoint_path), so that a slam-server restarted after a crash continues the same map.

@@ -53,6 +53,7 @@ struct RunArgs {
   bool no_undistort = false, no_map = false, quiet = false, no_reprojection = false;
   std::string stamp = "auto";
   std::string save_map, load_map;
+  std::string record_lock_schedule, replay_lock_schedule;
   double withhold_from_s = -1, withhold_s = 0;
   std::string keyframe_gate = slam::PipelineOptions{}.keyframe_gate_mapper_busy ? "on" : "off";
   std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off",
@@ -126,6 +127,14 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
       !slam::parse_depth_noise_model(a.depth_noise, &po.depth_noise, err)) {
     return std::nullopt;
   }
+  if ((!a.record_lock_schedule.empty() || !a.replay_lock_schedule.empty()) &&
+      po.mode != slam::PipelineMode::kLive) {
+    // Live mode tracks every frame it is given: a replay is given exactly the recorded run's.
+    *err = "--record-lock-schedule and --replay-lock-schedule need --mode live";
+    return std::nullopt;
+  }
+  po.lock_schedule_record_path = a.record_lock_schedule;
+  po.lock_schedule_replay_path = a.replay_lock_schedule;
   po.backend.seed = a.seed + 1;
   const auto sampling =
       a.ransac == "thesis" ? slam::RansacSampling::kThesis : slam::RansacSampling::kRandom;
@@ -272,8 +281,10 @@ struct ReplayStats {
 std::optional<ReplayStats> replay_dataset(const RunArgs& a, RunSetup& r) {
   slam::TumDataset& ds = *r.ds;
   slam::Pipeline& pipeline = *r.pipeline;
+  // A lock-step replay is paced by its record, not by the clock.
   const bool paced =
-      r.po.mode == slam::PipelineMode::kRealtime || r.po.mode == slam::PipelineMode::kLive;
+      (r.po.mode == slam::PipelineMode::kRealtime || r.po.mode == slam::PipelineMode::kLive) &&
+      a.replay_lock_schedule.empty();
   const auto wall0 = std::chrono::steady_clock::now();
   const slam::ReplaySchedule schedule{ds.frame_period_s(), a.withhold_from_s, a.withhold_s};
   ReplayStats stats;
@@ -391,6 +402,7 @@ int run_command(const RunArgs& a) {
     std::cerr << (v > 1 ? ", " : "") << slam::to_string(static_cast<slam::AccelVerdict>(v)) << " "
               << ac.by_verdict[v];
   std::cerr << ")" << (setup->ds->accelerometer_path().empty() ? ", no accelerometer.txt" : "");
+  if (!run.summary.lock_schedule.empty()) std::cerr << "\nslam-eval: " << run.summary.lock_schedule;
   if (!setup->ds->attitude_path().empty())
     std::cerr << "\nslam-eval: attitude.txt: " << setup->ds->attitude_frames() << " of "
               << setup->ds->size() << " frames carry an attitude";
@@ -567,7 +579,8 @@ void add_dataset_and_system_options(CLI::App* run, RunArgs& a) {
       ->capture_default_str();
   run->add_option(
          "--mode", a.mode,
-         "wait (deterministic) | realtime (paced, back-end skips) | sequential (one thread)")
+         "wait (deterministic) | realtime (paced, newest frame wins) | live (paced, every frame "
+         "tracked on the submitting thread, as slam-server) | sequential (one thread)")
       ->check(CLI::IsMember({"wait", "realtime", "live", "sequential"}))
       ->capture_default_str();
   run->add_option("--camera", a.camera, "intrinsics: auto (from folder name) | fr1 | fr2 | fr3")
@@ -632,6 +645,13 @@ void add_frontend_and_map_file_options(CLI::App* run, RunArgs& a) {
                   "over the image per pyramid level (0 or 1: cv::ORB's strongest; docs/slam.md)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  run->add_option("--record-lock-schedule", a.record_lock_schedule,
+                  "localmap, --mode live: record the order the SLAM threads took the map in, for "
+                  "an exact replay (slam/core/lock_schedule.hpp)");
+  run->add_option("--replay-lock-schedule", a.replay_lock_schedule,
+                  "localmap, --mode live: replay such a record (the same frames, unpaced); "
+                  "metrics.json lock_schedule says whether it was followed to the end")
+      ->check(CLI::ExistingFile);
   run->add_flag("--quiet", a.quiet, "no per-25-frame progress");
 }
 

@@ -45,7 +45,7 @@ std::optional<LoopCloser> LoopCloser::create(const LoopCloserOptions& options,
 void LoopCloser::index_map() {
   std::vector<std::pair<std::int64_t, std::shared_ptr<const FrameFeatures>>> kfs;
   {
-    std::lock_guard<MapMutex> lock(map_->mutex);
+    const auto lock = map_->lock(MapParty::kLoopClosing);
     for (const auto& [id, kf] : map_->map.keyframes()) kfs.emplace_back(id, kf.features.features);
   }
   for (const auto& [id, f] : kfs) database_.add(id, vocabulary_->transform(f->descriptors));
@@ -70,7 +70,7 @@ std::optional<LoopCloser::Loop> LoopCloser::detect(std::int64_t kf_id, LoopStats
   std::size_t keyframes = 0;
   std::vector<std::int64_t> gone;
   {
-    std::lock_guard<MapMutex> lock(map_->mutex);
+    const auto lock = map_->lock(MapParty::kLoopClosing);
     const std::int64_t l0 = steady_now_ns();
     const MapKeyframe* kf = map_->map.keyframe(kf_id);
     if (!kf) return std::nullopt;
@@ -114,7 +114,7 @@ std::optional<LoopCloser::Loop> LoopCloser::detect(std::int64_t kf_id, LoopStats
   // go on to verification. No hit ends every chain.
   std::vector<std::set<std::int64_t>> groups;
   if (!hits.empty()) {
-    std::lock_guard<MapMutex> lock(map_->mutex);
+    const auto lock = map_->lock(MapParty::kLoopClosing);
     const std::int64_t l0 = steady_now_ns();
     for (const auto& h : hits) {
       std::set<std::int64_t> g{h.keyframe};
@@ -147,7 +147,7 @@ std::optional<LoopCloser::Loop> LoopCloser::verify(const TrackedFeatures& frame,
     KeyframePoints kp;
     std::vector<LocalPoint> local;
     {
-      std::lock_guard<MapMutex> lock(map_->mutex);
+      const auto lock = map_->lock(MapParty::kLoopClosing);
       const SlamMap& map = map_->map;
       kp = keyframe_points(map, cand);
       if (kp.keyframe < 0) continue;
@@ -205,7 +205,7 @@ OdometryConsistency LoopCloser::odometry_consistency(
                     T_world_kf = Eigen::Isometry3d::Identity();
   double chain_m = 0;  // fallback: the keyframes in creation order between the two
   {
-    std::lock_guard<MapMutex> lock(map_->mutex);
+    const auto lock = map_->lock(MapParty::kLoopClosing);
     const SlamMap& map = map_->map;
     const MapKeyframe* a = map.keyframe(candidate);
     const MapKeyframe* b = map.keyframe(kf_id);
@@ -239,7 +239,7 @@ std::optional<LoopCloser::Correction> LoopCloser::optimise(const Loop& loop,
   std::vector<LoopEdge> loops;
   std::vector<PoseGraphGravity> gravity;
   {
-    std::lock_guard<MapMutex> lock(map_->mutex);
+    const auto lock = map_->lock(MapParty::kLoopClosing);
     const std::int64_t l0 = steady_now_ns();
     const SlamMap& map = map_->map;
     if (!map.has_keyframe(kf_id) || !map.has_keyframe(loop.candidate)) return std::nullopt;
@@ -322,7 +322,7 @@ void LoopCloser::apply(const Correction& c, LoopStats* stats) {
       delta.count(kf_id) ? delta.at(kf_id) : Eigen::Isometry3d::Identity();
   // One short step under the lock: move keyframes and points, record the loop.
   {
-    std::lock_guard<MapMutex> lock(map_->mutex);
+    const auto lock = map_->lock(MapParty::kLoopClosing);
     const std::int64_t l0 = steady_now_ns();
     SlamMap& map = map_->map;
     auto delta_of = [&](std::int64_t kf) -> const Eigen::Isometry3d* {
@@ -359,13 +359,13 @@ void LoopCloser::apply(const Correction& c, LoopStats* stats) {
   // Fuse the loop side's points into the keyframe and its neighbours, one keyframe per lock hold.
   std::vector<std::int64_t> targets{kf_id};
   {
-    std::lock_guard<MapMutex> lock(map_->mutex);
+    const auto lock = map_->lock(MapParty::kLoopClosing);
     const auto cov = map_->map.covisible(kf_id, 1);
     for (std::size_t i = 0; i < cov.size() && static_cast<int>(i) < options_.loop_neighbours; ++i)
       targets.push_back(cov[i].first);
   }
   for (std::int64_t target : targets) {
-    std::lock_guard<MapMutex> lock(map_->mutex);
+    const auto lock = map_->lock(MapParty::kLoopClosing);
     const std::int64_t l0 = steady_now_ns();
     const FuseCounts c =
         fuse_into_keyframe(map_->map, camera_, options_.fuse_radius_px, target, loop.loop_points);

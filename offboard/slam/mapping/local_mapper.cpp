@@ -175,7 +175,7 @@ MapperStats LocalMapper::process(std::int64_t kf_id, const KeyframesWaiting& wai
   stats.keyframe = kf_id;
   const auto behind = [&] { return waiting && waiting(); };
   {
-    std::lock_guard<MapMutex> lock(map_->mutex);
+    const auto lock = map_->lock(MapParty::kMapping);
     if (!map_->map.has_keyframe(kf_id)) return stats;
     stats.points_culled = cull_points(kf_id);
   }
@@ -185,7 +185,7 @@ MapperStats LocalMapper::process(std::int64_t kf_id, const KeyframesWaiting& wai
   if (!stats.caught_up) fuse(kf_id, &stats);
   if (options_.bundle_adjustment && !stats.caught_up) bundle_adjust(kf_id, waiting, &stats);
   if (!stats.caught_up && !behind()) {
-    std::lock_guard<MapMutex> lock(map_->mutex);
+    const auto lock = map_->lock(MapParty::kMapping);
     stats.keyframes_culled = cull_keyframes(kf_id);
   }
   stats.total_ms = ms_since(t0);
@@ -227,7 +227,7 @@ int LocalMapper::cull_points(std::int64_t kf_id) {
 }
 
 void LocalMapper::fuse(std::int64_t kf_id, MapperStats* stats) {
-  std::lock_guard<MapMutex> lock(map_->mutex);
+  const auto lock = map_->lock(MapParty::kMapping);
   SlamMap& map = map_->map;
   const auto cov = map.covisible(kf_id, 1);
   std::vector<std::int64_t> neighbours;
@@ -418,7 +418,7 @@ void LocalMapper::bundle_adjust(std::int64_t kf_id, const KeyframesWaiting& wait
   LocalBaProblem ba;
   std::uint64_t corrections = 0;
   {
-    std::lock_guard<MapMutex> lock(map_->mutex);
+    const auto lock = map_->lock(MapParty::kMapping);
     if (!map_->map.has_keyframe(kf_id)) return;
     corrections = map_->corrections;
     if (!collect_local_ba(*map_, kf_id, options_, camera_, &ba)) return;
@@ -430,7 +430,7 @@ void LocalMapper::bundle_adjust(std::int64_t kf_id, const KeyframesWaiting& wait
   stats->ba_fixed = static_cast<int>(ba.fixed.size());
   stats->ba_points = static_cast<int>(ba.points.size());
   if (usable) {
-    std::lock_guard<MapMutex> lock(map_->mutex);
+    const auto lock = map_->lock(MapParty::kMapping);
     if (map_->corrections != corrections) {
       // Solved on poses from before a loop correction: writing it back would undo the correction
       // in this window (ORB-SLAM2 aborts its local BA for the same reason).

@@ -107,6 +107,8 @@ struct PipelineSummary {
   std::size_t checkpoints_written = 0;
   double checkpoint_max_ms = 0;
   std::string checkpoint_error;
+  /// The lock schedule's account (LockSchedule::describe); empty: none recorded or replayed.
+  std::string lock_schedule;
 };
 
 }  // namespace rgbdquad::slam

@@ -203,7 +203,10 @@ void LocalMappingStage::run() {
       thread_description_ = applied;
     }
     // A mapper that falls behind leaves fusion and the BA to the newest keyframe.
-    waiting = [this] { return queue_.has_waiting(); };
+    waiting = [this] {
+      const bool live = queue_.has_waiting();
+      return pacing_.schedule ? pacing_.schedule->answer(MapParty::kMapping, live) != 0 : live;
+    };
   }
   drain_stage_queue(queue_, [&](std::int64_t kf) { map(kf, waiting); });
 }
@@ -416,7 +419,9 @@ std::unique_ptr<LocalMapSystem> LocalMapSystem::create(const PipelineOptions& op
   CameraModel cam = CameraModel::from(k);
   cam.depth_noise = opts.depth_noise;
   std::unique_ptr<LocalMapSystem> s(new LocalMapSystem(opts, cam, records));
-  const StagePacing pacing{opts.mode, opts.tracking_thread_policy, opts.mapping_rt_priority};
+  if (!s->open_lock_schedule(error)) return nullptr;
+  const StagePacing pacing{opts.mode, opts.tracking_thread_policy, opts.mapping_rt_priority,
+                           s->map_->schedule};
 
   FeatureOptions features = opts.frontend.features;
   features.orb_spread_oversample = opts.local_map_orb_spread_oversample;
@@ -458,7 +463,11 @@ std::unique_ptr<LocalMapSystem> LocalMapSystem::create(const PipelineOptions& op
   s->tracking_ = std::make_unique<TrackingStage>(
       std::move(*extractor), std::move(*tracker), pacing,
       [self] {
-        return keyframe_admission(self->mapping_->load(), self->options_.keyframe_gate_mapper_busy);
+        std::size_t load = self->mapping_->load();
+        if (self->map_->schedule)
+          load = static_cast<std::size_t>(
+              self->map_->schedule->answer(MapParty::kTracking, static_cast<std::int64_t>(load)));
+        return keyframe_admission(load, self->options_.keyframe_gate_mapper_busy);
       },
       records, [self](std::int64_t kf) { self->keyframe_made(kf); }, k,
       opts.tracker.align_depth_time, opts.tracker.colour_stamp_lag_s,
@@ -497,9 +506,16 @@ void LocalMapSystem::submit(RgbdFrame frame) {
 void LocalMapSystem::finish() {
   if (finished_.exchange(true)) return;
   // In the order frames flow, so that each stage drains what the one before handed it.
+  LockSchedule* schedule = map_->schedule.get();
   if (tracking_) tracking_->finish();
+  if (schedule) schedule->retire(MapParty::kTracking);
   if (mapping_) mapping_->finish();
+  if (schedule) schedule->retire(MapParty::kMapping);
   if (loop_closing_) loop_closing_->finish();
+  if (schedule) {
+    schedule->retire(MapParty::kLoopClosing);
+    schedule->flush();
+  }
   if (checkpoint_) checkpoint_->finish();
   if (checkpointer_) checkpointer_->write_forced();
 }
@@ -513,6 +529,7 @@ PipelineSummary LocalMapSystem::summary() const {
   s.checkpoints_written = cp.written;
   s.checkpoint_max_ms = cp.max_ms;
   s.checkpoint_error = cp.error;
+  if (map_->schedule) s.lock_schedule = map_->schedule->describe();
   {
     std::lock_guard<MapMutex> lock(map_->mutex);
     s.keyframes = map_->map.keyframes().size();
@@ -547,6 +564,18 @@ std::vector<std::pair<double, Eigen::Isometry3d>> LocalMapSystem::final_trajecto
 
 MapFileContext LocalMapSystem::map_file_context() const {
   return MapFileContext{camera_, options_.frontend.features};
+}
+
+bool LocalMapSystem::open_lock_schedule(std::string* error) {
+  const std::string& record = options_.lock_schedule_record_path;
+  const std::string& replay = options_.lock_schedule_replay_path;
+  if (!record.empty() && !replay.empty()) {
+    if (error) *error = "a lock schedule is either recorded or replayed, not both";
+    return false;
+  }
+  if (!record.empty()) map_->schedule = LockSchedule::recorder(record, error);
+  if (!replay.empty()) map_->schedule = LockSchedule::replayer(replay, error);
+  return (record.empty() && replay.empty()) || map_->schedule != nullptr;
 }
 
 bool LocalMapSystem::load_map(const std::string& path, std::string* error) {

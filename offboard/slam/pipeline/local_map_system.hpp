@@ -63,6 +63,9 @@ struct StagePacing {
   PipelineMode mode = PipelineMode::kWait;
   ThreadPolicy tracking_thread_policy = ThreadPolicy::kOff;
   int mapping_rt_priority = 5;
+  /// Records or replays the timing-dependent answers (keyframe admission, catch-up) with the
+  /// map-lock order; null: off.
+  std::shared_ptr<LockSchedule> schedule;
   /// kRealtime or kLive: frames are paced by the camera and never wait for mapping.
   bool paced() const { return mode == PipelineMode::kRealtime || mode == PipelineMode::kLive; }
 };
@@ -239,6 +242,8 @@ class LocalMapSystem : public SlamSystem {
   /// A keyframe finished changing the map (mapping, or loop closing when on): checkpoint pending.
   void map_changed();
   MapFileContext map_file_context() const;
+  /// Opens PipelineOptions::lock_schedule_record_path or _replay_path into map_->schedule.
+  bool open_lock_schedule(std::string* error);
 
   const PipelineOptions options_;
   const CameraModel camera_;

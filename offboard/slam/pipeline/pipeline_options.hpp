@@ -87,6 +87,14 @@ struct PipelineOptions {
   /// stayed lost for 33 frames, past quad-control's 2 s lost-hold: it landed. A map that does not
   /// change (steady hover, revisits) is not rewritten; what a write costs is in docs/slam.md.
   double checkpoint_period_s = 1.0;
+  /// BackendKind::kLocalMap: records the order in which tracking, mapping and loop closing take
+  /// the map and the timing-dependent answers they are given (slam/core/lock_schedule.hpp), so
+  /// that a real-time run can be replayed exactly from the same frames.
+  std::string lock_schedule_record_path;
+  /// Replays such a record: each thread takes the map only in its recorded turn. With the same
+  /// frames, binary and options the poses are the recorded run's bit for bit; a replay that leaves
+  /// the record runs free from there (PipelineSummary::lock_schedule says where).
+  std::string lock_schedule_replay_path;
   bool is_valid(std::string* error) const;
 };
 

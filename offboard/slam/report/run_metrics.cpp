@@ -29,6 +29,8 @@ void add_local_map_metrics(const RunOutcome& run, json* m) {
   (*m)["relocalisations"] = run.summary.relocalisations;
   (*m)["frames_lost"] = run.summary.frames_lost;
   (*m)["segments_started"] = run.summary.segments_started;
+  (*m)["lock_schedule"] =
+      run.summary.lock_schedule.empty() ? json(nullptr) : json(run.summary.lock_schedule);
   (*m)["segments_merged"] = run.summary.segments_merged;
   (*m)["off_path_confirmed"] = run.summary.off_path_confirmed;
   (*m)["attitude_refusals"] = run.summary.attitude_refusals;

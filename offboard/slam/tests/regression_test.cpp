@@ -3,6 +3,7 @@
 // Bounds come from measured runs (see the comments); they leave room for libm/OpenCV differences
 // but fail on any real regression (VO drift on these frames is several times larger).
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -574,6 +575,57 @@ TEST(Regression, LocalMapWithLoopClosingWaitModeEqualsSequentialOnAForwardBackwa
     searched += la[i].searched ? 1 : 0;
   }
   EXPECT_GE(searched, 1);
+}
+
+TEST(Regression, LocalMapLiveRunReplaysBitForBitFromItsLockSchedule) {
+  // GIVEN the excerpt played forward then backward (a revisit, so loop closing takes turns too)
+  std::string err;
+  auto ds = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  const std::string schedule = (std::filesystem::temp_directory_path() /
+                                ("lock-schedule-live-" + std::to_string(::getpid()) + ".txt"))
+                                   .string();
+  auto run_live = [&](bool record, bool paced, PipelineSummary* summary) {
+    PipelineOptions o = orb_local_map(PipelineMode::kLive);
+    o.loop_closing = true;
+    o.loop.min_keyframes_in_map = 2;
+    o.loop.keyframes_between_loops = 0;
+    (record ? o.lock_schedule_record_path : o.lock_schedule_replay_path) = schedule;
+    auto p = Pipeline::create(o, Intrinsics{}, &err);
+    EXPECT_TRUE(p) << err;
+    const std::size_t n = ds->size();
+    for (std::size_t i = 0; p && i < 2 * n; ++i) {
+      auto f = ds->load(i < n ? i : 2 * n - 1 - i, &err);
+      f->index = static_cast<std::int64_t>(i);
+      f->stamp_s = 1000.0 + static_cast<double>(i) / 30.0;
+      if (paced) std::this_thread::sleep_for(std::chrono::milliseconds(33));
+      p->submit(std::move(*f));
+    }
+    if (!p) return std::vector<FrameRecord>{};
+    p->finish();
+    *summary = p->summary();
+    return p->records();
+  };
+  // WHEN a live run paced at 30 fps records its lock schedule, and the same frames are replayed
+  // from it unpaced (the mapper would now lag where it kept up, and keep up where it lagged)
+  PipelineSummary recorded_summary, replayed_summary;
+  const auto recorded = run_live(true, true, &recorded_summary);
+  const auto replayed = run_live(false, false, &replayed_summary);
+  std::filesystem::remove(schedule);
+  // THEN every frame's pose, keyframe decision and match count is the recorded run's, bit for bit,
+  // and the replay followed the record to its end
+  ASSERT_EQ(recorded.size(), 60u);
+  ASSERT_EQ(replayed.size(), recorded.size());
+  for (std::size_t i = 0; i < recorded.size(); ++i) {
+    EXPECT_EQ(replayed[i].T_world_cam.matrix(), recorded[i].T_world_cam.matrix()) << i;
+    EXPECT_EQ(replayed[i].keyframe, recorded[i].keyframe) << i;
+    EXPECT_EQ(replayed[i].inliers, recorded[i].inliers) << i;
+    EXPECT_EQ(replayed[i].map_points, recorded[i].map_points) << i;
+  }
+  EXPECT_NE(recorded_summary.lock_schedule.find("recorded"), std::string::npos);
+  EXPECT_EQ(replayed_summary.lock_schedule.find("ran free"), std::string::npos)
+      << replayed_summary.lock_schedule;
+  EXPECT_NE(replayed_summary.lock_schedule.find("lock-step replay"), std::string::npos);
 }
 
 TEST(Regression, LocalMapSavedThenReloadedRelocalisesInTheSameWorldFrame) {

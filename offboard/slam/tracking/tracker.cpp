@@ -120,7 +120,7 @@ std::optional<Tracker> Tracker::create(const TrackerOptions& options, const Came
 
 std::unique_lock<MapMutex> Tracker::lock_map() const {
   const std::int64_t t0 = steady_now_ns();
-  std::unique_lock<MapMutex> lock(map_->mutex);
+  std::unique_lock<MapMutex> lock = map_->lock(MapParty::kTracking);
   lock_wait_ms_ += ms_since(t0);
   return lock;
 }

@@ -30,6 +30,7 @@
 #include <string>
 #include <vector>
 
+#include "slam/core/lock_schedule.hpp"
 #include "slam/core/thread_priority.hpp"
 #include "slam/features/features.hpp"
 #include "slam/map/map.hpp"
@@ -54,7 +55,19 @@ using MapMutex = PriorityInheritanceMutex;
 /// The map with the mutex that guards it; shared by the tracker, the mapper and the loop closer.
 struct SharedMap {
   explicit SharedMap(bool priority_inheritance = true) : mutex(priority_inheritance) {}
+  /// Locks `mutex` for one of the threads that change the map, in the order `schedule` records or
+  /// replays. Readers that change nothing (checkpoints, reports) lock `mutex` directly.
+  std::unique_lock<MapMutex> lock(MapParty who) {
+    if (!schedule) return std::unique_lock<MapMutex>(mutex);
+    schedule->before_lock(who);
+    std::unique_lock<MapMutex> held(mutex);
+    schedule->after_lock(who);
+    return held;
+  }
   MapMutex mutex;
+  /// Lock-step record or replay of the threads' turns (PipelineOptions::lock_schedule_*); null:
+  /// off.
+  std::shared_ptr<LockSchedule> schedule;
   SlamMap map;
   /// Bumped (under `mutex`) by every loop correction that moved keyframes and points: the tracker
   /// re-anchors its last pose to its reference keyframe, the mapper drops a bundle adjustment
