@@ -1,10 +1,11 @@
 """The soak's replay check: three missions' recordings replayed through SLAM with
 `flight_recording.replay` (every file of a rotated recording, in order; the frames the flight's
-SLAM was given; slam-eval in wait mode, scored against the poses flown), each reported as
-replay-vs-flight ATE. Missions are taken in this order: completed missions with faults injected but
-no slam-server kill, then other completed ones, then any with a recording; three in all. A
-slam-server kill is last because its flight resumed from a map checkpoint that lacks the last
-second before the kill, which a replay of the frames cannot reproduce.
+SLAM was given; slam-eval held to the lock schedule slam-server recorded for the mission's map, or
+in wait mode when the mission has none or more than one map; scored against the poses flown), each
+reported as replay-vs-flight ATE. Missions are taken in this order: completed missions with
+faults injected but no slam-server kill, then other completed ones, then any with a recording;
+three in all. A slam-server kill is last because its flight resumed from a map checkpoint that
+lacks the last second before the kill, which a replay of the frames cannot reproduce.
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ from pathlib import Path
 from hilrig.paths import find_binary
 
 REPLAYS = 3
+# slam-server's name for it in each map's tables folder (slamlink kLockScheduleFile).
+LOCK_SCHEDULE_FILE = "lock_schedule.txt"
 # A 2-minute mission is ~3600 frames; extraction and slam-eval in wait mode take a few minutes.
 REPLAY_TIMEOUT_S = 1800
 # Two replays at a time: the machine's two cores, the flights being over. Each replay is one
@@ -45,6 +48,16 @@ def choose(missions: list[dict], count: int = REPLAYS) -> list[dict]:
     return chosen
 
 
+def lock_schedule_of(m: dict) -> Path | None:
+    """The lock schedule of the mission's one SLAM map (a mission whose slam-server was restarted
+    flew on several maps, the later ones resumed from a checkpoint: no single record covers it)."""
+    maps = m.get("slam_maps") or []
+    if len(maps) != 1:
+        return None
+    path = Path(maps[0]) / LOCK_SCHEDULE_FILE
+    return path if path.is_file() else None
+
+
 def _replay_one(m: dict, out: Path, env: dict, say) -> dict:
     mcaps = m["recording"]
     d = out / f"mission-{m['mission']:03d}"
@@ -62,6 +75,9 @@ def _replay_one(m: dict, out: Path, env: dict, say) -> dict:
         "--tum-score",
         str(find_binary("tum-score")),
     ]
+    schedule = lock_schedule_of(m)
+    if schedule is not None:
+        cmd += ["--lock-schedule", str(schedule)]
     try:
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=REPLAY_TIMEOUT_S, env=env)
     except subprocess.TimeoutExpired:
@@ -80,6 +96,7 @@ def _replay_one(m: dict, out: Path, env: dict, say) -> dict:
             replay_poses=j.get("replay_poses"),
             flight_poses=j.get("flight_poses"),
             complete=j.get("complete"),
+            lock_schedule=j.get("lock_schedule"),
         )
     say(
         f"soak: replay mission {m['mission']}: ATE {r.get('ate_rmse_m')} m "

@@ -279,6 +279,7 @@ class Soak:
         # dropped, so the runner's memory does not grow with the soak's length.
         fl.rig.forget_before(fl.rig.sim_us)
         fl.kinect.forget_before(time.monotonic())
+        maps_before = self._slam_maps()
         fl.restart_ground_station(mdir / "flight-log", mdir / "recording")
         events_before = len(fl.rig.fc.events)
         touch_before = len(fl.rig.fc.touchdowns_mps)
@@ -334,6 +335,9 @@ class Soak:
             self._bring_down(rec)
         self._judge(rec, events_before, touch_before, sim_start, goals_room)
         self._scores(rec, mdir)
+        # The SLAM maps slam-server began for this mission (one, unless it was restarted): their
+        # tables and lock schedules let the replay check hold the replay to the flight's order.
+        rec["slam_maps"] = sorted(str(p) for p in self._slam_maps() - maps_before)
         self._note_exits(mission=n)
         self._prune_recording(rec, mdir)
         (mdir / "mission.json").write_text(json.dumps(rec, indent=1, default=str))
@@ -344,6 +348,10 @@ class Soak:
             f"elapsed {self.elapsed_s() / 60:.1f} min, remaining "
             f"{max(0.0, deadline - time.monotonic()) / 60:.1f} min"
         )
+
+    def _slam_maps(self) -> set[Path]:
+        """slam-server's map folders so far (--tables-dir: slam-tables*/map-*)."""
+        return set(self.flight.workdir.glob("slam-tables*/map-*"))
 
     def _carry_to_pad(self, rec: dict) -> None:
         """The operator puts a landed craft back on the pad (the airframe model's position, heading

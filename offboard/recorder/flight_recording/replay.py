@@ -16,7 +16,10 @@ flight.
      DIR/slam/trajectory.tum -a`);
   3. runs `slam-eval run` on the folder (ORB + local map, deterministic "wait" mode) and scores its
      trajectory against the in-flight poses with tum-score (rigid alignment: the replay's world is
-     its first camera, the flight's is the floor frame; 20 ms association).
+     its first camera, the flight's is the floor frame; 20 ms association). With --lock-schedule
+     (the lock_schedule.txt slam-server wrote beside the flight map's frames.csv) it runs in live
+     mode held to the flight's order of tracking, mapping and loop closing instead
+     (slam/core/lock_schedule.hpp), which reproduces the mapper's progress as it was in flight.
 Prints one JSON object (frames, poses, ATE of replay vs flight) and writes it to DIR/replay.json.
 A recording cut short (quad-control killed, disk full) or with a damaged chunk is replayed up to the
 damage (a damaged chunk is skipped, the frames after it are kept): a warning on stderr says where
@@ -254,7 +257,12 @@ def _score(tum_score: Path, flight: Path, replay: Path) -> dict:
 
 
 def run(
-    mcap: Path | list[Path], out: Path, slam_eval: Path, tum_score: Path, frames: str = "slam"
+    mcap: Path | list[Path],
+    out: Path,
+    slam_eval: Path,
+    tum_score: Path,
+    frames: str = "slam",
+    lock_schedule: Path | None = None,
 ) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     info = extract(mcap, out, frames)
@@ -273,11 +281,13 @@ def run(
         str(out / "slam"),
         "--camera",
         info["camera"],
-        "--mode",
-        "wait",
         "--no-map",
         "--quiet",
     ]
+    if lock_schedule is None:
+        cmd += ["--mode", "wait"]
+    else:
+        cmd += ["--mode", "live", "--replay-lock-schedule", str(lock_schedule)]
     if not info["distortion"]:
         cmd.append(
             "--no-undistort"
@@ -300,6 +310,7 @@ def run(
         ate_rot_rmse_deg=online.get("ate_rot_rmse_deg"),
         pairs=online["pairs"],
         ate_final_trajectory_vs_flight_rmse_m=final["ate_rmse_m"],
+        lock_schedule=json.loads((out / "slam" / "metrics.json").read_text()).get("lock_schedule"),
         command=" ".join(cmd),
     )
     (out / "replay.json").write_text(json.dumps(result, indent=2))
@@ -334,6 +345,12 @@ def main(argv: list[str] | None = None) -> int:
         "recorded frame",
     )
     ap.add_argument(
+        "--lock-schedule",
+        type=Path,
+        help="slam-server's lock_schedule.txt of the flight's map (beside its frames.csv): replay "
+        "in lock-step with the flight's tracking and mapping instead of wait mode",
+    )
+    ap.add_argument(
         "--extract-only",
         action="store_true",
         help="write the TUM folder and flight.tum, run nothing",
@@ -354,12 +371,22 @@ def main(argv: list[str] | None = None) -> int:
             files += rotation_files(r)
         else:
             files.append(r)
+    if a.lock_schedule is not None and not a.lock_schedule.is_file():
+        print(f"flight_recording.replay: {a.lock_schedule}: no such file", file=sys.stderr)
+        return 1
+    if a.lock_schedule is not None and a.frames != "slam":
+        print(
+            "flight_recording.replay: --lock-schedule replays the frames the flight's SLAM was "
+            "given: it needs --frames slam",
+            file=sys.stderr,
+        )
+        return 1
     try:
         if a.extract_only:
             result = extract(files, a.out, a.frames)
             _warn_damage(result)
         else:
-            result = run(files, a.out, a.slam_eval, a.tum_score, a.frames)
+            result = run(files, a.out, a.slam_eval, a.tum_score, a.frames, a.lock_schedule)
     except (ValueError, subprocess.CalledProcessError) as e:
         detail = getattr(e, "stderr", "") or ""
         print(f"flight_recording.replay: {e}\n{detail}", file=sys.stderr)

@@ -13,8 +13,6 @@ constexpr const char* kHeader =
     "# L <party> <n>: the party took it n times in a row; A <party> <value>: a timing-dependent "
     "answer it was given\n"
     "# parties: t tracking, m mapping, l loop closing\n";
-// Lines written between flushes: a killed recorder loses at most this many (a few seconds).
-constexpr std::size_t kFlushEveryLines = 256;
 
 bool party_of(char c, MapParty* out) {
   switch (c) {
@@ -109,10 +107,6 @@ void LockSchedule::write_run_locked() {
   if (run_length_ == 0 || !out_.is_open()) return;
   out_ << "L " << party_letter(static_cast<MapParty>(run_party_)) << ' ' << run_length_ << '\n';
   run_length_ = 0;
-  if (++lines_since_flush_ >= kFlushEveryLines) {
-    out_.flush();
-    lines_since_flush_ = 0;
-  }
 }
 
 void LockSchedule::go_free_locked(std::string why) {
@@ -183,7 +177,12 @@ std::int64_t LockSchedule::answer(MapParty who, std::int64_t live) {
     return v;
   }
   write_run_locked();
-  if (out_.is_open()) out_ << "A " << party_letter(who) << ' ' << live << '\n';
+  if (out_.is_open()) {
+    out_ << "A " << party_letter(who) << ' ' << live << '\n';
+    // Once a frame (tracking asks once per frame, outside the map's lock): a killed or still
+    // running process leaves a record complete up to its last frame.
+    if (who == MapParty::kTracking) out_.flush();
+  }
   ++answers_taken_;
   return live;
 }

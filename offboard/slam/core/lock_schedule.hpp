@@ -11,7 +11,8 @@
 // bit for bit, on any machine and at any speed.
 //
 // Recording costs one mutex and a few bytes per lock acquisition (a line per run of acquisitions by
-// one thread), streamed to the file so that a killed process loses only the last buffer.
+// one thread) and one write to the file per frame, so that the record of a killed or still running
+// process is complete up to its last frame.
 //
 // A replay whose threads stop following the record (other frames, another binary, another
 // configuration) would wait forever for a turn that never comes: after kReplayStallS without
@@ -93,7 +94,7 @@ class LockSchedule {
   std::ofstream out_;
   std::string path_;
   int run_party_ = -1;
-  std::size_t run_length_ = 0, lines_since_flush_ = 0;
+  std::size_t run_length_ = 0;
   // Replay.
   std::vector<MapParty> order_;
   std::array<std::deque<std::int64_t>, kMapParties> answers_;
