@@ -199,8 +199,10 @@ def extract(mcap: Path | list[Path], out: Path, frames: str = "slam") -> dict:
     with_attitude = [t for t in sorted(chosen) if t in attitude]
     if with_attitude:
         lines = "".join(
-            f"{t * 1e-9:.6f} {attitude[t]['x']:.9f} {attitude[t]['y']:.9f} "
-            f"{attitude[t]['z']:.9f} {attitude[t]['w']:.9f}\n"
+            # repr: the shortest text that reads back as the same double, so slam-eval gets the
+            # flight's attitude bit for bit (a lock-step replay reproduces the flight's poses).
+            f"{t * 1e-9:.6f} {attitude[t]['x']!r} {attitude[t]['y']!r} "
+            f"{attitude[t]['z']!r} {attitude[t]['w']!r}\n"
             for t in with_attitude
         )
         (tum / "attitude.txt").write_text(

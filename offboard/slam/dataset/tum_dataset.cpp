@@ -6,8 +6,12 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <sstream>
+
+#include "rgbdquad/encodings/jpeg_codec.h"
 
 namespace rgbdquad::slam {
 
@@ -68,6 +72,40 @@ std::optional<Eigen::Quaterniond> attitude_at(const std::vector<AttitudeSample>&
   return best->q_nav_cam;
 }
 
+bool is_jpeg(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  return ext == ".jpg" || ext == ".jpeg";
+}
+
+/// A JPEG colour image decoded as the ground station decodes the stream's (encodings::JpegDecoder:
+/// TurboJPEG with its fast integer IDCT), to BGR: OpenCV's decoder (the accurate IDCT) gives other
+/// pixels, so a replayed flight's frames would not be the ones its SLAM saw. Empty on failure or
+/// when the image is not `size` (the depth image's).
+cv::Mat read_jpeg_as_ground_station(const std::string& path, cv::Size size) {
+  std::ifstream in(path, std::ios::binary);
+  const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                        std::istreambuf_iterator<char>());
+  if (bytes.empty()) return {};
+  std::string err;
+  std::optional<std::vector<std::uint8_t>> rgb;
+  try {
+    encodings::JpegDecoder decoder;
+    rgb = decoder.decode(bytes.data(), bytes.size(), size.width, size.height, &err);
+  } catch (const std::exception&) {  // TurboJPEG could not be initialised: reported as unreadable
+    return {};
+  }
+  if (!rgb) return {};
+  cv::Mat bgr;
+  cv::cvtColor(cv::Mat(size, CV_8UC3, const_cast<std::uint8_t*>(rgb->data())), bgr,
+               cv::COLOR_RGB2BGR);  // copies
+  return bgr;
+}
+
+/// |q|^2 - 1 within which a quaternion counts as unit: a few ulps of rounding in its printing.
+constexpr double kUnitQuaternionTolerance = 1e-12;
+
 }  // namespace
 
 bool read_tum_list(const std::string& path, std::vector<std::pair<double, std::string>>* out,
@@ -125,7 +163,10 @@ bool read_attitude_file(const std::string& path, std::vector<AttitudeSample>* ou
         if (ls >> rest) return false;
         const Eigen::Quaterniond q(w, x, y, z);
         if (!std::isfinite(t) || !q.coeffs().allFinite() || q.norm() < 1e-6) return false;
-        out->push_back({t, q.normalized()});
+        // A quaternion written unit (a replayed flight's, printed to round-trip) is taken as is:
+        // normalising it again moves its last bits off the flight's.
+        out->push_back(
+            {t, std::abs(q.squaredNorm() - 1.0) < kUnitQuaternionTolerance ? q : q.normalized()});
         return true;
       });
   if (!ok) return false;
@@ -230,14 +271,15 @@ std::optional<RgbdFrame> TumDataset::load(std::size_t i, std::string* error,
   f.index = static_cast<std::int64_t>(i);
   f.stamp_s = stamp_from_depth_ ? e.depth_stamp_s : e.rgb_stamp_s;
   if (!stamp_from_depth_) f.depth_stamp_s = e.depth_stamp_s;
-  f.rgb = cv::imread(e.rgb_path, cv::IMREAD_COLOR);
-  if (f.rgb.empty()) {
-    if (error) *error = "cannot read colour image '" + e.rgb_path + "'";
-    return std::nullopt;
-  }
   f.depth = cv::imread(e.depth_path, cv::IMREAD_ANYDEPTH);
   if (f.depth.empty() || f.depth.type() != CV_16UC1) {
     if (error) *error = "cannot read 16-bit depth image '" + e.depth_path + "'";
+    return std::nullopt;
+  }
+  f.rgb = is_jpeg(e.rgb_path) ? read_jpeg_as_ground_station(e.rgb_path, f.depth.size())
+                              : cv::imread(e.rgb_path, cv::IMREAD_COLOR);
+  if (f.rgb.empty()) {
+    if (error) *error = "cannot read colour image '" + e.rgb_path + "'";
     return std::nullopt;
   }
   if (f.depth.size() != f.rgb.size()) {

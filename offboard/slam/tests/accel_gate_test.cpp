@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <sstream>
 
 #include "slam/dataset/tum_dataset.hpp"
 
@@ -175,6 +176,23 @@ TEST_F(AccelDatasetTest, GivenMalformedAccelerometerLineThenOpenFailsNamingTheLi
   EXPECT_FALSE(TumDataset::open(dir_.string(), TumDatasetOptions{}, &err));
   std::ofstream(dir_ / "accelerometer.txt") << "nan 1 2 3\n";
   EXPECT_FALSE(TumDataset::open(dir_.string(), TumDatasetOptions{}, &err));
+}
+
+TEST_F(AccelDatasetTest, AUnitAttitudePrintedToRoundTripIsReadBitForBit) {
+  // GIVEN a unit quaternion as a replayed flight writes it (the shortest round-trip text), whose
+  // norm is not exactly 1 in double arithmetic
+  const Eigen::Quaterniond q = Eigen::Quaterniond(0.8, 0.1, -0.3, 0.5).normalized();
+  std::ostringstream line;
+  line.precision(17);
+  line << "10.000 " << q.x() << ' ' << q.y() << ' ' << q.z() << ' ' << q.w() << '\n';
+  std::ofstream(dir_ / "attitude.txt") << line.str();
+  std::string err;
+  auto ds = TumDataset::open(dir_.string(), TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  // THEN the frame carries exactly those doubles: normalising again would move their last bits
+  // off the ones the flight's SLAM was given
+  ASSERT_TRUE(ds->entry(0).q_nav_cam);
+  EXPECT_EQ(ds->entry(0).q_nav_cam->coeffs(), q.coeffs());
 }
 
 TEST_F(AccelDatasetTest, GivenAnAttitudeFileThenEachFrameCarriesTheAttitudeAtItsColourStamp) {

@@ -4,7 +4,10 @@
 
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
+#include "rgbdquad/encodings/jpeg_codec.h"
 #include "slam/dataset/tum_dataset.hpp"
 
 namespace rgbdquad::slam {
@@ -61,6 +64,47 @@ TEST(TumDataset, GivenBadInputThenClearErrors) {
   TumDatasetOptions bad;
   bad.rate_divisor = 0;
   EXPECT_FALSE(TumDataset::open(kExcerpt, bad, &err));
+  std::filesystem::remove_all(tmp);
+}
+
+TEST(TumDataset, AJpegColourImageIsDecodedAsTheGroundStationDecodesTheStream) {
+  // GIVEN a folder whose colour image is a JPEG, as a replayed flight's are
+  std::string err;
+  auto src = TumDataset::open(kExcerpt, TumDatasetOptions{}, &err);
+  ASSERT_TRUE(src) << err;
+  auto frame = src->load(0, &err);
+  ASSERT_TRUE(frame) << err;
+  const auto tmp = std::filesystem::temp_directory_path() /
+                   ("slam_dataset_test_jpeg_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(tmp / "rgb");
+  std::filesystem::create_directories(tmp / "depth");
+  cv::Mat rgb;
+  cv::cvtColor(frame->rgb, rgb, cv::COLOR_BGR2RGB);
+  encodings::JpegEncoder encoder(80);
+  const auto jpeg = encoder.encode(rgb.data, rgb.cols, rgb.rows, &err);
+  ASSERT_TRUE(jpeg) << err;
+  std::ofstream(tmp / "rgb" / "1.jpg", std::ios::binary)
+      .write(reinterpret_cast<const char*>(jpeg->data()),
+             static_cast<std::streamsize>(jpeg->size()));
+  ASSERT_TRUE(cv::imwrite((tmp / "depth" / "1.png").string(), frame->depth));
+  std::ofstream(tmp / "rgb.txt") << "1.000000 rgb/1.jpg\n";
+  std::ofstream(tmp / "depth.txt") << "1.000000 depth/1.png\n";
+  // WHEN it is loaded
+  auto ds = TumDataset::open(tmp.string(), TumDatasetOptions{}, &err);
+  ASSERT_TRUE(ds) << err;
+  auto loaded = ds->load(0, &err);
+  ASSERT_TRUE(loaded) << err;
+  // THEN its pixels are the ground station's decoder's (TurboJPEG, fast IDCT), in BGR, and not
+  // OpenCV's (the accurate IDCT), which would give SLAM other pixels than it had in flight
+  encodings::JpegDecoder decoder;
+  const auto decoded = decoder.decode(jpeg->data(), jpeg->size(), rgb.cols, rgb.rows, &err);
+  ASSERT_TRUE(decoded) << err;
+  cv::Mat expected;
+  cv::cvtColor(cv::Mat(rgb.rows, rgb.cols, CV_8UC3, const_cast<std::uint8_t*>(decoded->data())),
+               expected, cv::COLOR_RGB2BGR);
+  EXPECT_EQ(cv::norm(loaded->rgb, expected, cv::NORM_INF), 0.0);
+  const cv::Mat opencv = cv::imread((tmp / "rgb" / "1.jpg").string(), cv::IMREAD_COLOR);
+  EXPECT_GT(cv::norm(opencv, expected, cv::NORM_INF), 0.0);
   std::filesystem::remove_all(tmp);
 }
 

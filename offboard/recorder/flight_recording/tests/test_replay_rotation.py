@@ -17,6 +17,9 @@ FR1_K = [517.3, 0.0, 318.6, 0.0, 516.5, 255.3, 0.0, 0.0, 1.0]
 FRAMES = 30
 SPLIT = 17  # frame 17's colour goes in the first file, its depth in the second
 NOT_ANSWERED = {5, 21}  # frames slam-server never got in flight
+# A unit quaternion whose components need 17 digits to read back as the same doubles.
+_Q = np.array([0.1, -0.3, 0.5, 0.8]) / np.linalg.norm([0.1, -0.3, 0.5, 0.8])
+Q_NED_CAM = {k: float(v) for k, v in zip("xyzw", _Q, strict=True)}
 
 
 def _t_ns(i: int) -> int:
@@ -63,7 +66,7 @@ def _frame_messages(i: int) -> list:
     if i not in NOT_ANSWERED:
         tracking = {"capture_us": _t_ns(i) // 1000, "tracking": True}
         if i % 2 == 0:  # the attitude given to SLAM with the frame, when the APM sent one
-            tracking["q_ned_cam"] = {"x": 0.0, "y": 0.0, "z": 0.6, "w": 0.8}
+            tracking["q_ned_cam"] = dict(Q_NED_CAM)
         out.append(("/slam/tracking", i, tracking))
         pose = {
             "position": {"x": 0.01 * i, "y": 0.0, "z": 1.0},
@@ -138,7 +141,8 @@ def test_the_attitude_given_to_slam_goes_to_attitude_txt(rotation, tmp_path, cap
     rows = [line.split() for line in lines if not line.startswith("#")]
     expected = [i for i in range(FRAMES) if i % 2 == 0 and i not in NOT_ANSWERED]
     assert [r[0] for r in rows] == [f"{_t_ns(i) * 1e-9:.6f}" for i in expected]
-    assert all([float(x) for x in r[1:]] == [0.0, 0.0, 0.6, 0.8] for r in rows)
+    # bit for bit: the replay's SLAM must get the flight's attitude exactly
+    assert all([float(x) for x in r[1:]] == [Q_NED_CAM[k] for k in "xyzw"] for r in rows)
     assert result["frames_with_attitude"] == len(expected)
 
 
