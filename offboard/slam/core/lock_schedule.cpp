@@ -2,6 +2,7 @@
 #include "slam/core/lock_schedule.hpp"
 
 #include <chrono>
+#include <cmath>
 #include <sstream>
 
 namespace rgbdquad::slam {
@@ -11,7 +12,7 @@ namespace {
 constexpr const char* kHeader =
     "# rgbd-quad lock schedule v1: the order in which the SLAM threads took the map's lock\n"
     "# L <party> <n>: the party took it n times in a row; A <party> <value>: a timing-dependent "
-    "answer it was given\n"
+    "answer it was given; F <us>: tracking began the frame stamped <us> microseconds\n"
     "# parties: t tracking, m mapping, l loop closing\n";
 
 bool party_of(char c, MapParty* out) {
@@ -82,6 +83,19 @@ std::unique_ptr<LockSchedule> LockSchedule::replayer_from_text(const std::string
     ++line_no;
     if (line.empty() || line[0] == '#') continue;
     std::istringstream fields(line);
+    if (line[0] == 'F') {
+      char f = 0;
+      long long us = 0;
+      std::string rest;
+      if ((fields >> f >> us) && !(fields >> rest)) {
+        s->frames_us_.push_back(us);
+        s->record_has_frames_ = true;
+        continue;
+      }
+      if (in.peek() == std::char_traits<char>::eof()) break;
+      if (error) *error = "line " + std::to_string(line_no) + " is not a lock-schedule event";
+      return nullptr;
+    }
     char kind = 0, letter = 0;
     long long value = 0;
     MapParty who{};
@@ -179,12 +193,39 @@ std::int64_t LockSchedule::answer(MapParty who, std::int64_t live) {
   write_run_locked();
   if (out_.is_open()) {
     out_ << "A " << party_letter(who) << ' ' << live << '\n';
-    // Once a frame (tracking asks once per frame, outside the map's lock): a killed or still
-    // running process leaves a record complete up to its last frame.
-    if (who == MapParty::kTracking) out_.flush();
   }
   ++answers_taken_;
   return live;
+}
+
+void LockSchedule::frame(double stamp_s) {
+  const auto us = static_cast<std::int64_t>(std::llround(stamp_s * 1e6));
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!replaying_) {
+    if (!out_.is_open()) return;
+    write_run_locked();
+    out_ << "F " << us << '\n';
+    // Once a frame, outside the map's lock: a killed or still running process leaves a record
+    // complete up to its last frame.
+    out_.flush();
+    ++frames_;
+    return;
+  }
+  if (free_ || !record_has_frames_) return;
+  if (frames_us_.empty()) {
+    go_free_locked("the replay has more frames than the record (from " + std::to_string(us) +
+                   " us)");
+    return;
+  }
+  const std::int64_t recorded = frames_us_.front();
+  frames_us_.pop_front();
+  if (recorded != us) {
+    go_free_locked("the replay's frame " + std::to_string(frames_) + " is stamped " +
+                   std::to_string(us) + " us, the record's " + std::to_string(recorded) +
+                   " us (a frame missing from the recording or the record)");
+    return;
+  }
+  ++frames_;
 }
 
 void LockSchedule::retire(MapParty who) {
@@ -208,6 +249,7 @@ LockSchedule::Status LockSchedule::status() const {
   s.turns = turns_;
   s.turns_in_file = order_.size();
   s.answers = answers_taken_;
+  s.frames = frames_;
   s.left_record = !why_free_.empty();
   s.why_free = why_free_;
   s.error = error_;
@@ -218,12 +260,13 @@ std::string LockSchedule::describe() const {
   const Status s = status();
   std::ostringstream m;
   if (!s.replaying) {
-    m << "recorded " << s.turns << " map-lock turns and " << s.answers << " answers";
+    m << "recorded " << s.frames << " frames, " << s.turns << " map-lock turns and " << s.answers
+      << " answers";
     if (!s.error.empty()) m << "; " << s.error;
     return m.str();
   }
-  m << "lock-step replay: " << s.turns << " of " << s.turns_in_file << " map-lock turns and "
-    << s.answers << " answers as recorded";
+  m << "lock-step replay: " << s.turns << " of " << s.turns_in_file << " map-lock turns, "
+    << s.answers << " answers and " << s.frames << " frames as recorded";
   if (s.left_record) m << "; then ran free: " << s.why_free;
   return m.str();
 }

@@ -11,8 +11,8 @@
 // bit for bit, on any machine and at any speed.
 //
 // Recording costs one mutex and a few bytes per lock acquisition (a line per run of acquisitions by
-// one thread) and one write to the file per frame, so that the record of a killed or still running
-// process is complete up to its last frame.
+// one thread, a line per frame with its stamp) and one write to the file per frame, so that the
+// record of a killed or still running process is complete up to its last frame.
 //
 // A replay whose threads stop following the record (other frames, another binary, another
 // configuration) would wait forever for a turn that never comes: after kReplayStallS without
@@ -64,6 +64,11 @@ class LockSchedule {
   void after_lock(MapParty who);
   /// A timing-dependent answer: records `live` and returns it, or returns the recorded one.
   std::int64_t answer(MapParty who, std::int64_t live);
+  /// Tracking is about to track the frame stamped `stamp_s`: recorded (to the microsecond), or, in
+  /// replay, checked against the record's next frame. A frame the recording lacks (a recorder that
+  /// dropped its images) or has extra would otherwise go unnoticed while the turns still line up:
+  /// the replay runs free from there and says which frame. Records without frames are not checked.
+  void frame(double stamp_s);
   /// `who` takes no more turns (its thread finished): a replay waiting for its turn runs free.
   void retire(MapParty who);
   /// Writes what is buffered (recording).
@@ -74,6 +79,7 @@ class LockSchedule {
     std::size_t turns = 0;          ///< recorded, or replayed in lock-step
     std::size_t turns_in_file = 0;  ///< replay: the record's total
     std::size_t answers = 0;        ///< recorded, or taken from the record
+    std::size_t frames = 0;         ///< frames recorded, or checked against the record
     bool left_record = false;       ///< replay: ran free before the record's end
     std::string why_free;           ///< replay: why it ran free (empty: followed to the end)
     std::string error;              ///< recording: the file could not be written
@@ -99,9 +105,11 @@ class LockSchedule {
   std::vector<MapParty> order_;
   std::array<std::deque<std::int64_t>, kMapParties> answers_;
   std::array<bool, kMapParties> retired_{};
+  std::deque<std::int64_t> frames_us_;
+  bool record_has_frames_ = false;
   bool free_ = false;
   // Both.
-  std::size_t turns_ = 0, answers_taken_ = 0;
+  std::size_t turns_ = 0, answers_taken_ = 0, frames_ = 0;
   std::string why_free_, error_;
 };
 

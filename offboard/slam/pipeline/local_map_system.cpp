@@ -358,6 +358,7 @@ RgbdFrame TrackingStage::depth_aligned(const RgbdFrame& frame) const {
 }
 
 void TrackingStage::track(const RgbdFrame& frame) {
+  if (pacing_.schedule) pacing_.schedule->frame(frame.stamp_s);
   // Sequential and wait modes: mapping is done before the next frame.
   const KeyframeAdmission admission = pacing_.paced() ? admission_() : KeyframeAdmission{};
   Output out = process(frame, admission);

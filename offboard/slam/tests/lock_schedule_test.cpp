@@ -111,6 +111,41 @@ TEST(LockSchedule, AThreadWaitingForAFinishedThreadsTurnRunsFreeAndTheReplaySays
   EXPECT_NE(st.why_free.find("t's, whose thread has finished"), std::string::npos) << st.why_free;
 }
 
+TEST(LockSchedule, AFrameMissingFromTheReplayIsCaughtWhereTheTurnsWouldStillLineUp) {
+  // GIVEN a record of three frames, one turn each
+  const std::string path = temp_path("lock-schedule-frames");
+  std::string err;
+  {
+    auto rec = LockSchedule::recorder(path, &err);
+    ASSERT_TRUE(rec) << err;
+    std::mutex map;
+    std::string order;
+    for (double stamp : {10.0, 10.033333, 10.066667}) {
+      rec->frame(stamp);
+      take_turns(rec.get(), &map, MapParty::kTracking, 1, &order);
+    }
+    EXPECT_EQ(rec->status().frames, 3u);
+  }
+  // WHEN the same frames replay, and when the second is missing from the replay
+  auto same = LockSchedule::replayer(path, &err);
+  ASSERT_TRUE(same) << err;
+  for (double stamp : {10.0, 10.033333, 10.066667}) same->frame(stamp);
+  auto gap = LockSchedule::replayer(path, &err);
+  ASSERT_TRUE(gap) << err;
+  gap->frame(10.0);
+  gap->frame(10.066667);
+  std::filesystem::remove(path);
+  // THEN the first follows the record; the second leaves it at that frame and says so, though
+  // its tracker would have taken the same turn
+  EXPECT_FALSE(same->status().left_record) << same->describe();
+  EXPECT_EQ(same->status().frames, 3u);
+  const auto st = gap->status();
+  EXPECT_TRUE(st.left_record);
+  EXPECT_NE(st.why_free.find("frame 1 is stamped 10066667 us, the record's 10033333 us"),
+            std::string::npos)
+      << st.why_free;
+}
+
 TEST(LockSchedule, AMalformedLineIsRefusedByNumberButACutLastLineEndsTheRecord) {
   std::string err;
   EXPECT_FALSE(LockSchedule::replayer_from_text("# header\nL t 1\nL x 1\nL m 1\n", &err));
