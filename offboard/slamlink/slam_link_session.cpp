@@ -84,9 +84,7 @@ std::optional<slam::RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame&
   }
   slam::RgbdFrame f;
   f.index = static_cast<std::int64_t>(frames_);
-  // Divided, not multiplied by 1e-6: the quotient is the double nearest the exact microseconds, as
-  // a replay's "%.6f" stamp reads back, so a replayed flight gives SLAM the very same stamps.
-  f.stamp_s = static_cast<double>(dh.capture_timestamp_us) / 1e6;
+  f.stamp_s = slam::seconds_from_us(static_cast<std::int64_t>(dh.capture_timestamp_us));
   if (m.attitude.valid) {  // the codec has checked it is a unit quaternion
     const auto& q = m.attitude.q_xyzw;
     f.q_nav_cam = Eigen::Quaterniond(q[3], q[0], q[1], q[2]);
@@ -94,10 +92,11 @@ std::optional<slam::RgbdFrame> SlamLinkSession::to_frame(const proto::RgbdFrame&
   // The sample belongs to the colour image: the gate judges it at the colour stamp.
   std::optional<slam::AccelSample> accel;
   if (m.accel.valid)
-    accel =
-        slam::AccelSample{static_cast<double>(m.accel.capture_timestamp_us) / 1e6,
-                          Eigen::Vector3d(m.accel.f_mps2[0], m.accel.f_mps2[1], m.accel.f_mps2[2])};
-  accel_gate_.attach(static_cast<double>(rh.capture_timestamp_us) / 1e6, accel, &f);
+    accel = slam::AccelSample{
+        slam::seconds_from_us(static_cast<std::int64_t>(m.accel.capture_timestamp_us)),
+        Eigen::Vector3d(m.accel.f_mps2[0], m.accel.f_mps2[1], m.accel.f_mps2[2])};
+  accel_gate_.attach(slam::seconds_from_us(static_cast<std::int64_t>(rh.capture_timestamp_us)),
+                     accel, &f);
   cv::Mat rgb(rh.height, rh.width, CV_8UC3, const_cast<std::uint8_t*>(m.rgb.payload.data()));
   cv::cvtColor(rgb, f.rgb, cv::COLOR_RGB2BGR);  // copies
   f.depth.create(dh.height, dh.width, CV_16UC1);

@@ -47,7 +47,7 @@ void InProcessSlam::run() {
     const CameraFrame& frame = *taken;
     slam::RgbdFrame input;
     input.index = frame.sequence;
-    input.stamp_s = static_cast<double>(frame.capture_us) / 1e6;
+    input.stamp_s = slam::seconds_from_us(frame.capture_us);
     input.rgb = frame.rgb;
     input.depth = frame.depth;
     input.q_nav_cam = frame.q_ned_cam;

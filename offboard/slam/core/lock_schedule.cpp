@@ -82,37 +82,37 @@ std::unique_ptr<LockSchedule> LockSchedule::replayer_from_text(const std::string
   while (std::getline(in, line)) {
     ++line_no;
     if (line.empty() || line[0] == '#') continue;
-    std::istringstream fields(line);
-    if (line[0] == 'F') {
-      char f = 0;
-      long long us = 0;
-      std::string rest;
-      if ((fields >> f >> us) && !(fields >> rest)) {
-        s->frames_us_.push_back(us);
-        s->record_has_frames_ = true;
-        continue;
-      }
-      if (in.peek() == std::char_traits<char>::eof()) break;
-      if (error) *error = "line " + std::to_string(line_no) + " is not a lock-schedule event";
-      return nullptr;
-    }
-    char kind = 0, letter = 0;
-    long long value = 0;
-    MapParty who{};
-    std::string rest;
-    if (!(fields >> kind >> letter >> value) || (fields >> rest) || !party_of(letter, &who) ||
-        (kind != 'L' && kind != 'A') || (kind == 'L' && value <= 0)) {
-      // A record cut short by a killed process ends in a partial line: replay up to it.
-      if (in.peek() == std::char_traits<char>::eof()) break;
-      if (error) *error = "line " + std::to_string(line_no) + " is not a lock-schedule event";
-      return nullptr;
-    }
-    if (kind == 'L')
-      s->order_.insert(s->order_.end(), static_cast<std::size_t>(value), who);
-    else
-      s->answers_[slot(who)].push_back(value);
+    if (s->add_event(line)) continue;
+    // A record cut short by a killed process ends in a partial line: replay up to it.
+    if (in.peek() == std::char_traits<char>::eof()) break;
+    if (error) *error = "line " + std::to_string(line_no) + " is not a lock-schedule event";
+    return nullptr;
   }
   return s;
+}
+
+bool LockSchedule::add_event(const std::string& line) {
+  std::istringstream fields(line);
+  std::string rest;
+  if (line[0] == 'F') {
+    char f = 0;
+    long long us = 0;
+    if (!(fields >> f >> us) || (fields >> rest)) return false;
+    frames_us_.push_back(us);
+    record_has_frames_ = true;
+    return true;
+  }
+  char kind = 0, letter = 0;
+  long long value = 0;
+  MapParty who{};
+  if (!(fields >> kind >> letter >> value) || (fields >> rest) || !party_of(letter, &who) ||
+      (kind != 'L' && kind != 'A') || (kind == 'L' && value <= 0))
+    return false;
+  if (kind == 'L')
+    order_.insert(order_.end(), static_cast<std::size_t>(value), who);
+  else
+    answers_[slot(who)].push_back(value);
+  return true;
 }
 
 LockSchedule::~LockSchedule() { flush(); }

@@ -90,6 +90,8 @@ class LockSchedule {
 
  private:
   LockSchedule() = default;
+  /// Replay: adds one line of a record; false if it is not an event.
+  bool add_event(const std::string& line);
   void write_run_locked();
   void go_free_locked(std::string why);
 

@@ -81,6 +81,11 @@ const char* to_string(TrackingState s);
 std::int64_t steady_now_ns();
 /// CPU time consumed by the calling thread, nanoseconds (instrumentation only).
 std::int64_t thread_cpu_now_ns();
+/// A capture stamp in microseconds (the stream's and the SLAM link's) as SLAM's seconds. Divided,
+/// not multiplied by 1e-6: the quotient is the double nearest the exact value, the one a TUM
+/// folder's 6-decimal stamp reads back as, so a replayed flight gives SLAM the very same stamps.
+inline double seconds_from_us(std::int64_t us) { return static_cast<double>(us) / 1e6; }
+
 inline double ms_since(std::int64_t start_ns) { return (steady_now_ns() - start_ns) * 1e-6; }
 
 /// Rotation angle of a rigid transform in radians.
