@@ -262,10 +262,10 @@ def anchor_figures(anchor: Path) -> list[dict]:
     medians = _realtime_median_figures(anchor)
     figs += medians
     judged = {f["data"] for f in medians}
-    # Variants: the new-segment restart on (the default) and off, and gravity factors from the
+    # Variants: the new-segment restart on (the default) and off, gravity factors from the
     # Kinect's accelerometer (the default's source, the flight controller's attitude, is not in
-    # TUM recordings).
-    variants = ("_restart_", "_accel-gravity_")
+    # TUM recordings), and the rolling shutter not modelled (a global-shutter fit).
+    variants = ("_restart_", "_accel-gravity_", "_rolling-shutter_")
     for run in sorted(
         p for p in anchor.iterdir() if p.is_dir() and any(v in p.name for v in variants)
     ):
@@ -281,6 +281,8 @@ def anchor_figures(anchor: Path) -> list[dict]:
             figs += _anchor_run_figures(
                 m, seq, mode, f"restart {restart}", default, ate_judged=seq not in judged
             )
+        elif "_rolling-shutter_" in run.name:
+            figs += _anchor_run_figures(m, seq, mode, "rolling shutter not modelled", False)
         else:
             figs += _anchor_run_figures(m, seq, mode, "gravity from the accelerometer", False)
     for ref in sorted(anchor.glob("orbslam2_*.json")):

@@ -65,7 +65,8 @@ struct RunArgs {
               orb_pixel_centres = "on";
   double depth_units_per_m = 0;
   double colour_stamp_lag_s = slam::TrackerOptions{}.colour_stamp_lag_s;
-  double rolling_shutter_readout_s = slam::TrackerOptions{}.rolling_shutter_readout_s;
+  double rolling_shutter_readout_s = -1;  ///< < 0: the camera model's
+  double rolling_shutter_rate_sigma = slam::TrackerOptions{}.rolling_shutter_rate_sigma_rad_per_s;
   std::string gravity = slam::TrackerOptions{}.gravity.enabled ? "on" : "off";
   std::string gravity_accelerometer =
       slam::TrackerOptions{}.gravity.from_accelerometer ? "on" : "off";
@@ -115,7 +116,10 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   po.tracker.restart_when_lost = a.restart_when_lost == "on";
   po.tracker.align_depth_time = a.align_depth_time == "on";
   po.tracker.colour_stamp_lag_s = a.colour_stamp_lag_s;
-  po.tracker.rolling_shutter_readout_s = a.rolling_shutter_readout_s;
+  // The camera's own readout is set once the camera is known (rolling_shutter_readout_s()).
+  if (a.rolling_shutter_readout_s >= 0)
+    po.tracker.rolling_shutter_readout_s = a.rolling_shutter_readout_s;
+  po.tracker.rolling_shutter_rate_sigma_rad_per_s = a.rolling_shutter_rate_sigma;
   po.tracker.gravity.enabled = a.gravity == "on";
   po.tracker.gravity.from_accelerometer = a.gravity_accelerometer == "on";
   po.tracker.confirm_off_path = a.confirm_off_path == "on";
@@ -145,6 +149,14 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   return po;
 }
 
+/// The rolling-shutter readout the run tracks with: the command line's, else the camera model's
+/// (protocol/camera/tum_cameras.json).
+double rolling_shutter_readout_s(const RunArgs& a, const std::string& camera) {
+  if (a.rolling_shutter_readout_s >= 0) return a.rolling_shutter_readout_s;
+  const rgbdquad::camera::TumCamera* model = rgbdquad::camera::find_tum_camera(camera);
+  return model ? model->rolling_shutter_readout_s : 0.0;
+}
+
 /// The options a run used, the first keys of its metrics.json.
 json run_options_json(const RunArgs& a, const std::string& camera, const std::string& stamp,
                       const slam::Intrinsics& intr) {
@@ -170,7 +182,8 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
   m["restart_when_lost"] = a.restart_when_lost;
   m["align_depth_time"] = a.align_depth_time;
   m["colour_stamp_lag_s"] = a.colour_stamp_lag_s;
-  m["rolling_shutter_readout_s"] = a.rolling_shutter_readout_s;
+  m["rolling_shutter_readout_s"] = rolling_shutter_readout_s(a, camera);
+  m["rolling_shutter_rate_sigma_rad_per_s"] = a.rolling_shutter_rate_sigma;
   m["gravity"] = a.gravity;
   m["gravity_accelerometer"] = a.gravity_accelerometer;
   m["confirm_off_path"] = a.confirm_off_path;
@@ -244,6 +257,7 @@ std::optional<RunSetup> set_up_run(const RunArgs& a, int* exit_code) {
   r.po = *options;
   r.camera = a.camera == "auto" ? guess_camera(a.dataset) : a.camera;
   if (!slam::Intrinsics::from_name(r.camera, &r.intr, &err)) return fail(2, err);
+  r.po.tracker.rolling_shutter_readout_s = rolling_shutter_readout_s(a, r.camera);
   if (a.depth_units_per_m > 0) r.intr.depth_units_per_m = a.depth_units_per_m;
   slam::TumDatasetOptions dso;
   dso.rate_divisor = a.rate;
@@ -706,9 +720,14 @@ void add_ablation_options(CLI::App* run, RunArgs& a) {
       ->capture_default_str();
   run->add_option("--rolling-shutter-readout-s", a.rolling_shutter_readout_s,
                   "localmap: the camera's rolling-shutter readout time, top row to bottom row "
-                  "(s; 0: a global shutter); features are rotated to the middle row's time by the "
-                  "predicted rotation (docs/slam.md)")
-      ->check(CLI::Range(0.0, 0.1))
+                  "(s; 0: a global shutter, e.g. rendered frames; default: the camera model's, "
+                  "fr1/fr2 0.024, fr3 0); each pose is fitted with the rate over the readout "
+                  "(docs/slam.md)")
+      ->check(CLI::Range(0.0, 0.1));
+  run->add_option("--rolling-shutter-rate-sigma", a.rolling_shutter_rate_sigma,
+                  "localmap: sigma of the prior holding the rolling-shutter rate near the motion "
+                  "model's (rad/s); a calibration run widens it (rolling_shutter_check.py)")
+      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   run->add_option("--align-depth-time", a.align_depth_time,
                   "localmap: re-time each depth image to its colour image by the predicted "

@@ -283,6 +283,10 @@ def run(
         str(out / "slam"),
         "--camera",
         info["camera"],
+        # The SLAM link carries no rolling-shutter readout: slam-server and quad-control track
+        # every frame as a global shutter, and the replay must do as they did.
+        "--rolling-shutter-readout-s",
+        "0",
         "--no-map",
         "--quiet",
     ]

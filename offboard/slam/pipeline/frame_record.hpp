@@ -4,8 +4,10 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "slam/tracking/tracker.hpp"
@@ -34,6 +36,8 @@ struct FrameRecord {
   /// Local-map system: a pose disagreeing with the frame's attitude was refused (TrackResult).
   bool attitude_refused = false;
   bool gravity_prior = false;  ///< local-map system: the pose fit had a gravity prior
+  /// local-map system: the rolling-shutter refit's angular velocity (camera frame, rad/s)
+  std::optional<std::array<double, 3>> rolling_shutter_rate_rad_per_s;
   double cross_check_shift_m = -1, cross_check_shift_deg = -1;  ///< (TrackResult)
   bool prediction_stale =
       false;  ///< local-map system: the gap exceeded the tracker's max_predicted_gap_s

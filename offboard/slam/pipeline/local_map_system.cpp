@@ -4,7 +4,6 @@
 #include "slam/loopclosing/vocabulary.hpp"
 #include "slam/map/map_io.hpp"
 #include "slam/tracking/depth_time_alignment.hpp"
-#include "slam/tracking/rolling_shutter.hpp"
 
 namespace rgbdquad::slam {
 
@@ -47,6 +46,8 @@ FrameRecord record_of(const RgbdFrame& frame, const TrackResult& tr) {
   rec.off_path_confirmed = tr.off_path_confirmed;
   rec.attitude_refused = tr.attitude_refused;
   rec.gravity_prior = tr.gravity_prior;
+  if (const auto& w = tr.rolling_shutter_rate_rad_per_s)
+    rec.rolling_shutter_rate_rad_per_s = std::array<double, 3>{w->x(), w->y(), w->z()};
   rec.cross_check_shift_m = tr.cross_check_shift_m;
   rec.cross_check_shift_deg = tr.cross_check_shift_deg;
   rec.prediction_stale = tr.prediction_stale;
@@ -257,13 +258,12 @@ TrackingStage::TrackingStage(FeatureExtractor extractor, Tracker tracker, StageP
                              std::function<KeyframeAdmission()> admission, FrameRecords* records,
                              std::function<void(std::int64_t)> on_keyframe,
                              const Intrinsics& intrinsics, bool align_depth_time,
-                             double colour_stamp_lag_s, double rolling_shutter_readout_s)
+                             double colour_stamp_lag_s)
     : extractor_(std::move(extractor)),
       tracker_(std::move(tracker)),
       intrinsics_(intrinsics),
       align_depth_time_(align_depth_time),
       colour_stamp_lag_s_(colour_stamp_lag_s),
-      rolling_shutter_readout_s_(rolling_shutter_readout_s),
       pacing_(pacing),
       admission_(std::move(admission)),
       records_(records),
@@ -323,9 +323,6 @@ TrackingStage::Output TrackingStage::process(const RgbdFrame& frame, KeyframeAdm
     out.record.error = error;
     return out;
   }
-  if (rolling_shutter_readout_s_ > 0)
-    if (const auto omega = tracker_.predicted_rotation_rate_rad_per_s())
-      unroll_rotation(&*feats, *omega, rolling_shutter_readout_s_, frame.rgb.rows);
   const double features_ms = ms_since(t0);
   const std::size_t features = feats->points_cam_m.size();
   TrackResult tr;
@@ -471,8 +468,7 @@ std::unique_ptr<LocalMapSystem> LocalMapSystem::create(const PipelineOptions& op
         return keyframe_admission(load, self->options_.keyframe_gate_mapper_busy);
       },
       records, [self](std::int64_t kf) { self->keyframe_made(kf); }, k,
-      opts.tracker.align_depth_time, opts.tracker.colour_stamp_lag_s,
-      opts.tracker.rolling_shutter_readout_s);
+      opts.tracker.align_depth_time, opts.tracker.colour_stamp_lag_s);
   if (s->checkpoint_) s->checkpoint_->start();
   s->tracking_->start();
   s->mapping_->start();

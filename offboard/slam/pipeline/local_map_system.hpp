@@ -179,7 +179,7 @@ class TrackingStage {
   TrackingStage(FeatureExtractor extractor, Tracker tracker, StagePacing pacing,
                 std::function<KeyframeAdmission()> admission, FrameRecords* records,
                 std::function<void(std::int64_t)> on_keyframe, const Intrinsics& intrinsics,
-                bool align_depth_time, double colour_stamp_lag_s, double rolling_shutter_readout_s);
+                bool align_depth_time, double colour_stamp_lag_s);
   ~TrackingStage() { finish(); }
   TrackingStage(const TrackingStage&) = delete;
   TrackingStage& operator=(const TrackingStage&) = delete;
@@ -204,7 +204,6 @@ class TrackingStage {
   const Intrinsics intrinsics_;
   const bool align_depth_time_;
   const double colour_stamp_lag_s_;
-  const double rolling_shutter_readout_s_;
   const StagePacing pacing_;
   std::function<KeyframeAdmission()> admission_;
   FrameRecords* records_;

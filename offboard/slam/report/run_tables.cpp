@@ -15,7 +15,8 @@ std::optional<FramesTable> FramesTable::create(const fs::path& path, std::string
          "map_lock_wait_ms,relocalised,features_ms,matching_ms,relocalise_ms,prediction_stale,"
          "prediction_deviation_m,prediction_deviation_bound_m,attitude_predicted,cross_checked,"
          "cross_check_shift_m,cross_check_shift_deg,new_segment,segment_merged,off_path_"
-         "confirmed,attitude_refused\n";
+         "confirmed,attitude_refused,rolling_shutter_rate_x,rolling_shutter_rate_y,"
+         "rolling_shutter_rate_z\n";
   if (!out) {
     if (error) *error = "cannot write " + path.string();
     return std::nullopt;
@@ -36,7 +37,13 @@ void FramesTable::append(const FrameRecord& r) {
        << (r.cross_checked ? 1 : 0) << "," << r.cross_check_shift_m << ","
        << r.cross_check_shift_deg << "," << (r.new_segment ? 1 : 0) << ","
        << (r.segment_merged ? 1 : 0) << "," << (r.off_path_confirmed ? 1 : 0) << ","
-       << (r.attitude_refused ? 1 : 0) << "\n";
+       << (r.attitude_refused ? 1 : 0);
+  // Empty when the frame had no rolling-shutter refit (a global shutter, an untracked frame).
+  for (int i = 0; i < 3; ++i) {
+    out_ << ",";
+    if (r.rolling_shutter_rate_rad_per_s) out_ << (*r.rolling_shutter_rate_rad_per_s)[i];
+  }
+  out_ << "\n";
 }
 
 bool FramesTable::close(std::string* error) {

@@ -28,17 +28,31 @@ struct GravityPrior {
   double sigma_rad = 1.0;
 };
 
+/// A rolling-shutter camera: row r of the image is exposed `row_time_s[i]` after the middle row
+/// (per observation, same order), and the camera turns at the angular velocity omega (camera
+/// frame) over the readout. The fit then estimates omega with the pose, from how the rows of the
+/// frame disagree; a keypoint seen at row time t sees the point R(omega t)^T p_cam. The prior
+/// keeps omega near a predicted rate where the rows say little (few keypoints, a narrow band).
+struct RollingShutterModel {
+  std::vector<double> row_time_s;
+  Eigen::Vector3d omega_prior_rad_per_s = Eigen::Vector3d::Zero();
+  double omega_sigma_rad_per_s = 1.0;
+};
+
 struct PoseOptimizerOptions {
   int rounds = 4;
   int iterations_per_round = 10;
   double chi2_outlier = kChi2Rgbd95;
   std::optional<GravityPrior> gravity;  ///< slam/tracking/gravity_prior.hpp
+  std::optional<RollingShutterModel> rolling_shutter;
 };
 
 struct PoseOptimizerResult {
   Eigen::Isometry3d T_cam_world = Eigen::Isometry3d::Identity();
   std::vector<bool> inlier;
   int inliers = 0;
+  /// The camera's angular velocity over the readout (with a RollingShutterModel; else zero).
+  Eigen::Vector3d omega_cam_rad_per_s = Eigen::Vector3d::Zero();
   bool ok =
       false;  ///< false when degenerate (fewer than 3 usable observations or a singular system)
 };

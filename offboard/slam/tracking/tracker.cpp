@@ -8,6 +8,7 @@
 
 #include "slam/map/place_index.hpp"
 #include "slam/tracking/registration.hpp"
+#include "slam/tracking/rolling_shutter.hpp"
 
 namespace rgbdquad::slam {
 
@@ -105,6 +106,8 @@ bool TrackerOptions::is_valid(std::string* error) const {
   if (!gravity.is_valid(error)) return false;
   if (!(rolling_shutter_readout_s >= 0 && rolling_shutter_readout_s < 0.1))
     return fail("rolling_shutter_readout_s must be in [0, 0.1) s");
+  if (!(rolling_shutter_rate_sigma_rad_per_s > 0))
+    return fail("rolling_shutter_rate_sigma_rad_per_s must be > 0");
   return matching.is_valid(error) && ransac.is_valid(error);
 }
 
@@ -183,12 +186,17 @@ bool Tracker::cross_check_needed(const Fit& fit) const {
 Tracker::Fit Tracker::fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
                                     const Eigen::Isometry3d& T_guess,
                                     double first_radius_px) const {
+  return fit_by_projection(local.points, frame, camera_, T_guess, first_radius_px,
+                           frame_fit_options());
+}
+
+ProjectionFitOptions Tracker::frame_fit_options() const {
   ProjectionFitOptions fo = projection_fit_options(options_);
   if (frame_gravity_)
     if (const auto down_world = gravity_reference_.down_world())
       fo.pose.gravity =
           GravityPrior{*down_world, frame_gravity_->down_cam, frame_gravity_->sigma_rad};
-  return fit_by_projection(local.points, frame, camera_, T_guess, first_radius_px, fo);
+  return fo;
 }
 
 std::optional<Tracker::KeyframeGuess> Tracker::pose_from_keyframes(
@@ -280,17 +288,79 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
   lock_wait_ms_ = 0;
   frame_gravity_.reset();
   if (options_.gravity.enabled) frame_gravity_ = observe_gravity(frame, options_.gravity);
-  FrameInput in{frame, TrackedFeatures::from(std::move(features), camera_, feature_options),
+  FrameInput in{frame,
+                TrackedFeatures{},
                 make_thumbnail(frame.rgb),
                 options_.ransac.max_iterations * 0x9E3779B97F4A7C15ull ^
-                    static_cast<std::uint64_t>(frame.index)};
+                    static_cast<std::uint64_t>(frame.index),
+                nullptr,
+                &feature_options};
+  if (options_.rolling_shutter_readout_s > 0) {
+    in.extracted = features;
+    const auto omega = predicted_rotation_rate_rad_per_s();
+    in.tf =
+        omega ? unrolled(in, *omega) : TrackedFeatures::from(features, camera_, feature_options);
+  } else {
+    in.tf = TrackedFeatures::from(std::move(features), camera_, feature_options);
+  }
   TrackResult out = track_steps(in, keyframe_allowed, mapper_idle);
   out.map_lock_wait_ms = lock_wait_ms_;
   out.gravity_prior = frame_gravity_ && gravity_reference_.down_world().has_value();
   return out;
 }
 
-TrackResult Tracker::track_steps(const FrameInput& in, bool keyframe_allowed, bool mapper_idle) {
+TrackedFeatures Tracker::unrolled(const FrameInput& in,
+                                  const Eigen::Vector3d& omega_cam_rad_per_s) const {
+  FrameFeatures f = *in.extracted;
+  unroll_rotation(&f, omega_cam_rad_per_s, options_.rolling_shutter_readout_s, in.frame.rgb.rows);
+  return TrackedFeatures::from(std::make_shared<const FrameFeatures>(std::move(f)), camera_,
+                               *in.feature_options);
+}
+
+void Tracker::refit_rolling_shutter(FrameInput* in, Attempt* a, TrackResult* out) const {
+  if (!in->extracted) return;
+  const double dt = in->frame.stamp_s - last_stamp_s_;
+  // The rate's prior: the motion model's, else the fit's own turn since the last tracked frame;
+  // with neither (the first fit after a loss), zero within the fastest turn tracking accepts.
+  std::optional<Eigen::Vector3d> prior = predicted_rotation_rate_rad_per_s();
+  if (!prior && state_ == TrackingState::kTracking && dt > 0 &&
+      dt <= options_.max_predicted_gap_s) {
+    const Eigen::AngleAxisd step(T_world_last_.linear().transpose() *
+                                 a->fit.T_cam_world.linear().transpose());
+    prior = Eigen::Vector3d(step.axis() * (step.angle() / dt));
+  }
+  const TrackedFeatures raw = TrackedFeatures::from(in->extracted, camera_, *in->feature_options);
+  const int rows = in->frame.rgb.rows;
+  const double row_s = options_.rolling_shutter_readout_s / rows;
+  const double mid_row = 0.5 * (rows - 1);
+  ProjectionFitOptions fo = frame_fit_options();
+  RollingShutterModel rs;
+  rs.omega_prior_rad_per_s = prior.value_or(Eigen::Vector3d::Zero());
+  rs.omega_sigma_rad_per_s =
+      prior ? options_.rolling_shutter_rate_sigma_rad_per_s : options_.max_rate_rad_per_s;
+  std::vector<PoseObservation> obs;
+  std::vector<std::size_t> kp_of_obs;
+  for (std::size_t k = 0; k < a->fit.point_of_keypoint.size(); ++k) {
+    const int p = a->fit.point_of_keypoint[k];
+    if (p < 0) continue;
+    obs.push_back(PoseObservation{a->local.points[static_cast<std::size_t>(p)].p_world_m,
+                                  raw.measurement(k, camera_), raw.sigma(k)});
+    rs.row_time_s.push_back((in->extracted->keypoints[k].pt.y - mid_row) * row_s);
+    kp_of_obs.push_back(k);
+  }
+  fo.pose.rolling_shutter = std::move(rs);
+  const PoseOptimizerResult r = optimize_pose(a->fit.T_cam_world, obs, camera_, fo.pose);
+  if (!r.ok || r.inliers < a->needed) return;
+  a->fit.T_cam_world = r.T_cam_world;
+  for (std::size_t i = 0; i < obs.size(); ++i)
+    if (!r.inlier[i]) a->fit.point_of_keypoint[kp_of_obs[i]] = -1;
+  a->fit.inliers = static_cast<std::size_t>(r.inliers);
+  out->rolling_shutter_rate_rad_per_s = r.omega_cam_rad_per_s;
+  // The frame as a global shutter at the middle row would have seen it: what a keyframe keeps.
+  in->tf = unrolled(*in, r.omega_cam_rad_per_s);
+}
+
+TrackResult Tracker::track_steps(FrameInput& in, bool keyframe_allowed, bool mapper_idle) {
   bool map_empty;
   {
     const auto lock = lock_map();
@@ -316,6 +386,7 @@ TrackResult Tracker::track_steps(const FrameInput& in, bool keyframe_allowed, bo
       return start_segment(in, *start, std::move(out));
     return declare_lost(&out);
   }
+  if (options_.rolling_shutter_readout_s > 0) refit_rolling_shutter(&in, &attempt, &out);
   const Eigen::Isometry3d T_world_cam = attempt.fit.T_cam_world.inverse();
   std::vector<std::int64_t> matched =
       decide_keyframe(in, attempt, T_world_cam, keyframe_allowed, mapper_idle, &out);

@@ -250,9 +250,17 @@ struct TrackerOptions {
   /// depth to the exposure). 0: the stamp is the exposure.
   double colour_stamp_lag_s = 0.0;
   /// Rolling-shutter readout time of the camera, seconds top row to bottom row (0: treat it as a
-  /// global shutter). Each frame's features are rotated to the middle row's time by the predicted
-  /// angular velocity (slam/tracking/rolling_shutter.hpp).
+  /// global shutter; the cameras' values: protocol/camera/tum_cameras.json). Matching uses the
+  /// features rotated to the middle row's time by the motion model's rate; the accepted pose is
+  /// then refitted with the rate over the readout as three more unknowns (RollingShutterModel),
+  /// and the frame keeps its features rotated by that rate (slam/tracking/rolling_shutter.hpp).
   double rolling_shutter_readout_s = 0.0;
+  /// Sigma of the prior that holds the refit's rate near the motion model's, rad/s. The rows of
+  /// one frame measure the rate to a few deg/s; the prior only matters where they say little (few
+  /// keypoints, a narrow band of rows). 1 rad/s is a hand-held camera's or a craft's change of
+  /// rate over one frame interval at 30 rad/s^2. A calibration run (rolling_shutter_check.py)
+  /// widens it so that the rate is the rows' alone.
+  double rolling_shutter_rate_sigma_rad_per_s = 1.0;
   /// Gravity's direction as a roll/pitch prior in the pose fit (slam/tracking/gravity_prior.hpp).
   GravityOptions gravity;
   bool is_valid(std::string* error) const;
@@ -276,6 +284,9 @@ struct TrackResult {
   /// (TrackerOptions::max_attitude_disagreement_deg): a relocalisation or a segment merge.
   bool attitude_refused = false;
   bool gravity_prior = false;  ///< the pose fit had a gravity prior (TrackerOptions::gravity)
+  /// The camera's angular velocity over the readout the rolling-shutter refit estimated (camera
+  /// frame, rad/s); empty for a global shutter or when the refit was not made.
+  std::optional<Eigen::Vector3d> rolling_shutter_rate_rad_per_s;
   /// The fit left the motion bound but a registration to the reference keyframe confirmed it
   /// (TrackerOptions::confirm_off_path).
   bool off_path_confirmed = false;
@@ -368,6 +379,10 @@ class Tracker {
     TrackedFeatures tf;
     cv::Mat thumbnail;
     std::uint64_t seed = 0;  ///< RANSAC seed of this frame's relocalisation
+    /// The features as extracted, before any rolling-shutter correction (set when the camera
+    /// has a rolling shutter, TrackerOptions::rolling_shutter_readout_s).
+    std::shared_ptr<const FrameFeatures> extracted;
+    const FeatureOptions* feature_options = nullptr;
   };
   /// The pose fit under way: the local map it was matched against and the inliers it needs.
   struct Attempt {
@@ -377,7 +392,16 @@ class Tracker {
   };
 
   // The steps of track(), in order.
-  TrackResult track_steps(const FrameInput& in, bool keyframe_allowed, bool mapper_idle);
+  TrackResult track_steps(FrameInput& in, bool keyframe_allowed, bool mapper_idle);
+  /// Rolling shutter: the frame's features rotated to the middle row's time by the rotation
+  /// rate `omega_cam_rad_per_s`, from the features as extracted.
+  TrackedFeatures unrolled(const FrameInput& in, const Eigen::Vector3d& omega_cam_rad_per_s) const;
+  /// Rolling shutter: refits the accepted pose on its inlier matches with the camera's angular
+  /// velocity over the readout as three more unknowns (RollingShutterModel), and keeps the
+  /// frame's features unrolled by that rate.
+  void refit_rolling_shutter(FrameInput* in, Attempt* a, TrackResult* out) const;
+  /// The pose fit's options for this frame (with its gravity prior, if any).
+  ProjectionFitOptions frame_fit_options() const;
   /// The first keyframe of an empty map, at the origin.
   TrackResult initialise(const FrameInput& in);
   /// Re-anchors the last pose when a loop correction moved its reference keyframe.

@@ -68,10 +68,14 @@ def generate_hpp(spec: dict) -> str:
         "(the file scale unless a published",
         "  /// calibration of the sensor says otherwise; see its model).",
         "  double depth_units_per_m;",
+        "  /// Rolling-shutter readout of the colour camera, s top row to bottom row (0: global).",
+        "  double rolling_shutter_readout_s;",
         "};",
         "",
         f"/// {spec['depth_doc']}",
         f"inline constexpr double kTumDepthUnitsPerM = {num(spec['depth_units_per_m'])};",
+        "",
+        f"// Rolling shutter: {spec['rolling_shutter_doc']}",
         "",
     ]
     names = []
@@ -82,10 +86,12 @@ def generate_hpp(spec: dict) -> str:
         out.append(f"/// {c['doc']}.")
         if "depth_source" in c:
             out.append(f"/// Depth scale: {c['depth_source']}.")
+        if "rolling_shutter_source" in c:
+            out.append(f"/// Rolling shutter: {c['rolling_shutter_source']}.")
         out.append(
             f'inline constexpr TumCamera {const}{{"{c["name"]}", {num(c["fx_px"])}, '
             f"{num(c['fy_px'])}, {num(c['cx_px'])}, {num(c['cy_px'])}, {{{dist}}}, "
-            f"{num(c['depth_units_per_m'])}}};"
+            f"{num(c['depth_units_per_m'])}, {num(c['rolling_shutter_readout_s'])}}};"
         )
     out += [
         "",
@@ -183,6 +189,7 @@ def generate_py(spec: dict) -> str:
         "    cy_px: float",
         "    distortion: tuple[float, float, float, float, float]  # k1 k2 p1 p2 k3",
         "    depth_units_per_m: float  # this camera's readings: file scale unless calibrated",
+        "    rolling_shutter_readout_s: float  # colour readout, top row to bottom (0: global)",
         "",
         "    def intrinsics(self) -> dict:",
         '        """The SLAM link / stream handshake field layout (fx_px, ..., distortion)."""',
@@ -192,6 +199,7 @@ def generate_py(spec: dict) -> str:
         "",
         f"#: {spec['depth_doc']}",
         f"TUM_DEPTH_UNITS_PER_M = {num(spec['depth_units_per_m'])}",
+        f"#: Rolling shutter: {spec['rolling_shutter_doc']}",
     ]
     names = []
     for c in spec["cameras"]:
@@ -201,9 +209,12 @@ def generate_py(spec: dict) -> str:
         out.append(f"#: {c['doc']}.")
         if "depth_source" in c:
             out.append(f"#: Depth scale: {c['depth_source']}.")
+        if "rolling_shutter_source" in c:
+            out.append(f"#: Rolling shutter: {c['rolling_shutter_source']}.")
         out.append(
             f'{const} = TumCamera("{c["name"]}", {num(c["fx_px"])}, {num(c["fy_px"])}, '
-            f"{num(c['cx_px'])}, {num(c['cy_px'])}, ({dist}), {num(c['depth_units_per_m'])})"
+            f"{num(c['cx_px'])}, {num(c['cy_px'])}, ({dist}), {num(c['depth_units_per_m'])}, "
+            f"{num(c['rolling_shutter_readout_s'])})"
         )
     out.append("#: Every model by name.")
     out.append("TUM_CAMERAS = {" + ", ".join(f'"{n}": {k}' for n, k in names) + "}")
