@@ -64,9 +64,6 @@ def replay(tmp_path_factory):
             "orb",
             "--camera",
             "fr1",
-            # The emulated Kinect renders every row at once (no rolling shutter).
-            "--rolling-shutter-readout-s",
-            "0",
             "--quiet",
             "--no-map",
         ],

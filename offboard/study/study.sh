@@ -43,8 +43,7 @@ if [ -x "$RGBD_BUILD_DIR/bin/slam-eval" ]; then
   "$py" -m slam_study table --report "$OUT" || status=1
   if [ -n "${STUDY_RENDERED:-}" ]; then
     "$py" -m slam_study run --data "$STUDY_RENDERED" --out "$OUT-rendered" \
-      --jobs "${STUDY_JOBS:-$(nproc)}" \
-      --slam-eval-args "--no-map --quiet --no-undistort --rolling-shutter-readout-s 0" \
+      --jobs "${STUDY_JOBS:-$(nproc)}" --slam-eval-args "--no-map --quiet --no-undistort" \
       "${k_args[@]}" "${sel_args[@]}" || status=1
     echo "study: rendered manoeuvres' report in $OUT-rendered/report.md"
   fi

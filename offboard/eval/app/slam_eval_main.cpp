@@ -65,7 +65,8 @@ struct RunArgs {
               orb_pixel_centres = "on";
   double depth_units_per_m = 0;
   double colour_stamp_lag_s = slam::TrackerOptions{}.colour_stamp_lag_s;
-  double rolling_shutter_readout_s = -1;  ///< < 0: the camera model's
+  std::string rolling_shutter = "off";    ///< on: track with the camera model's readout
+  double rolling_shutter_readout_s = -1;  ///< >= 0: this readout instead (on or off)
   double rolling_shutter_rate_sigma = slam::TrackerOptions{}.rolling_shutter_rate_sigma_rad_per_s;
   std::string gravity = slam::TrackerOptions{}.gravity.enabled ? "on" : "off";
   std::string gravity_accelerometer =
@@ -149,10 +150,12 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   return po;
 }
 
-/// The rolling-shutter readout the run tracks with: the command line's, else the camera model's
-/// (protocol/camera/tum_cameras.json).
+/// The rolling-shutter readout the run tracks with: the command line's, else with
+/// --rolling-shutter on the camera model's (protocol/camera/tum_cameras.json), else 0 (a global
+/// shutter).
 double rolling_shutter_readout_s(const RunArgs& a, const std::string& camera) {
   if (a.rolling_shutter_readout_s >= 0) return a.rolling_shutter_readout_s;
+  if (a.rolling_shutter != "on") return 0.0;
   const rgbdquad::camera::TumCamera* model = rgbdquad::camera::find_tum_camera(camera);
   return model ? model->rolling_shutter_readout_s : 0.0;
 }
@@ -182,6 +185,7 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
   m["restart_when_lost"] = a.restart_when_lost;
   m["align_depth_time"] = a.align_depth_time;
   m["colour_stamp_lag_s"] = a.colour_stamp_lag_s;
+  m["rolling_shutter"] = a.rolling_shutter;
   m["rolling_shutter_readout_s"] = rolling_shutter_readout_s(a, camera);
   m["rolling_shutter_rate_sigma_rad_per_s"] = a.rolling_shutter_rate_sigma;
   m["gravity"] = a.gravity;
@@ -718,11 +722,15 @@ void add_ablation_options(CLI::App* run, RunArgs& a) {
                   "localmap, with --align-depth-time: how long after the colour exposure its "
                   "stamp was taken (s)")
       ->capture_default_str();
+  run->add_option("--rolling-shutter", a.rolling_shutter,
+                  "localmap: model the colour camera's rolling shutter with the camera model's "
+                  "readout (fr1/fr2 0.024 s, fr3 0): each pose is fitted with the rate over the "
+                  "readout; off by default, it destabilises fast turns in real time (docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   run->add_option("--rolling-shutter-readout-s", a.rolling_shutter_readout_s,
-                  "localmap: the camera's rolling-shutter readout time, top row to bottom row "
-                  "(s; 0: a global shutter, e.g. rendered frames; default: the camera model's, "
-                  "fr1/fr2 0.024, fr3 0); each pose is fitted with the rate over the readout "
-                  "(docs/slam.md)")
+                  "localmap: this readout time instead, top row to bottom row (s; 0: a global "
+                  "shutter), whatever --rolling-shutter says")
       ->check(CLI::Range(0.0, 0.1));
   run->add_option("--rolling-shutter-rate-sigma", a.rolling_shutter_rate_sigma,
                   "localmap: sigma of the prior holding the rolling-shutter rate near the motion "
