@@ -9,8 +9,8 @@
 #      vo runs (slam-study table; pytest fails while it is stale)
 #   2c. with STUDY_RENDERED=DIR (folders rendered by hil/tools/render_tum.py, e.g. out/bench/rendered
 #      from make bench): the same sweep of them on their own into OUT-rendered, slam-eval
-#      --no-undistort (rendered frames have no lens distortion); a report only: the guide's table
-#      rests on recorded sequences (docs/study.md)
+#      --no-undistort --rolling-shutter off (rendered frames have no lens distortion and a global
+#      shutter); a report only: the guide's table rests on recorded sequences (docs/study.md)
 #   3. the Ray-cluster test (a private head node on loopback; skip with STUDY_RAY_TEST=0)
 # Env: DATA, STUDY_OUT (default build/study), RGBD_BUILD_DIR (default build), STUDY_K (k list),
 #      STUDY_JOBS (default: nproc), STUDY_BACKENDS / STUDY_FEATURES (comma lists; the shipped table
@@ -43,7 +43,8 @@ if [ -x "$RGBD_BUILD_DIR/bin/slam-eval" ]; then
   "$py" -m slam_study table --report "$OUT" || status=1
   if [ -n "${STUDY_RENDERED:-}" ]; then
     "$py" -m slam_study run --data "$STUDY_RENDERED" --out "$OUT-rendered" \
-      --jobs "${STUDY_JOBS:-$(nproc)}" --slam-eval-args "--no-map --quiet --no-undistort" \
+      --jobs "${STUDY_JOBS:-$(nproc)}" \
+      --slam-eval-args "--no-map --quiet --no-undistort --rolling-shutter off" \
       "${k_args[@]}" "${sel_args[@]}" || status=1
     echo "study: rendered manoeuvres' report in $OUT-rendered/report.md"
   fi

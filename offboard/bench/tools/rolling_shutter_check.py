@@ -15,7 +15,7 @@ trajectory error. The mocap rate is the rotation between the ground truth at (st
 Run slam-eval with a wide rate prior so that the rate is the rows' alone:
 
     slam-eval run --dataset DIR --out RUN --rolling-shutter-readout-s 0.03 \\
-        --rolling-shutter-rate-sigma 1000
+        --rolling-shutter-angular-accel 100000
 
 Noise in the rows' rate does not bias the slope (it is the regressed variable); the mocap rate is
 nearly noise-free. A sequence that turns faster gives the better-conditioned figure. Exit status 1

@@ -65,9 +65,10 @@ struct RunArgs {
               orb_pixel_centres = "on";
   double depth_units_per_m = 0;
   double colour_stamp_lag_s = slam::TrackerOptions{}.colour_stamp_lag_s;
-  std::string rolling_shutter = "off";    ///< on: track with the camera model's readout
+  std::string rolling_shutter = "on";     ///< on: track with the camera model's readout
   double rolling_shutter_readout_s = -1;  ///< >= 0: this readout instead (on or off)
-  double rolling_shutter_rate_sigma = slam::TrackerOptions{}.rolling_shutter_rate_sigma_rad_per_s;
+  double rolling_shutter_angular_accel =
+      slam::TrackerOptions{}.rolling_shutter_angular_accel_rad_per_s2;
   std::string gravity = slam::TrackerOptions{}.gravity.enabled ? "on" : "off";
   std::string gravity_accelerometer =
       slam::TrackerOptions{}.gravity.from_accelerometer ? "on" : "off";
@@ -120,7 +121,7 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   // The camera's own readout is set once the camera is known (rolling_shutter_readout_s()).
   if (a.rolling_shutter_readout_s >= 0)
     po.tracker.rolling_shutter_readout_s = a.rolling_shutter_readout_s;
-  po.tracker.rolling_shutter_rate_sigma_rad_per_s = a.rolling_shutter_rate_sigma;
+  po.tracker.rolling_shutter_angular_accel_rad_per_s2 = a.rolling_shutter_angular_accel;
   po.tracker.gravity.enabled = a.gravity == "on";
   po.tracker.gravity.from_accelerometer = a.gravity_accelerometer == "on";
   po.tracker.confirm_off_path = a.confirm_off_path == "on";
@@ -187,7 +188,7 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
   m["colour_stamp_lag_s"] = a.colour_stamp_lag_s;
   m["rolling_shutter"] = a.rolling_shutter;
   m["rolling_shutter_readout_s"] = rolling_shutter_readout_s(a, camera);
-  m["rolling_shutter_rate_sigma_rad_per_s"] = a.rolling_shutter_rate_sigma;
+  m["rolling_shutter_angular_accel_rad_per_s2"] = a.rolling_shutter_angular_accel;
   m["gravity"] = a.gravity;
   m["gravity_accelerometer"] = a.gravity_accelerometer;
   m["confirm_off_path"] = a.confirm_off_path;
@@ -725,16 +726,17 @@ void add_ablation_options(CLI::App* run, RunArgs& a) {
   run->add_option("--rolling-shutter", a.rolling_shutter,
                   "localmap: model the colour camera's rolling shutter with the camera model's "
                   "readout (fr1/fr2 0.024 s, fr3 0): each pose is fitted with the rate over the "
-                  "readout; off by default, it destabilises fast turns in real time (docs/slam.md)")
+                  "readout; off: a global shutter (frames rendered by hil/tools/render_tum.py)")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   run->add_option("--rolling-shutter-readout-s", a.rolling_shutter_readout_s,
                   "localmap: this readout time instead, top row to bottom row (s; 0: a global "
                   "shutter), whatever --rolling-shutter says")
       ->check(CLI::Range(0.0, 0.1));
-  run->add_option("--rolling-shutter-rate-sigma", a.rolling_shutter_rate_sigma,
-                  "localmap: sigma of the prior holding the rolling-shutter rate near the motion "
-                  "model's (rad/s); a calibration run widens it (rolling_shutter_check.py)")
+  run->add_option("--rolling-shutter-angular-accel", a.rolling_shutter_angular_accel,
+                  "localmap: how fast the camera's rate changes (rad/s^2); the rolling-shutter "
+                  "rate is held near the motion model's within this x the model's age; a "
+                  "calibration run widens it (rolling_shutter_check.py)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   run->add_option("--align-depth-time", a.align_depth_time,

@@ -64,6 +64,7 @@ FrameRecord record_of(const RgbdFrame& frame, const TrackResult& tr) {
 KeyframeAdmission keyframe_admission(std::size_t keyframes_in_mapper, bool gate_on_busy_mapper) {
   KeyframeAdmission a;
   a.allowed = keyframes_in_mapper < kMaxQueuedKeyframesWeak;
+  a.segment_start_allowed = keyframes_in_mapper < kMaxQueuedKeyframesSegmentStart;
   a.mapper_idle = keyframes_in_mapper < kMaxQueuedKeyframes &&
                   (!gate_on_busy_mapper || keyframes_in_mapper == 0);
   return a;
@@ -328,7 +329,7 @@ TrackingStage::Output TrackingStage::process(const RgbdFrame& frame, KeyframeAdm
   TrackResult tr;
   try {
     tr = tracker_.track(frame, std::make_shared<const FrameFeatures>(std::move(*feats)),
-                        extractor_.options(), admission.allowed, admission.mapper_idle);
+                        extractor_.options(), admission);
   } catch (const std::exception& e) {
     tr.state = TrackingState::kLost;
     error = std::string("tracker: exception: ") + e.what();

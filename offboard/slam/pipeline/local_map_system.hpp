@@ -50,11 +50,14 @@ inline constexpr std::size_t kMaxQueuedKeyframes = 2;
 /// lost.
 inline constexpr std::size_t kMaxQueuedKeyframesWeak = 3;
 
+/// Beyond kMaxQueuedKeyframesWeak, a frame that would otherwise be lost still starts a map segment
+/// up to this many in the mapper. A segment's first keyframe carries its own points, so tracking
+/// goes on in it before the mapper reaches it. Two back-to-back segment starts on a fast turn had
+/// filled kMaxQueuedKeyframesWeak, and the third failing frame was lost (fr1_360 in real time);
+/// two more slots keep the mapper's backlog, and so its latency, bounded.
+inline constexpr std::size_t kMaxQueuedKeyframesSegmentStart = kMaxQueuedKeyframesWeak + 2;
+
 /// What the tracker may do about keyframes while `keyframes_in_mapper` (queued + in work) wait.
-struct KeyframeAdmission {
-  bool allowed = true;      ///< a keyframe may be made (Tracker::track's keyframe_allowed)
-  bool mapper_idle = true;  ///< false: only weak tracking makes one (Tracker::track's mapper_idle)
-};
 /// `gate_on_busy_mapper`: PipelineOptions::keyframe_gate_mapper_busy.
 KeyframeAdmission keyframe_admission(std::size_t keyframes_in_mapper, bool gate_on_busy_mapper);
 

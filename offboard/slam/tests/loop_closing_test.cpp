@@ -425,7 +425,7 @@ TEST(LoopCloser, TrackingProceedsBetweenTheSolveAndTheCorrectionAndFollowsIt) {
   f.index = 100;
   f.stamp_s = 10.0;
   tracker->set_lost();
-  const TrackResult a = tracker->track(f, view, fo, false);
+  const TrackResult a = tracker->track(f, view, fo, KeyframeAdmission::none());
   ASSERT_EQ(a.state, TrackingState::kTracking)
       << "the map lock must be free while the graph is solved";
   const Eigen::Isometry3d kf10_before = w.map->map.keyframe(10)->T_world_cam;
@@ -436,7 +436,7 @@ TEST(LoopCloser, TrackingProceedsBetweenTheSolveAndTheCorrectionAndFollowsIt) {
             0.5 * kDriftPerKeyframeM * 10);
   f.index = 101;
   f.stamp_s = 10.033;
-  const TrackResult b = tracker->track(f, view, fo, false);
+  const TrackResult b = tracker->track(f, view, fo, KeyframeAdmission::none());
   // THEN tracking continues without a loss or a relocalisation, in the corrected frame: the last
   // pose moved with its reference keyframe, and the pose declares the correction it jumped with
   // (what PoseUpdate.map_correction_count carries to the controller)
@@ -612,14 +612,14 @@ TEST(Relocalisation, RefitsAroundTheKeyframeRansacFoundNotTheFirstCandidate) {
   f.index = 100;
   f.stamp_s = 1.0;
   tracker->set_lost();
-  const TrackResult a = tracker->track(f, w.features_of(T_a, at_a), fo, false);
+  const TrackResult a = tracker->track(f, w.features_of(T_a, at_a), fo, KeyframeAdmission::none());
   ASSERT_EQ(a.state, TrackingState::kTracking);
   ASSERT_EQ(a.reference_keyframe, 0);
   // WHEN the next frame (10 s later: a stalled link) sees place B, looking like A by thumbnail, so
   // the reference keyframe 0 heads the candidate list and only keyframe 1 registers by RANSAC
   f.index = 101;
   f.stamp_s = 11.0;
-  const TrackResult b = tracker->track(f, w.features_of(T_b, at_b), fo, false);
+  const TrackResult b = tracker->track(f, w.features_of(T_b, at_b), fo, KeyframeAdmission::none());
   // THEN the refit runs against keyframe 1's local map and tracking resumes at B
   ASSERT_EQ(b.state, TrackingState::kTracking);
   EXPECT_TRUE(b.relocalised);
@@ -670,7 +670,7 @@ TrackResult track_view_change(int still_seen, bool mapper_idle, double gap_s = 0
   f.index = 100;
   f.stamp_s = 1.0;
   tracker->set_lost();
-  const TrackResult first = tracker->track(f, w.features_of(T0, near), fo, true, true);
+  const TrackResult first = tracker->track(f, w.features_of(T0, near), fo);
   EXPECT_EQ(first.state, TrackingState::kTracking);
   EXPECT_FALSE(first.keyframe);
   Eigen::Isometry3d T1 = Eigen::Isometry3d::Identity();
@@ -679,7 +679,9 @@ TrackResult track_view_change(int still_seen, bool mapper_idle, double gap_s = 0
   seen.insert(seen.end(), far.begin(), far.end());
   f.index = 101;
   f.stamp_s = 1.0 + gap_s;
-  return tracker->track(f, w.features_of(T1, seen), fo, true, mapper_idle);
+  KeyframeAdmission admission;
+  admission.mapper_idle = mapper_idle;
+  return tracker->track(f, w.features_of(T1, seen), fo, admission);
 }
 
 TEST(KeyframeGate, WhileTheMapperIsBusyOnlyWeakTrackingMakesAKeyframe) {
@@ -740,17 +742,18 @@ TrackResult track_off_the_velocity_path(double gap_s, double off_path_m) {
   const double speed_m_per_s = 0.01 / 0.033;
   f.index = 100;
   f.stamp_s = 1.0;
-  EXPECT_EQ(tracker->track(f, w.features_of(at(0, 0), seen), fo, false).state,
+  EXPECT_EQ(tracker->track(f, w.features_of(at(0, 0), seen), fo, KeyframeAdmission::none()).state,
             TrackingState::kTracking);
   f.index = 101;
   f.stamp_s = 1.033;
-  const TrackResult second = tracker->track(f, w.features_of(at(0.01, 0), seen), fo, false);
+  const TrackResult second =
+      tracker->track(f, w.features_of(at(0.01, 0), seen), fo, KeyframeAdmission::none());
   EXPECT_EQ(second.state, TrackingState::kTracking);
   EXPECT_FALSE(second.relocalised);
   f.index = 102;
   f.stamp_s = 1.033 + gap_s;
   return tracker->track(f, w.features_of(at(0.01 + speed_m_per_s * gap_s, off_path_m), seen), fo,
-                        false);
+                        KeyframeAdmission::none());
 }
 
 TEST(TrackingGap, APoseOffTheConstantVelocityPathBeyondTheAccelerationBoundIsRefused) {
@@ -910,7 +913,7 @@ TrackResult track_sudden_pan(double pan_deg, bool with_attitude) {
     f.index = index;
     f.stamp_s = stamp_s;
     if (with_attitude) f.q_nav_cam = q_nav_map * Eigen::Quaterniond(T.rotation());
-    return tracker->track(f, w.features_of(T, seen), fo, false);
+    return tracker->track(f, w.features_of(T, seen), fo, KeyframeAdmission::none());
   };
   EXPECT_EQ(track_at(100, 1.0, T0).state, TrackingState::kTracking);
   EXPECT_EQ(track_at(101, 1.033, T0).state, TrackingState::kTracking);
@@ -966,18 +969,22 @@ TrackResult track_a_stop_the_view_aliases(double cross_check_ratio) {
   tracker->set_lost();
   f.index = 100;
   f.stamp_s = 1.0;
-  EXPECT_EQ(tracker->track(f, w.features_of(pose_at(0, 0, -1 * deg), seen), fo, false).state,
-            TrackingState::kTracking);
+  EXPECT_EQ(
+      tracker->track(f, w.features_of(pose_at(0, 0, -1 * deg), seen), fo, KeyframeAdmission::none())
+          .state,
+      TrackingState::kTracking);
   f.index = 101;
   f.stamp_s = 1.033;
-  const TrackResult moving = tracker->track(f, w.features_of(pose_at(0, 0, 0), seen), fo, false);
+  const TrackResult moving =
+      tracker->track(f, w.features_of(pose_at(0, 0, 0), seen), fo, KeyframeAdmission::none());
   EXPECT_EQ(moving.state, TrackingState::kTracking);
   EXPECT_FALSE(moving.cross_checked);  // all 200 tracked: not weak
   std::map<int, Eigen::Isometry3d> aliased;
   for (std::size_t i = 120; i < seen.size(); ++i) aliased[seen[i]] = pose_at(0, 0, 3 * deg);
   f.index = 102;
   f.stamp_s = 1.133;
-  return tracker->track(f, w.features_of(pose_at(0, 0, 0), seen, aliased), fo, false);
+  return tracker->track(f, w.features_of(pose_at(0, 0, 0), seen, aliased), fo,
+                        KeyframeAdmission::none());
 }
 
 TEST(CrossCheck, TheShiftBetweenTwoFitsIsTheCameraCentresDistanceWhereverTheCameraIs) {

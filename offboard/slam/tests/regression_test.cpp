@@ -218,6 +218,10 @@ TEST(Pipeline, KeyframeAdmissionLetsWeakTrackingPastABusyMapperUpToTheHardCap) {
   }
   // WHEN it holds kMaxQueuedKeyframesWeak THEN none
   EXPECT_FALSE(keyframe_admission(kMaxQueuedKeyframesWeak, false).allowed);
+  // AND a frame that would be lost still starts a map segment, up to a hard cap of its own
+  for (std::size_t n = 0; n < kMaxQueuedKeyframesSegmentStart; ++n)
+    EXPECT_TRUE(keyframe_admission(n, false).segment_start_allowed) << n;
+  EXPECT_FALSE(keyframe_admission(kMaxQueuedKeyframesSegmentStart, false).segment_start_allowed);
   // AND with the gate on, any keyframe in the mapper leaves keyframes to weak tracking
   EXPECT_TRUE(keyframe_admission(0, true).mapper_idle);
   EXPECT_FALSE(keyframe_admission(1, true).mapper_idle);

@@ -106,8 +106,8 @@ bool TrackerOptions::is_valid(std::string* error) const {
   if (!gravity.is_valid(error)) return false;
   if (!(rolling_shutter_readout_s >= 0 && rolling_shutter_readout_s < 0.1))
     return fail("rolling_shutter_readout_s must be in [0, 0.1) s");
-  if (!(rolling_shutter_rate_sigma_rad_per_s > 0))
-    return fail("rolling_shutter_rate_sigma_rad_per_s must be > 0");
+  if (!(rolling_shutter_angular_accel_rad_per_s2 > 0))
+    return fail("rolling_shutter_angular_accel_rad_per_s2 must be > 0");
   return matching.is_valid(error) && ransac.is_valid(error);
 }
 
@@ -283,8 +283,7 @@ std::optional<Eigen::Vector3d> Tracker::predicted_rotation_rate_rad_per_s() cons
 }
 
 TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFeatures> features,
-                           const FeatureOptions& feature_options, bool keyframe_allowed,
-                           bool mapper_idle) {
+                           const FeatureOptions& feature_options, KeyframeAdmission admission) {
   lock_wait_ms_ = 0;
   frame_gravity_.reset();
   if (options_.gravity.enabled) frame_gravity_ = observe_gravity(frame, options_.gravity);
@@ -303,7 +302,7 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
   } else {
     in.tf = TrackedFeatures::from(std::move(features), camera_, feature_options);
   }
-  TrackResult out = track_steps(in, keyframe_allowed, mapper_idle);
+  TrackResult out = track_steps(in, admission);
   out.map_lock_wait_ms = lock_wait_ms_;
   out.gravity_prior = frame_gravity_ && gravity_reference_.down_world().has_value();
   return out;
@@ -322,12 +321,15 @@ void Tracker::refit_rolling_shutter(FrameInput* in, Attempt* a, TrackResult* out
   const double dt = in->frame.stamp_s - last_stamp_s_;
   // The rate's prior: the motion model's, else the fit's own turn since the last tracked frame;
   // with neither (the first fit after a loss), zero within the fastest turn tracking accepts.
+  // The prior is a mean rate over an interval: its age at this frame is from the interval's middle.
   std::optional<Eigen::Vector3d> prior = predicted_rotation_rate_rad_per_s();
+  double prior_age_s = dt + 0.5 * last_interval_s_;
   if (!prior && state_ == TrackingState::kTracking && dt > 0 &&
       dt <= options_.max_predicted_gap_s) {
     const Eigen::AngleAxisd step(T_world_last_.linear().transpose() *
                                  a->fit.T_cam_world.linear().transpose());
     prior = Eigen::Vector3d(step.axis() * (step.angle() / dt));
+    prior_age_s = 0.5 * dt;
   }
   const TrackedFeatures raw = TrackedFeatures::from(in->extracted, camera_, *in->feature_options);
   const int rows = in->frame.rgb.rows;
@@ -336,8 +338,8 @@ void Tracker::refit_rolling_shutter(FrameInput* in, Attempt* a, TrackResult* out
   ProjectionFitOptions fo = frame_fit_options();
   RollingShutterModel rs;
   rs.omega_prior_rad_per_s = prior.value_or(Eigen::Vector3d::Zero());
-  rs.omega_sigma_rad_per_s =
-      prior ? options_.rolling_shutter_rate_sigma_rad_per_s : options_.max_rate_rad_per_s;
+  rs.omega_sigma_rad_per_s = prior ? options_.rolling_shutter_angular_accel_rad_per_s2 * prior_age_s
+                                   : options_.max_rate_rad_per_s;
   std::vector<PoseObservation> obs;
   std::vector<std::size_t> kp_of_obs;
   for (std::size_t k = 0; k < a->fit.point_of_keypoint.size(); ++k) {
@@ -360,7 +362,7 @@ void Tracker::refit_rolling_shutter(FrameInput* in, Attempt* a, TrackResult* out
   in->tf = unrolled(*in, r.omega_cam_rad_per_s);
 }
 
-TrackResult Tracker::track_steps(FrameInput& in, bool keyframe_allowed, bool mapper_idle) {
+TrackResult Tracker::track_steps(FrameInput& in, KeyframeAdmission admission) {
   bool map_empty;
   {
     const auto lock = lock_map();
@@ -382,14 +384,14 @@ TrackResult Tracker::track_steps(FrameInput& in, bool keyframe_allowed, bool map
     verdict = Verdict::kAccepted;
   if (verdict != Verdict::kAccepted) {
     out.attitude_refused = verdict == Verdict::kAttitudeDisagrees;
-    if (const auto start = restart_pose(in, keyframe_allowed))
+    if (const auto start = restart_pose(in, admission.segment_start_allowed))
       return start_segment(in, *start, std::move(out));
     return declare_lost(&out);
   }
   if (options_.rolling_shutter_readout_s > 0) refit_rolling_shutter(&in, &attempt, &out);
   const Eigen::Isometry3d T_world_cam = attempt.fit.T_cam_world.inverse();
   std::vector<std::int64_t> matched =
-      decide_keyframe(in, attempt, T_world_cam, keyframe_allowed, mapper_idle, &out);
+      decide_keyframe(in, attempt, T_world_cam, admission.allowed, admission.mapper_idle, &out);
   advance(in.frame, T_world_cam, std::move(matched), &out);
   if (segment_first_kf_ && options_.segment_merge_period_s > 0 &&
       in.frame.stamp_s - last_merge_try_s_ >= options_.segment_merge_period_s)
@@ -425,9 +427,9 @@ TrackResult Tracker::initialise(const FrameInput& in) {
 }
 
 std::optional<Tracker::RestartPose> Tracker::restart_pose(const FrameInput& in,
-                                                          bool keyframe_allowed) const {
+                                                          bool segment_start_allowed) const {
   const double gap_s = in.frame.stamp_s - last_stamp_s_;
-  if (!options_.restart_when_lost || !keyframe_allowed || !last_pose_known_ || !(gap_s > 0) ||
+  if (!options_.restart_when_lost || !segment_start_allowed || !last_pose_known_ || !(gap_s > 0) ||
       static_cast<int>(in.tf.size()) < options_.min_segment_features)
     return std::nullopt;
   // Within max_predicted_gap_s of the last tracked frame the motion model vouches for the pose;

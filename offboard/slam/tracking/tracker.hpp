@@ -255,12 +255,15 @@ struct TrackerOptions {
   /// then refitted with the rate over the readout as three more unknowns (RollingShutterModel),
   /// and the frame keeps its features rotated by that rate (slam/tracking/rolling_shutter.hpp).
   double rolling_shutter_readout_s = 0.0;
-  /// Sigma of the prior that holds the refit's rate near the motion model's, rad/s. The rows of
-  /// one frame measure the rate to a few deg/s; the prior only matters where they say little (few
-  /// keypoints, a narrow band of rows). 1 rad/s is a hand-held camera's or a craft's change of
-  /// rate over one frame interval at 30 rad/s^2. A calibration run (rolling_shutter_check.py)
-  /// widens it so that the rate is the rows' alone.
-  double rolling_shutter_rate_sigma_rad_per_s = 1.0;
+  /// How fast the camera's rate changes, rad/s^2: the refit's rate is held near the motion
+  /// model's with sigma = this x the motion model's age at the frame (from the middle of its last
+  /// interval to the frame's stamp; 50 ms at 30 fps). The rows of one frame measure the rate only
+  /// to 0.4 rad/s rms on slow hand-held motion and 1.2 rad/s on a fast turn (rolling_shutter_check
+  /// against the mocap), so the prior carries most of it. 3 rad/s^2: TUM's hand-held fr1/fr2
+  /// motion capture changes its rate by 0.11-0.23 rad/s per axis rms over 50 ms (an upper bound:
+  /// it includes the mocap's own noise); a craft reaching a 60 deg/s yaw in 0.3 s needs 3.5. A
+  /// calibration run (rolling_shutter_check.py) widens it so that the rate is the rows' alone.
+  double rolling_shutter_angular_accel_rad_per_s2 = 3.0;
   /// Gravity's direction as a roll/pitch prior in the pose fit (slam/tracking/gravity_prior.hpp).
   GravityOptions gravity;
   bool is_valid(std::string* error) const;
@@ -331,20 +334,29 @@ CameraShift camera_shift(const Eigen::Isometry3d& T_cam_world_a,
 /// The projection-fit settings inside the tracker options.
 ProjectionFitOptions projection_fit_options(const TrackerOptions& options);
 
+/// What the mapper can take while frames are tracked (the pipeline's bounded keyframe queue:
+/// keyframe_admission in local_map_system.hpp). All true when the caller waits for mapping.
+struct KeyframeAdmission {
+  bool allowed = true;      ///< a keyframe may be made
+  bool mapper_idle = true;  ///< false: only weak tracking makes one
+  /// A failing frame may start a map segment (TrackerOptions::restart_when_lost); the only
+  /// alternative is a lost frame, so its bound is looser than `allowed`'s.
+  bool segment_start_allowed = true;
+  /// The mapper takes nothing: no keyframe, no segment start.
+  static KeyframeAdmission none() { return {false, false, false}; }
+};
+
 class Tracker {
  public:
   static std::optional<Tracker> create(const TrackerOptions& options, const CameraModel& camera,
                                        std::shared_ptr<SharedMap> map, std::string* error);
 
-  /// Tracks one frame whose features are extracted. `keyframe_allowed`: the mapper can take a
-  /// keyframe now (bounded queue). `mapper_idle`: the mapper has nothing queued or in work (always
-  /// true when the caller waits for mapping); while false only weak tracking makes a keyframe.
+  /// Tracks one frame whose features are extracted; `admission`: what the mapper can take now.
   /// When this frame and the last tracked one both carry `RgbdFrame::q_nav_cam` (and
   /// `TrackerOptions::attitude_prior` is on), the predicted rotation is the last pose's rotated by
   /// the attitude's change between the two frames instead of the constant-velocity rotation.
   TrackResult track(const RgbdFrame& frame, std::shared_ptr<const FrameFeatures> features,
-                    const FeatureOptions& feature_options, bool keyframe_allowed,
-                    bool mapper_idle = true);
+                    const FeatureOptions& feature_options, KeyframeAdmission admission = {});
 
   /// The camera's angular velocity (camera frame, rad/s) the motion model predicts for the next
   /// frame; nullopt while it has none (initialising, lost, after a relocalisation).
@@ -392,7 +404,7 @@ class Tracker {
   };
 
   // The steps of track(), in order.
-  TrackResult track_steps(FrameInput& in, bool keyframe_allowed, bool mapper_idle);
+  TrackResult track_steps(FrameInput& in, KeyframeAdmission admission);
   /// Rolling shutter: the frame's features rotated to the middle row's time by the rotation
   /// rate `omega_cam_rad_per_s`, from the features as extracted.
   TrackedFeatures unrolled(const FrameInput& in, const Eigen::Vector3d& omega_cam_rad_per_s) const;
@@ -442,7 +454,7 @@ class Tracker {
     Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
     bool after_gap = false;
   };
-  std::optional<RestartPose> restart_pose(const FrameInput& in, bool keyframe_allowed) const;
+  std::optional<RestartPose> restart_pose(const FrameInput& in, bool segment_start_allowed) const;
   /// TrackerOptions::segment_merge_period_s: relocalises the tracked frame (pose T_world_cam in
   /// the segment) against the map before the segment and, on success, moves the segment onto it.
   void merge_segment(const FrameInput& in, TrackResult* out);
