@@ -650,8 +650,8 @@ FeatureOptions orb_features() {
 
 /// One keyframe seeing 200 near landmarks; a tracker tracking it; then a frame 1 cm away, `gap_s`
 /// later, that sees `still_seen` of them plus 150 landmarks beyond the near depth (so the near rule
-/// stays quiet).
-TrackResult track_view_change(int still_seen, bool mapper_idle, double gap_s = 0.033) {
+/// stays quiet). `admission`: what the mapper takes when the second frame is tracked.
+TrackResult track_view_change(int still_seen, KeyframeAdmission admission, double gap_s = 0.033) {
   SyntheticWorld w;
   std::mt19937 rng(41);
   const Eigen::Isometry3d T0 = Eigen::Isometry3d::Identity();
@@ -679,26 +679,31 @@ TrackResult track_view_change(int still_seen, bool mapper_idle, double gap_s = 0
   seen.insert(seen.end(), far.begin(), far.end());
   f.index = 101;
   f.stamp_s = 1.0 + gap_s;
-  KeyframeAdmission admission;
-  admission.mapper_idle = mapper_idle;
   return tracker->track(f, w.features_of(T1, seen), fo, admission);
+}
+
+/// The mapper holds a keyframe: only weak tracking makes one.
+KeyframeAdmission busy_mapper() {
+  KeyframeAdmission a;
+  a.mapper_idle = false;
+  return a;
 }
 
 TEST(KeyframeGate, WhileTheMapperIsBusyOnlyWeakTrackingMakesAKeyframe) {
   // GIVEN a view change (70 of the reference's 200 points tracked: < 0.4 x 200 while the map has
   // one keyframe) that is not weak tracking (>= 0.25 x 200) WHEN the mapper is idle THEN a keyframe
   // is made
-  const TrackResult idle = track_view_change(70, true);
+  const TrackResult idle = track_view_change(70, KeyframeAdmission{});
   ASSERT_EQ(idle.state, TrackingState::kTracking);
   EXPECT_TRUE(idle.keyframe);
   EXPECT_EQ(idle.keyframe_wanted, KeyframeReason::kViewChanged);
   // WHEN the mapper is busy THEN it is left for later (ORB-SLAM2 c1b/c1c)
-  const TrackResult busy = track_view_change(70, false);
+  const TrackResult busy = track_view_change(70, busy_mapper());
   ASSERT_EQ(busy.state, TrackingState::kTracking);
   EXPECT_FALSE(busy.keyframe);
   EXPECT_EQ(busy.keyframe_wanted, KeyframeReason::kMapperBusy);
   // WHEN tracking is weak (40 < 0.25 x 200) THEN a keyframe is made even with the mapper busy
-  const TrackResult weak = track_view_change(40, false);
+  const TrackResult weak = track_view_change(40, busy_mapper());
   ASSERT_EQ(weak.state, TrackingState::kTracking);
   EXPECT_TRUE(weak.keyframe);
 }
@@ -784,7 +789,7 @@ TEST(TrackingGap, APoseOffTheConstantVelocityPathBeyondTheAccelerationBoundIsRef
 TEST(TrackingGap, AfterAGapThePredictionCannotVouchForAFitMustMeetTheRelocalisationBar) {
   // GIVEN a frame that matches 40 map points (above the tracking bar 30, below the relocalisation
   // bar 50) WHEN it follows the last tracked frame by one frame interval THEN it is tracked
-  const TrackResult next = track_view_change(40, true, 0.033);
+  const TrackResult next = track_view_change(40, KeyframeAdmission{}, 0.033);
   ASSERT_EQ(next.state, TrackingState::kTracking);
   EXPECT_FALSE(next.prediction_stale);
   EXPECT_GE(next.inliers, 30u);
@@ -792,7 +797,7 @@ TEST(TrackingGap, AfterAGapThePredictionCannotVouchForAFitMustMeetTheRelocalisat
   // search can land at a wrong offset THEN 40 inliers are not enough: the keyframe database finds
   // no better fit either, and the fit is not handed on - the frame starts a new map segment at
   // the last pose (no velocity is known after the first frame), declared as a map correction
-  const TrackResult stalled = track_view_change(40, true, 1.7);
+  const TrackResult stalled = track_view_change(40, KeyframeAdmission{}, 1.7);
   EXPECT_TRUE(stalled.prediction_stale);
   EXPECT_TRUE(stalled.new_segment);
   EXPECT_EQ(stalled.map_corrections, 1u);
@@ -800,7 +805,7 @@ TEST(TrackingGap, AfterAGapThePredictionCannotVouchForAFitMustMeetTheRelocalisat
   EXPECT_GE(stalled.inliers, 30u);
   EXPECT_LT(stalled.inliers, 50u);
   // WHEN the stalled frame sees 120 of the points THEN it clears the bar and tracking goes on
-  const TrackResult seen_well = track_view_change(120, true, 1.7);
+  const TrackResult seen_well = track_view_change(120, KeyframeAdmission{}, 1.7);
   EXPECT_TRUE(seen_well.prediction_stale);
   EXPECT_EQ(seen_well.state, TrackingState::kTracking);
   // AND the bound is validated
@@ -809,6 +814,22 @@ TEST(TrackingGap, AfterAGapThePredictionCannotVouchForAFitMustMeetTheRelocalisat
   std::string err;
   EXPECT_FALSE(o.is_valid(&err));
   EXPECT_NE(err.find("max_predicted_gap_s"), std::string::npos);
+}
+
+TEST(TrackingGap, AFrameNothingCanPlaceStartsASegmentWhileTheMapperTakesNoOtherKeyframe) {
+  // GIVEN the stalled frame above (1.7 s, 40 inliers: nothing places it) WHEN the mapper's queue
+  // is past the bound for keyframes but below the one for segment starts THEN the frame still
+  // starts a segment (the alternative is a lost frame)
+  KeyframeAdmission full = busy_mapper();
+  full.allowed = false;
+  const TrackResult started = track_view_change(40, full, 1.7);
+  EXPECT_TRUE(started.new_segment);
+  EXPECT_TRUE(started.keyframe);
+  // WHEN the mapper takes nothing at all THEN no segment starts and the frame is lost
+  const TrackResult refused = track_view_change(40, KeyframeAdmission::none(), 1.7);
+  EXPECT_FALSE(refused.new_segment);
+  EXPECT_FALSE(refused.keyframe);
+  EXPECT_EQ(refused.state, TrackingState::kLost);
 }
 
 }  // namespace
