@@ -51,15 +51,24 @@ def realtime_repeats(out_dir: Path, seq: str, folder: str = "anchor_repeats") ->
     return [m for m in (load(p / "metrics.json") for p in runs) if m and "ate_rmse_m" in m]
 
 
+def realtime_runs(out_dir: Path, table: dict, seq: str, variant: str, folder: str) -> tuple:
+    """A variant's real-time runs on `seq`: the anchor run's row in `table` (None without one),
+    the ATEs of it and its repeats in OUT/<folder>/, and the repeats' metrics."""
+    row = table.get((seq, "realtime", variant))
+    repeats = realtime_repeats(out_dir, seq, folder)
+    ates = ([row["ate"]] if row and row["ate"] is not None else []) + [
+        m["ate_rmse_m"] for m in repeats
+    ]
+    return row, ates, repeats
+
+
 def print_rolling_shutter_medians(out_dir: Path, table: dict, seqs: list[str]) -> None:
     """The global-shutter variant's real-time runs per sequence: median, range, frames lost."""
     lines = []
     for seq in seqs:
-        rs = table.get((seq, "realtime", "rolling-shutter off"))
-        repeats = realtime_repeats(out_dir, seq, "anchor_rs_repeats")
-        ates = ([rs["ate"]] if rs and rs["ate"] is not None else []) + [
-            m["ate_rmse_m"] for m in repeats
-        ]
+        rs, ates, repeats = realtime_runs(
+            out_dir, table, seq, "rolling-shutter off", "anchor_rs_repeats"
+        )
         if len(ates) > 1:
             lost = (rs["lost"] if rs else 0) + sum(m.get("frames_lost", 0) for m in repeats)
             lines.append(
@@ -138,11 +147,9 @@ def main(out_dir: str) -> int:
     medians = {}
     print("\nReal time, the default run again (median, min-max over the runs):")
     for seq in seqs:
-        rt = table.get((seq, "realtime", DEFAULT_VARIANT))
-        repeats = realtime_repeats(Path(out_dir), seq)
-        ates = ([rt["ate"]] if rt and rt["ate"] is not None else []) + [
-            m["ate_rmse_m"] for m in repeats
-        ]
+        rt, ates, repeats = realtime_runs(
+            Path(out_dir), table, seq, DEFAULT_VARIANT, "anchor_repeats"
+        )
         if rt:
             rt["dropped"] += sum(m.get("frontend_dropped", 0) for m in repeats)
             rt["lost"] += sum(m.get("frames_lost", 0) for m in repeats)

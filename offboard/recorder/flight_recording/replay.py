@@ -285,8 +285,8 @@ def run(
         info["camera"],
         # The SLAM link carries no rolling-shutter readout: slam-server and quad-control track
         # every frame as a global shutter, and the replay must do as they did.
-        "--rolling-shutter-readout-s",
-        "0",
+        "--rolling-shutter",
+        "off",
         "--no-map",
         "--quiet",
     ]
