@@ -8,6 +8,7 @@
 #include <unordered_map>
 #include <unordered_set>
 
+#include "slam/mapping/rgbd_reprojection_cost.hpp"
 #include "slam/matching/matching.hpp"
 #include "slam/tracking/projection_search.hpp"
 
@@ -15,40 +16,15 @@ namespace rgbdquad::slam {
 
 namespace {
 
-/// Whitened RGB-D reprojection residual of one observation. Pose block: angle-axis (3) and
-/// translation (3) of T_cam_world; point block: world position (3).
-struct RgbdReprojectionCost {
-  RgbdReprojectionCost(const Eigen::Vector3d& measurement, const Eigen::Vector3d& sigma_px,
-                       const CameraModel& cam)
-      : z_(measurement), inv_sigma_(sigma_px.cwiseInverse()), cam_(cam) {}
-  template <typename T>
-  bool operator()(const T* pose, const T* point, T* residual) const {
-    T pc[3];
-    ceres::AngleAxisRotatePoint(pose, point, pc);
-    pc[0] += pose[3];
-    pc[1] += pose[4];
-    pc[2] += pose[5];
-    if (pc[2] < T(1e-3)) pc[2] = T(1e-3);  // keeps the residual finite; such an edge is an outlier
-    const T iz = T(1.0) / pc[2];
-    residual[0] = (T(cam_.fx_px) * pc[0] * iz + T(cam_.cx_px) - T(z_.x())) * T(inv_sigma_.x());
-    residual[1] = (T(cam_.fy_px) * pc[1] * iz + T(cam_.cy_px) - T(z_.y())) * T(inv_sigma_.y());
-    residual[2] = (T(cam_.bf_px_m) * iz - T(z_.z())) * T(inv_sigma_.z());
-    return true;
-  }
-  Eigen::Vector3d z_;
-  Eigen::Vector3d inv_sigma_;
-  CameraModel cam_;
-};
-
-/// Gravity factor of one keyframe (slam/core/types.hpp gravity_residual) on the same pose block.
+/// Gravity factor of one keyframe (slam/core/types.hpp gravity_residual) on its rotation block.
 struct GravityCost {
   GravityCost(const Eigen::Vector3d& down_world, const GravityObservation& g)
       : down_world_(down_world), g_(g) {}
   template <typename T>
-  bool operator()(const T* pose, T* residual) const {
+  bool operator()(const T* rotation, T* residual) const {
     const T d_w[3] = {T(down_world_.x()), T(down_world_.y()), T(down_world_.z())};
     T d_c[3];
-    ceres::AngleAxisRotatePoint(pose, d_w, d_c);
+    ceres::AngleAxisRotatePoint(rotation, d_w, d_c);
     gravity_residual(d_c, g_, residual);
     return true;
   }
@@ -350,6 +326,8 @@ bool collect_local_ba(const SharedMap& shared, std::int64_t kf_id,
 }
 
 /// Solves the BA in place (Ceres, RGB-D residual, Huber); stops early when `stop` says so.
+/// Each pose enters as two parameter blocks, its rotation (the first three numbers of the block)
+/// and its translation (rgbd_reprojection_cost.hpp says why).
 bool solve_local_ba(LocalBaProblem* ba, const CameraModel& camera, int iterations,
                     ceres::IterationCallback* stop) {
   ceres::Problem::Options po;
@@ -357,21 +335,27 @@ bool solve_local_ba(LocalBaProblem* ba, const CameraModel& camera, int iteration
   ceres::Problem problem(po);
   ceres::HuberLoss huber(std::sqrt(kChi2Rgbd95));
   for (const LocalBaProblem::Obs& o : ba->obs) {
-    auto* cost = new ceres::AutoDiffCostFunction<RgbdReprojectionCost, 3, 6, 3>(
-        new RgbdReprojectionCost(o.z, o.sigma, camera));
-    problem.AddResidualBlock(cost, &huber, ba->poses[o.kf].data(), ba->points[o.pid].data());
+    double* pose = ba->poses[o.kf].data();
+    problem.AddResidualBlock(new RgbdReprojectionCost(o.z, o.sigma, camera), &huber, pose, pose + 3,
+                             ba->points[o.pid].data());
   }
   // No robust loss: a jolt's sample already carries a large sigma (gravity_prior.hpp).
   for (const auto& [k, g] : ba->gravity)
     if (problem.HasParameterBlock(ba->poses[k].data()))
       problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<GravityCost, 3, 6>(new GravityCost(*ba->down_world, g)),
+          new ceres::AutoDiffCostFunction<GravityCost, 3, 3>(new GravityCost(*ba->down_world, g)),
           nullptr, ba->poses[k].data());
   for (std::int64_t k : ba->fixed)
-    if (problem.HasParameterBlock(ba->poses[k].data()))
+    if (problem.HasParameterBlock(ba->poses[k].data())) {
       problem.SetParameterBlockConstant(ba->poses[k].data());
+      problem.SetParameterBlockConstant(ba->poses[k].data() + 3);
+    }
   ceres::Solver::Options so;
-  so.linear_solver_type = ceres::SPARSE_SCHUR;
+  // Dense Schur: the reduced camera system has at most 2 x ba_window free blocks of 3 (60 x 60),
+  // too small for a sparse factorisation to pay off. The elimination order is left to Ceres: an
+  // explicit ParameterBlockOrdering sorts each group by memory address, which differs from run
+  // to run and with it the rounding, and runs must replay bit for bit.
+  so.linear_solver_type = ceres::DENSE_SCHUR;
   so.max_num_iterations = iterations;
   so.num_threads = 1;  // the other core belongs to tracking
   so.logging_type = ceres::SILENT;
