@@ -88,6 +88,13 @@ inline double seconds_from_us(std::int64_t us) { return static_cast<double>(us) 
 
 inline double ms_since(std::int64_t start_ns) { return (steady_now_ns() - start_ns) * 1e-6; }
 
+/// The cross-product matrix of v: skew(v) w = v x w.
+inline Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
 /// Rotation angle of a rigid transform in radians.
 inline double rotation_angle_rad(const Eigen::Isometry3d& T) {
   return Eigen::AngleAxisd(T.rotation()).angle();

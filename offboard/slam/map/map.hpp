@@ -72,6 +72,14 @@ struct CameraModel {
     const double iz = 1.0 / p_cam_m.z();
     return {fx_px * p_cam_m.x() * iz + cx_px, fy_px * p_cam_m.y() * iz + cy_px, bf_px_m * iz};
   }
+  /// d project / d p_cam_m at a camera-frame point; z must be > 0.
+  Eigen::Matrix3d project_jacobian(const Eigen::Vector3d& p_cam_m) const {
+    const double iz = 1.0 / p_cam_m.z(), iz2 = iz * iz;
+    Eigen::Matrix3d J;
+    J << fx_px * iz, 0, -fx_px * p_cam_m.x() * iz2, 0, fy_px * iz, -fy_px * p_cam_m.y() * iz2, 0, 0,
+        -bf_px_m * iz2;
+    return J;
+  }
   bool in_image(double u, double v) const {
     return u >= 0 && v >= 0 && u < width_px && v < height_px;
   }

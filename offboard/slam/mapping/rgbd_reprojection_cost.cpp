@@ -8,17 +8,11 @@ namespace rgbdquad::slam {
 
 namespace {
 
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d s;
-  s << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return s;
-}
+using Jacobian = Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>;
 
 /// Rodrigues coefficients of w: sin t / t, (1 - cos t) / t^2, (t - sin t) / t^3 (t = |w|).
 /// Below 1e-4 rad they use their Taylor series (error < 1e-17), as the closed forms lose all
 /// digits to cancellation there.
-using Jacobian = Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>;
-
 struct RotationCoefficients {
   double a, b, c;
   explicit RotationCoefficients(const Eigen::Vector3d& w) {
@@ -42,13 +36,7 @@ struct RotationCoefficients {
 RgbdReprojectionCost::RgbdReprojectionCost(const Eigen::Vector3d& measurement,
                                            const Eigen::Vector3d& sigma_px,
                                            const CameraModel& camera)
-    : z_(measurement),
-      inv_sigma_(sigma_px.cwiseInverse()),
-      fx_px_(camera.fx_px),
-      fy_px_(camera.fy_px),
-      cx_px_(camera.cx_px),
-      cy_px_(camera.cy_px),
-      bf_px_m_(camera.bf_px_m) {}
+    : z_(measurement), inv_sigma_(sigma_px.cwiseInverse()), camera_(camera) {}
 
 bool RgbdReprojectionCost::Evaluate(double const* const* parameters, double* residuals,
                                     double** jacobians) const {
@@ -59,25 +47,14 @@ bool RgbdReprojectionCost::Evaluate(double const* const* parameters, double* res
   const Eigen::Matrix3d W = skew(w);
   const Eigen::Matrix3d W2 = W * W;
   const Eigen::Matrix3d R = Eigen::Matrix3d::Identity() + k.a * W + k.b * W2;
-  const Eigen::Vector3d Xr = R * X;
-  const Eigen::Vector3d pc = Xr + t;
+  Eigen::Vector3d pc = R * X + t;
   const bool floored = pc.z() < kMinDepthM;
-  const double z = floored ? kMinDepthM : pc.z();
-  const double iz = 1.0 / z;
-  residuals[0] = (fx_px_ * pc.x() * iz + cx_px_ - z_.x()) * inv_sigma_.x();
-  residuals[1] = (fy_px_ * pc.y() * iz + cy_px_ - z_.y()) * inv_sigma_.y();
-  residuals[2] = (bf_px_m_ * iz - z_.z()) * inv_sigma_.z();
+  if (floored) pc.z() = kMinDepthM;
+  Eigen::Map<Eigen::Vector3d>{residuals} = (camera_.project(pc) - z_).cwiseProduct(inv_sigma_);
   if (!jacobians) return true;
   // d r / d p_c, whitened; the z column is zero where the floor holds z constant.
-  Eigen::Matrix3d dr_dpc = Eigen::Matrix3d::Zero();
-  dr_dpc(0, 0) = fx_px_ * iz * inv_sigma_.x();
-  dr_dpc(1, 1) = fy_px_ * iz * inv_sigma_.y();
-  if (!floored) {
-    const double iz2 = iz * iz;
-    dr_dpc(0, 2) = -fx_px_ * pc.x() * iz2 * inv_sigma_.x();
-    dr_dpc(1, 2) = -fy_px_ * pc.y() * iz2 * inv_sigma_.y();
-    dr_dpc(2, 2) = -bf_px_m_ * iz2 * inv_sigma_.z();
-  }
+  Eigen::Matrix3d dr_dpc = inv_sigma_.asDiagonal() * camera_.project_jacobian(pc);
+  if (floored) dr_dpc.col(2).setZero();
   if (jacobians[0]) {
     // d p_c / d w = -R [X]x Jr(w), with the right Jacobian of SO(3)
     // Jr(w) = I - b [w]x + c [w]x^2: R(w + dw) = R(w) exp(Jr(w) dw) to first order.

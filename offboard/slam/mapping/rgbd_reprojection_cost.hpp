@@ -36,7 +36,7 @@ class RgbdReprojectionCost final : public ceres::SizedCostFunction<3, 3, 3, 3> {
  private:
   Eigen::Vector3d z_;
   Eigen::Vector3d inv_sigma_;
-  double fx_px_, fy_px_, cx_px_, cy_px_, bf_px_m_;
+  CameraModel camera_;
 };
 
 }  // namespace rgbdquad::slam

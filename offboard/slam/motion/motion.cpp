@@ -7,6 +7,8 @@
 #include <numeric>
 #include <random>
 
+#include "slam/core/types.hpp"
+
 namespace rgbdquad::slam {
 
 std::optional<Eigen::Isometry3d> umeyama_rigid(const std::vector<Eigen::Vector3d>& src,
@@ -255,12 +257,6 @@ std::optional<MotionEstimate> estimate_motion_ransac(const std::vector<Eigen::Ve
 }
 
 namespace {
-
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
 
 Eigen::Vector2d project(const Eigen::Vector3d& p, const RansacOptions::Pinhole& c) {
   return {c.fx_px * p.x() / p.z() + c.cx_px, c.fy_px * p.y() / p.z() + c.cy_px};

@@ -41,12 +41,6 @@ void add_gravity_term(const GravityPrior& g, const Eigen::Isometry3d& T,
   b->template head<6>().noalias() += J.transpose() * e;
 }
 
-Eigen::Matrix3d skew_of(const Eigen::Vector3d& p) {
-  Eigen::Matrix3d m;
-  m << 0, -p.z(), p.y(), p.z(), 0, -p.x(), -p.y(), p.x(), 0;
-  return m;
-}
-
 /// The pose fit with N = 6 unknowns (the pose) or N = 9 (the pose and, for a rolling shutter, the
 /// angular velocity over the readout). With N = 9 observation i sees the camera point rotated
 /// back over its row time t_i: q = R(-omega t_i) p_c, so dq/d(omega) = t_i [q]x (first order).
@@ -79,18 +73,15 @@ PoseOptimizerResult optimize(const Eigen::Isometry3d& T_init,
         if (!r.inlier[i]) continue;
         const Eigen::Vector3d pc = seen(i, T * obs[i].p_world_m);
         if (pc.z() <= 1e-3) continue;
-        const double iz = 1.0 / pc.z(), iz2 = iz * iz;
         const Eigen::Vector3d e =
             (cam.project(pc) - obs[i].measurement).cwiseQuotient(obs[i].sigma_px);
-        Eigen::Matrix3d Jp;
-        Jp << cam.fx_px * iz, 0, -cam.fx_px * pc.x() * iz2, 0, cam.fy_px * iz,
-            -cam.fy_px * pc.y() * iz2, 0, 0, -cam.bf_px_m * iz2;
-        Jp = obs[i].sigma_px.cwiseInverse().asDiagonal() * Jp;
+        const Eigen::Matrix3d Jp =
+            obs[i].sigma_px.cwiseInverse().asDiagonal() * cam.project_jacobian(pc);
         Eigen::Matrix<double, 3, N> Jt;
-        const Eigen::Matrix3d skew = skew_of(pc);
-        Jt.template leftCols<3>() = -skew;
+        const Eigen::Matrix3d pc_x = skew(pc);
+        Jt.template leftCols<3>() = -pc_x;
         Jt.template middleCols<3>(3) = Eigen::Matrix3d::Identity();
-        if constexpr (N == 9) Jt.template rightCols<3>() = rs->row_time_s[i] * skew;
+        if constexpr (N == 9) Jt.template rightCols<3>() = rs->row_time_s[i] * pc_x;
         const Eigen::Matrix<double, 3, N> J = Jp * Jt;
         const double norm = e.norm();
         const double w = norm <= huber ? 1.0 : huber / norm;
