@@ -114,10 +114,12 @@ class CraftPoseTracker {
 
   /// An IMU sample of the APM (PoseEstimator::predict); false when dropped.
   bool on_imu(const ImuSample& sample);
-  /// The camera's NED attitude at a frame's capture stamp (craft clock): the IMU sample nearest to
-  /// it on this clock within `max_dt_us`, through camera_attitude_ned(). nullopt before the first
-  /// tracked frame has set the clock offset, or with no sample near enough. For the SLAM
-  /// tracker's rotation prediction (slam::RgbdFrame::q_nav_cam).
+  /// The camera's NED attitude at a frame's capture stamp (craft clock), through
+  /// camera_attitude_ned(): interpolated between the two ATTITUDE samples around it on this clock,
+  /// or extrapolated from the newest two when it is newer than both, when those two are at most
+  /// `max_dt_us` apart; otherwise the sample nearest to it. nullopt before the first tracked frame
+  /// has set the clock offset, or with no sample within `max_dt_us`. For the SLAM tracker's
+  /// rotation prediction and gravity prior (slam::RgbdFrame::q_nav_cam).
   std::optional<Eigen::Quaterniond> camera_attitude_at(std::int64_t capture_us,
                                                        std::int64_t max_dt_us) const;
   /// The estimator's state at `now_us` for the controller, when the estimator is enabled and has

@@ -4,9 +4,11 @@
 // Not thread-safe: the owner guards it.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
 #include <deque>
+#include <iterator>
 #include <optional>
 #include <utility>
 
@@ -34,6 +36,19 @@ class TimestampBuffer {
                                             [](const auto& s) { return s.first; });
     if (it == samples_.end() || std::llabs(it->first - t_us) > max_dt_us) return std::nullopt;
     return *it;
+  }
+
+  /// Two neighbouring samples to interpolate t_us between: the newest at or before it and the one
+  /// after it; after the newest sample, the newest two (to extrapolate); before the oldest, the
+  /// oldest two. nullopt with fewer than two samples.
+  std::optional<std::pair<std::pair<std::int64_t, T>, std::pair<std::int64_t, T>>> pair_around(
+      std::int64_t t_us) const {
+    if (samples_.size() < 2) return std::nullopt;
+    auto after = std::upper_bound(samples_.begin(), samples_.end(), t_us,
+                                  [](std::int64_t t, const auto& s) { return t < s.first; });
+    if (after == samples_.begin()) ++after;
+    if (after == samples_.end()) --after;
+    return std::make_pair(*std::prev(after), *after);
   }
 
   std::size_t size() const { return samples_.size(); }

@@ -414,23 +414,59 @@ TEST(CameraAttitude, TheMountTurnsTheApmAttitudeIntoTheCamerasNedAttitude) {
                   .isApprox(Eigen::Vector3d(1, 0, 0), 1e-12));
 }
 
-TEST(CameraAttitude, AFramesAttitudeIsTheImuSampleAtItsCaptureOnTheStationsClock) {
+ImuSample yawed(std::int64_t t_us, double yaw_deg) {
+  ImuSample s;
+  s.t_us = t_us;
+  s.yaw_rad = yaw_deg / kDegPerRad;
+  s.pitch_rad = 0.1;  // a craft leaning into a leg: the yaw axis is not the camera's
+  return s;
+}
+
+TEST(CameraAttitude, AFramesAttitudeIsTheApmAttitudeAtItsCaptureOnTheStationsClock) {
   Rig rig;
   // GIVEN IMU samples but no frame yet THEN the capture clock is unknown: no attitude
   rig.imu_until_now();
-  EXPECT_FALSE(rig.tracker.camera_attitude_at(rig.now_us - kLinkDelayUs, 20'000));
-  // WHEN frames have set the clock (capture = received - 30 ms here) and the craft yaws to 90 deg
+  EXPECT_FALSE(rig.tracker.camera_attitude_at(rig.now_us - kLinkDelayUs, 60'000));
+  // WHEN frames have set the clock (capture = received - 30 ms here) and the craft then yaws at
+  // 30 deg/s, its ATTITUDE sampled every 40 ms (the APM's 25 Hz stream)
   for (int i = 0; i < 3; ++i) rig.slam(camera_at(0, 0, 0.5, 0, 30));
-  ImuSample s;
-  s.t_us = rig.now_us + 5'000;
-  s.yaw_rad = 90.0 / kDegPerRad;
-  rig.tracker.on_imu(s);
-  // THEN a frame captured at that sample's time gets its attitude (within the 20 ms window)
-  const auto q = rig.tracker.camera_attitude_at(s.t_us - kLinkDelayUs + 3'000, 20'000);
-  ASSERT_TRUE(q);
-  EXPECT_TRUE(q->isApprox(camera_attitude_ned(s, 30.0), 1e-12));
+  const std::int64_t t0 = rig.now_us + 5'000;
+  const auto yaw_at = [&](std::int64_t t_us) { return 30.0 * (t_us - t0) * 1e-6; };
+  for (std::int64_t t = t0; t <= t0 + 120'000; t += 40'000) rig.tracker.on_imu(yawed(t, yaw_at(t)));
+  const auto at_capture = [&](std::int64_t local_us) {
+    return rig.tracker.camera_attitude_at(local_us - kLinkDelayUs, 60'000);
+  };
+  const auto truth = [&](std::int64_t local_us) {
+    return camera_attitude_ned(yawed(local_us, yaw_at(local_us)), 30.0);
+  };
+  // THEN a frame captured between two samples gets the attitude at its capture, not the nearer
+  // sample's (0.3 deg away)
+  const std::int64_t between = t0 + 50'000;
+  ASSERT_TRUE(at_capture(between));
+  EXPECT_LT(at_capture(between)->angularDistance(truth(between)), 1e-9);
+  EXPECT_GT(camera_attitude_ned(yawed(t0 + 40'000, yaw_at(t0 + 40'000)), 30.0)
+                .angularDistance(truth(between)),
+            0.004);
+  // AND a frame captured after the newest sample, before the next has arrived, gets it too
+  const std::int64_t ahead = t0 + 150'000;
+  ASSERT_TRUE(at_capture(ahead));
+  EXPECT_LT(at_capture(ahead)->angularDistance(truth(ahead)), 1e-9);
   // AND a frame captured 100 ms after the newest sample gets none
-  EXPECT_FALSE(rig.tracker.camera_attitude_at(s.t_us - kLinkDelayUs + 100'000, 20'000));
+  EXPECT_FALSE(at_capture(t0 + 220'000));
+}
+
+TEST(CameraAttitude, SamplesFurtherApartThanTheWindowGiveTheNearestAsItIs) {
+  Rig rig;
+  rig.imu_until_now();
+  for (int i = 0; i < 3; ++i) rig.slam(camera_at(0, 0, 0.5, 0, 30));
+  // GIVEN two ATTITUDE samples 100 ms apart (messages lost between them)
+  const std::int64_t t0 = rig.now_us + 200'000;
+  rig.tracker.on_imu(yawed(t0, 0.0));
+  rig.tracker.on_imu(yawed(t0 + 100'000, 10.0));
+  // THEN a frame captured 20 ms after the second gets the second's attitude, not a rate from them
+  const auto q = rig.tracker.camera_attitude_at(t0 + 120'000 - kLinkDelayUs, 60'000);
+  ASSERT_TRUE(q);
+  EXPECT_TRUE(q->isApprox(camera_attitude_ned(yawed(0, 10.0), 30.0), 1e-12));
 }
 
 }  // namespace
