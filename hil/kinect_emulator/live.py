@@ -185,6 +185,23 @@ class LiveFrameRecord:
     rgb_file: str
 
 
+def delivered_record(d: dict) -> LiveFrameRecord:
+    """The record of a delivered frame from its line in the records file (RECORDS_NAME)."""
+    return LiveFrameRecord(
+        index=d["index"],
+        request_seq=d["seq"],
+        t_mono_s=d["t_mono_s"],
+        T_room_cam=np.array(d["T_room_cam"]).reshape(4, 4),
+        render_start_mono_s=d["render_start_mono_s"],
+        render_end_mono_s=d["render_end_mono_s"],
+        index_written_mono_s=d["index_written_mono_s"],
+        delivered=True,
+        superseded=d["superseded"],
+        depth_file=d["depth_file"],
+        rgb_file=d["rgb_file"],
+    )
+
+
 def match_capture_stamps(
     records: list[LiveFrameRecord], stamps_us, max_delay_us: int = MATCH_MAX_DELAY_US
 ) -> list[LiveFrameRecord | None]:
@@ -668,21 +685,7 @@ class LiveKinect:
                 if not d.get("delivered"):
                     self._undelivered.append(d)
                     continue
-                self._records.append(
-                    LiveFrameRecord(
-                        index=d["index"],
-                        request_seq=d["seq"],
-                        t_mono_s=d["t_mono_s"],
-                        T_room_cam=np.array(d["T_room_cam"]).reshape(4, 4),
-                        render_start_mono_s=d["render_start_mono_s"],
-                        render_end_mono_s=d["render_end_mono_s"],
-                        index_written_mono_s=d["index_written_mono_s"],
-                        delivered=True,
-                        superseded=d["superseded"],
-                        depth_file=d["depth_file"],
-                        rgb_file=d["rgb_file"],
-                    )
-                )
+                self._records.append(delivered_record(d))
             return list(self._records)
 
     def forget_before(self, t_mono_s: float) -> None:

@@ -99,6 +99,18 @@ def manoeuvre_states(args) -> list[tuple[np.ndarray, float]]:
     return states
 
 
+def prepare_tum_folder(out: Path) -> str | None:
+    """Creates `out` with rgb/ and depth/; why not when it is not empty or cannot be made."""
+    if out.exists() and any(out.iterdir()):
+        return f"{out} exists and is not empty"
+    try:
+        (out / "rgb").mkdir(parents=True, exist_ok=True)
+        (out / "depth").mkdir(exist_ok=True)
+    except OSError as e:
+        return f"cannot create {out}: {e}"
+    return None
+
+
 def write_png16(path: Path, depth_units: np.ndarray) -> None:
     from PIL import Image
 
@@ -133,14 +145,9 @@ def main(argv=None) -> int:
         print("render_tum: --turn-deg must be finite and --settle-s >= 0", file=sys.stderr)
         return 2
     out = Path(args.out)
-    if out.exists() and any(out.iterdir()):
-        print(f"render_tum: {out} exists and is not empty", file=sys.stderr)
-        return 2
-    try:
-        (out / "rgb").mkdir(parents=True, exist_ok=True)
-        (out / "depth").mkdir(exist_ok=True)
-    except OSError as e:
-        print(f"render_tum: cannot create {out}: {e}", file=sys.stderr)
+    problem = prepare_tum_folder(out)
+    if problem:
+        print(f"render_tum: {problem}", file=sys.stderr)
         return 2
     emulator = KinectEmulator(default_room(), KinectOptions(fps=args.fps, seed=args.seed))
     states = manoeuvre_states(args)

@@ -35,10 +35,10 @@ namespace rgbdquad::slam {
 
 struct GravityOptions {
   /// On: a frame's gravity measurement constrains roll and pitch (pose fit, local BA, loop
-  /// closing). In three 10-minute HIL flights the first minute's SLAM rms (before the first loop
-  /// correction, whose drift is a tilt) stayed at 12-16 mm with it against ~20 mm without (results
-  /// page). Frames without a measurement (no attitude, and the accelerometer not a source) are
-  /// tracked as without it. Off: ablations.
+  /// closing). Vision alone lets the first lap of a HIL flight tilt before the first loop
+  /// correction; replayed without it, two flights' first laps drifted 1.4-1.7x as far
+  /// (docs/slam.md). Frames without a measurement (no attitude, and the accelerometer not a
+  /// source) are tracked as without it. Off: ablations.
   bool enabled = true;
   /// The Kinect's accelerometer as a source when a frame carries no attitude (see the header).
   bool from_accelerometer = false;
