@@ -38,6 +38,7 @@ _ROOT = Path(__file__).resolve().parents[2]
 for _sub in ("hil", "hil/tools", "protocol/python"):
     sys.path.insert(0, str(_ROOT / _sub))
 
+from hilrig.slam_flight import SlamFlightOptions  # noqa: E402
 from kinect_emulator.live import RECORDS_NAME, delivered_record, match_capture_stamps  # noqa: E402
 from kinect_emulator.poses import R_NWU_NED, rotation_to_quaternion_xyzw  # noqa: E402
 from kinect_emulator.renderer import KinectEmulator, KinectOptions  # noqa: E402
@@ -49,8 +50,8 @@ from kinect_emulator.writers import (  # noqa: E402
 )
 from render_tum import prepare_tum_folder, write_png16, write_png_rgb  # noqa: E402
 
-# SlamFlightOptions.kinect_seed: the noise seed every HIL flight's Kinect renders with.
-FLIGHT_KINECT_SEED = 11
+# The noise seed the HIL flights' Kinect renders with (the rig's default).
+FLIGHT_KINECT_SEED = SlamFlightOptions.kinect_seed
 
 
 def live_depth_lut() -> np.ndarray:

@@ -58,24 +58,25 @@ std::optional<Eigen::Quaterniond> CraftPoseTracker::camera_attitude_at(
   if (!local_us) return std::nullopt;
   const auto sample = attitudes_.nearest(*local_us, max_dt_us);
   if (!sample) return std::nullopt;
-  const Eigen::Quaterniond q_nearest =
-      camera_attitude_ned(sample->second, options_.mount_pitch_down_deg);
   // A frame is usually handed to SLAM before the ATTITUDE sample after its capture has arrived
   // (25 Hz, then the serial link and the firmware's reply), so the nearest sample is up to ~40 ms
   // older than the image: at the 5-20 deg/s a craft rolls and pitches while it flies a waypoint,
   // 0.2-0.8 deg of tilt that the gravity prior would hold the pose to. Two consecutive samples
   // give the rate to carry the attitude to the capture (interpolated between them, or extrapolated
   // past the newest); a pair further apart than the match window (a lost message) is not used.
-  const auto pair = attitudes_.pair_around(*local_us);
-  if (!pair) return q_nearest;
-  const auto& [a, b] = *pair;
-  const std::int64_t gap_us = b.first - a.first;
-  if (gap_us <= 0 || gap_us > max_dt_us) return q_nearest;
-  const double f = static_cast<double>(*local_us - a.first) / static_cast<double>(gap_us);
-  const Eigen::Quaterniond q_a = camera_attitude_ned(a.second, options_.mount_pitch_down_deg);
-  const Eigen::Quaterniond q_b = camera_attitude_ned(b.second, options_.mount_pitch_down_deg);
-  const Eigen::AngleAxisd step(q_b * q_a.conjugate());  // NED-frame rotation from a to b
-  return (Eigen::Quaterniond(Eigen::AngleAxisd(f * step.angle(), step.axis())) * q_a).normalized();
+  if (const auto pair = attitudes_.pair_around(*local_us)) {
+    const auto& [a, b] = *pair;
+    const std::int64_t gap_us = b.first - a.first;
+    if (gap_us > 0 && gap_us <= max_dt_us) {
+      const double f = static_cast<double>(*local_us - a.first) / static_cast<double>(gap_us);
+      const Eigen::Quaterniond q_a = camera_attitude_ned(a.second, options_.mount_pitch_down_deg);
+      const Eigen::Quaterniond q_b = camera_attitude_ned(b.second, options_.mount_pitch_down_deg);
+      const Eigen::AngleAxisd step(q_b * q_a.conjugate());  // NED-frame rotation from a to b
+      return (Eigen::Quaterniond(Eigen::AngleAxisd(f * step.angle(), step.axis())) * q_a)
+          .normalized();
+    }
+  }
+  return camera_attitude_ned(sample->second, options_.mount_pitch_down_deg);
 }
 
 CraftPoseTracker::CraftPoseTracker(CraftPoseTrackerOptions options)
