@@ -6,7 +6,10 @@ emulator's truth.
 The operator asks for each manoeuvre the way a mission planner would; quad-control bounds the rates
 (controller.max_manoeuvre_speed_m_per_s, max_manoeuvre_yaw_rate_deg_per_s) and the flight envelope
 bounds where it may go. Every wait has a deadline; a step that does not happen raises TimeoutError
-naming it. Times in reports are seconds of the rig's simulated clock.
+naming it. A manoeuvre quad-control refuses (it accepts one only in hold: after a loss of tracking
+the craft may be in lost-hold or landing blind) ends the sequence and is reported with the state
+and last event that explain it; the craft is then landed and the report completed, so a refusal is
+a scored miss, not a lost flight record. Times in reports are seconds of the rig's simulated clock.
 """
 
 from __future__ import annotations
@@ -43,6 +46,10 @@ MANOEUVRE_HOLD_S = 6.0  # the scored hold after each manoeuvre
 MANOEUVRE_TIMEOUT_S = 30.0
 
 
+class ManoeuvreRefused(RuntimeError):
+    """quad-control answered a manoeuvre request with an error (its reason is the message)."""
+
+
 def post_manoeuvre(
     flight: SlamFlight,
     *,
@@ -52,7 +59,7 @@ def post_manoeuvre(
     speed_m_per_s: float = 0.0,
     yaw_rate_deg_per_s: float = 0.0,
 ) -> dict:
-    """POST /api/manoeuvre on quad-control's dashboard; raises RuntimeError with its reason when
+    """POST /api/manoeuvre on quad-control's dashboard; raises ManoeuvreRefused with its reason when
     refused."""
     body = {
         "forward_m": forward_m,
@@ -74,7 +81,7 @@ def post_manoeuvre(
         status, reply = e.code, json.loads(e.read() or b"null")
     flight.operator_events.append((time.monotonic(), f"manoeuvre {json.dumps(body)}", str(reply)))
     if status != 200:
-        raise RuntimeError(f"manoeuvre refused ({status}): {reply}")
+        raise ManoeuvreRefused(f"manoeuvre refused ({status}): {reply}")
     return reply
 
 
@@ -154,20 +161,35 @@ def fast_manoeuvres(flight: SlamFlight, progress=None) -> dict:
     to = missions.take_off(flight, progress)
     start = to["start_room_m"]
     report: dict = {"hold": missions.hold(flight, start, 5.0, progress)}
-    steps = []
     turn = {"yaw_rate_deg_per_s": YAW_RATE_DEG_S}
     home, out = (0.0, 0.0), (DASH_M, 0.0)
-    for yaw in TURNS_CCW_DEG:
-        steps.append(
-            fly_manoeuvre(flight, start, home, home, {"yaw_ccw_deg": yaw, **turn}, progress)
-        )
-    # Facing the take-off heading again (floor +x): forward is floor +x; back is flown backwards.
     dash = {"speed_m_per_s": DASH_SPEED_M_S}
-    steps.append(fly_manoeuvre(flight, start, home, out, {"forward_m": DASH_M, **dash}, progress))
-    steps.append(fly_manoeuvre(flight, start, out, home, {"forward_m": -DASH_M, **dash}, progress))
-    last = {"yaw_ccw_deg": LAST_TURN_CCW_DEG, **turn}
-    steps.append(fly_manoeuvre(flight, start, home, home, last, progress))
+    # (from, to, request) in quad-control's floor frame. After the two turns the craft faces the
+    # take-off heading again (floor +x): forward is floor +x; back is flown backwards.
+    plan = [(home, home, {"yaw_ccw_deg": yaw, **turn}) for yaw in TURNS_CCW_DEG]
+    plan += [
+        (home, out, {"forward_m": DASH_M, **dash}),
+        (out, home, {"forward_m": -DASH_M, **dash}),
+        (home, home, {"yaw_ccw_deg": LAST_TURN_CCW_DEG, **turn}),
+    ]
+    steps = []
+    report["refused"] = None
+    for origin, goal, request in plan:
+        try:
+            steps.append(fly_manoeuvre(flight, start, origin, goal, request, progress))
+        except ManoeuvreRefused as e:
+            st = flight.state()
+            report["refused"] = {
+                "request": request,
+                "reason": str(e),
+                "state": st.get("state"),
+                "last_event": st.get("last_event"),
+            }
+            if progress is not None:
+                progress(f"refused: {report['refused']}")
+            break
     report["manoeuvres"] = steps
+    report["manoeuvres_planned"] = len(plan)
     report["landing"] = missions.land(flight, progress)
     t_land_us = report["landing"]["t_land_sim_s"] * 1e6
     report["failsafe_events"] = [
@@ -183,3 +205,28 @@ def fast_manoeuvres(flight: SlamFlight, progress=None) -> dict:
     report["wall_s"] = round(time.monotonic() - wall0, 1)
     report["realtime_factor"] = round(flight.rig.realtime_factor, 3)
     return report
+
+
+def targets_missed(report: dict, ate_limit_m: float, hold_limit_m: float) -> list[str]:
+    """The targets a fast_manoeuvres() flight (with SlamFlight.scores()) missed, each with the
+    figure that missed it: a failsafe, SLAM ATE over `ate_limit_m`, a hold over `hold_limit_m`, a
+    refused manoeuvre, fewer manoeuvres flown than planned."""
+    misses = []
+    if report["failsafe_events"]:
+        misses.append(f"failsafe: {report['failsafe_events']}")
+    ate = report["ate"].get("ate_rmse_m")
+    if ate is None or ate > ate_limit_m:
+        misses.append(f"SLAM ATE {ate} m (limit {ate_limit_m}; {report['ate']})")
+    for m in report["manoeuvres"]:
+        if m["hold"].get("max_m", math.inf) > hold_limit_m:
+            misses.append(f"hold after {m['request']}: {m['hold']} (limit {hold_limit_m} m)")
+    refused = report.get("refused")
+    if refused:
+        misses.append(
+            f"manoeuvre {refused['request']} refused: {refused['reason']} (quad-control in "
+            f"{refused['state']}: {refused['last_event']})"
+        )
+    flown, planned = len(report["manoeuvres"]), report["manoeuvres_planned"]
+    if flown < planned:
+        misses.append(f"{flown} of {planned} manoeuvres flown")
+    return misses

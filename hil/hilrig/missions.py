@@ -156,10 +156,18 @@ def _setpoint_at(state: dict, x_m: float, y_m: float) -> bool:
 
 
 def land(flight: SlamFlight, progress=None) -> dict:
-    """Lands with quad-control's own landing (throttle ramp) and waits for the disarm."""
-    _say(progress, "land")
+    """Lands with quad-control's own landing (throttle ramp) and waits for the disarm. A craft that
+    quad-control is already landing (blind: tracking did not come back within lost_hold_ms) or that
+    is on the ground is only waited for; `landed_by` says which."""
     t_land = flight.rig.sim_us
-    flight.command("land")
+    state = flight.state().get("state")
+    if state in ("land", "disarmed"):
+        _say(progress, f"land: quad-control is already in {state}")
+        landed_by = f"quad-control ({state} before the operator asked)"
+    else:
+        _say(progress, "land")
+        flight.command("land")
+        landed_by = "operator"
     flight.wait_until(
         lambda s: s["state"] == "disarmed" and not flight.rig.snapshot().armed,
         timeout_s=90,
@@ -171,6 +179,7 @@ def land(flight: SlamFlight, progress=None) -> dict:
     handed_over = [e for t, e in flight.rig.fc.events if t >= t_land and "failsafe" in e]
     return {
         "t_land_sim_s": t_land / 1e6,
+        "landed_by": landed_by,
         "handed_over_to_failsafe": bool(handed_over),
         # The hardest ground contact of the flight (a take-off hop or a bounce counts too).
         "touchdown_vertical_speed_mps": max(touchdowns) if touchdowns else None,

@@ -64,6 +64,7 @@ struct RunArgs {
               confirm_off_path = slam::TrackerOptions{}.confirm_off_path ? "on" : "off",
               orb_pixel_centres = "on";
   double depth_units_per_m = 0;
+  double max_depth_m = slam::FeatureOptions{}.max_depth_m;
   double colour_stamp_lag_s = slam::TrackerOptions{}.colour_stamp_lag_s;
   std::string rolling_shutter = "on";     ///< on: track with the camera model's readout
   double rolling_shutter_readout_s = -1;  ///< >= 0: this readout instead (on or off)
@@ -109,6 +110,7 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   if (a.orb_features > 0) po.frontend.features.orb_features = a.orb_features;
   if (a.orb_levels > 0) po.frontend.features.orb_levels = a.orb_levels;
   if (a.orb_scale_factor > 0) po.frontend.features.orb_scale_factor = a.orb_scale_factor;
+  po.frontend.features.max_depth_m = a.max_depth_m;
   po.local_map_orb_spread_oversample = a.orb_spread;
   po.frontend.seed = a.seed;
   po.loop_closing = a.loop_closing == "on";
@@ -198,6 +200,7 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
   m["map_lock"] = a.map_lock;
   m["local_ba"] = a.local_ba;
   m["depth_units_per_m"] = intr.depth_units_per_m;
+  m["max_depth_m"] = a.max_depth_m;
   m["tracking_policy"] = a.tracking_policy;
   m["mapping_rt_priority"] = a.mapping_rt_priority;
   return m;
@@ -692,6 +695,27 @@ void add_gravity_options(CLI::App* run, RunArgs& a) {
       ->capture_default_str();
 }
 
+/// The depth sensor as the local map sees it: its noise model, scale and range.
+void add_depth_ablation_options(CLI::App* run, RunArgs& a) {
+  run->add_option(
+         "--depth-noise", a.depth_noise,
+         "localmap: sigma of the depth residual - kinect (the sensor's axial noise, Nguyen et al. "
+         "2012) | "
+         "keypoint (ORB-SLAM2: the keypoint's pixel sigma on the virtual-stereo disparity) | "
+         "kinect-edge (kinect plus the depth image's slope times the keypoint's pixel sigma)")
+      ->check(CLI::IsMember({"kinect", "keypoint", "kinect-edge"}))
+      ->capture_default_str();
+  run->add_option("--depth-units-per-m", a.depth_units_per_m,
+                  "raw depth units per metre (0: the camera's, TUM 5000; ORB-SLAM2's TUM2.yaml "
+                  "uses 5208 for fr2) - "
+                  "for calibration ablations");
+  run->add_option("--max-depth-m", a.max_depth_m,
+                  "features whose depth reading is farther than this are not used (m; the Kinect "
+                  "v1's noise grows with the square of the depth; ORB-SLAM2 uses every reading)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+}
+
 void add_ablation_options(CLI::App* run, RunArgs& a) {
   run->add_option("--keyframe-gate", a.keyframe_gate,
                   "localmap, realtime: ORB-SLAM2's c1b/c1c rule - while the mapper is busy only "
@@ -757,18 +781,6 @@ void add_ablation_options(CLI::App* run, RunArgs& a) {
                   "2 with scale 2); off for ablations")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
-  run->add_option(
-         "--depth-noise", a.depth_noise,
-         "localmap: sigma of the depth residual - kinect (the sensor's axial noise, Nguyen et al. "
-         "2012) | "
-         "keypoint (ORB-SLAM2: the keypoint's pixel sigma on the virtual-stereo disparity) | "
-         "kinect-edge (kinect plus the depth image's slope times the keypoint's pixel sigma)")
-      ->check(CLI::IsMember({"kinect", "keypoint", "kinect-edge"}))
-      ->capture_default_str();
-  run->add_option("--depth-units-per-m", a.depth_units_per_m,
-                  "raw depth units per metre (0: the camera's, TUM 5000; ORB-SLAM2's TUM2.yaml "
-                  "uses 5208 for fr2) - "
-                  "for calibration ablations");
   run->add_option(
          "--local-ba", a.local_ba,
          "localmap: the mapper's local bundle adjustment (poses and points); off for ablations")
@@ -845,6 +857,7 @@ int main(int argc, char** argv) {
   add_dataset_and_system_options(run, a);
   add_frontend_and_map_file_options(run, a);
   add_ablation_options(run, a);
+  add_depth_ablation_options(run, a);
   add_gravity_options(run, a);
   ScoreArgs s;
   add_score_command(app, s);
