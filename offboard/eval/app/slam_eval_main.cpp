@@ -62,7 +62,8 @@ struct RunArgs {
               restart_when_lost = slam::TrackerOptions{}.restart_when_lost ? "on" : "off",
               align_depth_time = slam::TrackerOptions{}.align_depth_time ? "on" : "off",
               confirm_off_path = slam::TrackerOptions{}.confirm_off_path ? "on" : "off",
-              orb_pixel_centres = "on";
+              orb_pixel_centres = "on",
+              depthless_observations = slam::TrackerOptions{}.depthless_observations ? "on" : "off";
   double depth_units_per_m = 0;
   double max_depth_m = slam::FeatureOptions{}.max_depth_m;
   double colour_stamp_lag_s = slam::TrackerOptions{}.colour_stamp_lag_s;
@@ -127,6 +128,7 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   po.tracker.gravity.enabled = a.gravity == "on";
   po.tracker.gravity.from_accelerometer = a.gravity_accelerometer == "on";
   po.tracker.confirm_off_path = a.confirm_off_path == "on";
+  po.tracker.depthless_observations = a.depthless_observations == "on";
   po.frontend.features.orb_pixel_centres = a.orb_pixel_centres == "on";
   po.map_lock_priority_inheritance = a.map_lock == "pi";
   po.mapper.bundle_adjustment = a.local_ba == "on";
@@ -201,6 +203,7 @@ json run_options_json(const RunArgs& a, const std::string& camera, const std::st
   m["local_ba"] = a.local_ba;
   m["depth_units_per_m"] = intr.depth_units_per_m;
   m["max_depth_m"] = a.max_depth_m;
+  m["depthless_observations"] = a.depthless_observations;
   m["tracking_policy"] = a.tracking_policy;
   m["mapping_rt_priority"] = a.mapping_rt_priority;
   return m;
@@ -709,6 +712,11 @@ void add_depth_ablation_options(CLI::App* run, RunArgs& a) {
                   "raw depth units per metre (0: the camera's, TUM 5000; ORB-SLAM2's TUM2.yaml "
                   "uses 5208 for fr2) - "
                   "for calibration ablations");
+  run->add_option("--depthless-observations", a.depthless_observations,
+                  "localmap: keypoints without a depth reading are matched to map points and "
+                  "fitted as (u, v) observations (ORB-SLAM2's monocular keypoints; docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   run->add_option("--max-depth-m", a.max_depth_m,
                   "features whose depth reading is farther than this are not used (m; the Kinect "
                   "v1's noise grows with the square of the depth; ORB-SLAM2 uses every reading)")

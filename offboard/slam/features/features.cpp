@@ -261,14 +261,20 @@ std::optional<FrameFeatures> FeatureExtractor::extract(const RgbdFrame& frame,
   const int w = frame.depth.cols, h = frame.depth.rows;
   std::vector<int> keep;
   keep.reserve(kps.size());
+  auto depthless = std::make_shared<FrameFeatures>();
+  std::vector<int> keep_depthless;
   for (std::size_t i = 0; i < kps.size(); ++i) {
     const int u = static_cast<int>(std::lround(pix[i].x));
     const int v = static_cast<int>(std::lround(pix[i].y));
     if (u < 0 || v < 0 || u >= w || v >= h) continue;
     const std::uint16_t raw = frame.depth.at<std::uint16_t>(v, u);
-    if (raw == 0) continue;
     const double z = raw / intrinsics_.depth_units_per_m;
-    if (z < options_.min_depth_m || z > options_.max_depth_m) continue;
+    if (raw == 0 || z < options_.min_depth_m || z > options_.max_depth_m) {
+      keep_depthless.push_back(static_cast<int>(i));
+      depthless->keypoints.push_back(kps[i]);
+      depthless->points_cam_m.push_back(back_project(intrinsics_, undist[i].x, undist[i].y, 1.0));
+      continue;
+    }
     keep.push_back(static_cast<int>(i));
     out.keypoints.push_back(kps[i]);
     out.points_cam_m.push_back(back_project(intrinsics_, undist[i].x, undist[i].y, z));
@@ -278,9 +284,17 @@ std::optional<FrameFeatures> FeatureExtractor::extract(const RgbdFrame& frame,
     out.depth_slope_m_per_px.push_back(
         static_cast<float>(depth_slope_m_per_px(frame.depth, u, v, intrinsics_.depth_units_per_m)));
   }
-  out.descriptors.create(static_cast<int>(keep.size()), desc.cols, desc.type());
-  for (std::size_t r = 0; r < keep.size(); ++r)
-    desc.row(keep[r]).copyTo(out.descriptors.row(static_cast<int>(r)));
+  auto copy_rows = [&desc](const std::vector<int>& rows, cv::Mat* to) {
+    to->create(static_cast<int>(rows.size()), desc.cols, desc.type());
+    for (std::size_t r = 0; r < rows.size(); ++r)
+      desc.row(rows[r]).copyTo(to->row(static_cast<int>(r)));
+  };
+  copy_rows(keep, &out.descriptors);
+  if (!keep_depthless.empty()) {
+    copy_rows(keep_depthless, &depthless->descriptors);
+    depthless->detected = keep_depthless.size();
+    out.depthless = std::move(depthless);
+  }
   return out;
 }
 

@@ -67,7 +67,8 @@ struct FeatureOptions {
   int orb_spread_oversample = 0;
   double orb_spread_cell_px = 30.0;  ///< ORB-SLAM2's FAST cell
   // Lifting to 3D. Kinect v1 depth is unreliable below ~0.4 m and its noise grows with z^2
-  // (about 4 cm at 4 m), so points beyond `max_depth_m` are dropped.
+  // (about 4 cm at 4 m), so readings outside [min_depth_m, max_depth_m] are not used: those
+  // keypoints go to FrameFeatures::depthless.
   double min_depth_m = 0.3;
   double max_depth_m = 4.0;
   /// Undistort keypoint coordinates before back-projection (the TUM colour images are not
@@ -78,7 +79,8 @@ struct FeatureOptions {
   bool is_valid(std::string* error) const;
 };
 
-/// Features of one frame that have a valid depth reading. Row i of `descriptors` belongs to
+/// Features of one frame that have a valid depth reading (and, apart, those that have none). Row i
+/// of `descriptors` belongs to
 /// keypoints[i] and points_cam_m[i] (3D point in the camera frame, metres, z forward).
 struct FrameFeatures {
   std::vector<cv::KeyPoint> keypoints;
@@ -90,6 +92,12 @@ struct FrameFeatures {
   /// when the keypoint's pixel is off by one: large at occluding edges and on oblique surfaces.
   std::vector<float> depth_slope_m_per_px;
   std::size_t detected = 0;  ///< keypoints found before the depth filter
+  /// The keypoints the depth filter dropped (no reading, or outside [min_depth_m, max_depth_m]),
+  /// as features of their own whose points_cam_m are bearings at z = 1 (undistorted): a map point
+  /// matched to one still fixes the camera's rotation and its position across the view, only
+  /// not along the ray (a far wall, a depth hole at an occluding edge). Null when none were
+  /// dropped. Not saved with a map.
+  std::shared_ptr<const FrameFeatures> depthless;
 };
 
 /// FrameFeatures::depth_slope_m_per_px at pixel (u, v) of a 16-bit depth image; 0 where the

@@ -49,6 +49,7 @@ struct FrameRecord {
   Eigen::Isometry3d T_prev_cur = Eigen::Isometry3d::Identity();   ///< front-end egomotion
   Eigen::Isometry3d T_kf_cam = Eigen::Isometry3d::Identity();
   std::size_t features = 0, matches = 0, inliers = 0;
+  std::size_t depthless_inliers = 0;  ///< local-map system (TrackResult)
   /// Local-map system: matching_ms = local map + projection search with its pose optimisations,
   /// ransac_ms = relocalisation (TrackResult).
   double features_ms = 0, matching_ms = 0, ransac_ms = 0, frontend_ms = 0;

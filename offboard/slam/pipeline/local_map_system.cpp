@@ -30,6 +30,7 @@ FrameRecord record_of(const RgbdFrame& frame, const TrackResult& tr) {
   rec.T_kf_cam = tr.T_kf_cam;
   rec.matches = tr.matches;
   rec.inliers = tr.inliers;
+  rec.depthless_inliers = tr.depthless_inliers;
   rec.map_keyframes = tr.map_keyframes;
   rec.map_points = tr.map_points;
   rec.keyframe_wanted = tr.keyframe_wanted;

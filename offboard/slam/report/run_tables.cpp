@@ -16,7 +16,7 @@ std::optional<FramesTable> FramesTable::create(const fs::path& path, std::string
          "prediction_deviation_m,prediction_deviation_bound_m,attitude_predicted,cross_checked,"
          "cross_check_shift_m,cross_check_shift_deg,new_segment,segment_merged,off_path_"
          "confirmed,attitude_refused,rolling_shutter_rate_x,rolling_shutter_rate_y,"
-         "rolling_shutter_rate_z\n";
+         "rolling_shutter_rate_z,depthless_inliers\n";
   if (!out) {
     if (error) *error = "cannot write " + path.string();
     return std::nullopt;
@@ -43,6 +43,7 @@ void FramesTable::append(const FrameRecord& r) {
     out_ << ",";
     if (r.rolling_shutter_rate_rad_per_s) out_ << (*r.rolling_shutter_rate_rad_per_s)[i];
   }
+  out_ << "," << r.depthless_inliers;
   out_ << "\n";
 }
 

@@ -11,22 +11,28 @@
 namespace rgbdquad::slam {
 namespace {
 
-FrameFeatures orb_features(const cv::Mat& rgb, bool pixel_centres) {
-  FeatureOptions o;
-  o.kind = DetectorKind::kOrb;
-  o.undistort = false;
-  o.orb_pixel_centres = pixel_centres;
-  Intrinsics k;  // only lifts points to 3D here: any valid camera will do
+/// A camera for the tests' images: it only lifts points to 3D here, any valid one will do.
+Intrinsics test_camera(const cv::Mat& rgb) {
+  Intrinsics k;
   k.fx_px = k.fy_px = 500;
   k.cx_px = rgb.cols / 2.0;
   k.cy_px = rgb.rows / 2.0;
   k.depth_units_per_m = 5000;
+  return k;
+}
+
+/// ORB features of `rgb` with `depth` (raw units of test_camera; empty: a wall at 1 m).
+FrameFeatures orb_features(const cv::Mat& rgb, bool pixel_centres, cv::Mat depth = {}) {
+  FeatureOptions o;
+  o.kind = DetectorKind::kOrb;
+  o.undistort = false;
+  o.orb_pixel_centres = pixel_centres;
   std::string err;
-  auto extractor = FeatureExtractor::create(o, k, &err);
+  auto extractor = FeatureExtractor::create(o, test_camera(rgb), &err);
   EXPECT_TRUE(extractor) << err;
   RgbdFrame f;
   f.rgb = rgb;
-  f.depth = cv::Mat(rgb.rows, rgb.cols, CV_16UC1, cv::Scalar(5000));  // a wall at 1 m
+  f.depth = depth.empty() ? cv::Mat(rgb.rows, rgb.cols, CV_16UC1, cv::Scalar(5000)) : depth;
   auto out = extractor->extract(f, &err);
   EXPECT_TRUE(out) << err;
   return out ? *out : FrameFeatures{};
@@ -117,6 +123,34 @@ TEST(SpreadKeypoints, EachPyramidLevelKeepsItsShareAndFewCandidatesAreAllKept) {
   EXPECT_EQ(level1, 25);
   // AND asking for more than there are keeps every candidate
   EXPECT_EQ(spread_keypoints(candidates, 1000, 2.0, 30.0).size(), candidates.size());
+}
+
+TEST(DepthFilter, KeypointsWithoutADepthReadingAreKeptApartAsBearings) {
+  // GIVEN a real photograph whose depth image has no reading on its top half and a wall at 1 m
+  // on its bottom half
+  const cv::Mat rgb = cv::imread(std::string(SLAM_REPO_DIR) +
+                                 "/tests/data/fr1_xyz_first30/rgb/1305031102.175304.png");
+  ASSERT_FALSE(rgb.empty());
+  cv::Mat depth(rgb.rows, rgb.cols, CV_16UC1, cv::Scalar(5000));
+  depth.rowRange(0, rgb.rows / 2).setTo(0);
+  // WHEN features are extracted
+  const FrameFeatures out = orb_features(rgb, true, depth);
+  const Intrinsics k = test_camera(rgb);
+  // THEN those on the bottom half have depth, and every one on the top half is a depthless
+  // feature: its descriptor, and its bearing at z = 1 through its pixel
+  ASSERT_TRUE(out.depthless);
+  const FrameFeatures& d = *out.depthless;
+  ASSERT_GE(d.keypoints.size(), 20u);
+  ASSERT_GE(out.keypoints.size(), 20u);
+  EXPECT_EQ(out.keypoints.size() + d.keypoints.size(), out.detected);
+  EXPECT_EQ(d.descriptors.rows, static_cast<int>(d.keypoints.size()));
+  ASSERT_EQ(d.points_cam_m.size(), d.keypoints.size());
+  for (const cv::KeyPoint& kp : out.keypoints) EXPECT_GE(std::lround(kp.pt.y), rgb.rows / 2);
+  for (std::size_t i = 0; i < d.keypoints.size(); ++i) {
+    EXPECT_LT(std::lround(d.keypoints[i].pt.y), rgb.rows / 2);
+    EXPECT_DOUBLE_EQ(d.points_cam_m[i].z(), 1.0);
+    EXPECT_NEAR(d.points_cam_m[i].x() * k.fx_px + k.cx_px, d.keypoints[i].pt.x, 1e-3);
+  }
 }
 
 }  // namespace

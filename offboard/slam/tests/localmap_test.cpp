@@ -12,6 +12,7 @@
 #include "slam/tracking/motion_bound.hpp"
 #include "slam/tracking/pose_optimizer.hpp"
 #include "slam/tracking/projection_search.hpp"
+#include "slam/tracking/registration.hpp"
 
 namespace rgbdquad::slam {
 namespace {
@@ -335,6 +336,45 @@ TEST(GravityPrior, ReferenceIsTheWeightedMeanOfTheFirstKeyframesThenHeld) {
   EXPECT_TRUE(ref.down_world()->isApprox(Eigen::Vector3d(1, 1, 0).normalized(), 1e-12));
 }
 
+TEST(PoseOptimizer, MonocularObservationsFixThePoseWithoutTheirDisparity) {
+  // GIVEN 100 points seen exactly, but as keypoints without depth whose disparity is nonsense
+  const CameraModel cam = fr1_camera();
+  const Eigen::Isometry3d truth = pose(0.05, -0.1, 0.03, 0.1, -0.05, 0.2);
+  auto obs = observe(scene(100, 21), truth, cam, 0.0, 22);
+  for (PoseObservation& o : obs) o.measurement.z() = 99.0;
+  const Eigen::Isometry3d start = pose(0.0, -0.05, 0.0, 0.12, -0.03, 0.18);
+  auto as_rgbd = obs;
+  for (PoseObservation& o : obs) o.monocular = true;
+  // WHEN fitted as monocular observations
+  const PoseOptimizerResult r = optimize_pose(start, obs, cam);
+  // THEN their pixels alone give the pose, every one an inlier
+  ASSERT_TRUE(r.ok);
+  EXPECT_EQ(r.inliers, 100);
+  EXPECT_LT((r.T_cam_world.translation() - truth.translation()).norm(), 1e-6);
+  EXPECT_LT(Eigen::AngleAxisd(r.T_cam_world.rotation().transpose() * truth.rotation()).angle(),
+            1e-6);
+  // AND read as RGB-D the same disparities reject them all (the flag is what ignores them)
+  EXPECT_LT(optimize_pose(start, as_rgbd, cam).inliers, 10);
+}
+
+TEST(PoseOptimizer, AMonocularObservationIsJudgedAtTheTwoDegreeOfFreedomBound) {
+  // GIVEN 60 exact observations and one whose pixel is off by a whitened squared error of 6.9:
+  // past the 2-dof 95 % bound (5.99), within the 3-dof one (7.81)
+  const CameraModel cam = fr1_camera();
+  const Eigen::Isometry3d truth = pose(0.0, 0.02, 0.0, 0.0, 0.0, 0.1);
+  for (const bool monocular : {false, true}) {
+    auto obs = observe(scene(61, 23), truth, cam, 0.0, 24);
+    obs.back().measurement.head<2>() += Eigen::Vector2d(1.86, 1.86);
+    for (PoseObservation& o : obs) o.monocular = monocular;
+    // WHEN fitted from the truth
+    const PoseOptimizerResult r = optimize_pose(truth, obs, cam);
+    // THEN it is an inlier as an RGB-D observation and an outlier as a monocular one
+    ASSERT_TRUE(r.ok);
+    EXPECT_EQ(r.inlier.back(), !monocular) << (monocular ? "monocular" : "rgb-d");
+    EXPECT_EQ(r.inliers, monocular ? 60 : 61);
+  }
+}
+
 TEST(PoseOptimizer, TooFewObservationsIsNotOk) {
   const CameraModel cam = fr1_camera();
   const auto obs = observe(scene(2, 5), Eigen::Isometry3d::Identity(), cam, 0.0, 6);
@@ -417,6 +457,61 @@ TEST(ProjectionSearch, ADescriptorTooFarAwayIsNotMatched) {
   }
   EXPECT_EQ(search_by_projection(local, Eigen::Isometry3d::Identity(), f.tracked, cam, {}).matches,
             0);
+}
+
+TEST(FitByProjection, DepthlessKeypointsJoinTheFitAndEachPointIsMatchedOnce) {
+  // GIVEN 200 map points; the frame reads depth for those nearer than 2 m and none for the rest,
+  // whose keypoints are depthless features (bearings)
+  const CameraModel cam = fr1_camera();
+  const auto pts = scene(200, 25);
+  const cv::Mat desc = random_descriptors(200, 26);
+  const Eigen::Isometry3d truth = pose(0.01, 0.02, 0, 0.05, 0, 0);
+  std::vector<Eigen::Vector3d> near, far;
+  cv::Mat near_desc, far_desc;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const bool is_near = (truth * pts[i]).z() < 2.0;
+    (is_near ? near : far).push_back(pts[i]);
+    (is_near ? near_desc : far_desc).push_back(desc.row(static_cast<int>(i)));
+  }
+  const SyntheticFrame with_depth = make_frame(near, truth, near_desc, cam);
+  SyntheticFrame depthless = make_frame(far, truth, far_desc, cam);
+  for (Eigen::Vector3d& p : depthless.features->points_cam_m) p /= p.z();
+  FeatureOptions fo;
+  fo.kind = DetectorKind::kOrb;
+  depthless.tracked = TrackedFeatures::from(depthless.features, cam, fo);
+  std::vector<LocalPoint> local;
+  for (int i = 0; i < 200; ++i)
+    local.push_back(LocalPoint{i, pts[static_cast<std::size_t>(i)], desc.row(i)});
+  const Eigen::Isometry3d guess = truth * pose(0.005, 0, 0, 0.01, 0, 0);
+  // WHEN fitted from a guess 1 cm and 0.3 deg off, with and without the depthless keypoints
+  const ProjectionFit fit =
+      fit_by_projection(local, with_depth.tracked, cam, guess, 15.0, {}, &depthless.tracked);
+  const ProjectionFit rgbd_only =
+      fit_by_projection(local, with_depth.tracked, cam, guess, 15.0, {});
+  // THEN every keypoint finds its own point, the depthless ones counted apart, and no point is
+  // matched twice
+  ASSERT_TRUE(fit.ok);
+  EXPECT_EQ(fit.inliers, with_depth.tracked.size());
+  EXPECT_EQ(fit.depthless_inliers, depthless.tracked.size());
+  ASSERT_GE(fit.depthless_inliers, 20u);
+  std::vector<int> seen(200, 0);
+  for (int p : fit.point_of_keypoint) seen[static_cast<std::size_t>(p)] += p >= 0 ? 1 : 0;
+  for (std::size_t k = 0; k < fit.point_of_depthless.size(); ++k) {
+    const int p = fit.point_of_depthless[k];
+    ASSERT_GE(p, 0);
+    ++seen[static_cast<std::size_t>(p)];
+    EXPECT_LT((cam.project(truth * pts[static_cast<std::size_t>(p)]).head<2>() -
+               depthless.tracked.pixels[k])
+                  .norm(),
+              1e-6);
+  }
+  for (int n : seen) EXPECT_LE(n, 1);
+  EXPECT_LT((fit.T_cam_world.translation() - truth.translation()).norm(), 1e-6);
+  // AND without them the fit has the same RGB-D matches and none of theirs
+  ASSERT_TRUE(rgbd_only.ok);
+  EXPECT_EQ(rgbd_only.inliers, fit.inliers);
+  EXPECT_EQ(rgbd_only.depthless_inliers, 0u);
+  EXPECT_TRUE(rgbd_only.point_of_depthless.empty());
 }
 
 TEST(SlamMap, ObservationsPointsAndCulledKeyframeChains) {

@@ -54,7 +54,10 @@ PoseOptimizerResult optimize(const Eigen::Isometry3d& T_init,
   r.T_cam_world = T_init;
   r.inlier.assign(obs.size(), true);
   if (obs.size() < 3) return r;
-  const double huber = std::sqrt(o.chi2_outlier);
+  // Outlier bound and Huber threshold per observation: a monocular one has two residuals.
+  auto chi2_of = [&o](const PoseObservation& ob) {
+    return ob.monocular ? o.chi2_outlier * (kChi2Mono95 / kChi2Rgbd95) : o.chi2_outlier;
+  };
   Eigen::Isometry3d T = T_init;
   Eigen::Vector3d omega = rs ? rs->omega_prior_rad_per_s : Eigen::Vector3d::Zero();
   // The camera point observation i sees (its row's exposure, with a rolling shutter).
@@ -73,10 +76,12 @@ PoseOptimizerResult optimize(const Eigen::Isometry3d& T_init,
         if (!r.inlier[i]) continue;
         const Eigen::Vector3d pc = seen(i, T * obs[i].p_world_m);
         if (pc.z() <= 1e-3) continue;
-        const Eigen::Vector3d e =
-            (cam.project(pc) - obs[i].measurement).cwiseQuotient(obs[i].sigma_px);
-        const Eigen::Matrix3d Jp =
-            obs[i].sigma_px.cwiseInverse().asDiagonal() * cam.project_jacobian(pc);
+        Eigen::Vector3d e = (cam.project(pc) - obs[i].measurement).cwiseQuotient(obs[i].sigma_px);
+        Eigen::Matrix3d Jp = obs[i].sigma_px.cwiseInverse().asDiagonal() * cam.project_jacobian(pc);
+        if (obs[i].monocular) {
+          e.z() = 0;
+          Jp.row(2).setZero();
+        }
         Eigen::Matrix<double, 3, N> Jt;
         const Eigen::Matrix3d pc_x = skew(pc);
         Jt.template leftCols<3>() = -pc_x;
@@ -84,6 +89,7 @@ PoseOptimizerResult optimize(const Eigen::Isometry3d& T_init,
         if constexpr (N == 9) Jt.template rightCols<3>() = rs->row_time_s[i] * pc_x;
         const Eigen::Matrix<double, 3, N> J = Jp * Jt;
         const double norm = e.norm();
+        const double huber = std::sqrt(chi2_of(obs[i]));
         const double w = norm <= huber ? 1.0 : huber / norm;
         H.noalias() += w * J.transpose() * J;
         b.noalias() += w * J.transpose() * e;
@@ -110,9 +116,9 @@ PoseOptimizerResult optimize(const Eigen::Isometry3d& T_init,
       const Eigen::Vector3d pc = seen(i, T * obs[i].p_world_m);
       bool in = pc.z() > 1e-3;
       if (in) {
-        const Eigen::Vector3d e =
-            (cam.project(pc) - obs[i].measurement).cwiseQuotient(obs[i].sigma_px);
-        in = e.squaredNorm() <= o.chi2_outlier;
+        Eigen::Vector3d e = (cam.project(pc) - obs[i].measurement).cwiseQuotient(obs[i].sigma_px);
+        if (obs[i].monocular) e.z() = 0;
+        in = e.squaredNorm() <= chi2_of(obs[i]);
       }
       r.inlier[i] = in;
       r.inliers += in ? 1 : 0;

@@ -18,6 +18,9 @@ struct PoseObservation {
   Eigen::Vector3d p_world_m = Eigen::Vector3d::Zero();
   Eigen::Vector3d measurement = Eigen::Vector3d::Zero();  ///< (u px, v px, disparity px)
   Eigen::Vector3d sigma_px = Eigen::Vector3d::Ones();     ///< sigmas of (u, v, disparity)
+  /// A keypoint without a depth reading: (u, v) only, the disparity ignored, and the outlier test
+  /// at the 2-degree-of-freedom bound (kChi2Mono95, ORB-SLAM2's for its monocular edges).
+  bool monocular = false;
 };
 
 /// Gravity measured in the camera frame against the map's gravity direction: a residual on the

@@ -21,7 +21,8 @@ ProjectionMatches search_by_projection(const std::vector<LocalPoint>& points,
                                        const Eigen::Isometry3d& T_cam_world,
                                        const TrackedFeatures& frame, const CameraModel& cam,
                                        const ProjectionSearchOptions& o,
-                                       const std::vector<int>* preset) {
+                                       const std::vector<int>* preset,
+                                       const std::vector<bool>* skip_points) {
   ProjectionMatches out;
   const std::size_t nk = frame.size();
   out.point_of_keypoint = preset ? *preset : std::vector<int>(nk, -1);
@@ -30,7 +31,9 @@ ProjectionMatches search_by_projection(const std::vector<LocalPoint>& points,
   std::vector<bool> locked(nk, false);
   if (preset)
     for (std::size_t k = 0; k < nk; ++k) locked[k] = (*preset)[k] >= 0;
-  std::vector<bool> already(points.size(), false);
+  std::vector<bool> already = skip_points && skip_points->size() == points.size()
+                                  ? *skip_points
+                                  : std::vector<bool>(points.size(), false);
   if (preset)
     for (std::size_t k = 0; k < nk; ++k)
       if ((*preset)[k] >= 0) already[static_cast<std::size_t>((*preset)[k])] = true;
@@ -83,6 +86,13 @@ ProjectionMatches search_by_projection(const std::vector<LocalPoint>& points,
   }
   out.matches = 0;
   for (int p : out.point_of_keypoint) out.matches += p >= 0 ? 1 : 0;
+  return out;
+}
+
+std::vector<bool> matched_points(const std::vector<int>& point_of_keypoint, std::size_t n_points) {
+  std::vector<bool> out(n_points, false);
+  for (int p : point_of_keypoint)
+    if (p >= 0 && static_cast<std::size_t>(p) < n_points) out[static_cast<std::size_t>(p)] = true;
   return out;
 }
 

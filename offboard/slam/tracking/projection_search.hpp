@@ -41,12 +41,17 @@ struct ProjectionMatches {
   int matches = 0;
 };
 
-/// `skip[i]` (optional, same size as points): points not to project (already matched).
-/// `preset` (optional, per keypoint): keypoints already matched are left as they are.
+/// `preset` (optional, per keypoint): keypoints already matched are left as they are, and their
+/// points are not matched again. `skip_points` (optional, per LocalPoint): points matched
+/// elsewhere (to another keypoint set of the same frame) are not matched either.
 ProjectionMatches search_by_projection(const std::vector<LocalPoint>& points,
                                        const Eigen::Isometry3d& T_cam_world,
                                        const TrackedFeatures& frame, const CameraModel& camera,
                                        const ProjectionSearchOptions& options,
-                                       const std::vector<int>* preset = nullptr);
+                                       const std::vector<int>* preset = nullptr,
+                                       const std::vector<bool>* skip_points = nullptr);
+
+/// Per LocalPoint of `n_points`: whether a keypoint of `point_of_keypoint` is matched to it.
+std::vector<bool> matched_points(const std::vector<int>& point_of_keypoint, std::size_t n_points);
 
 }  // namespace rgbdquad::slam

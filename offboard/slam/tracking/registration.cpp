@@ -49,9 +49,18 @@ std::optional<Registration> register_to_keyframe(const FrameFeatures& frame,
   return Registration{est->T_dst_src, m.size(), est->inliers.size()};
 }
 
+PoseObservation pose_observation(const Eigen::Vector3d& p_world_m, const TrackedFeatures& frame,
+                                 std::size_t k, const CameraModel& camera, bool monocular) {
+  if (!monocular) return PoseObservation{p_world_m, frame.measurement(k, camera), frame.sigma(k)};
+  const double s = frame.sigma_px[k];
+  return PoseObservation{p_world_m, Eigen::Vector3d(frame.pixels[k].x(), frame.pixels[k].y(), 0),
+                         Eigen::Vector3d(s, s, 1), true};
+}
+
 ProjectionFit fit_by_projection(const std::vector<LocalPoint>& points, const TrackedFeatures& frame,
                                 const CameraModel& camera, const Eigen::Isometry3d& T_guess,
-                                double first_radius_px, const ProjectionFitOptions& options) {
+                                double first_radius_px, const ProjectionFitOptions& options,
+                                const TrackedFeatures* depthless) {
   ProjectionFit fit;
   ProjectionSearchOptions so = options.search;
   so.radius_px = first_radius_px;
@@ -61,41 +70,71 @@ ProjectionFit fit_by_projection(const std::vector<LocalPoint>& points, const Tra
     m = search_by_projection(points, T_guess, frame, camera, so);
   }
   if (m.matches < 6) return fit;
-  // Optimises from `T_start` on the matches in `pok`; `kept` receives the inlier matches only.
-  auto optimise = [&](const std::vector<int>& pok, const Eigen::Isometry3d& T_start,
-                      std::vector<int>* kept) {
+  // The depthless keypoints' matches, to points no keypoint with depth took.
+  auto search_depthless = [&](const Eigen::Isometry3d& T, const std::vector<int>& taken,
+                              const std::vector<int>* preset) {
+    if (!depthless || depthless->size() == 0) return std::vector<int>{};
+    const std::vector<bool> skip = matched_points(taken, points.size());
+    return search_by_projection(points, T, *depthless, camera, so, preset, &skip).point_of_keypoint;
+  };
+  // Optimises from `T_start` on the matches `pok` (keypoints with depth) and `pod` (without);
+  // `kept` / `kept_depthless` receive the inlier matches only.
+  auto optimise = [&](const std::vector<int>& pok, const std::vector<int>& pod,
+                      const Eigen::Isometry3d& T_start, std::vector<int>* kept,
+                      std::vector<int>* kept_depthless) {
     std::vector<PoseObservation> obs;
     std::vector<int> kp_of_obs;
-    for (std::size_t k = 0; k < pok.size(); ++k) {
-      if (pok[k] < 0) continue;
-      obs.push_back(PoseObservation{points[static_cast<std::size_t>(pok[k])].p_world_m,
-                                    frame.measurement(k, camera), frame.sigma(k)});
-      kp_of_obs.push_back(static_cast<int>(k));
-    }
+    auto add = [&](const std::vector<int>& matches, const TrackedFeatures& f, bool monocular) {
+      for (std::size_t k = 0; k < matches.size(); ++k) {
+        if (matches[k] < 0) continue;
+        obs.push_back(pose_observation(points[static_cast<std::size_t>(matches[k])].p_world_m, f, k,
+                                       camera, monocular));
+        kp_of_obs.push_back(static_cast<int>(k));
+      }
+    };
+    add(pok, frame, false);
+    const std::size_t n_rgbd = obs.size();
+    if (depthless) add(pod, *depthless, true);
     const PoseOptimizerResult r = optimize_pose(T_start, obs, camera, options.pose);
     kept->assign(pok.size(), -1);
-    if (!r.ok) return r;
+    kept_depthless->assign(pod.size(), -1);
+    if (!r.ok) return std::make_pair(r, 0);
+    int rgbd_inliers = 0;
     for (std::size_t i = 0; i < obs.size(); ++i) {
+      if (!r.inlier[i]) continue;
       const auto k = static_cast<std::size_t>(kp_of_obs[i]);
-      if (r.inlier[i]) (*kept)[k] = pok[k];
+      if (i < n_rgbd) {
+        (*kept)[k] = pok[k];
+        ++rgbd_inliers;
+      } else {
+        (*kept_depthless)[k] = pod[k];
+      }
     }
-    return r;
+    return std::make_pair(r, rgbd_inliers);
   };
-  std::vector<int> kept;
-  const PoseOptimizerResult first = optimise(m.point_of_keypoint, T_guess, &kept);
-  if (!first.ok || first.inliers < 6) return fit;
+  std::vector<int> kept, kept_depthless;
+  const auto [first, first_inliers] =
+      optimise(m.point_of_keypoint, search_depthless(T_guess, m.point_of_keypoint, nullptr),
+               T_guess, &kept, &kept_depthless);
+  if (!first.ok || first_inliers < 6) return fit;
   // Second pass: keep the inliers, look for more points around the refined projections.
   so.radius_px = options.refine_radius_px;
+  const std::vector<bool> taken_depthless = matched_points(kept_depthless, points.size());
   const ProjectionMatches m2 =
-      search_by_projection(points, first.T_cam_world, frame, camera, so, &kept);
-  std::vector<int> kept2;
-  const PoseOptimizerResult second = optimise(m2.point_of_keypoint, first.T_cam_world, &kept2);
+      search_by_projection(points, first.T_cam_world, frame, camera, so, &kept, &taken_depthless);
+  std::vector<int> kept2, kept2_depthless;
+  const auto [second, second_inliers] =
+      optimise(m2.point_of_keypoint,
+               search_depthless(first.T_cam_world, m2.point_of_keypoint, &kept_depthless),
+               first.T_cam_world, &kept2, &kept2_depthless);
   if (!second.ok) return fit;
   fit.ok = true;
   fit.T_cam_world = second.T_cam_world;
   fit.point_of_keypoint = std::move(kept2);
   fit.matches = static_cast<std::size_t>(m2.matches);
-  fit.inliers = static_cast<std::size_t>(second.inliers);
+  fit.inliers = static_cast<std::size_t>(second_inliers);
+  for (int p : kept2_depthless) fit.depthless_inliers += p >= 0 ? 1 : 0;
+  fit.point_of_depthless = std::move(kept2_depthless);
   return fit;
 }
 

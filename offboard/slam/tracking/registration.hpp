@@ -57,11 +57,24 @@ struct ProjectionFit {
   Eigen::Isometry3d T_cam_world = Eigen::Isometry3d::Identity();
   std::vector<int> point_of_keypoint;  ///< inlier matches only (index into the point list)
   std::size_t matches = 0, inliers = 0;
+  /// Matches of the frame's keypoints without depth (FrameFeatures::depthless), inliers only,
+  /// observed as (u, v) in the fit. Not counted in `matches` / `inliers`: the bars on those
+  /// (tracking, relocalisation, keyframes) were set for RGB-D matches and stay so.
+  std::vector<int> point_of_depthless;
+  std::size_t depthless_inliers = 0;
 };
 /// Two-pass projection matching and pose optimisation of `frame` against `points` from a guess.
+/// With `depthless` (the same frame's keypoints without depth), points not matched to a keypoint
+/// with depth are matched to those too and enter the fit as monocular observations.
 ProjectionFit fit_by_projection(const std::vector<LocalPoint>& points, const TrackedFeatures& frame,
                                 const CameraModel& camera,
                                 const Eigen::Isometry3d& T_cam_world_guess, double first_radius_px,
-                                const ProjectionFitOptions& options);
+                                const ProjectionFitOptions& options,
+                                const TrackedFeatures* depthless = nullptr);
+
+/// The observation of map point `p_world_m` by keypoint `k` of `frame` for the pose fit; for a
+/// depthless keypoint (`monocular`) its pixel only.
+PoseObservation pose_observation(const Eigen::Vector3d& p_world_m, const TrackedFeatures& frame,
+                                 std::size_t k, const CameraModel& camera, bool monocular);
 
 }  // namespace rgbdquad::slam

@@ -183,11 +183,11 @@ bool Tracker::cross_check_needed(const Fit& fit) const {
   return static_cast<double>(fit.inliers) < options_.cross_check_tracked_ratio * ref_tracked;
 }
 
-Tracker::Fit Tracker::fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
+Tracker::Fit Tracker::fit_local_map(const LocalMap& local, const FrameInput& in,
                                     const Eigen::Isometry3d& T_guess,
                                     double first_radius_px) const {
-  return fit_by_projection(local.points, frame, camera_, T_guess, first_radius_px,
-                           frame_fit_options());
+  return fit_by_projection(local.points, in.tf, camera_, T_guess, first_radius_px,
+                           frame_fit_options(), in.depthless.size() ? &in.depthless : nullptr);
 }
 
 ProjectionFitOptions Tracker::frame_fit_options() const {
@@ -293,7 +293,16 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
                 options_.ransac.max_iterations * 0x9E3779B97F4A7C15ull ^
                     static_cast<std::uint64_t>(frame.index),
                 nullptr,
-                &feature_options};
+                &feature_options,
+                TrackedFeatures{}};
+  if (options_.depthless_observations && features->depthless) {
+    FrameFeatures d = *features->depthless;
+    if (options_.rolling_shutter_readout_s > 0)
+      if (const auto omega = predicted_rotation_rate_rad_per_s())
+        unroll_rotation(&d, *omega, options_.rolling_shutter_readout_s, frame.rgb.rows);
+    in.depthless = TrackedFeatures::from(std::make_shared<const FrameFeatures>(std::move(d)),
+                                         camera_, feature_options);
+  }
   if (options_.rolling_shutter_readout_s > 0) {
     in.extracted = features;
     const auto omega = predicted_rotation_rate_rad_per_s();
@@ -350,13 +359,33 @@ void Tracker::refit_rolling_shutter(FrameInput* in, Attempt* a, TrackResult* out
     rs.row_time_s.push_back((in->extracted->keypoints[k].pt.y - mid_row) * row_s);
     kp_of_obs.push_back(k);
   }
+  const std::size_t n_rgbd = obs.size();
+  if (in->depthless.size() && !a->fit.point_of_depthless.empty()) {
+    // The depthless matches as extracted (in->depthless was rotated by the predicted rate).
+    const TrackedFeatures raw_depthless =
+        TrackedFeatures::from(in->extracted->depthless, camera_, *in->feature_options);
+    for (std::size_t k = 0; k < a->fit.point_of_depthless.size(); ++k) {
+      const int p = a->fit.point_of_depthless[k];
+      if (p < 0) continue;
+      obs.push_back(pose_observation(a->local.points[static_cast<std::size_t>(p)].p_world_m,
+                                     raw_depthless, k, camera_, true));
+      rs.row_time_s.push_back((in->extracted->depthless->keypoints[k].pt.y - mid_row) * row_s);
+      kp_of_obs.push_back(k);
+    }
+  }
   fo.pose.rolling_shutter = std::move(rs);
   const PoseOptimizerResult r = optimize_pose(a->fit.T_cam_world, obs, camera_, fo.pose);
-  if (!r.ok || r.inliers < a->needed) return;
+  int rgbd_inliers = 0;
+  for (std::size_t i = 0; i < n_rgbd; ++i) rgbd_inliers += r.inlier[i] ? 1 : 0;
+  if (!r.ok || rgbd_inliers < a->needed) return;
   a->fit.T_cam_world = r.T_cam_world;
-  for (std::size_t i = 0; i < obs.size(); ++i)
-    if (!r.inlier[i]) a->fit.point_of_keypoint[kp_of_obs[i]] = -1;
-  a->fit.inliers = static_cast<std::size_t>(r.inliers);
+  a->fit.depthless_inliers = 0;
+  for (std::size_t i = 0; i < obs.size(); ++i) {
+    std::vector<int>& matches = i < n_rgbd ? a->fit.point_of_keypoint : a->fit.point_of_depthless;
+    if (!r.inlier[i]) matches[kp_of_obs[i]] = -1;
+    if (r.inlier[i] && i >= n_rgbd) ++a->fit.depthless_inliers;
+  }
+  a->fit.inliers = static_cast<std::size_t>(rgbd_inliers);
   out->rolling_shutter_rate_rad_per_s = r.omega_cam_rad_per_s;
   // The frame as a global shutter at the middle row would have seen it: what a keyframe keeps.
   in->tf = unrolled(*in, r.omega_cam_rad_per_s);
@@ -389,6 +418,7 @@ TrackResult Tracker::track_steps(FrameInput& in, KeyframeAdmission admission) {
     return declare_lost(&out);
   }
   if (options_.rolling_shutter_readout_s > 0) refit_rolling_shutter(&in, &attempt, &out);
+  out.depthless_inliers = attempt.fit.depthless_inliers;
   const Eigen::Isometry3d T_world_cam = attempt.fit.T_cam_world.inverse();
   std::vector<std::int64_t> matched =
       decide_keyframe(in, attempt, T_world_cam, admission.allowed, admission.mapper_idle, &out);
@@ -589,7 +619,7 @@ Tracker::Attempt Tracker::search_local_map(const FrameInput& in,
   out->local_points = a.local.points.size();
   t0 = steady_now_ns();
   if (state_ == TrackingState::kTracking)
-    a.fit = fit_local_map(a.local, in.tf, T_world_pred.inverse(), options_.search.radius_px);
+    a.fit = fit_local_map(a.local, in, T_world_pred.inverse(), options_.search.radius_px);
   out->search_ms = ms_since(t0);
   // After a gap the prediction cannot vouch for, a projection fit is held to the relocalisation
   // bar: the pose is as unconstrained as a keyframe-database guess.
@@ -662,7 +692,7 @@ std::optional<Tracker::Attempt> Tracker::fit_from_keyframes(
     // the first by appearance: while tracking, that is the reference keyframe).
     a.local = build_local_map({}, guess->keyframe);
   }
-  a.fit = fit_local_map(a.local, in.tf, guess->T_world_cam.inverse(), options_.search.radius_px);
+  a.fit = fit_local_map(a.local, in, guess->T_world_cam.inverse(), options_.search.radius_px);
   return a;
 }
 

@@ -152,6 +152,13 @@ struct TrackerOptions {
   double max_acceleration_m_per_s2 = 5.0;
   double motion_bound_baseline_s = 0.1;  ///< MotionBoundOptions::baseline_s
   bool motion_bound = true;              ///< false: the bound is computed and logged, not enforced
+  /// Keypoints without a depth reading (FrameFeatures::depthless) are matched to map points by
+  /// projection and enter the pose fit as (u, v) observations, as ORB-SLAM2 observes its
+  /// monocular keypoints: where the view's far half is beyond the depth range (a far wall) or
+  /// its corners sit on depth holes at occluding edges, those points still fix the rotation,
+  /// which the near points alone leave ambiguous against the position. Their count is reported
+  /// apart; every inlier bar stays on the matches with depth.
+  bool depthless_observations = false;
   double max_velocity_scale =
       5.0;  ///< a gap of more than 5 frame intervals is not extrapolated further
   /// Beyond this gap since the last tracked frame the prediction no longer vouches for the pose:
@@ -307,6 +314,8 @@ struct TrackResult {
   std::size_t local_points = 0;  ///< points in the local map this frame was matched against
   std::size_t matches = 0;       ///< projection matches before the final optimisation
   std::size_t inliers = 0;
+  /// Inliers among the keypoints without depth (TrackerOptions::depthless_observations).
+  std::size_t depthless_inliers = 0;
   double local_map_ms = 0, search_ms = 0, optimise_ms = 0, relocalise_ms = 0;
   /// Wall time this frame spent waiting to acquire the map lock (all acquisitions summed): what a
   /// mapper or loop closer holding it costs the camera-to-command path.
@@ -395,6 +404,9 @@ class Tracker {
     /// has a rolling shutter, TrackerOptions::rolling_shutter_readout_s).
     std::shared_ptr<const FrameFeatures> extracted;
     const FeatureOptions* feature_options = nullptr;
+    /// Keypoints without depth (TrackerOptions::depthless_observations; empty when off), rotated
+    /// by the predicted rate like `tf` before the first fit.
+    TrackedFeatures depthless;
   };
   /// The pose fit under way: the local map it was matched against and the inliers it needs.
   struct Attempt {
@@ -475,7 +487,7 @@ class Tracker {
   LocalMap build_local_map(const std::vector<std::int64_t>& seed_points,
                            std::int64_t fallback_kf) const;
   /// Two-pass projection matching and pose optimisation from a pose guess.
-  Fit fit_local_map(const LocalMap& local, const TrackedFeatures& frame,
+  Fit fit_local_map(const LocalMap& local, const FrameInput& in,
                     const Eigen::Isometry3d& T_cam_world_guess, double first_radius_px) const;
   /// The fit passed the tracking bar but is weak (TrackerOptions::cross_check_tracked_ratio).
   bool cross_check_needed(const Fit& fit) const;
