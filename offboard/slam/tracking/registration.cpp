@@ -119,9 +119,11 @@ ProjectionFit fit_by_projection(const std::vector<LocalPoint>& points, const Tra
   if (!first.ok || first_inliers < 6) return fit;
   // Second pass: keep the inliers, look for more points around the refined projections.
   so.radius_px = options.refine_radius_px;
-  const std::vector<bool> taken_depthless = matched_points(kept_depthless, points.size());
-  const ProjectionMatches m2 =
-      search_by_projection(points, first.T_cam_world, frame, camera, so, &kept, &taken_depthless);
+  // Points the depthless keypoints hold stay theirs; without them (the default) nothing to skip.
+  const std::vector<bool> taken_depthless =
+      depthless ? matched_points(kept_depthless, points.size()) : std::vector<bool>{};
+  const ProjectionMatches m2 = search_by_projection(points, first.T_cam_world, frame, camera, so,
+                                                    &kept, depthless ? &taken_depthless : nullptr);
   std::vector<int> kept2, kept2_depthless;
   const auto [second, second_inliers] =
       optimise(m2.point_of_keypoint,
