@@ -128,7 +128,9 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   po.tracker.gravity.enabled = a.gravity == "on";
   po.tracker.gravity.from_accelerometer = a.gravity_accelerometer == "on";
   po.tracker.confirm_off_path = a.confirm_off_path == "on";
-  po.tracker.depthless_observations = a.depthless_observations == "on";
+  po.tracker.depthless_observations = a.depthless_observations != "off";
+  po.tracker.depthless_map_points = a.depthless_observations == "map";
+  po.mapper.triangulate_depthless = po.tracker.depthless_map_points;
   po.frontend.features.orb_pixel_centres = a.orb_pixel_centres == "on";
   po.map_lock_priority_inheritance = a.map_lock == "pi";
   po.mapper.bundle_adjustment = a.local_ba == "on";
@@ -714,8 +716,9 @@ void add_depth_ablation_options(CLI::App* run, RunArgs& a) {
                   "for calibration ablations");
   run->add_option("--depthless-observations", a.depthless_observations,
                   "localmap: keypoints without a depth reading are matched to map points and "
-                  "fitted as (u, v) observations (ORB-SLAM2's monocular keypoints; docs/slam.md)")
-      ->check(CLI::IsMember({"on", "off"}))
+                  "fitted as (u, v) observations (ORB-SLAM2's monocular keypoints; docs/slam.md); "
+                  "map: keyframes also keep them and the mapper triangulates map points from them")
+      ->check(CLI::IsMember({"on", "off", "map"}))
       ->capture_default_str();
   run->add_option("--max-depth-m", a.max_depth_m,
                   "features whose depth reading is farther than this are not used (m; the Kinect "

@@ -123,9 +123,28 @@ TrackedFeatures TrackedFeatures::from(std::shared_ptr<const FrameFeatures> f,
 
 void SlamMap::add_keyframe(MapKeyframe kf) {
   const std::int64_t id = kf.id;
-  if (kf.point_ids.size() != kf.features.size()) kf.point_ids.assign(kf.features.size(), -1);
+  const std::size_t n = kf.features.size() + kf.depthless.size();
+  if (kf.point_ids.size() != n) kf.point_ids.assign(n, -1);
   keyframes_[id] = std::move(kf);
   ++keyframes_created_;
+}
+
+double MapKeyframe::chi2(int kp, const Eigen::Vector3d& p_world_m, const CameraModel& cam) const {
+  const Eigen::Vector3d pc = T_world_cam.inverse() * p_world_m;
+  if (pc.z() <= 1e-3) return 1e9;
+  const auto k = static_cast<std::size_t>(kp);
+  if (is_depthless(kp)) {
+    const std::size_t j = k - features.size();
+    return ((cam.project(pc).head<2>() - depthless.pixels[j]) / depthless.sigma_px[j])
+        .squaredNorm();
+  }
+  return (cam.project(pc) - features.measurement(k, cam))
+      .cwiseQuotient(features.sigma(k))
+      .squaredNorm();
+}
+
+double MapKeyframe::chi2_bound(int kp) const {
+  return is_depthless(kp) ? kChi2Mono95 : kChi2Rgbd95;
 }
 
 const MapKeyframe* SlamMap::keyframe(std::int64_t id) const {

@@ -148,12 +148,24 @@ struct MapKeyframe {
   double stamp_s = 0;
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
   TrackedFeatures features;
-  std::vector<std::int64_t> point_ids;  ///< per keypoint: map point or -1
+  /// Keypoints without a depth reading (TrackerOptions::depthless_map_points; empty otherwise):
+  /// the mapper triangulates map points from them across keyframes, and they observe those points
+  /// in (u, v) only. They are indexed after `features`: keypoint index features.size() + j is
+  /// depthless keypoint j, in `point_ids` and in MapPoint::observations alike.
+  TrackedFeatures depthless;
+  std::vector<std::int64_t> point_ids;  ///< per keypoint (features, then depthless): point or -1
   cv::Mat thumbnail;                    ///< place-recognition thumbnail (CV_32F), see place_index
   /// The first keyframe of a new map segment (TrackerOptions::restart_when_lost): it and the
   /// keyframes after it share no points with the map before it until the segment is merged.
   /// Not saved with the map: it matters only to the mapper's culling of recent points.
   bool starts_segment = false;
+  bool is_depthless(int kp) const { return static_cast<std::size_t>(kp) >= features.size(); }
+  /// Whitened reprojection error, squared, of `p_world_m` at keypoint `kp`: (u, v, disparity) for a
+  /// keypoint with depth, (u, v) for a depthless one (compare with kChi2Rgbd95 / kChi2Mono95, see
+  /// chi2_bound). 1e9 behind the camera.
+  double chi2(int kp, const Eigen::Vector3d& p_world_m, const CameraModel& cam) const;
+  /// The 95 % chi-square bound of keypoint `kp`'s observation.
+  double chi2_bound(int kp) const;
   /// Gravity measured when the keyframe was made (TrackerOptions::gravity): a roll/pitch factor in
   /// local BA and in the loop-closing graph. Not saved with the map (a loaded map has none).
   std::optional<GravityObservation> gravity;

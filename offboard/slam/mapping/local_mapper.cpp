@@ -5,6 +5,7 @@
 #include <ceres/rotation.h>
 
 #include <algorithm>
+#include <limits>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -15,6 +16,8 @@
 namespace rgbdquad::slam {
 
 namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 /// Gravity factor of one keyframe (slam/core/types.hpp gravity_residual) on its rotation block.
 struct GravityCost {
@@ -46,16 +49,6 @@ Eigen::Isometry3d from_block(const std::array<double, 6>& b) {
   if (angle > 1e-12) T.linear() = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
   T.translation() = Eigen::Vector3d(b[3], b[4], b[5]);
   return T;
-}
-
-double chi2_of(const MapKeyframe& kf, int kp, const Eigen::Vector3d& p_world,
-               const CameraModel& cam) {
-  const Eigen::Vector3d pc = kf.T_world_cam.inverse() * p_world;
-  if (pc.z() <= 1e-3) return 1e9;
-  const auto k = static_cast<std::size_t>(kp);
-  const Eigen::Vector3d e =
-      (cam.project(pc) - kf.features.measurement(k, cam)).cwiseQuotient(kf.features.sigma(k));
-  return e.squaredNorm();
 }
 
 }  // namespace
@@ -130,6 +123,11 @@ bool LocalMapperOptions::is_valid(std::string* error) const {
     return fail("BA window >= 2, iterations >= 1");
   if (!(redundant_fraction > 0 && redundant_fraction <= 1) || redundant_observers < 1)
     return fail("redundancy settings out of range");
+  const TriangulationOptions& t = triangulation;
+  if (t.neighbours < 0 || !(t.max_hamming > 0) || !(t.ratio > 0 && t.ratio <= 1) ||
+      !(t.epipolar_chi2 > 0) || !(t.min_epipole_distance_px >= 0) ||
+      !(t.max_cos_parallax > 0 && t.max_cos_parallax < 1) || !(t.scale_factor >= 1))
+    return fail("triangulation settings out of range");
   return true;
 }
 
@@ -155,6 +153,9 @@ MapperStats LocalMapper::process(std::int64_t kf_id, const KeyframesWaiting& wai
     if (!map_->map.has_keyframe(kf_id)) return stats;
     stats.points_culled = cull_points(kf_id);
   }
+  // ORB-SLAM2 creates new points before it asks whether keyframes wait: the next frames track on
+  // them.
+  if (options_.triangulate_depthless) stats.points_triangulated = triangulate(kf_id);
   // Point culling runs for every keyframe (it judges points by the keyframe count); the rest works
   // on the neighbourhood, which the next keyframe shares.
   stats.caught_up = behind();
@@ -189,9 +190,13 @@ int LocalMapper::cull_points(std::int64_t kf_id) {
     const std::int64_t age = serial_now - p->first_keyframe_serial;
     const bool rarely_found =
         p->visible >= 1 && static_cast<double>(p->found) < options_.min_found_ratio * p->visible;
-    if (rarely_found ||
-        (age >= options_.cull_after_keyframes &&
-         static_cast<int>(p->observations.size()) < options_.min_observing_keyframes)) {
+    int weight = 0;  // observations with depth count 2, without 1 (ORB-SLAM2's stereo rule)
+    for (const auto& [o, kp] : p->observations) {
+      const MapKeyframe* okf = map.keyframe(o);
+      weight += okf && okf->is_depthless(kp) ? 1 : 2;
+    }
+    if (rarely_found || (age >= options_.cull_after_keyframes &&
+                         weight < 2 * options_.min_observing_keyframes - 1)) {
       map.erase_point(pid);
       ++culled;
     } else if (age < options_.cull_after_keyframes + 1) {
@@ -200,6 +205,36 @@ int LocalMapper::cull_points(std::int64_t kf_id) {
   }
   recent_points_ = std::move(keep);
   return culled;
+}
+
+int LocalMapper::triangulate(std::int64_t kf_id) {
+  TriangulationView view;
+  {
+    const auto lock = map_->lock(MapParty::kMapping);
+    view = triangulation_view(map_->map, kf_id, options_.triangulation);
+  }
+  // Matching runs on the copy, off the lock: tracking does not wait for it.
+  const std::vector<TriangulatedPoint> found =
+      triangulate_depthless(view, camera_, options_.triangulation);
+  if (found.empty()) return 0;
+  const auto lock = map_->lock(MapParty::kMapping);
+  SlamMap& map = map_->map;
+  int added = 0;
+  for (const TriangulatedPoint& t : found) {
+    const MapKeyframe* a = map.keyframe(t.kf_a);
+    const MapKeyframe* b = map.keyframe(t.kf_b);
+    // Tracking may have inserted observations meanwhile; a taken keypoint keeps what it has.
+    if (!a || !b || a->point_ids[static_cast<std::size_t>(t.kp_a)] >= 0 ||
+        b->point_ids[static_cast<std::size_t>(t.kp_b)] >= 0)
+      continue;
+    const int row = t.kp_a - static_cast<int>(a->features.size());
+    const std::int64_t pid =
+        map.add_point(t.p_world_m, a->depthless.features->descriptors.row(row), t.kf_a, t.kp_a);
+    map.add_observation(pid, t.kf_b, t.kp_b);
+    recent_points_.push_back(pid);
+    ++added;
+  }
+  return added;
 }
 
 void LocalMapper::fuse(std::int64_t kf_id, MapperStats* stats) {
@@ -263,6 +298,7 @@ struct LocalBaProblem {
     std::int64_t pid;
     Eigen::Vector3d z;
     Eigen::Vector3d sigma;
+    bool monocular = false;  ///< a depthless keypoint: (u, v) only
   };
   std::map<std::int64_t, std::array<double, 6>> poses;
   std::set<std::int64_t> fixed;
@@ -318,6 +354,16 @@ bool collect_local_ba(const SharedMap& shared, std::int64_t kf_id,
       if (!ba->poses.count(o)) continue;
       const MapKeyframe* kf = map.keyframe(o);
       const auto k = static_cast<std::size_t>(kp);
+      if (kf->is_depthless(kp)) {
+        // The disparity row is switched off by an infinite sigma (zero weight, zero Jacobian),
+        // which keeps the 3-residual cost Ceres has fixed-size kernels for.
+        const std::size_t j = k - kf->features.size();
+        const Eigen::Vector2d& px = kf->depthless.pixels[j];
+        const double s = kf->depthless.sigma_px[j];
+        ba->obs.push_back(LocalBaProblem::Obs{o, pid, Eigen::Vector3d(px.x(), px.y(), 0),
+                                              Eigen::Vector3d(s, s, kInfinity), true});
+        continue;
+      }
       ba->obs.push_back(
           LocalBaProblem::Obs{o, pid, kf->features.measurement(k, camera), kf->features.sigma(k)});
     }
@@ -334,9 +380,11 @@ bool solve_local_ba(LocalBaProblem* ba, const CameraModel& camera, int iteration
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem problem(po);
   ceres::HuberLoss huber(std::sqrt(kChi2Rgbd95));
+  ceres::HuberLoss huber_mono(std::sqrt(kChi2Mono95));
   for (const LocalBaProblem::Obs& o : ba->obs) {
     double* pose = ba->poses[o.kf].data();
-    problem.AddResidualBlock(new RgbdReprojectionCost(o.z, o.sigma, camera), &huber, pose, pose + 3,
+    problem.AddResidualBlock(new RgbdReprojectionCost(o.z, o.sigma, camera),
+                             o.monocular ? &huber_mono : &huber, pose, pose + 3,
                              ba->points[o.pid].data());
   }
   // No robust loss: a jolt's sample already carries a large sigma (gravity_prior.hpp).
@@ -387,7 +435,7 @@ void write_back_local_ba(const LocalBaProblem& ba, const CameraModel& camera, Sl
     if (!p || !kf) continue;
     auto it = p->observations.find(o.kf);
     if (it == p->observations.end()) continue;
-    if (chi2_of(*kf, it->second, p->p_world_m, camera) > kChi2Rgbd95) {
+    if (kf->chi2(it->second, p->p_world_m, camera) > kf->chi2_bound(it->second)) {
       map->erase_observation(o.pid, o.kf);
       ++stats->outliers_removed;
     }
@@ -436,7 +484,7 @@ int LocalMapper::cull_keyframes(std::int64_t kf_id) {
     const MapKeyframe* kf = map.keyframe(n);
     if (!kf) continue;
     int points = 0, redundant = 0;
-    for (std::size_t k = 0; k < kf->point_ids.size(); ++k) {
+    for (std::size_t k = 0; k < kf->features.size(); ++k) {  // keypoints with depth
       const MapPoint* p = kf->point_ids[k] >= 0 ? map.point(kf->point_ids[k]) : nullptr;
       if (!p || kf->features.depth_m[k] > options_.near_depth_m) continue;
       ++points;

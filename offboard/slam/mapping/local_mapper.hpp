@@ -1,7 +1,10 @@
 // Local mapping: runs once per new keyframe, off the camera-to-command path. Steps (ORB-SLAM2's
 // LocalMapping order, adapted to RGB-D where every keyframe brings its own depth):
 //  1. cull recently created points that tracking rarely finds (found/visible < 25 %) or that no
-//     second keyframe has observed two keyframes after their creation;
+//     second keyframe has observed two keyframes after their creation (an observation without
+//     depth counts half, as ORB-SLAM2 counts a stereo observation twice: a triangulated point
+//     needs a third keyframe); with `triangulate_depthless`, then triangulate new points from
+//     the keyframe's depthless keypoints and its neighbours' (depthless_triangulation.hpp);
 //  2. fuse: project the new keyframe's points into its covisible keyframes and theirs into it; a
 //     keypoint that already sees another point merges the two, otherwise it gains an observation
 //     (this is what links revisited places and keeps duplicates out);
@@ -28,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "slam/mapping/depthless_triangulation.hpp"
 #include "slam/tracking/tracker.hpp"
 
 namespace rgbdquad::slam {
@@ -47,11 +51,16 @@ struct LocalMapperOptions {
   int redundant_observers = 3;
   double near_depth_m = 3.1;  ///< as TrackerOptions::near_depth_m
   bool bundle_adjustment = true;
+  /// Triangulate map points from the keyframes' depthless keypoints (TrackerOptions::
+  /// depthless_map_points keeps them in keyframes); their observations enter local BA in (u, v).
+  bool triangulate_depthless = false;
+  TriangulationOptions triangulation;
   bool is_valid(std::string* error) const;
 };
 
 struct MapperStats {
   std::int64_t keyframe = -1;
+  int points_triangulated = 0;
   int points_culled = 0, points_fused = 0, observations_added = 0, outliers_removed = 0;
   int keyframes_culled = 0, ba_keyframes = 0, ba_fixed = 0, ba_points = 0;
   bool ba_discarded = false;  ///< a loop correction moved the map while the BA was solving
@@ -87,6 +96,7 @@ class LocalMapper {
   LocalMapper(LocalMapperOptions o, CameraModel c, std::shared_ptr<SharedMap> m)
       : options_(std::move(o)), camera_(c), map_(std::move(m)) {}
   int cull_points(std::int64_t kf_id);
+  int triangulate(std::int64_t kf_id);
   void fuse(std::int64_t kf_id, MapperStats* stats);
   void bundle_adjust(std::int64_t kf_id, const KeyframesWaiting& waiting, MapperStats* stats);
   int cull_keyframes(std::int64_t kf_id);

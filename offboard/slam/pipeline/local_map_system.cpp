@@ -429,7 +429,9 @@ std::unique_ptr<LocalMapSystem> LocalMapSystem::create(const PipelineOptions& op
   if (!extractor) return nullptr;
   auto tracker = Tracker::create(to, cam, s->map_, error);
   if (!tracker) return nullptr;
-  auto mapper = LocalMapper::create(opts.mapper, cam, s->map_, error);
+  LocalMapperOptions mo = opts.mapper;
+  mo.triangulation.scale_factor = features.orb_scale_factor;
+  auto mapper = LocalMapper::create(mo, cam, s->map_, error);
   if (!mapper) return nullptr;
   std::optional<LoopCloser> closer;
   if (opts.loop_closing && opts.frontend.features.kind == DetectorKind::kOrb) {

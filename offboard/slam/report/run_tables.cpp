@@ -70,12 +70,13 @@ bool write_keyframe_tables(const fs::path& out_dir, const std::vector<MapperStat
                            std::string* error) {
   std::ofstream mapping_csv(out_dir / "mapping.csv");
   mapping_csv << "keyframe,mapping_ms,mapping_cpu_ms,ba_ms,ba_points,points_culled,points_fused,"
-                 "keyframes_culled,caught_up,ba_interrupted\n";
+                 "keyframes_culled,caught_up,ba_interrupted,points_triangulated\n";
   for (const auto& st : mapper_stats)
     mapping_csv << st.keyframe << "," << std::fixed << std::setprecision(3) << st.total_ms << ","
                 << st.total_cpu_ms << "," << st.ba_ms << "," << st.ba_points << ","
                 << st.points_culled << "," << st.points_fused << "," << st.keyframes_culled << ","
-                << (st.caught_up ? 1 : 0) << "," << (st.ba_interrupted ? 1 : 0) << "\n";
+                << (st.caught_up ? 1 : 0) << "," << (st.ba_interrupted ? 1 : 0) << ","
+                << st.points_triangulated << "\n";
   std::ofstream loops_csv(out_dir / "loops.csv");
   loops_csv
       << "keyframe,searched,candidates,verified_ransac,accepted,loop_keyframe,ransac_inliers,"

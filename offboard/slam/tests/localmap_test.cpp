@@ -13,30 +13,12 @@
 #include "slam/tracking/pose_optimizer.hpp"
 #include "slam/tracking/projection_search.hpp"
 #include "slam/tracking/registration.hpp"
+#include "synthetic_scene.hpp"
 
 namespace rgbdquad::slam {
 namespace {
 
-CameraModel fr1_camera() { return CameraModel::from(Intrinsics{}); }
-
-Eigen::Isometry3d pose(double rx, double ry, double rz, double tx, double ty, double tz) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = (Eigen::AngleAxisd(rz, Eigen::Vector3d::UnitZ()) *
-                Eigen::AngleAxisd(ry, Eigen::Vector3d::UnitY()) *
-                Eigen::AngleAxisd(rx, Eigen::Vector3d::UnitX()))
-                   .toRotationMatrix();
-  T.translation() = Eigen::Vector3d(tx, ty, tz);
-  return T;
-}
-
-/// Points spread in front of the world camera, 1-3 m deep.
-std::vector<Eigen::Vector3d> scene(int n, std::uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> xy(-1.0, 1.0), z(1.0, 3.0);
-  std::vector<Eigen::Vector3d> pts;
-  for (int i = 0; i < n; ++i) pts.emplace_back(xy(rng), 0.75 * xy(rng), z(rng));
-  return pts;
-}
+using namespace synthetic;  // NOLINT(build/namespaces): the scene helpers
 
 std::vector<PoseObservation> observe(const std::vector<Eigen::Vector3d>& pts,
                                      const Eigen::Isometry3d& T_cam_world, const CameraModel& cam,
@@ -382,43 +364,6 @@ TEST(PoseOptimizer, TooFewObservationsIsNotOk) {
 }
 
 /// A frame whose keypoints are exact projections of `pts` with distinct binary descriptors.
-struct SyntheticFrame {
-  std::shared_ptr<FrameFeatures> features = std::make_shared<FrameFeatures>();
-  TrackedFeatures tracked;
-};
-
-cv::Mat random_descriptors(int n, std::uint32_t seed) {
-  cv::Mat d(n, 32, CV_8U);
-  cv::RNG rng(seed);
-  rng.fill(d, cv::RNG::UNIFORM, 0, 256);
-  return d;
-}
-
-SyntheticFrame make_frame(const std::vector<Eigen::Vector3d>& pts,
-                          const Eigen::Isometry3d& T_cam_world, const cv::Mat& desc,
-                          const CameraModel& cam) {
-  SyntheticFrame f;
-  FeatureOptions fo;
-  fo.kind = DetectorKind::kOrb;
-  std::vector<int> rows;
-  for (std::size_t i = 0; i < pts.size(); ++i) {
-    const Eigen::Vector3d pc = T_cam_world * pts[i];
-    const Eigen::Vector3d uvd = cam.project(pc);
-    if (pc.z() <= 0 || !cam.in_image(uvd.x(), uvd.y())) continue;
-    f.features->keypoints.emplace_back(
-        cv::Point2f(static_cast<float>(uvd.x()), static_cast<float>(uvd.y())),
-        static_cast<float>(fo.orb_patch_size));
-    f.features->points_cam_m.push_back(pc);
-    f.features->colours_bgr.emplace_back(0, 0, 0);
-    rows.push_back(static_cast<int>(i));
-  }
-  f.features->descriptors.create(static_cast<int>(rows.size()), desc.cols, desc.type());
-  for (std::size_t r = 0; r < rows.size(); ++r)
-    desc.row(rows[r]).copyTo(f.features->descriptors.row(static_cast<int>(r)));
-  f.tracked = TrackedFeatures::from(f.features, cam, fo);
-  return f;
-}
-
 TEST(ProjectionSearch, MatchesEachPointToItsOwnKeypointUnderASmallPoseError) {
   // GIVEN map points with descriptors, and a frame seeing them from a pose 1 cm off the prediction
   const CameraModel cam = fr1_camera();
@@ -475,10 +420,7 @@ TEST(FitByProjection, DepthlessKeypointsJoinTheFitAndEachPointIsMatchedOnce) {
   }
   const SyntheticFrame with_depth = make_frame(near, truth, near_desc, cam);
   SyntheticFrame depthless = make_frame(far, truth, far_desc, cam);
-  for (Eigen::Vector3d& p : depthless.features->points_cam_m) p /= p.z();
-  FeatureOptions fo;
-  fo.kind = DetectorKind::kOrb;
-  depthless.tracked = TrackedFeatures::from(depthless.features, cam, fo);
+  drop_depth(&depthless, cam);
   std::vector<LocalPoint> local;
   for (int i = 0; i < 200; ++i)
     local.push_back(LocalPoint{i, pts[static_cast<std::size_t>(i)], desc.row(i)});

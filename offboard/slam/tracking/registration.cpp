@@ -12,7 +12,7 @@ KeyframePoints keyframe_points(const SlamMap& map, std::int64_t kf_id) {
   if (!kf) return out;
   out.keyframe = kf_id;
   std::vector<int> rows;
-  for (std::size_t k = 0; k < kf->point_ids.size(); ++k) {
+  for (std::size_t k = 0; k < kf->features.size(); ++k) {  // keypoints with depth: RANSAC's pairs
     const MapPoint* p = kf->point_ids[k] >= 0 ? map.point(kf->point_ids[k]) : nullptr;
     if (!p) continue;
     out.p_world_m.push_back(p->p_world_m);

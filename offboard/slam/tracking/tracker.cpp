@@ -104,6 +104,8 @@ bool TrackerOptions::is_valid(std::string* error) const {
   if (!(max_attitude_disagreement_deg >= 0))
     return fail("max_attitude_disagreement_deg must be >= 0 (0: off)");
   if (!gravity.is_valid(error)) return false;
+  if (depthless_map_points && !depthless_observations)
+    return fail("depthless_map_points needs depthless_observations");
   if (!(rolling_shutter_readout_s >= 0 && rolling_shutter_readout_s < 0.1))
     return fail("rolling_shutter_readout_s must be in [0, 0.1) s");
   if (!(rolling_shutter_angular_accel_rad_per_s2 > 0))
@@ -223,9 +225,10 @@ std::optional<Tracker::KeyframeGuess> Tracker::pose_from_keyframes(
 }
 
 std::int64_t Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf,
-                                      const cv::Mat& thumbnail,
+                                      const TrackedFeatures& depthless, const cv::Mat& thumbnail,
                                       const Eigen::Isometry3d& T_world_cam, const LocalMap& local,
-                                      const std::vector<int>& point_of_keypoint) {
+                                      const std::vector<int>& point_of_keypoint,
+                                      const std::vector<int>& point_of_depthless) {
   MapKeyframe kf;
   const auto lock = lock_map();
   SlamMap& map = map_->map;
@@ -237,6 +240,7 @@ std::int64_t Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatu
   kf.stamp_s = frame.stamp_s;
   kf.T_world_cam = T_world_cam;
   kf.features = tf;
+  if (options_.depthless_map_points) kf.depthless = depthless;
   kf.thumbnail = thumbnail;
   kf.gravity = frame_gravity_;
   // Near features without a map point become points, nearest first; at least min_new_points.
@@ -257,6 +261,12 @@ std::int64_t Tracker::insert_keyframe(const RgbdFrame& frame, const TrackedFeatu
     const std::int64_t pid = local.points[static_cast<std::size_t>(point_of_keypoint[k])].id;
     if (map.has_point(pid)) map.add_observation(pid, id, static_cast<int>(k));
   }
+  if (options_.depthless_map_points)
+    for (std::size_t k = 0; k < point_of_depthless.size() && k < depthless.size(); ++k) {
+      if (point_of_depthless[k] < 0) continue;
+      const std::int64_t pid = local.points[static_cast<std::size_t>(point_of_depthless[k])].id;
+      if (map.has_point(pid)) map.add_observation(pid, id, static_cast<int>(tf.size() + k));
+    }
   int created = 0;
   for (int k : fresh) {
     const auto ks = static_cast<std::size_t>(k);
@@ -296,12 +306,10 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
                 &feature_options,
                 TrackedFeatures{}};
   if (options_.depthless_observations && features->depthless) {
-    FrameFeatures d = *features->depthless;
-    if (options_.rolling_shutter_readout_s > 0)
-      if (const auto omega = predicted_rotation_rate_rad_per_s())
-        unroll_rotation(&d, *omega, options_.rolling_shutter_readout_s, frame.rgb.rows);
-    in.depthless = TrackedFeatures::from(std::make_shared<const FrameFeatures>(std::move(d)),
-                                         camera_, feature_options);
+    const auto omega = options_.rolling_shutter_readout_s > 0 ? predicted_rotation_rate_rad_per_s()
+                                                              : std::optional<Eigen::Vector3d>{};
+    in.depthless = omega ? unrolled(*features->depthless, in, *omega)
+                         : TrackedFeatures::from(features->depthless, camera_, feature_options);
   }
   if (options_.rolling_shutter_readout_s > 0) {
     in.extracted = features;
@@ -319,7 +327,12 @@ TrackResult Tracker::track(const RgbdFrame& frame, std::shared_ptr<const FrameFe
 
 TrackedFeatures Tracker::unrolled(const FrameInput& in,
                                   const Eigen::Vector3d& omega_cam_rad_per_s) const {
-  FrameFeatures f = *in.extracted;
+  return unrolled(*in.extracted, in, omega_cam_rad_per_s);
+}
+
+TrackedFeatures Tracker::unrolled(const FrameFeatures& extracted, const FrameInput& in,
+                                  const Eigen::Vector3d& omega_cam_rad_per_s) const {
+  FrameFeatures f = extracted;
   unroll_rotation(&f, omega_cam_rad_per_s, options_.rolling_shutter_readout_s, in.frame.rgb.rows);
   return TrackedFeatures::from(std::make_shared<const FrameFeatures>(std::move(f)), camera_,
                                *in.feature_options);
@@ -389,6 +402,8 @@ void Tracker::refit_rolling_shutter(FrameInput* in, Attempt* a, TrackResult* out
   out->rolling_shutter_rate_rad_per_s = r.omega_cam_rad_per_s;
   // The frame as a global shutter at the middle row would have seen it: what a keyframe keeps.
   in->tf = unrolled(*in, r.omega_cam_rad_per_s);
+  if (options_.depthless_map_points && in->depthless.size())
+    in->depthless = unrolled(*in->extracted->depthless, *in, r.omega_cam_rad_per_s);
 }
 
 TrackResult Tracker::track_steps(FrameInput& in, KeyframeAdmission admission) {
@@ -438,7 +453,8 @@ TrackResult Tracker::initialise(const FrameInput& in) {
   if (static_cast<int>(in.tf.size()) < options_.min_init_features) return out;
   const Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
   last_q_nav_cam_ = in.frame.q_nav_cam;
-  out.keyframe_id = insert_keyframe(in.frame, in.tf, in.thumbnail, T_world_cam, LocalMap{}, {});
+  out.keyframe_id =
+      insert_keyframe(in.frame, in.tf, in.depthless, in.thumbnail, T_world_cam, LocalMap{}, {}, {});
   state_ = TrackingState::kTracking;
   T_world_last_ = T_world_cam;
   last_pose_known_ = true;
@@ -500,7 +516,8 @@ TrackResult Tracker::start_segment(const FrameInput& in, const RestartPose& star
   // tracking goes on at once. Loop closing joins the segment to the keyframes it does not share
   // points with when it recognises their place.
   segment_keyframes_ = 0;
-  out.keyframe_id = insert_keyframe(in.frame, in.tf, in.thumbnail, T_world_guess, LocalMap{}, {});
+  out.keyframe_id = insert_keyframe(in.frame, in.tf, in.depthless, in.thumbnail, T_world_guess,
+                                    LocalMap{}, {}, {});
   // A segment started inside a segment not yet merged extends it: both move as one when merged.
   if (!segment_first_kf_) segment_first_kf_ = out.keyframe_id;
   last_merge_try_s_ = in.frame.stamp_s;
@@ -847,8 +864,8 @@ std::vector<std::int64_t> Tracker::decide_keyframe(const FrameInput& in, const A
     if (auto T_kf = map.resolve_pose(reference_kf_)) out->T_kf_cam = T_kf->inverse() * T_world_cam;
   }
   if (make_keyframe) {
-    out->keyframe_id =
-        insert_keyframe(in.frame, in.tf, in.thumbnail, T_world_cam, a.local, fit.point_of_keypoint);
+    out->keyframe_id = insert_keyframe(in.frame, in.tf, in.depthless, in.thumbnail, T_world_cam,
+                                       a.local, fit.point_of_keypoint, fit.point_of_depthless);
     out->keyframe = true;
     out->reference_keyframe = out->keyframe_id;
     out->T_kf_cam = Eigen::Isometry3d::Identity();

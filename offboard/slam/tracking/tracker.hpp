@@ -159,6 +159,11 @@ struct TrackerOptions {
   /// which the near points alone leave ambiguous against the position. Their count is reported
   /// apart; every inlier bar stays on the matches with depth.
   bool depthless_observations = false;
+  /// Keyframes keep their depthless keypoints (and the matches tracking made to them), so that
+  /// the mapper can triangulate map points from them (LocalMapperOptions::triangulate_depthless):
+  /// the far wall that no depth reading reaches gets points for the observations above to match.
+  /// Needs depthless_observations.
+  bool depthless_map_points = false;
   double max_velocity_scale =
       5.0;  ///< a gap of more than 5 frame intervals is not extrapolated further
   /// Beyond this gap since the last tracked frame the prediction no longer vouches for the pose:
@@ -420,6 +425,9 @@ class Tracker {
   /// Rolling shutter: the frame's features rotated to the middle row's time by the rotation
   /// rate `omega_cam_rad_per_s`, from the features as extracted.
   TrackedFeatures unrolled(const FrameInput& in, const Eigen::Vector3d& omega_cam_rad_per_s) const;
+  /// The same for other features of the frame (its depthless keypoints).
+  TrackedFeatures unrolled(const FrameFeatures& extracted, const FrameInput& in,
+                           const Eigen::Vector3d& omega_cam_rad_per_s) const;
   /// Rolling shutter: refits the accepted pose on its inlier matches with the camera's angular
   /// velocity over the readout as three more unknowns (RollingShutterModel), and keeps the
   /// frame's features unrolled by that rate.
@@ -502,9 +510,12 @@ class Tracker {
                                                    const std::vector<std::int64_t>& candidates,
                                                    std::uint64_t seed) const;
   /// Inserts the keyframe and its new points; returns its id.
+  /// `depthless` and `point_of_depthless` are kept only with depthless_map_points.
   std::int64_t insert_keyframe(const RgbdFrame& frame, const TrackedFeatures& tf,
-                               const cv::Mat& thumbnail, const Eigen::Isometry3d& T_world_cam,
-                               const LocalMap& local, const std::vector<int>& point_of_keypoint);
+                               const TrackedFeatures& depthless, const cv::Mat& thumbnail,
+                               const Eigen::Isometry3d& T_world_cam, const LocalMap& local,
+                               const std::vector<int>& point_of_keypoint,
+                               const std::vector<int>& point_of_depthless);
 
   /// Locks the map, adding the wait to `lock_wait_ms_` (reset per frame by track()).
   std::unique_lock<MapMutex> lock_map() const;
