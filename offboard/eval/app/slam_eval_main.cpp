@@ -128,9 +128,7 @@ std::optional<slam::PipelineOptions> pipeline_options(const RunArgs& a, std::str
   po.tracker.gravity.enabled = a.gravity == "on";
   po.tracker.gravity.from_accelerometer = a.gravity_accelerometer == "on";
   po.tracker.confirm_off_path = a.confirm_off_path == "on";
-  po.tracker.depthless_observations = a.depthless_observations != "off";
-  po.tracker.depthless_map_points = a.depthless_observations == "map";
-  po.mapper.triangulate_depthless = po.tracker.depthless_map_points;
+  po.set_depthless_observations(a.depthless_observations);
   po.frontend.features.orb_pixel_centres = a.orb_pixel_centres == "on";
   po.map_lock_priority_inheritance = a.map_lock == "pi";
   po.mapper.bundle_adjustment = a.local_ba == "on";

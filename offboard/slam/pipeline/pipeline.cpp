@@ -38,6 +38,12 @@ const char* to_string(PipelineMode m) {
   return "?";
 }
 
+void PipelineOptions::set_depthless_observations(const std::string& mode) {
+  tracker.depthless_observations = mode != "off";
+  tracker.depthless_map_points = mode == "map";
+  mapper.triangulate_depthless = tracker.depthless_map_points;
+}
+
 bool PipelineOptions::is_valid(std::string* error) const {
   if (!frontend.is_valid(error) || !backend.is_valid(error)) return false;
   if (!(checkpoint_period_s >= 0)) {

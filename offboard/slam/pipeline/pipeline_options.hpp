@@ -95,6 +95,9 @@ struct PipelineOptions {
   /// frames, binary and options the poses are the recorded run's bit for bit; a replay that leaves
   /// the record runs free from there (PipelineSummary::lock_schedule says where).
   std::string lock_schedule_replay_path;
+  /// `--depthless-observations`: "off", "on" (tracking fits them) or "map" (keyframes keep them
+  /// and the mapper triangulates points from them); the tracker and mapper fields together.
+  void set_depthless_observations(const std::string& mode);
   bool is_valid(std::string* error) const;
 };
 

@@ -279,6 +279,8 @@ struct ServerArgs {
   double checkpoint_period_s = slam::PipelineOptions{}.checkpoint_period_s;
   std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off";
   std::string restart_when_lost = slam::TrackerOptions{}.restart_when_lost ? "on" : "off";
+  std::string depthless_observations =
+      slam::TrackerOptions{}.depthless_observations ? "on" : "off";
   std::string cross_check = "on";
   std::string confirm_off_path = slam::TrackerOptions{}.confirm_off_path ? "on" : "off";
   std::string gravity = slam::TrackerOptions{}.gravity.enabled ? "on" : "off";
@@ -358,6 +360,12 @@ void add_tracking_options(CLI::App& app, ServerArgs& a) {
                  "(docs/slam.md); off: it stays lost until relocalised")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
+  app.add_option("--depthless-observations", a.depthless_observations,
+                 "localmap: keypoints without a depth reading are fitted as (u, v) observations; "
+                 "map: keyframes also keep them and the mapper triangulates points from them "
+                 "(docs/slam.md)")
+      ->check(CLI::IsMember({"on", "off", "map"}))
+      ->capture_default_str();
   app.add_option("--cross-check", a.cross_check,
                  "localmap: cross-check weak fits against the reference keyframe (docs/slam.md); "
                  "off for ablations")
@@ -411,6 +419,7 @@ std::optional<slam::PipelineOptions> pipeline_options(ServerArgs& a) {
   options.loop_closing = a.loop_closing == "on";
   if (a.cross_check == "off") options.tracker.cross_check_tracked_ratio = 0;
   options.tracker.restart_when_lost = a.restart_when_lost == "on";
+  options.set_depthless_observations(a.depthless_observations);
   options.tracker.confirm_off_path = a.confirm_off_path == "on";
   options.tracker.gravity.enabled = a.gravity == "on";
   options.tracker.gravity.from_accelerometer = a.gravity_accelerometer == "on";
