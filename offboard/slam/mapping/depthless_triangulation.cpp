@@ -73,7 +73,8 @@ void triangulate_pair(const TriangulationKeyframe& a, const TriangulationKeyfram
       const double s2 = b.depthless.sigma_px[j] * b.depthless.sigma_px[j];
       const double dist = line.dot(px.homogeneous());
       if (dist * dist / norm2 >= o.epipolar_chi2 * s2) continue;
-      if (epipole_ahead && (px - epipole).norm() < o.min_epipole_distance_px * b.depthless.sigma_px[j])
+      if (epipole_ahead &&
+          (px - epipole).norm() < o.min_epipole_distance_px * b.depthless.sigma_px[j])
         continue;
       const double d = descriptor_distance(row_a, db.row(static_cast<int>(j)));
       if (d < best) {

@@ -60,8 +60,8 @@ TwoKeyframes two_keyframes(const Eigen::Isometry3d& T_world_b, const cv::Mat& fa
   EXPECT_EQ(a->features.size(), 30u);
   EXPECT_EQ(b->features.size(), 30u);
   for (int k = 0; k < 30; ++k) {
-    const std::int64_t pid = t.map.add_point(near[static_cast<std::size_t>(k)],
-                                             near_desc.row(k), 1, k);
+    const std::int64_t pid =
+        t.map.add_point(near[static_cast<std::size_t>(k)], near_desc.row(k), 1, k);
     t.map.add_observation(pid, 2, k);
   }
   return t;
@@ -70,7 +70,8 @@ TwoKeyframes two_keyframes(const Eigen::Isometry3d& T_world_b, const cv::Mat& fa
 /// The far point whose projection in keyframe `id` is keypoint `kp` (depthless range).
 std::size_t truth_of(const TwoKeyframes& t, std::int64_t id, int kp, const CameraModel& cam) {
   const MapKeyframe* kf = t.map.keyframe(id);
-  const Eigen::Vector2d px = kf->depthless.pixels[static_cast<std::size_t>(kp) - kf->features.size()];
+  const Eigen::Vector2d px =
+      kf->depthless.pixels[static_cast<std::size_t>(kp) - kf->features.size()];
   std::size_t best = 0;
   double best_d = 1e300;
   for (std::size_t i = 0; i < t.far.size(); ++i) {
@@ -100,7 +101,8 @@ TEST(TriangulateLinear, RecoversAPointSeenFromTwoCameras) {
 TEST(TriangulateDepthless, AFarWallSeenFromTwoKeyframesBecomesPointsEachFromItsOwnKeypoints) {
   // GIVEN two keyframes 0.4 m apart, turned 3 deg, seeing a wall 5-8 m away without depth
   const CameraModel cam = fr1_camera();
-  const TwoKeyframes t = two_keyframes(pose(0, 0.05, 0, 0.4, 0.02, 0.1), random_descriptors(120, 44));
+  const TwoKeyframes t =
+      two_keyframes(pose(0, 0.05, 0, 0.4, 0.02, 0.1), random_descriptors(120, 44));
   // WHEN the newer keyframe is triangulated against its covisible one
   const TriangulationOptions o;
   const TriangulationView view = triangulation_view(t.map, 2, o);
@@ -108,8 +110,8 @@ TEST(TriangulateDepthless, AFarWallSeenFromTwoKeyframesBecomesPointsEachFromItsO
   const auto points = triangulate_depthless(view, cam, o);
   // THEN most wall points seen by both come back, at their place, each from one keypoint pair
   // whose keypoints are that point's projections
-  const std::size_t in_both = std::min(t.map.keyframe(1)->depthless.size(),
-                                       t.map.keyframe(2)->depthless.size());
+  const std::size_t in_both =
+      std::min(t.map.keyframe(1)->depthless.size(), t.map.keyframe(2)->depthless.size());
   EXPECT_GE(points.size(), in_both * 3 / 4);
   std::set<int> used_a, used_b;
   for (const TriangulatedPoint& p : points) {
@@ -127,10 +129,12 @@ TEST(TriangulateDepthless, NothingWithinTheStereoBaselineOrWithForeignDescriptor
   const CameraModel cam = fr1_camera();
   const TriangulationOptions o;
   // GIVEN keyframes 5 cm apart: less than the camera's own baseline (bf / fx = 7.7 cm)
-  const TwoKeyframes close = two_keyframes(pose(0, 0.05, 0, 0.05, 0, 0), random_descriptors(120, 44));
+  const TwoKeyframes close =
+      two_keyframes(pose(0, 0.05, 0, 0.05, 0, 0), random_descriptors(120, 44));
   EXPECT_TRUE(triangulate_depthless(triangulation_view(close.map, 2, o), cam, o).empty());
   // AND keyframes far enough apart whose depthless descriptors share nothing
-  const TwoKeyframes foreign = two_keyframes(pose(0, 0.05, 0, 0.4, 0.02, 0.1), random_descriptors(120, 99));
+  const TwoKeyframes foreign =
+      two_keyframes(pose(0, 0.05, 0, 0.4, 0.02, 0.1), random_descriptors(120, 99));
   EXPECT_TRUE(triangulate_depthless(triangulation_view(foreign.map, 2, o), cam, o).empty());
 }
 
@@ -158,11 +162,11 @@ TEST(MapIo, DepthlessObservationsAndThePointsOnlyTheyHoldAreNotSaved) {
   const auto points = triangulate_depthless(triangulation_view(t.map, 2, o), cam, o);
   ASSERT_FALSE(points.empty());
   const TriangulatedPoint& w = points.front();
-  const std::int64_t wall = t.map.add_point(
-      w.p_world_m,
-      t.map.keyframe(2)->depthless.features->descriptors.row(
-          w.kp_a - static_cast<int>(t.map.keyframe(2)->features.size())),
-      w.kf_a, w.kp_a);
+  const std::int64_t wall =
+      t.map.add_point(w.p_world_m,
+                      t.map.keyframe(2)->depthless.features->descriptors.row(
+                          w.kp_a - static_cast<int>(t.map.keyframe(2)->features.size())),
+                      w.kf_a, w.kp_a);
   t.map.add_observation(wall, w.kf_b, w.kp_b);
   ASSERT_EQ(t.map.keyframe(1)->point_ids[static_cast<std::size_t>(w.kp_b)], wall);
   ASSERT_EQ(t.map.points().size(), 31u);

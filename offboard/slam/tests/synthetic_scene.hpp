@@ -1,5 +1,5 @@
-// Synthetic scenes for the local-map SLAM's unit tests: poses, points in front of a camera, ORB-like
-// random descriptors, and frames whose keypoints are those points' exact projections.
+// Synthetic scenes for the local-map SLAM's unit tests: poses, points in front of a camera,
+// ORB-like random descriptors, and frames whose keypoints are those points' exact projections.
 #pragma once
 
 #include <cmath>
@@ -47,8 +47,8 @@ inline cv::Mat random_descriptors(int n, std::uint32_t seed) {
 }
 
 inline SyntheticFrame make_frame(const std::vector<Eigen::Vector3d>& pts,
-                          const Eigen::Isometry3d& T_cam_world, const cv::Mat& desc,
-                          const CameraModel& cam) {
+                                 const Eigen::Isometry3d& T_cam_world, const cv::Mat& desc,
+                                 const CameraModel& cam) {
   SyntheticFrame f;
   FeatureOptions fo;
   fo.kind = DetectorKind::kOrb;
