@@ -437,7 +437,8 @@ TrackResult Tracker::track_steps(FrameInput& in, KeyframeAdmission admission) {
   const Eigen::Isometry3d T_world_cam = attempt.fit.T_cam_world.inverse();
   std::vector<std::int64_t> matched =
       decide_keyframe(in, attempt, T_world_cam, admission.allowed, admission.mapper_idle, &out);
-  advance(in.frame, T_world_cam, std::move(matched), &out);
+  // A cross-check that replaced a relocalised fit continues from a tracked frame.
+  advance(in.frame, T_world_cam, std::move(matched), !out.relocalised || out.cross_checked, &out);
   if (segment_first_kf_ && options_.segment_merge_period_s > 0 &&
       in.frame.stamp_s - last_merge_try_s_ >= options_.segment_merge_period_s)
     merge_segment(in, &out);
@@ -539,8 +540,10 @@ TrackResult Tracker::start_segment(const FrameInput& in, const RestartPose& star
     corrections_seen_ = ++map_->corrections;
     out.map_corrections = corrections_seen_;
   }
-  // The motion model carries on: the camera did not stop because the fit failed.
-  advance(in.frame, T_world_guess, {}, &out);
+  // The motion model carries on: the camera did not stop because the fit failed, and the segment
+  // starts at the motion model's pose even when the failed attempt had relocalised (that pose
+  // was refused; the velocity before it still holds).
+  advance(in.frame, T_world_guess, {}, true, &out);
   const auto lock = lock_map();
   out.map_keyframes = map_->map.keyframes().size();
   out.map_points = map_->map.points().size();
@@ -887,11 +890,11 @@ void Tracker::count_visibility(const LocalMap& local, const Eigen::Isometry3d& T
 }
 
 void Tracker::advance(const RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam,
-                      std::vector<std::int64_t> matched_points, TrackResult* out) {
-  // Motion model over the last interval (not across a relocalisation; a cross-check that replaced
-  // the fit continues from a tracked frame, so its motion is the corrected step).
+                      std::vector<std::int64_t> matched_points, bool continues_motion,
+                      TrackResult* out) {
+  // Motion model over the last interval (not across a relocalisation).
   const double dt = frame.stamp_s - last_stamp_s_;
-  if (state_ == TrackingState::kTracking && (!out->relocalised || out->cross_checked) && dt > 0) {
+  if (state_ == TrackingState::kTracking && continues_motion && dt > 0) {
     T_last_cur_velocity_ = T_world_last_.inverse() * T_world_cam;
     last_interval_s_ = dt;
     have_velocity_ = true;

@@ -489,8 +489,10 @@ class Tracker {
   /// Counts the local points in view at the fitted pose (map locked by the caller).
   void count_visibility(const LocalMap& local, const Eigen::Isometry3d& T_cam_world);
   /// The frame is tracked: motion model, motion bound and last-frame state move on to it.
+  /// `continues_motion`: the pose follows on from the last tracked frame's (not a relocalisation),
+  /// so the step between them is the camera's motion.
   void advance(const RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam,
-               std::vector<std::int64_t> matched_points, TrackResult* out);
+               std::vector<std::int64_t> matched_points, bool continues_motion, TrackResult* out);
   /// Local keyframes and their points (locks the map). `seed_points`: points of the last frame.
   LocalMap build_local_map(const std::vector<std::int64_t>& seed_points,
                            std::int64_t fallback_kf) const;
