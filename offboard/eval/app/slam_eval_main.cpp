@@ -63,7 +63,7 @@ struct RunArgs {
               align_depth_time = slam::TrackerOptions{}.align_depth_time ? "on" : "off",
               confirm_off_path = slam::TrackerOptions{}.confirm_off_path ? "on" : "off",
               orb_pixel_centres = "on",
-              depthless_observations = slam::TrackerOptions{}.depthless_observations ? "on" : "off";
+              depthless_observations = slam::PipelineOptions{}.depthless_observations();
   double depth_units_per_m = 0;
   double max_depth_m = slam::FeatureOptions{}.max_depth_m;
   double colour_stamp_lag_s = slam::TrackerOptions{}.colour_stamp_lag_s;

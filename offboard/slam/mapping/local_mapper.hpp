@@ -53,7 +53,7 @@ struct LocalMapperOptions {
   bool bundle_adjustment = true;
   /// Triangulate map points from the keyframes' depthless keypoints (TrackerOptions::
   /// depthless_map_points keeps them in keyframes); their observations enter local BA in (u, v).
-  bool triangulate_depthless = false;
+  bool triangulate_depthless = true;
   TriangulationOptions triangulation;
   bool is_valid(std::string* error) const;
 };

@@ -44,6 +44,11 @@ void PipelineOptions::set_depthless_observations(const std::string& mode) {
   mapper.triangulate_depthless = tracker.depthless_map_points;
 }
 
+std::string PipelineOptions::depthless_observations() const {
+  if (tracker.depthless_map_points && mapper.triangulate_depthless) return "map";
+  return tracker.depthless_observations ? "on" : "off";
+}
+
 bool PipelineOptions::is_valid(std::string* error) const {
   if (!frontend.is_valid(error) || !backend.is_valid(error)) return false;
   if (!(checkpoint_period_s >= 0)) {

@@ -98,6 +98,8 @@ struct PipelineOptions {
   /// `--depthless-observations`: "off", "on" (tracking fits them) or "map" (keyframes keep them
   /// and the mapper triangulates points from them); the tracker and mapper fields together.
   void set_depthless_observations(const std::string& mode);
+  /// The mode the tracker and mapper fields say (the default's name for --help).
+  std::string depthless_observations() const;
   bool is_valid(std::string* error) const;
 };
 

@@ -279,7 +279,7 @@ struct ServerArgs {
   double checkpoint_period_s = slam::PipelineOptions{}.checkpoint_period_s;
   std::string loop_closing = slam::PipelineOptions{}.loop_closing ? "on" : "off";
   std::string restart_when_lost = slam::TrackerOptions{}.restart_when_lost ? "on" : "off";
-  std::string depthless_observations = slam::TrackerOptions{}.depthless_observations ? "on" : "off";
+  std::string depthless_observations = slam::PipelineOptions{}.depthless_observations();
   std::string cross_check = "on";
   std::string confirm_off_path = slam::TrackerOptions{}.confirm_off_path ? "on" : "off";
   std::string gravity = slam::TrackerOptions{}.gravity.enabled ? "on" : "off";
