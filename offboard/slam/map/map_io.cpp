@@ -108,6 +108,42 @@ std::uint64_t fnv1a64(const std::uint8_t* data, std::size_t n) {
   return h;
 }
 
+namespace {
+
+/// The map points with their observations. Depthless keypoints are not saved
+/// (FrameFeatures::depthless), nor their observations; a point seen only by them goes with them.
+void write_points(const SlamMap& map, std::size_t descriptor_bytes, Writer* out) {
+  Writer& w = *out;
+  const auto saved_observations = [&](const MapPoint& p) {
+    std::vector<std::pair<std::int64_t, int>> kept;
+    for (const auto& [kf, kp] : p.observations)
+      if (const MapKeyframe* k = map.keyframe(kf); k && !k->is_depthless(kp))
+        kept.emplace_back(kf, kp);
+    return kept;
+  };
+  std::size_t saved_points = 0;
+  for (const auto& [id, p] : map.points()) saved_points += saved_observations(p).empty() ? 0 : 1;
+  w.put<std::uint64_t>(saved_points);
+  for (const auto& [id, p] : map.points()) {
+    const auto observations = saved_observations(p);
+    if (observations.empty()) continue;
+    w.put<std::int64_t>(p.id);
+    for (int a = 0; a < 3; ++a) w.put<double>(p.p_world_m[a]);
+    w.raw(p.descriptor.ptr(), descriptor_bytes);
+    w.put<std::int64_t>(p.first_keyframe);
+    w.put<std::int64_t>(p.first_keyframe_serial);
+    w.put<std::int32_t>(p.visible);
+    w.put<std::int32_t>(p.found);
+    w.put<std::uint64_t>(observations.size());
+    for (const auto& [kf, kp] : observations) {
+      w.put<std::int64_t>(kf);
+      w.put<std::int32_t>(kp);
+    }
+  }
+}
+
+}  // namespace
+
 bool save_map(const std::string& path, const SlamMap& map, const MapFileContext& ctx,
               std::string* error, std::uint64_t map_corrections) {
   const std::uint16_t probe = 1;
@@ -155,34 +191,7 @@ bool save_map(const std::string& path, const SlamMap& map, const MapFileContext&
     w.put<std::uint8_t>(thumb ? 1 : 0);
     if (thumb) w.raw(kf.thumbnail.ptr(), kThumbnailCols * kThumbnailRows * sizeof(float));
   }
-  // Depthless keypoints are not saved (FrameFeatures::depthless), nor their observations; a
-  // point seen only by them goes with them.
-  const auto saved_observations = [&](const MapPoint& p) {
-    std::vector<std::pair<std::int64_t, int>> out;
-    for (const auto& [kf, kp] : p.observations)
-      if (const MapKeyframe* k = map.keyframe(kf); k && !k->is_depthless(kp))
-        out.emplace_back(kf, kp);
-    return out;
-  };
-  std::size_t saved_points = 0;
-  for (const auto& [id, p] : map.points()) saved_points += saved_observations(p).empty() ? 0 : 1;
-  w.put<std::uint64_t>(saved_points);
-  for (const auto& [id, p] : map.points()) {
-    const auto observations = saved_observations(p);
-    if (observations.empty()) continue;
-    w.put<std::int64_t>(p.id);
-    for (int a = 0; a < 3; ++a) w.put<double>(p.p_world_m[a]);
-    w.raw(p.descriptor.ptr(), static_cast<std::size_t>(cols) * elem);
-    w.put<std::int64_t>(p.first_keyframe);
-    w.put<std::int64_t>(p.first_keyframe_serial);
-    w.put<std::int32_t>(p.visible);
-    w.put<std::int32_t>(p.found);
-    w.put<std::uint64_t>(observations.size());
-    for (const auto& [kf, kp] : observations) {
-      w.put<std::int64_t>(kf);
-      w.put<std::int32_t>(kp);
-    }
-  }
+  write_points(map, static_cast<std::size_t>(cols) * elem, &w);
   w.put<std::uint64_t>(map.culled().size());
   for (const auto& [id, c2] : map.culled()) {
     w.put<std::int64_t>(id);
