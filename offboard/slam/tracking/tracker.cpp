@@ -402,8 +402,6 @@ void Tracker::refit_rolling_shutter(FrameInput* in, Attempt* a, TrackResult* out
   out->rolling_shutter_rate_rad_per_s = r.omega_cam_rad_per_s;
   // The frame as a global shutter at the middle row would have seen it: what a keyframe keeps.
   in->tf = unrolled(*in, r.omega_cam_rad_per_s);
-  if (options_.depthless_map_points && in->depthless.size())
-    in->depthless = unrolled(*in->extracted->depthless, *in, r.omega_cam_rad_per_s);
 }
 
 TrackResult Tracker::track_steps(FrameInput& in, KeyframeAdmission admission) {
@@ -867,7 +865,14 @@ std::vector<std::int64_t> Tracker::decide_keyframe(const FrameInput& in, const A
     if (auto T_kf = map.resolve_pose(reference_kf_)) out->T_kf_cam = T_kf->inverse() * T_world_cam;
   }
   if (make_keyframe) {
-    out->keyframe_id = insert_keyframe(in.frame, in.tf, in.depthless, in.thumbnail, T_world_cam,
+    // The depthless keypoints a keyframe keeps are unrolled by the refitted rate, as in.tf was;
+    // here rather than in the refit, since only keyframes keep them.
+    const bool refitted = options_.depthless_map_points && in.depthless.size() && in.extracted &&
+                          out->rolling_shutter_rate_rad_per_s;
+    const TrackedFeatures depthless =
+        refitted ? unrolled(*in.extracted->depthless, in, *out->rolling_shutter_rate_rad_per_s)
+                 : in.depthless;
+    out->keyframe_id = insert_keyframe(in.frame, in.tf, depthless, in.thumbnail, T_world_cam,
                                        a.local, fit.point_of_keypoint, fit.point_of_depthless);
     out->keyframe = true;
     out->reference_keyframe = out->keyframe_id;
