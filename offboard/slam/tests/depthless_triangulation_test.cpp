@@ -128,10 +128,21 @@ TEST(TriangulateDepthless, AFarWallSeenFromTwoKeyframesBecomesPointsEachFromItsO
 TEST(TriangulateDepthless, NothingWithinTheStereoBaselineOrWithForeignDescriptors) {
   const CameraModel cam = fr1_camera();
   const TriangulationOptions o;
-  // GIVEN keyframes 5 cm apart: less than the camera's own baseline (bf / fx = 7.7 cm)
+  // GIVEN keyframes 5 cm apart: less than the camera's own baseline (bf / fx = 7.7 cm). The
+  // parallax gate is opened so that only the baseline can refuse them: 10 cm apart, the same
+  // settings do triangulate.
+  TriangulationOptions any_parallax;
+  any_parallax.max_cos_parallax = 1 - 1e-12;
   const TwoKeyframes close =
       two_keyframes(pose(0, 0.05, 0, 0.05, 0, 0), random_descriptors(120, 44));
-  EXPECT_TRUE(triangulate_depthless(triangulation_view(close.map, 2, o), cam, o).empty());
+  EXPECT_TRUE(
+      triangulate_depthless(triangulation_view(close.map, 2, any_parallax), cam, any_parallax)
+          .empty());
+  const TwoKeyframes apart =
+      two_keyframes(pose(0, 0.05, 0, 0.10, 0, 0), random_descriptors(120, 44));
+  EXPECT_FALSE(
+      triangulate_depthless(triangulation_view(apart.map, 2, any_parallax), cam, any_parallax)
+          .empty());
   // AND keyframes far enough apart whose depthless descriptors share nothing
   const TwoKeyframes foreign =
       two_keyframes(pose(0, 0.05, 0, 0.4, 0.02, 0.1), random_descriptors(120, 99));
